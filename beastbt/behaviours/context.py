@@ -1,0 +1,92 @@
+"""What every behaviour is handed: the clock, the control parameters, what the robot has, the event log.
+
+Behaviours never reach for globals: the compiler builds one
+:class:`MissionContext` per run and passes it to each leaf.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Optional
+
+from beastbt.runtime.clock import Clock
+from beastbt.runtime.events import EventLog
+
+
+@dataclass
+class ControlParams:
+    """Tuning of the motion behaviours, as in a Nav2 parameter file (SI units).
+
+    Set in a robot profile under ``control:``; every field has a default that
+    suits a small tracked robot at walking pace.
+    """
+
+    default_speed_mps: float = 0.2
+    """Speed of drive/go_to when the step gives none (m/s)."""
+    default_turn_rate_rps: float = math.radians(60.0)
+    """Top turn rate of turn steps when none is given (rad/s)."""
+    decel_mps2: float = 0.3
+    """Deceleration planned at the end of a drive, so it stops on the mark (m/s^2)."""
+    min_drive_speed_mps: float = 0.03
+    """Slowest creeping speed at the end of a drive, so it never stalls short (m/s)."""
+    heading_gain: float = 2.0
+    """Heading hold while driving straight: turn rate per radian of heading error (1/s)."""
+    turn_gain: float = 2.5
+    """Turning in place: turn rate per radian of remaining angle (1/s)."""
+    min_turn_rate_rps: float = 0.2
+    """Slowest turn rate commanded while turning in place; tracks stall below it (rad/s)."""
+    turn_tolerance_rad: float = math.radians(3.0)
+    """A turn is done within this angle of its target (rad). The language says 3 deg."""
+    drive_tolerance_m: float = 0.005
+    """A drive is done this close to its distance (m)."""
+    still_speed_mps: float = 0.01
+    """Below this forward speed the robot counts as still (m/s)."""
+    still_turn_rps: float = 0.03
+    """Below this turn rate the robot counts as still (rad/s)."""
+    stuck_progress_m: float = 0.02
+    """Progress smaller than this within stuck_after counts as no progress (m)."""
+    stuck_progress_rad: float = math.radians(1.0)
+    """Turning progress smaller than this within stuck_after counts as none (rad)."""
+    default_stuck_after_s: float = 5.0
+    """How long without progress before a motion step fails (s). The language says 5 s."""
+    default_settle_s: float = 0.5
+    """How long a servo is given to reach its angle (s). The language says 0.5 s."""
+    sensor_max_age_s: float = 0.5
+    """Data older than this is stale and not trusted by behaviours (s)."""
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "ControlParams":
+        """Build from a profile's ``control:`` mapping (keys are field names, SI values)."""
+        names = {f.name for f in fields(cls)}
+        unknown = set(d) - names
+        if unknown:
+            raise ValueError(f"unknown control parameter(s): {', '.join(sorted(unknown))}")
+        return cls(**d)
+
+
+@dataclass
+class MissionContext:
+    """Everything a behaviour may use besides the blackboard.
+
+    ``servo_names``: the servos this robot has (``pan``, ``tilt``...);
+    ``capabilities``: which sensors exist (``gps``, ``camera``, ``joystick``, ``imu``);
+    ``speed_limit_mps``/``turn_rate_limit_rps``: the tightest of mission and robot limits;
+    ``run_dir``: where snapshots go (None: not recorded).
+    """
+
+    clock: Clock
+    events: EventLog
+    params: ControlParams = field(default_factory=ControlParams)
+    servo_names: frozenset[str] = frozenset()
+    capabilities: frozenset[str] = frozenset()
+    speed_limit_mps: float = 1.0
+    turn_rate_limit_rps: float = math.pi
+    run_dir: Optional[Path] = None
+    services: dict[str, Any] = field(default_factory=dict)
+    """Optional services by name, provided by the runtime (``snapshot``, ``places``, ``frame``...)."""
+
+    def now(self) -> float:
+        """The current time in seconds."""
+        return self.clock.now()

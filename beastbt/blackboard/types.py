@@ -1,0 +1,188 @@
+"""The values that travel on the blackboard, each stamped with when it was measured.
+
+Units are SI and frames follow ROS conventions: the local world frame is
+east-north-up (x east, y north, yaw counter-clockwise from east, radians); the
+body frame is x forward, y left. Every reading has ``stamp_s``: the clock time
+at which it was measured (or received, when the device gives no better time).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class GpsFix:
+    """One GPS position with a valid fix (no fix means no GpsFix at all).
+
+    Latitude and longitude in decimal degrees (WGS84), altitude above mean sea
+    level in metres, ``quality`` the NMEA GGA fix quality (1 GPS, 2 DGPS,
+    4 RTK fixed, 5 RTK float...), ``hdop`` unitless, ``speed_mps`` and
+    ``track_deg`` (true course over ground, clockwise from north) when the
+    receiver gave them. ``covariance_enu`` is the 3x3 position covariance in
+    m^2 (east, north, up), never zero.
+    """
+
+    stamp_s: float
+    lat: float
+    lon: float
+    alt_msl: Optional[float] = None
+    quality: int = 1
+    sats: Optional[int] = None
+    hdop: Optional[float] = None
+    speed_mps: Optional[float] = None
+    track_deg: Optional[float] = None
+    time_utc: Optional[str] = None
+    sentence: str = "GGA"
+    covariance_enu: tuple[tuple[float, float, float], ...] = ((9.0, 0, 0), (0, 9.0, 0), (0, 0, 36.0))
+
+
+@dataclass(frozen=True)
+class ImuSample:
+    """One IMU sample in the body frame (x forward, y left, z up).
+
+    ``gyro_rps`` in rad/s (bias already removed when the driver estimated it),
+    ``accel_mps2`` in m/s^2 (gravity included: +9.81 on z at rest),
+    ``mag_t`` in tesla or None when there is no magnetometer reading,
+    ``temperature_c`` in degrees Celsius.
+    """
+
+    stamp_s: float
+    gyro_rps: tuple[float, float, float]
+    accel_mps2: tuple[float, float, float]
+    mag_t: Optional[tuple[float, float, float]] = None
+    temperature_c: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class WheelOdometry:
+    """Cumulative wheel travel from the base controller.
+
+    ``left_m``/``right_m``: distance each side has rolled since the base
+    started, metres (forward positive). ``left_mps``/``right_mps``: the
+    measured wheel speeds, m/s.
+    """
+
+    stamp_s: float
+    left_m: float
+    right_m: float
+    left_mps: float = 0.0
+    right_mps: float = 0.0
+
+
+@dataclass(frozen=True)
+class BatteryState:
+    """Battery voltage in volts."""
+
+    stamp_s: float
+    voltage_v: float
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A planar pose in the local ENU frame: metres and radians (yaw CCW from east)."""
+
+    x: float
+    y: float
+    yaw: float
+
+
+@dataclass(frozen=True)
+class FusedPose:
+    """The estimator's output.
+
+    ``x``, ``y`` metres east/north of the local origin; ``yaw`` rad CCW from
+    east; ``speed_mps`` forward speed; ``yaw_rate_rps`` rad/s CCW;
+    ``covariance`` 3x3 over (x, y, yaw) in m^2/rad^2; ``distance_m`` the
+    odometric path length travelled (always increasing); ``heading_valid``
+    false until the heading is known (e.g. before the first metres of motion
+    without a magnetometer); ``position_valid`` false until there is a
+    position in the world (GPS or datum). ``lat``/``lon`` the same position in
+    WGS84 degrees when the local origin is georeferenced.
+    """
+
+    stamp_s: float
+    x: float
+    y: float
+    yaw: float
+    speed_mps: float = 0.0
+    yaw_rate_rps: float = 0.0
+    covariance: tuple[tuple[float, float, float], ...] = ((0.0, 0, 0), (0, 0.0, 0), (0, 0, 0.0))
+    distance_m: float = 0.0
+    heading_valid: bool = True
+    position_valid: bool = True
+    lat: Optional[float] = None
+    lon: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class VelocityCommand:
+    """A body velocity command: ``linear_mps`` forward, ``angular_rps`` CCW (rad/s)."""
+
+    linear_mps: float = 0.0
+    angular_rps: float = 0.0
+    stamp_s: float = 0.0
+    source: str = "mission"
+
+    def is_zero(self) -> bool:
+        """True when the command asks for no motion at all."""
+        return self.linear_mps == 0.0 and self.angular_rps == 0.0
+
+
+@dataclass(frozen=True)
+class ServoCommand:
+    """Point a named servo (``pan``, ``tilt``, ``gripper``...) at ``angle_rad``.
+
+    Alternatively ``channel`` and ``pulse_s`` address a PWM channel directly.
+    """
+
+    name: Optional[str] = None
+    angle_rad: Optional[float] = None
+    channel: Optional[int] = None
+    pulse_s: Optional[float] = None
+    stamp_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class LineObservation:
+    """What the line detector saw in one camera frame (body frame, metres/radians).
+
+    ``offset_m``: lateral offset of the line from the robot's centreline at the
+    look-ahead distance, positive to the left. ``angle_rad``: the line's
+    direction relative to the robot's heading, positive CCW. ``width_m``: the
+    apparent line width. ``confidence`` 0-1. ``intersection``: a crossing,
+    T or Y is in view; ``intersection_distance_m``: how far ahead of the robot
+    centre it is, when known. ``line_end``: the line ends in view.
+    """
+
+    stamp_s: float
+    seen: bool
+    offset_m: float = 0.0
+    angle_rad: float = 0.0
+    width_m: float = 0.0
+    confidence: float = 0.0
+    intersection: bool = False
+    intersection_distance_m: Optional[float] = None
+    line_end: bool = False
+
+
+@dataclass(frozen=True)
+class JoystickState:
+    """The joystick as the teleop logic sees it: named axes (-1..1) and buttons."""
+
+    stamp_s: float
+    axes: dict = field(default_factory=dict)
+    buttons: dict = field(default_factory=dict)
+    connected: bool = True
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken."""
+
+    stamp_s: float
+    image: np.ndarray
+    seq: int = 0

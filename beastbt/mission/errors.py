@@ -1,0 +1,65 @@
+"""Problems found in a user's file, each with a position, and how they are reported.
+
+Every problem a user can cause is a :class:`Problem`: file, line and column
+(1-based), what is wrong, what was expected and a hint. They are printed as
+``FILE:LINE:COLUMN: error: ...`` and collected so that all the problems of a
+file are reported in one run.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from typing import Iterable, Optional
+
+
+@dataclass(frozen=True, order=True)
+class Position:
+    """A place in a file: 1-based line and column."""
+
+    line: int = 1
+    column: int = 1
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One error in a user's file."""
+
+    file: str
+    position: Position
+    message: str
+    hint: Optional[str] = None
+
+    def format(self) -> str:
+        """Render as ``FILE:LINE:COLUMN: error: message`` plus an indented hint line."""
+        text = f"{self.file}:{self.position.line}:{self.position.column}: error: {self.message}"
+        if self.hint:
+            text += f"\n    hint: {self.hint}"
+        return text
+
+
+@dataclass
+class InvalidInput(Exception):
+    """Raised when a mission, profile or world has problems; carries all of them, sorted."""
+
+    problems: list[Problem] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.problems = sorted(set(self.problems), key=lambda p: (p.file, p.position, p.message))
+        super().__init__(self.format())
+
+    def format(self) -> str:
+        """All problems, one per line (hints indented below)."""
+        return "\n".join(p.format() for p in self.problems)
+
+
+def closest(word: str, choices: Iterable[str]) -> Optional[str]:
+    """The valid word closest to a misspelt ``word``, or None when nothing is close."""
+    matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return matches[0] if matches else None
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` when a close valid word exists, else ``""``."""
+    best = closest(word, choices)
+    return f"; did you mean '{best}'?" if best else ""

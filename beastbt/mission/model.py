@@ -1,0 +1,389 @@
+"""The mission model: a validated mission with every value in SI units and its source position.
+
+:func:`load_mission` reads a mission file (or text), checks it against
+``schemas/mission.schema.json``, then checks what a schema cannot: values that
+must be positive, references to tasks and places, tasks that call themselves.
+Every problem found is collected and raised together as
+:class:`~beastbt.mission.errors.InvalidInput`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Union
+
+from beastbt.mission.errors import InvalidInput, Problem, did_you_mean
+from beastbt.mission.schema_check import schema_problems
+from beastbt.mission.units import parse_count, parse_quantity
+from beastbt.mission.yaml_source import PathKey, SourceDoc, load_yaml
+
+HOME = "home"
+"""The reserved place name for where the mission started (its first good GPS fix)."""
+
+STEP_KEYWORDS = (
+    "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
+    "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
+    "wait_until",
+)
+
+
+@dataclass(frozen=True)
+class Place:
+    """A named GPS place: WGS84 degrees and an arrival tolerance in metres."""
+
+    name: str
+    lat: float
+    lon: float
+    tolerance_m: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step as written: its keyword, its raw value and where it sits in the document."""
+
+    kind: str
+    value: Any
+    path: PathKey
+
+
+@dataclass(frozen=True)
+class Failsafe:
+    """A failsafe: ``kind`` (gps_lost, battery_low, geofence), its SI parameters and its action."""
+
+    kind: str
+    then: str
+    params: dict
+    path: PathKey
+
+
+@dataclass
+class Mission:
+    """A mission that passed every check, ready to compile.
+
+    Durations in seconds, speeds in m/s, angles in radians, rates in hertz.
+    """
+
+    name: str
+    file: str
+    doc: SourceDoc
+    description: str = ""
+    world: Optional[Path] = None
+    rate_hz: float = 20.0
+    speed_limit_mps: Optional[float] = None
+    turn_rate_limit_rps: Optional[float] = None
+    accel_limit_mps2: Optional[float] = None
+    places: dict[str, Place] = field(default_factory=dict)
+    tasks: dict[str, list[Step]] = field(default_factory=dict)
+    steps: list[Step] = field(default_factory=list)
+    on_failure: str = "stop"
+    teleop_override: bool = True
+    teleop_on_release: str = "resume"
+    failsafes: list[Failsafe] = field(default_factory=list)
+
+    def quantity(self, path: PathKey, kind: str, default: Optional[float] = None) -> Optional[float]:
+        """The value at ``path`` of the document converted to SI (``default`` when absent)."""
+        node: Any = self.doc.data
+        for part in path:
+            try:
+                node = node[part]
+            except (KeyError, IndexError, TypeError):
+                return default
+        return parse_quantity(node, kind)
+
+
+def step_of(value: Any, path: PathKey) -> Step:
+    """Name the step written at ``path`` (a bare word like ``stop`` or a one-keyword mapping)."""
+    if isinstance(value, str):
+        return Step(value, None, path)
+    for key in value:
+        if key in STEP_KEYWORDS:
+            return Step(key, value[key], path)
+    raise ValueError(f"not a step: {value!r}")
+
+
+def steps_of(values: list, path: PathKey) -> list[Step]:
+    """The steps of a list at ``path``."""
+    return [step_of(v, path + (i,)) for i, v in enumerate(values)]
+
+
+def _accel(value: Union[str, float]) -> float:
+    if isinstance(value, (int, float)):
+        return float(value)
+    return float(value.strip().split()[0].replace("m/s2", ""))
+
+
+class _SemanticChecker:
+    """Checks the rules a schema cannot express, collecting positioned problems."""
+
+    POSITIVE = {"speed": "speed", "rate": "turn_rate", "tolerance": "distance", "within": "distance",
+                "radius": "distance", "after": "duration", "time": "duration", "for": "duration",
+                "stuck_after": "duration", "gps_timeout": "duration", "lost_after": "duration"}
+
+    def __init__(self, doc: SourceDoc) -> None:
+        self.doc = doc
+        self.data = doc.data
+        self.problems: list[Problem] = []
+        self.places = set((self.data.get("places") or {}).keys()) | {HOME}
+        self.tasks = self.data.get("tasks") or {}
+
+    def error(self, path: PathKey, message: str, hint: Optional[str] = None, key: bool = False) -> None:
+        self.problems.append(self.doc.problem(path, message, hint, key=key))
+
+    def run(self) -> list[Problem]:
+        d = self.data
+        if "rate" in d:
+            hz = parse_quantity(d["rate"], "frequency")
+            if not 1.0 <= hz <= 100.0:
+                self.error(("rate",), f"rate {hz:g} Hz is out of range: the tree is ticked at 1 to 100 Hz", "20 Hz is usual")
+        for key, kind in (("speed", "speed"), ("turn_rate", "turn_rate")):
+            if key in (d.get("limits") or {}):
+                self.positive(("limits", key), kind)
+        if "acceleration" in (d.get("limits") or {}) and _accel(d["limits"]["acceleration"]) <= 0:
+            self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
+        for name, task in self.tasks.items():
+            self.walk_steps(task, ("tasks", name))
+        self.walk_steps(d.get("steps") or [], ("steps",))
+        self.check_recursion()
+        for kind, spec in (d.get("failsafes") or {}).items():
+            path = ("failsafes", kind)
+            for k in spec:
+                if k in self.POSITIVE:
+                    self.positive(path + (k,), self.POSITIVE[k])
+            if kind == "geofence":
+                self.place_ref(path + ("center",), spec["center"])
+            if kind == "battery_low":
+                self.positive(path + ("below",), "voltage")
+        return self.problems
+
+    def run_guarded(self) -> list[Problem]:
+        """Like :meth:`run`, but tolerant of a document the schema rejected (checks what it can)."""
+        if not isinstance(self.data, dict):
+            return []
+        if not isinstance(self.data.get("places") or {}, dict) or not isinstance(self.tasks, dict):
+            self.places, self.tasks = {HOME}, {}
+        try:
+            return self.run()
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError):
+            return self.problems
+
+    def positive(self, path: PathKey, kind: str, allow_zero: bool = False) -> None:
+        value = self.get(path)
+        try:
+            si = parse_quantity(value, kind)
+        except ValueError:
+            return  # a malformed value is the schema's to report
+
+        if si < 0 or (si == 0 and not allow_zero):
+            word = "zero or negative" if not allow_zero else "negative"
+            self.error(path, f"{path[-1]} must be greater than zero, got {value!r} ({word})",
+                       f"write a positive {kind.replace('_', ' ')} such as "
+                       + {"speed": "'0.2 m/s'", "turn_rate": "'45 deg/s'", "distance": "'2 m'", "duration": "'2 s'",
+                          "voltage": "'11 V'"}.get(kind, "1"))
+
+    def get(self, path: PathKey) -> Any:
+        node = self.data
+        for part in path:
+            node = node[part]
+        return node
+
+    def place_ref(self, path: PathKey, name: str) -> None:
+        if name not in self.places:
+            known = sorted(self.places - {HOME})
+            self.error(path, f"unknown place '{name}'{did_you_mean(name, self.places)}",
+                       f"places are defined under 'places:' ({', '.join(known) or 'none yet'}); 'home' is where the mission started")
+
+    def walk_steps(self, steps: Any, path: PathKey) -> None:
+        if not isinstance(steps, list):
+            return
+        for i, raw in enumerate(steps):
+            try:
+                self.check_step(step_of(raw, path + (i,)))
+            except (KeyError, TypeError, ValueError, AttributeError, IndexError):
+                # The schema has already reported what is malformed here; these checks
+                # only add what it cannot see, so a step it rejected is skipped.
+                continue
+
+    def check_step(self, s: Step) -> None:
+        p = s.path + (s.kind,)
+        v = s.value
+        if s.kind == "drive":
+            if "speed" in v:
+                self.positive(p + ("speed",), "speed")
+            if "distance" in v and parse_quantity(v["distance"], "distance") == 0:
+                self.error(p + ("distance",), "drive distance is zero", "write how far to drive, e.g. '3 m' (negative drives backwards)")
+            if "time" in v:
+                self.positive(p + ("time",), "duration")
+            if "stuck_after" in v:
+                self.positive(p + ("stuck_after",), "duration")
+        elif s.kind == "turn":
+            if "rate" in v:
+                self.positive(p + ("rate",), "turn_rate")
+            if "heading" in v:
+                h = math.degrees(parse_quantity(v["heading"], "angle"))
+                if not 0 <= h <= 360:
+                    self.error(p + ("heading",), f"heading {h:g} deg is out of range: a compass heading is 0 to 360 deg",
+                               "0 deg is north, 90 deg east")
+        elif s.kind == "wait":
+            self.positive(p, "duration", allow_zero=True)
+        elif s.kind in ("go_to", "route", "return_home"):
+            if isinstance(v, str):
+                self.place_ref(p, v)
+            elif isinstance(v, dict):
+                for k in ("speed", "tolerance", "gps_timeout", "stuck_after"):
+                    if k in v:
+                        self.positive(p + (k,), self.POSITIVE[k])
+                if s.kind == "go_to":
+                    if "place" in v:
+                        self.place_ref(p + ("place",), v["place"])
+                        if "lat" in v or "lon" in v:
+                            self.error(p, "go_to takes either a place or lat/lon, not both")
+                    elif not ("lat" in v and "lon" in v):
+                        self.error(p, "go_to needs a place name, or both 'lat' and 'lon'",
+                                   "write 'go_to: gate' or 'go_to: {lat: 40.4168, lon: -3.7038}'")
+                for j, name in enumerate(v.get("places", [])):
+                    self.place_ref(p + ("places", j), name)
+        elif s.kind == "follow_line":
+            for k in ("speed", "lost_after"):
+                if k in v:
+                    self.positive(p + (k,), self.POSITIVE[k])
+            until = v.get("until")
+            if isinstance(until, dict):
+                k = next(iter(until))
+                self.positive(p + ("until", k), "distance" if k == "distance" else "duration")
+        elif s.kind in ("look", "servo") and isinstance(v, dict) and "settle" in v:
+            self.positive(p + ("settle",), "duration", allow_zero=True)
+        elif s.kind == "teleop" and "for" in v:
+            self.positive(p + ("for",), "duration")
+        elif s.kind == "do":
+            if v not in self.tasks:
+                self.error(p, f"unknown task '{v}'{did_you_mean(v, self.tasks)}",
+                           f"tasks are defined under 'tasks:' ({', '.join(sorted(self.tasks)) or 'none yet'})")
+        elif s.kind in ("repeat", "retry"):
+            self.walk_steps(v["steps"], p + ("steps",))
+        elif s.kind == "timeout":
+            self.positive(p + ("after",), "duration")
+            self.walk_steps(v["steps"], p + ("steps",))
+        elif s.kind == "parallel":
+            self.walk_steps(v["steps"], p + ("steps",))
+        elif s.kind == "first_of":
+            for j, alt in enumerate(v):
+                self.walk_steps(alt, p + (j,))
+        elif s.kind == "if":
+            self.check_condition(v, p)
+            raw = self.get(s.path)
+            self.walk_steps(raw["then"], s.path + ("then",))
+            if "else" in raw:
+                self.walk_steps(raw["else"], s.path + ("else",))
+        elif s.kind == "while":
+            self.check_condition(v, p)
+            self.walk_steps(self.get(s.path)["steps"], s.path + ("steps",))
+        elif s.kind == "wait_until":
+            self.check_condition(v, p)
+            if "timeout" in self.get(s.path):
+                self.positive(s.path + ("timeout",), "duration")
+
+    def check_condition(self, c: Any, path: PathKey) -> None:
+        if isinstance(c, dict):
+            if "near" in c:
+                self.place_ref(path + ("near",), c["near"])
+                if "within" in c:
+                    self.positive(path + ("within",), "distance")
+            if "battery_below" in c:
+                self.positive(path + ("battery_below",), "voltage")
+            if "not" in c:
+                self.check_condition(c["not"], path + ("not",))
+            for key in ("all", "any"):
+                for j, sub in enumerate(c.get(key, [])):
+                    self.check_condition(sub, path + (key, j))
+
+    def task_calls(self, steps: list, path: PathKey) -> list[tuple[str, PathKey]]:
+        """Every (task, position) that a step list calls with ``do``, at any depth."""
+        out: list[tuple[str, PathKey]] = []
+
+        def visit(node: Any, p: PathKey) -> None:
+            if isinstance(node, dict):
+                for k, val in node.items():
+                    if k == "do" and isinstance(val, str):
+                        out.append((val, p + ("do",)))
+                    else:
+                        visit(val, p + (k,))
+            elif isinstance(node, list):
+                for j, item in enumerate(node):
+                    visit(item, p + (j,))
+
+        visit(steps, path)
+        return out
+
+    def check_recursion(self) -> None:
+        calls = {name: self.task_calls(steps, ("tasks", name)) for name, steps in self.tasks.items()}
+        reported: set[str] = set()
+        for start in self.tasks:
+            stack = [(start, [start])]
+            seen: set[str] = set()
+            while stack:
+                task, chain = stack.pop()
+                for callee, pos in calls.get(task, []):
+                    if callee == start and start not in reported:
+                        reported.add(start)
+                        cycle = " -> ".join(chain + [callee])
+                        self.error(pos, f"task '{start}' calls itself ({cycle})",
+                                   "a task may not run itself, directly or through other tasks; use 'repeat' to run steps again")
+                    elif callee in calls and callee not in seen:
+                        seen.add(callee)
+                        stack.append((callee, chain + [callee]))
+
+
+def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None) -> Mission:
+    """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
+    doc = load_yaml(path, text=text, display_name=display_name)
+    problems = schema_problems(doc, "mission.schema.json", "mission")
+    problems += _SemanticChecker(doc).run_guarded()
+    if problems:
+        raise InvalidInput(problems)
+    return _build(doc, Path(path))
+
+
+def _build(doc: SourceDoc, path: Path) -> Mission:
+    d = doc.data
+    limits = d.get("limits") or {}
+    base = path.parent if str(path) else Path(".")
+    m = Mission(name=d["mission"], file=doc.file, doc=doc, description=d.get("description", ""))
+    if "world" in d:
+        m.world = (base / d["world"]).resolve() if not Path(d["world"]).is_absolute() else Path(d["world"])
+    m.rate_hz = parse_quantity(d.get("rate", 20), "frequency")
+    if "speed" in limits:
+        m.speed_limit_mps = parse_quantity(limits["speed"], "speed")
+    if "turn_rate" in limits:
+        m.turn_rate_limit_rps = parse_quantity(limits["turn_rate"], "turn_rate")
+    if "acceleration" in limits:
+        m.accel_limit_mps2 = _accel(limits["acceleration"])
+    for name, place in (d.get("places") or {}).items():
+        tol = parse_quantity(place["tolerance"], "distance") if "tolerance" in place else None
+        m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
+    for name, steps in (d.get("tasks") or {}).items():
+        m.tasks[name] = steps_of(steps, ("tasks", name))
+    m.steps = steps_of(d["steps"], ("steps",))
+    m.on_failure = d.get("on_failure", "stop")
+    teleop = d.get("teleop", True)
+    if isinstance(teleop, dict):
+        m.teleop_override = True
+        m.teleop_on_release = teleop.get("on_release", "resume")
+    else:
+        m.teleop_override = bool(teleop)
+    for kind, spec in (d.get("failsafes") or {}).items():
+        params: dict[str, Any] = {}
+        if kind == "gps_lost":
+            params["after_s"] = parse_quantity(spec.get("after", 3), "duration")
+        elif kind == "battery_low":
+            params["below_v"] = parse_quantity(spec["below"], "voltage")
+            params["for_s"] = parse_quantity(spec.get("for", 10), "duration")
+        elif kind == "geofence":
+            params["center"] = spec["center"]
+            params["radius_m"] = parse_quantity(spec["radius"], "distance")
+        m.failsafes.append(Failsafe(kind, spec["then"], params, ("failsafes", kind)))
+    return m
+
+
+__all__ = ["Mission", "Place", "Step", "Failsafe", "load_mission", "step_of", "steps_of", "parse_count", "HOME"]

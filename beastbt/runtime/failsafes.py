@@ -1,0 +1,96 @@
+"""Failsafes: conditions watched on every tick, above the mission and before it.
+
+Each :class:`FailsafeWatch` turns a mission ``failsafes:`` entry into a test
+and a state (armed, triggered). The runner acts on what :meth:`FailsafeMonitor.check`
+returns: ``stop`` ends the mission as failed, ``hold`` stops the robot until
+the condition clears and then resumes, ``return_home`` and ``teleop`` hand over.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+from beastbt.blackboard.types import BatteryState, FusedPose, GpsFix
+from beastbt.estimation.geodesy import distance_m
+from beastbt.mission.model import HOME, Failsafe, Mission
+
+
+@dataclass
+class Situation:
+    """What the failsafes look at on one tick."""
+
+    now_s: float
+    mission_start_s: float
+    gps_fix: Optional[GpsFix]
+    battery: Optional[BatteryState]
+    pose: Optional[FusedPose]
+    home: Optional[tuple[float, float]]
+
+
+@dataclass
+class FailsafeWatch:
+    """One failsafe: its spec, a test of the situation, and whether it is triggered now."""
+
+    spec: Failsafe
+    test: Callable[[Situation], bool]
+    triggered: bool = False
+    since_s: Optional[float] = None
+
+
+class FailsafeMonitor:
+    """Evaluates the mission's failsafes every tick."""
+
+    def __init__(self, mission: Mission) -> None:
+        self.watches = [FailsafeWatch(f, self._test_for(f, mission)) for f in mission.failsafes]
+
+    @staticmethod
+    def _test_for(f: Failsafe, mission: Mission) -> Callable[[Situation], bool]:
+        p = f.params
+        if f.kind == "gps_lost":
+            def gps_lost(s: Situation) -> bool:
+                last = s.gps_fix.stamp_s if s.gps_fix is not None else s.mission_start_s
+                return s.now_s - last > p["after_s"]
+            return gps_lost
+        if f.kind == "battery_low":
+            state = {"below_since": None}
+
+            def battery_low(s: Situation) -> bool:
+                if s.battery is None or s.battery.voltage_v >= p["below_v"]:
+                    state["below_since"] = None
+                    return False
+                if state["below_since"] is None:
+                    state["below_since"] = s.now_s
+                return s.now_s - state["below_since"] >= p["for_s"]
+            return battery_low
+        center = p["center"]
+
+        def geofence(s: Situation) -> bool:
+            if s.pose is None or not s.pose.position_valid or s.pose.lat is None:
+                return False
+            if center == HOME:
+                if s.home is None:
+                    return False
+                lat, lon = s.home
+            else:
+                place = mission.places[center]
+                lat, lon = place.lat, place.lon
+            return distance_m(lat, lon, s.pose.lat, s.pose.lon) > p["radius_m"]
+        return geofence
+
+    def check(self, s: Situation) -> list[tuple[FailsafeWatch, str]]:
+        """Update every watch; return (watch, "trigger"|"clear") for those that changed this tick."""
+        changes = []
+        for w in self.watches:
+            now = w.test(s)
+            if now and not w.triggered:
+                w.triggered, w.since_s = True, s.now_s
+                changes.append((w, "trigger"))
+            elif not now and w.triggered:
+                w.triggered, w.since_s = False, None
+                changes.append((w, "clear"))
+        return changes
+
+    def holding(self) -> bool:
+        """True while any 'hold' failsafe is triggered."""
+        return any(w.triggered and w.spec.then == "hold" for w in self.watches)

@@ -1,0 +1,53 @@
+"""The run folder: ``runs/<UTC time>_<mission>/`` with the summary, the event log and snapshots."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import cv2
+
+
+@dataclass
+class RunFolder:
+    """Where one run's files go. Writers that record more (MCAP) add themselves to ``finishers``."""
+
+    path: Path
+    finishers: list[Callable[[dict], None]] = field(default_factory=list)
+
+    @classmethod
+    def create(cls, runs_dir: str, mission: str, clock: Any) -> "RunFolder":
+        """Make ``runs_dir/<UTC time>_<mission>/`` (a suffix keeps two runs in one second apart)."""
+        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+        safe = re.sub(r"[^A-Za-z0-9_-]", "_", mission)
+        base = Path(runs_dir) / f"{stamp}_{safe}"
+        path = base
+        n = 1
+        while path.exists():
+            n += 1
+            path = Path(f"{base}-{n}")
+        path.mkdir(parents=True)
+        return cls(path)
+
+    def save_snapshot(self, name: str, frame: Any) -> str:
+        """Save a :class:`~beastbt.blackboard.types.CameraFrame` as ``<name>.jpg``; return its path."""
+        target = self.path / f"{name}.jpg"
+        n = 1
+        while target.exists():
+            n += 1
+            target = self.path / f"{name}-{n}.jpg"
+        cv2.imwrite(str(target), frame.image)
+        return str(target)
+
+    def finish(self, summary: dict) -> None:
+        """Write ``summary.json`` and ``events.log``, then let the other writers finish."""
+        (self.path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+        with open(self.path / "events.log", "w", encoding="utf-8") as f:
+            for e in summary["events"]:
+                f.write(f"{e['time_s']:10.3f}  {e['kind']:<14} {e['text']}\n")
+        for fin in self.finishers:
+            fin(summary)

@@ -1,0 +1,1 @@
+"""Simulated worlds, shipped as package data."""
