@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 from functools import lru_cache
-from importlib import resources
 from typing import Any, Iterable, Optional
 
 import jsonschema
@@ -20,6 +19,7 @@ from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
 from beastbt.mission.errors import Problem, closest, did_you_mean
+from beastbt.resources import data_dir
 from beastbt.mission.units import UnitError, parse_quantity
 from beastbt.mission.yaml_source import SourceDoc
 
@@ -45,7 +45,7 @@ def _type_of(value: Any) -> str:
 
 @lru_cache(maxsize=None)
 def _schema_texts() -> dict[str, dict]:
-    root = resources.files("beastbt.schemas")
+    root = data_dir("schemas")
     out: dict[str, dict] = {}
     for entry in root.iterdir():
         if entry.name.endswith(".json"):
@@ -113,7 +113,10 @@ class _Explainer:
         if v == "type":
             expected = schema.get("type")
             words = " or ".join(_TYPE_WORDS.get(t, t) for t in (expected if isinstance(expected, list) else [expected]))
-            return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", self.describe(schema))]
+            hint = self.describe(schema)
+            if isinstance(err.instance, bool) and "string" in (expected if isinstance(expected, list) else [expected]):
+                hint = "YAML reads yes, no, on, off, true and false as true/false: put the text in quotes"
+            return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", hint)]
         if v in ("enum", "const"):
             choices = schema.get("enum", [schema.get("const")])
             word = err.instance if isinstance(err.instance, str) else None

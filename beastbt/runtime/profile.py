@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, Optional, Union
 
@@ -17,6 +16,7 @@ from beastbt.behaviours.context import ControlParams
 from beastbt.mission.errors import InvalidInput
 from beastbt.mission.schema_check import schema_problems
 from beastbt.mission.yaml_source import SourceDoc, load_yaml
+from beastbt.resources import data_dir
 
 DEFAULT_COMMAND_TIMEOUT_S = 0.5
 """No fresh command for this long means zero velocity (s): the field's watchdog figure."""
@@ -49,7 +49,7 @@ def profile_path(name: Union[str, Path]) -> Path:
     p = Path(name)
     if p.suffix in (".yaml", ".yml") or p.exists():
         return p
-    bundled = resources.files("beastbt.robots") / f"{name}.yaml"
+    bundled = data_dir("robots") / f"{name}.yaml"
     return Path(str(bundled))
 
 

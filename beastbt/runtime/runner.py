@@ -9,7 +9,7 @@ safety gate to the base and the servos, and record what happened.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Optional
 
 import py_trees
@@ -175,7 +175,11 @@ class MissionRun:
         bb.now_s = now
         pose_odom = self.odom.update(now, odo)
         bb.pose_odom = pose_odom
-        pose = pose_odom if self.estimator is None else self.estimator.update(now, odo, imu, gps)
+        if self.estimator is None:
+            # Odometry alone knows where the robot is relative to its start, not in the world.
+            pose = replace(pose_odom, heading_valid=False, position_valid=False, lat=None, lon=None)
+        else:
+            pose = self.estimator.update(now, odo, imu, gps)
         bb.pose = pose
         latest = self.latest
         for key, t in (("odometry", WheelOdometry), ("gps_fix", GpsFix), ("imu", ImuSample), ("battery", BatteryState),
@@ -246,6 +250,10 @@ class MissionRun:
         """Mux, gate, and send the velocity and any new servo requests; then record."""
         muxed = self.mux.select(now)
         out = self.gate.filter(muxed, now)
+        if self.status is not None:
+            # The run has ended: the last thing sent is a stop, not a ramp down.
+            out = VelocityCommand(0.0, 0.0, now, "end")
+            self.gate.reset()
         if self.mux.estop_latched:
             if not self.bb.estop:
                 self.io.base.emergency_stop(now)

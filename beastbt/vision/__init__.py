@@ -1,1 +1,1 @@
-"""TODO"""
+"""What is computed from camera images: the camera model and the line detector."""

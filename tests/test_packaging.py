@@ -1,0 +1,40 @@
+"""The front door: the package lists every folder, the README has its two Quick start lines, CI runs them."""
+
+from __future__ import annotations
+
+import re
+
+from conftest import REPO
+
+
+def test_every_package_folder_is_listed_in_pyproject():
+    text = (REPO / "pyproject.toml").read_text()
+    block = re.search(r"^packages = \[(.*?)\]", text, re.S | re.M).group(1)
+    listed = set(re.findall(r'"([^"]+)"', block))
+    on_disk = {"beastbt"} | {f"beastbt.{p.name}" for p in (REPO / "beastbt").iterdir()
+                             if p.is_dir() and (p / "__init__.py").exists()}
+    assert on_disk <= listed
+
+
+def test_every_package_has_a_docstring():
+    for init in (REPO / "beastbt").glob("*/__init__.py"):
+        text = init.read_text().strip()
+        assert text.startswith('"""') and "TODO" not in text, init
+
+
+def quick_start_lines() -> list[str]:
+    readme = (REPO / "README.md").read_text()
+    section = re.search(r"## Quick start\n(.*?)\n## ", readme, re.S).group(1)
+    block = re.search(r"```(?:sh|bash|console)?\n(.*?)```", section, re.S).group(1)
+    return [ln for ln in block.splitlines() if ln.strip() and not ln.strip().startswith("#")]
+
+
+def test_readme_quick_start_has_exactly_two_command_lines():
+    lines = quick_start_lines()
+    assert len(lines) == 2
+    assert "missions/patrol.yaml" in lines[0] and "pytest" in lines[1] and "[test]" in lines[1]
+
+
+def test_ci_runs_the_readme_test_line_verbatim():
+    ci = (REPO / ".ci" / "run").read_text()
+    assert quick_start_lines()[1].strip() in ci
