@@ -1,0 +1,93 @@
+"""Building configuration dataclasses from plain dicts (a robot profile's YAML).
+
+Used by the ``from_dict`` class methods of the device and actuator configs
+(PCA9685, servos, PWM base, CAN base, joystick, teleop). It rejects a
+misspelt knob with a clear ``ValueError`` that names the closest valid one,
+checks each value against the field's type (an ``int`` is accepted for a
+``float``; a ``bool`` is never accepted as a number), and leaves range checks
+to each dataclass's ``__post_init__``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import typing
+from collections.abc import Mapping
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+
+def _type_ok(value: Any, hint: Any) -> bool:
+    """True when ``value`` fits the type annotation ``hint`` (the few shapes configs use)."""
+    origin = typing.get_origin(hint)
+    if origin is typing.Union:
+        return any(_type_ok(value, arg) for arg in typing.get_args(hint))
+    if origin is typing.Literal:
+        return value in typing.get_args(hint)
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if hint is str:
+        return isinstance(value, str)
+    return True  # anything fancier is checked by the dataclass itself
+
+
+def _describe(hint: Any) -> str:
+    """A short human name for a type annotation, for error messages."""
+    origin = typing.get_origin(hint)
+    if origin is typing.Union:
+        return " or ".join(_describe(a) for a in typing.get_args(hint))
+    if origin is typing.Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(hint))
+    if hint is type(None):
+        return "null"
+    return getattr(hint, "__name__", str(hint))
+
+
+def _coerce(value: Any, hint: Any) -> Any:
+    """Turn an ``int`` into a ``float`` where the field is a float (YAML writes ``1`` for ``1.0``)."""
+    if hint is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    origin = typing.get_origin(hint)
+    if origin is typing.Union:
+        args = typing.get_args(hint)
+        if float in args and int not in args and isinstance(value, int) and not isinstance(value, bool):
+            return float(value)
+    return value
+
+
+def dataclass_from_dict(cls: type[T], data: Any, what: str) -> T:
+    """Build the dataclass ``cls`` from the mapping ``data``.
+
+    ``what`` names the config in error messages (``"can_base"``). Raises
+    ``ValueError`` for a non-mapping, an unknown key (with a suggestion), a
+    value of the wrong type, or whatever ``cls.__post_init__`` rejects.
+    """
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ValueError(f"{what}: expected a mapping of settings, got {type(data).__name__}")
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    hints = typing.get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key not in fields:
+            close = difflib.get_close_matches(str(key), list(fields), n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise ValueError(f"{what}: unknown key '{key}'{hint} (known keys: {', '.join(sorted(fields))})")
+        hint_t = hints.get(key, Any)
+        if not _type_ok(value, hint_t):
+            raise ValueError(f"{what}.{key}: expected {_describe(hint_t)}, got {value!r}")
+        kwargs[key] = _coerce(value, hint_t)
+    try:
+        return cls(**kwargs)
+    except ValueError as exc:
+        text = str(exc)
+        raise ValueError(text if text.startswith(what) else f"{what}: {text}") from None

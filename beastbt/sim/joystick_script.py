@@ -1,0 +1,299 @@
+"""A scripted joystick for the simulator and tests: YAML events in, real joystick bytes out.
+
+A script is a YAML list of timed events::
+
+    - {at: 2 s, press: enable}          # buttons by role: enable, turbo, estop, estop_reset
+    - {at: 2.5 s, linear: 0.8, angular: -0.3}   # stick positions -1..1 (either or both)
+    - {at: 6 s, release: enable}
+    - {at: 9 s, press: estop}
+    - {at: 10 s, unplug: true}
+    - {at: 12 s, replug: true}
+
+:class:`ScriptedJoystick` turns them, through the same
+:class:`~beastbt.devices.joystick.JoystickMapping` the driver uses (numbers,
+inversion, dead zone), into the 8-byte Linux joystick events the kernel
+would deliver, including the initial-state burst on every open, and hands
+them to :class:`~beastbt.devices.joystick.JoystickDevice` through
+:meth:`ScriptedJoystick.opener`. So the simulator exercises the real driver.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Optional, Union
+
+import numpy as np
+import yaml
+
+from beastbt.devices.joystick import (
+    AXIS_ANGULAR,
+    AXIS_LINEAR,
+    JS_EVENT,
+    JS_EVENT_AXIS,
+    JS_EVENT_BUTTON,
+    JS_EVENT_INIT,
+    ByteSource,
+    JoystickMapping,
+)
+
+_DURATION = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*(ms|s|sec|min|h)?\s*$")
+_DURATION_UNITS = {None: 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
+
+
+def _parse_duration_text(text: str) -> float:
+    """Seconds from ``"2 s"``, ``"500 ms"``, ``"1 min"``; the shared unit parser when present."""
+    try:
+        from beastbt.mission.units import parse_duration  # type: ignore[attr-defined]
+    except ImportError:
+        parse_duration = None
+    if parse_duration is not None:
+        try:
+            return float(parse_duration(text))
+        except Exception as exc:  # noqa: BLE001 - any failure of the shared parser is a bad value here
+            raise ValueError(str(exc)) from None
+    m = _DURATION.match(text)
+    if not m:
+        raise ValueError(f"'{text}' is not a duration (write e.g. '2 s' or '500 ms')")
+    return float(m.group(1)) * _DURATION_UNITS[m.group(2)]
+
+
+def parse_time_s(value: Any) -> float:
+    """Seconds from a YAML value: a bare number (seconds) or a duration string."""
+    if isinstance(value, bool):
+        raise ValueError(f"expected a duration, got {value!r}")
+    if isinstance(value, (int, float)):
+        seconds = float(value)
+    elif isinstance(value, str):
+        seconds = _parse_duration_text(value)
+    else:
+        raise ValueError(f"expected a duration, got {value!r}")
+    if not math.isfinite(seconds) or seconds < 0:
+        raise ValueError(f"time must be zero or later, got {value!r}")
+    return seconds
+
+
+@dataclass(frozen=True)
+class ScriptEvent:
+    """One parsed script event: at ``at_s`` seconds, do ``action`` (press/release/sticks/unplug/replug)."""
+
+    at_s: float
+    action: str
+    button: Optional[str] = None
+    linear: Optional[float] = None
+    angular: Optional[float] = None
+
+
+_ACTION_KEYS = ("press", "release", "unplug", "replug")
+_STICK_KEYS = (AXIS_LINEAR, AXIS_ANGULAR)
+
+
+class _Handle:
+    """One open file of the scripted device: its own byte stream, dead once unplugged."""
+
+    def __init__(self, rng: Optional[np.random.Generator]) -> None:
+        self.buffer = bytearray()
+        self.dead = False
+        self.rng = rng
+
+    def read(self) -> bytes:
+        if self.dead:
+            raise OSError(errno.ENODEV, "No such device (scripted joystick unplugged)")
+        if not self.buffer:
+            return b""
+        n = len(self.buffer)
+        if self.rng is not None:
+            # Arbitrary read boundaries exercise the driver's partial-event buffering.
+            n = int(self.rng.integers(0, n + 1))
+        out = bytes(self.buffer[:n])
+        del self.buffer[:n]
+        return out
+
+
+class ScriptedJoystick:
+    """Plays a joystick script as Linux joystick events.
+
+    ``n_axes``/``n_buttons``: how many the emulated pad has (the initial
+    burst reports them all; mapped numbers beyond them are added). ``rng``,
+    when given, splits reads at random byte boundaries. ``plugged``: whether
+    the pad is present at the start.
+    """
+
+    def __init__(
+        self,
+        events: Sequence[Any],
+        mapping: Optional[JoystickMapping] = None,
+        *,
+        source: str = "<joystick script>",
+        positions: Optional[Sequence[Optional[tuple[int, int]]]] = None,
+        rng: Optional[np.random.Generator] = None,
+        n_axes: int = 8,
+        n_buttons: int = 11,
+        plugged: bool = True,
+    ) -> None:
+        self.mapping = mapping if mapping is not None else JoystickMapping()
+        self.source = source
+        self.rng = rng
+        self.events: list[ScriptEvent] = self._validate(events, positions)
+        self.plugged = plugged
+        self._next = 0
+        self._handles: list[_Handle] = []
+        self._time_ms = 0
+        n_axes = max([n_axes] + [num + 1 for num, _ in self.mapping.axes().values()])
+        n_buttons = max([n_buttons] + [num + 1 for num in self.mapping.buttons().values()])
+        self.raw_axes = [0] * n_axes
+        self.raw_buttons = [0] * n_buttons
+
+    # --- loading and validation ---------------------------------------------------------
+    @classmethod
+    def from_yaml(cls, text: str, mapping: Optional[JoystickMapping] = None, *, source: str = "<joystick script>", **kwargs: Any) -> "ScriptedJoystick":
+        """Build from YAML text; errors name ``source:line:column`` and the event index."""
+        try:
+            root = yaml.compose(text)
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark is not None else source
+            raise ValueError(f"{where}: error: invalid YAML in joystick script: {getattr(exc, 'problem', exc)}") from None
+        if data is None:
+            data = []
+        positions: list[Optional[tuple[int, int]]] = []
+        if isinstance(root, yaml.SequenceNode):
+            positions = [(n.start_mark.line + 1, n.start_mark.column + 1) for n in root.value]
+        elif root is not None:
+            where = f"{source}:{root.start_mark.line + 1}:{root.start_mark.column + 1}"
+            raise ValueError(f"{where}: error: a joystick script is a list of events")
+        return cls(data, mapping, source=source, positions=positions, **kwargs)
+
+    @classmethod
+    def from_file(cls, path: Union[str, Path], mapping: Optional[JoystickMapping] = None, **kwargs: Any) -> "ScriptedJoystick":
+        """Build from a YAML file (see :meth:`from_yaml`)."""
+        p = Path(path)
+        return cls.from_yaml(p.read_text(encoding="utf-8"), mapping, source=str(p), **kwargs)
+
+    def _validate(self, events: Any, positions: Optional[Sequence[Optional[tuple[int, int]]]]) -> list[ScriptEvent]:
+        if not isinstance(events, Sequence) or isinstance(events, (str, bytes)):
+            raise ValueError(f"{self.source}: error: a joystick script is a list of events, got {type(events).__name__}")
+        errors: list[str] = []
+        out: list[ScriptEvent] = []
+        buttons = self.mapping.buttons()
+        for i, ev in enumerate(events):
+            pos = positions[i] if positions is not None and i < len(positions) else None
+            where = f"{self.source}:{pos[0]}:{pos[1]}" if pos else self.source
+
+            def bad(text: str) -> None:
+                errors.append(f"{where}: error: joystick script event {i}: {text}")
+
+            if not isinstance(ev, Mapping):
+                bad(f"expected a mapping like {{at: 2 s, press: enable}}, got {ev!r}")
+                continue
+            unknown = [k for k in ev if k not in ("at",) + _ACTION_KEYS + _STICK_KEYS]
+            if unknown:
+                bad(f"unknown key(s) {', '.join(map(repr, unknown))}; expected at, press, release, linear, angular, unplug, replug")
+                continue
+            if "at" not in ev:
+                bad("missing 'at' (when the event happens, e.g. at: 2 s)")
+                continue
+            try:
+                at_s = parse_time_s(ev["at"])
+            except ValueError as exc:
+                bad(f"at: {exc}")
+                continue
+            actions = [k for k in _ACTION_KEYS if k in ev]
+            sticks = [k for k in _STICK_KEYS if k in ev]
+            if len(actions) + (1 if sticks else 0) != 1:
+                bad("needs exactly one of press, release, unplug, replug, or stick positions (linear/angular)")
+                continue
+            if sticks:
+                values: dict[str, float] = {}
+                for k in sticks:
+                    v = ev[k]
+                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1.0 <= float(v) <= 1.0:
+                        bad(f"{k} must be a number from -1 to 1, got {v!r}")
+                        break
+                    values[k] = float(v)
+                else:
+                    out.append(ScriptEvent(at_s, "sticks", linear=values.get(AXIS_LINEAR), angular=values.get(AXIS_ANGULAR)))
+                continue
+            action = actions[0]
+            if action in ("press", "release"):
+                name = ev[action]
+                if name not in buttons:
+                    bad(f"{action}: no button '{name}' in the mapping (have: {', '.join(buttons)})")
+                    continue
+                out.append(ScriptEvent(at_s, action, button=name))
+            else:
+                if ev[action] is not True:
+                    bad(f"write '{action}: true', got {ev[action]!r}")
+                    continue
+                out.append(ScriptEvent(at_s, action))
+        if errors:
+            raise ValueError("\n".join(errors))
+        # Stable sort: events at the same time keep their written order.
+        return sorted(out, key=lambda e: e.at_s)
+
+    # --- the device side ----------------------------------------------------------------------
+    def _emit(self, kind: int, number: int, value: int) -> None:
+        data = JS_EVENT.pack(self._time_ms, value, kind, number)
+        for h in self._handles:
+            h.buffer += data
+
+    def _open(self) -> ByteSource:
+        if not self.plugged:
+            raise OSError(errno.ENOENT, "No such file or directory (scripted joystick unplugged)")
+        handle = _Handle(self.rng)
+        # The kernel's initial-state burst: every button, then every axis, flagged INIT.
+        for number, value in enumerate(self.raw_buttons):
+            handle.buffer += JS_EVENT.pack(self._time_ms, value, JS_EVENT_BUTTON | JS_EVENT_INIT, number)
+        for number, value in enumerate(self.raw_axes):
+            handle.buffer += JS_EVENT.pack(self._time_ms, value, JS_EVENT_AXIS | JS_EVENT_INIT, number)
+        self._handles.append(handle)
+        return handle.read
+
+    def opener(self) -> Callable[[], ByteSource]:
+        """The ``open_device`` callable for :class:`~beastbt.devices.joystick.JoystickDevice`."""
+        return self._open
+
+    def _apply(self, ev: ScriptEvent) -> None:
+        m = self.mapping
+        if ev.action in ("press", "release"):
+            number = m.buttons()[ev.button]  # type: ignore[index]
+            value = 1 if ev.action == "press" else 0
+            self.raw_buttons[number] = value
+            if self.plugged:
+                self._emit(JS_EVENT_BUTTON, number, value)
+        elif ev.action == "sticks":
+            for name, value in ((AXIS_LINEAR, ev.linear), (AXIS_ANGULAR, ev.angular)):
+                if value is None:
+                    continue
+                number, inverted = m.axes()[name]
+                raw = m.raw_for(value, inverted)
+                self.raw_axes[number] = raw
+                if self.plugged:
+                    self._emit(JS_EVENT_AXIS, number, raw)
+        elif ev.action == "unplug":
+            self.plugged = False
+            for h in self._handles:
+                h.dead = True
+                h.buffer.clear()
+            self._handles.clear()
+        elif ev.action == "replug":
+            self.plugged = True
+
+    def update(self, now_s: float) -> None:
+        """Deliver every event due at or before ``now_s`` (seconds) to the open device."""
+        while self._next < len(self.events) and self.events[self._next].at_s <= now_s:
+            ev = self.events[self._next]
+            self._time_ms = int(round(ev.at_s * 1000.0)) & 0xFFFFFFFF
+            self._apply(ev)
+            self._next += 1
+        self._time_ms = int(round(now_s * 1000.0)) & 0xFFFFFFFF
+
+    @property
+    def finished(self) -> bool:
+        """True once every event has been delivered."""
+        return self._next >= len(self.events)
