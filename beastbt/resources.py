@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import Union
-
-from importlib.abc import Traversable
+from typing import Any
 
 
-def data_dir(name: str) -> Union[Traversable, Path]:
-    """The folder of bundled files called ``name`` (``schemas``, ``robots`` or ``worlds``)."""
+def data_dir(name: str) -> Any:
+    """The folder of bundled files called ``name`` (``schemas``, ``robots`` or ``worlds``).
+
+    Returns an ``importlib.resources`` Traversable or a ``pathlib.Path``; both have ``/``, ``iterdir`` and ``read_text``.
+    """
     try:
         return resources.files(f"beastbt.{name}")
     except ModuleNotFoundError:
