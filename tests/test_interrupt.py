@@ -1,0 +1,66 @@
+"""Ctrl-C during a run: a zero command is sent, the run ends 'stopped' with exit status 1."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import REPO
+
+
+def test_ctrl_c_stops_the_robot_and_exits_1(tmp_path):
+    summary = tmp_path / "s.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "beastbt.cli", "run", str(REPO / "missions" / "patrol.yaml"), "--speed", "realtime",
+         "--summary", str(summary), "--no-record"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)})
+    # Wait (bounded) until the run is under way: the patrol takes minutes in real time.
+    deadline = time.monotonic() + 60
+    time.sleep(1.5)
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=max(5.0, deadline - time.monotonic()))
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    assert proc.returncode == 1, err.decode()
+    s = json.loads(summary.read_text())
+    assert s["status"] == "stopped"
+    assert any("interrupted" in e["text"] for e in s["events"])
+    assert 0 < s["sim_time_s"] < 30
+
+
+def test_interrupt_and_internal_errors_leave_a_stop_on_the_wire(tmp_path):
+    import io
+
+    import pytest
+
+    from beastbt.runtime.session import RunOptions, execute, prepare
+
+    for exc in (KeyboardInterrupt(), RuntimeError("a bug in a behaviour")):
+        p = prepare(str(REPO / "missions" / "patrol.yaml"), RunOptions(record=False))
+        original = p.run.tick
+        calls = {"n": 0}
+
+        def tick(exc=exc):
+            calls["n"] += 1
+            if calls["n"] == 60:
+                raise exc
+            return original()
+
+        p.run.tick = tick
+        esp32 = p.run.io.extras["esp32"]
+        if isinstance(exc, KeyboardInterrupt):
+            s = execute(p, io.StringIO())
+            assert s["status"] == "stopped"
+        else:
+            with pytest.raises(RuntimeError):
+                execute(p, io.StringIO())
+            assert p.run.status == "failure"
+        moving = [c for c in esp32.commands if c.get("T") == 13 and c["X"] != 0]
+        assert moving, "the robot was driving before the interruption"
+        assert esp32.commands[-1] == {"T": 13, "X": 0, "Z": 0} or esp32.commands[-1] == {"T": 13, "X": 0.0, "Z": 0.0}
