@@ -1,0 +1,303 @@
+"""The camera driver: newest frame from a ``cv2.VideoCapture``-like source, with reopen.
+
+:class:`Camera` reads frames through the :class:`~beastbt.devices.interfaces.FrameSource`
+protocol: on the robot that is a ``cv2.VideoCapture`` on ``/dev/video0``
+(V4L2, see HARDWARE.md "Camera", opened by :func:`open_video_capture`); in
+the simulator a :class:`beastbt.sim.camera_emulator.SimCamera` that renders
+the floor. Each frame is stamped with the injected clock and numbered. When
+the source vanishes (a read fails, or it reports it is not opened) the driver
+reports ``camera_lost``, releases it and retries ``open_source()`` every
+``reopen_interval_s``; meanwhile its data is stale. It never raises out of
+:meth:`Camera.poll`.
+
+:class:`CameraConfig` also carries the camera's mounting on the robot
+(height, pitch, field of view, forward offset), which
+:class:`beastbt.vision.camera_model.CameraGeometry` turns into the
+image <-> floor mapping the line detector needs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional, Union
+
+import cv2
+import numpy as np
+
+from beastbt.blackboard.types import CameraFrame
+from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.devices.interfaces import EventSink, FrameSource, ignore_events
+from beastbt.runtime.clock import Clock
+
+
+@dataclass
+class CameraMounting:
+    """Where the camera sits on the robot and where it looks (profile ``camera.mounting:``).
+
+    Body frame: x forward, y left, z up, origin at the robot centre on the floor.
+    """
+
+    # Height of the camera's optical centre above the floor, metres.
+    height_m: float = 0.20
+    # Downward pitch of the optical axis below horizontal, degrees (down positive).
+    # Line following needs the floor in view: 30-60 deg is typical.
+    pitch_deg: float = 40.0
+    # Horizontal field of view, degrees (Pi Camera v2: 62.2; Module 3: 66; OV5647: 54).
+    # The vertical field follows from the image aspect ratio (square pixels).
+    hfov_deg: float = 62.2
+    # Forward offset of the camera from the robot centre, metres (ahead positive).
+    x_offset_m: float = 0.10
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.height_m <= 5.0:
+            raise ValueError(f"camera.mounting.height_m must be in (0, 5] m, got {self.height_m}")
+        if not -89.0 <= self.pitch_deg <= 90.0:
+            raise ValueError(f"camera.mounting.pitch_deg must be in [-89, 90] deg, got {self.pitch_deg}")
+        if not 5.0 <= self.hfov_deg <= 170.0:
+            raise ValueError(f"camera.mounting.hfov_deg must be in [5, 170] deg, got {self.hfov_deg}")
+        if not -2.0 <= self.x_offset_m <= 2.0:
+            raise ValueError(f"camera.mounting.x_offset_m must be in [-2, 2] m, got {self.x_offset_m}")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "CameraMounting":
+        """Build from a profile dict; unknown keys or bad values raise ``ValueError``."""
+        return dataclass_from_dict(cls, d, "camera.mounting")
+
+
+@dataclass
+class CameraConfig:
+    """Which camera to open and how (robot profile ``camera:``)."""
+
+    # V4L2 device: a path ("/dev/video0") or an index (0). On a Pi 4 with the
+    # libcamera stack the CSI camera appears as /dev/video0 through the V4L2 compat layer.
+    device: Union[str, int] = "/dev/video0"
+    # Requested frame width and height, pixels. 320x240 is plenty for line following
+    # and cheapest; 640x480 is the common native mode (the detector downsamples).
+    width_px: int = 320
+    height_px: int = 240
+    # Requested frame rate, frames per second. poll() also reads at most this often
+    # (by the injected clock), so a simulated camera renders exactly this rate.
+    fps: float = 15.0
+    # Mounting geometry of the camera on the robot.
+    mounting: CameraMounting = field(default_factory=CameraMounting)
+    # While the camera is lost, seconds between attempts to reopen it.
+    reopen_interval_s: float = 1.0
+    # Frames older than this are stale, seconds. Default 3 frame periods at 15 fps.
+    stale_after_s: float = 0.2
+    # Consecutive failed reads from a source that still claims to be open before it
+    # is declared lost and reopened (V4L2 occasionally drops a single frame).
+    lost_after_failures: int = 3
+
+    def __post_init__(self) -> None:
+        if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):
+            raise ValueError(f"camera.device must be a path or an index, got {self.device!r}")
+        if not 16 <= self.width_px <= 8192 or not 16 <= self.height_px <= 8192:
+            raise ValueError(f"camera.width_px/height_px must be 16..8192, got {self.width_px}x{self.height_px}")
+        if not 0.5 <= self.fps <= 240.0:
+            raise ValueError(f"camera.fps must be in [0.5, 240], got {self.fps}")
+        if not self.reopen_interval_s > 0.0:
+            raise ValueError(f"camera.reopen_interval_s must be > 0 s, got {self.reopen_interval_s}")
+        if not self.stale_after_s > 0.0:
+            raise ValueError(f"camera.stale_after_s must be > 0 s, got {self.stale_after_s}")
+        if self.lost_after_failures < 1:
+            raise ValueError(f"camera.lost_after_failures must be >= 1, got {self.lost_after_failures}")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "CameraConfig":
+        """Build from a profile dict (with a nested ``mounting`` dict); bad keys raise ``ValueError``."""
+        if isinstance(d, Mapping) and "mounting" in d:
+            d = dict(d)
+            mounting = CameraMounting.from_dict(d.pop("mounting"))
+            cfg = dataclass_from_dict(cls, d, "camera")
+            cfg.mounting = mounting
+            return cfg
+        return dataclass_from_dict(cls, d, "camera")
+
+
+def open_video_capture(config: CameraConfig) -> "cv2.VideoCapture":
+    """Open the real camera with OpenCV's V4L2 backend and request size, rate and a 1-frame buffer.
+
+    ``config.device`` may be ``/dev/videoN``, ``"N"`` or ``N``. The buffer of one
+    frame makes ``read()`` return the newest frame instead of a queued old one.
+    The returned capture may be unopened (``isOpened()`` False) if the device is
+    missing; :class:`Camera` treats that as "lost" and retries.
+    """
+    device: Union[str, int] = config.device
+    if isinstance(device, str) and device.isdigit():
+        device = int(device)
+    cap = cv2.VideoCapture(device, cv2.CAP_V4L2)
+    if cap.isOpened():
+        cap.set(cv2.CAP_PROP_FRAME_WIDTH, float(config.width_px))
+        cap.set(cv2.CAP_PROP_FRAME_HEIGHT, float(config.height_px))
+        cap.set(cv2.CAP_PROP_FPS, float(config.fps))
+        cap.set(cv2.CAP_PROP_BUFFERSIZE, 1.0)
+    return cap
+
+
+class Camera:
+    """Polls a frame source for its newest frame and reopens it when it disappears.
+
+    ``open_source()`` returns a fresh :class:`FrameSource` (``lambda:
+    open_video_capture(cfg)`` on the robot). :meth:`poll` returns a
+    :class:`CameraFrame` (BGR uint8, stamped with ``clock.now()`` in seconds,
+    ``seq`` counting from 1) or ``None`` when no frame is due or none could be
+    read. Events: ``camera_lost`` (once per outage), ``camera_reopened``,
+    ``camera_read_error`` (a single failed read). On the robot ``read()``
+    blocks for up to one frame period, so run ``poll`` in the camera's thread.
+    """
+
+    def __init__(
+        self,
+        open_source: Callable[[], FrameSource],
+        clock: Clock,
+        events: EventSink = ignore_events,
+        config: Optional[CameraConfig] = None,
+    ) -> None:
+        self.config = config if config is not None else CameraConfig()
+        self._open_source = open_source
+        self._clock = clock
+        self._events = events
+        self._source: Optional[FrameSource] = None
+        self._lost = False  # an outage has been reported and not yet ended
+        self._ever_opened = False
+        self._period_s = 1.0 / self.config.fps
+        self._next_due_s: Optional[float] = None
+        self._next_open_s = -math.inf
+        self._failures_in_row = 0
+        self.seq = 0
+        """Number of frames delivered so far (the ``seq`` of the last frame)."""
+        self.last_frame_s: Optional[float] = None
+        """Clock time of the newest frame, seconds (None before the first)."""
+        self.read_errors = 0
+        """Reads that failed (returned no frame or raised) since construction."""
+        self.reopens = 0
+        """Times the source was reopened after being lost."""
+        self._try_open(self._clock.now())
+
+    # --- state -------------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        """True while an opened source is held."""
+        return self._source is not None
+
+    def is_stale(self, now_s: float) -> bool:
+        """True when there is no frame younger than ``stale_after_s`` at ``now_s`` seconds."""
+        return self.last_frame_s is None or now_s - self.last_frame_s > self.config.stale_after_s
+
+    # --- polling -------------------------------------------------------------------
+    def poll(self) -> Optional[CameraFrame]:
+        """Read the newest frame if one is due (at most ``fps`` per clock second); never raises."""
+        now = self._clock.now()
+        if self._source is None:
+            if now < self._next_open_s or not self._try_open(now):
+                return None
+        if self._next_due_s is not None and now < self._next_due_s - 1e-9:
+            return None
+        # Schedule by adding whole periods, not "now + period": a 20 Hz tick then
+        # still yields 15 fps on average instead of every other tick (10 fps).
+        if self._next_due_s is None or now - self._next_due_s > self._period_s:
+            self._next_due_s = now + self._period_s
+        else:
+            self._next_due_s += self._period_s
+        image = self._read(now)
+        if image is None:
+            return None
+        self._failures_in_row = 0
+        self.seq += 1
+        self.last_frame_s = now
+        return CameraFrame(stamp_s=now, image=image, seq=self.seq)
+
+    def close(self) -> None:
+        """Release the source (a later poll reopens it)."""
+        self._release()
+
+    # --- internals -------------------------------------------------------------------
+    def _read(self, now: float) -> Optional[np.ndarray]:
+        """One read from the held source; handles and reports every failure."""
+        source = self._source
+        assert source is not None
+        try:
+            if not source.isOpened():
+                self._declare_lost(now, "camera source reports it is no longer opened")
+                return None
+            ok, frame = source.read()
+        except Exception as exc:  # cv2.error, OSError...: a fault, never a crash
+            ok, frame = False, None
+            self._events("camera_read_error", f"camera read raised {type(exc).__name__}: {exc}")
+        image = self._as_bgr(frame) if ok else None
+        if image is not None:
+            return image
+        self.read_errors += 1
+        self._failures_in_row += 1
+        still_open = True
+        try:
+            still_open = bool(source.isOpened())
+        except Exception:
+            still_open = False
+        if not still_open or self._failures_in_row >= self.config.lost_after_failures:
+            self._declare_lost(now, f"camera read failed {self._failures_in_row} time(s) in a row")
+        return None
+
+    @staticmethod
+    def _as_bgr(frame: Any) -> Optional[np.ndarray]:
+        """Frame as BGR uint8 (h, w, 3); grey frames are expanded; anything else is rejected."""
+        if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.size == 0:
+            return None
+        if frame.ndim == 2:
+            return cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR)
+        if frame.ndim == 3 and frame.shape[2] == 3:
+            return frame
+        if frame.ndim == 3 and frame.shape[2] == 4:
+            return cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR)
+        return None
+
+    def _declare_lost(self, now: float, why: str) -> None:
+        self._release()
+        self._next_open_s = now + self.config.reopen_interval_s
+        if not self._lost:
+            self._lost = True
+            self._events("camera_lost", f"camera {self.config.device} lost ({why}); retrying every {self.config.reopen_interval_s:g} s")
+
+    def _try_open(self, now: float) -> bool:
+        """Try ``open_source()`` once; True when an opened source is now held."""
+        self._next_open_s = now + self.config.reopen_interval_s
+        source: Optional[FrameSource] = None
+        try:
+            source = self._open_source()
+            opened = source is not None and bool(source.isOpened())
+        except Exception as exc:
+            opened = False
+            why = f"opening raised {type(exc).__name__}: {exc}"
+        else:
+            why = "device did not open"
+        if not opened:
+            if source is not None:
+                try:
+                    source.release()
+                except Exception:
+                    pass
+            if not self._lost:
+                self._lost = True
+                self._events("camera_lost", f"camera {self.config.device} unavailable ({why}); retrying every {self.config.reopen_interval_s:g} s")
+            return False
+        self._source = source
+        self._failures_in_row = 0
+        self._next_due_s = None
+        if self._lost:
+            self._lost = False
+            if self._ever_opened:
+                self.reopens += 1
+            again = "opened again" if self._ever_opened else "opened"
+            self._events("camera_reopened", f"camera {self.config.device} {again}")
+        self._ever_opened = True
+        return True
+
+    def _release(self) -> None:
+        if self._source is not None:
+            try:
+                self._source.release()
+            except Exception:
+                pass
+        self._source = None
