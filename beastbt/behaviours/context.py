@@ -7,10 +7,11 @@ Behaviours never reach for globals: the compiler builds one
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
+from beastbt.devices.dict_config import dataclass_from_dict
 from beastbt.runtime.clock import Clock
 from beastbt.runtime.events import EventLog
 
@@ -59,11 +60,7 @@ class ControlParams:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "ControlParams":
         """Build from a profile's ``control:`` mapping (keys are field names, SI values)."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise ValueError(f"unknown control parameter(s): {', '.join(sorted(unknown))}")
-        return cls(**d)
+        return dataclass_from_dict(cls, d, "control")
 
 
 @dataclass

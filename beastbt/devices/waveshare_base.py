@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, Optional
 
 from beastbt.actuation.adapter import Feedback
 from beastbt.blackboard.types import BatteryState, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
+from beastbt.devices.dict_config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 
 ACCEL_LSB_PER_G = 8192.0
@@ -62,11 +63,7 @@ class WaveshareConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "WaveshareConfig":
         """Build from a profile mapping; unknown keys are a ValueError."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise ValueError(f"unknown Waveshare base setting(s): {', '.join(sorted(unknown))}")
-        return cls(**d)
+        return dataclass_from_dict(cls, d, "base")
 
 
 @dataclass

@@ -10,11 +10,12 @@ stops and the encoders stop counting, so "blocked" is visible to odometry.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from beastbt.devices.dict_config import dataclass_from_dict
 from beastbt.sim.truth import RobotTruth
 
 
@@ -42,11 +43,7 @@ class DriveModel:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "DriveModel":
         """Build from a mapping of field names; unknown keys are a ValueError."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(d) - names
-        if unknown:
-            raise ValueError(f"unknown drive model setting(s): {', '.join(sorted(unknown))}")
-        return cls(**{k: float(v) for k, v in d.items()})
+        return dataclass_from_dict(cls, d, "sim")
 
 
 @dataclass
