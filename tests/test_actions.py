@@ -110,8 +110,13 @@ def test_say_reaches_the_events_at_once():
     assert [e.text for e in h.events if e.kind == "say"] == ["Reached the door"]
 
 
-def test_steps_needing_missing_parts_fail_clearly():
-    h = mission("  - snapshot: {name: door}\n")
+def test_steps_needing_missing_parts_fail_clearly(tmp_path):
+    profile = tmp_path / "bare.yaml"
+    profile.write_text("robot: bare\ngeometry: {track_width_m: 0.2}\nlimits: {max_speed_mps: 0.3, max_turn_rate_dps: 90}\n"
+                       "base: {type: waveshare_serial, gimbal: false}\n")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - snapshot: {name: door}\n", robot=str(profile))
     h.run_to_end(5)
     assert h.result == "failure"
-    assert any("not available on this robot" in e.text or "no camera" in e.text for e in h.events)
+    assert any("not available on this robot" in e.text and "no camera" in e.text for e in h.events)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - look: {pan: 10 deg}\n", robot=str(profile))
+    assert h.run_to_end(5) == "failure"

@@ -141,7 +141,7 @@ def test_wait_until_holds_still_then_succeeds():
 
 
 def test_wait_until_fails_after_its_timeout():
-    h = mission("  - wait_until: gps_fix\n    timeout: 1 s\n")
+    h = mission("  - wait_until: {battery_below: 1 V}\n    timeout: 1 s\n")
     assert h.run_to_end(10) == "failure"
     assert any("did not hold within 1 s" in e.text for e in h.events)
 

@@ -16,11 +16,14 @@ def test_ctrl_c_stops_the_robot_and_exits_1(tmp_path):
     summary = tmp_path / "s.json"
     proc = subprocess.Popen(
         [sys.executable, "-m", "beastbt.cli", "run", str(REPO / "missions" / "patrol.yaml"), "--speed", "realtime",
-         "--summary", str(summary), "--no-record"],
+         "--summary", str(summary), "--runs-dir", str(tmp_path / "runs")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)})
-    # Wait (bounded) until the run is under way: the patrol takes minutes in real time.
+    # Wait (bounded) until the run is under way (its folder exists once everything is loaded);
+    # the patrol takes minutes in real time.
     deadline = time.monotonic() + 60
-    time.sleep(1.5)
+    while not (tmp_path / "runs").exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
     try:
         out, err = proc.communicate(timeout=max(5.0, deadline - time.monotonic()))
