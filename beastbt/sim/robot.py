@@ -57,6 +57,11 @@ def register_sim_device(fn: SimAttach) -> SimAttach:
     return fn
 
 
+SimBase = Callable[[Simulator, RobotProfile, EventLog], RobotIO]
+SIM_BASES: dict[str, SimBase] = {}
+"""Base types (``can``, ``pwm``) whose own emulator drives the simulated robot: type -> fn(sim, profile, events) -> RobotIO."""
+
+
 def build_sim_robot(profile: RobotProfile, world: World, seed: int, events: EventLog) -> RobotIO:
     """A simulated robot for ``profile`` in ``world``, deterministic for ``seed``."""
     rng = np.random.default_rng(seed)
@@ -72,6 +77,12 @@ def build_sim_robot(profile: RobotProfile, world: World, seed: int, events: Even
     sim = Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
 
     base_cfg = profile.section("base") or {}
+    supply = SIM_BASES.get(str(base_cfg.get("type")))
+    if supply is not None:
+        io = supply(sim, profile, events)
+        for attach in SIM_DEVICES:
+            attach(sim, profile, io, events)
+        return io
     if base_cfg.get("type") != "waveshare_serial":
         # Other bases (CAN, PWM) are emulated by their own parts; until then the
         # sim drives them through the Waveshare emulator with the same geometry.

@@ -1,0 +1,105 @@
+"""The emergency stop: joystick button and API, latched below the tree until an explicit reset."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from beastbt.runtime.teleop_runtime import request_estop, reset_estop
+from beastbt.testing import MissionHarness
+
+DRIVE = """
+mission: t
+steps:
+  - drive: {distance: 5 m, speed: 0.25 m/s}
+"""
+
+
+def moving_after(wire: list, index: int) -> list:
+    return [c for c in wire[index + 1:] if c.get("T") == 13 and (c["X"] != 0 or c["Z"] != 0)]
+
+
+def lower_stack_tick(h: MissionHarness) -> None:
+    """What still runs below the tree once the mission has ended: sense, the teleop hook, mux, gate, base."""
+    run = h.run
+    h.clock.advance(h.dt_s)
+    now = h.now_s
+    run.io.sim.advance(now)
+    run.sense(now)
+    h.run.ctx.services["teleop"](run, now)
+    out = run.gate.filter(run.mux.select(now), now)
+    run.io.base.send_velocity(out, now)
+
+
+def test_joystick_estop_ends_the_mission_and_sends_the_base_stop_once():
+    h = MissionHarness.from_yaml(DRIVE, joystick=[{"at": "2 s", "press": "estop"}])
+    h.tick_until(lambda h: h.now_s >= 1.9)
+    assert h.truth.v_mps > 0.2
+    assert h.tick(3) == "stopped"
+    assert h.records[-1].now_s == pytest.approx(2.0)
+    assert h.blackboard("estop") is True and h.records[-1].mux_source == "estop"
+    wire = h.wire
+    stops = [i for i, c in enumerate(wire) if c == {"T": 0}]
+    assert len(stops) == 1
+    assert not moving_after(wire, stops[0]), "nothing may move after the e-stop"
+    assert any(e.kind == "estop" and "joystick e-stop button" in e.text for e in h.events)
+    assert any(e.kind == "mission_end" and "stopped: emergency stop" in e.text for e in h.events)
+    assert h.summary()["teleop"]["estop_latched"] is True
+
+
+def test_estop_latches_until_the_reset_button():
+    h = MissionHarness.from_yaml(DRIVE, joystick=[
+        {"at": "1 s", "press": "estop"}, {"at": "1.5 s", "release": "estop"},
+        {"at": "2 s", "linear": 1.0}, {"at": "2 s", "press": "enable"},   # the operator tries to drive
+        {"at": "3 s", "press": "estop_reset"}, {"at": "3.2 s", "release": "estop_reset"}])
+    h.tick_until(lambda h: h.done, 5)
+    assert h.result == "stopped"
+    n = len(h.wire)
+    while h.now_s < 2.9:
+        lower_stack_tick(h)
+        assert h.run.mux.estop_latched and h.run.io.base.estop_latched
+    assert not moving_after(h.wire, n - 1), "latched: neither teleop nor anything else moves the robot"
+    assert h.run.io.base.blocked_by_estop == 0  # the mux already gives zero; the adapter latch is the backstop
+    while h.now_s < 3.5:
+        lower_stack_tick(h)
+    assert not h.run.mux.estop_latched and not h.run.io.base.estop_latched
+    assert moving_after(h.wire, n - 1), "after the reset the operator drives again"
+    kinds = [e.text for e in h.events if e.kind == "estop"]
+    assert kinds[0].startswith("emergency stop latched") and kinds[-1] == "emergency stop reset: joystick reset button"
+
+
+def test_reset_is_ignored_while_the_estop_button_is_held():
+    h = MissionHarness.from_yaml(DRIVE, joystick=[
+        {"at": "1 s", "press": "estop"}, {"at": "1.5 s", "press": "estop_reset"}])
+    h.tick_until(lambda h: h.done, 5)
+    while h.now_s < 2.5:
+        lower_stack_tick(h)
+    assert h.run.mux.estop_latched
+
+
+def test_api_estop_from_another_thread_and_reset():
+    h = MissionHarness.from_yaml(DRIVE)
+    h.tick_until(lambda h: h.now_s >= 1.0)
+    t = threading.Thread(target=request_estop, args=(h.run, "operator console"))
+    t.start()
+    t.join()
+    assert request_estop(h.run, "again") is False  # already latched
+    assert h.tick() == "stopped"
+    assert [c for c in h.wire if c == {"T": 0}] == [{"T": 0}]
+    assert any(e.kind == "estop" and "operator console" in e.text for e in h.events)
+    assert reset_estop(h.run, "test") is True
+    assert reset_estop(h.run, "test") is False
+    assert not h.run.mux.estop_latched and not h.run.io.base.estop_latched
+
+
+def test_api_estop_reaches_the_base_even_with_the_loop_frozen():
+    h = MissionHarness.from_yaml(DRIVE)
+    h.tick_until(lambda h: h.now_s >= 1.0)
+    request_estop(h.run, "remote")
+    n = len(h.wire)
+    # The loop never ticks again; only the simulator (and so the watchdog) runs on.
+    h.clock.advance(0.2)
+    h.run.io.sim.advance(h.now_s)
+    assert {"T": 0} in h.wire[n:]
+    assert h.run.io.base.estops_sent == 1
