@@ -1,0 +1,175 @@
+"""The camera and the line detector as one sensor of the tick loop: frames and line observations.
+
+:class:`CameraPipeline` owns a :class:`~beastbt.devices.camera.Camera` driver
+(reading a ``cv2.VideoCapture`` on the robot, a
+:class:`~beastbt.sim.camera_emulator.SimCamera` in the simulator) and a
+:class:`~beastbt.vision.line_detector.LineDetector` built from the profile's
+``camera:`` mounting and ``line_detector:`` section. Each new frame is run
+through the detector; the tick loop's sensor poll (:meth:`CameraPipeline.poll`)
+returns the new :class:`~beastbt.blackboard.types.CameraFrame` and its
+:class:`~beastbt.blackboard.types.LineObservation`, which the runner publishes
+as the blackboard keys ``camera_frame`` and ``line``.
+
+Two ways to run it:
+
+* **In lockstep** (the simulator): :meth:`poll` reads the camera itself, at
+  the camera's frame rate by the simulated clock. A simulated camera only
+  renders while the pipeline is *enabled* (:meth:`enable`): the run enables it
+  when the mission uses the camera (``follow_line``, ``snapshot``, the
+  ``intersection``/``line_seen`` conditions) or when video is streamed, so a
+  mission that never looks costs nothing.
+* **In a thread** (the robot, :meth:`start_thread`): ``VideoCapture.read``
+  blocks for up to a frame period, so a daemon thread reads and detects, and
+  :meth:`poll` only hands over the newest result.
+
+:attr:`CameraPipeline.latest` is the newest ``(frame, detection)`` pair, for
+the video stream's overlay.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Callable, Optional
+
+import numpy as np
+
+from beastbt.blackboard.types import CameraFrame
+from beastbt.devices.camera import Camera, CameraConfig
+from beastbt.devices.interfaces import EventSink, ignore_events
+from beastbt.vision.camera_model import CameraGeometry
+from beastbt.vision.line_detector import LineDetection, LineDetector, LineDetectorConfig
+
+Latest = tuple[CameraFrame, Optional[LineDetection]]
+
+
+class CameraPipeline:
+    """A camera read frame by frame with the line detector run on every frame.
+
+    ``make_camera`` builds the :class:`Camera` driver (called once, on the
+    first :meth:`enable`, so that a simulated camera and its floor are only
+    built when needed). ``detect`` False skips the line detector (frames only).
+    """
+
+    def __init__(self, make_camera: Callable[[], Camera], camera_config: CameraConfig,
+                 detector_config: Optional[LineDetectorConfig] = None, events: EventSink = ignore_events,
+                 detect: bool = True) -> None:
+        self.config = camera_config
+        self.geometry = CameraGeometry.from_config(camera_config)
+        """The camera as the detector sees it (its mounting, with the gimbal at pan 0, tilt 0)."""
+        self.detector = LineDetector(detector_config or LineDetectorConfig(), self.geometry)
+        self.detect_lines = detect
+        self.events = events
+        self._make_camera = make_camera
+        self.camera: Optional[Camera] = None
+        self.enabled = False
+        """True once something asked for frames (always on the robot)."""
+        self.reasons: list[str] = []
+        """Why the pipeline was enabled (``follow_line``, ``stream``...), first reason first."""
+        self.latest: Optional[Latest] = None
+        """The newest frame and what the detector found in it (None before the first frame)."""
+        self.frames = 0
+        """Frames read so far."""
+        self.detect_errors = 0
+        self._lock = threading.Lock()
+        self._handed_seq = 0
+        self._thread: Optional[threading.Thread] = None
+        self._stop = threading.Event()
+
+    # -- switching on ---------------------------------------------------------------
+    @property
+    def lookahead_m(self) -> float:
+        """Distance ahead of the robot centre at which the detector reports the line's offset (m)."""
+        return self.detector.config.lookahead_m
+
+    def check(self) -> None:
+        """Raise ``ValueError`` when the mounting shows the detector too little floor (before anything moves)."""
+        blank = np.full((self.config.height_px, self.config.width_px, 3), 128, np.uint8)
+        self.detector.detect(blank, 0.0)
+        self.detector.reset()
+        self.detector.last = None
+
+    def enable(self, reason: str) -> None:
+        """Start reading frames (builds the camera on first use); ``reason`` is kept for the log."""
+        if reason not in self.reasons:
+            self.reasons.append(reason)
+        if self.enabled:
+            return
+        self.enabled = True
+        if self.camera is None:
+            self.camera = self._make_camera()
+
+    def reset_detector(self) -> None:
+        """Forget where the line was (a new follow_line step starts looking straight ahead)."""
+        with self._lock:
+            self.detector.reset()
+
+    # -- the tick loop's sensor poll -------------------------------------------------------
+    def poll(self, now_s: float) -> list:
+        """The new frame and its line observation since the last call (``[]`` when none); never raises."""
+        if not self.enabled:
+            return []
+        if self._thread is None:
+            self._read_one()
+        latest = self.latest
+        if latest is None or latest[0].seq == self._handed_seq:
+            return []
+        frame, detection = latest
+        self._handed_seq = frame.seq
+        return [frame] if detection is None else [frame, detection.observation]
+
+    def _read_one(self) -> bool:
+        """Read the camera once (it decides whether a frame is due) and detect; True when a frame came."""
+        camera = self.camera
+        if camera is None:
+            return False
+        frame = camera.poll()
+        if frame is None:
+            return False
+        detection: Optional[LineDetection] = None
+        if self.detect_lines:
+            with self._lock:
+                try:
+                    detection = self.detector.detect_full(frame.image, frame.stamp_s)
+                except Exception as exc:  # a detector fault degrades the line data, never the loop
+                    self.detect_errors += 1
+                    if self.detect_errors == 1 or self.detect_errors % 100 == 0:
+                        self.events("line_detector_error", f"line detector failed ({self.detect_errors} so far): {exc!r}")
+        self.frames += 1
+        self.latest = (frame, detection)
+        return True
+
+    # -- the robot: a thread of its own -------------------------------------------------------
+    def start_thread(self, idle_wait_s: float = 0.005) -> None:
+        """Read and detect in a daemon thread (the robot); :meth:`poll` then hands over its newest result.
+
+        ``Camera.poll`` returns at once when no frame is due; the thread then
+        waits ``idle_wait_s`` (s) on its stop event instead of spinning.
+        """
+        if self._thread is not None:
+            return
+        self.enable("robot")
+
+        def loop() -> None:
+            while not self._stop.is_set():
+                try:
+                    got = self._read_one()
+                except Exception as exc:  # Camera.poll never raises; this is the last guard of the thread
+                    self.events("camera_error", f"camera thread: {exc!r}")
+                    got = False
+                if not got:
+                    self._stop.wait(idle_wait_s)
+
+        self._thread = threading.Thread(target=loop, name="beastbt-camera", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the thread (if any) and release the camera."""
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(2.0)
+        if self.camera is not None:
+            self.camera.close()
+
+
+__all__ = ["CameraPipeline", "Latest"]
