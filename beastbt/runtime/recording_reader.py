@@ -1,0 +1,165 @@
+"""Reading a run recording back, including one cut short by a hard kill.
+
+:func:`read_recording` reads an MCAP file linearly with the ``mcap``
+library's :class:`~mcap.stream_reader.StreamReader` (it needs no summary
+section or footer), decompresses each chunk and checks its CRC, and stops at
+the first record that is cut short: a run killed mid-write still yields every
+message of its complete chunks. ``Recording.complete`` says whether the file
+ended properly.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Optional, Union
+
+from mcap.exceptions import EndOfFile, InvalidMagic
+from mcap.records import Attachment, Channel, Chunk, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+
+
+@dataclass
+class Recording:
+    """A decoded run recording.
+
+    ``messages``: topic -> list of ``(log_time_ns, message dict)`` in file
+    order; ``schemas``: topic -> (schema name, JSON Schema dict);
+    ``metadata``: name -> dict of strings; ``attachments``: name -> bytes;
+    ``complete``: the file ended with its footer; ``stopped_because``: why
+    reading stopped early (a truncated record), or None.
+    """
+
+    path: Path
+    messages: dict[str, list[tuple[int, dict]]] = field(default_factory=dict)
+    schemas: dict[str, tuple[str, dict]] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: dict[str, bytes] = field(default_factory=dict)
+    complete: bool = False
+    stopped_because: Optional[str] = None
+    order: list[tuple[str, int, dict]] = field(default_factory=list)
+    """Every message in file order as ``(topic, log_time_ns, message)`` (filled when asked for)."""
+    counts: dict[str, int] = field(default_factory=dict)
+    """Messages per topic in the file (read whole), decoded or not."""
+
+    @property
+    def info(self) -> dict[str, str]:
+        """The ``beastbt.run`` metadata (mission, seed, robot, world...), empty if absent."""
+        return self.metadata.get("beastbt.run", {})
+
+    @property
+    def summary(self) -> Optional[dict]:
+        """The run summary stored at the end of the run, or None (run cut short, or recorded without one)."""
+        raw = self.metadata.get("beastbt.summary", {}).get("json")
+        return json.loads(raw) if raw else None
+
+    def topic(self, name: str) -> list[dict]:
+        """The messages of one topic (empty when there are none)."""
+        return [m for _, m in self.messages.get(name, [])]
+
+    def times_s(self, name: str) -> list[float]:
+        """The log times of one topic's messages, seconds."""
+        return [t * 1e-9 for t, _ in self.messages.get(name, [])]
+
+    def text(self, attachment: str) -> Optional[str]:
+        """An attachment as text (``mission.yaml``...), or None."""
+        data = self.attachments.get(attachment)
+        return data.decode("utf-8") if data is not None else None
+
+    def message_count(self) -> int:
+        """How many messages the file holds (as far as it could be read), decoded or not."""
+        return sum(self.counts.values())
+
+
+def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = None, keep_order: bool = False,
+                   validate_crcs: bool = True, skip_topics: Iterable[str] = ()) -> Recording:
+    """Read and decode a recording; ``topics`` limits which messages are decoded, ``skip_topics`` leaves some out.
+
+    Long runs hold many messages: decoding only what is needed keeps the
+    memory of ``beastbt report`` and ``replay`` down.
+
+    Never raises for a file that merely ends early; raises ``mcap``'s
+    ``InvalidMagic`` for a file that is not MCAP at all.
+    """
+    path = Path(path)
+    wanted = set(topics) if topics is not None else None
+    skipped = set(skip_topics)
+    out = Recording(path)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    loads = json.loads
+
+    def take(records: Iterable[Any]) -> None:
+        for rec in records:
+            if isinstance(rec, Message):
+                ch = channels.get(rec.channel_id)
+                if ch is None:
+                    continue
+                out.counts[ch.topic] = out.counts.get(ch.topic, 0) + 1
+                if (wanted is not None and ch.topic not in wanted) or ch.topic in skipped:
+                    continue
+                msg = loads(rec.data)
+                out.messages.setdefault(ch.topic, []).append((rec.log_time, msg))
+                if keep_order:
+                    out.order.append((ch.topic, rec.log_time, msg))
+            elif isinstance(rec, Channel):
+                channels[rec.id] = rec
+                schema = schemas.get(rec.schema_id)
+                if schema is not None and rec.topic not in out.schemas:
+                    out.schemas[rec.topic] = (schema.name, json.loads(schema.data) if schema.data else {})
+            elif isinstance(rec, Schema):
+                schemas[rec.id] = rec
+
+    with open(path, "rb") as f:
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=False)
+        records = reader.records
+        while True:
+            try:
+                rec = next(records)
+            except StopIteration:
+                break
+            except InvalidMagic:
+                raise  # not an MCAP file at all
+            except EndOfFile:
+                out.stopped_because = "the file ends before its footer (the run was cut short)"
+                break
+            except Exception as exc:  # a record cut short parses as garbage: stop at the last good one
+                out.stopped_because = f"unreadable record ({type(exc).__name__}: {exc})"
+                break
+            if isinstance(rec, Chunk):
+                try:
+                    inner = breakup_chunk(rec, validate_crc=validate_crcs)
+                except Exception as exc:
+                    out.stopped_because = f"incomplete chunk ({type(exc).__name__}: {exc})"
+                    break
+                take(inner)
+            elif isinstance(rec, (Schema, Channel, Message)):
+                take([rec])
+            elif isinstance(rec, Metadata):
+                out.metadata[rec.name] = dict(rec.metadata)
+            elif isinstance(rec, Attachment):
+                out.attachments[rec.name] = bytes(rec.data)
+            elif isinstance(rec, Footer):
+                out.complete = True
+                break
+    return out
+
+
+def find_recording(run: Union[str, Path]) -> Path:
+    """The ``.mcap`` of a run: the file itself, or ``run.mcap`` (or the only ``.mcap``) in a run folder."""
+    p = Path(run)
+    if p.is_dir():
+        candidate = p / "run.mcap"
+        if candidate.exists():
+            return candidate
+        found = sorted(p.glob("*.mcap"))
+        if len(found) == 1:
+            return found[0]
+        raise FileNotFoundError(f"{p}: no run.mcap in this folder")
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such run folder or file")
+    return p
+
+
+__all__ = ["Recording", "read_recording", "find_recording"]

@@ -1,0 +1,253 @@
+"""The channels of a run recording (``run.mcap``) and the JSON Schema of each.
+
+Every channel carries JSON messages (MCAP message encoding ``json``) described
+by a JSON Schema (schema encoding ``jsonschema``). Where Foxglove has a
+well-known schema (``foxglove.LocationFix``, ``foxglove.PoseInFrame``,
+``foxglove.CompressedImage``, ``foxglove.Log``) the channel uses it under that
+name, so a run opens in Foxglove with a map, a 3D pose, the images and a log
+panel. Everything else is a ``beastbt.*`` schema whose fields are exactly the
+dataclass fields of :mod:`beastbt.blackboard.types` (SI units, ENU frames), so
+that ``beastbt replay`` can rebuild the readings bit for bit.
+
+Log time of every message = the run's clock in nanoseconds (simulated time in
+the simulator), so two runs with the same seed give the same messages.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+# -- building blocks ---------------------------------------------------------------
+
+_NUM = {"type": "number"}
+_OPT_NUM = {"type": ["number", "null"]}
+_OPT_INT = {"type": ["integer", "null"]}
+_STAMP = {"type": "number", "description": "When the value was measured, clock seconds."}
+_NOW = {"type": "number", "description": "Clock time of the tick that handled it, seconds."}
+_TICK = {"type": "integer", "minimum": 0, "description": "Tick number, from 0."}
+_VEC3 = {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}
+_MAT3 = {"type": "array", "items": _VEC3, "minItems": 3, "maxItems": 3}
+
+_FOX_TIME = {
+    "type": "object", "title": "time",
+    "properties": {"sec": {"type": "integer", "minimum": 0},
+                   "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}},
+}
+
+
+_SOURCE = {"type": ["string", "null"],
+           "description": "The device poll it came from: 'base' or the sensor's name (io.sensors); null if unknown."}
+
+
+def _reading(title: str, description: str, props: dict) -> dict:
+    """A sensor stream's schema: the reading's fields plus where it came from."""
+    return _obj(title, description, {**props, "source": _SOURCE})
+
+
+def _obj(title: str, description: str, props: dict, required: Any = None) -> dict:
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": title, "description": description, "type": "object",
+        "properties": props, "required": list(props) if required is None else list(required),
+        "additionalProperties": False,
+    }
+
+
+# -- Foxglove well-known schemas (the subset of fields beastbt fills; same names and types) --
+
+FOXGLOVE_LOCATION_FIX = {
+    "title": "foxglove.LocationFix",
+    "description": "A navigation satellite fix for any Global Navigation Satellite System",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_FOX_TIME, "description": "Timestamp of the message"},
+        "frame_id": {"type": "string", "description": "Frame for the sensor."},
+        "latitude": {"type": "number", "description": "Latitude in degrees"},
+        "longitude": {"type": "number", "description": "Longitude in degrees"},
+        "altitude": {"type": "number", "description": "Altitude in meters"},
+        "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9,
+                                "description": "Position covariance (m^2), ENU, row-major."},
+        "position_covariance_type": {"title": "foxglove.PositionCovarianceType",
+                                     "oneOf": [{"title": "UNKNOWN", "const": 0}, {"title": "APPROXIMATED", "const": 1},
+                                               {"title": "DIAGONAL_KNOWN", "const": 2}, {"title": "KNOWN", "const": 3}]},
+    },
+    "required": ["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
+                 "position_covariance_type"],
+}
+
+FOXGLOVE_POSE_IN_FRAME = {
+    "title": "foxglove.PoseInFrame",
+    "description": "A timestamped pose for an object or reference frame in 3D space",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_FOX_TIME, "description": "Timestamp of pose"},
+        "frame_id": {"type": "string", "description": "Frame of reference for pose position and orientation"},
+        "pose": {
+            "title": "foxglove.Pose", "type": "object",
+            "properties": {
+                "position": {"title": "foxglove.Vector3", "type": "object",
+                             "properties": {"x": _NUM, "y": _NUM, "z": _NUM}, "required": ["x", "y", "z"]},
+                "orientation": {"title": "foxglove.Quaternion", "type": "object",
+                                "properties": {"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM},
+                                "required": ["x", "y", "z", "w"]},
+            },
+            "required": ["position", "orientation"],
+        },
+    },
+    "required": ["timestamp", "frame_id", "pose"],
+}
+
+FOXGLOVE_COMPRESSED_IMAGE = {
+    "title": "foxglove.CompressedImage",
+    "description": "A compressed image",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_FOX_TIME, "description": "Timestamp of image"},
+        "frame_id": {"type": "string", "description": "Frame of reference for the image."},
+        "data": {"type": "string", "contentEncoding": "base64", "description": "Compressed image data"},
+        "format": {"type": "string", "description": "Image format: jpeg, png, webp, avif"},
+    },
+    "required": ["timestamp", "frame_id", "data", "format"],
+}
+
+FOXGLOVE_LOG = {
+    "title": "foxglove.Log",
+    "description": "A log message",
+    "type": "object",
+    "properties": {
+        "timestamp": {**_FOX_TIME, "description": "Timestamp of log message"},
+        "level": {"title": "foxglove.LogLevel",
+                  "oneOf": [{"title": "UNKNOWN", "const": 0}, {"title": "DEBUG", "const": 1},
+                            {"title": "INFO", "const": 2}, {"title": "WARNING", "const": 3},
+                            {"title": "ERROR", "const": 4}, {"title": "FATAL", "const": 5}]},
+        "message": {"type": "string", "description": "Log message"},
+        "name": {"type": "string", "description": "Process or node name"},
+        "file": {"type": "string", "description": "Filename"},
+        "line": {"type": "integer", "minimum": 0, "description": "Line number in the file"},
+    },
+    "required": ["timestamp", "level", "message", "name", "file", "line"],
+}
+
+# -- beastbt schemas (exact dataclass fields) ------------------------------------------
+
+GPS_FIX = _reading("beastbt.GpsFix", "GpsFix as the GPS driver produced it (degrees, metres, m^2).", {
+    "stamp_s": _STAMP, "lat": _NUM, "lon": _NUM, "alt_msl": _OPT_NUM, "quality": {"type": "integer"},
+    "sats": _OPT_INT, "hdop": _OPT_NUM, "speed_mps": _OPT_NUM, "track_deg": _OPT_NUM,
+    "time_utc": {"type": ["string", "null"]}, "sentence": {"type": "string"}, "covariance_enu": _MAT3})
+
+IMU_SAMPLE = _reading("beastbt.ImuSample", "ImuSample, body frame (rad/s, m/s^2, tesla, deg C).", {
+    "stamp_s": _STAMP, "gyro_rps": _VEC3, "accel_mps2": _VEC3,
+    "mag_t": {"oneOf": [_VEC3, {"type": "null"}]}, "temperature_c": _OPT_NUM})
+
+WHEEL_ODOMETRY = _reading("beastbt.WheelOdometry", "Cumulative wheel travel (m) and wheel speeds (m/s).", {
+    "stamp_s": _STAMP, "left_m": _NUM, "right_m": _NUM, "left_mps": _NUM, "right_mps": _NUM})
+
+BATTERY_STATE = _reading("beastbt.BatteryState", "Battery voltage (V).", {"stamp_s": _STAMP, "voltage_v": _NUM})
+
+JOYSTICK_STATE = _reading("beastbt.JoystickState", "Named joystick axes (-1..1) and buttons.", {
+    "stamp_s": _STAMP, "axes": {"type": "object", "additionalProperties": _NUM},
+    "buttons": {"type": "object", "additionalProperties": {"type": ["boolean", "integer"]}},
+    "connected": {"type": "boolean"}})
+
+LINE_OBSERVATION = _reading("beastbt.LineObservation", "What the line detector saw (body frame, m, rad).", {
+    "stamp_s": _STAMP, "seen": {"type": "boolean"}, "offset_m": _NUM, "angle_rad": _NUM, "width_m": _NUM,
+    "confidence": _NUM, "intersection": {"type": "boolean"}, "intersection_distance_m": _OPT_NUM,
+    "line_end": {"type": "boolean"}})
+
+CAMERA_FRAME_INFO = _reading("beastbt.CameraFrameInfo",
+                         "One camera frame as it arrived (the pixels go to /camera/image at a reduced rate).", {
+                             "stamp_s": _STAMP, "seq": {"type": "integer"}, "width": {"type": "integer"},
+                             "height": {"type": "integer"},
+                             "image_recorded": {"type": "boolean",
+                                                "description": "True when this frame is also on /camera/image."}})
+
+FUSED_POSE = _obj("beastbt.FusedPose", "An estimator output: local ENU metres, radians, m/s, rad/s.", {
+    "stamp_s": _STAMP, "x": _NUM, "y": _NUM, "yaw": _NUM, "speed_mps": _NUM, "yaw_rate_rps": _NUM,
+    "covariance": _MAT3, "distance_m": _NUM, "heading_valid": {"type": "boolean"},
+    "position_valid": {"type": "boolean"}, "lat": _OPT_NUM, "lon": _OPT_NUM})
+
+STAGE_COMMAND = _obj("beastbt.StageCommand",
+                     "A body velocity command at one stage of mission -> mux -> gate (m/s, rad/s).", {
+                         "tick": _TICK, "now_s": _NOW, "linear_mps": _NUM, "angular_rps": _NUM, "stamp_s": _NUM,
+                         "source": {"type": "string", "description": "Who made the command (mission, teleop...)."},
+                         "mux_source": {"type": "string", "description": "Which input the mux selected this tick."}})
+
+SERVO_COMMAND = _obj("beastbt.ServoCommand", "A servo command the run sent to its servo adapters (rad, s).", {
+    "now_s": _NOW, "name": {"type": ["string", "null"]}, "angle_rad": _OPT_NUM, "channel": _OPT_INT,
+    "pulse_s": _OPT_NUM, "stamp_s": _NUM})
+
+TREE_CHANGES = _obj("beastbt.TreeChanges", "The tree nodes whose status changed at one tick.", {
+    "tick": _TICK, "now_s": _NOW,
+    "changes": {"type": "array", "items": {
+        "type": "object", "additionalProperties": False, "required": ["name", "status", "feedback"],
+        "properties": {"name": {"type": "string"},
+                       "status": {"enum": ["RUNNING", "SUCCESS", "FAILURE", "INVALID"]},
+                       "feedback": {"type": "string"}}}}})
+
+DEVICE_STATE = _obj("beastbt.DeviceState",
+                    "A device state that parts of the run read besides its readings, when it changes.", {
+                        "tick": _TICK, "now_s": _NOW,
+                        "device": {"type": "string", "description": "The io.extras key (imu_driver...)."},
+                        "field": {"type": "string", "description": "The attribute (bias_ready...)."},
+                        "value": {"type": ["boolean", "number", "string", "null"]}})
+
+EVENT = _obj("beastbt.Event", "One run event (clock seconds, a kind word, a text).", {
+    "time_s": {"type": "number"}, "kind": {"type": "string"}, "text": {"type": "string"}})
+
+TRUTH = _obj("beastbt.Truth", "The simulated robot's true state (world ENU metres, rad, m/s, rad/s, V).", {
+    "t_s": _NUM, "x": _NUM, "y": _NUM, "yaw": _NUM, "v_mps": _NUM, "w_rps": _NUM, "left_m": _NUM,
+    "right_m": _NUM, "pan_rad": _NUM, "tilt_rad": _NUM, "battery_v": _NUM})
+
+GENERIC_READING = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "beastbt.Reading",
+                   "description": "A reading type this version of the recorder has no schema for (its fields).",
+                   "type": "object", "required": ["stamp_s"]}
+
+# -- the channel table -------------------------------------------------------------------
+
+CHANNELS: dict[str, dict] = {
+    # every sensor stream as it arrived (log time = the tick that received it)
+    "/sensors/gps": GPS_FIX,
+    "/sensors/imu": IMU_SAMPLE,
+    "/sensors/odometry": WHEEL_ODOMETRY,
+    "/sensors/battery": BATTERY_STATE,
+    "/sensors/joystick": JOYSTICK_STATE,
+    "/sensors/line": LINE_OBSERVATION,
+    "/sensors/camera": CAMERA_FRAME_INFO,
+    # Foxglove views
+    "/gps/fix": FOXGLOVE_LOCATION_FIX,
+    "/pose/fused": FOXGLOVE_POSE_IN_FRAME,
+    "/camera/image": FOXGLOVE_COMPRESSED_IMAGE,
+    "/log": FOXGLOVE_LOG,
+    # estimates
+    "/estimate/fused": FUSED_POSE,
+    "/estimate/odom": FUSED_POSE,
+    # commands at each stage
+    "/cmd/mission": STAGE_COMMAND,
+    "/cmd/teleop": STAGE_COMMAND,
+    "/cmd/mux": STAGE_COMMAND,
+    "/cmd/gate": STAGE_COMMAND,
+    "/cmd/servo": SERVO_COMMAND,
+    "/devices/state": DEVICE_STATE,
+    # the tree, events, failsafes, truth
+    "/tree": TREE_CHANGES,
+    "/events": EVENT,
+    "/failsafes": EVENT,
+    "/truth": TRUTH,
+}
+"""Topic -> JSON Schema. ``/cmd/gate`` is what the base adapter was told to send, one message per tick."""
+
+SENSOR_TOPICS: dict[str, str] = {
+    "GpsFix": "/sensors/gps", "ImuSample": "/sensors/imu", "WheelOdometry": "/sensors/odometry",
+    "BatteryState": "/sensors/battery", "JoystickState": "/sensors/joystick", "LineObservation": "/sensors/line",
+    "CameraFrame": "/sensors/camera",
+}
+"""Reading class name -> its sensor channel (other reading types go to ``/sensors/<snake_name>``)."""
+
+
+def schema_bytes(schema: dict) -> bytes:
+    """The schema as the bytes stored in the MCAP Schema record."""
+    return json.dumps(schema, separators=(",", ":"), sort_keys=True).encode()
+
+
+__all__ = ["CHANNELS", "SENSOR_TOPICS", "GENERIC_READING", "schema_bytes"]

@@ -1,0 +1,96 @@
+"""``beastbt runs``: the recorded runs, one line each, oldest first.
+
+Each line: the run folder's name, the mission, the outcome, the mission time,
+the distance, and the recording's size and dropped messages. The outcome
+comes from ``summary.json``; a run without one did not finish (killed, or
+still running), and its line says so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+
+@dataclass
+class RunEntry:
+    """One run folder as ``beastbt runs`` lists it."""
+
+    folder: Path
+    mission: str
+    status: str
+    sim_time_s: Optional[float]
+    distance_m: Optional[float]
+    mcap_bytes: Optional[int]
+    dropped: Optional[int]
+
+    def line(self) -> str:
+        """The run in one line."""
+        t = f"{self.sim_time_s:8.1f} s" if self.sim_time_s is not None else "       ? s"
+        dist = f"{self.distance_m:7.2f} m" if self.distance_m is not None else "      ? m"
+        if self.mcap_bytes is None:
+            rec = "not recorded"
+        else:
+            rec = f"run.mcap {self.mcap_bytes / 1e6:.2f} MB"
+            if self.dropped:
+                rec += f", {self.dropped} dropped"
+        return f"{self.folder.name:40s} {self.mission:24s} {self.status:10s} {t} {dist}  {rec}"
+
+
+def list_runs(runs_dir: str) -> list[RunEntry]:
+    """Every run folder in ``runs_dir`` (a folder with ``summary.json`` or ``run.mcap``), sorted by name (time)."""
+    root = Path(runs_dir)
+    if not root.is_dir():
+        return []
+    out = []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        summary_path, mcap = folder / "summary.json", folder / "run.mcap"
+        if not summary_path.exists() and not mcap.exists():
+            continue
+        summary: dict = {}
+        if summary_path.exists():
+            try:
+                summary = json.loads(summary_path.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                summary = {"status": "unreadable"}
+        mission = summary.get("mission") or _mission_from_name(folder.name)
+        status = summary.get("status") or "unfinished"
+        out.append(RunEntry(folder, mission, status, summary.get("sim_time_s"), summary.get("distance_m"),
+                            mcap.stat().st_size if mcap.exists() else None,
+                            (summary.get("recording") or {}).get("dropped")))
+    return out
+
+
+def _mission_from_name(name: str) -> str:
+    """``20250101T120000Z_patrol`` -> ``patrol`` (the folder name when the summary is missing)."""
+    return name.split("_", 1)[1] if "_" in name else name
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``beastbt runs``."""
+    p.add_argument("--runs-dir", default="runs", help="where the run folders are (default: ./runs)")
+
+
+def command(args: argparse.Namespace) -> int:
+    """list the recorded runs with their outcome, one line each"""
+    runs = list_runs(args.runs_dir)
+    if not runs:
+        print(f"no runs in {args.runs_dir}")
+        return 0
+    for r in runs:
+        print(r.line())
+    return 0
+
+
+def register() -> None:
+    """Add ``beastbt runs`` to the CLI."""
+    from beastbt import cli
+    cli.COMMANDS.setdefault("runs", (add_arguments, command))
+
+
+register()
+
+__all__ = ["list_runs", "RunEntry"]
