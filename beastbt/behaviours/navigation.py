@@ -1,0 +1,404 @@
+"""Driving to GPS places: ``go_to`` (and through it ``route`` and ``return_home``).
+
+:class:`GoTo` follows the straight line from where it set off to the target
+in the style of Nav2's regulated pure pursuit: it steers toward a carrot a
+look-ahead distance along the line, turns in place when the carrot is far
+off to the side, slows down in sharp turns and on the approach, and
+succeeds once the fused position is within the tolerance of the target.
+Before the heading is known (no magnetometer, no motion yet) it drives
+straight ahead for a few metres so that the estimator can find it.
+
+Positions are compared in a local east-north-up frame anchored at the
+target (:class:`~beastbt.estimation.geodesy.LocalFrame`), exact at any
+distance. The tuning is :class:`NavConfig` (the robot profile's
+``navigation:`` section, ``schemas/parts/navigation.schema.json``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+from beastbt.behaviours.base import BeastBehaviour, Status
+from beastbt.behaviours.context import MissionContext
+from beastbt.blackboard.types import FusedPose
+from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.estimation.estimator import wrap_angle
+from beastbt.estimation.geodesy import LocalFrame
+
+NAV_SERVICE = "navigation"
+"""``ctx.services`` key of the run's :class:`NavConfig` (set from the profile before the run starts)."""
+VISITS_SERVICE = "nav_visits"
+"""``ctx.services`` key of the run's :class:`VisitLog`."""
+
+
+@dataclass(frozen=True)
+class NavConfig:
+    """Tuning of go_to, route and return_home (the robot profile's ``navigation:`` section), SI units.
+
+    Named after Nav2's regulated pure pursuit parameters where they match.
+    """
+
+    default_tolerance_m: float = 2.0
+    """A place counts as reached this close to it when neither the place nor the step says (m).
+    The language says 2 m."""
+    default_gps_timeout_s: float = 10.0
+    """go_to fails after this long without a GPS fix when the step gives no gps_timeout (s)."""
+    lookahead_m: float = 1.5
+    """Distance of the carrot ahead along the line to the target (m). Longer: smoother, cuts
+    corners more; shorter: tracks the line tighter but reacts to every GPS wobble."""
+    rotate_to_heading_min_angle_rad: float = math.radians(50.0)
+    """Turn in place instead of driving when the carrot is more than this off the heading (rad)."""
+    regulated_min_radius_m: float = 0.9
+    """Below this turning radius the speed is scaled down by radius / this (m): slow in sharp turns."""
+    replan_cross_track_m: float = 3.0
+    """When the fused position is this far to the side of the line (the estimate jumped, or the
+    robot was pushed off), the line starts again from where the robot is (m)."""
+    approach_dist_m: float = 1.0
+    """Start slowing down this far before the tolerance circle around the target (m)."""
+    min_speed_mps: float = 0.08
+    """Slowest speed while approaching or turning on the move, so it never stalls short (m/s)."""
+    heading_init_distance_m: float = 15.0
+    """Without a heading, drive straight at most this far for the estimator to find it (m);
+    then stop and fail if it still has none. Keep it above the estimator's own
+    heading_init_distance_m (10 m by default)."""
+    progress_m: float = 0.2
+    """Getting this much closer to the target (by the fused position, or by the wheels' travel
+    toward it), or this much farther along while finding the heading, counts as progress for
+    stuck detection (m). Larger than the fused position's wobble at standstill."""
+    stuck_position_factor: float = 4.0
+    """Also fail when the fused position has come no progress_m closer for this many times
+    stuck_after, even though the wheels turn (tracks slipping against an obstacle)."""
+    resume_gap_s: float = 1.0
+    """A gap this long between two ticks of the step (the mission was held or teleoperated)
+    restarts the stuck timer, so that the pause does not count as being stuck (s)."""
+
+    def __post_init__(self) -> None:
+        for name in ("default_tolerance_m", "default_gps_timeout_s", "lookahead_m", "rotate_to_heading_min_angle_rad",
+                     "regulated_min_radius_m", "replan_cross_track_m", "min_speed_mps", "heading_init_distance_m",
+                     "progress_m",
+                     "stuck_position_factor", "resume_gap_s"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"navigation: '{name}' must be > 0, got {getattr(self, name)}")
+        if self.approach_dist_m < 0.0:
+            raise ValueError(f"navigation: 'approach_dist_m' must be >= 0, got {self.approach_dist_m}")
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "NavConfig":
+        """Build from a profile's ``navigation:`` mapping; unknown keys or bad values raise ``ValueError``."""
+        return dataclass_from_dict(cls, d, "navigation")
+
+
+@dataclass
+class Visit:
+    """One place a go_to aimed for: ``reached`` and ``time_s`` (mission time) once it ended.
+
+    ``estimated_error_m`` is the fused distance to the place when it was
+    reached; the simulator adds ``true_error_m`` (from ground truth).
+    """
+
+    name: str
+    lat: Optional[float]
+    lon: Optional[float]
+    reached: bool = False
+    time_s: Optional[float] = None
+    end_stamp_s: Optional[float] = None
+    estimated_error_m: Optional[float] = None
+    true_error_m: Optional[float] = None
+
+
+class VisitLog:
+    """Every place visit of a run, in order (the summary's ``waypoints``)."""
+
+    def __init__(self) -> None:
+        self.visits: list[Visit] = []
+        self.listeners: list[Callable[[Visit], None]] = []
+        """Called with a visit when it ends (the simulator's truth metrics listen here)."""
+
+    def start(self, name: str, lat: Optional[float], lon: Optional[float]) -> Visit:
+        """Open a visit of place ``name`` (lat/lon None until home is known)."""
+        v = Visit(name, lat, lon)
+        self.visits.append(v)
+        return v
+
+    def end(self, visit: Visit) -> None:
+        """Tell the listeners that ``visit`` ended."""
+        for listener in self.listeners:
+            listener(visit)
+
+
+def visit_log(ctx: MissionContext) -> VisitLog:
+    """The run's visit log (created on first use)."""
+    log = ctx.services.get(VISITS_SERVICE)
+    if log is None:
+        log = VisitLog()
+        ctx.services[VISITS_SERVICE] = log
+    return log
+
+
+Target = Callable[[], Optional[tuple[float, float]]]
+"""Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
+
+
+class GoTo(BeastBehaviour):
+    """Drive to a GPS position (a place, coordinates or home), regulated-pure-pursuit style.
+
+    Succeeds when the fused position is within ``tolerance_m`` of the target.
+    Fails when no GPS fix came for ``gps_timeout_s`` (or home is still
+    unknown by then), when it makes no progress toward the target for
+    ``stuck_after_s``, or when the heading is still unknown after driving
+    ``heading_init_distance_m``. Speeds m/s, times s, distances m.
+    """
+
+    READS = ("pose", "pose_odom", "gps_fix", "mission_start_s")
+    WRITES = ("cmd_mission",)
+
+    def __init__(self, name: str, ctx: MissionContext, place: str, target: Target, tolerance_m: Optional[float],
+                 speed_mps: Optional[float] = None, gps_timeout_s: Optional[float] = None,
+                 stuck_after_s: Optional[float] = None) -> None:
+        super().__init__(name, ctx)
+        self.place = place
+        self.target = target
+        self.tolerance_m = tolerance_m
+        self.speed_mps = min(speed_mps or ctx.params.default_speed_mps, ctx.speed_limit_mps)
+        self.gps_timeout_s = gps_timeout_s
+        self.stuck_after_s = stuck_after_s or ctx.params.default_stuck_after_s
+        self.nav = NavConfig()
+        self.visit: Optional[Visit] = None
+        self.goal: Optional[tuple[float, float]] = None
+        self.frame: Optional[LocalFrame] = None
+        self.line_start: Optional[tuple[float, float]] = None
+        self.started_s = 0.0
+        self.last_tick_s = 0.0
+        self.progress_at_s = 0.0
+        self.best_dist_m = math.inf
+        self.best_dist_at_s = 0.0
+        self.best_turn_rad = math.inf
+        self.odom_at_progress_m = 0.0
+        self.last_odom_m: Optional[float] = None
+        self.closing_m = 0.0
+        self.mode = ""
+        self.init_start: Optional[FusedPose] = None
+        self.distance_m = math.inf
+
+    # -- lifecycle ------------------------------------------------------------------------
+    def initialise(self) -> None:
+        self.nav = self.ctx.services.get(NAV_SERVICE) or NavConfig()
+        now = self.now()
+        self.started_s = self.last_tick_s = now
+        self.goal = None
+        self.frame = None
+        self.line_start = None
+        self.init_start = None
+        self.distance_m = math.inf
+        self._restart_progress(now)
+        self.visit = visit_log(self.ctx).start(self.place, None, None)
+        self._resolve_goal()
+
+    def terminate(self, new_status: Status) -> None:
+        visit = self.visit
+        if visit is None:
+            return
+        self.visit = None
+        if new_status == Status.SUCCESS:
+            visit.reached = True
+            visit.estimated_error_m = self.distance_m
+        start = self.read("mission_start_s")
+        now = self.now()
+        visit.end_stamp_s = now
+        visit.time_s = now - start if start is not None else None
+        visit_log(self.ctx).end(visit)
+
+    def _resolve_goal(self) -> None:
+        if self.goal is None:
+            goal = self.target()
+            if goal is not None:
+                self.goal = goal
+                self.frame = LocalFrame(goal[0], goal[1])
+                if self.visit is not None:
+                    self.visit.lat, self.visit.lon = goal
+
+    def _restart_progress(self, now: float) -> None:
+        self.progress_at_s = now
+        self.best_dist_m = math.inf
+        self.best_dist_at_s = now
+        self.best_turn_rad = math.inf
+        odom = self.read("pose_odom")
+        self.odom_at_progress_m = odom.distance_m if odom is not None else 0.0
+        self.last_odom_m = None
+        self.closing_m = 0.0
+
+    # -- the tick -------------------------------------------------------------------------
+    def update(self) -> Status:
+        now = self.now()
+        nav = self.nav
+        if now - self.last_tick_s > nav.resume_gap_s:
+            # The tree was not ticked for a while (hold, teleop): a pause is not being stuck.
+            self._restart_progress(now)
+            self.line_start = None
+        self.last_tick_s = now
+        tolerance = self.tolerance_m if self.tolerance_m is not None else nav.default_tolerance_m
+        timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
+        fix = self.read("gps_fix")
+        last_fix_s = fix.stamp_s if fix is not None else self.started_s
+        no_fix_s = now - max(last_fix_s, self.started_s)
+        self._resolve_goal()
+        pose: Optional[FusedPose] = self.read("pose")
+        if self.goal is None or pose is None or not pose.position_valid or pose.lat is None:
+            self.command(0.0, 0.0)
+            if no_fix_s > timeout:
+                what = "home is not known" if self.goal is None else "no position"
+                return self.fail(f"no GPS fix for {timeout:g} s ({what})")
+            self.feedback_message = "waiting for a GPS fix"
+            return Status.RUNNING
+        if no_fix_s > timeout:
+            self.command(0.0, 0.0)
+            return self.fail(f"no GPS fix for {timeout:g} s")
+        assert self.frame is not None
+        # The robot's position relative to the target (east, north), m.
+        e, n, _ = self.frame.to_enu(pose.lat, pose.lon, 0.0)
+        dist = math.hypot(e, n)
+        self.distance_m = dist
+        if dist <= tolerance:
+            self.command(0.0, 0.0)
+            self.feedback_message = f"reached, {dist:.1f} m from {self.place}"
+            return Status.SUCCESS
+        odom = self.read("pose_odom")
+        odom_m = odom.distance_m if odom is not None else 0.0
+        if not pose.heading_valid:
+            return self._find_heading(now, odom, dist)
+        self.init_start = None
+        if self.line_start is None or self._cross_track_m(e, n) > self.nav.replan_cross_track_m:
+            self.line_start = (e, n)
+        return self._pursue(now, pose, e, n, dist, tolerance, odom_m)
+
+    # -- heading unknown: drive straight ------------------------------------------------------
+    def _find_heading(self, now: float, odom: Optional[FusedPose], dist: float) -> Status:
+        """Drive straight ahead on the odometric heading until the estimator knows the heading."""
+        nav = self.nav
+        if odom is None:
+            self.command(0.0, 0.0)
+            self.feedback_message = "waiting for odometry"
+            return Status.RUNNING
+        if self.mode != "init" or self.init_start is None:
+            self.mode = "init"
+            self.init_start = odom
+            self._restart_progress(now)
+        driven = odom.distance_m - self.init_start.distance_m
+        if driven > nav.heading_init_distance_m:
+            self.command(0.0, 0.0)
+            return self.fail(f"no heading estimate after driving {driven:.1f} m")
+        if odom.distance_m - self.odom_at_progress_m >= nav.progress_m:
+            self.progress_at_s = now
+            self.odom_at_progress_m = odom.distance_m
+        elif now - self.progress_at_s > self.stuck_after_s:
+            self.command(0.0, 0.0)
+            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
+        hold = wrap_angle(self.init_start.yaw - odom.yaw)
+        limit = self.ctx.turn_rate_limit_rps
+        self.command(self.speed_mps, max(-limit, min(limit, self.ctx.params.heading_gain * hold)))
+        self.feedback_message = f"finding the heading: {driven:.1f} m driven, {dist:.1f} m to {self.place}"
+        return Status.RUNNING
+
+    # -- heading known: regulated pure pursuit -------------------------------------------------
+    def _cross_track_m(self, e: float, n: float) -> float:
+        """Distance (m) of the robot (target-relative ENU) from the line it follows."""
+        assert self.line_start is not None
+        se, sn = self.line_start
+        length = math.hypot(se, sn)
+        if length < 1e-6:
+            return 0.0
+        return abs(e * sn - n * se) / length
+
+    def _carrot(self, e: float, n: float, dist: float) -> tuple[float, float]:
+        """The point ``lookahead_m`` ahead of the robot's projection on the line, in target-relative ENU."""
+        assert self.line_start is not None
+        se, sn = self.line_start
+        length = math.hypot(se, sn)
+        la = self.nav.lookahead_m
+        if length < 1e-6 or dist <= la:
+            return 0.0, 0.0
+        # unit vector from the start toward the target (the target is the origin)
+        ue, un = -se / length, -sn / length
+        along = (e - se) * ue + (n - sn) * un
+        ahead = min(length, max(0.0, along) + la)
+        return se + ue * ahead, sn + un * ahead
+
+    def _pursue(self, now: float, pose: FusedPose, e: float, n: float, dist: float, tolerance: float,
+                odom_m: float) -> Status:
+        nav = self.nav
+        p = self.ctx.params
+        ce, cn = self._carrot(e, n, dist)
+        de, dn = ce - e, cn - n
+        ld = math.hypot(de, dn)
+        alpha = wrap_angle(math.atan2(dn, de) - pose.yaw)
+        # Progress: the fused position got closer to the target, or the wheels carried the robot
+        # toward it (the fused distance alone stalls on the slow approach while the GPS pulls the
+        # estimate about), or the heading error shrinks while turning in place.
+        step_m = 0.0 if self.last_odom_m is None else odom_m - self.last_odom_m
+        self.last_odom_m = odom_m
+        self.closing_m += step_m * math.cos(wrap_angle(math.atan2(-n, -e) - pose.yaw))
+        if self.best_dist_m == math.inf or dist > self.best_dist_m + 5.0 * nav.progress_m:
+            # first look, or the estimate jumped away from the target: measure from here
+            self.best_dist_m = dist
+            self.best_dist_at_s = now
+        elif self.best_dist_m - dist >= nav.progress_m:
+            self.best_dist_m = dist
+            self.best_dist_at_s = now
+            self.progress_at_s = now
+            self.closing_m = 0.0
+        elif self.closing_m >= nav.progress_m:
+            self.progress_at_s = now
+            self.closing_m = 0.0
+        rotate = abs(alpha) > nav.rotate_to_heading_min_angle_rad
+        if rotate:
+            if self.mode != "rotate":
+                self.best_turn_rad = math.inf
+            if abs(alpha) < self.best_turn_rad - p.stuck_progress_rad:
+                self.best_turn_rad = abs(alpha)
+                self.progress_at_s = now
+        self.mode = "rotate" if rotate else "drive"
+        if now - self.progress_at_s > self.stuck_after_s:
+            self.command(0.0, 0.0)
+            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+        if now - self.best_dist_at_s > nav.stuck_position_factor * self.stuck_after_s:
+            # The wheels turn but the position does not follow (tracks slipping against an obstacle).
+            self.command(0.0, 0.0)
+            return self.fail(f"stuck: no closer to {self.place} for "
+                             f"{nav.stuck_position_factor * self.stuck_after_s:g} s, {dist:.1f} m to go")
+        limit = self.ctx.turn_rate_limit_rps
+        if rotate:
+            rate = max(p.min_turn_rate_rps, min(p.default_turn_rate_rps, limit, p.turn_gain * abs(alpha)))
+            self.command(0.0, math.copysign(rate, alpha))
+            self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {dist:.1f} m to go"
+            return Status.RUNNING
+        curvature = 2.0 * math.sin(alpha) / max(ld, 1e-3)
+        v = self.speed_mps
+        radius = 1.0 / abs(curvature) if curvature != 0.0 else math.inf
+        if radius < nav.regulated_min_radius_m:
+            v *= radius / nav.regulated_min_radius_m
+        if nav.approach_dist_m > 0.0:
+            v = min(v, self.speed_mps * (dist - tolerance) / nav.approach_dist_m)
+        v = max(v, min(nav.min_speed_mps, self.speed_mps))
+        w = v * curvature
+        if abs(w) > limit:
+            # keep the curvature: slow down rather than cut the turn
+            v *= limit / abs(w)
+            w = math.copysign(limit, w)
+        self.command(v, w)
+        self.feedback_message = f"{dist:.1f} m to {self.place}"
+        return Status.RUNNING
+
+
+def place_target(lat: float, lon: float) -> Target:
+    """A fixed target at (lat, lon) degrees."""
+    return lambda: (lat, lon)
+
+
+def home_target(ctx: MissionContext) -> Target:
+    """Home: where the mission started (the first good fix), once known."""
+    def target() -> Optional[tuple[float, float]]:
+        home: Any = ctx.services.get("home")
+        return home() if home is not None else None
+    return target
