@@ -67,10 +67,28 @@ def test_turn_by_angle_within_3_deg_of_odometry(angle):
     assert math.copysign(1, first.angular_rps) == math.copysign(1, angle)
 
 
-def test_turn_to_heading_fails_without_a_heading_estimate():
-    h = mission("  - turn: {heading: 90 deg}\n")
+BARE = ("robot: bare\ngeometry: {track_width_m: 0.17}\nlimits: {max_speed_mps: 0.3, max_turn_rate_dps: 90}\n"
+        "base: {type: waveshare_serial, gimbal: false}\n")
+
+
+def test_turn_to_heading_fails_without_a_heading_estimate(tmp_path):
+    (tmp_path / "bare.yaml").write_text(BARE)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - turn: {heading: 90 deg, stuck_after: 2 s}\n",
+                                 robot=str(tmp_path / "bare.yaml"))
+    h.tick(10)
+    assert h.status_of("turn to heading 90 deg") == "RUNNING"   # waits for an estimate first
     assert h.run_to_end(10) == "failure"
+    assert h.now_s == pytest.approx(2.0, abs=0.1)
     assert any("no heading" in e.text for e in h.events)
+    assert all(c.is_zero() for c in h.sent)
+
+
+@pytest.mark.parametrize("heading,yaw", [(0, 90), (180, -90), (270, 180)])
+def test_turn_to_compass_heading_with_the_simulated_compass(heading, yaw):
+    h = mission(f"  - turn: {{heading: {heading} deg}}\n")
+    assert h.run_to_end(30) == "success"
+    err = (math.degrees(h.truth.yaw) - yaw + 180) % 360 - 180
+    assert abs(err) <= 5.0   # 3 deg on the estimate, plus the estimate's own error
 
 
 def test_wait_stands_still_for_its_time():

@@ -82,8 +82,10 @@ class TurnBy(_TurnInPlace):
 class TurnToHeading(_TurnInPlace):
     """Turn in place to a compass heading (``heading_rad``: 0 north, pi/2 east, clockwise).
 
-    Uses the fused pose. Succeeds within 3 deg. Fails when there is no heading
-    estimate (no magnetometer and no motion yet) or no progress for ``stuck_after_s``.
+    Uses the fused pose. Succeeds within 3 deg. While there is no heading
+    estimate yet (the IMU calibrates its gyro for a few seconds at start) it
+    stands still; it fails when there is still none after ``stuck_after_s``
+    (no magnetometer and no GPS motion), or when it makes no progress for that long.
     """
 
     READS = ("pose",)
@@ -97,5 +99,8 @@ class TurnToHeading(_TurnInPlace):
         pose = self.read("pose")
         if pose is None or not pose.heading_valid:
             self.command(0.0, 0.0)
-            return self.fail("no heading estimate (needs a magnetometer, or GPS and some driving first)")
+            if self.now() - self.progress_at_s >= self.stuck_after_s:
+                return self.fail("no heading estimate (needs a magnetometer, or GPS and some driving first)")
+            self.feedback_message = "waiting for a heading estimate"
+            return Status.RUNNING
         return self.steer_to(wrap_angle(self.target_yaw - pose.yaw))
