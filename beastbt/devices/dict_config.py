@@ -10,11 +10,13 @@ to each dataclass's ``__post_init__``.
 
 from __future__ import annotations
 
+import math
+
 import dataclasses
 import difflib
 import typing
 from collections.abc import Mapping
-from typing import Any, TypeVar
+from typing import Any, Optional, TypeVar
 
 T = TypeVar("T")
 
@@ -91,3 +93,14 @@ def dataclass_from_dict(cls: type[T], data: Any, what: str) -> T:
     except ValueError as exc:
         text = str(exc)
         raise ValueError(text if text.startswith(what) else f"{what}: {text}") from None
+
+
+def require_number(name: str, value: Any, *, minimum: Optional[float] = None, positive: bool = False) -> float:
+    """``value`` as a float, or a ValueError naming ``name`` when it is not a finite number in range."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if positive and value <= 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
+    return float(value)

@@ -31,6 +31,7 @@ import pynmea2
 import serial
 
 from beastbt.blackboard.types import GpsFix
+from beastbt.devices.dict_config import require_number as _require_number
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 from beastbt.runtime.clock import Clock
 
@@ -101,14 +102,6 @@ _RMC_MODE_QUALITY = {"A": 1, "D": 2, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "P"
 # configuration
 
 
-def _require_number(name: str, value: Any, *, minimum: float | None = None, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    if positive and value <= 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
-    return float(value)
 
 
 @dataclass

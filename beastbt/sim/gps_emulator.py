@@ -21,6 +21,8 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Optional
 
 import numpy as np
+
+from beastbt.devices.dict_config import require_number as _number
 import pynmea2
 
 from beastbt.devices.nmea_gps import (
@@ -46,14 +48,6 @@ _EPS_S = 1e-6
 """Tolerance when comparing simulated times to the output schedule (float ticks), seconds."""
 
 
-def _number(name: str, value: Any, *, minimum: Optional[float] = None, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    if positive and value <= 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
-    return float(value)
 
 
 @dataclass
