@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Optional, Sequence
 
 import py_trees
@@ -75,6 +76,11 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
     raw = profile.section("estimator") or {}
     # The profile's geometry is the track width unless the estimator section tunes its own.
     track = None if "track_width_m" in raw else profile.track_width_m
+    world = getattr(io.sim, "world", None)
+    if "declination_deg" not in raw and world is not None:
+        # On the simulator the world is where the robot is: unless the profile says
+        # otherwise, use the world's declination, as a user sets theirs for their place.
+        config = replace(config, declination_deg=float((world.section("imu") or {}).get("mag_declination_deg", 0.0)))
     ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
     return NavEstimator(ekf, io.extras.get("imu_tap"))
 
