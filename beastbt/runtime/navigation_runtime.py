@@ -76,11 +76,15 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
     raw = profile.section("estimator") or {}
     # The profile's geometry is the track width unless the estimator section tunes its own.
     track = None if "track_width_m" in raw else profile.track_width_m
-    world = getattr(io.sim, "world", None)
-    if "declination_deg" not in raw and world is not None:
+    if "declination_deg" not in raw:
         # On the simulator the world is where the robot is: unless the profile says
         # otherwise, use the world's declination, as a user sets theirs for their place.
-        config = replace(config, declination_deg=float((world.section("imu") or {}).get("mag_declination_deg", 0.0)))
+        # Kept in io.extras so that a recording (and its replay) carries the same value.
+        world = getattr(io.sim, "world", None)
+        if "magnetic_declination_deg" not in io.extras and world is not None:
+            io.extras["magnetic_declination_deg"] = float((world.section("imu") or {}).get("mag_declination_deg", 0.0))
+        if "magnetic_declination_deg" in io.extras:
+            config = replace(config, declination_deg=float(io.extras["magnetic_declination_deg"]))
     ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
     return NavEstimator(ekf, io.extras.get("imu_tap"))
 

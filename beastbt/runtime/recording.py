@@ -771,6 +771,8 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }
+    if "magnetic_declination_deg" in run.io.extras:
+        info["magnetic_declination_deg"] = repr(run.io.extras["magnetic_declination_deg"])
     if world is not None:
         info["world_start"] = json.dumps([world.start_x, world.start_y, world.start_yaw])
         info["world_datum"] = json.dumps([world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m])

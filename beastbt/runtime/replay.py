@@ -353,6 +353,8 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     extras = set(json.loads(info.get("io_extras", "[]")))
     if "joystick" in extras:
         io.extras["joystick"] = RecordedDevice("joystick")  # teleop asks whether there is one
+    if "magnetic_declination_deg" in info:
+        io.extras["magnetic_declination_deg"] = float(info["magnetic_declination_deg"])
     flags = DeviceFlags(rec, io)
     if "imu_tap" in extras:
         from beastbt.estimation.imu_tap import ImuTap
