@@ -248,6 +248,13 @@ def _mark_failsafes(ax: Any, d: RunData) -> None:
                    label="failsafe" if i == 0 else None)
 
 
+
+def _save(plt, fig, out: Path) -> None:
+    """Lay out, write ``out`` as PNG at the report's resolution, and free the figure."""
+    fig.tight_layout()
+    fig.savefig(out, dpi=DPI)
+    plt.close(fig)
+
 def plot_path(d: RunData, out: Path) -> Optional[str]:
     """The path on a map in metres; returns why it was skipped, or None."""
     truth = d.rec.topic("/truth")
@@ -285,9 +292,7 @@ def plot_path(d: RunData, out: Path) -> Optional[str]:
     ax.set_title(f"{d.rec.info.get('mission', d.name)}: path")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, out)
     return None
 
 
@@ -342,9 +347,7 @@ def plot_position_error(d: RunData, out: Path) -> Optional[str]:
     ax.set_title("position error against ground truth")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, out)
     return None
 
 
@@ -388,9 +391,7 @@ def plot_speeds(d: RunData, out: Path) -> Optional[str]:
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(True, alpha=0.3)
     fig.suptitle("commanded against actual")
-    fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, out)
     return None
 
 
@@ -421,9 +422,7 @@ def plot_line_error(d: RunData, out: Path) -> Optional[str]:
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(True, alpha=0.3)
     fig.suptitle("line error as detected")
-    fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, out)
     return None
 
 
@@ -485,9 +484,7 @@ def plot_timeline(d: RunData, out: Path) -> Optional[str]:
     ax.set_xlabel("time (s)")
     ax.set_title("which step ran when (green: succeeded, red: failed, grey: interrupted, blue: still running)")
     ax.grid(True, axis="x", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out, dpi=DPI)
-    plt.close(fig)
+    _save(plt, fig, out)
     return None
 
 

@@ -8,9 +8,8 @@ function with :func:`register_sim_device`.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Callable, Optional
+from typing import Callable
 
 import numpy as np
 
@@ -99,10 +98,3 @@ def build_sim_robot(profile: RobotProfile, world: World, seed: int, events: Even
         attach(sim, profile, io, events)
     return io
 
-
-def sim_settle_angle(io: RobotIO, name: str) -> Optional[list]:
-    """The angles (deg, beastbt convention) servo ``name`` settled at during the run, in order."""
-    esp32 = io.extras.get("esp32")
-    if esp32 is None or name not in esp32.gimbal.visits:
-        return None
-    return [round(math.degrees(math.radians(a)), 3) for a in esp32.gimbal.visits[name]]
