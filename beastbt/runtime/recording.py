@@ -1,4 +1,4 @@
-"""Every run recorded: an MCAP file (``run.mcap``) written off the tick loop.
+"""Every run recorded: an MCAP file (``run.mcap``) written by a separate process, off the tick loop.
 
 Installed through :data:`~beastbt.runtime.session.PREPARE_HOOKS`: when a run
 records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
@@ -7,18 +7,23 @@ records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
 
 * the tick side (``run.recorders``, an event log listener, ``run.send_servo``
   and the devices' polls, wrapped to note which device each reading came
-  from) only takes references to the tick's immutable readings, poses and
-  commands, copies the mutable ground truth, and appends one item to a
-  bounded queue; it never serialises, compresses or touches the disk;
-* a writer thread turns each item into JSON messages on the channels of
-  :mod:`beastbt.runtime.recording_schemas`, and writes them with the ``mcap``
-  library in compressed chunks, closing a chunk every ``chunk_interval_s`` of
+  from) turns each tick's readings, poses and commands into bytes with
+  :mod:`pickle` (:mod:`beastbt.runtime.recording_wire`, a few microseconds)
+  and writes them into a pipe, a batch at a time; it never builds JSON,
+  compresses or touches the disk;
+* the writer process (:mod:`beastbt.runtime.recording_writer`, started when
+  the recorder is installed) does all of that on another core, under its
+  own interpreter lock, so recording does not slow the loop even when the
+  simulator runs flat out. Its chunks close every ``chunk_interval_s`` of
   recorded clock time, so a run killed hard leaves a file that reads up to
   its last complete chunk (:func:`beastbt.runtime.recording_reader.read_recording`);
-* when the queue is full: on a simulated clock the loop waits for the writer
-  (nothing is lost, the simulation just runs slower); on the robot the item is
-  dropped and counted, never blocking the loop. The summary gets
-  ``recording: {messages, dropped}``.
+  when only the run's process dies, the writer sees the pipe end and closes
+  the file properly;
+* the queue is bounded: the pipe (up to 1 MiB) and at most
+  ``queue_max_items`` items waiting for it. When it is full: on a simulated
+  clock the loop waits for the writer (nothing is lost, the simulation just
+  runs slower); on the robot the item is dropped and counted, never blocking
+  the loop. The summary gets ``recording: {messages, dropped}``.
 
 The file also holds, for ``beastbt replay`` and ``beastbt report``: metadata
 ``beastbt.run`` (mission path, seed, robot profile, world, rate, capabilities,
@@ -29,220 +34,28 @@ and at the end metadata ``beastbt.summary`` (the run summary).
 
 from __future__ import annotations
 
-import base64
 import collections
 import dataclasses
 import datetime as _dt
 import json
-import math
-import threading
+import os
+import select
+import subprocess
+import sys
 import time
 import weakref
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Optional
 
-import numpy as np
 import yaml
 
-from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
-from beastbt.devices.dict_config import dataclass_from_dict
-from beastbt.runtime import recording_schemas as rs
+import beastbt
+from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.runtime.clock import SimClock
-
-RECORDING_FORMAT = "beastbt-run/1"
-"""Written in the ``beastbt.run`` metadata; bumped when the channels change incompatibly."""
-
-MCAP_PROFILE = "beastbt"
-
-
-# -- configuration -----------------------------------------------------------------------
-
-
-@dataclass
-class RecordingConfig:
-    """How a run is recorded (``RunOptions.extras['recording']``; ``--record-images HZ`` sets image_rate_hz)."""
-
-    # Camera frames stored as JPEG on /camera/image, frames per clock second (Hz). 0 turns images off;
-    # every frame still gets a small /sensors/camera message. Raise it to see more, lower it for smaller files.
-    image_rate_hz: float = 2.0
-    # JPEG quality of recorded images, 1-100 (OpenCV's IMWRITE_JPEG_QUALITY).
-    image_jpeg_quality: int = 75
-    # Images wider than this are scaled down before encoding (pixels); 0 keeps the camera's size.
-    image_max_width_px: int = 640
-    # Ticks, events and servo commands waiting for the writer thread (items). ~200 s at 20 Hz; on the robot
-    # an overflow drops items (counted in the summary), in the simulator the loop waits instead.
-    queue_max_items: int = 4000
-    # What a full queue does: "auto" (wait on a simulated clock, drop on the robot), "block" or "drop".
-    overflow: str = "auto"
-    # A chunk is closed and handed to the OS every this many clock seconds of records (s). A run killed
-    # hard loses at most this much; shorter chunks compress less well.
-    chunk_interval_s: float = 1.0
-    # A chunk is also closed when its uncompressed size passes this (bytes), e.g. with many images.
-    chunk_max_bytes: int = 4 * 1024 * 1024
-    # Chunk compression: "auto" (zstd if installed, else lz4, else none), "zstd", "lz4" or "none".
-    compression: str = "auto"
-    # How long the end of a run waits for the writer to drain its queue before giving up (wall seconds).
-    drain_timeout_s: float = 60.0
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.image_rate_hz) and self.image_rate_hz >= 0):
-            raise ValueError(f"image_rate_hz must be zero or positive, got {self.image_rate_hz}")
-        if not 1 <= self.image_jpeg_quality <= 100:
-            raise ValueError(f"image_jpeg_quality must be 1-100, got {self.image_jpeg_quality}")
-        if self.image_max_width_px < 0:
-            raise ValueError(f"image_max_width_px must be zero or positive, got {self.image_max_width_px}")
-        if self.queue_max_items < 1:
-            raise ValueError(f"queue_max_items must be at least 1, got {self.queue_max_items}")
-        if self.overflow not in ("auto", "block", "drop"):
-            raise ValueError(f"overflow must be auto, block or drop, not '{self.overflow}'")
-        if not (math.isfinite(self.chunk_interval_s) and self.chunk_interval_s > 0):
-            raise ValueError(f"chunk_interval_s must be positive, got {self.chunk_interval_s}")
-        if self.chunk_max_bytes < 1024:
-            raise ValueError(f"chunk_max_bytes must be at least 1024, got {self.chunk_max_bytes}")
-        if self.compression not in ("auto", "zstd", "lz4", "none"):
-            raise ValueError(f"compression must be auto, zstd, lz4 or none, not '{self.compression}'")
-        if not self.drain_timeout_s > 0:
-            raise ValueError(f"drain_timeout_s must be positive, got {self.drain_timeout_s}")
-
-    @classmethod
-    def from_dict(cls, d: Any) -> "RecordingConfig":
-        """Build from a dict; an unknown key or a bad value raises ``ValueError``."""
-        return dataclass_from_dict(cls, d, "recording")
-
-
-def compression_type(name: str) -> Any:
-    """The ``mcap`` CompressionType for ``name`` (``auto`` picks zstd, then lz4, then none by what is installed)."""
-    from mcap import writer as mw
-    if name == "auto":
-        name = "zstd" if mw.zstandard is not None else ("lz4" if mw.lz4 is not None else "none")
-    return {"zstd": mw.CompressionType.ZSTD, "lz4": mw.CompressionType.LZ4,
-            "none": mw.CompressionType.NONE}[name]
-
-
-# -- conversions (writer thread) ----------------------------------------------------------
-
-
-def ns(t_s: float) -> int:
-    """Clock seconds to MCAP log time (integer nanoseconds, never negative)."""
-    return max(0, int(round(t_s * 1e9)))
-
-
-def _fox_time(t_ns: int) -> dict:
-    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
-
-
-def _json_default(o: Any) -> Any:
-    """numpy scalars and arrays, tuples of them: what the JSON encoder does not know."""
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"cannot record a {type(o).__name__}")
-
-
-_ENCODE = json.JSONEncoder(separators=(",", ":"), default=_json_default).encode
-
-
-def gps_dict(r: GpsFix) -> dict:
-    """GpsFix as its /sensors/gps message."""
-    return {"stamp_s": r.stamp_s, "lat": r.lat, "lon": r.lon, "alt_msl": r.alt_msl, "quality": r.quality,
-            "sats": r.sats, "hdop": r.hdop, "speed_mps": r.speed_mps, "track_deg": r.track_deg,
-            "time_utc": r.time_utc, "sentence": r.sentence, "covariance_enu": [list(row) for row in r.covariance_enu]}
-
-
-def imu_dict(r: ImuSample) -> dict:
-    """ImuSample as its /sensors/imu message."""
-    return {"stamp_s": r.stamp_s, "gyro_rps": list(r.gyro_rps), "accel_mps2": list(r.accel_mps2),
-            "mag_t": list(r.mag_t) if r.mag_t is not None else None, "temperature_c": r.temperature_c}
-
-
-def odometry_dict(r: WheelOdometry) -> dict:
-    """WheelOdometry as its /sensors/odometry message."""
-    return {"stamp_s": r.stamp_s, "left_m": r.left_m, "right_m": r.right_m, "left_mps": r.left_mps,
-            "right_mps": r.right_mps}
-
-
-def battery_dict(r: BatteryState) -> dict:
-    """BatteryState as its /sensors/battery message."""
-    return {"stamp_s": r.stamp_s, "voltage_v": r.voltage_v}
-
-
-def joystick_dict(r: JoystickState) -> dict:
-    """JoystickState as its /sensors/joystick message."""
-    return {"stamp_s": r.stamp_s, "axes": dict(r.axes), "buttons": dict(r.buttons), "connected": r.connected}
-
-
-def line_dict(r: LineObservation) -> dict:
-    """LineObservation as its /sensors/line message."""
-    return {"stamp_s": r.stamp_s, "seen": r.seen, "offset_m": r.offset_m, "angle_rad": r.angle_rad,
-            "width_m": r.width_m, "confidence": r.confidence, "intersection": r.intersection,
-            "intersection_distance_m": r.intersection_distance_m, "line_end": r.line_end}
-
-
-def pose_dict(p: FusedPose) -> dict:
-    """FusedPose as its /estimate/* message."""
-    return {"stamp_s": p.stamp_s, "x": p.x, "y": p.y, "yaw": p.yaw, "speed_mps": p.speed_mps,
-            "yaw_rate_rps": p.yaw_rate_rps, "covariance": [list(row) for row in p.covariance],
-            "distance_m": p.distance_m, "heading_valid": p.heading_valid, "position_valid": p.position_valid,
-            "lat": p.lat, "lon": p.lon}
-
-
-def generic_dict(r: Any) -> dict:
-    """A reading type without its own converter: its dataclass fields (arrays as lists)."""
-    out = {}
-    for f in dataclasses.fields(r):
-        v = getattr(r, f.name)
-        out[f.name] = v.tolist() if isinstance(v, np.ndarray) and v.size <= 64 else (
-            None if isinstance(v, np.ndarray) else v)
-    return out
-
-
-_SENSOR_CONVERTERS: dict[type, tuple[str, Callable[[Any], dict]]] = {
-    GpsFix: ("/sensors/gps", gps_dict), ImuSample: ("/sensors/imu", imu_dict),
-    WheelOdometry: ("/sensors/odometry", odometry_dict), BatteryState: ("/sensors/battery", battery_dict),
-    JoystickState: ("/sensors/joystick", joystick_dict), LineObservation: ("/sensors/line", line_dict),
-}
-
-
-def _snake(name: str) -> str:
-    return "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
-
-
-def location_fix(r: GpsFix, t_ns: int) -> dict:
-    """GpsFix as a foxglove.LocationFix (for Foxglove's map panel)."""
-    return {"timestamp": _fox_time(t_ns), "frame_id": "gps", "latitude": r.lat, "longitude": r.lon,
-            "altitude": r.alt_msl if r.alt_msl is not None else 0.0,
-            "position_covariance": [float(v) for row in r.covariance_enu for v in row],
-            "position_covariance_type": 1}
-
-
-def pose_in_frame(p: FusedPose, t_ns: int, frame_id: str) -> dict:
-    """FusedPose as a foxglove.PoseInFrame (planar pose, yaw about z)."""
-    half = 0.5 * p.yaw
-    return {"timestamp": _fox_time(t_ns), "frame_id": frame_id,
-            "pose": {"position": {"x": p.x, "y": p.y, "z": 0.0},
-                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
-
-
-def stage_dict(tick: int, now_s: float, c: VelocityCommand, mux_source: str) -> dict:
-    """A velocity command at one stage, with the tick it belongs to."""
-    return {"tick": tick, "now_s": now_s, "linear_mps": c.linear_mps, "angular_rps": c.angular_rps,
-            "stamp_s": c.stamp_s, "source": c.source, "mux_source": mux_source}
-
-
-_LOG_LEVELS = {"failsafe": 3, "device_error": 4, "estop": 4, "step_failed": 3, "on_failure": 3,
-               "recording": 3}
-
-
-def log_level(kind: str) -> int:
-    """foxglove.LogLevel of an event kind: WARNING/ERROR for faults, INFO otherwise."""
-    level = _LOG_LEVELS.get(kind)
-    if level is not None:
-        return level
-    return 3 if ("lost" in kind or "error" in kind) else 2
-
+from beastbt.runtime.recording_config import RecordingConfig, compression_type
+from beastbt.runtime.recording_wire import Frame, ItemEncoder
+from beastbt.runtime.recording_writer import (MCAP_PROFILE, RECORDING_FORMAT, TRUTH_FIELDS, json_default,
+                                              message_count, ns)
 
 _UNSET = object()
 
@@ -251,54 +64,31 @@ WATCHED_DEVICE_FLAGS: list[tuple[str, str]] = [("imu_driver", "bias_ready")]
 navigation estimator uses the IMU only once the driver's gyro bias is final); recorded on /devices/state
 whenever they change, so that replay can give the estimator the same answers."""
 
-TRUTH_FIELDS = ("t_s", "x", "y", "yaw", "v_mps", "w_rps", "left_m", "right_m", "pan_rad", "tilt_rad", "battery_v")
+BATCH_ITEMS = 64
+"""A batch goes into the pipe once it holds this many items, whatever its age."""
+
+PIPE_BYTES = 1 << 20
+"""Size asked of the pipe to the writer process (bytes; Linux grants up to ``/proc/sys/fs/pipe-max-size``)."""
+
+_WRITER_START = ("import sys; root = sys.argv[1]; root in sys.path or sys.path.insert(0, root); "
+                 "from beastbt.runtime.recording_writer import main; main()")
+"""How the writer process starts: this very beastbt (a checkout on ``sys.path`` too), its ``main()``."""
 
 
-# -- the tick side's items ------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Frame:
-    """A camera frame as queued: its description, and its pixels only when it will be recorded as an image."""
-
-    stamp_s: float
-    seq: int
-    width: int
-    height: int
-    image: Optional[np.ndarray]
-
-
-class _TeeFile:
-    """Writes the same bytes to several files; ``tell()`` of the first (the MCAP writer records offsets)."""
-
-    def __init__(self, paths: list[Path]) -> None:
-        self._files = []
-        for p in paths:
-            p.parent.mkdir(parents=True, exist_ok=True)
-            self._files.append(open(p, "wb"))
-
-    def write(self, data: bytes) -> int:
-        for f in self._files:
-            f.write(data)
-        return len(data)
-
-    def tell(self) -> int:
-        return self._files[0].tell()
-
-    def flush(self) -> None:
-        for f in self._files:
-            f.flush()
-
-    def close(self) -> None:
-        for f in self._files:
-            f.close()
+def _grow_pipe(fd: int) -> None:
+    """Ask for a pipe of PIPE_BYTES (Linux): fewer waits and drops when the writer lags a moment."""
+    try:
+        import fcntl
+        fcntl.fcntl(fd, getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
+    except (ImportError, OSError):
+        pass  # not Linux, or above the system's limit: the default pipe (64 KiB) still works
 
 
 # -- the recorder -----------------------------------------------------------------------------
 
 
 class McapRecorder:
-    """Records one run into MCAP file(s): a cheap tick side, a writer thread, counts for the summary.
+    """Records one run into MCAP file(s): a cheap tick side, a writer process, counts for the summary.
 
     ``paths``: the files to write (the same bytes to each). ``block_when_full``:
     wait for the writer when the queue is full (simulated clock) instead of
@@ -314,29 +104,37 @@ class McapRecorder:
         self.info = {k: str(v) for k, v in (info or {}).items()}
         self.attachments = list(attachments or [])
         self.messages = 0
-        """Messages written so far."""
-        # Counted on two threads, so kept apart: a "+=" is not atomic across threads.
+        """Messages written (known once the writer has answered :meth:`stop`)."""
         self._dropped_tick_side = 0
         self._dropped_writer_side = 0
         self.dropped_items = 0
+        """Items the tick side dropped (a full queue on the robot, or no writer to take them)."""
         self.writer_cpu_s = 0.0
-        """CPU time the writer thread used (s), known once it has stopped."""
+        """CPU time the writer process used (s), known once it has answered :meth:`stop`."""
         self.error: Optional[str] = None
-        """The writer's first error (the file may then be incomplete), or None."""
-        self._queue: collections.deque = collections.deque()
+        """The first error (the file may then be incomplete), or None."""
         self._max = self.config.queue_max_items
         self._image_period_s = 1.0 / self.config.image_rate_hz if self.config.image_rate_hz > 0 else None
-        self._next_image_s = -math.inf
-        self._stopping = False
-        self._wake = threading.Event()
-        self._finished = False
-        self._writer: Any = None
-        self._stream: Optional[_TeeFile] = None
-        self._channels: dict[str, int] = {}
-        self._schema_ids: dict[str, int] = {}
-        self._last_flush_s: Optional[float] = None
-        self._thread = threading.Thread(target=self._run, name="beastbt-recorder", daemon=True)
+        self._next_image_s = float("-inf")
+        self._encoder = ItemEncoder()
+        self._pending: collections.deque = collections.deque()
+        """``(bytes, items)`` not yet in the pipe, oldest first; the first may be partly written."""
+        self._pending_items = 0
+        self._batch_items: list[tuple] = []
+        """Items not yet encoded: one pickle and one write per batch, not per item."""
+        self._batch_t0 = 0.0
+        self._send_interval_s = self.config.send_interval_s
+        self._proc: Optional[subprocess.Popen] = None
+        self._fd: Optional[int] = None
+        self._doorbell: Optional[int] = None
+        """Write end of the writer's doorbell: rung when the run waits for an answer (see the writer's
+        ``_polling_reader``)."""
+        self._reply_buffer = b""
+        self._gone = False
+        """The writer process cannot take more (it never started, died, or was given up on)."""
         self._started = False
+        self._stopped = False
+        self._finished = False
         self.run: Any = None
         """The MissionRun being recorded (set by :func:`install`), looked at once, at the first tick."""
         self._watched: list[tuple[str, str, Any]] = []
@@ -373,20 +171,14 @@ class McapRecorder:
         tagged._beastbt_tagged = True  # type: ignore[attr-defined]
         return tagged
 
-    def _sources(self, n: int) -> Optional[list]:
-        """This tick's reading sources in order (None when they do not add up), and forget them."""
+    def _take_tags(self) -> tuple[bool, tuple]:
+        """This tick's (device, readings) tags, and whether the base's poll is among the tagged; forgets them.
+
+        The writer process turns them into each reading's source
+        (:func:`~beastbt.runtime.recording_writer.reading_sources`).
+        """
         tags = self._tags
-        if not tags:
-            return None
-        out: Optional[list] = []
-        if sum(k for _, k in tags) != n:
-            if not self._base_tagged and tags[0][0] != "base" and sum(k for _, k in tags) <= n:
-                tags.insert(0, ("base", n - sum(k for _, k in tags)))  # the base polls first
-            else:
-                out = None
-        if out is not None:
-            for name, k in tags:
-                out.extend([name] * k)
+        out = (self._base_tagged, tuple(tags))
         tags.clear()
         return out
 
@@ -396,17 +188,47 @@ class McapRecorder:
         return self._dropped_tick_side + self._dropped_writer_side
 
     # -- lifecycle ------------------------------------------------------------------------
+    def launch(self) -> "McapRecorder":
+        """Start the writer process (it imports while the run gets ready; it writes nothing before :meth:`start`)."""
+        if self._proc is not None or self._gone:
+            return self
+        root = str(Path(beastbt.__file__).resolve().parent.parent)
+        bell_r, bell_w = os.pipe()
+        try:
+            self._proc = subprocess.Popen([sys.executable, "-c", _WRITER_START, root, str(bell_r)],
+                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, close_fds=True,
+                                          pass_fds=(bell_r,))
+        except OSError as exc:
+            os.close(bell_w)
+            self._give_up(f"could not start the writer process: {exc!r}")
+            return self
+        finally:
+            os.close(bell_r)
+        os.set_blocking(bell_w, False)
+        self._doorbell = bell_w
+        fd = self._proc.stdin.fileno()
+        _grow_pipe(fd)
+        os.set_blocking(fd, False)  # the loop never waits on the pipe unless told to (block_when_full)
+        self._fd = fd
+        return self
+
     def start(self) -> "McapRecorder":
-        """Start the writer thread (it opens the files and writes the header, metadata and attachments).
+        """Open the file: the writer gets the metadata and attachments, then what was queued so far.
 
         :func:`install` leaves this to the first tick, so that the metadata
         sees the run as every prepare hook left it.
         """
-        if not self._started:
-            self._started = True
-            if self.run is not None:
-                self._snapshot_run(self.run)
-            self._thread.start()
+        if self._started:
+            return self
+        self._started = True
+        if self.run is not None:
+            self._snapshot_run(self.run)
+        self.launch()
+        opening = ("open", [str(p) for p in self.paths], dataclasses.asdict(self.config), dict(self.info),
+                   [(n, m, bytes(d)) for n, m, d in self.attachments])
+        self._pending.appendleft((self._encoder.encode([opening]), ()))
+        self._send_batch()
+        self._pump(block=False)
         return self
 
     def _snapshot_run(self, run: Any) -> None:
@@ -420,45 +242,54 @@ class McapRecorder:
             device = run.io.extras.get(key)
             if device is not None and hasattr(device, attr):
                 self._watched.append((key, attr, device))
-
     def stop(self) -> None:
-        """No more items: let the writer drain the queue and close the last chunk (the file stays open)."""
-        if not self._started:
-            self.start()  # a run that never ticked still leaves a file (metadata, events)
-        self._stopping = True
-        self._wake.set()
-        if self._thread.is_alive():
-            self._thread.join(self.config.drain_timeout_s)
-        if self._thread.is_alive():
-            # The disk hangs: give up on what is queued rather than hang the end of the run.
-            self.error = self.error or "the writer did not drain its queue in time"
-            images = self._image_period_s is not None
-            while self._queue:
-                self._dropped_tick_side += _message_count(self._queue.popleft(), images)
-                self.dropped_items += 1
+        """No more items: the writer writes everything queued, closes its chunk and reports its counts.
+
+        The file stays open for :meth:`finish`. Waits at most ``drain_timeout_s``
+        (wall time) for the writer, then gives up on what is still queued.
+        """
+        if self._stopped:
+            return
+        self.start()  # a run that never ticked still leaves a file (metadata, events)
+        self._stopped = True
+        if self._gone:
+            return
+        deadline = time.monotonic() + self.config.drain_timeout_s
+        self._send_batch()
+        self._pending.append((self._encoder.encode([("stop",)]), ()))
+        if self._pump(block=True, deadline=deadline):
+            self._take_reply(deadline)
+        elif not self._gone:
+            # The disk hangs (the writer stopped reading): give up on what is queued rather than hang the run.
+            self._give_up("the writer did not drain its queue in time")
 
     def finish(self, summary: Optional[dict] = None) -> None:
-        """Stop if needed, store ``summary`` as metadata ``beastbt.summary``, write the MCAP summary and close."""
+        """Stop if needed, store ``summary`` as metadata ``beastbt.summary``, let the writer close the file."""
         if self._finished:
             return
         self.stop()
         self._finished = True
-        if self._writer is None or self._thread.is_alive():
+        proc = self._proc
+        if proc is None:
             return
+        if not self._gone:
+            deadline = time.monotonic() + self.config.drain_timeout_s
+            summary_json = json.dumps(summary, default=json_default) if summary is not None else None
+            self._pending.append((self._encoder.encode([("finish", summary_json)]), ()))
+            if self._pump(block=True, deadline=deadline):
+                self._take_reply(deadline)
+        self._close_pipe()
         try:
-            if summary is not None:
-                self._writer.add_metadata("beastbt.summary", {"json": json.dumps(summary, default=_json_default)})
-            self._writer.finish()
-        except Exception as exc:
-            self.error = self.error or f"finishing the file: {exc!r}"
-        finally:
-            try:
-                if self._stream is not None:
-                    self._stream.close()
-            except Exception:
-                pass
+            # The writer ends right after its last answer; a hung one is not waited for.
+            proc.wait(timeout=self.config.drain_timeout_s if not self._gone else 1.0)
+        except subprocess.TimeoutExpired:
+            self.error = self.error or "the writer did not close the file in time"
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
 
-    # -- the tick side (cheap: references and one append) -------------------------------------
+    # -- the tick side (cheap: a pickle, and now and then a write into the pipe) ---------------
     def on_tick(self, rec: Any) -> None:
         """``run.recorders`` callable: queue what this tick did."""
         if not self._started:
@@ -468,7 +299,7 @@ class McapRecorder:
             if self._flags.get((key, attr), _UNSET) != value:
                 # A device state the estimator reads (the IMU's gyro bias being final): replay needs it.
                 self._flags[(key, attr)] = value
-                self._put(("flag", rec.tick, rec.now_s, key, attr, value))
+                self._put(("flag", rec.tick, rec.now_s, key, attr, value), rec.now_s)
         truth = rec.truth
         if truth is not None:
             truth = (truth.t_s, truth.x, truth.y, truth.yaw, truth.v_mps, truth.w_rps, truth.left_m, truth.right_m,
@@ -476,8 +307,7 @@ class McapRecorder:
         readings = rec.readings
         for i, r in enumerate(readings):
             if r.__class__ is CameraFrame:
-                # Hold the pixels only for frames that will be recorded: a lagging writer must not pin
-                # seconds of full-rate video in memory.
+                # Pixels go down the pipe only for frames that will be recorded as images.
                 if readings is rec.readings:
                     readings = list(readings)
                 image = r.image
@@ -487,223 +317,175 @@ class McapRecorder:
                     self._next_image_s = (self._next_image_s + step if r.stamp_s - self._next_image_s < step
                                           else r.stamp_s + step)
                 shape = getattr(image, "shape", (0, 0))
-                readings[i] = _Frame(r.stamp_s, r.seq, int(shape[1]) if len(shape) > 1 else 0, int(shape[0]),
-                                     image if keep else None)
+                readings[i] = Frame(r.stamp_s, r.seq, int(shape[1]) if len(shape) > 1 else 0, int(shape[0]),
+                                    image if keep else None)
         self._put(("tick", rec.tick, rec.now_s, readings, rec.pose_odom, rec.pose, rec.cmd_mission, rec.cmd_mux,
-                   rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._sources(len(readings))))
-        if len(self._queue) == 1:
-            # The writer was idle: wake it now, at the end of the tick, so that on a paced loop it works
-            # while the loop sleeps instead of waking at a random moment and competing with the next
-            # tick for the GIL. (A busy writer finds the item by itself: no wake-up call to pay for.)
-            self._wake.set()
+                   rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._take_tags()), rec.now_s)
 
     def on_event(self, ev: Any) -> None:
         """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
-        self._put(("event", ev.time_s, ev.kind, ev.text))
+        # At once, with whatever is batched: the moments before a fault are the ones worth keeping.
+        self._put(("event", ev.time_s, ev.kind, ev.text), ev.time_s, urgent=True)
 
     def on_snapshot(self, path: str, stamp_s: float) -> None:
         """Queue a snapshot the run saved (a JPEG file): it becomes an attachment of the recording."""
-        self._put(("snapshot", stamp_s, str(path)))
+        self._put(("snapshot", stamp_s, str(path)), stamp_s)
 
     def on_servo(self, cmd: ServoCommand, now_s: float) -> None:
         """Queue a servo command the run sent to its servo adapters."""
-        self._put(("servo", now_s, cmd))
+        self._put(("servo", now_s, cmd), now_s)
 
-    def _put(self, item: tuple) -> None:
-        q = self._queue
-        if len(q) >= self._max:
-            if self.block_when_full:
-                # Simulated time does not run away: wait for the writer, lose nothing.
-                self._wake.set()
-                while len(q) >= self._max and self._thread.is_alive():
-                    time.sleep(0.0005)
-            if len(q) >= self._max:
-                self.dropped_items += 1
-                self._dropped_tick_side += _message_count(item, self._image_period_s is not None)
-                return
-        q.append(item)
-
-    # -- the writer thread -------------------------------------------------------------------------
-    def _run(self) -> None:
-        cpu0 = time.thread_time()
-        try:
-            self._open()
-        except Exception as exc:
-            self.error = f"could not open the recording: {exc!r}"
-            self._writer = None
-        q = self._queue
-        wake = self._wake
-        while True:
-            wake.wait(0.1)
-            wake.clear()
-            while q:
-                item = q.popleft()
-                if self._writer is None:
-                    self._dropped_writer_side += _message_count(item, self._image_period_s is not None)
-                    continue
-                try:
-                    self._write_item(item)
-                except Exception as exc:
-                    self.error = self.error or f"writing {item[0]}: {exc!r}"
-                    self._dropped_writer_side += 1
-                if item[0] == "tick":
-                    # Let go of the GIL between ticks' worth of work: a tick waiting to start gets it now
-                    # instead of after the interpreter's switch interval (5 ms).
-                    time.sleep(0)
-            if self._stopping and not q:
-                break
-        if self._writer is not None:
-            try:
-                self._writer.flush()
-            except Exception as exc:
-                self.error = self.error or f"flushing: {exc!r}"
-        self.writer_cpu_s = time.thread_time() - cpu0
-
-    def _open(self) -> None:
-        from mcap.writer import Writer
-        self._stream = _TeeFile(self.paths)
-        w = Writer(self._stream, chunk_size=self.config.chunk_max_bytes,
-                   compression=compression_type(self.config.compression))
-        w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
-        w.add_metadata("beastbt.run", self.info)
-        for name, media, data in self.attachments:
-            w.add_attachment(create_time=0, log_time=0, name=name, media_type=media, data=data)
-        self._writer = w
-        # Every channel is declared up front (in a fixed order, so ids are the same run to run), even
-        # those with no messages in this run: the file lists what a run of beastbt records.
-        for topic in rs.CHANNELS:
-            self._channel(topic)
-
-    def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
-        cid = self._channels.get(topic)
-        if cid is None:
-            schema = schema if schema is not None else rs.CHANNELS[topic]
-            name = schema["title"]
-            sid = self._schema_ids.get(name)
-            if sid is None:
-                sid = self._writer.register_schema(name=name, encoding="jsonschema", data=rs.schema_bytes(schema))
-                self._schema_ids[name] = sid
-            cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
-            self._channels[topic] = cid
-        return cid
-
-    def _emit(self, topic: str, t_ns: int, obj: dict) -> None:
-        cid = self._channels.get(topic)
-        if cid is None:
-            cid = self._channel(topic)
-        self.messages += 1
-        self._writer.add_message(channel_id=cid, log_time=t_ns, data=_ENCODE(obj).encode(), publish_time=t_ns,
-                                 sequence=self.messages)
-
-    def _write_item(self, item: tuple) -> None:
-        kind = item[0]
-        if kind == "tick":
-            self._write_tick(item)
-        elif kind == "event":
-            _, time_s, ev_kind, text = item
-            t = ns(time_s)
-            ev = {"time_s": time_s, "kind": ev_kind, "text": text}
-            self._emit("/events", t, ev)
-            if ev_kind == "failsafe":
-                self._emit("/failsafes", t, ev)
-            self._emit("/log", t, {"timestamp": _fox_time(t), "level": log_level(ev_kind),
-                                   "message": f"{ev_kind}: {text}", "name": ev_kind, "file": "", "line": 0})
-        elif kind == "flag":
-            _, tick, now_s, key, attr, value = item
-            self._emit("/devices/state", ns(now_s), {"tick": tick, "now_s": now_s, "device": key, "field": attr,
-                                                     "value": value})
-        elif kind == "snapshot":
-            _, stamp_s, path = item
-            data = Path(path).read_bytes()
-            self._writer.add_attachment(create_time=0, log_time=ns(stamp_s), name=Path(path).name,
-                                        media_type="image/jpeg", data=data)
-        elif kind == "servo":
-            _, now_s, c = item
-            self._emit("/cmd/servo", ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
-                                                 "channel": c.channel, "pulse_s": c.pulse_s, "stamp_s": c.stamp_s})
-
-    def _write_tick(self, item: tuple) -> None:
-        (_, tick, now_s, readings, pose_odom, pose, cmd_mission, cmd_mux, cmd_gate, mux_source, changed,
-         truth, sources) = item
-        t = ns(now_s)
-        emit = self._emit
-        for i, r in enumerate(readings):
-            source = sources[i] if sources is not None else None
-            conv = _SENSOR_CONVERTERS.get(r.__class__)
-            if conv is not None:
-                d = conv[1](r)
-                d["source"] = source
-                emit(conv[0], t, d)
-                if r.__class__ is GpsFix:
-                    emit("/gps/fix", t, location_fix(r, t))
-            elif r.__class__ is _Frame:
-                emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
-                                            "height": r.height, "image_recorded": r.image is not None,
-                                            "source": source})
-                if r.image is not None:
-                    self._write_image(r, t)
-            elif dataclasses.is_dataclass(r):
-                name = type(r).__name__
-                topic = rs.SENSOR_TOPICS.get(name, f"/sensors/{_snake(name)}")
-                if topic not in self._channels:
-                    self._channel(topic, {**rs.GENERIC_READING, "title": f"beastbt.{name}"})
-                d = generic_dict(r)
-                d.setdefault("source", source)
-                emit(topic, t, d)
-        if pose is not None:
-            emit("/estimate/fused", t, pose_dict(pose))
-            emit("/pose/fused", t, pose_in_frame(pose, t, "map"))
-        if pose_odom is not None:
-            emit("/estimate/odom", t, pose_dict(pose_odom))
-        if cmd_mission is not None:
-            emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
-        if mux_source == "teleop":
-            emit("/cmd/teleop", t, stage_dict(tick, now_s, cmd_mux, mux_source))
-        emit("/cmd/mux", t, stage_dict(tick, now_s, cmd_mux, mux_source))
-        emit("/cmd/gate", t, stage_dict(tick, now_s, cmd_gate, mux_source))
-        if changed:
-            emit("/tree", t, {"tick": tick, "now_s": now_s,
-                              "changes": [{"name": n, "status": s, "feedback": f or ""} for n, s, f in changed]})
-        if truth is not None:
-            emit("/truth", t, dict(zip(TRUTH_FIELDS, truth)))
-        last = self._last_flush_s
-        if last is None:
-            self._last_flush_s = now_s
-        elif now_s - last >= self.config.chunk_interval_s - 1e-9:
-            # Close the chunk and hand it to the OS: a hard kill now loses at most one interval.
-            self._writer.flush()
-            self._last_flush_s = now_s
-
-    def _write_image(self, frame: _Frame, t_ns: int) -> None:
-        import cv2  # only runs with a camera need it
-        image = frame.image
-        max_w = self.config.image_max_width_px
-        if max_w and frame.width > max_w:
-            h = max(1, int(round(frame.height * max_w / frame.width)))
-            image = cv2.resize(image, (max_w, h), interpolation=cv2.INTER_AREA)
-        ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
-        if not ok:
-            self._dropped_writer_side += 1
+    # -- the queue and the pipe -------------------------------------------------------------------
+    def _put(self, item: tuple, now_s: float, urgent: bool = False) -> None:
+        """Queue an item made at clock time ``now_s``. It joins the batch (a reference, no copy: readings
+        are immutable), and the batch goes into the pipe when it is ``send_interval_s`` old or
+        BATCH_ITEMS long, or at once when ``urgent``."""
+        if self._gone:
+            self._count_dropped(item)
             return
-        self._emit("/camera/image", t_ns, {"timestamp": _fox_time(t_ns), "frame_id": "camera",
-                                           "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
-                                           "format": "jpeg"})
+        if self._pending_items + len(self._batch_items) >= self._max:
+            if self.block_when_full and self._started:
+                # Simulated time does not run away: wait for the writer, lose nothing.
+                self._send_batch()
+                self._pump(block=True, keep=self._max - 1)
+            if self._gone or self._pending_items + len(self._batch_items) >= self._max:
+                self._count_dropped(item)
+                return
+        batch = self._batch_items
+        if not batch:
+            self._batch_t0 = now_s
+        batch.append(item)
+        if self._started and (urgent or now_s - self._batch_t0 >= self._send_interval_s
+                              or len(batch) >= BATCH_ITEMS):
+            self._send_batch()
 
+    def _send_batch(self) -> None:
+        """Encode the batch (one pickle) and move it into the pipe (what does not fit now waits in the queue)."""
+        items = self._batch_items
+        if not items:
+            return
+        self._batch_items = []
+        try:
+            data = self._encoder.encode(items)
+        except Exception:
+            data = self._encode_one_by_one(items)
+        self._pending.append((data, items))
+        self._pending_items += len(items)
+        self._pump(block=False)
 
-def _message_count(item: tuple, images: bool) -> int:
-    """How many messages an item would have made (for the dropped count)."""
-    kind = item[0]
-    if kind == "event":
-        return 3 if item[2] == "failsafe" else 2
-    if kind in ("servo", "flag", "snapshot"):
-        return 1
-    (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item
-    n = 2  # mux, gate
-    for r in readings:
-        n += 2 if (r.__class__ is GpsFix or (r.__class__ is _Frame and r.image is not None)) else 1
-    n += 2 * (pose is not None) + (pose_odom is not None) + (cmd_mission is not None)
-    n += (mux_source == "teleop") + bool(changed) + (truth is not None)
-    return n
+    def _encode_one_by_one(self, items: list[tuple]) -> bytes:
+        """A batch pickle refused: encode item by item, dropping (and counting) those it refuses."""
+        parts = []
+        for item in items:
+            try:
+                parts.append(self._encoder.encode([item]))
+            except Exception as exc:
+                self.error = self.error or f"cannot record a {item[0]}: {exc!r}"
+                self._count_dropped(item)
+        return b"".join(parts)
+
+    def _pump(self, block: bool, keep: int = 0, deadline: Optional[float] = None) -> bool:
+        """Move queued bytes into the pipe until at most ``keep`` items wait: as far as the pipe takes them now,
+        or waiting for the writer (``block``, until ``deadline`` on the monotonic clock when given).
+        True when done."""
+        pending = self._pending
+        while pending and (keep == 0 or self._pending_items > keep):
+            if self._gone:
+                return False
+            data, items = pending[0]
+            try:
+                n = os.write(self._fd, data)
+            except BlockingIOError:
+                n = 0
+            except OSError as exc:
+                self._give_up(f"the writer process is gone ({exc.strerror or exc!r})")
+                return False
+            if n == len(data):
+                pending.popleft()
+                self._pending_items -= len(items)
+                continue
+            if n:
+                pending[0] = (memoryview(data)[n:], items)
+            if not block or not self._wait_writable(deadline):
+                return False
+        return True
+
+    def _wait_writable(self, deadline: Optional[float]) -> bool:
+        """Wait (50 ms at a time) until the pipe takes bytes; False once past ``deadline`` or the writer died."""
+        self._ring()
+        while True:
+            _, ready, _ = select.select([], [self._fd], [], 0.05)
+            if ready:
+                return True
+            if self._proc is None or self._proc.poll() is not None:
+                self._give_up("the writer process ended early")
+                return False
+            if deadline is not None and time.monotonic() > deadline:
+                return False
+
+    def _take_reply(self, deadline: float) -> None:
+        """Read the writer's next answer (a JSON line: messages, dropped, error, cpu_s) into the counts."""
+        self._ring()
+        out = self._proc.stdout.fileno()
+        while b"\n" not in self._reply_buffer:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([out], [], [], min(left, 0.5))[0]:
+                if left <= 0:
+                    self._give_up("the writer did not drain its queue in time")
+                    return
+                continue
+            chunk = os.read(out, 4096)
+            if not chunk:
+                self._give_up("the writer process ended early")
+                return
+            self._reply_buffer += chunk
+        line, self._reply_buffer = self._reply_buffer.split(b"\n", 1)
+        answer = json.loads(line)
+        self.messages = int(answer["messages"])
+        self._dropped_writer_side = int(answer["dropped"])
+        self.writer_cpu_s = float(answer["cpu_s"])
+        if answer.get("error"):
+            self.error = self.error or str(answer["error"])
+
+    def _count_dropped(self, item: tuple) -> None:
+        self.dropped_items += 1
+        self._dropped_tick_side += message_count(item, self._image_period_s is not None)
+
+    def _give_up(self, reason: str) -> None:
+        """No more writing: note why, count everything still queued as dropped."""
+        if self._gone:
+            return
+        self._gone = True
+        self.error = self.error or reason
+        for _, items in self._pending:
+            for item in items:
+                self._count_dropped(item)
+        for item in self._batch_items:
+            self._count_dropped(item)
+        self._pending.clear()
+        self._pending_items = 0
+        self._batch_items = []
+        self._close_pipe()
+
+    def _ring(self) -> None:
+        """Wake the writer now rather than at its next look at the pipe."""
+        if self._doorbell is not None:
+            try:
+                os.write(self._doorbell, b"!")
+            except OSError:
+                pass  # full (it is ringing already) or the writer is gone
+
+    def _close_pipe(self) -> None:
+        if self._proc is not None and self._proc.stdin is not None and not self._proc.stdin.closed:
+            try:
+                self._proc.stdin.close()
+            except OSError:
+                pass
+        self._fd = None
+        if self._doorbell is not None:
+            os.close(self._doorbell)
+            self._doorbell = None
+
 
 
 def _record_servo_commands(run: Any, rec: McapRecorder) -> None:
@@ -845,6 +627,7 @@ def install(prepared: Any) -> Optional[McapRecorder]:
         run.ctx.services["save_snapshot"] = save_and_record
     rec.tag_sources(run.io)
     rec.run = run
+    rec.launch()  # the writer process imports while the rest of the run gets ready
     _RECORDERS[run] = rec
     prepared.closers.append(rec.stop)
     if prepared.folder is not None:
@@ -887,4 +670,5 @@ def register() -> None:
 register()
 
 __all__ = ["RecordingConfig", "McapRecorder", "install", "recorder_of", "contribute_summary", "run_info",
-           "tree_nodes", "ns", "compression_type", "RECORDING_FORMAT"]
+           "tree_nodes", "ns", "compression_type", "RECORDING_FORMAT", "MCAP_PROFILE",
+           "TRUTH_FIELDS", "WATCHED_DEVICE_FLAGS"]
