@@ -7,6 +7,7 @@ Ctrl-C, always ends with a stop command, and writes the summary and run folder.
 
 from __future__ import annotations
 
+import gc
 import json
 import sys
 import time
@@ -119,6 +120,10 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     wall0 = time.perf_counter()
     last_status_wall = 0.0
     tty = opts.status_line
+    # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
+    # out of the garbage collector's sight, so that a full collection during the run walks only what the run
+    # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.
+    gc.freeze()
     try:
         while run.status is None:
             run.tick()
@@ -151,6 +156,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
         run.finish("failure", f"internal error: {exc!r}")
         raise
     finally:
+        gc.unfreeze()
         run.stop_robot(clock.now())
         for close in p.closers:
             try:
