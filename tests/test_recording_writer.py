@@ -1,0 +1,142 @@
+"""The recording's two halves apart: the wire between them, the writer process, and the recorder when the
+writer fails. (The channels of whole runs are in test_recording_channels.py.)"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, ServoCommand, VelocityCommand
+from beastbt.runtime.events import Event
+from beastbt.runtime.recording import McapRecorder, RecordingConfig
+from beastbt.runtime.recording_reader import read_recording
+from beastbt.runtime.recording_wire import Frame, ItemDecoder, ItemEncoder
+from beastbt.runtime.recording_writer import CUT_REASON, reading_sources, serve
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Slotted:
+    stamp_s: float
+    value: float
+
+
+def _tick(k: int, readings: list) -> tuple:
+    t = 0.05 * k
+    pose = FusedPose(t, 1.0 + k, 2.0, 0.1, covariance=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 0.1)))
+    cmd = VelocityCommand(0.2, 0.0, t, "mission")
+    return ("tick", k, t, readings, None, pose, cmd, cmd, cmd, "mission", [("drive", "RUNNING", "")], None,
+            (True, (("base", len(readings)),)))
+
+
+def _round_trip(items: list[tuple], chunk: int = 7) -> list[tuple]:
+    """Encode in two batches, feed the bytes to a decoder a few at a time (as a pipe may deliver them)."""
+    enc, dec = ItemEncoder(), ItemDecoder()
+    data = enc.encode(items[:1]) + enc.encode(items[1:])
+    out: list[tuple] = []
+    for i in range(0, len(data), chunk):
+        out.extend(dec.feed(data[i:i + chunk]))
+    assert dec.pending_bytes == 0
+    return out
+
+
+def test_the_wire_gives_back_equal_items_of_the_same_types():
+    gps = GpsFix(0.1, 40.0, -3.0, 650.0, 1, 8, 0.9, None, None, "120000.00")
+    imu = ImuSample(0.1, (0.0, 0.0, np.float64(0.01)), (0.0, 0.0, 9.81))  # a numpy scalar stays one
+    image = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
+    items = [("event", 0.0, "say", "hello"),
+             _tick(1, [gps, imu, Frame(0.1, 4, 3, 2, image), Frame(0.15, 5, 3, 2, None)]),
+             ("servo", 0.2, ServoCommand("pan", 0.5, stamp_s=0.2)),
+             ("flag", 2, 0.1, "imu_driver", "bias_ready", True)]
+    back = _round_trip(items)
+    assert back[0] == items[0] and back[2] == items[2] and back[3] == items[3]
+    tick = back[1]
+    assert tick[:3] == items[1][:3] and tick[5:] == items[1][5:]
+    got_gps, got_imu, frame, bare = tick[3]
+    assert got_gps == gps and type(got_gps) is GpsFix
+    assert type(got_imu.gyro_rps[2]) is np.float64 and got_imu == imu
+    assert type(frame) is Frame and np.array_equal(frame.image, image) and bare.image is None
+
+
+def test_classes_the_writer_cannot_import_and_slotted_ones_still_arrive():
+    @dataclasses.dataclass(frozen=True)
+    class Thermometer:  # defined in a function: no importable name
+        stamp_s: float
+        temperature_c: float
+
+    local, slotted = _round_trip([_tick(1, [Thermometer(0.05, 21.5)]), _tick(2, [Slotted(0.1, 3.0)])])
+    stand_in = local[3][0]
+    assert type(stand_in).__name__ == "Thermometer" and dataclasses.asdict(stand_in) == {
+        "stamp_s": 0.05, "temperature_c": 21.5}
+    assert slotted[3][0] == Slotted(0.1, 3.0)  # no __dict__: the batch went as a plain pickle
+
+
+def test_reading_sources_follow_the_polls_and_admit_the_untagged_base():
+    assert reading_sources(True, (("base", 2), ("gps", 1)), 3) == ["base", "base", "gps"]
+    assert reading_sources(False, (("gps", 1),), 3) == ["base", "base", "gps"]  # the base polls first
+    assert reading_sources(True, (("gps", 1),), 3) is None  # they do not add up
+    assert reading_sources(True, (), 2) is None
+
+
+def _serve(tmp_path, items: list[tuple], cut_after: int = 0) -> tuple[list[dict], int]:
+    enc = ItemEncoder()
+    data = enc.encode(items)
+    if cut_after:
+        data = data[:cut_after]
+    replies: list[dict] = []
+    code = serve(io.BytesIO(data).read, replies.append)
+    return replies, code
+
+
+def _open(tmp_path, name: str = "w.mcap") -> tuple:
+    return ("open", [str(tmp_path / name)], dataclasses.asdict(RecordingConfig()), {"mission": "m"}, [])
+
+
+def test_the_writer_answers_stop_and_finish_and_closes_a_cut_run_properly(tmp_path):
+    ticks = [_tick(k, [GpsFix(0.05 * k, 40.0, -3.0, 650.0, 1, 8, 0.9, None, None, "")]) for k in range(30)]
+    replies, code = _serve(tmp_path, [_open(tmp_path)] + ticks + [("stop",), ("finish", '{"status": "success"}')])
+    assert code == 0 and len(replies) == 2 and replies[0]["messages"] == replies[1]["messages"] > 0
+    whole = read_recording(tmp_path / "w.mcap")
+    assert whole.complete and whole.summary == {"status": "success"} and "beastbt.cut" not in whole.metadata
+    assert [m["tick"] for m in whole.topic("/cmd/gate")] == list(range(30))
+    # The run's process died: the pipe ends without stop or finish. The file is still closed properly.
+    replies, code = _serve(tmp_path, [_open(tmp_path, "cut.mcap")] + ticks)
+    cut = read_recording(tmp_path / "cut.mcap")
+    assert code == 1 and replies == [] and cut.complete and cut.summary is None
+    assert cut.metadata["beastbt.cut"]["reason"] == CUT_REASON and len(cut.topic("/cmd/gate")) == 30
+
+
+def test_the_writer_reports_a_file_it_cannot_open(tmp_path):
+    blocked = tmp_path / "a_file"
+    blocked.write_text("not a folder")
+    bad_open = ("open", [str(blocked / "run.mcap")], dataclasses.asdict(RecordingConfig()), {}, [])
+    replies, code = _serve(tmp_path, [bad_open, _tick(0, []), ("stop",), ("finish", None)])
+    assert code == 1 and "could not open the recording" in replies[-1]["error"]
+    # The tick's would-be messages: fused pose twice (beastbt and Foxglove), mission, mux, gate, tree.
+    assert replies[-1]["messages"] == 0 and replies[-1]["dropped"] == 6
+
+
+def test_a_writer_process_that_dies_loses_messages_but_never_the_run(tmp_path):
+    rec = McapRecorder([tmp_path / "x.mcap"], RecordingConfig(send_interval_s=0.0, overflow="drop"))
+    rec.on_event(Event(0.0, "say", "before"))
+    rec.start()
+    deadline = time.monotonic() + 20
+    while not (tmp_path / "x.mcap").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)  # the writer has opened the file
+    os.kill(rec._proc.pid, signal.SIGKILL)
+    rec._proc.wait()
+    for k in range(20):  # the loop goes on; each item is counted, none raises
+        rec.on_event(Event(0.1 * k, "say", f"after {k}"))
+    rec.finish({"status": "success"})
+    assert rec.error and "writer" in rec.error
+    assert rec.dropped >= 2 * 19  # /events and /log of (nearly) every event after the kill
+
+
+def test_the_recording_config_rejects_a_negative_send_interval():
+    with pytest.raises(ValueError, match="send_interval_s"):
+        RecordingConfig(send_interval_s=-1.0)
