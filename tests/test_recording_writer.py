@@ -140,3 +140,15 @@ def test_a_writer_process_that_dies_loses_messages_but_never_the_run(tmp_path):
 def test_the_recording_config_rejects_a_negative_send_interval():
     with pytest.raises(ValueError, match="send_interval_s"):
         RecordingConfig(send_interval_s=-1.0)
+
+
+def test_a_writer_process_that_cannot_start_leaves_the_run_whole(tmp_path, monkeypatch):
+    import sys
+
+    from recording_support import PATROL, record_run
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-python-here"))
+    folder, summary = record_run(PATROL, tmp_path / "runs", seed=1, max_time_s=3.0)
+    assert summary["status"] == "stopped" and summary["ticks"] == 61  # the run went its whole way
+    assert "could not start the writer process" in summary["recording"]["error"]
+    assert summary["recording"]["messages"] == 0 and summary["recording"]["dropped"] > 61 * 5
+    assert (folder / "summary.json").exists() and (folder / "events.log").exists()

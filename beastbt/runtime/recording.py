@@ -193,23 +193,26 @@ class McapRecorder:
         if self._proc is not None or self._gone:
             return self
         root = str(Path(beastbt.__file__).resolve().parent.parent)
-        bell_r, bell_w = os.pipe()
+        bell_w: Optional[int] = None
         try:
-            self._proc = subprocess.Popen([sys.executable, "-c", _WRITER_START, root, str(bell_r)],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, close_fds=True,
-                                          pass_fds=(bell_r,))
-        except OSError as exc:
-            os.close(bell_w)
+            bell_r, bell_w = os.pipe()
+            try:
+                self._proc = subprocess.Popen([sys.executable, "-c", _WRITER_START, root, str(bell_r)],
+                                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, close_fds=True,
+                                              pass_fds=(bell_r,))
+            finally:
+                os.close(bell_r)
+            fd = self._proc.stdin.fileno()
+            _grow_pipe(fd)
+            os.set_blocking(fd, False)  # the loop never waits on the pipe unless told to (block_when_full)
+            os.set_blocking(bell_w, False)
+        except (OSError, ValueError) as exc:  # no subprocess here, or a platform without these pipe calls
+            if bell_w is not None:
+                os.close(bell_w)
             self._give_up(f"could not start the writer process: {exc!r}")
             return self
-        finally:
-            os.close(bell_r)
-        os.set_blocking(bell_w, False)
-        self._doorbell = bell_w
-        fd = self._proc.stdin.fileno()
-        _grow_pipe(fd)
-        os.set_blocking(fd, False)  # the loop never waits on the pipe unless told to (block_when_full)
         self._fd = fd
+        self._doorbell = bell_w
         return self
 
     def start(self) -> "McapRecorder":
