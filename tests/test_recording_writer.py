@@ -152,3 +152,15 @@ def test_a_writer_process_that_cannot_start_leaves_the_run_whole(tmp_path, monke
     assert "could not start the writer process" in summary["recording"]["error"]
     assert summary["recording"]["messages"] == 0 and summary["recording"]["dropped"] > 61 * 5
     assert (folder / "summary.json").exists() and (folder / "events.log").exists()
+
+
+def test_messages_are_strict_json_even_when_a_value_is_not_a_number():
+    import json
+
+    from beastbt.runtime.recording_writer import encode_json
+    text = encode_json({"x": float("nan"), "cov": [[1.0, float("inf")], [np.float64("-inf"), 2.0]],
+                        "text": "NaN is kept in a string", "n": 3})
+    # Foxglove parses JSON the way browsers do: no NaN, no Infinity.
+    assert json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in {text!r}")) == {
+        "x": None, "cov": [[1.0, None], [None, 2.0]], "text": "NaN is kept in a string", "n": 3}
+    assert encode_json({"x": 1.5}) == b'{"x":1.5}'

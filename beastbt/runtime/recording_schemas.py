@@ -11,6 +11,10 @@ that ``beastbt replay`` can rebuild the readings bit for bit.
 
 Log time of every message = the run's clock in nanoseconds (simulated time in
 the simulator), so two runs with the same seed give the same messages.
+
+Messages are strict JSON: a value that is not a finite number (NaN from a
+diverged estimate, infinity) is written as null, since JSON has no NaN and
+Foxglove's parser rejects the token.
 """
 
 from __future__ import annotations

@@ -75,6 +75,28 @@ def json_default(o: Any) -> Any:
 _ENCODE = json.JSONEncoder(separators=(",", ":"), default=json_default).encode
 
 
+def _finite(o: Any) -> Any:
+    """``o`` with every NaN or infinite float (a diverged estimate, a missing value) replaced by None."""
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _finite(o.tolist())
+    return o
+
+
+def encode_json(obj: Any) -> bytes:
+    """A message as compact JSON. NaN and infinity, which Python writes but JSON (and Foxglove) do not
+    know, become null."""
+    text = _ENCODE(obj)
+    if "NaN" in text or "Infinity" in text:  # rare: only then walk the message (a string may match too)
+        text = _ENCODE(_finite(obj))
+    return text.encode()
+
+
 def gps_dict(r: GpsFix) -> dict:
     """GpsFix as its /sensors/gps message."""
     return {"stamp_s": r.stamp_s, "lat": r.lat, "lon": r.lon, "alt_msl": r.alt_msl, "quality": r.quality,
@@ -275,7 +297,7 @@ class RunFileWriter:
         if cid is None:
             cid = self._channel(topic)
         self.messages += 1
-        self._writer.add_message(channel_id=cid, log_time=t_ns, data=_ENCODE(obj).encode(), publish_time=t_ns,
+        self._writer.add_message(channel_id=cid, log_time=t_ns, data=encode_json(obj), publish_time=t_ns,
                                  sequence=self.messages)
 
     def _write_item(self, item: tuple) -> None:
