@@ -123,7 +123,6 @@ class McapRecorder:
         self._batch_items: list[tuple] = []
         """Items not yet encoded: one pickle and one write per batch, not per item."""
         self._batch_t0 = 0.0
-        self._send_interval_s = self.config.send_interval_s
         self._proc: Optional[subprocess.Popen] = None
         self._fd: Optional[int] = None
         self._doorbell: Optional[int] = None
@@ -358,7 +357,7 @@ class McapRecorder:
         if not batch:
             self._batch_t0 = now_s
         batch.append(item)
-        if self._started and (urgent or now_s - self._batch_t0 >= self._send_interval_s
+        if self._started and (urgent or now_s - self._batch_t0 >= self.config.send_interval_s
                               or len(batch) >= BATCH_ITEMS):
             self._send_batch()
 

@@ -40,7 +40,7 @@ KIND_CLASS = 2
 
 _PROTOCOL = pickle.HIGHEST_PROTOCOL
 
-_OBJECT_SLOTS = {"tick": (4, 5, 6, 7, 8)}
+_TICK_OBJECTS = (4, 5, 6, 7, 8)
 """Positions of single dataclass values in an item (None allowed): the tick's poses and commands."""
 
 
@@ -105,14 +105,14 @@ class ItemEncoder:
                 # A dataclass goes as (class code, its __dict__): the C pickler writes a dict by itself,
                 # and each field name only once per item (its memo).
                 out[3] = [(codes[r.__class__], r.__dict__) for r in item[3]]
-                for i in _OBJECT_SLOTS["tick"]:
+                for i in _TICK_OBJECTS:
                     v = item[i]
                     if v is not None:
                         out[i] = (codes[v.__class__], v.__dict__)
             except KeyError:
                 obj = self._object
                 out[3] = [obj(r) for r in item[3]]
-                for i in _OBJECT_SLOTS["tick"]:
+                for i in _TICK_OBJECTS:
                     v = item[i]
                     out[i] = None if v is None else obj(v)
             return tuple(out)
@@ -203,7 +203,7 @@ class ItemDecoder:
         if tag == "tick":
             out = list(item)
             out[3] = [obj(r) for r in item[3]]
-            for i in _OBJECT_SLOTS["tick"]:
+            for i in _TICK_OBJECTS:
                 if out[i] is not None:
                     out[i] = obj(out[i])
             return tuple(out)

@@ -532,6 +532,7 @@ def _polling_reader(fd: int, doorbell: Optional[int]) -> Callable[[int], bytes]:
     os.set_blocking(fd, False)
 
     def read(n: int) -> bytes:
+        nonlocal doorbell
         while True:
             try:
                 return os.read(fd, n)
@@ -539,13 +540,8 @@ def _polling_reader(fd: int, doorbell: Optional[int]) -> Callable[[int], bytes]:
                 pass
             if doorbell is None:
                 time.sleep(POLL_PERIOD_S)
-            elif select.select([doorbell], [], [], POLL_PERIOD_S)[0]:
-                if not os.read(doorbell, 4096):
-                    doorbell_gone()
-
-    def doorbell_gone() -> None:
-        nonlocal doorbell
-        doorbell = None  # the run closed it: keep polling the data pipe until it ends
+            elif select.select([doorbell], [], [], POLL_PERIOD_S)[0] and not os.read(doorbell, 4096):
+                doorbell = None  # the run closed it: keep polling the data pipe until it ends
 
     return read
 
