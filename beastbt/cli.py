@@ -10,8 +10,8 @@ import argparse
 import sys
 from typing import Callable, Optional, Sequence
 
-from beastbt.mission.errors import InvalidInput
-from beastbt.mission.units import UnitError, parse_duration
+from beastbt.core.errors import InvalidInput
+from beastbt.core.units import UnitError, parse_duration
 
 EXIT_SUCCESS = 0
 EXIT_FAILURE = 1
@@ -52,9 +52,9 @@ def _add_run(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from beastbt.runtime.hardware import DeviceUnavailable
-    from beastbt.runtime.session import RunOptions, execute, parse_speed, prepare
-    from beastbt.runtime.summary import human_summary
+    from beastbt.robot.hardware import DeviceUnavailable
+    from beastbt.run.session import RunOptions, execute, parse_speed, prepare
+    from beastbt.run.summary import human_summary
     try:
         speed = parse_speed(args.speed)
     except ValueError as exc:
@@ -106,7 +106,7 @@ def _add_tree(p: argparse.ArgumentParser) -> None:
 def _cmd_tree(args: argparse.Namespace) -> int:
     import py_trees
     from beastbt.mission.compile import tree_to_dot
-    from beastbt.runtime.session import RunOptions, prepare
+    from beastbt.run.session import RunOptions, prepare
     try:
         prepared = prepare(args.mission, RunOptions(robot=args.robot, record=False))
     except InvalidInput as exc:

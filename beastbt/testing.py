@@ -30,16 +30,16 @@ import py_trees
 
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import VelocityCommand
-from beastbt.runtime.clock import SimClock
-from beastbt.runtime.runner import MissionRun, TickRecord
-from beastbt.runtime.session import Prepared, RunOptions, prepare
-from beastbt.runtime.summary import build_summary
+from beastbt.core.clock import SimClock
+from beastbt.run.runner import MissionRun, TickRecord
+from beastbt.run.session import Prepared, RunOptions, prepare
+from beastbt.run.summary import build_summary
 
 
 class MissionHarness:
     """A mission prepared on the simulator and ticked by hand.
 
-    ``records`` holds one :class:`~beastbt.runtime.runner.TickRecord` per tick
+    ``records`` holds one :class:`~beastbt.run.runner.TickRecord` per tick
     (the commands at each stage, the nodes that changed, the true state).
     """
 
@@ -71,7 +71,7 @@ class MissionHarness:
         """Prepare a mission written as a YAML string (relative paths resolve from ``base_dir``)."""
         base = Path(base_dir) if base_dir is not None else Path(tempfile.gettempdir())
         opts = RunOptions(robot=robot, world=world, seed=seed, record=False, extras={"simulate": True, **extras})
-        from beastbt.runtime import session
+        from beastbt.run import session
         return cls(session.prepare(str(base / "mission.yaml"), opts, mission_text=text))
 
     # -- time -------------------------------------------------------------------

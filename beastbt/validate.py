@@ -7,14 +7,14 @@ mission, whose errors then say what a mission needs.
 
 from __future__ import annotations
 
-from beastbt.mission.errors import InvalidInput, Problem
-from beastbt.mission.yaml_source import load_yaml
+from beastbt.core.errors import InvalidInput, Problem
+from beastbt.core.yaml_source import load_yaml
 
 
 def validate_file(path: str) -> list[Problem]:
     """Every problem in the file at ``path`` (an empty list when it is valid)."""
     from beastbt.mission.model import load_mission
-    from beastbt.runtime.profile import load_profile
+    from beastbt.robot.profile import load_profile
     from beastbt.sim.world import load_world
     try:
         doc = load_yaml(path)

@@ -37,7 +37,7 @@ sys.path.insert(0, str(REPO))
 
 import beastbt.plugins  # noqa: E402,F401  (registers the GPS, IMU, EKF and navigation parts)
 from beastbt.estimation.estimator import wrap_angle  # noqa: E402
-from beastbt.runtime.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
 
 MISSION = REPO / "missions" / "gps_route.yaml"
 WORLD = REPO / "worlds" / "campus.yaml"

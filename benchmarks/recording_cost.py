@@ -41,8 +41,8 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 import beastbt.plugins  # noqa: E402,F401  (installs the recorder)
-from beastbt.runtime.recording import recorder_of  # noqa: E402
-from beastbt.runtime.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.recording.recorder import recorder_of  # noqa: E402
+from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
 
 PATROL = REPO / "missions" / "patrol.yaml"
 

@@ -26,7 +26,7 @@ sys.path.insert(0, str(REPO))
 import beastbt.plugins  # noqa: E402,F401  (the default sim robot as users get it: GPS, IMU, EKF, camera)
 from beastbt.blackboard import catalogue  # noqa: E402
 from beastbt.blackboard.types import FusedPose, VelocityCommand  # noqa: E402
-from beastbt.runtime.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
 
 PATROL = str(REPO / "missions" / "patrol.yaml")
 

@@ -1,6 +1,6 @@
 """Teleop latency and watchdog reaction in real time, for each base adapter.
 
-Not a test: runs the real tick loop (``beastbt.runtime.session.execute``) on
+Not a test: runs the real tick loop (``beastbt.run.session.execute``) on
 the wall clock at 20 Hz with the real joystick driver, teleop hook, mux,
 safety gate, watchdog thread and each base adapter (Waveshare serial JSON,
 CAN through python-can's virtual bus, PWM on an emulated PCA9685), and prints:
@@ -38,13 +38,13 @@ from beastbt.devices.joystick import JS_EVENT, JS_EVENT_AXIS, JS_EVENT_BUTTON, J
 from beastbt.devices.pca9685 import Pca9685
 from beastbt.devices.waveshare_base import WaveshareBase
 from beastbt.mission.model import load_mission
-from beastbt.runtime.clock import WallClock
-from beastbt.runtime.events import EventLog
-from beastbt.runtime.profile import load_profile
-from beastbt.runtime.robot_io import RobotIO
-from beastbt.runtime.runner import MissionRun
-from beastbt.runtime.session import Prepared, RunOptions, execute
-from beastbt.runtime.teleop_runtime import install_watchdog
+from beastbt.core.clock import WallClock
+from beastbt.core.events import EventLog
+from beastbt.robot.profile import load_profile
+from beastbt.robot.robot_io import RobotIO
+from beastbt.run.runner import MissionRun
+from beastbt.run.session import Prepared, RunOptions, execute
+from beastbt.parts.teleop import install_watchdog
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.pca9685_emulator import SimPca9685
 from beastbt.sim.serial_port import SimSerialPort

@@ -13,7 +13,7 @@ from typing import Any, Optional
 import numpy as np
 
 import beastbt.plugins  # noqa: F401  (the recorder and the commands register themselves)
-from beastbt.runtime.session import RunOptions, execute, prepare
+from beastbt.run.session import RunOptions, execute, prepare
 
 REPO = Path(__file__).resolve().parent.parent
 PATROL = REPO / "missions" / "patrol.yaml"

@@ -21,14 +21,14 @@ from beastbt.blackboard.types import VelocityCommand as V
 from beastbt.devices.pca9685 import Pca9685
 from beastbt.devices.waveshare_base import WaveshareBase
 from beastbt.mission.model import load_mission
-from beastbt.runtime.clock import SimClock
-from beastbt.runtime.events import EventLog
-from beastbt.runtime.hardware import BASE_FACTORIES
-from beastbt.runtime.hardware_devices import attach_joystick
-from beastbt.runtime.profile import load_profile
-from beastbt.runtime.robot_io import RobotIO
-from beastbt.runtime.runner import MissionRun
-from beastbt.runtime.session import RunOptions, execute, prepare
+from beastbt.core.clock import SimClock
+from beastbt.core.events import EventLog
+from beastbt.robot.hardware import BASE_FACTORIES
+from beastbt.parts.hardware_devices import attach_joystick
+from beastbt.robot.profile import load_profile
+from beastbt.robot.robot_io import RobotIO
+from beastbt.run.runner import MissionRun
+from beastbt.run.session import RunOptions, execute, prepare
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.pca9685_emulator import SimPca9685
 from beastbt.sim.serial_port import SimSerialPort

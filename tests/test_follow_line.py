@@ -194,12 +194,12 @@ def test_the_robot_camera_runs_in_its_own_thread_and_survives_a_missing_device(t
     import numpy as np
 
     from beastbt.devices.camera import Camera, CameraConfig
-    from beastbt.runtime.camera_pipeline import CameraPipeline
-    from beastbt.runtime.clock import WallClock
-    from beastbt.runtime.events import EventLog
-    from beastbt.runtime.profile import load_profile
-    from beastbt.runtime.robot_io import RobotIO
-    from beastbt.runtime.vision_runtime import attach_camera
+    from beastbt.vision.camera_pipeline import CameraPipeline
+    from beastbt.core.clock import WallClock
+    from beastbt.core.events import EventLog
+    from beastbt.robot.profile import load_profile
+    from beastbt.robot.robot_io import RobotIO
+    from beastbt.parts.line_following import attach_camera
     from beastbt.sim.camera_emulator import CameraEffects, SimCamera
     from beastbt.sim.floor import FloorMap
     from beastbt.sim.truth import RobotTruth

@@ -14,7 +14,7 @@ import jsonschema
 import pytest
 
 from beastbt.devices.nmea_gps import GpsConfig, NmeaGps, parse_coordinate, pmtk_sentence
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.serial_port import SimSerialPort
 
 ROOT = Path(__file__).parent.parent

@@ -20,7 +20,7 @@ import pytest
 
 from beastbt.devices.nmea_gps import GpsConfig, NmeaGps
 from beastbt.estimation.geodesy import LocalFrame
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.gps_emulator import GpsNoiseModel, SimGps, format_coordinate
 from beastbt.sim.truth import RobotTruth
 

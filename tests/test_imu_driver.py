@@ -15,7 +15,7 @@ import pytest
 from beastbt.blackboard.types import ImuSample
 from beastbt.devices import mpu9250 as hw
 from beastbt.devices.mpu9250 import ImuConfig, Mpu9250, rotation_from_axes
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.imu_emulator import ImuNoiseModel, SimImu, attach_imu
 from beastbt.sim.truth import RobotTruth

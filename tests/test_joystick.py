@@ -19,7 +19,7 @@ from beastbt.devices.joystick import (
     JoystickMapping,
     open_linux_joystick,
 )
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.joystick_script import ScriptedJoystick, parse_time_s
 
 SCHEMAS = Path(__file__).resolve().parents[1] / "schemas" / "parts"
@@ -278,7 +278,7 @@ def test_script_errors_name_line_column_and_event():
 def test_parse_time(shared_parser, monkeypatch):
     if not shared_parser:
         # None in sys.modules makes the lazy import fail: the built-in fallback parses.
-        monkeypatch.setitem(__import__("sys").modules, "beastbt.mission.units", None)
+        monkeypatch.setitem(__import__("sys").modules, "beastbt.core.units", None)
         with pytest.raises(ValueError, match="not a duration"):
             parse_time_s("2 parsecs")
     assert parse_time_s(2) == 2.0

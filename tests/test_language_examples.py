@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from beastbt.mission.errors import InvalidInput
+from beastbt.core.errors import InvalidInput
 from beastbt.mission.model import load_mission
 from conftest import REPO
 

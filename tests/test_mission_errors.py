@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from beastbt import cli
-from beastbt.runtime import session
+from beastbt.run import session
 
 OK_HEAD = "mission: t\nsteps:\n"
 

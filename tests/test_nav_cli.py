@@ -7,8 +7,8 @@ import json
 import pytest
 
 from beastbt import cli
-from beastbt.mission.errors import InvalidInput
-from beastbt.runtime.profile import load_profile
+from beastbt.core.errors import InvalidInput
+from beastbt.robot.profile import load_profile
 from beastbt.sim.world import load_world
 from conftest import REPO
 

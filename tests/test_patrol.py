@@ -77,7 +77,7 @@ def test_tree_command_prints_readable_names_and_writes_dot(tmp_path, capsys):
 
 def test_summary_matches_its_schema(tmp_path):
     import jsonschema
-    from beastbt.mission.schema_check import load_schema
+    from beastbt.core.schema_check import load_schema
     s = run(tmp_path, 2, "s.json")
     s.pop("exit_code")
     jsonschema.validate(s, load_schema("summary.schema.json"))

@@ -22,12 +22,12 @@ from mcap.reader import make_reader
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
                                       LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.cli import main
-from beastbt.runtime import recording as recmod
-from beastbt.runtime.events import Event
-from beastbt.runtime.recording import McapRecorder, RecordingConfig, contribute_summary
-from beastbt.runtime.recording_reader import read_recording
-from beastbt.runtime.recording_schemas import CHANNELS
-from beastbt.runtime.runner import TickRecord
+from beastbt.recording import recorder as recmod
+from beastbt.core.events import Event
+from beastbt.recording.recorder import McapRecorder, RecordingConfig, contribute_summary
+from beastbt.recording.reader import read_recording
+from beastbt.recording.schemas import CHANNELS
+from beastbt.run.runner import TickRecord
 from beastbt.sim.truth import RobotTruth
 from recording_support import PATROL, REPO, record_run, shared_run
 

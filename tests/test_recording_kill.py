@@ -17,8 +17,8 @@ import time
 
 from mcap.reader import NonSeekingReader, make_reader
 
-from beastbt.runtime.recording_reader import read_recording
-from beastbt.runtime.replay import replay
+from beastbt.recording.reader import read_recording
+from beastbt.recording.replay import replay
 from recording_support import PATROL, REPO, record_run
 
 

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 
 from beastbt.cli import main
-from beastbt.runtime.recording_reader import read_recording
-from beastbt.runtime.replay import replay
-from beastbt.runtime.session import RunOptions, execute, prepare
+from beastbt.recording.reader import read_recording
+from beastbt.recording.replay import replay
+from beastbt.run.session import RunOptions, execute, prepare
 from recording_support import GPS_ROUTE, PATROL, REPO, shared_run
 
 

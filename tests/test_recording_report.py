@@ -11,8 +11,8 @@ import json
 import pytest
 
 from beastbt.cli import main
-from beastbt.runtime.report import DPI, FIG_SIZE_IN, MAP_SIZE_IN, make_report, step_intervals, RunData
-from beastbt.runtime.runs_list import list_runs
+from beastbt.recording.report import DPI, FIG_SIZE_IN, MAP_SIZE_IN, make_report, step_intervals, RunData
+from beastbt.recording.runs_list import list_runs
 from recording_support import GPS_ROUTE, PATROL, assert_real_plot, record_run, shared_run
 
 SIZES = {"path": MAP_SIZE_IN, "position_error": FIG_SIZE_IN, "speeds": FIG_SIZE_IN, "line_error": FIG_SIZE_IN,
@@ -95,9 +95,9 @@ def test_report_on_a_bare_mcap_and_on_a_run_cut_short(runs, tmp_path, capsys):
 
 def test_report_without_truth_or_positions_leaves_those_plots_out(tmp_path):
     # A recording with only commands and the tree (as from a robot with no sensors recorded).
-    from beastbt.runtime.recording import McapRecorder
+    from beastbt.recording.recorder import McapRecorder
     from beastbt.blackboard.types import VelocityCommand
-    from beastbt.runtime.runner import TickRecord
+    from beastbt.run.runner import TickRecord
     rec = McapRecorder([tmp_path / "bare.mcap"], info={"mission": "bare", "rate_hz": "20.0"})
     for k in range(40):
         cmd = VelocityCommand(0.1, 0.0, k * 0.05)
@@ -132,8 +132,8 @@ def test_line_error_is_plotted_when_a_line_was_followed(tmp_path):
     import math
 
     from beastbt.blackboard.types import LineObservation, VelocityCommand
-    from beastbt.runtime.recording import McapRecorder
-    from beastbt.runtime.runner import TickRecord
+    from beastbt.recording.recorder import McapRecorder
+    from beastbt.run.runner import TickRecord
     rec = McapRecorder([tmp_path / "line.mcap"], info={"mission": "line", "rate_hz": "20.0"})
     for k in range(200):
         t = k * 0.05

@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, ServoCommand, VelocityCommand
-from beastbt.runtime.events import Event
-from beastbt.runtime.recording import McapRecorder, RecordingConfig
-from beastbt.runtime.recording_reader import read_recording
-from beastbt.runtime.recording_wire import Frame, ItemDecoder, ItemEncoder
-from beastbt.runtime.recording_writer import CUT_REASON, reading_sources, serve
+from beastbt.core.events import Event
+from beastbt.recording.recorder import McapRecorder, RecordingConfig
+from beastbt.recording.reader import read_recording
+from beastbt.recording.wire import Frame, ItemDecoder, ItemEncoder
+from beastbt.recording.writer import CUT_REASON, reading_sources, serve
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -157,7 +157,7 @@ def test_a_writer_process_that_cannot_start_leaves_the_run_whole(tmp_path, monke
 def test_messages_are_strict_json_even_when_a_value_is_not_a_number():
     import json
 
-    from beastbt.runtime.recording_writer import encode_json
+    from beastbt.recording.writer import encode_json
     text = encode_json({"x": float("nan"), "cov": [[1.0, float("inf")], [np.float64("-inf"), 2.0]],
                         "text": "NaN is kept in a string", "n": 3})
     # Foxglove parses JSON the way browsers do: no NaN, no Infinity.

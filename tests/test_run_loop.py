@@ -6,7 +6,7 @@ import gc
 import io
 
 import beastbt.plugins  # noqa: F401
-from beastbt.runtime.session import RunOptions, execute, prepare
+from beastbt.run.session import RunOptions, execute, prepare
 from conftest import REPO
 
 

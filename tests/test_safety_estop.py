@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from beastbt.runtime.teleop_runtime import request_estop, reset_estop
+from beastbt.parts.teleop import request_estop, reset_estop
 from beastbt.testing import MissionHarness
 
 DRIVE = """

@@ -8,7 +8,7 @@ import pytest
 
 from beastbt.actuation.watchdog import AdapterWatchdog, WatchdogConfig
 from beastbt.blackboard.types import VelocityCommand as V
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.testing import MissionHarness
 
 

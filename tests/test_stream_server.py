@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from beastbt import cli
-from beastbt.mission.errors import InvalidInput
-from beastbt.runtime.video_stream import (BOUNDARY, StreamConfig, VideoStreamServer, config_from_options,
+from beastbt.core.errors import InvalidInput
+from beastbt.live.video_stream import (BOUNDARY, StreamConfig, VideoStreamServer, config_from_options,
                                           parse_endpoint)
 from beastbt.testing import MissionHarness
 from conftest import REPO

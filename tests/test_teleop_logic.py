@@ -11,7 +11,7 @@ import pytest
 from beastbt.actuation.teleop import TeleopConfig, TeleopTwistJoy
 from beastbt.blackboard.types import JoystickState
 from beastbt.devices.joystick import JoystickDevice
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.joystick_script import ScriptedJoystick
 
 SCHEMAS = Path(__file__).resolve().parents[1] / "schemas" / "parts"

@@ -9,7 +9,7 @@ import pytest
 from conftest import REPO
 
 from beastbt import cli
-from beastbt.runtime.session import RunOptions, execute, prepare
+from beastbt.run.session import RunOptions, execute, prepare
 from beastbt.testing import MissionHarness
 
 HAND = """

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from beastbt.mission.units import UnitError, format_quantity, parse_count, parse_quantity
+from beastbt.core.units import UnitError, format_quantity, parse_count, parse_quantity
 
 
 @pytest.mark.parametrize("text,kind,si", [

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from beastbt.devices.camera import Camera, CameraConfig, open_video_capture
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera
 from beastbt.sim.floor import FloorMap
 from beastbt.vision.camera_model import CameraGeometry

@@ -25,7 +25,7 @@ from typing import Any, Literal, Optional
 import can
 
 from beastbt.blackboard.types import VelocityCommand, WheelOdometry
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
 
 SpeedUnit = Literal["rad/s", "rpm", "m/s"]

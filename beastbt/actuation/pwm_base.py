@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Literal
 
 from beastbt.blackboard.types import VelocityCommand
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
 from beastbt.devices.pca9685 import CHANNELS, Pca9685, no_wait
 

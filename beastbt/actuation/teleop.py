@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 from beastbt.blackboard.types import JoystickState, VelocityCommand
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE, BUTTON_ESTOP, BUTTON_ESTOP_RESET, BUTTON_TURBO
 
 TELEOP_SOURCE = "teleop"

@@ -30,7 +30,7 @@ from typing import Any, Callable, Optional
 from beastbt.actuation.adapter import BaseAdapter, ServoAdapter
 from beastbt.blackboard.types import ServoCommand, VelocityCommand
 from beastbt.devices.interfaces import EventSink, ignore_events
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 Sleeper = Callable[[float], Any]
 """Blocks the calling thread for about the given number of seconds (returns early on shutdown)."""

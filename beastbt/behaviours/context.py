@@ -11,9 +11,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-from beastbt.devices.dict_config import dataclass_from_dict
-from beastbt.runtime.clock import Clock
-from beastbt.runtime.events import EventLog
+from beastbt.core.config import dataclass_from_dict
+from beastbt.core.clock import Clock
+from beastbt.core.events import EventLog
 
 
 @dataclass

@@ -14,7 +14,7 @@ from typing import Optional
 import py_trees
 
 from beastbt.behaviours.conditions import Condition
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 Status = py_trees.common.Status
 Behaviour = py_trees.behaviour.Behaviour

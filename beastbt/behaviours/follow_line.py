@@ -42,7 +42,7 @@ from typing import Any, Optional
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose, LineObservation, ServoCommand
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 
 UNTIL_KINDS = ("intersection", "line_end", "distance", "time")
 

@@ -23,7 +23,7 @@ from typing import Any, Callable, Optional
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import LocalFrame
 

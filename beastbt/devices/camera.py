@@ -27,9 +27,9 @@ import cv2
 import numpy as np
 
 from beastbt.blackboard.types import CameraFrame
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, FrameSource, ignore_events
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 
 @dataclass

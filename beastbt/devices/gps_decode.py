@@ -13,7 +13,7 @@ from typing import Any, Optional, TextIO
 
 from beastbt.blackboard.types import GpsFix
 from beastbt.devices.nmea_gps import NmeaGps
-from beastbt.runtime.clock import SimClock
+from beastbt.core.clock import SimClock
 
 
 def fix_to_record(fix: GpsFix) -> dict[str, Any]:

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
 from beastbt.blackboard.types import JoystickState
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 JS_EVENT = struct.Struct("<IhBB")
 """One Linux joystick event: time (ms), value, type, number."""

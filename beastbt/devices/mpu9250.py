@@ -25,9 +25,9 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 
 from beastbt.blackboard.types import ImuSample
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SMBusLike, ignore_events
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 # --- MPU9250 register map (InvenSense RM-MPU-9250A-00) -------------------------------------
 MPU9250_DEFAULT_ADDRESS = 0x68

@@ -31,9 +31,9 @@ import pynmea2
 import serial
 
 from beastbt.blackboard.types import GpsFix
-from beastbt.devices.dict_config import require_number as _require_number
+from beastbt.core.config import require_number as _require_number
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
-from beastbt.runtime.clock import Clock
+from beastbt.core.clock import Clock
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
 """One knot (international nautical mile per hour) in metres per second, exactly."""

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
 from beastbt.blackboard.types import ServoCommand
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SMBusLike, ignore_events
 
 # --- registers (PCA9685 datasheet, section 7.3) ---------------------------------

@@ -18,7 +18,7 @@ from typing import Any, Optional
 
 from beastbt.actuation.adapter import Feedback
 from beastbt.blackboard.types import BatteryState, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 
 ACCEL_LSB_PER_G = 8192.0

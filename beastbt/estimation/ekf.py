@@ -41,7 +41,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import LocalFrame

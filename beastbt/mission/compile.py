@@ -25,7 +25,7 @@ from beastbt.behaviours.stand import StopRobot, Wait, WaitUntil
 from beastbt.behaviours.turn import TurnBy, TurnToHeading
 from beastbt.blackboard.types import ServoCommand
 from beastbt.mission.model import HOME, Mission, Step, parse_count, step_of, steps_of
-from beastbt.mission.units import format_quantity, parse_quantity
+from beastbt.core.units import format_quantity, parse_quantity
 
 Behaviour = py_trees.behaviour.Behaviour
 StepBuilder = Callable[["Compiler", Step], Behaviour]

@@ -4,7 +4,7 @@
 ``schemas/mission.schema.json``, then checks what a schema cannot: values that
 must be positive, references to tasks and places, tasks that call themselves.
 Every problem found is collected and raised together as
-:class:`~beastbt.mission.errors.InvalidInput`.
+:class:`~beastbt.core.errors.InvalidInput`.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Union
 
-from beastbt.mission.errors import InvalidInput, Problem, did_you_mean
-from beastbt.mission.schema_check import schema_problems
-from beastbt.mission.units import parse_count, parse_quantity
-from beastbt.mission.yaml_source import PathKey, SourceDoc, load_yaml
+from beastbt.core.errors import InvalidInput, Problem, did_you_mean
+from beastbt.core.schema_check import schema_problems
+from beastbt.core.units import parse_count, parse_quantity
+from beastbt.core.yaml_source import PathKey, SourceDoc, load_yaml
 
 HOME = "home"
 """The reserved place name for where the mission started (its first good GPS fix)."""

@@ -22,7 +22,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.truth import RobotTruth
 from beastbt.vision.camera_model import CameraGeometry

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.truth import RobotTruth
 
 

@@ -22,7 +22,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from beastbt.devices.dict_config import require_number as _number
+from beastbt.core.config import require_number as _number
 import pynmea2
 
 from beastbt.devices.nmea_gps import (

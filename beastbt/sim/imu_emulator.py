@@ -26,7 +26,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 from beastbt.devices import mpu9250 as hw
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.i2c_bus import RegisterDevice, SimI2CBus
 from beastbt.sim.truth import RobotTruth
 

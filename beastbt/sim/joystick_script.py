@@ -48,7 +48,7 @@ _DURATION_UNITS = {None: 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0, "h"
 def _parse_duration_text(text: str) -> float:
     """Seconds from ``"2 s"``, ``"500 ms"``, ``"1 min"``; the shared unit parser when present."""
     try:
-        from beastbt.mission.units import parse_duration  # type: ignore[attr-defined]
+        from beastbt.core.units import parse_duration  # type: ignore[attr-defined]
     except ImportError:
         parse_duration = None
     if parse_duration is not None:

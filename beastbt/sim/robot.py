@@ -14,9 +14,9 @@ from typing import Callable
 import numpy as np
 
 from beastbt.devices.waveshare_base import WaveshareBase, WaveshareConfig
-from beastbt.runtime.events import EventLog
-from beastbt.runtime.profile import RobotProfile, section_config
-from beastbt.runtime.robot_io import RobotIO
+from beastbt.core.events import EventLog
+from beastbt.robot.profile import RobotProfile, section_config
+from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.waveshare_emulator import SimWaveshareBase

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Optional, Union
 
 from beastbt.estimation.geodesy import LocalFrame
-from beastbt.mission.errors import InvalidInput
-from beastbt.mission.schema_check import schema_problems
-from beastbt.mission.yaml_source import SourceDoc, load_yaml
+from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_check import schema_problems
+from beastbt.core.yaml_source import SourceDoc, load_yaml
 from beastbt.sim.dynamics import Wall
 
 

@@ -53,7 +53,7 @@ import cv2
 import numpy as np
 
 from beastbt.blackboard.types import LineObservation
-from beastbt.devices.dict_config import dataclass_from_dict
+from beastbt.core.config import dataclass_from_dict
 from beastbt.vision.camera_model import CameraGeometry
 
 RING_SAMPLES = 64

@@ -1,0 +1,248 @@
+"""JSON Schema validation with answers a person can act on.
+
+The schemas in ``schemas/`` are the contract (and what editors use through the
+``# yaml-language-server: $schema=`` comment). jsonschema finds every error;
+this module turns each into a :class:`Problem` at the right line and column,
+naming what was expected and, for a misspelt word, the closest valid one. For
+the ``anyOf`` of steps and conditions it picks the branch the author meant
+(from the step's keyword) instead of listing every alternative.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from typing import Any, Iterable, Optional
+
+import jsonschema
+from referencing import Registry, Resource
+from referencing.jsonschema import DRAFT202012
+
+from beastbt.core.errors import Problem, closest, did_you_mean
+from beastbt.core.resources import data_dir
+from beastbt.core.units import UnitError, parse_quantity
+from beastbt.core.yaml_source import SourceDoc
+
+_TYPE_WORDS = {
+    "object": "a mapping (key: value)", "array": "a list", "string": "text", "number": "a number",
+    "integer": "a whole number", "boolean": "true or false", "null": "nothing",
+}
+
+
+def _type_of(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true/false"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, (int, float)):
+        return f"the number {value}"
+    if value is None:
+        return "nothing"
+    return f"'{value}'"
+
+
+@lru_cache(maxsize=None)
+def _schema_texts() -> dict[str, dict]:
+    root = data_dir("schemas")
+    out: dict[str, dict] = {}
+    for entry in root.iterdir():
+        if entry.name.endswith(".json"):
+            out[entry.name] = json.loads(entry.read_text(encoding="utf-8"))
+    parts = root / "parts"
+    if parts.is_dir():
+        for entry in parts.iterdir():
+            if entry.name.endswith(".json"):
+                out["parts/" + entry.name] = json.loads(entry.read_text(encoding="utf-8"))
+    return out
+
+
+def load_schema(name: str) -> dict:
+    """Return the schema ``name`` (e.g. ``mission.schema.json``) as a dict."""
+    return _schema_texts()[name]
+
+
+@lru_cache(maxsize=None)
+def validator_for(name: str) -> jsonschema.Draft202012Validator:
+    """A cached validator for schema ``name``; relative ``$ref`` to ``parts/*.json`` resolve."""
+    base = "https://beastbt.dev/schemas/"
+    resources_ = [(base + key, Resource.from_contents(doc, default_specification=DRAFT202012))
+                  for key, doc in _schema_texts().items()]
+    registry = Registry().with_resources(resources_)
+    schema = dict(load_schema(name))
+    schema.setdefault("$id", base + name)
+    return jsonschema.Draft202012Validator(schema, registry=registry)
+
+
+def _where(path: tuple) -> str:
+    for part in reversed(path):
+        if isinstance(part, str):
+            return f" in '{part}'"
+    return ""
+
+
+class _Explainer:
+    def __init__(self, doc: SourceDoc, what: str) -> None:
+        self.doc = doc
+        self.what = what
+
+    def problems(self, errors: Iterable[jsonschema.ValidationError]) -> list[Problem]:
+        out: list[Problem] = []
+        for err in errors:
+            out.extend(self.explain(err))
+        return out
+
+    # -- helpers --------------------------------------------------------
+    def at(self, path: tuple, message: str, hint: Optional[str] = None, key: bool = False) -> Problem:
+        return self.doc.problem(path, message, hint, key=key)
+
+    def explain(self, err: jsonschema.ValidationError) -> list[Problem]:
+        path = tuple(err.absolute_path)
+        schema = err.schema if isinstance(err.schema, dict) else {}
+        v = err.validator
+        if "x-unit-kind" in schema and v in ("anyOf", "oneOf", "type", "pattern"):
+            return [self.unit_problem(path, err.instance, schema["x-unit-kind"])]
+        if v in ("anyOf", "oneOf"):
+            return self.explain_alternatives(err, path, schema)
+        if v == "additionalProperties":
+            return self.unknown_keys(err, path, schema)
+        if v == "required":
+            missing = err.message.split("'")[1] if "'" in err.message else err.message
+            return [self.at(path, f"missing '{missing}'{_where(path)}", self.required_hint(missing, schema))]
+        if v == "type":
+            expected = schema.get("type")
+            words = " or ".join(_TYPE_WORDS.get(t, t) for t in (expected if isinstance(expected, list) else [expected]))
+            hint = self.describe(schema)
+            if isinstance(err.instance, bool) and "string" in (expected if isinstance(expected, list) else [expected]):
+                hint = "YAML reads yes, no, on, off, true and false as true/false: put the text in quotes"
+            return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", hint)]
+        if v in ("enum", "const"):
+            choices = schema.get("enum", [schema.get("const")])
+            word = err.instance if isinstance(err.instance, str) else None
+            msg = f"{_type_of(err.instance)} is not allowed{_where(path)}: expected one of {', '.join(map(str, choices))}"
+            if word:
+                msg += did_you_mean(word, [str(c) for c in choices])
+            return [self.at(path, msg)]
+        if v == "pattern":
+            return [self.at(path, f"{_type_of(err.instance)} is not a valid name{_where(path)}",
+                            "names use letters, digits, _ and -, and start with a letter")]
+        if v == "propertyNames":
+            return [self.at(path + (err.instance,), f"'{err.instance}' is not a valid name{_where(path)}",
+                            "names use letters, digits, _ and -, and start with a letter", key=True)]
+        if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
+            return [self.at(path, f"{err.instance} is out of range{_where(path)}: must be {v.replace('exclusive', '').lower()} {err.validator_value}"
+                            .replace("minimum", "at least").replace("maximum", "at most"), self.describe(schema))]
+        if v in ("minItems", "minProperties"):
+            return [self.at(path, f"{_where(path).strip() or 'this'} is empty".replace("in ", "", 1), self.describe(schema))]
+        return [self.at(path, err.message, self.describe(schema))]
+
+    def describe(self, schema: dict) -> Optional[str]:
+        desc = schema.get("description")
+        return desc if desc else None
+
+    def required_hint(self, missing: str, schema: dict) -> Optional[str]:
+        props = schema.get("properties", {}).get(missing, {})
+        if self.what == "mission" and missing == "mission":
+            return "start the file with 'mission: <a name>'"
+        if self.what == "mission" and missing == "steps":
+            return "add 'steps:' followed by the list of what the robot does"
+        return props.get("description") if isinstance(props, dict) else None
+
+    def unit_problem(self, path: tuple, value: Any, kind: str) -> Problem:
+        try:
+            parse_quantity(value, kind)
+            message = f"{_type_of(value)} is not a valid {kind.replace('_', ' ')}"
+        except (UnitError, KeyError) as exc:
+            message = str(exc)
+        label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
+        return self.at(path, f"{label}{message}")
+
+    def unknown_keys(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
+        allowed = list(schema.get("properties", {}))
+        extras = [k for k in err.instance if k not in allowed] if isinstance(err.instance, dict) else []
+        out = []
+        required = schema.get("required") or []
+        where = _where(path)
+        if required and isinstance(path[-1:], tuple) and path and isinstance(path[-1], int):
+            where = f" in the '{required[0]}' step"
+        for key in extras:
+            msg = f"unknown key '{key}'{where}{did_you_mean(key, allowed)}"
+            out.append(self.at(path + (key,), msg, f"allowed here: {', '.join(allowed)}", key=True))
+        return out
+
+    def explain_alternatives(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
+        branches = schema.get(err.validator, [])
+        kind = schema.get("x-kind")
+        inst = err.instance
+        by_branch: dict[int, list[jsonschema.ValidationError]] = {}
+        for sub in err.context or []:
+            by_branch.setdefault(sub.relative_schema_path[0], []).append(sub)
+        if kind in ("step", "condition"):
+            return self.explain_keyword_choice(err, path, branches, by_branch, kind)
+        chosen = self.pick_branch(inst, branches, by_branch)
+        if chosen is not None and chosen in by_branch:
+            return self.problems(by_branch[chosen])
+        alts = "; or ".join(filter(None, (self.describe(b) or "" for b in branches)))
+        return [self.at(path, f"{_type_of(inst)} does not fit{_where(path)}", alts or self.describe(schema))]
+
+    @staticmethod
+    def pick_branch(inst: Any, branches: list, by_branch: dict) -> Optional[int]:
+        def type_ok(b: dict) -> bool:
+            t = b.get("type")
+            if "$ref" in b or t is None:
+                return True
+            return {"object": isinstance(inst, dict), "array": isinstance(inst, list), "string": isinstance(inst, str)}.get(t, True)
+        candidates = [i for i, b in enumerate(branches) if isinstance(b, dict) and type_ok(b)]
+        if isinstance(inst, dict):
+            keyed = [i for i in candidates if set(branches[i].get("required", [])) <= set(inst) and branches[i].get("required")]
+            if keyed:
+                candidates = keyed
+            else:
+                overlap = [(len(set(branches[i].get("properties", {})) & set(inst)), i) for i in candidates]
+                if overlap and max(overlap)[0] > 0:
+                    best = max(overlap)[0]
+                    candidates = [i for n, i in overlap if n == best]
+        if not candidates:
+            return None
+        return min(candidates, key=lambda i: len(by_branch.get(i, [])))
+
+    def explain_keyword_choice(self, err, path, branches, by_branch, kind) -> list[Problem]:
+        inst = err.instance
+        words: list[str] = []
+        keyed: dict[str, int] = {}
+        for i, b in enumerate(branches):
+            if "const" in b:
+                words.append(b["const"])
+            for w in b.get("enum", []):
+                words.append(w)
+            if b.get("required"):
+                keyed[b["required"][0]] = i
+                words.append(b["required"][0])
+        label = "step" if kind == "step" else "condition"
+        listing = ", ".join(dict.fromkeys(words))
+        if isinstance(inst, str):
+            hint = f"the {label}s are: {listing}"
+            if inst in keyed:
+                return [self.at(path, f"'{inst}' needs a value here (write '{inst}: ...')", self.describe(branches[keyed[inst]]))]
+            return [self.at(path, f"unknown {label} '{inst}'{did_you_mean(inst, words)}", hint)]
+        if isinstance(inst, dict):
+            present = [k for k in inst if k in keyed]
+            if not present:
+                first = next(iter(inst), "")
+                if not first:
+                    return [self.at(path, f"empty {label}", f"the {label}s are: {listing}")]
+                return [self.at(path + (first,), f"unknown {label} '{first}'{did_you_mean(str(first), words)}",
+                                f"the {label}s are: {listing}", key=True)]
+            if len(present) > 1 and not all(k in ("then", "else", "steps", "timeout") for k in present[1:]):
+                return [self.at(path + (present[1],), f"one {label} per list item: found both '{present[0]}' and '{present[1]}'",
+                                "start each step with its own '- '", key=True)]
+            return self.problems(by_branch.get(keyed[present[0]], [])) or [
+                self.at(path, f"invalid '{present[0]}' {label}", self.describe(branches[keyed[present[0]]]))]
+        return [self.at(path, f"expected a {label}, got {_type_of(inst)}", f"the {label}s are: {listing}")]
+
+
+def schema_problems(doc: SourceDoc, schema_name: str, what: str) -> list[Problem]:
+    """Validate ``doc`` against ``schema_name``; return every problem found, positioned and explained."""
+    validator = validator_for(schema_name)
+    return _Explainer(doc, what).problems(validator.iter_errors(doc.data))

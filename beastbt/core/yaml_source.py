@@ -1,0 +1,139 @@
+"""YAML loading that remembers where every value came from.
+
+PyYAML's composer gives each node a start mark; :func:`load_yaml` turns the
+node tree into plain Python data and a map from each value's path (a tuple of
+keys and list indices, as jsonschema reports them) to its line and column, so
+that any later check can point at the exact place in the file. Tabs used for
+indentation, duplicate keys, an empty file and a top level that is not a
+mapping are reported here, with a hint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Union
+
+import yaml
+
+from beastbt.core.errors import InvalidInput, Position, Problem
+
+PathKey = tuple[Union[str, int], ...]
+
+
+@dataclass
+class SourceDoc:
+    """A YAML document as data plus the position of every value and every mapping key."""
+
+    file: str
+    data: Any
+    positions: dict[PathKey, Position] = field(default_factory=dict)
+    key_positions: dict[PathKey, Position] = field(default_factory=dict)
+
+    def position(self, path: PathKey, key: bool = False) -> Position:
+        """Where the value (or, with ``key=True``, the key) at ``path`` is; falls back to its parents."""
+        path = tuple(path)
+        if key and path in self.key_positions:
+            return self.key_positions[path]
+        while path:
+            if path in self.positions:
+                return self.positions[path]
+            path = path[:-1]
+        return self.positions.get((), Position(1, 1))
+
+    def problem(self, path: PathKey, message: str, hint: str | None = None, key: bool = False) -> Problem:
+        """A :class:`Problem` located at ``path`` in this document."""
+        return Problem(self.file, self.position(path, key=key), message, hint)
+
+
+def _pos(mark: yaml.Mark) -> Position:
+    return Position(mark.line + 1, mark.column + 1)
+
+
+class _Builder:
+    def __init__(self, doc: SourceDoc) -> None:
+        self.doc = doc
+        self.constructor = yaml.SafeLoader("")  # used only for scalar construction
+        self.problems: list[Problem] = []
+
+    def build(self, node: yaml.Node, path: PathKey) -> Any:
+        self.doc.positions[path] = _pos(node.start_mark)
+        if isinstance(node, yaml.MappingNode):
+            self.constructor.flatten_mapping(node)
+            out: dict = {}
+            for key_node, value_node in node.value:
+                key = self.build_scalar_key(key_node)
+                if key in out:
+                    first = self.doc.key_positions[path + (key,)]
+                    self.problems.append(Problem(
+                        self.doc.file, _pos(key_node.start_mark),
+                        f"duplicate key '{key}' (first defined at line {first.line})",
+                        "each key may appear once in a mapping; merge the two or rename one",
+                    ))
+                    continue
+                self.doc.key_positions[path + (key,)] = _pos(key_node.start_mark)
+                out[key] = self.build(value_node, path + (key,))
+            return out
+        if isinstance(node, yaml.SequenceNode):
+            return [self.build(child, path + (i,)) for i, child in enumerate(node.value)]
+        return self.constructor.construct_object(node, deep=True)
+
+    def build_scalar_key(self, node: yaml.Node) -> Any:
+        if not isinstance(node, yaml.ScalarNode):
+            self.problems.append(Problem(self.doc.file, _pos(node.start_mark), "a mapping key must be a plain word",
+                                         "write keys as simple names like 'speed:'"))
+            return f"<complex key at line {node.start_mark.line + 1}>"
+        key = self.constructor.construct_object(node)
+        return key if isinstance(key, str) else str(key)
+
+
+def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    pos = _pos(mark) if mark is not None else Position(1, 1)
+    problem = getattr(exc, "problem", None) or str(exc)
+    lines = text.splitlines()
+    line_text = lines[pos.line - 1] if 0 < pos.line <= len(lines) else ""
+    if "\t" in line_text[: max(pos.column, 1)] or "'\\t'" in str(problem):
+        col = line_text.find("\t") + 1 if "\t" in line_text else pos.column
+        return Problem(file, Position(pos.line, max(col, 1)), "tab character used for indentation",
+                       "YAML indentation must use spaces; replace the tab with spaces (2 per level is usual)")
+    context = getattr(exc, "context", None)
+    message = f"YAML syntax error: {problem}" + (f" ({context})" if context else "")
+    return Problem(file, pos, message, "check the indentation and the ':' and '-' around this line; quote text that contains ': ' or '#'")
+
+
+def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str | None = None,
+              require_mapping: bool = True) -> SourceDoc:
+    """Read a YAML file into a :class:`SourceDoc`; raise :class:`InvalidInput` with every problem found.
+
+    ``text`` may be given to parse a string instead of reading ``path``;
+    ``display_name`` is how the file is named in messages (default: ``path``).
+    """
+    name = display_name or str(path)
+    if text is None:
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise InvalidInput([Problem(name, Position(1, 1), "file not found", "check the path; relative paths are relative to the current directory")])
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {exc}", "it must be a UTF-8 text file")])
+    doc = SourceDoc(file=name, data=None)
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        raise InvalidInput([_syntax_problem(name, text, exc)])
+    if node is None:
+        raise InvalidInput([Problem(name, Position(1, 1), "the file is empty",
+                                    "a mission needs at least 'mission: <name>' and 'steps:'")])
+    builder = _Builder(doc)
+    try:
+        doc.data = builder.build(node, ())
+    except yaml.YAMLError as exc:
+        raise InvalidInput([_syntax_problem(name, text, exc)])
+    if builder.problems:
+        raise InvalidInput(builder.problems)
+    if require_mapping and not isinstance(doc.data, dict):
+        kind = "a list" if isinstance(doc.data, list) else f"a single value ({doc.data!r})"
+        raise InvalidInput([Problem(name, doc.position(()), f"the top level must be a mapping of keys, but it is {kind}",
+                                    "start the file with 'mission: <name>' on its own line, with no '-' before it")])
+    return doc

@@ -1,0 +1,595 @@
+"""Live video for the operator: the camera as MJPEG over HTTP, with the mission's current step.
+
+``beastbt run MISSION --stream [HOST:]PORT`` starts a :class:`VideoStreamServer`
+(stdlib :class:`http.server.ThreadingHTTPServer`, bound to 127.0.0.1 unless a
+host is given) for the length of the run:
+
+* ``/stream.mjpg``: ``multipart/x-mixed-replace`` JPEG frames (what browsers,
+  VLC and ``ffplay`` show as live video); each part carries ``X-Frame-Seq``.
+* ``/snapshot.jpg``: the newest frame as one JPEG.
+* ``/status.json``: mission, current step, status, time, pose, line.
+* ``/``: a minimal page that shows the stream and polls the status.
+
+How frames flow, so that nobody waits for anybody: the tick loop hands each
+new camera frame to :meth:`VideoStreamServer.publish`, which only stores a
+reference in a latest-frame slot and notifies (no copy, no encoding). One
+encoder thread takes the newest frame at most ``fps`` times a second (only
+while someone watches), scales it to the stream size, draws the overlay (the
+detected line and the current step) and JPEG-encodes it once into a second
+latest-frame slot. Every client's handler thread sends the newest JPEG, then
+waits for a newer one: a slow client skips frames (it always gets the newest
+when it is ready again; its kernel send buffer is kept to a few frames,
+``send_buffer_bytes``, so that the newest is not queued behind old ones), and
+a client that takes nothing for ``client_timeout_s`` is dropped. The server is closed at the end of the run
+(``Prepared.closers``): the encoder stops and every client connection is shut.
+
+Options (``RunOptions.extras`` / the command line): ``stream`` (``--stream``),
+``stream_size`` (``--stream-size 640x480``), ``stream_quality``
+(``--stream-quality 80``), ``stream_fps`` (``--stream-fps 25``),
+``stream_no_overlay`` (``--stream-no-overlay``). In the simulator the camera
+is switched on for the stream; run with ``--speed realtime`` to watch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Any, Callable, Optional
+from urllib.parse import urlsplit
+
+import cv2
+import numpy as np
+
+from beastbt.core.config import dataclass_from_dict
+from beastbt.vision.camera_model import CameraGeometry
+from beastbt.vision.line_detector import LineDetection
+from beastbt.vision.overlay import describe, draw_caption, draw_detection
+
+BOUNDARY = "beastbtframe"
+"""The multipart boundary of /stream.mjpg."""
+
+NO_CAMERA_PERIOD_S = 1.0
+"""Without a camera, a blank captioned frame is streamed this often (clock seconds)."""
+
+
+@dataclass
+class StreamConfig:
+    """The live video server (``beastbt run --stream ...``)."""
+
+    # Address to listen on. 127.0.0.1 (default) is this machine only; 0.0.0.0 every interface.
+    host: str = "127.0.0.1"
+    # TCP port; 0 picks a free one (see VideoStreamServer.port).
+    port: int = 8080
+    # Size of the streamed frames, pixels; 0 x 0 streams the camera's own size.
+    width_px: int = 640
+    height_px: int = 480
+    # JPEG quality, 1-100 (OpenCV's IMWRITE_JPEG_QUALITY). 80 is sharp; 50 halves the bytes.
+    jpeg_quality: int = 80
+    # Most frames encoded per second (wall clock); newer camera frames in between are skipped.
+    fps: float = 25.0
+    # Draw the detected line, junctions and the current step on the frames.
+    overlay: bool = True
+    # A client that accepts no data for this long is disconnected, seconds.
+    client_timeout_s: float = 10.0
+    # Kernel send buffer per viewer, bytes (a few frames). Small keeps a slow viewer on the newest
+    # frame instead of seconds-old ones queued in the OS; too small limits throughput on links with
+    # long round trips (rate <= buffer / round trip). 0 leaves the OS's autotuning (up to megabytes).
+    send_buffer_bytes: int = 262144
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.port <= 65535:
+            raise ValueError(f"stream.port must be 0..65535, got {self.port}")
+        if (self.width_px == 0) != (self.height_px == 0) or not (
+                self.width_px == 0 or (16 <= self.width_px <= 7680 and 16 <= self.height_px <= 4320)):
+            raise ValueError(f"stream size must be 0x0 (the camera's) or 16x16..7680x4320 pixels, got "
+                             f"{self.width_px}x{self.height_px}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"stream JPEG quality must be 1..100, got {self.jpeg_quality}")
+        if not 0.1 <= self.fps <= 120.0:
+            raise ValueError(f"stream fps must be in [0.1, 120], got {self.fps}")
+        if not self.client_timeout_s > 0:
+            raise ValueError(f"stream client_timeout_s must be > 0 s, got {self.client_timeout_s}")
+        if self.send_buffer_bytes < 0:
+            raise ValueError(f"stream send_buffer_bytes must be >= 0, got {self.send_buffer_bytes}")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "StreamConfig":
+        """Build from a mapping of the fields above; unknown keys or bad values raise ``ValueError``."""
+        return dataclass_from_dict(cls, d, "stream")
+
+
+def parse_endpoint(text: str) -> tuple[str, int]:
+    """``PORT``, ``:PORT`` or ``HOST:PORT`` -> (host, port); the host defaults to 127.0.0.1."""
+    text = str(text).strip()
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host = ""
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        number = int(port)
+    except ValueError:
+        raise ValueError(f"--stream takes [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
+    if not 0 <= number <= 65535:
+        raise ValueError(f"--stream port must be 0..65535, not {number}")
+    return host, number
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` (``640x480``) -> (width, height) in pixels."""
+    try:
+        w, h = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--stream-size takes WIDTHxHEIGHT such as 640x480, not '{text}'") from None
+    return w, h
+
+
+class LatestSlot:
+    """The newest item and its sequence number, with a condition to wait for a newer one (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self.seq = 0
+        self.item: Any = None
+        self.closed = False
+
+    def put(self, item: Any) -> int:
+        """Replace the item (never blocks on readers); return its sequence number."""
+        with self._cond:
+            self.seq += 1
+            self.item = item
+            self._cond.notify_all()
+            return self.seq
+
+    def get(self) -> tuple[int, Any]:
+        """The newest (seq, item) now (seq 0: nothing yet)."""
+        with self._cond:
+            return self.seq, self.item
+
+    def wait_newer(self, seq: int, timeout_s: float) -> Optional[tuple[int, Any]]:
+        """Wait up to ``timeout_s`` for an item newer than ``seq``: (seq, item), or None (timeout or closed)."""
+        with self._cond:
+            if self.seq <= seq and not self.closed:
+                self._cond.wait_for(lambda: self.seq > seq or self.closed, timeout_s)
+            if self.closed or self.seq <= seq:
+                return None
+            return self.seq, self.item
+
+    def close(self) -> None:
+        """Wake every waiter for good."""
+        with self._cond:
+            self.closed = True
+            self._cond.notify_all()
+
+
+@dataclass
+class ClientStats:
+    """One /stream.mjpg viewer: where from, frames handed to it (the last may be on its way), frames it skipped while busy."""
+
+    address: str
+    frames: int = 0
+    skipped: int = 0
+    bytes: int = 0
+    connection: Any = None
+
+
+@dataclass(frozen=True)
+class _Raw:
+    image: np.ndarray
+    stamp_s: float
+    detection: Optional[LineDetection]
+    geometry: Optional[CameraGeometry]
+    lookahead_m: float
+
+
+class VideoStreamServer:
+    """The MJPEG server of one run (see the module docstring). ``wall`` is the wall clock for the frame rate (s)."""
+
+    def __init__(self, config: Optional[StreamConfig] = None, wall: Callable[[], float] = time.monotonic) -> None:
+        self.config = config or StreamConfig()
+        self.wall = wall
+        self.raw = LatestSlot()
+        """The newest camera frame handed over by the tick loop."""
+        self.jpeg = LatestSlot()
+        """The newest encoded frame: ``(bytes, raw seq)``."""
+        self._status: dict = {}
+        self._status_lock = threading.Lock()
+        self._clients: list[ClientStats] = []
+        self._clients_lock = threading.Lock()
+        self._wake = threading.Event()
+        self._closing = threading.Event()
+        self.frames_published = 0
+        self.frames_encoded = 0
+        self.encode_s = 0.0
+        """Wall seconds spent scaling, drawing and encoding."""
+        self.clients_served = 0
+        self._httpd: Optional[ThreadingHTTPServer] = None
+        self._threads: list[threading.Thread] = []
+
+    # -- life ------------------------------------------------------------------------
+    def start(self) -> "VideoStreamServer":
+        """Bind, then serve and encode in daemon threads; raises OSError when the port is taken."""
+        stream = self
+
+        class Server(ThreadingHTTPServer):
+            daemon_threads = True
+            allow_reuse_address = True
+
+        class Handler(_Handler):
+            server_stream = stream
+
+        self._httpd = Server((self.config.host, self.config.port), Handler)
+        serve = threading.Thread(target=self._httpd.serve_forever, kwargs={"poll_interval": 0.2},
+                                 name="beastbt-stream-http", daemon=True)
+        encode = threading.Thread(target=self._encode_loop, name="beastbt-stream-encoder", daemon=True)
+        self._threads = [serve, encode]
+        serve.start()
+        encode.start()
+        return self
+
+    @property
+    def port(self) -> int:
+        """The port actually bound (useful with port 0)."""
+        return self._httpd.server_address[1] if self._httpd is not None else self.config.port
+
+    @property
+    def url(self) -> str:
+        """``http://host:port/`` of the page."""
+        host = self.config.host if self.config.host not in ("0.0.0.0", "") else socket.gethostname()
+        return f"http://{host}:{self.port}/"
+
+    def close(self) -> None:
+        """Stop serving: the encoder ends, waiting handlers wake, every client connection is shut."""
+        if self._closing.is_set():
+            return
+        self._closing.set()
+        self._wake.set()
+        self.raw.close()
+        self.jpeg.close()
+        with self._clients_lock:
+            clients = list(self._clients)
+        for c in clients:  # unblocks a handler stuck sending to a slow client
+            try:
+                c.connection.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        if self._httpd is not None:
+            self._httpd.shutdown()
+            self._httpd.server_close()
+        for t in self._threads:
+            t.join(2.0)
+
+    # -- the tick loop's side (never blocks) ----------------------------------------------------
+    def publish(self, image: np.ndarray, stamp_s: float = 0.0, detection: Optional[LineDetection] = None,
+                geometry: Optional[CameraGeometry] = None, lookahead_m: float = 0.25) -> None:
+        """Offer a new camera frame (BGR uint8; not copied: do not modify it afterwards)."""
+        self.raw.put(_Raw(image, stamp_s, detection, geometry, lookahead_m))
+        self.frames_published += 1
+        self._wake.set()
+
+    def set_status(self, status: dict) -> None:
+        """The run's state for /status.json and the caption (a small dict, replaced whole)."""
+        with self._status_lock:
+            self._status = status
+
+    def status(self) -> dict:
+        """The last status with the server's own counters."""
+        with self._status_lock:
+            out = dict(self._status)
+        out["stream"] = {"frames_published": self.frames_published, "frames_encoded": self.frames_encoded,
+                         "clients": self.client_count}
+        return out
+
+    @property
+    def client_count(self) -> int:
+        """Viewers of /stream.mjpg connected now."""
+        with self._clients_lock:
+            return len(self._clients)
+
+    def clients(self) -> list[ClientStats]:
+        """The viewers connected now."""
+        with self._clients_lock:
+            return list(self._clients)
+
+    def wait_encoded(self, raw_seq: int, timeout_s: float) -> bool:
+        """Wait until the newest JPEG comes from raw frame ``raw_seq`` or a later one (True), or ``timeout_s`` (False)."""
+        deadline = self.wall() + timeout_s
+        seq, item = self.jpeg.get()
+        while item is None or item[1] < raw_seq:
+            left = deadline - self.wall()
+            if left <= 0:
+                return False
+            got = self.jpeg.wait_newer(seq, left)
+            if got is None:
+                return False
+            seq, item = got
+        return True
+
+    # -- encoding (its own thread) -------------------------------------------------------------
+    def _encode_loop(self) -> None:
+        period = 1.0 / self.config.fps
+        next_s = self.wall()
+        done = 0
+        while not self._closing.is_set():
+            got = self.raw.wait_newer(done, 0.5)
+            if got is None:
+                continue
+            if self.client_count == 0:
+                # Nobody watches: encode nothing, wait for a viewer (or a newer frame).
+                self._wake.clear()
+                if self.client_count == 0:
+                    self._wake.wait(0.2)
+                continue
+            delay = next_s - self.wall()
+            if delay > 0:
+                self._closing.wait(delay)
+                got = self.raw.get()  # whatever is newest after the wait
+            seq, raw = got
+            now = self.wall()
+            next_s = max(next_s + period, now - 0.5 * period)  # keep the rate; no burst after a stall
+            try:
+                data = self.encode(raw)
+            except Exception as exc:  # a bad frame must not end the stream
+                print(f"beastbt stream: could not encode a frame: {exc!r}", file=sys.stderr)
+                done = seq
+                continue
+            self.encode_s += self.wall() - now
+            self.frames_encoded += 1
+            self.jpeg.put((data, seq))
+            done = seq
+
+    def encode(self, raw: _Raw) -> bytes:
+        """Scale, draw the overlay and JPEG-encode one frame (the encoder thread; /snapshot.jpg)."""
+        cfg = self.config
+        image = raw.image
+        h, w = image.shape[:2]
+        size = (cfg.width_px, cfg.height_px) if cfg.width_px else (w, h)
+        if size != (w, h):
+            interp = cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR
+            out = cv2.resize(image, size, interpolation=interp)
+        else:
+            out = image.copy() if cfg.overlay else image
+        if cfg.overlay:
+            if raw.geometry is not None:
+                draw_detection(out, raw.detection, raw.geometry, raw.lookahead_m)
+            st = self.status()
+            caption = [f"{st.get('mission', '')}  {st.get('status', '')}  t {st.get('time_s', 0.0):.1f} s",
+                       f"step: {st.get('step', '-')}"]
+            if raw.geometry is not None:
+                caption.append(describe(raw.detection))
+            draw_caption(out, caption)
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(cfg.jpeg_quality)])
+        if not ok:
+            raise ValueError("cv2.imencode failed")
+        return buf.tobytes()
+
+    # -- the handlers' side ----------------------------------------------------------------------
+    def _add_client(self, c: ClientStats) -> None:
+        with self._clients_lock:
+            self._clients.append(c)
+            self.clients_served += 1
+        self._wake.set()
+
+    def _remove_client(self, c: ClientStats) -> None:
+        with self._clients_lock:
+            if c in self._clients:
+                self._clients.remove(c)
+
+    def newest_jpeg(self) -> Optional[bytes]:
+        """The newest encoded frame, or one encoded now from the newest camera frame; None before any frame."""
+        _, item = self.jpeg.get()
+        seq_raw, raw = self.raw.get()
+        if item is not None and item[1] >= seq_raw:
+            return item[0]
+        if raw is None:
+            return None
+        return self.encode(raw)
+
+
+PAGE = """<!doctype html>
+<html><head><meta charset="utf-8"><title>beastbt live</title>
+<style>body{background:#1e1e1e;color:#ddd;font-family:sans-serif;margin:1em}
+img{max-width:100%;border:1px solid #444}pre{font-size:1.1em}</style></head>
+<body><h2 id="title">beastbt</h2>
+<img src="/stream.mjpg" alt="live camera">
+<pre id="status">waiting for the robot...</pre>
+<script>
+async function poll() {
+  try {
+    const s = await (await fetch('/status.json', {cache: 'no-store'})).json();
+    document.getElementById('title').textContent = (s.mission || 'beastbt') + ': ' + (s.status || 'running');
+    document.getElementById('status').textContent =
+      'step:  ' + (s.step || '-') + '\\ntime:  ' + (s.time_s || 0).toFixed(1) + ' s\\n' +
+      'pose:  ' + (s.pose || '-') + '\\n' + (s.line || '');
+  } catch (e) {}
+  setTimeout(poll, 500);
+}
+poll();
+</script></body></html>
+"""
+
+
+class _Handler(BaseHTTPRequestHandler):
+    """One HTTP request of the stream server."""
+
+    server_stream: VideoStreamServer
+    server_version = "beastbt-stream/1"
+
+    def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - the stdlib's signature
+        pass  # one line per request would drown the run's console
+
+    def _send(self, code: int, ctype: str, body: bytes) -> None:
+        self.send_response(code)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-cache, no-store")
+        self.end_headers()
+        self.wfile.write(body)
+
+    def do_GET(self) -> None:  # noqa: N802 - the stdlib's name
+        stream = self.server_stream
+        path = urlsplit(self.path).path
+        try:
+            if path in ("/", "/index.html"):
+                self._send(200, "text/html; charset=utf-8", PAGE.encode())
+            elif path == "/status.json":
+                self._send(200, "application/json", json.dumps(stream.status()).encode())
+            elif path == "/snapshot.jpg":
+                data = stream.newest_jpeg()
+                if data is None:
+                    self._send(503, "text/plain", b"no camera frame yet\n")
+                else:
+                    self._send(200, "image/jpeg", data)
+            elif path == "/stream.mjpg":
+                self._stream(stream)
+            else:
+                self._send(404, "text/plain", b"not found: try /, /stream.mjpg, /snapshot.jpg or /status.json\n")
+        except (BrokenPipeError, ConnectionResetError, socket.timeout, OSError):
+            pass  # the viewer went away
+
+    def _stream(self, stream: VideoStreamServer) -> None:
+        self.connection.settimeout(stream.config.client_timeout_s)
+        if stream.config.send_buffer_bytes:
+            self.connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, stream.config.send_buffer_bytes)
+        self.send_response(200)
+        self.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
+        self.send_header("Cache-Control", "no-cache, no-store")
+        self.send_header("Pragma", "no-cache")
+        self.end_headers()
+        client = ClientStats(address=f"{self.client_address[0]}:{self.client_address[1]}", connection=self.connection)
+        stream._add_client(client)
+        last = 0
+        try:
+            while True:
+                got = stream.jpeg.wait_newer(last, 0.5)
+                if got is None:
+                    if stream.jpeg.closed:
+                        return
+                    continue
+                seq, (data, raw_seq) = got
+                head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(data)}\r\n"
+                        f"X-Frame-Seq: {raw_seq}\r\n\r\n").encode()
+                # counted before the write: a viewer that has the frame is always counted as having it
+                if last:
+                    client.skipped += max(0, seq - last - 1)
+                client.frames += 1
+                client.bytes += len(data)
+                last = seq
+                self.wfile.write(head + data + b"\r\n")
+        finally:
+            stream._remove_client(client)
+
+
+# -- in a run -------------------------------------------------------------------------------------
+
+def config_from_options(extras: dict) -> Optional[StreamConfig]:
+    """The stream's config from ``RunOptions.extras`` (None when ``stream`` is not set); ValueError when bad."""
+    spec = extras.get("stream")
+    if spec is None or spec is False:
+        return None
+    host, port = spec if isinstance(spec, tuple) else parse_endpoint(spec)
+    d: dict = {"host": host, "port": port}
+    size = extras.get("stream_size")
+    if size:
+        d["width_px"], d["height_px"] = size if isinstance(size, tuple) else parse_size(size)
+    if extras.get("stream_quality") is not None:
+        d["jpeg_quality"] = int(extras["stream_quality"])
+    if extras.get("stream_fps") is not None:
+        d["fps"] = float(extras["stream_fps"])
+    if extras.get("stream_no_overlay"):
+        d["overlay"] = False
+    return StreamConfig.from_dict(d)
+
+
+def install_stream(prepared: Any) -> Optional[VideoStreamServer]:
+    """PREPARE_HOOK: with ``--stream``, serve the run's camera live until the run ends."""
+    from beastbt.core.errors import InvalidInput, Position, Problem
+    try:
+        config = config_from_options(prepared.options.extras)
+    except ValueError as exc:
+        raise InvalidInput([Problem("--stream", Position(), str(exc), "e.g. --stream 8080 --stream-size 640x480")]) from None
+    if config is None:
+        return None
+    run = prepared.run
+    server = VideoStreamServer(config)
+    try:
+        server.start()
+    except OSError as exc:
+        raise InvalidInput([Problem("--stream", Position(), f"cannot listen on {config.host}:{config.port}: {exc}",
+                                    "pick another port, or 0 for any free one")]) from None
+    prepared.closers.append(server.close)
+    run.ctx.services["video_stream"] = server
+    run.io.extras["video_stream"] = server
+    pipeline = run.io.extras.get("camera")
+    if pipeline is not None:
+        pipeline.enable("stream")
+    run.recorders.append(_feeder(run, server, pipeline))
+    print(f"live video: {server.url} (stream {server.url}stream.mjpg)", flush=True)
+    run.events.add("stream", f"live video on {server.url}")
+    return server
+
+
+def _feeder(run: Any, server: VideoStreamServer, pipeline: Any) -> Callable[[Any], None]:
+    """The recorder that hands each new camera frame and the run's state to the server."""
+    state = {"seq": 0, "blank_s": -1e9}
+    mission = run.mission.name
+
+    def feed(rec: Any) -> None:
+        latest = pipeline.latest if pipeline is not None else None
+        line = describe(latest[1]) if latest is not None and latest[1] is not None else ""
+        server.set_status({"mission": mission, "status": run.status or "running", "step": run.current_step(),
+                           "time_s": round(run.elapsed_s, 2), "pose": run.pose_text(), "line": line})
+        if latest is not None:
+            frame, detection = latest
+            if frame.seq != state["seq"]:
+                state["seq"] = frame.seq
+                server.publish(frame.image, frame.stamp_s, detection, pipeline.geometry, pipeline.lookahead_m)
+        elif pipeline is None and rec.now_s - state["blank_s"] >= NO_CAMERA_PERIOD_S:
+            state["blank_s"] = rec.now_s
+            server.publish(np.full((240, 320, 3), 40, np.uint8), rec.now_s)
+
+    return feed
+
+
+def add_stream_options(p: argparse.ArgumentParser) -> None:
+    """The ``--stream*`` options of ``beastbt run``."""
+    def endpoint(text: str) -> tuple[str, int]:
+        try:
+            return parse_endpoint(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc))
+
+    def size(text: str) -> tuple[int, int]:
+        try:
+            return parse_size(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc))
+
+    p.add_argument("--stream", metavar="[HOST:]PORT", type=endpoint,
+                   help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
+                        "HOST defaults to 127.0.0.1")
+    p.add_argument("--stream-size", metavar="WxH", type=size, help="size of the streamed frames (default 640x480)")
+    p.add_argument("--stream-quality", metavar="Q", type=int, help="JPEG quality 1-100 (default 80)")
+    p.add_argument("--stream-fps", metavar="FPS", type=float, help="most frames streamed per second (default 25)")
+    p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
+
+
+def _register() -> None:
+    from beastbt import cli
+    from beastbt.run.session import PREPARE_HOOKS
+    if install_stream not in PREPARE_HOOKS:
+        PREPARE_HOOKS.append(install_stream)
+    if add_stream_options not in cli.RUN_OPTIONS:
+        cli.RUN_OPTIONS.append(add_stream_options)
+
+
+_register()
+
+
+__all__ = ["VideoStreamServer", "StreamConfig", "LatestSlot", "ClientStats", "parse_endpoint", "parse_size",
+           "install_stream", "add_stream_options", "config_from_options", "BOUNDARY"]

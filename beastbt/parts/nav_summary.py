@@ -1,0 +1,144 @@
+"""What a navigation run adds to the summary: the places visited and, in the simulator, how good the pose was.
+
+- ``waypoints``: one entry per place visit of go_to, route and return_home:
+  ``{name, lat, lon, reached, arrival_error_m, time_s}``. The arrival error
+  is the true distance (m) from the simulated robot to the place when the
+  step succeeded (the truth converted to WGS84 through the world's datum);
+  on a robot, the estimated one. It is null for a place not reached.
+- ``truth.position_error_rms_m``: RMS horizontal distance (m) between the
+  fused pose and the truth over every tick with a valid position;
+  ``truth.gps_error_rms_m``: the same for the raw GPS fixes (one per epoch),
+  the baseline the fusion should beat. Also the largest fused error and the
+  RMS heading error (deg) while the heading is valid.
+
+The fused pose lives in the EKF's own frame (anchored at its first fix); its
+latitude and longitude are compared with the truth's, so nothing of the
+simulated world leaks into the filter.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Optional
+
+from beastbt.behaviours.navigation import VISITS_SERVICE, Visit, visit_log
+from beastbt.blackboard.types import GpsFix
+from beastbt.estimation.estimator import wrap_angle
+from beastbt.estimation.geodesy import distance_m
+from beastbt.run.runner import TickRecord
+from beastbt.run.session import PREPARE_HOOKS, Prepared
+from beastbt.run.summary import SUMMARY_CONTRIBUTORS
+
+TRUTH_KEY = "nav_truth"
+"""``io.extras`` key of the run's :class:`NavTruth` (simulator only)."""
+
+
+class NavTruth:
+    """Accumulates fused and raw GPS errors against the simulator's truth, tick by tick (a run recorder)."""
+
+    def __init__(self, frame: Any, sim_gps: Any = None) -> None:
+        self.frame = frame
+        """The world's datum frame (LocalFrame): where the simulated truth is on Earth."""
+        self.sim_gps = sim_gps
+        """The emulated GPS (its ``last_true_enu``), or None."""
+        self.fused_sq_m2 = 0.0
+        self.fused_n = 0
+        self.fused_max_m = 0.0
+        self.heading_sq_rad2 = 0.0
+        self.heading_n = 0
+        self.gps_sq_m2 = 0.0
+        self.gps_n = 0
+        self._last_gps_time: Optional[str] = None
+        self.errors: list[tuple[float, float]] = []
+        """(clock s, fused error m) per tick with a valid position, for benchmarks and tests."""
+
+    def __call__(self, rec: TickRecord) -> None:
+        truth = rec.truth
+        if truth is None:
+            return
+        pose = rec.pose
+        if pose is not None and pose.position_valid and pose.lat is not None:
+            e, n, _ = self.frame.to_enu(pose.lat, pose.lon, None)
+            err = math.hypot(e - truth.x, n - truth.y)
+            self.fused_sq_m2 += err * err
+            self.fused_n += 1
+            self.fused_max_m = max(self.fused_max_m, err)
+            self.errors.append((rec.now_s, err))
+            if pose.heading_valid:
+                d = wrap_angle(pose.yaw - truth.yaw)
+                self.heading_sq_rad2 += d * d
+                self.heading_n += 1
+        gps = self.sim_gps_truth()
+        for r in rec.readings:
+            if type(r) is GpsFix and (r.time_utc is None or r.time_utc != self._last_gps_time):
+                self._last_gps_time = r.time_utc
+                e, n, _ = self.frame.to_enu(r.lat, r.lon, None)
+                tx, ty = gps if gps is not None else (truth.x, truth.y)
+                err = math.hypot(e - tx, n - ty)
+                self.gps_sq_m2 += err * err
+                self.gps_n += 1
+
+    def sim_gps_truth(self) -> Optional[tuple[float, float]]:
+        """Where the robot truly was when the emulated GPS sent its last epoch (m, world ENU)."""
+        true = getattr(self.sim_gps, "last_true_enu", None)
+        return (true[0], true[1]) if true is not None else None
+
+    def metrics(self) -> dict:
+        """The ``truth`` fields: RMS errors in m and deg, rounded for the summary (None when nothing was seen)."""
+        def rms(sq: float, n: int) -> Optional[float]:
+            return round(math.sqrt(sq / n), 4) if n else None
+        heading = rms(self.heading_sq_rad2, self.heading_n)
+        return {
+            "position_error_rms_m": rms(self.fused_sq_m2, self.fused_n),
+            "position_error_max_m": round(self.fused_max_m, 4) if self.fused_n else None,
+            "gps_error_rms_m": rms(self.gps_sq_m2, self.gps_n),
+            "gps_fixes": self.gps_n,
+            "heading_error_rms_deg": round(math.degrees(heading), 3) if heading is not None else None,
+        }
+
+
+def install_truth(p: Prepared) -> None:
+    """In the simulator: measure the pose against the truth and each arrival's true error."""
+    run = p.run
+    sim = run.io.sim
+    log = visit_log(run.ctx)
+    if sim is None or p.world is None:
+        return
+    frame = p.world.frame
+    tracker = NavTruth(frame, run.io.extras.get("sim_gps"))
+    run.io.extras[TRUTH_KEY] = tracker
+    if run.estimator is not None:
+        run.recorders.append(tracker)
+
+    def arrival(visit: Visit) -> None:
+        if visit.reached and visit.lat is not None and visit.lon is not None:
+            lat, lon, _ = frame.to_geodetic(sim.truth.x, sim.truth.y, 0.0)
+            visit.true_error_m = distance_m(visit.lat, visit.lon, lat, lon)
+
+    log.listeners.append(arrival)
+
+
+PREPARE_HOOKS.append(install_truth)
+
+
+def contribute(run: Any, summary: dict) -> None:
+    """Add ``waypoints`` and the truth metrics of navigation to a run summary."""
+    log = run.ctx.services.get(VISITS_SERVICE)
+    if log is not None:
+        out = []
+        for v in log.visits:
+            if v.lat is None or v.lon is None:
+                continue  # home was never known: there was no place to aim for
+            err = v.true_error_m if v.true_error_m is not None else v.estimated_error_m
+            out.append({
+                "name": v.name, "lat": round(v.lat, 8), "lon": round(v.lon, 8), "reached": v.reached,
+                "arrival_error_m": round(err, 3) if v.reached and err is not None else None,
+                "time_s": round(v.time_s, 3) if v.time_s is not None else None,
+            })
+        summary["waypoints"] = out
+    tracker = run.io.extras.get(TRUTH_KEY)
+    if tracker is not None and run.estimator is not None and "truth" in summary:
+        summary["truth"].update(tracker.metrics())
+
+
+SUMMARY_CONTRIBUTORS.append(contribute)

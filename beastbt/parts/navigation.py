@@ -1,0 +1,153 @@
+"""Wiring GPS navigation into a run: the EKF as the estimator, the navigation tuning, going home.
+
+- :func:`ekf_estimator` (an ``ESTIMATOR_FACTORIES`` entry): a robot with a GPS
+  or an IMU gets the :class:`~beastbt.estimation.ekf.EkfEstimator`, tuned by
+  the profile's ``estimator:`` section, fed one GPS fix per epoch
+  (:class:`~beastbt.estimation.gps_epochs.EpochFilter`). Its local frame is
+  anchored at the first good fix, on the robot and in the simulator alike:
+  the simulator's world datum is never told to the filter.
+- :func:`install_navigation` (a ``PREPARE_HOOKS`` entry): the profile's
+  ``navigation:`` section for go_to, and, on a robot with a GPS, the
+  ``return_home`` handlers of failsafes (``then: return_home``) and of
+  ``on_failure: return_home``. Both replace the mission's tree by a single
+  return_home; once home (or when going home fails) the run ends as a
+  failure, since the mission itself did not complete.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Optional, Sequence
+
+import py_trees
+
+from beastbt.behaviours.navigation import NAV_SERVICE, GoTo, NavConfig, home_target
+from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
+from beastbt.estimation.ekf import EkfConfig, EkfEstimator
+from beastbt.estimation.geodesy import LocalFrame
+from beastbt.estimation.gps_epochs import EpochFilter
+from beastbt.estimation.imu_tap import ImuTap
+from beastbt.mission.model import HOME
+from beastbt.core.events import EventLog
+from beastbt.robot.profile import RobotProfile, section_config
+from beastbt.robot.robot_io import RobotIO
+from beastbt.run.runner import ESTIMATOR_FACTORIES, MissionRun
+from beastbt.run.session import PREPARE_HOOKS, Prepared
+
+Status = py_trees.common.Status
+
+
+class NavEstimator:
+    """The EKF behind the :class:`~beastbt.estimation.estimator.Estimator` protocol.
+
+    It gets one GPS fix per epoch (:class:`EpochFilter`). With an ``imu_tap``
+    (the robot has an ``imu:`` device) it fuses that IMU's samples only, and
+    only once the driver's gyro bias, estimated while the robot stands still
+    at start, is final: the EKF's own bias state would otherwise learn the
+    raw bias of the first samples and keep it after the driver starts
+    removing it (a heading drift of about 1 deg every 10 s); until then the
+    EKF turns with the wheels' yaw rate. Without a tap it fuses whatever IMU
+    samples the tick brings (the base's own IMU).
+    """
+
+    def __init__(self, ekf: EkfEstimator, imu_tap: Optional[ImuTap] = None) -> None:
+        self.ekf = ekf
+        self.epochs = EpochFilter()
+        self.imu_tap = imu_tap
+
+    @property
+    def frame(self) -> Optional[LocalFrame]:
+        """The EKF's local frame (anchored at the first good fix), or None before it."""
+        return self.ekf.frame
+
+    def update(self, now_s: float, odometry: Sequence[WheelOdometry], imu: Sequence[ImuSample],
+               gps: Sequence[GpsFix]) -> FusedPose:
+        """Predict to ``now_s`` (s) and fuse this tick's readings; the fused pose."""
+        if self.imu_tap is not None:
+            imu = self.imu_tap.take()
+        return self.ekf.update(now_s, odometry, imu, self.epochs(gps) if gps else ())
+
+
+def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optional[NavEstimator]:
+    """The EKF for a robot with a GPS or an IMU (None otherwise: odometry alone)."""
+    if not ({"gps", "imu"} & set(io.capabilities)):
+        return None
+    config: EkfConfig = section_config(profile, "estimator", EkfConfig)
+    raw = profile.section("estimator") or {}
+    # The profile's geometry is the track width unless the estimator section tunes its own.
+    track = None if "track_width_m" in raw else profile.track_width_m
+    if "declination_deg" not in raw:
+        # On the simulator the world is where the robot is: unless the profile says
+        # otherwise, use the world's declination, as a user sets theirs for their place.
+        # Kept in io.extras so that a recording (and its replay) carries the same value.
+        world = getattr(io.sim, "world", None)
+        if "magnetic_declination_deg" not in io.extras and world is not None:
+            io.extras["magnetic_declination_deg"] = float((world.section("imu") or {}).get("mag_declination_deg", 0.0))
+        if "magnetic_declination_deg" in io.extras:
+            config = replace(config, declination_deg=float(io.extras["magnetic_declination_deg"]))
+    ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
+    return NavEstimator(ekf, io.extras.get("imu_tap"))
+
+
+ESTIMATOR_FACTORIES.append(ekf_estimator)
+
+
+class ReturnHomeInstead(py_trees.decorators.Decorator):
+    """The tree that replaces a mission going home after a failure or a failsafe.
+
+    Runs its return_home leaf; when that ends (either way) it stands still,
+    RUNNING, and records in ``outcome`` why the run should end.
+    """
+
+    def __init__(self, name: str, child: py_trees.behaviour.Behaviour) -> None:
+        super().__init__(name=name, child=child)
+        self.outcome: Optional[str] = None
+
+    def update(self) -> Status:
+        status = self.decorated.status
+        if status == Status.SUCCESS and self.outcome is None:
+            self.outcome = "returned home"
+        elif status == Status.FAILURE and self.outcome is None:
+            self.outcome = f"could not return home ({self.decorated.feedback_message})"
+        self.feedback_message = self.outcome or "going home"
+        return Status.RUNNING
+
+
+def return_home_instead(run: MissionRun, why: str) -> None:
+    """Replace the run's tree by a return_home; the run ends as a failure once that is over."""
+    if isinstance(run.root, ReturnHomeInstead):
+        return  # already on the way home
+    if run.root.status == Status.RUNNING:
+        run.root.stop(Status.INVALID)
+    leaf = GoTo("return_home (within 2 m)", run.ctx, HOME, home_target(run.ctx), None)
+    root = ReturnHomeInstead(f"return home ({why})", leaf)
+    run.root = root
+    run.nodes = list(root.iterate())
+    run.events.add("return_home", f"going home: {why}")
+
+    def end_when_home(r: MissionRun, now_s: float) -> None:
+        if root.outcome is not None and r.status is None:
+            r.finish("failure", f"{why}; {root.outcome}")
+
+    run.hooks.append(end_when_home)
+
+
+def install_navigation(p: Prepared) -> None:
+    """Give go_to the profile's navigation tuning; on a robot with a GPS, offer going home."""
+    run = p.run
+    run.ctx.services[NAV_SERVICE] = section_config(p.profile, "navigation", NavConfig)
+    if "gps" not in run.ctx.capabilities:
+        return
+
+    def failsafe_return_home(r: MissionRun, spec: Any) -> None:
+        return_home_instead(r, f"failsafe {spec.kind}")
+
+    def on_failure_return_home(r: MissionRun) -> None:
+        tip = r.root.tip()
+        return_home_instead(r, f"steps failed at {tip.name}" if tip is not None else "steps failed")
+
+    run.ctx.services["failsafe_return_home"] = failsafe_return_home
+    run.ctx.services["on_failure_return_home"] = on_failure_return_home
+
+
+PREPARE_HOOKS.append(install_navigation)

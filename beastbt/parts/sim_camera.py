@@ -1,0 +1,117 @@
+"""The simulated camera: the world's floor rendered for the robot's camera, read by the real camera driver.
+
+When the robot profile has a ``camera:`` section, :func:`attach_sim_camera`
+gives the simulated robot a :class:`~beastbt.sim.camera_emulator.SimCamera`
+(the world's ``floor:``, or a plain floor when the world has none, seen
+through the profile's mounting and the gimbal's true pan/tilt, with the
+world's ``camera:`` effects) behind the :class:`~beastbt.devices.camera.Camera`
+driver that runs on the robot, and the profile's line detector on its frames
+(:class:`~beastbt.vision.camera_pipeline.CameraPipeline`, ``io.sensors['camera']``).
+The robot gets the ``camera`` capability.
+
+Rendering is lazy: nothing is drawn (and the floor raster is not even built)
+until the pipeline is enabled, which the run does when the mission uses the
+camera or video is streamed (see :mod:`beastbt.parts.line_following`).
+Frames then come at the camera's ``fps`` by the simulated clock.
+
+``io.extras``: ``camera`` (the pipeline), ``sim_camera`` (the emulator, once
+built: tests unplug it), ``floor_map`` (a function returning the
+:class:`~beastbt.sim.floor.FloorMap`, built on first call).
+"""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from typing import Callable, Optional
+
+import numpy as np
+
+from beastbt.devices.camera import Camera, CameraConfig
+from beastbt.core.errors import InvalidInput
+from beastbt.vision.camera_pipeline import CameraPipeline
+from beastbt.core.events import EventLog
+from beastbt.robot.profile import RobotProfile, section_config
+from beastbt.robot.robot_io import RobotIO
+from beastbt.sim.camera_emulator import CameraEffects, SimCamera
+from beastbt.sim.floor import FloorMap
+from beastbt.sim.robot import Simulator, register_sim_device
+from beastbt.vision.line_detector import LineDetectorConfig
+
+PLAIN_FLOOR = {"margin_m": 1.0, "background": {"colour": 190, "texture": 8, "texture_scale_m": 0.02}}
+"""The floor of a world without ``floor:``: plain light grey (beyond the raster the camera sees its colour)."""
+
+FLOOR_CACHE_SIZE = 4
+"""Floor rasters kept per process (about 5 MB each): repeated runs of one world and seed reuse them."""
+
+
+@lru_cache(maxsize=FLOOR_CACHE_SIZE)
+def _floor_cached(floor_json: str, seed: int) -> FloorMap:
+    return FloorMap.from_dict(json.loads(floor_json), np.random.default_rng(seed))
+
+
+def build_floor(floor: dict, seed: int) -> FloorMap:
+    """The :class:`FloorMap` of a world's ``floor:`` mapping with texture seed ``seed`` (cached: treat it as read-only)."""
+    return _floor_cached(json.dumps(floor, sort_keys=True), int(seed))
+
+
+@register_sim_device
+def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
+    """A simulated camera and the line detector for a profile with ``camera:`` (``io.sensors['camera']``)."""
+    if profile.section("camera") is None:
+        return
+    config: CameraConfig = section_config(profile, "camera", CameraConfig)
+    detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
+    world = sim.world
+    raw_floor = world.section("floor")
+    raw_effects = world.section("camera") or {}
+    try:
+        effects = CameraEffects.from_dict(raw_effects)
+    except ValueError as exc:
+        raise _world_problem(world, "camera", exc) from None
+    # Seeds drawn now, in attach order, so the run is the same whether or not the camera is ever used.
+    floor_seed = int(sim.rng.integers(2**63))
+    camera_rng = np.random.default_rng(sim.rng.integers(2**63))
+    floor_holder: list[FloorMap] = []
+
+    def floor_map() -> FloorMap:
+        if not floor_holder:
+            try:
+                floor_holder.append(build_floor(raw_floor if raw_floor is not None else PLAIN_FLOOR, floor_seed))
+            except ValueError as exc:
+                raise _world_problem(world, "floor", exc) from None
+        return floor_holder[0]
+
+    def make_camera() -> Camera:
+        sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects)
+        sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
+        io.extras["sim_camera"] = sim_camera
+        return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
+
+    pipeline = CameraPipeline(make_camera, config, detector_config, events.sink("camera"))
+    try:
+        pipeline.check()
+    except ValueError as exc:
+        raise InvalidInput([profile.doc.problem(("camera",), f"in 'camera': {exc}",
+                                                "lower the camera's pitch_deg or raise line_detector.roi_far_m")]) from None
+    io.sensors["camera"] = pipeline.poll
+    io.capabilities.add("camera")
+    io.extras["camera"] = pipeline
+    io.extras["floor_map"] = floor_map
+    io.closers.append(pipeline.close)
+
+
+def _world_problem(world, section: str, exc: Exception) -> InvalidInput:
+    if world.doc is None:
+        return InvalidInput([])
+    return InvalidInput([world.doc.problem((section,), f"in '{section}': {exc}",
+                                           "see the schema in schemas/parts/ for the knobs this section takes")])
+
+
+def floor_of(io: RobotIO) -> Optional[FloorMap]:
+    """The simulated robot's floor (built on first call), or None without a simulated camera."""
+    get: Optional[Callable[[], FloorMap]] = io.extras.get("floor_map")
+    return get() if get is not None else None
+
+
+__all__ = ["attach_sim_camera", "build_floor", "floor_of", "PLAIN_FLOOR"]

@@ -1,0 +1,87 @@
+"""How a run is recorded: :class:`RecordingConfig`, every knob with its unit and default.
+
+Set through ``RunOptions.extras['recording']`` (a dict) and ``beastbt run
+--record-images HZ``; described for users in
+``schemas/parts/recording.schema.json``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from beastbt.core.config import dataclass_from_dict
+
+
+@dataclass
+class RecordingConfig:
+    """How a run is recorded (``RunOptions.extras['recording']``; ``--record-images HZ`` sets image_rate_hz)."""
+
+    # Camera frames stored as JPEG on /camera/image, frames per clock second (Hz). 0 turns images off;
+    # every frame still gets a small /sensors/camera message. Raise it to see more, lower it for smaller files.
+    image_rate_hz: float = 2.0
+    # JPEG quality of recorded images, 1-100 (OpenCV's IMWRITE_JPEG_QUALITY).
+    image_jpeg_quality: int = 75
+    # Images wider than this are scaled down before encoding (pixels); 0 keeps the camera's size.
+    image_max_width_px: int = 640
+    # Ticks, events and servo commands waiting for the writer process (items), beyond what the pipe to it
+    # holds (up to 1 MiB, ~1000 ticks). ~200 s at 20 Hz; on the robot an overflow drops items (counted in
+    # the summary), in the simulator the loop waits instead.
+    queue_max_items: int = 4000
+    # What a full queue does: "auto" (wait on a simulated clock, drop on the robot), "block" or "drop".
+    overflow: str = "auto"
+    # The tick loop hands its items to the writer process in batches, one pipe write per batch, at least
+    # every this many clock seconds (s); events go at once. A run whose process dies loses at most this much.
+    send_interval_s: float = 0.5
+    # A chunk is closed and handed to the OS every this many clock seconds of records (s). A run killed
+    # hard loses at most this much; shorter chunks compress less well.
+    chunk_interval_s: float = 1.0
+    # A chunk is also closed when its uncompressed size passes this (bytes), e.g. with many images.
+    chunk_max_bytes: int = 4 * 1024 * 1024
+    # Chunk compression: "auto" (zstd if installed, else lz4, else none), "zstd", "lz4" or "none".
+    compression: str = "auto"
+    # How long the end of a run waits for the writer to drain its queue before giving up (wall seconds).
+    drain_timeout_s: float = 60.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.image_rate_hz) and self.image_rate_hz >= 0):
+            raise ValueError(f"image_rate_hz must be zero or positive, got {self.image_rate_hz}")
+        if not 1 <= self.image_jpeg_quality <= 100:
+            raise ValueError(f"image_jpeg_quality must be 1-100, got {self.image_jpeg_quality}")
+        if self.image_max_width_px < 0:
+            raise ValueError(f"image_max_width_px must be zero or positive, got {self.image_max_width_px}")
+        if self.queue_max_items < 1:
+            raise ValueError(f"queue_max_items must be at least 1, got {self.queue_max_items}")
+        if self.overflow not in ("auto", "block", "drop"):
+            raise ValueError(f"overflow must be auto, block or drop, not '{self.overflow}'")
+        if not (math.isfinite(self.send_interval_s) and self.send_interval_s >= 0):
+            raise ValueError(f"send_interval_s must be zero or positive, got {self.send_interval_s}")
+        if not (math.isfinite(self.chunk_interval_s) and self.chunk_interval_s > 0):
+            raise ValueError(f"chunk_interval_s must be positive, got {self.chunk_interval_s}")
+        if self.chunk_max_bytes < 1024:
+            raise ValueError(f"chunk_max_bytes must be at least 1024, got {self.chunk_max_bytes}")
+        if self.compression not in ("auto", "zstd", "lz4", "none"):
+            raise ValueError(f"compression must be auto, zstd, lz4 or none, not '{self.compression}'")
+        if not self.drain_timeout_s > 0:
+            raise ValueError(f"drain_timeout_s must be positive, got {self.drain_timeout_s}")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "RecordingConfig":
+        """Build from a dict; an unknown key or a bad value raises ``ValueError``."""
+        return dataclass_from_dict(cls, d, "recording")
+
+
+def compression_type(name: str) -> Any:
+    """The ``mcap`` CompressionType for ``name`` (``auto`` picks zstd, then lz4, then none by what is installed)."""
+    from mcap import writer as mw
+    if name == "auto":
+        name = "zstd" if mw.zstandard is not None else ("lz4" if mw.lz4 is not None else "none")
+    return {"zstd": mw.CompressionType.ZSTD, "lz4": mw.CompressionType.LZ4,
+            "none": mw.CompressionType.NONE}[name]
+
+
+# -- conversions (writer thread) ----------------------------------------------------------
+
+
+__all__ = ["RecordingConfig", "compression_type"]

@@ -1,0 +1,676 @@
+"""Every run recorded: an MCAP file (``run.mcap``) written by a separate process, off the tick loop.
+
+Installed through :data:`~beastbt.run.session.PREPARE_HOOKS`: when a run
+records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
+``--record FILE`` to that file as well, or instead with ``--no-record``), a
+:class:`McapRecorder` is attached to the run:
+
+* the tick side (``run.recorders``, an event log listener, ``run.send_servo``
+  and the devices' polls, wrapped to note which device each reading came
+  from) turns each tick's readings, poses and commands into bytes with
+  :mod:`pickle` (:mod:`beastbt.recording.wire`, a few microseconds)
+  and writes them into a pipe, a batch at a time; it never builds JSON,
+  compresses or touches the disk;
+* the writer process (:mod:`beastbt.recording.writer`, started when
+  the recorder is installed) does all of that on another core, under its
+  own interpreter lock, so recording does not slow the loop even when the
+  simulator runs flat out. Its chunks close every ``chunk_interval_s`` of
+  recorded clock time, so a run killed hard leaves a file that reads up to
+  its last complete chunk (:func:`beastbt.recording.reader.read_recording`);
+  when only the run's process dies, the writer sees the pipe end and closes
+  the file properly;
+* the queue is bounded: the pipe (up to 1 MiB) and at most
+  ``queue_max_items`` items waiting for it. When it is full: on a simulated
+  clock the loop waits for the writer (nothing is lost, the simulation just
+  runs slower); on the robot the item is dropped and counted, never blocking
+  the loop. The summary gets ``recording: {messages, dropped}``.
+
+The file also holds, for ``beastbt replay`` and ``beastbt report``: metadata
+``beastbt.run`` (mission path, seed, robot profile, world, rate, capabilities,
+servo names, the tree's nodes, the device polls), the mission, profile and
+world files as attachments, the snapshots the run saved (JPEG attachments),
+and at the end metadata ``beastbt.summary`` (the run summary).
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import datetime as _dt
+import json
+import os
+import select
+import subprocess
+import sys
+import time
+import weakref
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+import yaml
+
+import beastbt
+from beastbt.blackboard.types import CameraFrame, ServoCommand
+from beastbt.core.clock import SimClock
+from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.wire import Frame, ItemEncoder
+from beastbt.recording.writer import (MCAP_PROFILE, RECORDING_FORMAT, TRUTH_FIELDS, json_default,
+                                              message_count, ns)
+
+_UNSET = object()
+
+WATCHED_DEVICE_FLAGS: list[tuple[str, str]] = [("imu_driver", "bias_ready")]
+"""``(io.extras key, attribute)`` of device states that parts of the run read besides the readings (the
+navigation estimator uses the IMU only once the driver's gyro bias is final); recorded on /devices/state
+whenever they change, so that replay can give the estimator the same answers."""
+
+BATCH_ITEMS = 64
+"""A batch goes into the pipe once it holds this many items, whatever its age."""
+
+PIPE_BYTES = 1 << 20
+"""Size asked of the pipe to the writer process (bytes; Linux grants up to ``/proc/sys/fs/pipe-max-size``)."""
+
+_WRITER_START = ("import sys; root = sys.argv[1]; root in sys.path or sys.path.insert(0, root); "
+                 "from beastbt.recording.writer import main; main()")
+"""How the writer process starts: this very beastbt (a checkout on ``sys.path`` too), its ``main()``."""
+
+
+def _grow_pipe(fd: int) -> None:
+    """Ask for a pipe of PIPE_BYTES (Linux): fewer waits and drops when the writer lags a moment."""
+    try:
+        import fcntl
+        fcntl.fcntl(fd, getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
+    except (ImportError, OSError):
+        pass  # not Linux, or above the system's limit: the default pipe (64 KiB) still works
+
+
+# -- the recorder -----------------------------------------------------------------------------
+
+
+class McapRecorder:
+    """Records one run into MCAP file(s): a cheap tick side, a writer process, counts for the summary.
+
+    ``paths``: the files to write (the same bytes to each). ``block_when_full``:
+    wait for the writer when the queue is full (simulated clock) instead of
+    dropping. ``info``: the ``beastbt.run`` metadata (strings); ``attachments``:
+    ``(name, media type, bytes)`` stored at the start of the file.
+    """
+
+    def __init__(self, paths: list[Path], config: Optional[RecordingConfig] = None, block_when_full: bool = False,
+                 info: Optional[dict] = None, attachments: Optional[list[tuple[str, str, bytes]]] = None) -> None:
+        self.paths = [Path(p) for p in paths]
+        self.config = config if config is not None else RecordingConfig()
+        self.block_when_full = block_when_full
+        self.info = {k: str(v) for k, v in (info or {}).items()}
+        self.attachments = list(attachments or [])
+        self.messages = 0
+        """Messages written (known once the writer has answered :meth:`stop`)."""
+        self._dropped_tick_side = 0
+        self._dropped_writer_side = 0
+        self.dropped_items = 0
+        """Items the tick side dropped (a full queue on the robot, or no writer to take them)."""
+        self.writer_cpu_s = 0.0
+        """CPU time the writer process used (s), known once it has answered :meth:`stop`."""
+        self.error: Optional[str] = None
+        """The first error (the file may then be incomplete), or None."""
+        self._max = self.config.queue_max_items
+        self._image_period_s = 1.0 / self.config.image_rate_hz if self.config.image_rate_hz > 0 else None
+        self._next_image_s = float("-inf")
+        self._encoder = ItemEncoder()
+        self._pending: collections.deque = collections.deque()
+        """``(bytes, items)`` not yet in the pipe, oldest first; the first may be partly written."""
+        self._pending_items = 0
+        self._batch_items: list[tuple] = []
+        """Items not yet encoded: one pickle and one write per batch, not per item."""
+        self._batch_t0 = 0.0
+        self._proc: Optional[subprocess.Popen] = None
+        self._fd: Optional[int] = None
+        self._doorbell: Optional[int] = None
+        """Write end of the writer's doorbell: rung when the run waits for an answer (see the writer's
+        ``_polling_reader``)."""
+        self._reply_buffer = b""
+        self._gone = False
+        """The writer process cannot take more (it never started, died, or was given up on)."""
+        self._started = False
+        self._stopped = False
+        self._finished = False
+        self.run: Any = None
+        """The MissionRun being recorded (set by :func:`install`), looked at once, at the first tick."""
+        self._watched: list[tuple[str, str, Any]] = []
+        self._flags: dict[tuple[str, str], Any] = {}
+        self._tags: list[tuple[str, int]] = []
+        """(device poll, readings it returned) in the order the loop polled this tick: who sent what."""
+        self._base_tagged = False
+
+    def tag_sources(self, io: Any) -> None:
+        """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.
+
+        The base is wrapped on the adapter object itself (a watchdog wrapping it later still calls it);
+        sensors in ``io.sensors``. Called when the recorder is installed and again at the first tick for
+        sensors other parts added in between (their readings of tick 0 then have no known source).
+        """
+        if not self._base_tagged:
+            try:
+                io.base.poll = self._tagged("base", io.base.poll)
+                self._base_tagged = True
+            except (AttributeError, TypeError):
+                pass
+        for name, poll in list(io.sensors.items()):
+            if not getattr(poll, "_beastbt_tagged", False):
+                io.sensors[name] = self._tagged(str(name), poll)
+
+    def _tagged(self, name: str, poll: Callable[[float], list]) -> Callable[[float], list]:
+        tags = self._tags
+
+        def tagged(now_s: float) -> list:
+            out = poll(now_s)
+            tags.append((name, len(out)))
+            return out
+
+        tagged._beastbt_tagged = True  # type: ignore[attr-defined]
+        return tagged
+
+    def _take_tags(self) -> tuple[bool, tuple]:
+        """This tick's (device, readings) tags, and whether the base's poll is among the tagged; forgets them.
+
+        The writer process turns them into each reading's source
+        (:func:`~beastbt.recording.writer.reading_sources`).
+        """
+        tags = self._tags
+        out = (self._base_tagged, tuple(tags))
+        tags.clear()
+        return out
+
+    @property
+    def dropped(self) -> int:
+        """Messages lost: queue overflow on the robot, or a writer failure."""
+        return self._dropped_tick_side + self._dropped_writer_side
+
+    # -- lifecycle ------------------------------------------------------------------------
+    def launch(self) -> "McapRecorder":
+        """Start the writer process (it imports while the run gets ready; it writes nothing before :meth:`start`)."""
+        if self._proc is not None or self._gone:
+            return self
+        root = str(Path(beastbt.__file__).resolve().parent.parent)
+        bell_w: Optional[int] = None
+        try:
+            bell_r, bell_w = os.pipe()
+            try:
+                self._proc = subprocess.Popen([sys.executable, "-c", _WRITER_START, root, str(bell_r)],
+                                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, close_fds=True,
+                                              pass_fds=(bell_r,))
+            finally:
+                os.close(bell_r)
+            fd = self._proc.stdin.fileno()
+            _grow_pipe(fd)
+            os.set_blocking(fd, False)  # the loop never waits on the pipe unless told to (block_when_full)
+            os.set_blocking(bell_w, False)
+        except (OSError, ValueError) as exc:  # no subprocess here, or a platform without these pipe calls
+            if bell_w is not None:
+                os.close(bell_w)
+            self._give_up(f"could not start the writer process: {exc!r}")
+            return self
+        self._fd = fd
+        self._doorbell = bell_w
+        return self
+
+    def start(self) -> "McapRecorder":
+        """Open the file: the writer gets the metadata and attachments, then what was queued so far.
+
+        :func:`install` leaves this to the first tick, so that the metadata
+        sees the run as every prepare hook left it.
+        """
+        if self._started:
+            return self
+        self._started = True
+        if self.run is not None:
+            self._snapshot_run(self.run)
+        self.launch()
+        opening = ("open", [str(p) for p in self.paths], dataclasses.asdict(self.config), dict(self.info),
+                   [(n, m, bytes(d)) for n, m, d in self.attachments])
+        self._pending.appendleft((self._encoder.encode([opening]), ()))
+        self._send_batch()
+        self._pump(block=False)
+        return self
+
+    def _snapshot_run(self, run: Any) -> None:
+        """What the other parts did to the run after it was built, for replay; and the device flags to watch."""
+        self.info["ctx_capabilities"] = json.dumps(sorted(run.ctx.capabilities))
+        self.info["io_extras"] = json.dumps(sorted(str(k) for k in run.io.extras))
+        self.info["tree"] = json.dumps(tree_nodes(run.root))
+        self.tag_sources(run.io)
+        self.info["sensor_sources"] = json.dumps(["base"] + [str(k) for k in run.io.sensors])
+        for key, attr in WATCHED_DEVICE_FLAGS:
+            device = run.io.extras.get(key)
+            if device is not None and hasattr(device, attr):
+                self._watched.append((key, attr, device))
+    def stop(self) -> None:
+        """No more items: the writer writes everything queued, closes its chunk and reports its counts.
+
+        The file stays open for :meth:`finish`. Waits at most ``drain_timeout_s``
+        (wall time) for the writer, then gives up on what is still queued.
+        """
+        if self._stopped:
+            return
+        self.start()  # a run that never ticked still leaves a file (metadata, events)
+        self._stopped = True
+        if self._gone:
+            return
+        deadline = time.monotonic() + self.config.drain_timeout_s
+        self._send_batch()
+        self._pending.append((self._encoder.encode([("stop",)]), ()))
+        if self._pump(block=True, deadline=deadline):
+            self._take_reply(deadline)
+        elif not self._gone:
+            # The disk hangs (the writer stopped reading): give up on what is queued rather than hang the run.
+            self._give_up("the writer did not drain its queue in time")
+
+    def finish(self, summary: Optional[dict] = None) -> None:
+        """Stop if needed, store ``summary`` as metadata ``beastbt.summary``, let the writer close the file."""
+        if self._finished:
+            return
+        self.stop()
+        self._finished = True
+        proc = self._proc
+        if proc is None:
+            return
+        if not self._gone:
+            deadline = time.monotonic() + self.config.drain_timeout_s
+            summary_json = json.dumps(summary, default=json_default) if summary is not None else None
+            self._pending.append((self._encoder.encode([("finish", summary_json)]), ()))
+            if self._pump(block=True, deadline=deadline):
+                self._take_reply(deadline)
+        self._close_pipe()
+        try:
+            # The writer ends right after its last answer; a hung one is not waited for.
+            proc.wait(timeout=self.config.drain_timeout_s if not self._gone else 1.0)
+        except subprocess.TimeoutExpired:
+            self.error = self.error or "the writer did not close the file in time"
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+    # -- the tick side (cheap: a pickle, and now and then a write into the pipe) ---------------
+    def on_tick(self, rec: Any) -> None:
+        """``run.recorders`` callable: queue what this tick did."""
+        if not self._started:
+            self.start()
+        for key, attr, device in self._watched:
+            value = getattr(device, attr)
+            if self._flags.get((key, attr), _UNSET) != value:
+                # A device state the estimator reads (the IMU's gyro bias being final): replay needs it.
+                self._flags[(key, attr)] = value
+                self._put(("flag", rec.tick, rec.now_s, key, attr, value), rec.now_s)
+        truth = rec.truth
+        if truth is not None:
+            truth = (truth.t_s, truth.x, truth.y, truth.yaw, truth.v_mps, truth.w_rps, truth.left_m, truth.right_m,
+                     truth.pan_rad, truth.tilt_rad, truth.battery_v)
+        readings = rec.readings
+        for i, r in enumerate(readings):
+            if r.__class__ is CameraFrame:
+                # Pixels go down the pipe only for frames that will be recorded as images.
+                if readings is rec.readings:
+                    readings = list(readings)
+                image = r.image
+                keep = self._image_period_s is not None and r.stamp_s >= self._next_image_s - 1e-9
+                if keep:
+                    step = self._image_period_s
+                    self._next_image_s = (self._next_image_s + step if r.stamp_s - self._next_image_s < step
+                                          else r.stamp_s + step)
+                shape = getattr(image, "shape", (0, 0))
+                readings[i] = Frame(r.stamp_s, r.seq, int(shape[1]) if len(shape) > 1 else 0, int(shape[0]),
+                                    image if keep else None)
+        self._put(("tick", rec.tick, rec.now_s, readings, rec.pose_odom, rec.pose, rec.cmd_mission, rec.cmd_mux,
+                   rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._take_tags()), rec.now_s)
+
+    def on_event(self, ev: Any) -> None:
+        """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
+        # At once, with whatever is batched: the moments before a fault are the ones worth keeping.
+        self._put(("event", ev.time_s, ev.kind, ev.text), ev.time_s, urgent=True)
+
+    def on_snapshot(self, path: str, stamp_s: float) -> None:
+        """Queue a snapshot the run saved (a JPEG file): it becomes an attachment of the recording."""
+        self._put(("snapshot", stamp_s, str(path)), stamp_s)
+
+    def on_servo(self, cmd: ServoCommand, now_s: float) -> None:
+        """Queue a servo command the run sent to its servo adapters."""
+        self._put(("servo", now_s, cmd), now_s)
+
+    # -- the queue and the pipe -------------------------------------------------------------------
+    def _put(self, item: tuple, now_s: float, urgent: bool = False) -> None:
+        """Queue an item made at clock time ``now_s``. It joins the batch (a reference, no copy: readings
+        are immutable), and the batch goes into the pipe when it is ``send_interval_s`` old or
+        BATCH_ITEMS long, or at once when ``urgent``."""
+        if self._gone:
+            self._count_dropped(item)
+            return
+        if self._pending_items + len(self._batch_items) >= self._max:
+            if self.block_when_full and self._started:
+                # Simulated time does not run away: wait for the writer, lose nothing.
+                self._send_batch()
+                self._pump(block=True, keep=self._max - 1)
+            if self._gone or self._pending_items + len(self._batch_items) >= self._max:
+                self._count_dropped(item)
+                return
+        batch = self._batch_items
+        if not batch:
+            self._batch_t0 = now_s
+        batch.append(item)
+        if self._started and (urgent or now_s - self._batch_t0 >= self.config.send_interval_s
+                              or len(batch) >= BATCH_ITEMS):
+            self._send_batch()
+
+    def _send_batch(self) -> None:
+        """Encode the batch (one pickle) and move it into the pipe (what does not fit now waits in the queue)."""
+        items = self._batch_items
+        if not items:
+            return
+        self._batch_items = []
+        try:
+            data = self._encoder.encode(items)
+        except Exception:
+            data = self._encode_one_by_one(items)
+        self._pending.append((data, items))
+        self._pending_items += len(items)
+        self._pump(block=False)
+
+    def _encode_one_by_one(self, items: list[tuple]) -> bytes:
+        """A batch pickle refused: encode item by item, dropping (and counting) those it refuses."""
+        parts = []
+        for item in items:
+            try:
+                parts.append(self._encoder.encode([item]))
+            except Exception as exc:
+                self.error = self.error or f"cannot record a {item[0]}: {exc!r}"
+                self._count_dropped(item)
+        return b"".join(parts)
+
+    def _pump(self, block: bool, keep: int = 0, deadline: Optional[float] = None) -> bool:
+        """Move queued bytes into the pipe until at most ``keep`` items wait: as far as the pipe takes them now,
+        or waiting for the writer (``block``, until ``deadline`` on the monotonic clock when given).
+        True when done."""
+        pending = self._pending
+        while pending and (keep == 0 or self._pending_items > keep):
+            if self._gone:
+                return False
+            data, items = pending[0]
+            try:
+                n = os.write(self._fd, data)
+            except BlockingIOError:
+                n = 0
+            except OSError as exc:
+                self._give_up(f"the writer process is gone ({exc.strerror or exc!r})")
+                return False
+            if n == len(data):
+                pending.popleft()
+                self._pending_items -= len(items)
+                continue
+            if n:
+                pending[0] = (memoryview(data)[n:], items)
+            if not block or not self._wait_writable(deadline):
+                return False
+        return True
+
+    def _wait_writable(self, deadline: Optional[float]) -> bool:
+        """Wait (50 ms at a time) until the pipe takes bytes; False once past ``deadline`` or the writer died."""
+        self._ring()
+        while True:
+            _, ready, _ = select.select([], [self._fd], [], 0.05)
+            if ready:
+                return True
+            if self._proc is None or self._proc.poll() is not None:
+                self._give_up("the writer process ended early")
+                return False
+            if deadline is not None and time.monotonic() > deadline:
+                return False
+
+    def _take_reply(self, deadline: float) -> None:
+        """Read the writer's next answer (a JSON line: messages, dropped, error, cpu_s) into the counts."""
+        self._ring()
+        out = self._proc.stdout.fileno()
+        while b"\n" not in self._reply_buffer:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([out], [], [], min(left, 0.5))[0]:
+                if left <= 0:
+                    self._give_up("the writer did not drain its queue in time")
+                    return
+                continue
+            chunk = os.read(out, 4096)
+            if not chunk:
+                self._give_up("the writer process ended early")
+                return
+            self._reply_buffer += chunk
+        line, self._reply_buffer = self._reply_buffer.split(b"\n", 1)
+        answer = json.loads(line)
+        self.messages = int(answer["messages"])
+        self._dropped_writer_side = int(answer["dropped"])
+        self.writer_cpu_s = float(answer["cpu_s"])
+        if answer.get("error"):
+            self.error = self.error or str(answer["error"])
+
+    def _count_dropped(self, item: tuple) -> None:
+        self.dropped_items += 1
+        self._dropped_tick_side += message_count(item, self._image_period_s is not None)
+
+    def _give_up(self, reason: str) -> None:
+        """No more writing: note why, count everything still queued as dropped."""
+        if self._gone:
+            return
+        self._gone = True
+        self.error = self.error or reason
+        for _, items in self._pending:
+            for item in items:
+                self._count_dropped(item)
+        for item in self._batch_items:
+            self._count_dropped(item)
+        self._pending.clear()
+        self._pending_items = 0
+        self._batch_items = []
+        self._close_pipe()
+
+    def _ring(self) -> None:
+        """Wake the writer now rather than at its next look at the pipe."""
+        if self._doorbell is not None:
+            try:
+                os.write(self._doorbell, b"!")
+            except OSError:
+                pass  # full (it is ringing already) or the writer is gone
+
+    def _close_pipe(self) -> None:
+        if self._proc is not None and self._proc.stdin is not None and not self._proc.stdin.closed:
+            try:
+                self._proc.stdin.close()
+            except OSError:
+                pass
+        self._fd = None
+        if self._doorbell is not None:
+            os.close(self._doorbell)
+            self._doorbell = None
+
+
+
+def _record_servo_commands(run: Any, rec: McapRecorder) -> None:
+    """Record every servo command the run sends (wrapping ``run.send_servo``, not the adapters, which
+    other parts wrap for their own reasons: the watchdog's lock)."""
+    send = run.send_servo
+
+    def send_servo(cmd: ServoCommand, now_s: float) -> None:
+        send(cmd, now_s)
+        rec.on_servo(cmd, now_s)
+
+    run.send_servo = send_servo
+
+
+# -- what goes in the file besides the messages ---------------------------------------------------
+
+
+def tree_nodes(root: Any) -> list[dict]:
+    """The tree as a list (tick order, parents first): name, class, depth, leaf."""
+    out: list[dict] = []
+
+    def walk(node: Any, depth: int) -> None:
+        out.append({"name": node.name, "kind": type(node).__name__, "depth": depth, "leaf": not node.children})
+        for child in node.children:
+            walk(child, depth + 1)
+
+    walk(root, 0)
+    return out
+
+
+def _file_text(path: Optional[str], data: Any) -> Optional[str]:
+    """The text of ``path`` when it still parses to ``data`` (what was run), else ``data`` as YAML."""
+    if path:
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+            if data is None or yaml.safe_load(text) == data:
+                return text
+        except (OSError, yaml.YAMLError):
+            pass
+    if data is None:
+        return None
+    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True)
+
+
+def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
+    """The ``beastbt.run`` metadata and the attachments (mission, profile, world files) of a prepared run."""
+    p = prepared
+    run, opts, mission, profile, world = p.run, p.options, p.mission, p.profile, p.world
+    mission_file = str(Path(mission.file).resolve()) if mission.file else ""
+    info = {
+        "format": RECORDING_FORMAT,
+        "mission": mission.name,
+        "mission_file": mission_file,
+        "seed": opts.seed,
+        "robot": opts.robot,
+        "robot_profile": profile.name,
+        "robot_profile_file": str(profile.file),
+        "simulated": "true" if isinstance(p.clock, SimClock) else "false",
+        "world": world.name if world is not None else "",
+        "world_file": str(world.file) if world is not None and world.file else "",
+        "rate_hz": repr(mission.rate_hz),
+        "capabilities": json.dumps(sorted(run.io.capabilities)),
+        "servo_names": json.dumps(sorted(run.io.servo_names())),
+        "tree": json.dumps(tree_nodes(run.root)),
+        "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
+    }
+    if "magnetic_declination_deg" in run.io.extras:
+        info["magnetic_declination_deg"] = repr(run.io.extras["magnetic_declination_deg"])
+    if world is not None:
+        info["world_start"] = json.dumps([world.start_x, world.start_y, world.start_yaw])
+        info["world_datum"] = json.dumps([world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m])
+        info["world_walls"] = json.dumps([list(_wall_tuple(w)) for w in world.walls])
+    attachments: list[tuple[str, str, bytes]] = []
+    for name, path, data in (("mission.yaml", mission.file, mission.doc.data),
+                             ("robot.yaml", profile.file, profile.data),
+                             ("world.yaml", world.file if world is not None else None,
+                              world.data if world is not None and world.file else None)):
+        text = _file_text(path, data)
+        if text is not None:
+            attachments.append((name, "application/yaml", text.encode("utf-8")))
+    return info, attachments
+
+
+def _wall_tuple(w: Any) -> tuple:
+    """A wall segment as (x1, y1, x2, y2) metres."""
+    return (float(w.x1), float(w.y1), float(w.x2), float(w.y2))
+
+
+# -- installation: the prepare hook, the summary, the CLI option ---------------------------------------
+
+_RECORDERS: "weakref.WeakKeyDictionary[Any, McapRecorder]" = weakref.WeakKeyDictionary()
+
+
+def recorder_of(run: Any) -> Optional[McapRecorder]:
+    """The recorder attached to a :class:`~beastbt.run.runner.MissionRun`, if it records."""
+    return _RECORDERS.get(run)
+
+
+def config_from_options(opts: Any) -> RecordingConfig:
+    """The recording config of a run: ``extras['recording']`` (a dict), ``extras['record_images']`` (Hz)."""
+    cfg = dict(opts.extras.get("recording") or {})
+    hz = opts.extras.get("record_images")
+    if hz is not None:
+        cfg["image_rate_hz"] = float(hz)
+    return RecordingConfig.from_dict(cfg)
+
+
+def install(prepared: Any) -> Optional[McapRecorder]:
+    """PREPARE_HOOK: attach a recorder to the run when it records (run folder and/or ``--record FILE``)."""
+    opts = prepared.options
+    paths: list[Path] = []
+    if prepared.folder is not None:
+        paths.append(Path(prepared.folder.path) / "run.mcap")
+    if opts.record_path:
+        target = Path(opts.record_path)
+        if not paths or target.resolve() != paths[0].resolve():
+            paths.append(target)
+    if not paths:
+        return None
+    config = config_from_options(opts)
+    block = config.overflow == "block" or (config.overflow == "auto" and isinstance(prepared.clock, SimClock))
+    info, attachments = run_info(prepared)
+    rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments)
+    run = prepared.run
+    # Events from before this hook (device warnings while the robot was assembled) go first.
+    for ev in list(run.events.events):
+        rec.on_event(ev)
+    run.recorders.append(rec.on_tick)
+    run.events.listeners.append(rec.on_event)
+    _record_servo_commands(run, rec)
+    save = run.ctx.services.get("save_snapshot")
+    if save is not None:
+        def save_and_record(name: str, frame: Any) -> str:
+            path = save(name, frame)
+            rec.on_snapshot(path, getattr(frame, "stamp_s", 0.0))
+            return path
+
+        run.ctx.services["save_snapshot"] = save_and_record
+    rec.tag_sources(run.io)
+    rec.run = run
+    rec.launch()  # the writer process imports while the rest of the run gets ready
+    _RECORDERS[run] = rec
+    prepared.closers.append(rec.stop)
+    if prepared.folder is not None:
+        prepared.folder.finishers.append(rec.finish)
+    else:
+        prepared.closers.append(rec.finish)
+    return rec
+
+
+def contribute_summary(run: Any, summary: dict) -> None:
+    """SUMMARY_CONTRIBUTOR: ``recording: {messages, dropped}`` (no path: the summary stays the same run to run)."""
+    rec = _RECORDERS.get(run)
+    if rec is None:
+        return
+    entry: dict = {"messages": rec.messages, "dropped": rec.dropped}
+    if rec.error:
+        entry["error"] = rec.error
+    summary["recording"] = entry
+
+
+def add_run_options(p: Any) -> None:
+    """``beastbt run --record-images HZ``."""
+    p.add_argument("--record-images", type=float, metavar="HZ", dest="record_images",
+                   help="camera images recorded per second as JPEG (default 2; 0 for none)")
+
+
+def register() -> None:
+    """Install the hook, the summary contributor and the run option (once)."""
+    from beastbt import cli
+    from beastbt.run.session import PREPARE_HOOKS
+    from beastbt.run.summary import SUMMARY_CONTRIBUTORS
+    if install not in PREPARE_HOOKS:
+        PREPARE_HOOKS.append(install)
+    if contribute_summary not in SUMMARY_CONTRIBUTORS:
+        SUMMARY_CONTRIBUTORS.append(contribute_summary)
+    if add_run_options not in cli.RUN_OPTIONS:
+        cli.RUN_OPTIONS.append(add_run_options)
+
+
+register()
+
+__all__ = ["RecordingConfig", "McapRecorder", "install", "recorder_of", "contribute_summary", "run_info",
+           "tree_nodes", "ns", "compression_type", "RECORDING_FORMAT", "MCAP_PROFILE",
+           "TRUTH_FIELDS", "WATCHED_DEVICE_FLAGS"]

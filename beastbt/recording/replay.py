@@ -1,0 +1,469 @@
+"""``beastbt replay RUN``: feed a recorded run back through the estimator and the tree.
+
+The recorded sensor streams go back in through a :class:`ReplayIO` (a
+:class:`~beastbt.robot.robot_io.RobotIO` whose base returns, each tick, the
+readings that arrived at that tick) on a :class:`~beastbt.core.clock.SimClock`
+set to each recorded tick time, with the mission text and robot profile stored
+in the recording. The replay's commands (mission, mux, gate, servos) are then
+compared with the recorded ones, tick by tick: a deterministic simulated run
+replays with no difference; a field run shows where a changed mission
+(``--mission FILE``) or a changed estimator would have acted differently.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+from mcap.exceptions import McapError
+
+from beastbt.blackboard import types as bt
+from beastbt.blackboard.types import (BatteryState, CameraFrame, GpsFix, ImuSample, JoystickState, LineObservation,
+                                      ServoCommand, VelocityCommand, WheelOdometry)
+from beastbt.core.errors import InvalidInput
+from beastbt.mission.model import load_mission
+from beastbt.core.clock import SimClock
+from beastbt.core.events import EventLog
+from beastbt.robot.profile import load_profile, profile_path
+from beastbt.recording.reader import Recording, find_recording, read_recording
+from beastbt.robot.robot_io import RobotIO
+from beastbt.run.runner import MissionRun, TickRecord
+
+
+# -- rebuilding readings -----------------------------------------------------------------
+
+
+def _tuple3(v: Any) -> Any:
+    return tuple(v) if v is not None else None
+
+
+def _fields(d: dict) -> dict:
+    """A sensor message's reading fields (without where it came from)."""
+    return {k: v for k, v in d.items() if k != "source"}
+
+
+def _gps(d: dict) -> GpsFix:
+    d = _fields(d)
+    d["covariance_enu"] = tuple(tuple(row) for row in d["covariance_enu"])
+    return GpsFix(**d)
+
+
+def _imu(d: dict) -> ImuSample:
+    return ImuSample(d["stamp_s"], tuple(d["gyro_rps"]), tuple(d["accel_mps2"]), _tuple3(d.get("mag_t")),
+                     d.get("temperature_c"))
+
+
+READING_BUILDERS = {
+    "/sensors/gps": _gps,
+    "/sensors/imu": _imu,
+    "/sensors/odometry": lambda d: WheelOdometry(**_fields(d)),
+    "/sensors/battery": lambda d: BatteryState(**_fields(d)),
+    "/sensors/joystick": lambda d: JoystickState(d["stamp_s"], dict(d["axes"]), dict(d["buttons"]), d["connected"]),
+    "/sensors/line": lambda d: LineObservation(**_fields(d)),
+}
+"""Sensor topic -> message dict to the reading the driver produced (exactly: JSON keeps every float)."""
+
+
+class ReplayBase:
+    """A base adapter that returns the recorded readings of the current tick and remembers what it was sent.
+
+    Each tick :meth:`load` splits the tick's readings by the device they came
+    from: :meth:`poll` returns the base's (and those of unknown origin),
+    :meth:`sensor_poll` makes the poll of a recorded sensor; the loop then
+    polls them in the recorded order, as it did on the robot.
+    """
+
+    name = "replay"
+
+    def __init__(self, imu_tap: Any = None) -> None:
+        self.pending: list = []
+        self.by_sensor: dict[str, list] = {}
+        self.sent: list[VelocityCommand] = []
+        self.imu_tap = imu_tap
+
+    def load(self, readings: list, sensors: set[str]) -> None:
+        """Give this tick's ``(source, reading)`` list to the base and the sensors."""
+        self.pending = []
+        self.by_sensor = {}
+        for source, reading in readings:
+            if source in sensors:
+                self.by_sensor.setdefault(source, []).append(reading)
+            else:
+                self.pending.append(reading)
+
+    def sensor_poll(self, name: str):
+        """The poll of sensor ``name``: its readings of this tick (IMU device samples also go to the tap)."""
+        def poll(now_s: float) -> list:
+            out = self.by_sensor.pop(name, [])
+            if self.imu_tap is not None:
+                # On the robot the IMU device's poll records its samples in the estimator's tap; the
+                # base's own IMU never goes there.
+                for r in out:
+                    if isinstance(r, ImuSample):
+                        self.imu_tap.record(r)
+            return out
+        return poll
+
+    def start(self, now_s: float) -> None:
+        """Nothing to start."""
+
+    def send_velocity(self, cmd: VelocityCommand, now_s: float) -> None:
+        """Keep the command (m/s, rad/s)."""
+        self.sent.append(cmd)
+
+    def emergency_stop(self, now_s: float) -> None:
+        """Nothing moves in a replay."""
+
+    def poll(self, now_s: float) -> list:
+        """The readings recorded at this tick (every device's, in the order they arrived)."""
+        out, self.pending = self.pending, []
+        return out
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class ReplayServos:
+    """A servo adapter with the recorded robot's servo names; keeps every command it takes."""
+
+    def __init__(self, names: list[str]) -> None:
+        self.names = list(names)
+        self.taken: list[tuple[float, ServoCommand]] = []
+
+    def servo_names(self) -> list[str]:
+        """The recorded robot's servo names."""
+        return list(self.names)
+
+    def set_servo(self, cmd: ServoCommand, now_s: float) -> bool:
+        """Take commands for the recorded servos (or addressed by channel)."""
+        if cmd.name in self.names or (cmd.name is None and cmd.channel is not None):
+            self.taken.append((now_s, cmd))
+            return True
+        return False
+
+
+class RecordedDevice:
+    """Stands in for a device of the recorded robot (``io.extras``) whose recorded states replay sets."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def __repr__(self) -> str:
+        return f"RecordedDevice({self.name!r})"
+
+
+class DeviceFlags:
+    """Replays /devices/state: before each tick, each watched device attribute takes its recorded value."""
+
+    def __init__(self, rec: Recording, io: RobotIO) -> None:
+        self.changes: dict[int, list[tuple[str, str, Any]]] = {}
+        for m in rec.topic("/devices/state"):
+            self.changes.setdefault(m["tick"], []).append((m["device"], m["field"], m["value"]))
+            device = io.extras.get(m["device"])
+            if device is None:
+                device = io.extras[m["device"]] = RecordedDevice(m["device"])
+            if not hasattr(device, m["field"]):
+                setattr(device, m["field"], m["value"])
+        self.io = io
+
+    def apply(self, tick: int) -> None:
+        """Set the states recorded at ``tick`` (they held from that tick's sensing on)."""
+        for device, attr, value in self.changes.get(tick, ()):
+            setattr(self.io.extras[device], attr, value)
+
+
+@dataclass
+class RecordedTick:
+    """One recorded tick: its number, clock time (s), readings, and the commands recorded at each stage."""
+
+    tick: int
+    now_s: float
+    readings: list
+    """``(source, reading)`` in the order they arrived; source ``base``, a sensor's name, or None (unknown)."""
+    mission: Optional[dict]
+    mux: Optional[dict]
+    gate: dict
+
+
+def recorded_ticks(rec: Recording) -> list[RecordedTick]:
+    """The recording as ticks: readings grouped by the tick that received them, and that tick's commands."""
+    gates = rec.messages.get("/cmd/gate", [])
+    by_time: dict[int, list] = {}
+    images: dict[int, np.ndarray] = {}
+    recorded_images = rec.messages.get("/camera/image", [])
+    if recorded_images:
+        import base64
+
+        import cv2  # only runs with a camera need it
+    for t, m in recorded_images:
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(m["data"]), np.uint8), cv2.IMREAD_COLOR)
+        if img is not None:
+            images[t] = img
+    last_image: Optional[np.ndarray] = None
+    blank: dict[tuple[int, int], np.ndarray] = {}
+    for topic, t, m in rec.order:
+        if not topic.startswith("/sensors/"):
+            continue
+        build = READING_BUILDERS.get(topic)
+        if build is not None:
+            reading = build(m)
+        elif topic == "/sensors/camera":
+            image = images.get(t) if m.get("image_recorded") else None
+            if image is not None:
+                last_image = image
+            w, h = int(m["width"]), int(m["height"])
+            if image is None or image.shape[:2] != (h, w):
+                # Only some frames were recorded: reuse the last picture of the right size (or grey).
+                if last_image is not None and last_image.shape[:2] == (h, w):
+                    image = last_image
+                else:
+                    image = blank.setdefault((h, w), np.full((h, w, 3), 128, np.uint8))
+            reading = CameraFrame(m["stamp_s"], image, int(m["seq"]))
+        else:
+            name = rec.schemas.get(topic, ("", {}))[0].rpartition(".")[2]
+            cls = getattr(bt, name, None)
+            if cls is None:
+                continue
+            try:
+                reading = cls(**_fields(m))
+            except TypeError:
+                continue
+        by_time.setdefault(t, []).append((m.get("source"), reading))
+    mission = {m["tick"]: m for m in rec.topic("/cmd/mission")}
+    mux = {m["tick"]: m for m in rec.topic("/cmd/mux")}
+    out = []
+    for t, g in gates:
+        k = g["tick"]
+        out.append(RecordedTick(k, g["now_s"], by_time.get(t, []), mission.get(k), mux.get(k), g))
+    return out
+
+
+# -- the replay ------------------------------------------------------------------------------
+
+NOT_REPLAYED = ("/truth", "/estimate/fused", "/estimate/odom", "/pose/fused", "/gps/fix", "/log", "/tree")
+"""Topics replay does not need: what the run computed is computed again; only inputs and commands are read."""
+
+
+@dataclass
+class Difference:
+    """One place where the replay did not do what the recording says: tick, time (s), stage, both values."""
+
+    tick: int
+    now_s: float
+    stage: str
+    recorded: Any
+    replayed: Any
+
+    def describe(self) -> str:
+        """One line for a person."""
+        return f"tick {self.tick} ({self.now_s:.3f} s) {self.stage}: recorded {self.recorded}, replay {self.replayed}"
+
+
+@dataclass
+class ReplayResult:
+    """What a replay did: ticks replayed, differences, both final statuses."""
+
+    mission: str
+    ticks: int
+    duration_s: float
+    differences: list[Difference] = field(default_factory=list)
+    recorded_status: Optional[str] = None
+    replay_status: Optional[str] = None
+    truncated_recording: bool = False
+    notes: list[str] = field(default_factory=list)
+    differing_ticks: int = 0
+    """How many ticks had at least one command that differed (all of them, not only those listed)."""
+
+    @property
+    def identical(self) -> bool:
+        """True when every command matched."""
+        return not self.differences
+
+
+def _cmd_text(d: Optional[dict]) -> str:
+    if d is None:
+        return "none"
+    return f"{d['linear_mps']:.4f} m/s {d['angular_rps']:.4f} rad/s ({d['source']}, mux {d['mux_source']})"
+
+
+def _same(rec: Optional[dict], cmd: Optional[VelocityCommand], mux_source: str) -> bool:
+    if rec is None or cmd is None:
+        return rec is None and cmd is None
+    return (rec["linear_mps"] == cmd.linear_mps and rec["angular_rps"] == cmd.angular_rps
+            and rec["stamp_s"] == cmd.stamp_s and rec["source"] == cmd.source and rec["mux_source"] == mux_source)
+
+
+def _as_dict(cmd: Optional[VelocityCommand], mux_source: str) -> Optional[dict]:
+    if cmd is None:
+        return None
+    return {"linear_mps": cmd.linear_mps, "angular_rps": cmd.angular_rps, "stamp_s": cmd.stamp_s,
+            "source": cmd.source, "mux_source": mux_source}
+
+
+def load_profile_of(rec: Recording) -> Any:
+    """The robot profile the run used: the recorded text (the file by name when it has not changed since)."""
+    robot = rec.info.get("robot", "sim")
+    text = rec.text("robot.yaml")
+    if text is None:
+        return load_profile(robot)
+    try:
+        unchanged = profile_path(robot).read_text(encoding="utf-8") == text
+    except OSError:
+        unchanged = False
+    if unchanged:
+        return load_profile(robot)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / (Path(robot).name if robot.endswith((".yaml", ".yml")) else f"{robot}.yaml")
+        path.write_text(text, encoding="utf-8")
+        return load_profile(path)
+
+
+def replay(run_path: str, mission_path: Optional[str] = None, max_differences: int = 1000) -> ReplayResult:
+    """Replay the recorded run at ``run_path`` (a run folder or ``.mcap``); optionally with another mission file."""
+    rec = read_recording(find_recording(run_path), keep_order=True, skip_topics=NOT_REPLAYED)
+    info = rec.info
+    if not info:
+        raise ValueError(f"{run_path}: not a beastbt run recording (no beastbt.run metadata)")
+    if mission_path is not None:
+        mission = load_mission(mission_path)
+    else:
+        text = rec.text("mission.yaml")
+        if text is None:
+            raise ValueError(f"{run_path}: the recording holds no mission text")
+        mission = load_mission(info.get("mission_file") or "mission.yaml", text=text)
+    profile = load_profile_of(rec)
+    ticks = recorded_ticks(rec)
+
+    clock = SimClock()
+    events = EventLog(clock)
+    base = ReplayBase()
+    servo_names = json.loads(info.get("servo_names", "[]"))
+    servos = ReplayServos(servo_names)
+    io = RobotIO(base=base, servos=[servos] if servo_names else [],
+                 capabilities=set(json.loads(info.get("capabilities", "[]"))))
+    sensors = [s for s in json.loads(info.get("sensor_sources", "[]")) if s != "base"]
+    for name in sensors:
+        io.sensors[name] = base.sensor_poll(name)
+    extras = set(json.loads(info.get("io_extras", "[]")))
+    if "joystick" in extras:
+        io.extras["joystick"] = RecordedDevice("joystick")  # teleop asks whether there is one
+    if "magnetic_declination_deg" in info:
+        io.extras["magnetic_declination_deg"] = float(info["magnetic_declination_deg"])
+    flags = DeviceFlags(rec, io)
+    if "imu_tap" in extras:
+        from beastbt.estimation.imu_tap import ImuTap
+        driver = io.extras.get("imu_driver")
+        base.imu_tap = io.extras["imu_tap"] = ImuTap(
+            ready=(lambda: bool(driver.bias_ready)) if driver is not None and hasattr(driver, "bias_ready") else None)
+    snapshots: list[str] = []
+    services = {"save_snapshot": lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg"}
+    run = MissionRun(mission, profile, io, clock, events, services)
+    if "ctx_capabilities" in info:
+        # What other parts added after the tree was compiled (a scripted joystick...).
+        run.ctx.capabilities = frozenset(json.loads(info["ctx_capabilities"]))
+    seen: list[TickRecord] = []
+    run.recorders.append(seen.append)
+
+    result = ReplayResult(mission.name, 0, 0.0, truncated_recording=not rec.complete)
+    diffs = result.differences
+    for rt in ticks:
+        if run.status is not None:
+            diffs.append(Difference(rt.tick, rt.now_s, "end", "the run goes on",
+                                    f"the replay ended ({run.status}) at tick {run.ticks - 1}"))
+            break
+        if rt.now_s > clock.now():
+            clock.set(rt.now_s)
+        base.load(rt.readings, set(sensors))
+        flags.apply(rt.tick)
+        run.tick()
+        if not seen or seen[-1].tick != rt.tick:
+            diffs.append(Difference(rt.tick, rt.now_s, "tick", f"tick {rt.tick}", "no tick recorded by the replay"))
+            break
+        got = seen[-1]
+        result.ticks += 1
+        result.duration_s = rt.now_s
+        differs = False
+        for stage, recorded, cmd in (("mission", rt.mission, got.cmd_mission), ("mux", rt.mux, got.cmd_mux),
+                                     ("gate", rt.gate, got.cmd_gate)):
+            if not _same(recorded, cmd, got.mux_source):
+                differs = True
+                if len(diffs) < max_differences:
+                    diffs.append(Difference(rt.tick, rt.now_s, stage, _cmd_text(recorded),
+                                            _cmd_text(_as_dict(cmd, got.mux_source))))
+        result.differing_ticks += differs
+    # Servo commands: the same names and angles at the same times.
+    rec_servos = [(m["now_s"], m["name"], m["angle_rad"], m["channel"], m["pulse_s"]) for m in rec.topic("/cmd/servo")]
+    rep_servos = [(t, c.name, c.angle_rad, c.channel, c.pulse_s) for t, c in servos.taken]
+    for i in range(max(len(rec_servos), len(rep_servos))):
+        a = rec_servos[i] if i < len(rec_servos) else None
+        b = rep_servos[i] if i < len(rep_servos) else None
+        if a != b:
+            diffs.append(Difference(-1, (a or b)[0], "servo", a, b))
+            break
+    summary = rec.summary
+    recorded_status = summary.get("status") if summary else None
+    if recorded_status is None:
+        ends = [m for m in rec.topic("/events") if m["kind"] == "mission_end"]
+        recorded_status = ends[-1]["text"].split(":")[0] if ends else None
+    result.recorded_status = recorded_status
+    result.replay_status = run.status
+    if run.status is not None and recorded_status is not None and run.status != recorded_status:
+        diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))
+    if not rec.complete:
+        result.notes.append(f"the recording was cut short ({rec.stopped_because}); replayed what it holds")
+    if rec.messages.get("/sensors/camera") and not rec.messages.get("/camera/image"):
+        result.notes.append("camera frames were recorded without pixels: vision in the tree sees grey images")
+    return result
+
+
+# -- the command --------------------------------------------------------------------------------
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """Options of ``beastbt replay``."""
+    p.add_argument("run", help="a run folder (runs/<time>_<mission>/) or its .mcap file")
+    p.add_argument("--mission", metavar="FILE", help="replay with this mission file instead of the recorded one")
+    p.add_argument("--max-diffs", type=int, default=20, help="differences to print (default 20)")
+
+
+def command(args: argparse.Namespace) -> int:
+    """replay a recorded run through the estimator and the tree; show where the commands differ"""
+    try:
+        result = replay(args.run, args.mission)
+    except InvalidInput as exc:
+        print(exc.format(), file=sys.stderr)
+        return 2
+    except (OSError, ValueError) as exc:
+        print(f"beastbt replay: error: {exc}", file=sys.stderr)
+        return 2
+    except McapError as exc:
+        print(f"beastbt replay: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
+        return 2
+    print(f"replayed {result.ticks} ticks ({result.duration_s:.2f} s) of mission {result.mission}: "
+          f"recorded {result.recorded_status or '?'}, replay {result.replay_status or 'still running at the end'}")
+    for note in result.notes:
+        print(f"  note: {note}")
+    if result.identical:
+        print("  no difference: every command matches the recording")
+        return 0
+    print(f"  commands differ at {result.differing_ticks} of {result.ticks} ticks; the first differences:")
+    for d in result.differences[:args.max_diffs]:
+        print(f"  {d.describe()}")
+    return 1
+
+
+def register() -> None:
+    """Add ``beastbt replay`` to the CLI."""
+    from beastbt import cli
+    cli.COMMANDS.setdefault("replay", (add_arguments, command))
+
+
+register()
+
+__all__ = ["replay", "ReplayResult", "Difference", "ReplayBase", "ReplayServos", "recorded_ticks", "READING_BUILDERS"]

@@ -1,0 +1,574 @@
+"""The recording's writer process: items from the tick loop in, ``run.mcap`` out.
+
+:class:`~beastbt.recording.recorder.McapRecorder` starts this module as a
+separate process (``python -m beastbt.recording.writer``) and feeds
+it items through a pipe (:mod:`beastbt.recording.wire`) on its
+standard input. Everything that costs CPU happens here, on another core and
+under another interpreter lock than the tick loop's: the readings become
+JSON messages on the channels of :mod:`beastbt.recording.schemas`,
+camera frames become JPEGs, and the ``mcap`` library writes compressed
+chunks, one closed every ``chunk_interval_s`` of recorded clock time, so a
+run killed hard leaves a file that reads up to its last complete chunk.
+
+Control items on the same pipe: ``("open", paths, config, info,
+attachments)`` first; ``("stop",)`` asks for the counts so far (one JSON line
+on standard output: messages, dropped, error, cpu_s) once everything before
+it is written; ``("finish", summary_json)`` stores the run summary, closes
+the file, answers once more and ends the process. When the pipe ends without
+``finish`` (the run's process died), the file is still closed properly, with
+metadata ``beastbt.cut`` saying so. The process ignores SIGINT and SIGTERM:
+Ctrl-C stops the run, and the run, not the signal, ends its recording.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import json
+import math
+import os
+import select
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, NoReturn, Optional
+
+import numpy as np
+
+from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LineObservation,
+                                      VelocityCommand, WheelOdometry)
+from beastbt.recording import schemas as rs
+from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.wire import Frame, ItemDecoder, read_frames
+
+RECORDING_FORMAT = "beastbt-run/1"
+"""Written in the ``beastbt.run`` metadata; bumped when the channels change incompatibly."""
+
+MCAP_PROFILE = "beastbt"
+
+TRUTH_FIELDS = ("t_s", "x", "y", "yaw", "v_mps", "w_rps", "left_m", "right_m", "pan_rad", "tilt_rad", "battery_v")
+"""The fields of a /truth message, in the order the tick side packs them."""
+
+
+# -- conversions -------------------------------------------------------------------------------------
+
+
+def ns(t_s: float) -> int:
+    """Clock seconds to MCAP log time (integer nanoseconds, never negative)."""
+    return max(0, int(round(t_s * 1e9)))
+
+
+def _fox_time(t_ns: int) -> dict:
+    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
+
+
+def json_default(o: Any) -> Any:
+    """numpy scalars and arrays, tuples of them: what the JSON encoder does not know."""
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"cannot record a {type(o).__name__}")
+
+
+_ENCODE = json.JSONEncoder(separators=(",", ":"), default=json_default).encode
+
+
+def _finite(o: Any) -> Any:
+    """``o`` with every NaN or infinite float (a diverged estimate, a missing value) replaced by None."""
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _finite(o.tolist())
+    return o
+
+
+def encode_json(obj: Any) -> bytes:
+    """A message as compact JSON. NaN and infinity, which Python writes but JSON (and Foxglove) do not
+    know, become null."""
+    text = _ENCODE(obj)
+    if "NaN" in text or "Infinity" in text:  # rare: only then walk the message (a string may match too)
+        text = _ENCODE(_finite(obj))
+    return text.encode()
+
+
+def gps_dict(r: GpsFix) -> dict:
+    """GpsFix as its /sensors/gps message."""
+    return {"stamp_s": r.stamp_s, "lat": r.lat, "lon": r.lon, "alt_msl": r.alt_msl, "quality": r.quality,
+            "sats": r.sats, "hdop": r.hdop, "speed_mps": r.speed_mps, "track_deg": r.track_deg,
+            "time_utc": r.time_utc, "sentence": r.sentence, "covariance_enu": [list(row) for row in r.covariance_enu]}
+
+
+def imu_dict(r: ImuSample) -> dict:
+    """ImuSample as its /sensors/imu message."""
+    return {"stamp_s": r.stamp_s, "gyro_rps": list(r.gyro_rps), "accel_mps2": list(r.accel_mps2),
+            "mag_t": list(r.mag_t) if r.mag_t is not None else None, "temperature_c": r.temperature_c}
+
+
+def odometry_dict(r: WheelOdometry) -> dict:
+    """WheelOdometry as its /sensors/odometry message."""
+    return {"stamp_s": r.stamp_s, "left_m": r.left_m, "right_m": r.right_m, "left_mps": r.left_mps,
+            "right_mps": r.right_mps}
+
+
+def battery_dict(r: BatteryState) -> dict:
+    """BatteryState as its /sensors/battery message."""
+    return {"stamp_s": r.stamp_s, "voltage_v": r.voltage_v}
+
+
+def joystick_dict(r: JoystickState) -> dict:
+    """JoystickState as its /sensors/joystick message."""
+    return {"stamp_s": r.stamp_s, "axes": dict(r.axes), "buttons": dict(r.buttons), "connected": r.connected}
+
+
+def line_dict(r: LineObservation) -> dict:
+    """LineObservation as its /sensors/line message."""
+    return {"stamp_s": r.stamp_s, "seen": r.seen, "offset_m": r.offset_m, "angle_rad": r.angle_rad,
+            "width_m": r.width_m, "confidence": r.confidence, "intersection": r.intersection,
+            "intersection_distance_m": r.intersection_distance_m, "line_end": r.line_end}
+
+
+def pose_dict(p: FusedPose) -> dict:
+    """FusedPose as its /estimate/* message."""
+    return {"stamp_s": p.stamp_s, "x": p.x, "y": p.y, "yaw": p.yaw, "speed_mps": p.speed_mps,
+            "yaw_rate_rps": p.yaw_rate_rps, "covariance": [list(row) for row in p.covariance],
+            "distance_m": p.distance_m, "heading_valid": p.heading_valid, "position_valid": p.position_valid,
+            "lat": p.lat, "lon": p.lon}
+
+
+def generic_dict(r: Any) -> dict:
+    """A reading type without its own converter: its dataclass fields (arrays as lists)."""
+    out = {}
+    for f in dataclasses.fields(r):
+        v = getattr(r, f.name)
+        out[f.name] = v.tolist() if isinstance(v, np.ndarray) and v.size <= 64 else (
+            None if isinstance(v, np.ndarray) else v)
+    return out
+
+
+_SENSOR_CONVERTERS: dict[type, tuple[str, Callable[[Any], dict]]] = {
+    GpsFix: ("/sensors/gps", gps_dict), ImuSample: ("/sensors/imu", imu_dict),
+    WheelOdometry: ("/sensors/odometry", odometry_dict), BatteryState: ("/sensors/battery", battery_dict),
+    JoystickState: ("/sensors/joystick", joystick_dict), LineObservation: ("/sensors/line", line_dict),
+}
+
+
+def _snake(name: str) -> str:
+    return "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
+
+
+def location_fix(r: GpsFix, t_ns: int) -> dict:
+    """GpsFix as a foxglove.LocationFix (for Foxglove's map panel)."""
+    return {"timestamp": _fox_time(t_ns), "frame_id": "gps", "latitude": r.lat, "longitude": r.lon,
+            "altitude": r.alt_msl if r.alt_msl is not None else 0.0,
+            "position_covariance": [float(v) for row in r.covariance_enu for v in row],
+            "position_covariance_type": 1}
+
+
+def pose_in_frame(p: FusedPose, t_ns: int, frame_id: str) -> dict:
+    """FusedPose as a foxglove.PoseInFrame (planar pose, yaw about z)."""
+    half = 0.5 * p.yaw
+    return {"timestamp": _fox_time(t_ns), "frame_id": frame_id,
+            "pose": {"position": {"x": p.x, "y": p.y, "z": 0.0},
+                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
+
+
+def stage_dict(tick: int, now_s: float, c: VelocityCommand, mux_source: str) -> dict:
+    """A velocity command at one stage, with the tick it belongs to."""
+    return {"tick": tick, "now_s": now_s, "linear_mps": c.linear_mps, "angular_rps": c.angular_rps,
+            "stamp_s": c.stamp_s, "source": c.source, "mux_source": mux_source}
+
+
+_LOG_LEVELS = {"failsafe": 3, "device_error": 4, "estop": 4, "step_failed": 3, "on_failure": 3,
+               "recording": 3}
+
+
+def log_level(kind: str) -> int:
+    """foxglove.LogLevel of an event kind: WARNING/ERROR for faults, INFO otherwise."""
+    level = _LOG_LEVELS.get(kind)
+    if level is not None:
+        return level
+    return 3 if ("lost" in kind or "error" in kind) else 2
+
+
+class _TeeFile:
+    """Writes the same bytes to several files; ``tell()`` of the first (the MCAP writer records offsets)."""
+
+    def __init__(self, paths: list[Path]) -> None:
+        self._files = []
+        for p in paths:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            self._files.append(open(p, "wb"))
+
+    def write(self, data: bytes) -> int:
+        for f in self._files:
+            f.write(data)
+        return len(data)
+
+    def tell(self) -> int:
+        return self._files[0].tell()
+
+    def flush(self) -> None:
+        for f in self._files:
+            f.flush()
+
+    def close(self) -> None:
+        for f in self._files:
+            f.close()
+
+
+# -- the recorder -----------------------------------------------------------------------------
+
+# -- the writer -----------------------------------------------------------------------------------------
+
+
+class RunFileWriter:
+    """Writes the items of one run into MCAP file(s) (the same bytes to each path).
+
+    ``messages`` counts the messages written; ``dropped`` the messages an
+    item would have made when writing it failed; ``error`` is the first
+    error, or None.
+    """
+
+    def __init__(self, paths: list[Path], config: RecordingConfig, info: dict,
+                 attachments: list[tuple[str, str, bytes]]) -> None:
+        from mcap.writer import Writer
+        self.config = config
+        self.messages = 0
+        self.dropped = 0
+        self.error: Optional[str] = None
+        self._channels: dict[str, int] = {}
+        self._schema_ids: dict[str, int] = {}
+        self._last_flush_s: Optional[float] = None
+        self._stream = _TeeFile([Path(p) for p in paths])
+        w = Writer(self._stream, chunk_size=config.chunk_max_bytes, compression=compression_type(config.compression))
+        w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
+        w.add_metadata("beastbt.run", {str(k): str(v) for k, v in info.items()})
+        for name, media, data in attachments:
+            w.add_attachment(create_time=0, log_time=0, name=name, media_type=media, data=data)
+        self._writer = w
+        # Every channel is declared up front (in a fixed order, so ids are the same run to run), even
+        # those with no messages in this run: the file lists what a run of beastbt records.
+        for topic in rs.CHANNELS:
+            self._channel(topic)
+
+    def write(self, item: tuple) -> None:
+        """Write one item (a tick, an event, a device flag, a snapshot, a servo command); errors are counted."""
+        try:
+            self._write_item(item)
+        except Exception as exc:
+            self.error = self.error or f"writing {item[0]}: {exc!r}"
+            self.dropped += 1
+
+    def flush(self) -> None:
+        """Close the current chunk and hand everything to the OS."""
+        self._writer.flush()
+        self._stream.flush()
+
+    def finish(self, metadata: Optional[dict[str, dict[str, str]]] = None) -> None:
+        """Add ``metadata`` records (name -> strings), write the MCAP summary section and footer, close."""
+        try:
+            for name, values in (metadata or {}).items():
+                self._writer.add_metadata(name, values)
+            self._writer.finish()
+        finally:
+            self._stream.close()
+
+    def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
+        cid = self._channels.get(topic)
+        if cid is None:
+            schema = schema if schema is not None else rs.CHANNELS[topic]
+            name = schema["title"]
+            sid = self._schema_ids.get(name)
+            if sid is None:
+                sid = self._writer.register_schema(name=name, encoding="jsonschema", data=rs.schema_bytes(schema))
+                self._schema_ids[name] = sid
+            cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            self._channels[topic] = cid
+        return cid
+
+    def _emit(self, topic: str, t_ns: int, obj: dict) -> None:
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self._channel(topic)
+        self.messages += 1
+        self._writer.add_message(channel_id=cid, log_time=t_ns, data=encode_json(obj), publish_time=t_ns,
+                                 sequence=self.messages)
+
+    def _write_item(self, item: tuple) -> None:
+        kind = item[0]
+        if kind == "tick":
+            self._write_tick(item)
+        elif kind == "event":
+            _, time_s, ev_kind, text = item
+            t = ns(time_s)
+            ev = {"time_s": time_s, "kind": ev_kind, "text": text}
+            self._emit("/events", t, ev)
+            if ev_kind == "failsafe":
+                self._emit("/failsafes", t, ev)
+            self._emit("/log", t, {"timestamp": _fox_time(t), "level": log_level(ev_kind),
+                                   "message": f"{ev_kind}: {text}", "name": ev_kind, "file": "", "line": 0})
+        elif kind == "flag":
+            _, tick, now_s, key, attr, value = item
+            self._emit("/devices/state", ns(now_s), {"tick": tick, "now_s": now_s, "device": key, "field": attr,
+                                                     "value": value})
+        elif kind == "snapshot":
+            _, stamp_s, path = item
+            data = Path(path).read_bytes()
+            self._writer.add_attachment(create_time=0, log_time=ns(stamp_s), name=Path(path).name,
+                                        media_type="image/jpeg", data=data)
+        elif kind == "servo":
+            _, now_s, c = item
+            self._emit("/cmd/servo", ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
+                                                 "channel": c.channel, "pulse_s": c.pulse_s, "stamp_s": c.stamp_s})
+
+    def _write_tick(self, item: tuple) -> None:
+        (_, tick, now_s, readings, pose_odom, pose, cmd_mission, cmd_mux, cmd_gate, mux_source, changed,
+         truth, tags) = item
+        sources = reading_sources(*tags, len(readings))
+        t = ns(now_s)
+        emit = self._emit
+        for i, r in enumerate(readings):
+            source = sources[i] if sources is not None else None
+            conv = _SENSOR_CONVERTERS.get(r.__class__)
+            if conv is not None:
+                d = conv[1](r)
+                d["source"] = source
+                emit(conv[0], t, d)
+                if r.__class__ is GpsFix:
+                    emit("/gps/fix", t, location_fix(r, t))
+            elif r.__class__ is Frame:
+                emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
+                                            "height": r.height, "image_recorded": r.image is not None,
+                                            "source": source})
+                if r.image is not None:
+                    self._write_image(r, t)
+            elif dataclasses.is_dataclass(r):
+                name = type(r).__name__
+                topic = rs.SENSOR_TOPICS.get(name, f"/sensors/{_snake(name)}")
+                if topic not in self._channels:
+                    self._channel(topic, {**rs.GENERIC_READING, "title": f"beastbt.{name}"})
+                d = generic_dict(r)
+                d.setdefault("source", source)
+                emit(topic, t, d)
+        if pose is not None:
+            emit("/estimate/fused", t, pose_dict(pose))
+            emit("/pose/fused", t, pose_in_frame(pose, t, "map"))
+        if pose_odom is not None:
+            emit("/estimate/odom", t, pose_dict(pose_odom))
+        if cmd_mission is not None:
+            emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
+        if mux_source == "teleop":
+            emit("/cmd/teleop", t, stage_dict(tick, now_s, cmd_mux, mux_source))
+        emit("/cmd/mux", t, stage_dict(tick, now_s, cmd_mux, mux_source))
+        emit("/cmd/gate", t, stage_dict(tick, now_s, cmd_gate, mux_source))
+        if changed:
+            emit("/tree", t, {"tick": tick, "now_s": now_s,
+                              "changes": [{"name": n, "status": s, "feedback": f or ""} for n, s, f in changed]})
+        if truth is not None:
+            emit("/truth", t, dict(zip(TRUTH_FIELDS, truth)))
+        last = self._last_flush_s
+        if last is None:
+            self._last_flush_s = now_s
+        elif now_s - last >= self.config.chunk_interval_s - 1e-9:
+            # Close the chunk and hand it to the OS: a hard kill now loses at most one interval.
+            self._writer.flush()
+            self._last_flush_s = now_s
+
+    def _write_image(self, frame: Frame, t_ns: int) -> None:
+        import cv2  # only runs with a camera need it
+        image = frame.image
+        max_w = self.config.image_max_width_px
+        if max_w and frame.width > max_w:
+            h = max(1, int(round(frame.height * max_w / frame.width)))
+            image = cv2.resize(image, (max_w, h), interpolation=cv2.INTER_AREA)
+        ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
+        if not ok:
+            self.dropped += 1
+            return
+        self._emit("/camera/image", t_ns, {"timestamp": _fox_time(t_ns), "frame_id": "camera",
+                                           "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
+                                           "format": "jpeg"})
+
+
+def reading_sources(base_tagged: bool, tags: tuple, n: int) -> Optional[list]:
+    """Each of a tick's ``n`` readings' source (the device poll it came from), or None when they do not add up.
+
+    ``tags``: ``(device, readings it returned)`` in the order the loop polled;
+    ``base_tagged``: the base's poll is among them (when it is not, the
+    readings the tags do not account for are the base's: it polls first).
+    """
+    if not tags:
+        return None
+    counted = sum(k for _, k in tags)
+    if counted != n:
+        if base_tagged or tags[0][0] == "base" or counted > n:
+            return None
+        tags = (("base", n - counted),) + tuple(tags)
+    out: list = []
+    for name, k in tags:
+        out.extend([name] * k)
+    return out
+
+
+def message_count(item: tuple, images: bool) -> int:
+    """How many messages an item would make (for counting what was dropped); ``images``: frames are recorded."""
+    kind = item[0]
+    if kind == "event":
+        return 3 if item[2] == "failsafe" else 2
+    if kind in ("servo", "flag", "snapshot"):
+        return 1
+    if kind != "tick":
+        return 0
+    (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item
+    n = 2  # mux, gate
+    for r in readings:
+        n += 2 if (r.__class__ is GpsFix or (r.__class__ is Frame and r.image is not None)) else 1
+    n += 2 * (pose is not None) + (pose_odom is not None) + (cmd_mission is not None)
+    n += (mux_source == "teleop") + bool(changed) + (truth is not None)
+    return n
+
+
+# -- the process ----------------------------------------------------------------------------------------
+
+
+CUT_REASON = "the run's process ended without finishing its recording (killed, or it crashed)"
+"""The ``reason`` of metadata ``beastbt.cut``."""
+
+
+def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
+    """The writer process's loop: items from ``read`` (``b''`` at the end), answers through ``reply``.
+
+    Returns the process's exit code: 0, or 1 when the recording could not
+    be written whole.
+    """
+    cpu0 = time.process_time()
+    decoder = ItemDecoder()
+    writer: Optional[RunFileWriter] = None
+    state = {"dropped": 0, "error": None}
+
+    def counts() -> dict:
+        error = state["error"] or (writer.error if writer is not None else None)
+        return {"messages": writer.messages if writer is not None else 0,
+                "dropped": state["dropped"] + (writer.dropped if writer is not None else 0),
+                "error": error, "cpu_s": time.process_time() - cpu0}
+
+    images = True
+    try:
+        for item in read_frames(read, decoder):
+            tag = item[0]
+            if tag == "open":
+                _, paths, config, info, attachments = item
+                try:
+                    cfg = RecordingConfig.from_dict(config)
+                    images = cfg.image_rate_hz > 0
+                    writer = RunFileWriter(paths, cfg, info, attachments)
+                except Exception as exc:
+                    state["error"] = f"could not open the recording: {exc!r}"
+            elif tag == "stop":
+                if writer is not None:
+                    try:
+                        writer.flush()
+                    except Exception as exc:
+                        state["error"] = state["error"] or f"flushing: {exc!r}"
+                reply(counts())
+            elif tag == "finish":
+                summary_json = item[1]
+                if writer is not None:
+                    try:
+                        writer.finish({"beastbt.summary": {"json": summary_json}} if summary_json else None)
+                    except Exception as exc:
+                        state["error"] = state["error"] or f"finishing the file: {exc!r}"
+                final = counts()
+                reply(final)
+                return 0 if final["error"] is None else 1
+            elif writer is not None:
+                writer.write(item)
+            else:
+                state["dropped"] += message_count(item, images)
+    except Exception as exc:  # a corrupt stream: keep what was written
+        state["error"] = state["error"] or f"reading the run's items: {exc!r}"
+    if writer is not None:
+        # The pipe ended without "finish": the run's process is gone. Close the file properly anyway.
+        try:
+            writer.finish({"beastbt.cut": {"reason": CUT_REASON}})
+        except Exception:
+            return 1
+    return 1
+
+
+def _yield_to_the_loop() -> None:
+    """Ask the OS to treat this process as batch work (Linux ``SCHED_BATCH``).
+
+    A pipe write wakes its reader, and Linux may run a woken process at once
+    on the writer's core, before the writer: the tick loop would then wait
+    for a batch of JSON and MCAP work. A batch-class process never preempts
+    on wakeup; it still gets its fair share of CPU, so the recording keeps up.
+    """
+    try:
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass  # not Linux: the default policy still works
+
+
+POLL_PERIOD_S = 0.02
+"""How long the writer waits when the pipe is empty before it looks again (wall seconds)."""
+
+
+def _polling_reader(fd: int, doorbell: Optional[int]) -> Callable[[int], bytes]:
+    """``read(n)`` on ``fd`` that, while the pipe is empty, waits on ``doorbell`` for POLL_PERIOD_S at most.
+
+    A reader blocked in the data pipe would be woken by each write, and on a
+    virtual machine that wake-up (an interrupt to another core) costs the
+    tick loop tens of microseconds per write. Here the data pipe never wakes
+    anyone: the writer looks at it every POLL_PERIOD_S, and the run rings the
+    doorbell (a second pipe) only when it waits for an answer.
+    """
+    os.set_blocking(fd, False)
+
+    def read(n: int) -> bytes:
+        nonlocal doorbell
+        while True:
+            try:
+                return os.read(fd, n)
+            except BlockingIOError:
+                pass
+            if doorbell is None:
+                time.sleep(POLL_PERIOD_S)
+            elif select.select([doorbell], [], [], POLL_PERIOD_S)[0] and not os.read(doorbell, 4096):
+                doorbell = None  # the run closed it: keep polling the data pipe until it ends
+
+    return read
+
+
+def main() -> NoReturn:
+    """Entry point of the writer process: standard input in, answers on standard output."""
+    # Ctrl-C and a polite kill go to the whole process group: the run handles them and then ends its
+    # recording through the pipe; the writer must outlive the signal to write that end.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    _yield_to_the_loop()
+    fd_in = sys.stdin.fileno()
+    doorbell = int(sys.argv[2]) if len(sys.argv) > 2 else None
+    out = sys.stdout
+
+    def reply(d: dict) -> None:
+        try:
+            out.write(json.dumps(d) + "\n")
+            out.flush()
+        except (BrokenPipeError, OSError):
+            pass  # the run's process is gone: nobody to tell
+
+    code = serve(_polling_reader(fd_in, doorbell), reply)
+    # The file is closed and the run told: end now, without the interpreter's teardown (tens of ms the
+    # run would otherwise wait for).
+    os._exit(code)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,82 @@
+"""The robot profile's actuator and teleop sections, turned into the configs of their drivers.
+
+One place that reads ``can_base:``, ``pwm_base:``, ``pca9685:``, ``servos:``,
+``joystick:``, ``teleop:`` and ``watchdog:`` for both the real robot
+(``beastbt.parts.hardware_devices``) and the simulator
+(``beastbt.parts.sim_actuators``), so that a profile means the same on both.
+A bad value becomes an :class:`~beastbt.core.errors.InvalidInput` at the
+section's line, before anything moves. Wheel geometry the base section leaves
+out (``track_width_m``, ``wheel_radius_m``) comes from the profile's ``geometry:``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from beastbt.actuation.can_base import CanBaseConfig
+from beastbt.actuation.pwm_base import PwmBaseConfig
+from beastbt.actuation.teleop import TeleopConfig
+from beastbt.actuation.watchdog import WatchdogConfig
+from beastbt.devices.joystick import JoystickMapping
+from beastbt.devices.pca9685 import Pca9685Config, ServoCalibration, servo_calibrations_from_dict
+from beastbt.core.errors import InvalidInput
+from beastbt.robot.profile import RobotProfile
+
+
+def _build(profile: RobotProfile, section: str, build: Any, raw: Any) -> Any:
+    try:
+        return build(raw)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInput([profile.doc.problem((section,) if section in profile.data else (),
+                                                f"in '{section}': {exc}",
+                                                f"see schemas/parts/ for the knobs '{section}' takes")]) from None
+
+
+def _with_geometry(profile: RobotProfile, raw: dict, keys: tuple[str, ...]) -> dict:
+    geometry = profile.section("geometry") or {}
+    out = dict(raw)
+    for key in keys:
+        if key not in out and key in geometry:
+            out[key] = geometry[key]
+    return out
+
+
+def can_config(profile: RobotProfile) -> CanBaseConfig:
+    """The ``can_base:`` section (defaults: HARDWARE.md's example protocol; geometry from ``geometry:``)."""
+    raw = _with_geometry(profile, profile.section("can_base") or {}, ("track_width_m", "wheel_radius_m"))
+    return _build(profile, "can_base", CanBaseConfig.from_dict, raw)
+
+
+def pwm_config(profile: RobotProfile) -> PwmBaseConfig:
+    """The ``pwm_base:`` section (track width from ``geometry:`` unless given)."""
+    raw = _with_geometry(profile, profile.section("pwm_base") or {}, ("track_width_m",))
+    return _build(profile, "pwm_base", PwmBaseConfig.from_dict, raw)
+
+
+def pca_config(profile: RobotProfile) -> Pca9685Config:
+    """The ``pca9685:`` section (bus 1, address 0x40, 25 MHz, 50 Hz by default)."""
+    return _build(profile, "pca9685", Pca9685Config.from_dict, profile.section("pca9685") or {})
+
+
+def servo_calibrations(profile: RobotProfile) -> dict[str, ServoCalibration]:
+    """The ``servos:`` section: name -> calibration (empty when the robot has none)."""
+    return _build(profile, "servos", servo_calibrations_from_dict, profile.section("servos") or {})
+
+
+def joystick_mapping(profile: RobotProfile) -> JoystickMapping:
+    """The ``joystick:`` section (an Xbox/PS-style pad on /dev/input/js0 by default)."""
+    return _build(profile, "joystick", JoystickMapping.from_dict, profile.section("joystick") or {})
+
+
+def teleop_config(profile: RobotProfile) -> TeleopConfig:
+    """The ``teleop:`` section (teleop_twist_joy's scales by default)."""
+    return _build(profile, "teleop", TeleopConfig.from_dict, profile.section("teleop") or {})
+
+
+def watchdog_config(profile: RobotProfile) -> WatchdogConfig:
+    """The ``watchdog:`` section (zero after 0.45 s without a fresh command by default)."""
+    return _build(profile, "watchdog", WatchdogConfig.from_dict, profile.section("watchdog") or {})
+
+
+__all__ = ["can_config", "pwm_config", "pca_config", "servo_calibrations", "joystick_mapping", "teleop_config",
+           "watchdog_config"]

@@ -1,0 +1,338 @@
+"""The tick loop: one run of one mission on one robot, real or simulated.
+
+Each tick: read the clock, advance the simulator (if any), poll every device,
+update the estimators, write the blackboard, check e-stop, teleop and
+failsafes, tick the tree once, pass the commands through the mux and the
+safety gate to the base and the servos, and record what happened.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable, Optional
+
+import py_trees
+
+from beastbt.actuation.gate import GateLimits, SafetyGate, tightest
+from beastbt.actuation.mux import CommandMux
+from beastbt.behaviours.context import MissionContext
+from beastbt.blackboard import catalogue
+from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
+                                      LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+from beastbt.estimation.estimator import Estimator, OdometryEstimator
+from beastbt.mission.compile import compile_mission
+from beastbt.mission.model import Mission
+from beastbt.core.clock import Clock
+from beastbt.core.events import EventLog
+from beastbt.run.failsafes import FailsafeMonitor, Situation
+from beastbt.robot.profile import RobotProfile
+from beastbt.robot.robot_io import RobotIO
+
+Status = py_trees.common.Status
+
+SENSOR_KEYS = ("now_s", "mission_start_s", "odometry", "pose_odom", "pose", "gps_fix", "imu", "battery", "line",
+               "camera_frame", "joystick", "home", "cmd_mission", "servo_requests", "servo_angles", "teleop_active",
+               "estop", "mux_source")
+
+
+@dataclass
+class TickRecord:
+    """What happened in one tick, handed to recorders (all SI, stamped with the clock)."""
+
+    tick: int
+    now_s: float
+    readings: list
+    pose_odom: Optional[FusedPose]
+    pose: Optional[FusedPose]
+    cmd_mission: Optional[VelocityCommand]
+    cmd_mux: VelocityCommand
+    cmd_gate: VelocityCommand
+    mux_source: str
+    changed_nodes: list[tuple[str, str, str]]
+    """(node name, new status, feedback message) for nodes whose status changed this tick."""
+    truth: Optional[Any] = None
+
+
+# Hooks other parts of beastbt install: a better estimator, teleop, recorders.
+EstimatorFactory = Callable[[RobotProfile, RobotIO, EventLog], Optional[Estimator]]
+ESTIMATOR_FACTORIES: list[EstimatorFactory] = []
+TickHook = Callable[["MissionRun", float], None]
+PRE_TICK_HOOKS: list[Callable[["MissionRun"], Optional[TickHook]]] = []
+"""Factories of per-run hooks called each tick after sensing and before the tree (teleop lives here)."""
+
+
+class MissionRun:
+    """A mission compiled for a robot, ticked by :meth:`tick` until :attr:`status` is set.
+
+    ``status`` is None while running, then ``success``, ``failure`` or ``stopped``.
+    """
+
+    def __init__(self, mission: Mission, profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog,
+                 ctx_services: Optional[dict] = None) -> None:
+        self.mission = mission
+        self.profile = profile
+        self.io = io
+        self.clock = clock
+        self.events = events
+        catalogue.reset_blackboard()
+        self.bb = catalogue.writer("runtime", SENSOR_KEYS)
+        self.bb.servo_requests = {}
+        self.bb.servo_angles = {}
+        self.bb.teleop_active = False
+        self.bb.estop = False
+        self.ctx = MissionContext(
+            clock=clock, events=events, params=profile.control, servo_names=io.servo_names(),
+            capabilities=frozenset(io.capabilities),
+            speed_limit_mps=tightest(mission.speed_limit_mps, profile.max_speed_mps),
+            turn_rate_limit_rps=tightest(mission.turn_rate_limit_rps, profile.max_turn_rate_rps),
+            services=dict(ctx_services or {}),
+        )
+        self.ctx.services.setdefault("home", lambda: self.home)
+        self.root = compile_mission(mission, self.ctx)
+        self.nodes = list(self.root.iterate())
+        self._last_status = {id(n): n.status for n in self.nodes}
+        self.mux = CommandMux()
+        self.gate = SafetyGate(GateLimits(
+            max_speed_mps=self.ctx.speed_limit_mps, max_turn_rate_rps=self.ctx.turn_rate_limit_rps,
+            max_accel_mps2=tightest(mission.accel_limit_mps2, profile.max_accel_mps2),
+            max_angular_accel_rps2=profile.max_angular_accel_rps2, command_timeout_s=profile.command_timeout_s))
+        self.odom = OdometryEstimator(profile.track_width_m)
+        self.estimator: Optional[Estimator] = None
+        for factory in ESTIMATOR_FACTORIES:
+            self.estimator = factory(profile, io, events)
+            if self.estimator is not None:
+                break
+        self.failsafes = FailsafeMonitor(mission)
+        self.hooks = [h for h in (f(self) for f in PRE_TICK_HOOKS) if h is not None]
+        self.recorders: list[Callable[[TickRecord], None]] = []
+        self.status: Optional[str] = None
+        self.ticks = 0
+        self.start_s: Optional[float] = None
+        self.home: Optional[tuple[float, float]] = None
+        self.latest: dict[type, Any] = {}
+        self.paused_by: Optional[str] = None
+        """Why the tree is not ticked now (``hold``, ``teleop``...), or None."""
+        self.failure_handled = False
+        self.last_sent: VelocityCommand = VelocityCommand()
+        self.want_node_changes = False
+
+    # -- the tick -------------------------------------------------------------
+    def tick(self) -> Optional[str]:
+        """Run one tick at the clock's current time; return the final status once the run has ended."""
+        if self.status is not None:
+            return self.status
+        now = self.clock.now()
+        if self.start_s is None:
+            self.start_s = now
+            self.bb.mission_start_s = now
+            self.io.base.start(now)
+            self.events.add("mission_start", f"mission '{self.mission.name}' started")
+        if self.io.sim is not None:
+            self.io.sim.advance(now)
+        readings = self.sense(now)
+        self.bb.cmd_mission = None
+        for hook in self.hooks:
+            hook(self, now)
+        self.check_failsafes(now)
+        if self.status is None and not self.mux.estop_latched and self.paused_by is None:
+            self.root.tick_once()
+            self.after_tree(now)
+        if self.mux.estop_latched and self.status is None:
+            self.finish("stopped", f"emergency stop: {self.mux.estop_reason}")
+        cmd = self.bb.cmd_mission
+        if self.paused_by is None and self.status is None:
+            self.mux.submit("mission", cmd if cmd is not None else VelocityCommand(0.0, 0.0, now, "mission"), now)
+        else:
+            self.mux.withdraw("mission")
+        self.actuate(now, readings, cmd)
+        self.ticks += 1
+        return self.status
+
+    def sense(self, now: float) -> list:
+        """Poll every device, update the estimators and publish everything on the blackboard."""
+        readings: list = []
+        try:
+            readings.extend(self.io.base.poll(now))
+        except Exception as exc:  # a driver bug must not stop the loop with the robot moving
+            self.events.add("device_error", f"base: {exc!r}")
+        for name, poll in self.io.sensors.items():
+            try:
+                readings.extend(poll(now))
+            except Exception as exc:
+                self.events.add("device_error", f"{name}: {exc!r}")
+        odo, imu, gps = [], [], []
+        for r in readings:
+            t = type(r)
+            self.latest[t] = r
+            if t is WheelOdometry:
+                odo.append(r)
+            elif t is ImuSample:
+                imu.append(r)
+            elif t is GpsFix:
+                gps.append(r)
+        bb = self.bb
+        bb.now_s = now
+        pose_odom = self.odom.update(now, odo)
+        bb.pose_odom = pose_odom
+        if self.estimator is None:
+            # Odometry alone knows where the robot is relative to its start, not in the world.
+            pose = replace(pose_odom, heading_valid=False, position_valid=False, lat=None, lon=None)
+        else:
+            pose = self.estimator.update(now, odo, imu, gps)
+        bb.pose = pose
+        latest = self.latest
+        for key, t in (("odometry", WheelOdometry), ("gps_fix", GpsFix), ("imu", ImuSample), ("battery", BatteryState),
+                       ("line", LineObservation), ("camera_frame", CameraFrame), ("joystick", JoystickState)):
+            if t in latest:
+                setattr(bb, key, latest[t])
+        if gps and self.home is None:
+            self.home = (gps[0].lat, gps[0].lon)
+            bb.home = self.home
+            self.events.add("home", f"home set at the first fix {self.home[0]:.6f}, {self.home[1]:.6f}")
+        return readings
+
+    def check_failsafes(self, now: float) -> None:
+        """Evaluate the failsafes and act on what changed."""
+        if not self.failsafes.watches or self.status is not None:
+            return
+        s = Situation(now, self.start_s or now, self.latest.get(GpsFix), self.latest.get(BatteryState),
+                      self.bb.pose, self.home)
+        for watch, change in self.failsafes.check(s):
+            spec = watch.spec
+            if change == "trigger":
+                self.events.add("failsafe", f"{spec.kind} triggered: then {spec.then}")
+                if spec.then == "stop":
+                    self.finish("failure", f"failsafe {spec.kind}: stop")
+                elif spec.then == "hold":
+                    self.paused_by = f"hold ({spec.kind})"
+                else:
+                    handler = self.ctx.services.get(f"failsafe_{spec.then}")
+                    if handler is None:
+                        self.events.add("failsafe", f"'{spec.then}' is not available on this robot: stopping instead")
+                        self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable")
+                    else:
+                        handler(self, spec)
+            elif change == "clear":
+                self.events.add("failsafe", f"{spec.kind} cleared")
+                if self.paused_by is not None and self.paused_by.startswith("hold") and not self.failsafes.holding():
+                    self.paused_by = None
+                    self.events.add("failsafe", "resuming the mission")
+
+    def after_tree(self, now: float) -> None:
+        """Look at the root's status after a tick and decide whether the run ends."""
+        status = self.root.status
+        if status == Status.SUCCESS:
+            self.finish("success", "all steps done")
+        elif status == Status.FAILURE:
+            self.on_failure(now)
+
+    def on_failure(self, now: float) -> None:
+        """The steps failed: do what ``on_failure`` says."""
+        tip = self.root.tip()
+        why = f"{tip.name}: {tip.feedback_message}" if tip is not None else "a step failed"
+        action = self.mission.on_failure
+        handler = self.ctx.services.get(f"on_failure_{action}") if action != "stop" else None
+        if action == "hold":
+            self.events.add("on_failure", f"steps failed ({why}); holding still until the run is ended")
+            self.paused_by = "on_failure hold"
+            self.failure_handled = True
+        elif handler is not None:
+            self.events.add("on_failure", f"steps failed ({why}); {action}")
+            handler(self)
+            self.failure_handled = True
+        else:
+            if action != "stop":
+                self.events.add("on_failure", f"'{action}' is not available on this robot; stopping")
+            self.finish("failure", f"steps failed: {why}")
+
+    def actuate(self, now: float, readings: list, cmd_mission: Optional[VelocityCommand]) -> None:
+        """Mux, gate, and send the velocity and any new servo requests; then record."""
+        muxed = self.mux.select(now)
+        out = self.gate.filter(muxed, now)
+        if self.status is not None:
+            # The run has ended: the last thing sent is a stop, not a ramp down.
+            out = VelocityCommand(0.0, 0.0, now, "end")
+            self.gate.reset()
+        if self.mux.estop_latched:
+            if not self.bb.estop:
+                self.io.base.emergency_stop(now)
+            self.bb.estop = True
+        else:
+            self.bb.estop = False
+        self.io.base.send_velocity(out, now)
+        self.last_sent = out
+        self.bb.mux_source = self.mux.source
+        requests = self.bb.servo_requests
+        if requests:
+            angles = self.bb.servo_angles
+            for key, sc in list(requests.items()):
+                self.send_servo(sc, now)
+                if sc.angle_rad is not None:
+                    angles[key] = sc.angle_rad
+            self.bb.servo_requests = {}
+        if self.recorders:
+            changed = self.node_changes()
+            rec = TickRecord(self.ticks, now, readings, self.bb.pose_odom, self.bb.pose, cmd_mission, muxed, out,
+                             self.mux.source, changed, self.io.sim.truth if self.io.sim is not None else None)
+            for r in self.recorders:
+                r(rec)
+
+    def send_servo(self, cmd: ServoCommand, now: float) -> None:
+        """Give a servo command to the first adapter that takes it."""
+        for adapter in self.io.servos:
+            if adapter.set_servo(cmd, now):
+                return
+        self.events.add("servo", f"no servo adapter took {cmd}")
+
+    def node_changes(self) -> list[tuple[str, str, str]]:
+        """Nodes whose status changed since the last call: (name, status, feedback)."""
+        out = []
+        for n in self.nodes:
+            key = id(n)
+            if self._last_status.get(key) != n.status:
+                self._last_status[key] = n.status
+                out.append((n.name, n.status.value, n.feedback_message))
+        return out
+
+    # -- the end ----------------------------------------------------------------
+    def current_step(self) -> str:
+        """The name of the leaf the tree is running now (or why it is paused)."""
+        if self.paused_by is not None:
+            return f"({self.paused_by})"
+        tip = self.root.tip()
+        return tip.name if tip is not None else "-"
+
+    def finish(self, status: str, why: str) -> None:
+        """End the run with ``status``; the robot is told to stop."""
+        if self.status is not None:
+            return
+        self.status = status
+        self.mux.withdraw("mission")
+        self.events.add("mission_end", f"{status}: {why}")
+        if self.root.status == Status.RUNNING:
+            self.root.stop(Status.INVALID)
+
+    def stop_robot(self, now: float) -> None:
+        """Send zero to the base (at the end of a run, whatever the reason)."""
+        zero = VelocityCommand(0.0, 0.0, now, "shutdown")
+        try:
+            self.io.base.send_velocity(zero, now)
+        except Exception as exc:
+            self.events.add("device_error", f"base: could not send the final stop: {exc!r}")
+        self.last_sent = zero
+
+    @property
+    def elapsed_s(self) -> float:
+        """Seconds since the mission started (clock time)."""
+        return 0.0 if self.start_s is None else self.clock.now() - self.start_s
+
+    def pose_text(self) -> str:
+        """The pose for a status line: odometry x, y, heading in degrees, speed."""
+        p = self.bb.pose_odom if self.estimator is None else self.bb.pose
+        if p is None:
+            return "pose ?"
+        return f"x {p.x:6.2f} y {p.y:6.2f} yaw {math.degrees(p.yaw):6.1f} deg  {p.speed_mps:4.2f} m/s"
+
+
+__all__ = ["MissionRun", "TickRecord", "ESTIMATOR_FACTORIES", "PRE_TICK_HOOKS", "field"]

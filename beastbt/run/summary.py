@@ -1,0 +1,69 @@
+"""The run summary: the JSON that scripts read after a run (``schemas/summary.schema.json``)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Optional
+
+SummaryContributor = Callable[[Any, dict], None]
+SUMMARY_CONTRIBUTORS: list[SummaryContributor] = []
+"""Functions ``fn(run, summary)`` that parts of beastbt register to add their fields (waypoints, truth metrics)."""
+
+
+def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[str], robot_name: str) -> dict:
+    """The summary of a finished :class:`~beastbt.run.runner.MissionRun`."""
+    sim = run.io.sim
+    pose = run.bb.pose_odom
+    if sim is not None:
+        distance = sim.drive.path_length_m
+        max_speed = sim.drive.max_speed_mps
+    else:
+        distance = pose.distance_m if pose is not None else 0.0
+        max_speed = getattr(run, "max_speed_seen_mps", 0.0)
+    summary: dict = {
+        "mission": run.mission.name,
+        "status": run.status or "stopped",
+        "seed": seed,
+        "robot": robot_name,
+        "world": world_name,
+        "sim_time_s": round(run.elapsed_s, 3),
+        "wall_time_s": round(wall_time_s, 3),
+        "ticks": run.ticks,
+        "distance_m": round(distance, 4),
+        "max_speed_mps": round(max_speed, 4),
+        "waypoints": [],
+        "events": [e.as_dict() for e in run.events.events],
+        "servos": {},
+    }
+    if run.events.dropped:
+        summary["events_dropped"] = run.events.dropped
+    esp32 = run.io.extras.get("esp32")
+    if esp32 is not None:
+        summary["servos"] = {name: list(v) for name, v in esp32.gimbal.visits.items()}
+    if sim is not None:
+        t = sim.truth
+        summary["truth"] = {
+            "final_pose": {"x": round(t.x, 4), "y": round(t.y, 4), "yaw_deg": round(math.degrees(t.yaw), 3)},
+            "distance_m": round(distance, 4),
+            "blocked": bool(sim.drive.blocked),
+        }
+    for contribute in SUMMARY_CONTRIBUTORS:
+        contribute(run, summary)
+    return summary
+
+
+def human_summary(summary: dict) -> str:
+    """A few lines for a person at the end of a run."""
+    lines = [
+        f"mission {summary['mission']}: {summary['status'].upper()}",
+        f"  time {summary['sim_time_s']:.1f} s (wall {summary['wall_time_s']:.2f} s, {summary['ticks']} ticks)",
+        f"  distance {summary['distance_m']:.2f} m, top speed {summary['max_speed_mps']:.2f} m/s",
+    ]
+    for wp in summary.get("waypoints", []):
+        err = wp.get("arrival_error_m")
+        lines.append(f"  waypoint {wp['name']}: {'reached' if wp['reached'] else 'NOT reached'}"
+                     + (f", {err:.2f} m off" if err is not None else ""))
+    ends = [e for e in summary["events"] if e["kind"] in ("mission_end", "step_failed", "failsafe", "estop")]
+    for e in ends[-5:]:
+        lines.append(f"  [{e['time_s']:7.2f} s] {e['kind']}: {e['text']}")
+    return "\n".join(lines)
