@@ -32,7 +32,8 @@ from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import VelocityCommand
 from beastbt.core.clock import SimClock
 from beastbt.run.runner import MissionRun, TickRecord
-from beastbt.run.session import Prepared, RunOptions, prepare
+from beastbt.assembly import prepare
+from beastbt.run.session import Prepared, RunOptions
 from beastbt.run.summary import build_summary
 
 
@@ -59,20 +60,24 @@ class MissionHarness:
     # -- building ---------------------------------------------------------------
     @classmethod
     def from_file(cls, path: Union[str, Path], robot: str = "sim", world: Optional[str] = None, seed: int = 0,
-                  **extras: Any) -> "MissionHarness":
-        """Prepare the mission file at ``path`` on the simulator."""
-        opts = RunOptions(robot=robot, world=world, seed=seed, record=False, extras={"simulate": True, **extras})
+                  joystick: Optional[Union[str, Path, list]] = None, **options: Any) -> "MissionHarness":
+        """Prepare the mission file at ``path`` on the simulator (``joystick``: a script; ``options``: RunOptions fields)."""
+        opts = RunOptions(robot=robot, world=world, seed=seed, record=False, simulate=True, joystick_script=joystick,
+                          **options)
         return cls(prepare(str(path), opts))
 
     @classmethod
     def from_yaml(cls, text: str, robot: str = "sim", world: Optional[str] = None, seed: int = 0,
                   name: str = "<test mission>", base_dir: Optional[Union[str, Path]] = None,
-                  **extras: Any) -> "MissionHarness":
-        """Prepare a mission written as a YAML string (relative paths resolve from ``base_dir``)."""
+                  joystick: Optional[Union[str, Path, list]] = None, **options: Any) -> "MissionHarness":
+        """Prepare a mission written as a YAML string (relative paths resolve from ``base_dir``).
+
+        ``joystick`` is a joystick script played on the simulator; ``options`` are other RunOptions fields.
+        """
         base = Path(base_dir) if base_dir is not None else Path(tempfile.gettempdir())
-        opts = RunOptions(robot=robot, world=world, seed=seed, record=False, extras={"simulate": True, **extras})
-        from beastbt.run import session
-        return cls(session.prepare(str(base / "mission.yaml"), opts, mission_text=text))
+        opts = RunOptions(robot=robot, world=world, seed=seed, record=False, simulate=True, joystick_script=joystick,
+                          **options)
+        return cls(prepare(str(base / "mission.yaml"), opts, mission_text=text))
 
     # -- time -------------------------------------------------------------------
     @property
@@ -168,5 +173,3 @@ class MissionHarness:
         """The run summary as ``--summary`` would write it (wall time 0)."""
         return build_summary(self.run, self.prepared.options.seed, 0.0,
                              self.prepared.world.name if self.prepared.world else None, self.prepared.profile.name)
-
-import beastbt.plugins  # noqa: E402,F401  (the optional parts register their steps and devices)

@@ -35,9 +35,9 @@ import yaml
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-import beastbt.plugins  # noqa: E402,F401  (registers the GPS, IMU, EKF and navigation parts)
 from beastbt.estimation.estimator import wrap_angle  # noqa: E402
-from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 MISSION = REPO / "missions" / "gps_route.yaml"
 WORLD = REPO / "worlds" / "campus.yaml"
@@ -67,7 +67,7 @@ def run(seed: int, mission: Path = MISSION, world: Path = WORLD, jump: bool = Fa
         robot: str = "sim") -> tuple[dict, Trace, float]:
     """One run; returns its summary, its trace and the wall time of the loop (s)."""
     p = prepare(str(mission), RunOptions(seed=seed, world=str(world), robot=robot, record=False,
-                                         extras={"simulate": True}))
+                                         simulate=True))
     trace = Trace(p.world.frame)
     p.run.recorders.append(trace)
     if jump:

@@ -43,8 +43,8 @@ import yaml
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-import beastbt.plugins  # noqa: E402,F401  (the camera, follow_line, the stream)
-from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute  # noqa: E402
 from beastbt.live.video_stream import StreamConfig, VideoStreamServer  # noqa: E402
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera  # noqa: E402
 from beastbt.sim.floor import FloorMap  # noqa: E402

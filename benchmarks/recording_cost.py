@@ -40,9 +40,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-import beastbt.plugins  # noqa: E402,F401  (installs the recorder)
 from beastbt.recording.recorder import recorder_of  # noqa: E402
-from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 PATROL = REPO / "missions" / "patrol.yaml"
 
@@ -59,7 +59,7 @@ def prepared_run(record: bool, speed: object, max_time_s: float, runs_dir: str, 
                  open_world: bool = False):
     """A patrol (repeated forever) prepared with or without recording."""
     opts = RunOptions(seed=1, speed=speed, max_time_s=max_time_s, record=record, runs_dir=runs_dir,
-                      extras={"record_images": images_hz})
+                      record_images_hz=images_hz)
     text = patrol_forever_text()
     if open_world:
         # Without the corridor's walls: odometry drift cannot end a long run against a wall.

@@ -23,10 +23,10 @@ import py_trees
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-import beastbt.plugins  # noqa: E402,F401  (the default sim robot as users get it: GPS, IMU, EKF, camera)
 from beastbt.blackboard import catalogue  # noqa: E402
 from beastbt.blackboard.types import FusedPose, VelocityCommand  # noqa: E402
-from beastbt.run.session import RunOptions, execute, prepare  # noqa: E402
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 PATROL = str(REPO / "missions" / "patrol.yaml")
 

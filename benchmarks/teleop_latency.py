@@ -31,7 +31,6 @@ from typing import Callable, Optional
 import can
 import numpy as np
 
-import beastbt.plugins  # noqa: F401  (the teleop hook, the teleop step, the watchdog install)
 from beastbt.actuation.can_base import CanBase, CanBaseConfig
 from beastbt.actuation.pwm_base import PwmBase, PwmBaseConfig
 from beastbt.devices.joystick import JS_EVENT, JS_EVENT_AXIS, JS_EVENT_BUTTON, JS_EVENT_INIT, JoystickDevice, JoystickMapping
@@ -44,7 +43,9 @@ from beastbt.robot.profile import load_profile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared, RunOptions, execute
-from beastbt.parts.teleop import install_watchdog
+from beastbt.assembly import assemble
+from beastbt.parts.teleop import TeleopPart
+from beastbt.robot.part import REAL
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.pca9685_emulator import SimPca9685
 from beastbt.sim.serial_port import SimSerialPort
@@ -200,11 +201,13 @@ def run_adapter(kind: str, n_events: int, n_freezes: int, seed: int) -> dict:
     io_.sensors["joystick"] = lambda now: [device.poll()]
     io_.extras["joystick"] = device
     io_.capabilities.add("joystick")
-    run = MissionRun(mission, profile, io_, clock, events)
     duration_s = 2.0 + n_events * 0.4 + n_freezes * 2.0 + 5.0
-    prepared = Prepared(mission, profile, None, run, RunOptions(robot="bench", record=False, speed="realtime",
-                                                                  max_time_s=duration_s), events, clock)
-    dog = install_watchdog(prepared)
+    options = RunOptions(robot="bench", record=False, speed="realtime", max_time_s=duration_s)
+    # The same assembly as a run on the robot, around this bench's base and gamepad: the run wires the watchdog.
+    prepared = assemble(mission, profile, options, REAL, io=io_, clock=clock, parts=[TeleopPart()])
+    run = prepared.run
+    events = prepared.events
+    dog = run.watchdog
 
     freeze = threading.Event()
     resume = threading.Event()

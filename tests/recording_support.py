@@ -12,8 +12,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-import beastbt.plugins  # noqa: F401  (the recorder and the commands register themselves)
-from beastbt.run.session import RunOptions, execute, prepare
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute
 
 REPO = Path(__file__).resolve().parent.parent
 PATROL = REPO / "missions" / "patrol.yaml"
@@ -43,10 +43,10 @@ steps:
 
 def record_run(mission: Path, runs_dir: Path, seed: int = 1, max_time_s: Optional[float] = None,
                mission_text: Optional[str] = None, record_path: Optional[Path] = None, record: bool = True,
-               **extras: Any) -> tuple[Optional[Path], dict]:
+               **options: Any) -> tuple[Optional[Path], dict]:
     """Run ``mission`` on the simulator at full speed, recorded; return (run folder, summary)."""
     opts = RunOptions(seed=seed, runs_dir=str(runs_dir), max_time_s=max_time_s, record=record,
-                      record_path=str(record_path) if record_path else None, extras=dict(extras))
+                      record_path=str(record_path) if record_path else None, **options)
     p = prepare(str(mission), opts, mission_text=mission_text)
     summary = execute(p, io.StringIO())
     return (p.folder.path if p.folder is not None else None), summary
@@ -74,7 +74,7 @@ def shared_run(name: str) -> tuple[Path, dict]:
     if name == "gps":
         return record_run(GPS_ROUTE, runs, seed=1, max_time_s=55.0)
     if name == "teleop":
-        return record_run(TELEOP, runs, seed=3, joystick=str(TELEOP_SCRIPT))
+        return record_run(TELEOP, runs, seed=3, joystick_script=str(TELEOP_SCRIPT))
     if name == "camera":
         runs.mkdir(parents=True)
         mission = runs / "camera.yaml"

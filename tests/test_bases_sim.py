@@ -23,12 +23,15 @@ from beastbt.devices.waveshare_base import WaveshareBase
 from beastbt.mission.model import load_mission
 from beastbt.core.clock import SimClock
 from beastbt.core.events import EventLog
-from beastbt.robot.hardware import BASE_FACTORIES
-from beastbt.parts.hardware_devices import attach_joystick
+from beastbt.assembly import assemble
+from beastbt.parts.joystick import attach_joystick
+from beastbt.parts.teleop import TeleopPart
+from beastbt.robot.part import REAL
 from beastbt.robot.profile import load_profile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.runner import MissionRun
-from beastbt.run.session import RunOptions, execute, prepare
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.pca9685_emulator import SimPca9685
 from beastbt.sim.serial_port import SimSerialPort
@@ -164,7 +167,7 @@ def test_the_last_thing_on_the_wire_is_a_stop(tmp_path, robot):
     m = tmp_path / "m.yaml"
     m.write_text("mission: t\nsteps:\n  - drive: {time: 5 s, speed: 0.2 m/s}\n")
     profile = "sim" if robot == "sim" else str(ROBOTS / f"{robot}.yaml")
-    p = prepare(str(m), RunOptions(robot=profile, record=False, max_time_s=1.0, extras={"simulate": True}))
+    p = prepare(str(m), RunOptions(robot=profile, record=False, max_time_s=1.0, simulate=True))
     x = p.run.io.extras
     sniffer = can.Bus(interface="virtual", channel=x["can_channel"]) if "can_channel" in x else None
     summary = execute(p, io.StringIO())
@@ -251,14 +254,15 @@ def test_missing_joystick_is_an_event_and_the_teleop_step_says_no_joystick(tmp_p
     assert ev is not None and "/dev/input/beastbt-js-none" in ev.text and "'input' group" in ev.text
     assert robot.sensors["joystick"](0.0)[0].connected is False
     mission = load_mission(str(tmp_path / "m.yaml"), text="mission: t\nsteps:\n  - teleop: {for: 5 s}\n")
-    run = MissionRun(mission, profile, robot, clock, events)
+    run = assemble(mission, profile, RunOptions(record=False), REAL, io=robot, clock=clock, parts=[TeleopPart()]).run
+    events = run.events
     assert run.tick() == "failure"
     assert events.last("step_failed").text.endswith("no joystick")
 
 
 def test_real_mode_runs_the_watchdog_thread_and_ends_with_a_stop(tmp_path, monkeypatch):
     base = FakeBase()
-    monkeypatch.setitem(BASE_FACTORIES, "can", lambda profile, clock, events: RobotIO(base=base))
+    monkeypatch.setattr("beastbt.parts.can_base.open_can_base", lambda profile, clock, events: RobotIO(base=base))
     profile = tmp_path / "real.yaml"
     profile.write_text("""
 robot: real_can
@@ -272,9 +276,11 @@ joystick: {device: /dev/input/beastbt-js-none}
     js = tmp_path / "js.yaml"
     js.write_text("- {at: 1 s, press: enable}\n")
     with pytest.raises(Exception, match="simulator only"):
-        prepare(str(m), RunOptions(robot=str(profile), record=False, extras={"joystick": str(js)}))
+        prepare(str(m), RunOptions(robot=str(profile), record=False, joystick_script=str(js)))
+    assert base.sent[-1] == "close"  # a run that fails to assemble releases what it opened
+    base.sent.clear()
     before = signal.getsignal(signal.SIGTERM)
-    p = prepare(str(m), RunOptions(robot=str(profile), record=False, extras={}))
+    p = prepare(str(m), RunOptions(robot=str(profile), record=False))
     dog = p.run.io.base
     assert isinstance(dog, AdapterWatchdog) and dog.running
     summary = execute(p, io.StringIO())

@@ -199,7 +199,7 @@ def test_the_robot_camera_runs_in_its_own_thread_and_survives_a_missing_device(t
     from beastbt.core.events import EventLog
     from beastbt.robot.profile import load_profile
     from beastbt.robot.robot_io import RobotIO
-    from beastbt.parts.line_following import attach_camera
+    from beastbt.parts.camera import attach_camera
     from beastbt.sim.camera_emulator import CameraEffects, SimCamera
     from beastbt.sim.floor import FloorMap
     from beastbt.sim.truth import RobotTruth

@@ -42,7 +42,8 @@ def test_interrupt_and_internal_errors_leave_a_stop_on_the_wire(tmp_path):
 
     import pytest
 
-    from beastbt.run.session import RunOptions, execute, prepare
+    from beastbt.assembly import prepare
+    from beastbt.run.session import RunOptions, execute
 
     for exc in (KeyboardInterrupt(), RuntimeError("a bug in a behaviour")):
         p = prepare(str(REPO / "missions" / "patrol.yaml"), RunOptions(record=False))

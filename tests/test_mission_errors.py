@@ -6,7 +6,6 @@ from __future__ import annotations
 import pytest
 
 from beastbt import cli
-from beastbt.run import session
 
 OK_HEAD = "mission: t\nsteps:\n"
 
@@ -43,7 +42,7 @@ def no_simulator(monkeypatch):
     """Fail the test if anything tries to build the simulated robot."""
     def boom(*a, **k):
         raise AssertionError("the simulator was started for an invalid mission")
-    monkeypatch.setattr(session, "build_sim_robot", boom)
+    monkeypatch.setattr("beastbt.sim.robot.build_simulator", boom)
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])

@@ -184,7 +184,7 @@ def test_a_full_queue_on_the_robot_drops_and_counts(tmp_path):
         pass
 
     run = FakeRun()
-    recmod._RECORDERS[run] = rec
+    run.recorder = rec
     summary: dict = {}
     contribute_summary(run, summary)
     assert summary["recording"] == {"messages": 6, "dropped": 17}

@@ -18,7 +18,7 @@ import time
 from mcap.reader import NonSeekingReader, make_reader
 
 from beastbt.recording.reader import read_recording
-from beastbt.recording.replay import replay
+from beastbt.replay import replay
 from recording_support import PATROL, REPO, record_run
 
 

@@ -14,8 +14,9 @@ import pytest
 
 from beastbt.cli import main
 from beastbt.recording.reader import read_recording
-from beastbt.recording.replay import replay
-from beastbt.run.session import RunOptions, execute, prepare
+from beastbt.replay import replay
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute
 from recording_support import GPS_ROUTE, PATROL, REPO, shared_run
 
 
@@ -112,7 +113,7 @@ def test_replay_uses_the_recorded_mission_and_profile_even_when_the_files_change
     mission.write_text("mission: m\nsteps:\n  - drive: {distance: 1 m, speed: 0.2 m/s}\n  - turn: {angle: 90 deg}\n",
                        encoding="utf-8")
     p = prepare(str(mission), RunOptions(robot=str(profile), seed=1, runs_dir=str(tmp_path / "runs"),
-                                         extras={"simulate": True}))
+                                         simulate=True))
     summary = execute(p, io.StringIO())
     assert summary["status"] == "success"
     # Both files change after the run: a slower robot, another mission.

@@ -5,8 +5,8 @@ from __future__ import annotations
 import gc
 import io
 
-import beastbt.plugins  # noqa: F401
-from beastbt.run.session import RunOptions, execute, prepare
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute
 from conftest import REPO
 
 

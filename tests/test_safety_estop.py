@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from beastbt.parts.teleop import request_estop, reset_estop
+from beastbt.run.safety import request_estop, reset_estop
 from beastbt.testing import MissionHarness
 
 DRIVE = """

@@ -19,6 +19,7 @@ from beastbt import cli
 from beastbt.core.errors import InvalidInput
 from beastbt.live.video_stream import (BOUNDARY, StreamConfig, VideoStreamServer, config_from_options,
                                           parse_endpoint)
+from beastbt.run.session import RunOptions
 from beastbt.testing import MissionHarness
 from conftest import REPO
 
@@ -191,11 +192,11 @@ def test_stream_options():
     assert parse_endpoint("0.0.0.0:9000") == ("0.0.0.0", 9000)
     with pytest.raises(ValueError):
         parse_endpoint("camera")
-    cfg = config_from_options({"stream": "9001", "stream_size": "1280x720", "stream_quality": 60, "stream_fps": 10,
-                               "stream_no_overlay": True})
+    cfg = config_from_options(RunOptions(stream="9001", stream_size="1280x720", stream_quality=60, stream_fps=10,
+                                         stream_overlay=False))
     assert (cfg.host, cfg.port, cfg.width_px, cfg.height_px, cfg.jpeg_quality, cfg.fps, cfg.overlay) == \
         ("127.0.0.1", 9001, 1280, 720, 60, 10.0, False)
-    assert config_from_options({"stream": None}) is None
+    assert config_from_options(RunOptions(stream=None)) is None
     with pytest.raises(InvalidInput):
         MissionHarness.from_file(MISSION, stream=("127.0.0.1", 0), stream_quality=0)
 

@@ -9,7 +9,8 @@ import pytest
 from conftest import REPO
 
 from beastbt import cli
-from beastbt.run.session import RunOptions, execute, prepare
+from beastbt.assembly import prepare
+from beastbt.run.session import RunOptions, execute
 from beastbt.testing import MissionHarness
 
 HAND = """
@@ -74,7 +75,7 @@ on_failure: teleop
 - {at: 3 s, press: enable}
 - {at: 5 s, release: enable}
 """)
-    p = prepare(str(mission), RunOptions(record=False, max_time_s=8.0, extras={"simulate": True, "joystick": str(script)}))
+    p = prepare(str(mission), RunOptions(record=False, max_time_s=8.0, simulate=True, joystick_script=str(script)))
     records: list = []
     p.run.recorders.append(records.append)
     summary = execute(p, io.StringIO())

@@ -248,6 +248,10 @@ class AdapterWatchdog:
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout_s)
 
+    def on_physics_step(self, t_s: float, dt_s: float) -> None:
+        """The simulator's emulator hook: check at every physics step (``t_s`` simulated seconds)."""
+        self.check(t_s)
+
     @property
     def running(self) -> bool:
         """True while the watchdog thread is alive."""

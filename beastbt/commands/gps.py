@@ -12,7 +12,6 @@ import argparse
 import os
 import sys
 
-from beastbt.cli import COMMANDS, EXIT_INVALID
 from beastbt.devices.gps_decode import decode_file
 
 GPS_ACTIONS = ("decode",)
@@ -26,10 +25,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", help="the NMEA log (raw receiver output; lines starting with '#' are comments)")
 
 
-def run_gps(args: argparse.Namespace) -> int:
+def command(args: argparse.Namespace) -> int:
     """GPS tools: decode a recorded NMEA log through the driver (one JSON line per fix)."""
     if args.action != "decode":
-        return EXIT_INVALID  # argparse rejects other actions before this
+        return 2  # argparse rejects other actions before this
     try:
         return decode_file(args.file, sys.stdout, sys.stderr)
     except BrokenPipeError:
@@ -38,5 +37,3 @@ def run_gps(args: argparse.Namespace) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 0
 
-
-COMMANDS["gps"] = (add_arguments, run_gps)

@@ -32,7 +32,6 @@ is switched on for the stream; run with ``--speed realtime`` to watch.
 
 from __future__ import annotations
 
-import argparse
 import json
 import socket
 import sys
@@ -46,6 +45,7 @@ from urllib.parse import urlsplit
 import cv2
 import numpy as np
 
+from beastbt.live.endpoint import parse_endpoint, parse_size
 from beastbt.core.config import dataclass_from_dict
 from beastbt.vision.camera_model import CameraGeometry
 from beastbt.vision.line_detector import LineDetection
@@ -102,31 +102,6 @@ class StreamConfig:
     def from_dict(cls, d: Any) -> "StreamConfig":
         """Build from a mapping of the fields above; unknown keys or bad values raise ``ValueError``."""
         return dataclass_from_dict(cls, d, "stream")
-
-
-def parse_endpoint(text: str) -> tuple[str, int]:
-    """``PORT``, ``:PORT`` or ``HOST:PORT`` -> (host, port); the host defaults to 127.0.0.1."""
-    text = str(text).strip()
-    host, sep, port = text.rpartition(":")
-    if not sep:
-        host = ""
-    host = host.strip("[]") or "127.0.0.1"
-    try:
-        number = int(port)
-    except ValueError:
-        raise ValueError(f"--stream takes [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
-    if not 0 <= number <= 65535:
-        raise ValueError(f"--stream port must be 0..65535, not {number}")
-    return host, number
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """``WIDTHxHEIGHT`` (``640x480``) -> (width, height) in pixels."""
-    try:
-        w, h = (int(v) for v in str(text).lower().split("x"))
-    except ValueError:
-        raise ValueError(f"--stream-size takes WIDTHxHEIGHT such as 640x480, not '{text}'") from None
-    return w, h
 
 
 class LatestSlot:
@@ -487,30 +462,30 @@ class _Handler(BaseHTTPRequestHandler):
 
 # -- in a run -------------------------------------------------------------------------------------
 
-def config_from_options(extras: dict) -> Optional[StreamConfig]:
-    """The stream's config from ``RunOptions.extras`` (None when ``stream`` is not set); ValueError when bad."""
-    spec = extras.get("stream")
+def config_from_options(opts: Any) -> Optional[StreamConfig]:
+    """The stream's config from a run's options (None when ``stream`` is not set); ValueError when bad."""
+    spec = opts.stream
     if spec is None or spec is False:
         return None
     host, port = spec if isinstance(spec, tuple) else parse_endpoint(spec)
     d: dict = {"host": host, "port": port}
-    size = extras.get("stream_size")
+    size = opts.stream_size
     if size:
         d["width_px"], d["height_px"] = size if isinstance(size, tuple) else parse_size(size)
-    if extras.get("stream_quality") is not None:
-        d["jpeg_quality"] = int(extras["stream_quality"])
-    if extras.get("stream_fps") is not None:
-        d["fps"] = float(extras["stream_fps"])
-    if extras.get("stream_no_overlay"):
+    if opts.stream_quality is not None:
+        d["jpeg_quality"] = int(opts.stream_quality)
+    if opts.stream_fps is not None:
+        d["fps"] = float(opts.stream_fps)
+    if not opts.stream_overlay:
         d["overlay"] = False
     return StreamConfig.from_dict(d)
 
 
 def install_stream(prepared: Any) -> Optional[VideoStreamServer]:
-    """PREPARE_HOOK: with ``--stream``, serve the run's camera live until the run ends."""
+    """With ``--stream``, serve the run's camera live until the run ends."""
     from beastbt.core.errors import InvalidInput, Position, Problem
     try:
-        config = config_from_options(prepared.options.extras)
+        config = config_from_options(prepared.options)
     except ValueError as exc:
         raise InvalidInput([Problem("--stream", Position(), str(exc), "e.g. --stream 8080 --stream-size 640x480")]) from None
     if config is None:
@@ -556,40 +531,5 @@ def _feeder(run: Any, server: VideoStreamServer, pipeline: Any) -> Callable[[Any
     return feed
 
 
-def add_stream_options(p: argparse.ArgumentParser) -> None:
-    """The ``--stream*`` options of ``beastbt run``."""
-    def endpoint(text: str) -> tuple[str, int]:
-        try:
-            return parse_endpoint(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc))
-
-    def size(text: str) -> tuple[int, int]:
-        try:
-            return parse_size(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc))
-
-    p.add_argument("--stream", metavar="[HOST:]PORT", type=endpoint,
-                   help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
-                        "HOST defaults to 127.0.0.1")
-    p.add_argument("--stream-size", metavar="WxH", type=size, help="size of the streamed frames (default 640x480)")
-    p.add_argument("--stream-quality", metavar="Q", type=int, help="JPEG quality 1-100 (default 80)")
-    p.add_argument("--stream-fps", metavar="FPS", type=float, help="most frames streamed per second (default 25)")
-    p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
-
-
-def _register() -> None:
-    from beastbt import cli
-    from beastbt.run.session import PREPARE_HOOKS
-    if install_stream not in PREPARE_HOOKS:
-        PREPARE_HOOKS.append(install_stream)
-    if add_stream_options not in cli.RUN_OPTIONS:
-        cli.RUN_OPTIONS.append(add_stream_options)
-
-
-_register()
-
-
 __all__ = ["VideoStreamServer", "StreamConfig", "LatestSlot", "ClientStats", "parse_endpoint", "parse_size",
-           "install_stream", "add_stream_options", "config_from_options", "BOUNDARY"]
+           "install_stream", "config_from_options", "BOUNDARY"]

@@ -1,8 +1,8 @@
 """Compile a :class:`~beastbt.mission.model.Mission` into a py_trees behaviour tree.
 
-Each step keyword has a builder in :data:`STEP_BUILDERS`; parts of beastbt that
-add steps (navigation, vision, teleop) register theirs with
-:func:`register_step`. Node names read like the mission (``drive 3 m at 0.15 m/s``).
+Each step keyword has a builder: the language's own are in :data:`CORE_STEPS`;
+parts of a robot that add steps (navigation, vision, teleop) hand theirs to
+the compiler through the assembly (``Part.steps``). Node names read like the mission (``drive 3 m at 0.15 m/s``).
 A step whose part is missing on this robot compiles to a leaf that fails with
 "not available on this robot" and says why.
 """
@@ -10,7 +10,8 @@ A step whose part is missing on this robot compiles to a leaf that fails with
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Optional
+from types import MappingProxyType
+from typing import Any, Callable, Mapping, Optional
 
 import py_trees
 
@@ -29,18 +30,9 @@ from beastbt.core.units import format_quantity, parse_quantity
 
 Behaviour = py_trees.behaviour.Behaviour
 StepBuilder = Callable[["Compiler", Step], Behaviour]
-STEP_BUILDERS: dict[str, StepBuilder] = {}
 
 DEFAULT_NEAR_WITHIN_M = 3.0
 """``{near: place}`` without ``within`` means within this many metres."""
-
-
-def register_step(kind: str) -> Callable[[StepBuilder], StepBuilder]:
-    """Decorator: make ``fn(compiler, step) -> Behaviour`` the builder of step ``kind``."""
-    def deco(fn: StepBuilder) -> StepBuilder:
-        STEP_BUILDERS[kind] = fn
-        return fn
-    return deco
 
 
 def _q(value: Any, kind: str) -> str:
@@ -50,9 +42,10 @@ def _q(value: Any, kind: str) -> str:
 class Compiler:
     """Builds the tree of one mission for one robot (its context)."""
 
-    def __init__(self, mission: Mission, ctx: MissionContext) -> None:
+    def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None) -> None:
         self.mission = mission
         self.ctx = ctx
+        self.builders: Mapping[str, StepBuilder] = CORE_STEPS if builders is None else builders
         self.reader = ConditionReader(ctx)
         self.call_stack: list[str] = []
 
@@ -70,9 +63,12 @@ class Compiler:
 
     def step(self, s: Step) -> Behaviour:
         """The behaviour (or subtree) for one step."""
-        builder = STEP_BUILDERS.get(s.kind)
+        builder = self.builders.get(s.kind)
         if builder is None:
-            return NotAvailable(s.kind, self.ctx, f"'{s.kind}' is not supported by this version of beastbt")
+            needs = NEEDS_A_PART.get(s.kind)
+            why = (f"'{s.kind}' needs {needs}, which this robot or version does not provide" if needs
+                   else f"'{s.kind}' is not supported by this version of beastbt")
+            return NotAvailable(s.kind, self.ctx, why)
         return builder(self, s)
 
     def raw(self, s: Step) -> dict:
@@ -123,7 +119,6 @@ class Compiler:
 
 # -- actions ----------------------------------------------------------------
 
-@register_step("drive")
 def _drive(c: Compiler, s: Step) -> Behaviour:
     v = s.value
     speed = parse_quantity(v["speed"], "speed") if "speed" in v else None
@@ -136,7 +131,6 @@ def _drive(c: Compiler, s: Step) -> Behaviour:
     return DriveTime(f"drive for {_q(v['time'], 'duration')}{at}", c.ctx, t, speed)
 
 
-@register_step("turn")
 def _turn(c: Compiler, s: Step) -> Behaviour:
     v = s.value
     rate = parse_quantity(v["rate"], "turn_rate") if "rate" in v else None
@@ -148,17 +142,14 @@ def _turn(c: Compiler, s: Step) -> Behaviour:
     return TurnToHeading(f"turn to heading {math.degrees(h):g} deg", c.ctx, h, rate, stuck)
 
 
-@register_step("wait")
 def _wait(c: Compiler, s: Step) -> Behaviour:
     return Wait(f"wait {_q(s.value, 'duration')}", c.ctx, parse_quantity(s.value, "duration"))
 
 
-@register_step("stop")
 def _stop(c: Compiler, s: Step) -> Behaviour:
     return StopRobot("stop", c.ctx)
 
 
-@register_step("look")
 def _look(c: Compiler, s: Step) -> Behaviour:
     v = s.value
     cmds, words = [], []
@@ -171,7 +162,6 @@ def _look(c: Compiler, s: Step) -> Behaviour:
     return SetServos("look " + ", ".join(words), c.ctx, cmds, settle)
 
 
-@register_step("servo")
 def _servo(c: Compiler, s: Step) -> Behaviour:
     v = s.value
     settle = parse_quantity(v["settle"], "duration") if "settle" in v else None
@@ -184,34 +174,27 @@ def _servo(c: Compiler, s: Step) -> Behaviour:
                      [ServoCommand(channel=v["channel"], pulse_s=pulse)], settle)
 
 
-@register_step("say")
 def _say(c: Compiler, s: Step) -> Behaviour:
     text = str(s.value)
     short = text if len(text) <= 30 else text[:27] + "..."
     return Say(f'say "{short}"', c.ctx, text)
 
 
-@register_step("snapshot")
 def _snapshot(c: Compiler, s: Step) -> Behaviour:
     if "camera" not in c.ctx.capabilities:
         return NotAvailable(f"snapshot {s.value['name']}", c.ctx, "this robot has no camera")
     return Snapshot(f"snapshot {s.value['name']}", c.ctx, s.value["name"])
 
 
-def _unavailable(kind: str, needs: str) -> StepBuilder:
-    def build(c: Compiler, s: Step) -> Behaviour:
-        return NotAvailable(kind, c.ctx, f"'{kind}' needs {needs}, which this robot or version does not provide")
-    return build
-
-
-for _kind, _needs in (("go_to", "GPS navigation"), ("route", "GPS navigation"), ("return_home", "GPS navigation"),
-                      ("follow_line", "a camera and the line follower"), ("teleop", "a joystick")):
-    STEP_BUILDERS[_kind] = _unavailable(_kind, _needs)
+NEEDS_A_PART: Mapping[str, str] = MappingProxyType({
+    "go_to": "GPS navigation", "route": "GPS navigation", "return_home": "GPS navigation",
+    "follow_line": "a camera and the line follower", "teleop": "a joystick",
+})
+"""Steps of the language that a part provides, and what a robot without that part lacks."""
 
 
 # -- flow -------------------------------------------------------------------
 
-@register_step("repeat")
 def _repeat(c: Compiler, s: Step) -> Behaviour:
     times = parse_count(s.value["times"])
     body = c.sequence("pass", c.steps_at(s.value["steps"], s.path + ("repeat", "steps")), always_wrap=True)
@@ -219,7 +202,6 @@ def _repeat(c: Compiler, s: Step) -> Behaviour:
     return RepeatTimes(f"repeat {label}", body, times)
 
 
-@register_step("do")
 def _do(c: Compiler, s: Step) -> Behaviour:
     name = s.value
     c.call_stack.append(name)
@@ -229,14 +211,12 @@ def _do(c: Compiler, s: Step) -> Behaviour:
         c.call_stack.pop()
 
 
-@register_step("first_of")
 def _first_of(c: Compiler, s: Step) -> Behaviour:
     alts = [c.sequence(f"alternative {i + 1}", c.steps_at(alt, s.path + ("first_of", i)), always_wrap=True)
             for i, alt in enumerate(s.value)]
     return py_trees.composites.Selector(name=f"first of {len(alts)} alternatives", memory=True, children=alts)
 
 
-@register_step("retry")
 def _retry(c: Compiler, s: Step) -> Behaviour:
     times = parse_count(s.value["times"])
     body = c.sequence("attempt", c.steps_at(s.value["steps"], s.path + ("retry", "steps")), always_wrap=True)
@@ -244,14 +224,12 @@ def _retry(c: Compiler, s: Step) -> Behaviour:
     return RetryAttempts(f"retry {label}", body, times)
 
 
-@register_step("timeout")
 def _timeout(c: Compiler, s: Step) -> Behaviour:
     after = parse_quantity(s.value["after"], "duration")
     body = c.sequence("steps", c.steps_at(s.value["steps"], s.path + ("timeout", "steps")), always_wrap=True)
     return ClockTimeout(f"timeout {_q(s.value['after'], 'duration')}", body, after, c.ctx.clock)
 
 
-@register_step("parallel")
 def _parallel(c: Compiler, s: Step) -> Behaviour:
     on = s.value.get("succeed_on", "all")
     children = [c.step(x) for x in c.steps_at(s.value["steps"], s.path + ("parallel", "steps"))]
@@ -260,7 +238,6 @@ def _parallel(c: Compiler, s: Step) -> Behaviour:
     return py_trees.composites.Parallel(name=f"parallel (succeed on {on})", policy=policy, children=children)
 
 
-@register_step("if")
 def _if(c: Compiler, s: Step) -> Behaviour:
     raw = c.raw(s)
     cond = c.condition(raw["if"])
@@ -269,7 +246,6 @@ def _if(c: Compiler, s: Step) -> Behaviour:
     return IfThenElse(f"if {cond}", cond, then, other)
 
 
-@register_step("while")
 def _while(c: Compiler, s: Step) -> Behaviour:
     raw = c.raw(s)
     cond = c.condition(raw["while"])
@@ -277,7 +253,6 @@ def _while(c: Compiler, s: Step) -> Behaviour:
     return WhileLoop(f"while {cond}", cond, body)
 
 
-@register_step("wait_until")
 def _wait_until(c: Compiler, s: Step) -> Behaviour:
     raw = c.raw(s)
     cond = c.condition(raw["wait_until"])
@@ -286,9 +261,32 @@ def _wait_until(c: Compiler, s: Step) -> Behaviour:
     return WaitUntil(name, c.ctx, cond, timeout)
 
 
-def compile_mission(mission: Mission, ctx: MissionContext) -> Behaviour:
-    """Compile ``mission`` for the robot described by ``ctx``; returns the root of the tree."""
-    return Compiler(mission, ctx).compile()
+CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
+    "drive": _drive,
+    "turn": _turn,
+    "wait": _wait,
+    "stop": _stop,
+    "look": _look,
+    "servo": _servo,
+    "say": _say,
+    "snapshot": _snapshot,
+    "repeat": _repeat,
+    "do": _do,
+    "first_of": _first_of,
+    "retry": _retry,
+    "timeout": _timeout,
+    "parallel": _parallel,
+    "if": _if,
+    "while": _while,
+    "wait_until": _wait_until,
+})
+"""The builders of the language's own steps (read-only); parts add theirs through the assembly."""
+
+
+def compile_mission(mission: Mission, ctx: MissionContext,
+                    builders: Optional[Mapping[str, StepBuilder]] = None) -> Behaviour:
+    """Compile ``mission`` for the robot described by ``ctx`` with step ``builders`` (default: the core steps)."""
+    return Compiler(mission, ctx, builders).compile()
 
 
 def tree_to_dot(root: Behaviour) -> str:
@@ -312,4 +310,4 @@ def tree_to_dot(root: Behaviour) -> str:
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["Compiler", "compile_mission", "register_step", "STEP_BUILDERS", "tree_to_dot", "CheckCondition", "step_of"]
+__all__ = ["Compiler", "compile_mission", "CORE_STEPS", "NEEDS_A_PART", "StepBuilder", "tree_to_dot", "CheckCondition", "step_of"]

@@ -1,49 +1,35 @@
-"""The camera in every run: the ``follow_line`` step, the real camera, switching the simulated one on, truth scores.
-
-What this module adds (it registers itself through the compiler's, the
-hardware's, the session's and the summary's hooks):
+"""Line following in a run: the ``follow_line`` step, the camera switched on when used, truth scores.
 
 * ``follow_line`` (:class:`~beastbt.behaviours.follow_line.FollowLine`), in
   place of the "not available" leaf, on robots with the ``camera``
   capability; tuned by the profile's ``line_follower:`` section.
-* The real camera (:data:`~beastbt.robot.hardware.HARDWARE_DEVICES`): a
-  profile's ``camera:`` is opened with OpenCV's V4L2 backend
-  (:func:`~beastbt.devices.camera.open_video_capture`), read and run through
-  the line detector in a thread of its own. A camera that is missing is
-  reported (``camera_lost``) and retried; the run does not stop for it.
-* Before a run starts (:data:`~beastbt.run.session.PREPARE_HOOKS`): the
-  camera pipeline and the follower's tuning become the ``camera`` and
-  ``line_follower`` services; in the simulator the camera is switched on when
-  the mission uses it (``follow_line``, ``snapshot``, the ``intersection``
-  and ``line_seen`` conditions), its floor built then (so a bad floor stops
-  the run before anything moves), and :class:`~beastbt.run.line_metrics.LineTruthMetrics`
-  scores every ``follow_line`` step against the floor's truth (summary
-  ``truth.line_*`` and ``truth.*intersections*``).
+* When the run is assembled: the camera pipeline (opened by
+  :mod:`beastbt.parts.camera`) and the follower's tuning become the
+  ``camera`` and ``line_follower`` services; in the simulator the camera is
+  switched on when the mission uses it (``follow_line``, ``snapshot``, the
+  ``intersection`` and ``line_seen`` conditions), its floor built then (so a
+  bad floor stops the run before anything moves), and
+  :class:`~beastbt.run.line_metrics.LineTruthMetrics` scores every
+  ``follow_line`` step against the floor's truth (summary ``truth.line_*``
+  and ``truth.*intersections*``).
 """
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any, Mapping, Optional
 
 import py_trees
 
 from beastbt.behaviours.follow_line import FollowLine, FollowLineConfig
 from beastbt.behaviours.operator import NotAvailable
-from beastbt.devices.camera import Camera, CameraConfig, open_video_capture
-from beastbt.mission.compile import Compiler, register_step
-from beastbt.core.errors import InvalidInput
+from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission.model import Step
 from beastbt.core.units import format_quantity, parse_quantity
 from beastbt.vision.camera_pipeline import CameraPipeline
-from beastbt.core.clock import Clock
-from beastbt.core.events import EventLog
-from beastbt.robot.hardware import HARDWARE_DEVICES
 from beastbt.run.line_metrics import LineTruthMetrics
-from beastbt.robot.profile import RobotProfile, section_config
-from beastbt.robot.robot_io import RobotIO
-from beastbt.run.session import PREPARE_HOOKS, Prepared
-from beastbt.run.summary import SUMMARY_CONTRIBUTORS
-from beastbt.vision.line_detector import LineDetectorConfig
+from beastbt.robot.part import Part
+from beastbt.robot.profile import section_config
+from beastbt.run.session import Prepared
 
 CAMERA_STEPS = frozenset({"follow_line", "snapshot"})
 """Steps that need camera frames."""
@@ -55,7 +41,6 @@ NOT_CONDITIONS = frozenset({"say", "description", "mission", "places", "world"})
 
 # -- the step ------------------------------------------------------------------------------
 
-@register_step("follow_line")
 def _follow_line(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
     v = s.value
     until = v["until"]
@@ -72,35 +57,6 @@ def _follow_line(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
     if "camera" not in c.ctx.capabilities:
         return NotAvailable(name, c.ctx, "follow_line needs a camera, and this robot has none (add a camera: section)")
     return FollowLine(name, c.ctx, kind, amount, speed, lost)
-
-
-# -- the real camera -------------------------------------------------------------------------
-
-def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog) -> None:
-    """The profile's camera on V4L2, read and run through the line detector in a thread (``io.sensors['camera']``)."""
-    if profile.section("camera") is None:
-        return
-    config: CameraConfig = section_config(profile, "camera", CameraConfig)
-    detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
-    sink = events.sink("camera")
-
-    def make_camera() -> Camera:
-        return Camera(lambda: open_video_capture(config), clock, sink, config)
-
-    pipeline = CameraPipeline(make_camera, config, detector_config, sink)
-    try:
-        pipeline.check()
-    except ValueError as exc:
-        raise InvalidInput([profile.doc.problem(("camera",), f"in 'camera': {exc}",
-                                                "lower the camera's pitch_deg or raise line_detector.roi_far_m")]) from None
-    pipeline.start_thread()
-    io.sensors["camera"] = pipeline.poll
-    io.capabilities.add("camera")
-    io.extras["camera"] = pipeline
-    io.closers.append(pipeline.close)
-
-
-HARDWARE_DEVICES.append(attach_camera)
 
 
 # -- every run -------------------------------------------------------------------------------
@@ -156,9 +112,6 @@ def install_vision(prepared: Prepared) -> None:
         run.ctx.services["line_metrics"] = metrics
 
 
-PREPARE_HOOKS.append(install_vision)
-
-
 def _summary(run: Any, summary: dict) -> None:
     metrics = run.ctx.services.get("line_metrics")
     if isinstance(metrics, LineTruthMetrics) and "truth" in summary:
@@ -168,7 +121,22 @@ def _summary(run: Any, summary: dict) -> None:
         summary["camera"] = {"frames": pipeline.frames, "enabled_for": list(pipeline.reasons)}
 
 
-SUMMARY_CONTRIBUTORS.append(_summary)
+
+class LineFollowingPart(Part):
+    """Line following: the follow_line step, the camera switched on when used, truth scores in the simulator."""
+
+    name = "line_following"
+    section = "line_follower"
+    schema = "parts/line_follower.schema.json"
+
+    def steps(self) -> Mapping[str, StepBuilder]:
+        """follow_line."""
+        return {"follow_line": _follow_line}
+
+    def install(self, prepared: Prepared) -> None:
+        """The camera and follower services; in the simulator, the camera on when the mission uses it."""
+        install_vision(prepared)
+        prepared.run.summary_contributors.append(_summary)
 
 
-__all__ = ["attach_camera", "install_vision", "camera_uses", "follow_nodes"]
+__all__ = ["LineFollowingPart", "install_vision", "camera_uses", "follow_nodes"]

@@ -26,8 +26,7 @@ from beastbt.blackboard.types import GpsFix
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import distance_m
 from beastbt.run.runner import TickRecord
-from beastbt.run.session import PREPARE_HOOKS, Prepared
-from beastbt.run.summary import SUMMARY_CONTRIBUTORS
+from beastbt.run.session import Prepared
 
 TRUTH_KEY = "nav_truth"
 """``io.extras`` key of the run's :class:`NavTruth` (simulator only)."""
@@ -118,9 +117,6 @@ def install_truth(p: Prepared) -> None:
     log.listeners.append(arrival)
 
 
-PREPARE_HOOKS.append(install_truth)
-
-
 def contribute(run: Any, summary: dict) -> None:
     """Add ``waypoints`` and the truth metrics of navigation to a run summary."""
     log = run.ctx.services.get(VISITS_SERVICE)
@@ -139,6 +135,3 @@ def contribute(run: Any, summary: dict) -> None:
     tracker = run.io.extras.get(TRUTH_KEY)
     if tracker is not None and run.estimator is not None and "truth" in summary:
         summary["truth"].update(tracker.metrics())
-
-
-SUMMARY_CONTRIBUTORS.append(contribute)

@@ -1,12 +1,12 @@
 """Wiring GPS navigation into a run: the EKF as the estimator, the navigation tuning, going home.
 
-- :func:`ekf_estimator` (an ``ESTIMATOR_FACTORIES`` entry): a robot with a GPS
+- :func:`ekf_estimator`: a robot with a GPS
   or an IMU gets the :class:`~beastbt.estimation.ekf.EkfEstimator`, tuned by
   the profile's ``estimator:`` section, fed one GPS fix per epoch
   (:class:`~beastbt.estimation.gps_epochs.EpochFilter`). Its local frame is
   anchored at the first good fix, on the robot and in the simulator alike:
   the simulator's world datum is never told to the filter.
-- :func:`install_navigation` (a ``PREPARE_HOOKS`` entry): the profile's
+- :func:`install_navigation`: the profile's
   ``navigation:`` section for go_to, and, on a robot with a GPS, the
   ``return_home`` handlers of failsafes (``then: return_home``) and of
   ``on_failure: return_home``. Both replace the mission's tree by a single
@@ -17,22 +17,28 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
 import py_trees
 
 from beastbt.behaviours.navigation import NAV_SERVICE, GoTo, NavConfig, home_target
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
-from beastbt.estimation.ekf import EkfConfig, EkfEstimator
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.estimation.gps_epochs import EpochFilter
 from beastbt.estimation.imu_tap import ImuTap
+from beastbt.mission.compile import StepBuilder
 from beastbt.mission.model import HOME
 from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.runner import ESTIMATOR_FACTORIES, MissionRun
-from beastbt.run.session import PREPARE_HOOKS, Prepared
+from beastbt.parts.nav_summary import contribute, install_truth
+from beastbt.parts.navigation_steps import NAVIGATION_STEPS
+from beastbt.robot.part import Build, Part
+from beastbt.run.runner import MissionRun
+from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # the EKF (filterpy, scipy) is imported only for a robot that fuses GPS or IMU
+    from beastbt.estimation.ekf import EkfEstimator
 
 Status = py_trees.common.Status
 
@@ -50,7 +56,7 @@ class NavEstimator:
     samples the tick brings (the base's own IMU).
     """
 
-    def __init__(self, ekf: EkfEstimator, imu_tap: Optional[ImuTap] = None) -> None:
+    def __init__(self, ekf: "EkfEstimator", imu_tap: Optional[ImuTap] = None) -> None:
         self.ekf = ekf
         self.epochs = EpochFilter()
         self.imu_tap = imu_tap
@@ -72,6 +78,7 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
     """The EKF for a robot with a GPS or an IMU (None otherwise: odometry alone)."""
     if not ({"gps", "imu"} & set(io.capabilities)):
         return None
+    from beastbt.estimation.ekf import EkfConfig, EkfEstimator
     config: EkfConfig = section_config(profile, "estimator", EkfConfig)
     raw = profile.section("estimator") or {}
     # The profile's geometry is the track width unless the estimator section tunes its own.
@@ -87,9 +94,6 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
             config = replace(config, declination_deg=float(io.extras["magnetic_declination_deg"]))
     ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
     return NavEstimator(ekf, io.extras.get("imu_tap"))
-
-
-ESTIMATOR_FACTORIES.append(ekf_estimator)
 
 
 class ReturnHomeInstead(py_trees.decorators.Decorator):
@@ -150,4 +154,30 @@ def install_navigation(p: Prepared) -> None:
     run.ctx.services["on_failure_return_home"] = on_failure_return_home
 
 
-PREPARE_HOOKS.append(install_navigation)
+
+class NavigationPart(Part):
+    """GPS navigation: the EKF, the go_to, route and return_home steps, going home, waypoints in the summary."""
+
+    name = "navigation"
+    section = "navigation"
+    schema = "parts/navigation.schema.json"
+    fills = ("pose", "home")
+
+    def steps(self) -> Mapping[str, StepBuilder]:
+        """go_to, route and return_home."""
+        return NAVIGATION_STEPS
+
+    def estimator(self, build: Build) -> Optional[NavEstimator]:
+        """The EKF on a robot with a GPS or an IMU."""
+        assert build.io is not None
+        return ekf_estimator(build.profile, build.io, build.events)
+
+    def install(self, prepared: Prepared) -> None:
+        """Navigation tuning and going home; in the simulator, the truth of every arrival."""
+        install_navigation(prepared)
+        install_truth(prepared)
+        prepared.run.summary_contributors.append(contribute)
+
+
+__all__ = ["NavigationPart", "NavEstimator", "ekf_estimator", "install_navigation", "return_home_instead",
+           "ReturnHomeInstead"]

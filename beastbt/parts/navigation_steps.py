@@ -9,14 +9,15 @@ steps compile to a leaf that fails at once, saying so.
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from types import MappingProxyType
+from typing import Any, Mapping, Optional
 
 import py_trees
 
 from beastbt.behaviours.flow import RepeatTimes
 from beastbt.behaviours.navigation import GoTo, NavConfig, home_target, place_target
 from beastbt.behaviours.operator import NotAvailable
-from beastbt.mission.compile import Compiler, register_step
+from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission.model import HOME, Step, parse_count
 from beastbt.core.units import parse_quantity
 
@@ -56,7 +57,6 @@ def _go_to_place(c: Compiler, name: str, step_tolerance_m: Optional[float], opti
     return GoTo(f"{label} {name} {_within(tolerance)}", c.ctx, name, target, tolerance, **options)
 
 
-@register_step("go_to")
 def build_go_to(c: Compiler, s: Step) -> Behaviour:
     """``go_to: gate`` or ``go_to: {place: gate | lat:, lon:, tolerance:, speed:, gps_timeout:, stuck_after:}``."""
     v = s.value
@@ -72,7 +72,6 @@ def build_go_to(c: Compiler, s: Step) -> Behaviour:
     return GoTo(f"go_to {label} {_within(tolerance)}", c.ctx, label, place_target(lat, lon), tolerance, **_options(v))
 
 
-@register_step("route")
 def build_route(c: Compiler, s: Step) -> Behaviour:
     """``route: {places: [a, b, c], loops: 2 | forever, ...}``: go_to each place in order, loops times."""
     v = s.value
@@ -89,7 +88,6 @@ def build_route(c: Compiler, s: Step) -> Behaviour:
     return RepeatTimes(f"{name} ({label})", body, loops)
 
 
-@register_step("return_home")
 def build_return_home(c: Compiler, s: Step) -> Behaviour:
     """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:}``."""
     v = s.value if isinstance(s.value, dict) else {}
@@ -100,3 +98,11 @@ def build_return_home(c: Compiler, s: Step) -> Behaviour:
 
 
 __all__ = ["build_go_to", "build_route", "build_return_home"]
+
+
+NAVIGATION_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
+    "go_to": build_go_to,
+    "route": build_route,
+    "return_home": build_return_home,
+})
+"""The steps the navigation part adds to the language."""

@@ -1,7 +1,6 @@
-"""Teleop, the emergency stop and the adapter watchdog in every run.
+"""Teleop in a run: the joystick's say over the robot, its e-stop buttons, the teleop step.
 
-What this module adds to a run (it registers itself through the runner's,
-the session's, the compiler's and the CLI's hooks):
+What this part adds to a run:
 
 * **The joystick's say over the robot** (:class:`TeleopOverride`, a
   pre-tick hook, after sensing and before the tree). Teleop follows ROS
@@ -29,19 +28,11 @@ the session's, the compiler's and the CLI's hooks):
     mission for the rest of the run; the operator drives whenever enable is
     held. With no joystick they end the mission as ``failure`` instead.
 
-* **The emergency stop**: the joystick's e-stop button, :func:`request_estop`
-  (the API, callable from any thread) and, on the command line, Ctrl-C (or
-  SIGTERM on the robot), which the session turns into a zero command and
-  status ``stopped``. :func:`request_estop` latches the mux and the
-  watchdog's adapter-side latch; the runner then ends the mission with
-  status ``stopped`` and sends the base's own stop once. Only
-  :func:`reset_estop` (API) or the joystick's reset button (while the
-  e-stop button is not held) clears it. Each is an ``estop`` event.
-
-* **The watchdog** (:class:`~beastbt.actuation.watchdog.AdapterWatchdog`)
-  wraps every run's base adapter: on the robot a thread sends zero when the
-  tick loop has not handed over a fresh command for ``watchdog.timeout_s``;
-  in the simulator the simulator checks it at each physics step.
+* **The joystick's e-stop buttons**: the e-stop button calls
+  :func:`~beastbt.run.safety.request_estop`; the reset button (while the
+  e-stop button is not held) calls :func:`~beastbt.run.safety.reset_estop`.
+  The latch itself, the mux, the gate and the command watchdog are not part
+  of teleop: every run wires them (:mod:`beastbt.run.safety`).
 
 * ``beastbt run ... --joystick FILE`` plays a joystick script on the simulator.
 
@@ -52,27 +43,23 @@ is involved, in the run's ``mux`` events.
 
 from __future__ import annotations
 
-import atexit
-import signal
-import threading
-from typing import Any, Optional
+from typing import Any, Mapping, Optional
 
 import py_trees
 
 from beastbt.actuation.teleop import TeleopConfig, TeleopTwistJoy
-from beastbt.actuation.watchdog import AdapterWatchdog, LockedServos
 from beastbt.behaviours.teleop import JOYSTICK_MAX_AGE_S, TeleopStep
 from beastbt.blackboard.types import JoystickState
-from beastbt.cli import RUN_OPTIONS
 from beastbt.devices.joystick import BUTTON_ENABLE
-from beastbt.mission.compile import Compiler, register_step
+from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.mission.model import Step
 from beastbt.core.units import format_quantity, parse_quantity
-from beastbt.robot.actuator_profile import joystick_mapping, teleop_config, watchdog_config
-from beastbt.run.runner import PRE_TICK_HOOKS, MissionRun
-from beastbt.run.session import PREPARE_HOOKS, Prepared
-from beastbt.run.summary import SUMMARY_CONTRIBUTORS
+from beastbt.robot.actuator_profile import joystick_mapping, teleop_config
+from beastbt.robot.part import Part
+from beastbt.run.runner import MissionRun
+from beastbt.run.safety import request_estop, reset_estop, watchdog_of
+from beastbt.run.session import Prepared
 
 Status = py_trees.common.Status
 
@@ -254,62 +241,8 @@ def restart_running_leaves(root: py_trees.behaviour.Behaviour) -> list[str]:
     return names
 
 
-# -- the emergency stop API ---------------------------------------------------------------
+# -- the part -------------------------------------------------------------------------------
 
-def _watchdog(run: MissionRun) -> Optional[AdapterWatchdog]:
-    base = run.io.base
-    return base if isinstance(base, AdapterWatchdog) else None
-
-
-def request_estop(run: MissionRun, reason: str = "API request") -> bool:
-    """Latch the emergency stop of ``run`` (any thread); False when it was already latched.
-
-    The mux outputs zero from now on; the runner ends the mission with status
-    ``stopped`` on its next tick and sends the base's own stop once; the
-    watchdog refuses motion below the mux and sends that stop itself if the
-    loop does not within ``watchdog.estop_grace_s``.
-    """
-    first = not run.mux.estop_latched
-    run.mux.latch_estop(reason)
-    dog = _watchdog(run)
-    if dog is not None:
-        dog.latch_estop(reason)
-    if first:
-        run.events.add("estop", f"emergency stop latched: {reason}")
-    return first
-
-
-def reset_estop(run: MissionRun, reason: str = "API request") -> bool:
-    """Clear a latched emergency stop (an explicit operator action); False when none was latched.
-
-    The safety gate forgets its last output, so motion starts again from rest.
-    """
-    dog = _watchdog(run)
-    latched = run.mux.estop_latched or (dog is not None and dog.estop_latched)
-    if not latched:
-        return False
-    run.mux.reset_estop()
-    if dog is not None:
-        dog.reset_estop()
-    run.gate.reset()
-    run.events.add("estop", f"emergency stop reset: {reason}")
-    return True
-
-
-# -- registration -------------------------------------------------------------------------
-
-def _override_for(run: MissionRun) -> TeleopOverride:
-    override = TeleopOverride(run, teleop_config(run.profile))
-    run.ctx.services["teleop"] = override
-    run.ctx.services["on_failure_teleop"] = override.on_failure
-    run.ctx.services["failsafe_teleop"] = override.on_failsafe
-    return override
-
-
-PRE_TICK_HOOKS.append(_override_for)
-
-
-@register_step("teleop")
 def _teleop_step(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
     v = s.value
     if "for" in v:
@@ -318,65 +251,27 @@ def _teleop_step(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
     return TeleopStep("teleop until released", c.ctx, until_released=True)
 
 
-def _add_joystick_option(p: Any) -> None:
-    p.add_argument("--joystick", metavar="FILE",
-                   help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
-                        "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
-
-
-RUN_OPTIONS.append(_add_joystick_option)
-
-
-def install_watchdog(prepared: Prepared) -> AdapterWatchdog:
-    """Wrap the run's base in the watchdog: a thread on the robot, checked by the simulator in the sim."""
-    io = prepared.run.io
-    if isinstance(io.base, AdapterWatchdog):
-        return io.base
-    dog = AdapterWatchdog(io.base, prepared.clock, watchdog_config(prepared.profile), prepared.events.sink("watchdog"))
-    # A base that also drives servos (the Waveshare gimbal) must share the watchdog's lock.
-    io.servos = [LockedServos(s, dog.lock) if s is dog.inner else s for s in io.servos]
-    io.base = dog
-    io.extras["watchdog"] = dog
-    if io.sim is not None:
-        io.sim.emulators.append(lambda t_s, dt_s: dog.check(t_s))
-        return dog
-    dog.start_thread()
-    # Whatever ends the process, the last bytes on the wire are a stop (close is idempotent).
-    atexit.register(dog.close)
-    if threading.current_thread() is threading.main_thread():
-        previous = signal.getsignal(signal.SIGTERM)
-
-        def on_sigterm(signum: int, frame: Any) -> None:
-            raise KeyboardInterrupt("SIGTERM")
-
-        signal.signal(signal.SIGTERM, on_sigterm)
-        prepared.closers.append(lambda: signal.signal(signal.SIGTERM, previous))
-    return dog
-
-
-def _prepare(prepared: Prepared) -> None:
-    """Attach a scripted joystick (``--joystick``, simulator only) and install the watchdog."""
+def attach_joystick_script(prepared: Prepared) -> None:
+    """``--joystick FILE``: play a scripted joystick through the real driver (simulator only)."""
     run, io = prepared.run, prepared.run.io
-    spec = prepared.options.extras.get("joystick")
-    if spec is not None:
-        if io.sim is None:
-            raise InvalidInput([Problem(str(spec), Position(), "--joystick plays a scripted joystick on the simulator only",
-                                        "add --sim to run this robot profile on the simulator, or drop --joystick "
-                                        "to drive with the real gamepad")])
-        from beastbt.parts.sim_joystick import attach_scripted_joystick, load_joystick_script
-        mapping = joystick_mapping(prepared.profile)
-        script = load_joystick_script(spec, mapping)
-        attach_scripted_joystick(io.sim, io, prepared.clock, prepared.events, script, mapping)
-        run.ctx.capabilities = frozenset(run.ctx.capabilities | {"joystick"})
-    install_watchdog(prepared)
+    spec = prepared.options.joystick_script
+    if spec is None:
+        return
+    if io.sim is None:
+        raise InvalidInput([Problem(str(spec), Position(), "--joystick plays a scripted joystick on the simulator only",
+                                    "add --sim to run this robot profile on the simulator, or drop --joystick "
+                                    "to drive with the real gamepad")])
+    from beastbt.parts.sim_joystick import attach_scripted_joystick, load_joystick_script
+    mapping = joystick_mapping(prepared.profile)
+    script = load_joystick_script(spec, mapping)
+    attach_scripted_joystick(io.sim, io, prepared.clock, prepared.events, script, mapping)
+    run.ctx.capabilities = frozenset(run.ctx.capabilities | {"joystick"})
 
 
-PREPARE_HOOKS.append(_prepare)
-
-
-def _summary(run: Any, summary: dict) -> None:
+def teleop_summary(run: Any, summary: dict) -> None:
+    """``teleop: {joystick, takeovers, teleop_time_s, estop_latched, watchdog_trips}``."""
     override = run.ctx.services.get("teleop")
-    dog = run.io.extras.get("watchdog")
+    dog = watchdog_of(run)
     if not isinstance(override, TeleopOverride):
         return
     summary["teleop"] = {
@@ -388,8 +283,30 @@ def _summary(run: Any, summary: dict) -> None:
     }
 
 
-SUMMARY_CONTRIBUTORS.append(_summary)
+class TeleopPart(Part):
+    """Teleop: the joystick's say over the run (take-over, hand-over, e-stop buttons) and the teleop step."""
+
+    name = "teleop"
+    section = "teleop"
+    schema = "parts/teleop.schema.json"
+    fills = ("teleop_active", "mux_source")
+    takes = ("velocity (teleop source of the mux)",)
+
+    def steps(self) -> Mapping[str, StepBuilder]:
+        """teleop."""
+        return {"teleop": _teleop_step}
+
+    def install(self, prepared: Prepared) -> None:
+        """A scripted joystick if asked for; the override as the run's first per-tick hook; the summary."""
+        attach_joystick_script(prepared)
+        run = prepared.run
+        override = TeleopOverride(run, teleop_config(run.profile))
+        run.ctx.services["teleop"] = override
+        run.ctx.services["on_failure_teleop"] = override.on_failure
+        run.ctx.services["failsafe_teleop"] = override.on_failsafe
+        run.hooks.insert(0, override)
+        run.summary_contributors.append(teleop_summary)
 
 
-__all__ = ["TeleopOverride", "request_estop", "reset_estop", "install_watchdog", "restart_running_leaves",
+__all__ = ["TeleopPart", "TeleopOverride", "restart_running_leaves", "attach_joystick_script", "teleop_summary",
            "PAUSE_TELEOP", "PAUSE_ON_FAILURE"]

@@ -1,6 +1,6 @@
 """Every run recorded: an MCAP file (``run.mcap``) written by a separate process, off the tick loop.
 
-Installed through :data:`~beastbt.run.session.PREPARE_HOOKS`: when a run
+Installed by the assembly (:func:`install`) into every run that records: when a run
 records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
 ``--record FILE`` to that file as well, or instead with ``--no-record``), a
 :class:`McapRecorder` is attached to the run:
@@ -43,7 +43,6 @@ import select
 import subprocess
 import sys
 import time
-import weakref
 from pathlib import Path
 from typing import Any, Callable, Optional
 
@@ -577,27 +576,25 @@ def _wall_tuple(w: Any) -> tuple:
     return (float(w.x1), float(w.y1), float(w.x2), float(w.y2))
 
 
-# -- installation: the prepare hook, the summary, the CLI option ---------------------------------------
-
-_RECORDERS: "weakref.WeakKeyDictionary[Any, McapRecorder]" = weakref.WeakKeyDictionary()
-
+# -- installation: into a prepared run, and its summary ------------------------------------------------
 
 def recorder_of(run: Any) -> Optional[McapRecorder]:
     """The recorder attached to a :class:`~beastbt.run.runner.MissionRun`, if it records."""
-    return _RECORDERS.get(run)
+    rec = getattr(run, "recorder", None)
+    return rec if isinstance(rec, McapRecorder) else None
 
 
 def config_from_options(opts: Any) -> RecordingConfig:
-    """The recording config of a run: ``extras['recording']`` (a dict), ``extras['record_images']`` (Hz)."""
-    cfg = dict(opts.extras.get("recording") or {})
-    hz = opts.extras.get("record_images")
+    """The recording config of a run: ``RunOptions.recording`` (a mapping) and ``record_images_hz`` (Hz)."""
+    cfg = dict(opts.recording or {})
+    hz = opts.record_images_hz
     if hz is not None:
         cfg["image_rate_hz"] = float(hz)
     return RecordingConfig.from_dict(cfg)
 
 
 def install(prepared: Any) -> Optional[McapRecorder]:
-    """PREPARE_HOOK: attach a recorder to the run when it records (run folder and/or ``--record FILE``)."""
+    """Attach a recorder to the run when it records (run folder and/or ``--record FILE``)."""
     opts = prepared.options
     paths: list[Path] = []
     if prepared.folder is not None:
@@ -630,7 +627,8 @@ def install(prepared: Any) -> Optional[McapRecorder]:
     rec.tag_sources(run.io)
     rec.run = run
     rec.launch()  # the writer process imports while the rest of the run gets ready
-    _RECORDERS[run] = rec
+    run.recorder = rec
+    run.summary_contributors.append(contribute_summary)
     prepared.closers.append(rec.stop)
     if prepared.folder is not None:
         prepared.folder.finishers.append(rec.finish)
@@ -640,8 +638,8 @@ def install(prepared: Any) -> Optional[McapRecorder]:
 
 
 def contribute_summary(run: Any, summary: dict) -> None:
-    """SUMMARY_CONTRIBUTOR: ``recording: {messages, dropped}`` (no path: the summary stays the same run to run)."""
-    rec = _RECORDERS.get(run)
+    """The summary's ``recording: {messages, dropped}`` (no path: the summary stays the same run to run)."""
+    rec = recorder_of(run)
     if rec is None:
         return
     entry: dict = {"messages": rec.messages, "dropped": rec.dropped}
@@ -649,27 +647,6 @@ def contribute_summary(run: Any, summary: dict) -> None:
         entry["error"] = rec.error
     summary["recording"] = entry
 
-
-def add_run_options(p: Any) -> None:
-    """``beastbt run --record-images HZ``."""
-    p.add_argument("--record-images", type=float, metavar="HZ", dest="record_images",
-                   help="camera images recorded per second as JPEG (default 2; 0 for none)")
-
-
-def register() -> None:
-    """Install the hook, the summary contributor and the run option (once)."""
-    from beastbt import cli
-    from beastbt.run.session import PREPARE_HOOKS
-    from beastbt.run.summary import SUMMARY_CONTRIBUTORS
-    if install not in PREPARE_HOOKS:
-        PREPARE_HOOKS.append(install)
-    if contribute_summary not in SUMMARY_CONTRIBUTORS:
-        SUMMARY_CONTRIBUTORS.append(contribute_summary)
-    if add_run_options not in cli.RUN_OPTIONS:
-        cli.RUN_OPTIONS.append(add_run_options)
-
-
-register()
 
 __all__ = ["RecordingConfig", "McapRecorder", "install", "recorder_of", "contribute_summary", "run_info",
            "tree_nodes", "ns", "compression_type", "RECORDING_FORMAT", "MCAP_PROFILE",

@@ -602,13 +602,5 @@ def command(args: argparse.Namespace) -> int:
     return 0
 
 
-def register() -> None:
-    """Add ``beastbt report`` to the CLI."""
-    from beastbt import cli
-    cli.COMMANDS.setdefault("report", (add_arguments, command))
-
-
-register()
-
 __all__ = ["make_report", "Report", "RunData", "summary_text", "step_intervals", "PLOTS", "FIG_SIZE_IN",
            "MAP_SIZE_IN", "DPI"]

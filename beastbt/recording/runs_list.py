@@ -85,12 +85,4 @@ def command(args: argparse.Namespace) -> int:
     return 0
 
 
-def register() -> None:
-    """Add ``beastbt runs`` to the CLI."""
-    from beastbt import cli
-    cli.COMMANDS.setdefault("runs", (add_arguments, command))
-
-
-register()
-
 __all__ = ["list_runs", "RunEntry"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Mapping, Optional
 
 import py_trees
 
@@ -21,13 +21,14 @@ from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
                                       LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
-from beastbt.mission.compile import compile_mission
+from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.run.failsafes import FailsafeMonitor, Situation
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
+from beastbt.run.safety import TICK, guard_actuators
 
 Status = py_trees.common.Status
 
@@ -54,22 +55,28 @@ class TickRecord:
     truth: Optional[Any] = None
 
 
-# Hooks other parts of beastbt install: a better estimator, teleop, recorders.
-EstimatorFactory = Callable[[RobotProfile, RobotIO, EventLog], Optional[Estimator]]
-ESTIMATOR_FACTORIES: list[EstimatorFactory] = []
 TickHook = Callable[["MissionRun", float], None]
-PRE_TICK_HOOKS: list[Callable[["MissionRun"], Optional[TickHook]]] = []
-"""Factories of per-run hooks called each tick after sensing and before the tree (teleop lives here)."""
+"""Called each tick as ``hook(run, now_s)`` after sensing and before the tree (teleop lives here)."""
+SummaryContributor = Callable[["MissionRun", dict], None]
+"""Adds a part's fields to the run summary: ``fn(run, summary)``."""
 
 
 class MissionRun:
     """A mission compiled for a robot, ticked by :meth:`tick` until :attr:`status` is set.
 
     ``status`` is None while running, then ``success``, ``failure`` or ``stopped``.
+
+    The run wires its own safety around ``io``, whoever built it: the command
+    mux (with the e-stop latch), the safety gate (speed, turn rate and
+    acceleration limits) and the command watchdog around the base
+    (:func:`~beastbt.run.safety.guard_actuators`). ``estimator`` fuses the
+    sensors (None: wheel odometry alone); ``steps`` are the step builders the
+    mission compiles with (None: the language's core steps only).
     """
 
     def __init__(self, mission: Mission, profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog,
-                 ctx_services: Optional[dict] = None) -> None:
+                 ctx_services: Optional[dict] = None, estimator: Optional[Estimator] = None,
+                 steps: Optional[Mapping[str, StepBuilder]] = None) -> None:
         self.mission = mission
         self.profile = profile
         self.io = io
@@ -89,7 +96,7 @@ class MissionRun:
             services=dict(ctx_services or {}),
         )
         self.ctx.services.setdefault("home", lambda: self.home)
-        self.root = compile_mission(mission, self.ctx)
+        self.root = compile_mission(mission, self.ctx, steps)
         self.nodes = list(self.root.iterate())
         self._last_status = {id(n): n.status for n in self.nodes}
         self.mux = CommandMux()
@@ -97,15 +104,15 @@ class MissionRun:
             max_speed_mps=self.ctx.speed_limit_mps, max_turn_rate_rps=self.ctx.turn_rate_limit_rps,
             max_accel_mps2=tightest(mission.accel_limit_mps2, profile.max_accel_mps2),
             max_angular_accel_rps2=profile.max_angular_accel_rps2, command_timeout_s=profile.command_timeout_s))
+        self.watchdog, self.watchdog_checked_by = guard_actuators(io, clock, profile, events)
         self.odom = OdometryEstimator(profile.track_width_m)
-        self.estimator: Optional[Estimator] = None
-        for factory in ESTIMATOR_FACTORIES:
-            self.estimator = factory(profile, io, events)
-            if self.estimator is not None:
-                break
+        self.estimator: Optional[Estimator] = estimator
         self.failsafes = FailsafeMonitor(mission)
-        self.hooks = [h for h in (f(self) for f in PRE_TICK_HOOKS) if h is not None]
+        self.hooks: list[TickHook] = []
         self.recorders: list[Callable[[TickRecord], None]] = []
+        self.summary_contributors: list[SummaryContributor] = []
+        self.recorder: Optional[Any] = None
+        """The run's recorder (``beastbt.recording.recorder.McapRecorder``), when it records."""
         self.status: Optional[str] = None
         self.ticks = 0
         self.start_s: Optional[float] = None
@@ -130,6 +137,8 @@ class MissionRun:
             self.events.add("mission_start", f"mission '{self.mission.name}' started")
         if self.io.sim is not None:
             self.io.sim.advance(now)
+        elif self.watchdog_checked_by == TICK:
+            self.watchdog.check(now)
         readings = self.sense(now)
         self.bb.cmd_mission = None
         for hook in self.hooks:
@@ -335,4 +344,4 @@ class MissionRun:
         return f"x {p.x:6.2f} y {p.y:6.2f} yaw {math.degrees(p.yaw):6.1f} deg  {p.speed_mps:4.2f} m/s"
 
 
-__all__ = ["MissionRun", "TickRecord", "ESTIMATOR_FACTORIES", "PRE_TICK_HOOKS", "field"]
+__all__ = ["MissionRun", "TickRecord", "TickHook", "SummaryContributor"]

@@ -1,42 +1,44 @@
-"""One ``beastbt run``: load everything, assemble the robot, loop, summarise, record.
+"""One ``beastbt run``: the options, the assembled run, and the loop that paces it.
 
-:func:`prepare` does all the checking (mission, profile, world) before
-anything moves; :func:`execute` runs the loop at the requested speed, handles
-Ctrl-C, always ends with a stop command, and writes the summary and run folder.
+:func:`beastbt.assembly.prepare` does all the checking (mission, profile,
+world) and assembles the run before anything moves; :func:`execute` runs the
+loop at the requested speed, handles Ctrl-C and SIGTERM, always ends with a
+stop command, and writes the summary and run folder.
 """
 
 from __future__ import annotations
 
 import gc
 import json
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional, TextIO, Union
+from typing import Any, Callable, Mapping, Optional, TextIO, Union
 
 from beastbt.core.errors import InvalidInput
-from beastbt.mission.model import Mission, load_mission
-from beastbt.core.clock import SimClock, WallClock
+from beastbt.mission.model import Mission
+from beastbt.core.clock import Clock, SimClock
 from beastbt.core.events import EventLog
-from beastbt.robot.profile import RobotProfile, load_profile
-from beastbt.recording.run_folder import RunFolder
+from beastbt.robot.profile import RobotProfile
+from beastbt.run.run_folder import RunFolder
 from beastbt.run.runner import MissionRun
-from beastbt.run.summary import build_summary, human_summary
-from beastbt.sim.robot import build_sim_robot
-from beastbt.sim.world import World, empty_world, load_world
+from beastbt.run.summary import build_summary
+from beastbt.sim.world import World
 
 DEFAULT_SIM_MAX_TIME_S = 3600.0
 """A simulated run with no --max-time ends after this much simulated time (s)."""
 
-RunHook = Callable[["Prepared"], None]
-PREPARE_HOOKS: list[RunHook] = []
-"""Called after a run is assembled and before it starts (recording, streaming, scripted joystick...)."""
-
 
 @dataclass
 class RunOptions:
-    """How to run: ``speed`` is ``max``, ``realtime`` or a factor of real time; times in seconds."""
+    """How to run a mission (the options of ``beastbt run``); times in seconds.
+
+    ``speed`` is ``max``, ``realtime`` or a factor of real time. ``simulate``
+    runs a real robot profile on the simulator (``--sim``).
+    """
 
     robot: str = "sim"
     world: Optional[str] = None
@@ -48,8 +50,29 @@ class RunOptions:
     runs_dir: str = "runs"
     record: bool = True
     status_line: bool = False
-    extras: dict = field(default_factory=dict)
-    """Options that parts of beastbt add (``joystick``, ``stream``...)."""
+    simulate: bool = False
+    """Run a real robot profile on the simulator, with its geometry and limits (``--sim``)."""
+    joystick_script: Optional[Union[str, Path, list]] = None
+    """A scripted joystick played on the simulator (``--joystick FILE``): a file, or the list of events itself."""
+    stream: Optional[Union[str, tuple[str, int]]] = None
+    """Serve the camera live as MJPEG on ``[HOST:]PORT`` (``--stream``)."""
+    stream_size: Optional[Union[str, tuple[int, int]]] = None
+    """Streamed frame size, ``WxH`` or (width, height) pixels (``--stream-size``)."""
+    stream_quality: Optional[int] = None
+    """Streamed JPEG quality, 1-100 (``--stream-quality``)."""
+    stream_fps: Optional[float] = None
+    """Most frames streamed per second, Hz (``--stream-fps``)."""
+    stream_overlay: bool = True
+    """Draw the detected line and the step on the streamed frames (``--stream-no-overlay`` clears it)."""
+    record_images_hz: Optional[float] = None
+    """Camera images recorded per second as JPEG (``--record-images``); None: the recording's default."""
+    recording: Optional[Mapping[str, Any]] = None
+    """Recording settings (the fields of ``recording.config.RecordingConfig``), for tests and benchmarks."""
+
+    @property
+    def simulated(self) -> bool:
+        """True when the run is on the simulator (``robot: sim`` or ``--sim``)."""
+        return self.robot == "sim" or self.simulate
 
 
 @dataclass
@@ -62,9 +85,9 @@ class Prepared:
     run: MissionRun
     options: RunOptions
     events: EventLog
-    clock: object
+    clock: Clock
     folder: Optional[RunFolder] = None
-    closers: list = field(default_factory=list)
+    closers: list[Callable[[], None]] = field(default_factory=list)
 
 
 def parse_speed(text: str) -> Union[str, float]:
@@ -80,34 +103,6 @@ def parse_speed(text: str) -> Union[str, float]:
     return factor
 
 
-def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
-    """Load and check the mission, profile and world and build the run; raise InvalidInput before anything moves."""
-    mission = load_mission(mission_path, text=mission_text)
-    profile = load_profile(options.robot)
-    simulated = options.robot == "sim" or bool(options.extras.get("simulate"))
-    world: Optional[World] = None
-    if simulated:
-        world_path = options.world or (str(mission.world) if mission.world is not None else None)
-        world = load_world(world_path) if world_path else empty_world()
-    clock = SimClock() if simulated else WallClock()
-    events = EventLog(clock)
-    if simulated:
-        io = build_sim_robot(profile, world, options.seed, events)
-    else:
-        from beastbt.robot.hardware import build_real_robot
-        io = build_real_robot(profile, clock, events)
-    services: dict = {}
-    run = MissionRun(mission, profile, io, clock, events, services)
-    prepared = Prepared(mission, profile, world, run, options, events, clock)
-    if options.record:
-        prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
-        services["save_snapshot"] = prepared.folder.save_snapshot
-        run.ctx.services["save_snapshot"] = prepared.folder.save_snapshot
-    for hook in PREPARE_HOOKS:
-        hook(prepared)
-    return prepared
-
-
 def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     """Run the loop until the mission ends (or max time, or Ctrl-C); return the summary."""
     run, clock, opts = p.run, p.clock, p.options
@@ -120,6 +115,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     wall0 = time.perf_counter()
     last_status_wall = 0.0
     tty = opts.status_line
+    restore_sigterm = _sigterm_as_interrupt()
     # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
     # out of the garbage collector's sight, so that a full collection during the run walks only what the run
     # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.
@@ -157,6 +153,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
         raise
     finally:
         gc.unfreeze()
+        restore_sigterm()
         run.stop_robot(clock.now())
         for close in p.closers:
             try:
@@ -187,12 +184,20 @@ def _console_listener(out: TextIO) -> Callable:
     return listener
 
 
-def run_file(mission_path: str, options: RunOptions, out: TextIO = sys.stdout) -> dict:
-    """Prepare and execute a run; print the human summary. Raises InvalidInput for bad input."""
-    p = prepare(mission_path, options)
-    summary = execute(p, out)
-    out.write(human_summary(summary) + "\n")
-    return summary
+def _sigterm_as_interrupt() -> Callable[[], None]:
+    """Make SIGTERM end the run as Ctrl-C does (stop, summary, recording); return what puts it back."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def on_sigterm(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("SIGTERM")
+
+    signal.signal(signal.SIGTERM, on_sigterm)
+
+    def restore() -> None:
+        signal.signal(signal.SIGTERM, previous)
+    return restore
 
 
-__all__ = ["RunOptions", "prepare", "execute", "run_file", "parse_speed", "InvalidInput", "PREPARE_HOOKS"]
+__all__ = ["RunOptions", "Prepared", "execute", "parse_speed", "DEFAULT_SIM_MAX_TIME_S"]

@@ -3,11 +3,8 @@
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Optional
+from typing import Any, Optional
 
-SummaryContributor = Callable[[Any, dict], None]
-SUMMARY_CONTRIBUTORS: list[SummaryContributor] = []
-"""Functions ``fn(run, summary)`` that parts of beastbt register to add their fields (waypoints, truth metrics)."""
 
 
 def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[str], robot_name: str) -> dict:
@@ -47,7 +44,7 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
             "distance_m": round(distance, 4),
             "blocked": bool(sim.drive.blocked),
         }
-    for contribute in SUMMARY_CONTRIBUTORS:
+    for contribute in run.summary_contributors:  # the parts' fields (waypoints, truth metrics, recording...)
         contribute(run, summary)
     return summary
 

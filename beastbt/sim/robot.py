@@ -1,26 +1,27 @@
-"""Assemble a simulated robot: the world, the dynamics, and an emulator behind every device.
+"""The simulator: the world and the robot's dynamics in lockstep with the clock, and every emulator stepped with them.
 
-The drivers that run on the robot are the ones used here: the Waveshare base
-adapter talks serial JSON to :class:`SimWaveshareBase`, and so on. Parts of
-beastbt that add devices (GPS, IMU, camera, joystick) register an attach
-function with :func:`register_sim_device`.
+:func:`build_simulator` makes the :class:`Simulator` of a robot profile in a
+world, deterministic for a seed. The emulators themselves (the Waveshare
+ESP32, the GPS, the IMU, the camera...) are attached by the robot's parts,
+behind the same serial, I2C, CAN and frame interfaces the drivers use on the
+robot.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
-from beastbt.devices.waveshare_base import WaveshareBase, WaveshareConfig
-from beastbt.core.events import EventLog
-from beastbt.robot.profile import RobotProfile, section_config
-from beastbt.robot.robot_io import RobotIO
+from beastbt.core.errors import InvalidInput
+from beastbt.robot.profile import RobotProfile
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
-from beastbt.sim.waveshare_emulator import SimWaveshareBase
 from beastbt.sim.world import World
+
+DEFAULT_PHYSICS_RATE_HZ = 100.0
+"""Physics steps per simulated second unless the profile's ``sim.physics_rate_hz`` says otherwise (Hz)."""
 
 
 @dataclass
@@ -45,27 +46,32 @@ class Simulator:
             for update in self.emulators:
                 update(self.t_s, dt)
 
+    def child_rng(self) -> np.random.Generator:
+        """A generator of its own for one emulator, drawn from the simulator's (deterministic per seed and order)."""
+        return np.random.default_rng(self.rng.integers(2**63))
 
-SimAttach = Callable[[Simulator, RobotProfile, RobotIO, EventLog], None]
-SIM_DEVICES: list[SimAttach] = []
-
-
-def register_sim_device(fn: SimAttach) -> SimAttach:
-    """Decorator: ``fn(sim, profile, io, events)`` adds an emulated device and its driver to a sim robot."""
-    SIM_DEVICES.append(fn)
-    return fn
-
-
-SimBase = Callable[[Simulator, RobotProfile, EventLog], RobotIO]
-SIM_BASES: dict[str, SimBase] = {}
-"""Base types (``can``, ``pwm``) whose own emulator drives the simulated robot: type -> fn(sim, profile, events) -> RobotIO."""
+    def world_model(self, section: str, model_cls: Any) -> Any:
+        """``model_cls.from_dict`` of the world's ``section``; a bad value is a positioned InvalidInput."""
+        raw = self.world.section(section) or {}
+        try:
+            return model_cls.from_dict(raw)
+        except (TypeError, ValueError) as exc:
+            raise world_problem(self.world, section, exc) from exc
 
 
-def build_sim_robot(profile: RobotProfile, world: World, seed: int, events: EventLog) -> RobotIO:
-    """A simulated robot for ``profile`` in ``world``, deterministic for ``seed``."""
+def world_problem(world: World, section: str, exc: Exception) -> InvalidInput:
+    """The InvalidInput for a bad ``section`` of a world file, at that section's line."""
+    if world.doc is None:
+        return InvalidInput([])
+    return InvalidInput([world.doc.problem((section,), f"in '{section}': {exc}",
+                                           "see the schema in schemas/parts/ for the knobs this section takes")])
+
+
+def build_simulator(profile: RobotProfile, world: World, seed: int) -> Simulator:
+    """The simulated robot of ``profile`` in ``world`` (dynamics only, no emulators yet), deterministic for ``seed``."""
     rng = np.random.default_rng(seed)
     sim_cfg = dict(profile.section("sim") or {})
-    physics_hz = float(sim_cfg.pop("physics_rate_hz", 100.0))
+    physics_hz = float(sim_cfg.pop("physics_rate_hz", DEFAULT_PHYSICS_RATE_HZ))
     sim_cfg.setdefault("track_width_m", profile.track_width_m)
     geometry = profile.section("geometry") or {}
     if "footprint_radius_m" in geometry:
@@ -73,28 +79,7 @@ def build_sim_robot(profile: RobotProfile, world: World, seed: int, events: Even
     model = DriveModel.from_dict(sim_cfg)
     truth = RobotTruth(x=world.start_x, y=world.start_y, yaw=world.start_yaw, battery_v=world.battery_start_v)
     drive = DiffDriveSim(model, truth, np.random.default_rng(rng.integers(2**63)), walls=list(world.walls))
-    sim = Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
+    return Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
 
-    base_cfg = profile.section("base") or {}
-    supply = SIM_BASES.get(str(base_cfg.get("type")))
-    if supply is not None:
-        io = supply(sim, profile, events)
-        for attach in SIM_DEVICES:
-            attach(sim, profile, io, events)
-        return io
-    if base_cfg.get("type") != "waveshare_serial":
-        # Other bases (CAN, PWM) are emulated by their own parts; until then the
-        # sim drives them through the Waveshare emulator with the same geometry.
-        base_cfg = {"type": "waveshare_serial"}
-    base_cfg = {k: v for k, v in base_cfg.items() if k != "port"}
-    config = WaveshareConfig.from_dict(base_cfg)
-    esp32 = SimWaveshareBase(drive, np.random.default_rng(rng.integers(2**63)), battery_v=world.battery_start_v,
-                             battery_drain_v_per_s=world.battery_drain_v_per_s)
-    sim.emulators.append(esp32.update)
-    base = WaveshareBase(esp32.port, config, events.sink("base"))
-    io = RobotIO(base=base, servos=[base] if config.gimbal else [], sim=sim)
-    io.extras["esp32"] = esp32
-    for attach in SIM_DEVICES:
-        attach(sim, profile, io, events)
-    return io
 
+__all__ = ["Simulator", "build_simulator", "world_problem", "DEFAULT_PHYSICS_RATE_HZ"]

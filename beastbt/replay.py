@@ -29,11 +29,13 @@ from beastbt.blackboard.types import (BatteryState, CameraFrame, GpsFix, ImuSamp
 from beastbt.core.errors import InvalidInput
 from beastbt.mission.model import load_mission
 from beastbt.core.clock import SimClock
-from beastbt.core.events import EventLog
 from beastbt.robot.profile import load_profile, profile_path
 from beastbt.recording.reader import Recording, find_recording, read_recording
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.runner import MissionRun, TickRecord
+from beastbt.assembly import assemble
+from beastbt.robot.part import REPLAY
+from beastbt.run.runner import TickRecord
+from beastbt.run.session import RunOptions
 
 
 # -- rebuilding readings -----------------------------------------------------------------
@@ -340,8 +342,6 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     profile = load_profile_of(rec)
     ticks = recorded_ticks(rec)
 
-    clock = SimClock()
-    events = EventLog(clock)
     base = ReplayBase()
     servo_names = json.loads(info.get("servo_names", "[]"))
     servos = ReplayServos(servo_names)
@@ -363,7 +363,13 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
             ready=(lambda: bool(driver.bias_ready)) if driver is not None and hasattr(driver, "bias_ready") else None)
     snapshots: list[str] = []
     services = {"save_snapshot": lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg"}
-    run = MissionRun(mission, profile, io, clock, events, services)
+    # The same assembly as the run, with the recording in place of every device: the same parts
+    # (navigation tuning, teleop, line following...) install the same hooks; nothing is recorded.
+    options = RunOptions(robot=str(info.get("robot", "sim")), seed=int(info.get("seed", 0) or 0), record=False)
+    clock = SimClock()
+    prepared = assemble(mission, profile, options, REPLAY, io=io, clock=clock, services=services)
+    run = prepared.run
+    events = prepared.events
     if "ctx_capabilities" in info:
         # What other parts added after the tree was compiled (a scripted joystick...).
         run.ctx.capabilities = frozenset(json.loads(info["ctx_capabilities"]))
@@ -457,13 +463,5 @@ def command(args: argparse.Namespace) -> int:
         print(f"  {d.describe()}")
     return 1
 
-
-def register() -> None:
-    """Add ``beastbt replay`` to the CLI."""
-    from beastbt import cli
-    cli.COMMANDS.setdefault("replay", (add_arguments, command))
-
-
-register()
 
 __all__ = ["replay", "ReplayResult", "Difference", "ReplayBase", "ReplayServos", "recorded_ticks", "READING_BUILDERS"]

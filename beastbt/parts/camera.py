@@ -1,22 +1,19 @@
-"""The simulated camera: the world's floor rendered for the robot's camera, read by the real camera driver.
+"""The camera (the profile's ``camera:``) and the line detector on its frames, on the robot or simulated.
 
-When the robot profile has a ``camera:`` section, :func:`attach_sim_camera`
-gives the simulated robot a :class:`~beastbt.sim.camera_emulator.SimCamera`
-(the world's ``floor:``, or a plain floor when the world has none, seen
-through the profile's mounting and the gimbal's true pan/tilt, with the
-world's ``camera:`` effects) behind the :class:`~beastbt.devices.camera.Camera`
-driver that runs on the robot, and the profile's line detector on its frames
-(:class:`~beastbt.vision.camera_pipeline.CameraPipeline`, ``io.sensors['camera']``).
-The robot gets the ``camera`` capability.
+On the robot the camera is read on V4L2 in a thread; on the simulator a
+:class:`~beastbt.sim.camera_emulator.SimCamera` renders the world's
+``floor:`` (or a plain floor) through the profile's mounting and the gimbal's
+true pan/tilt, with the world's ``camera:`` effects, behind the same
+:class:`~beastbt.devices.camera.Camera` driver. Either way the profile's line
+detector runs on the frames (:class:`~beastbt.vision.camera_pipeline.CameraPipeline`,
+``io.sensors['camera']``) and the robot gets the ``camera`` capability.
 
-Rendering is lazy: nothing is drawn (and the floor raster is not even built)
-until the pipeline is enabled, which the run does when the mission uses the
-camera or video is streamed (see :mod:`beastbt.parts.line_following`).
-Frames then come at the camera's ``fps`` by the simulated clock.
-
-``io.extras``: ``camera`` (the pipeline), ``sim_camera`` (the emulator, once
-built: tests unplug it), ``floor_map`` (a function returning the
-:class:`~beastbt.sim.floor.FloorMap`, built on first call).
+Simulated rendering is lazy: nothing is drawn (and the floor raster is not
+even built) until the pipeline is enabled, which the run does when the
+mission uses the camera or video is streamed
+(:mod:`beastbt.parts.line_following`). ``io.extras``: ``camera`` (the
+pipeline), ``sim_camera`` (the emulator, once built: tests unplug it),
+``floor_map`` (a function returning the :class:`~beastbt.sim.floor.FloorMap`).
 """
 
 from __future__ import annotations
@@ -27,19 +24,23 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from beastbt.devices.camera import Camera, CameraConfig
+from beastbt.core.clock import Clock
 from beastbt.core.errors import InvalidInput
-from beastbt.vision.camera_pipeline import CameraPipeline
 from beastbt.core.events import EventLog
+from beastbt.devices.camera import Camera, CameraConfig, open_video_capture
+from beastbt.robot.part import REAL, SIM, Build, Part
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera
 from beastbt.sim.floor import FloorMap
-from beastbt.sim.robot import Simulator, register_sim_device
+from beastbt.sim.robot import Simulator, world_problem
+from beastbt.vision.camera_pipeline import CameraPipeline
 from beastbt.vision.line_detector import LineDetectorConfig
+
 
 PLAIN_FLOOR = {"margin_m": 1.0, "background": {"colour": 190, "texture": 8, "texture_scale_m": 0.02}}
 """The floor of a world without ``floor:``: plain light grey (beyond the raster the camera sees its colour)."""
+
 
 FLOOR_CACHE_SIZE = 4
 """Floor rasters kept per process (about 5 MB each): repeated runs of one world and seed reuse them."""
@@ -55,7 +56,30 @@ def build_floor(floor: dict, seed: int) -> FloorMap:
     return _floor_cached(json.dumps(floor, sort_keys=True), int(seed))
 
 
-@register_sim_device
+def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog) -> None:
+    """The profile's camera on V4L2, read and run through the line detector in a thread (``io.sensors['camera']``)."""
+    if profile.section("camera") is None:
+        return
+    config: CameraConfig = section_config(profile, "camera", CameraConfig)
+    detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
+    sink = events.sink("camera")
+
+    def make_camera() -> Camera:
+        return Camera(lambda: open_video_capture(config), clock, sink, config)
+
+    pipeline = CameraPipeline(make_camera, config, detector_config, sink)
+    try:
+        pipeline.check()
+    except ValueError as exc:
+        raise InvalidInput([profile.doc.problem(("camera",), f"in 'camera': {exc}",
+                                                "lower the camera's pitch_deg or raise line_detector.roi_far_m")]) from None
+    pipeline.start_thread()
+    io.sensors["camera"] = pipeline.poll
+    io.capabilities.add("camera")
+    io.extras["camera"] = pipeline
+    io.closers.append(pipeline.close)
+
+
 def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
     """A simulated camera and the line detector for a profile with ``camera:`` (``io.sensors['camera']``)."""
     if profile.section("camera") is None:
@@ -68,7 +92,7 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     try:
         effects = CameraEffects.from_dict(raw_effects)
     except ValueError as exc:
-        raise _world_problem(world, "camera", exc) from None
+        raise world_problem(world, "camera", exc) from None
     # Seeds drawn now, in attach order, so the run is the same whether or not the camera is ever used.
     floor_seed = int(sim.rng.integers(2**63))
     camera_rng = np.random.default_rng(sim.rng.integers(2**63))
@@ -79,7 +103,7 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
             try:
                 floor_holder.append(build_floor(raw_floor if raw_floor is not None else PLAIN_FLOOR, floor_seed))
             except ValueError as exc:
-                raise _world_problem(world, "floor", exc) from None
+                raise world_problem(world, "floor", exc) from None
         return floor_holder[0]
 
     def make_camera() -> Camera:
@@ -101,17 +125,29 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     io.closers.append(pipeline.close)
 
 
-def _world_problem(world, section: str, exc: Exception) -> InvalidInput:
-    if world.doc is None:
-        return InvalidInput([])
-    return InvalidInput([world.doc.problem((section,), f"in '{section}': {exc}",
-                                           "see the schema in schemas/parts/ for the knobs this section takes")])
-
-
 def floor_of(io: RobotIO) -> Optional[FloorMap]:
     """The simulated robot's floor (built on first call), or None without a simulated camera."""
     get: Optional[Callable[[], FloorMap]] = io.extras.get("floor_map")
     return get() if get is not None else None
 
 
-__all__ = ["attach_sim_camera", "build_floor", "floor_of", "PLAIN_FLOOR"]
+class CameraPart(Part):
+    """``camera:`` (with ``line_detector:``): frames and line observations (``io.sensors['camera']``)."""
+
+    name = "camera"
+    section = "camera"
+    schema = "parts/camera.schema.json"
+    opens = "V4L2 video device"
+    fills = ("camera_frame", "line")
+
+    def attach(self, build: Build) -> None:
+        """Open the camera (robot) or the simulated one (simulator) when the profile has ``camera:``."""
+        assert build.io is not None
+        if build.mode == REAL:
+            attach_camera(build.profile, build.io, build.clock, build.events)
+        elif build.mode == SIM:
+            assert build.sim is not None
+            attach_sim_camera(build.sim, build.profile, build.io, build.events)
+
+
+__all__ = ["CameraPart", "attach_camera", "attach_sim_camera", "build_floor", "floor_of", "PLAIN_FLOOR"]

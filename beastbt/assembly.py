@@ -1,0 +1,238 @@
+"""The composition root: the one place a robot is assembled, from its profile and an explicit list of parts.
+
+Every way of running a mission comes through here: ``beastbt run`` and
+``beastbt tree``, the testing harness (:mod:`beastbt.testing`), the Python
+API (:func:`prepare` then :func:`beastbt.run.session.execute`) and ``beastbt
+replay``. :func:`assemble` builds the robot for one of three modes:
+
+* **real** (:data:`~beastbt.robot.part.REAL`): the base and every device on
+  the robot's own ports;
+* **simulator** (:data:`~beastbt.robot.part.SIM`): the same drivers talking
+  to emulators behind the same ports, in a world (the default);
+* **replay** (:data:`~beastbt.robot.part.REPLAY`): a recording's readings in
+  place of every device (the caller hands over that ``RobotIO``).
+
+and then, whatever the mode, the same steps: every part attaches, the first
+part with an estimator gives it, the steps of every part join the language's
+own, the run is built (which wires the mux, the gate, the e-stop latch and the
+command watchdog around the base: no run exists without them), and every part
+installs its hooks.
+
+The parts are listed in :data:`BUILTIN_PARTS`, in attach order (the order
+fixes which random numbers each emulator draws, so a seed gives the same run).
+Each is imported only when the robot profile or the run uses it. Parts from
+other packages plug in through the ``beastbt.parts`` entry-point group: a
+profile names them in its ``parts:`` section (``parts: {blinker: {pin: 5}}``)
+and only those are loaded, by name, as python-can loads its interfaces.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any, Callable, Mapping, Optional, Sequence
+
+from beastbt.core.clock import Clock, SimClock, WallClock
+from beastbt.core.errors import InvalidInput, Position, Problem
+from beastbt.core.events import EventLog
+from beastbt.mission.compile import CORE_STEPS, StepBuilder
+from beastbt.mission.model import Mission, load_mission
+from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part
+from beastbt.robot.profile import RobotProfile, load_profile
+from beastbt.robot.robot_io import RobotIO
+from beastbt.run.run_folder import RunFolder
+from beastbt.run.runner import MissionRun
+from beastbt.run.session import Prepared, RunOptions
+from beastbt.sim.world import World, empty_world, load_world
+
+PART_ENTRY_POINTS = "beastbt.parts"
+"""Entry-point group of parts from other packages: ``name = "package.module:PartClass"``."""
+
+
+@dataclass(frozen=True)
+class PartEntry:
+    """One built-in part: its name, where it lives (``module:Class``) and when a run needs it."""
+
+    name: str
+    target: str
+    needed: Callable[[RobotProfile, RunOptions], bool]
+
+    def load(self) -> Part:
+        """Import the part's module and make the part."""
+        return _instantiate(_import_target(self.target), self.name)
+
+
+def _has(section: str) -> Callable[[RobotProfile, RunOptions], bool]:
+    return lambda profile, options: profile.section(section) is not None
+
+
+def _always(profile: RobotProfile, options: RunOptions) -> bool:
+    return True
+
+
+BASES: Mapping[str, str] = {
+    "waveshare_serial": "beastbt.parts.waveshare:WaveshareBasePart",
+    "can": "beastbt.parts.can_base:CanBasePart",
+    "pwm": "beastbt.parts.pwm_base:PwmBasePart",
+}
+"""Profile ``base.type`` -> the base part that opens it. On the simulator a type without one runs on the Waveshare emulator."""
+
+DEFAULT_BASE = "waveshare_serial"
+
+BUILTIN_PARTS: tuple[PartEntry, ...] = (
+    # Devices, in attach order (the base is opened first, by BASES).
+    PartEntry("servos", "beastbt.parts.servo_board:ServoBoardPart", _has("servos")),
+    PartEntry("gps", "beastbt.parts.gps:GpsPart", _has("gps")),
+    PartEntry("imu", "beastbt.parts.imu:ImuPart", _has("imu")),
+    PartEntry("camera", "beastbt.parts.camera:CameraPart", _has("camera")),
+    PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick")),
+    # What the run does with them.
+    PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
+    PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
+    PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
+    # What the run shows and keeps.
+    PartEntry("recording", "beastbt.parts.recording:RecordingPart",
+              lambda profile, options: bool(options.record or options.record_path)),
+    PartEntry("video_stream", "beastbt.parts.video_stream:VideoStreamPart",
+              lambda profile, options: options.stream is not None),
+)
+"""The parts of beastbt itself, in the order they attach and install."""
+
+
+def _import_target(target: str) -> Any:
+    module, _, attr = target.partition(":")
+    obj: Any = importlib.import_module(module)
+    for name in attr.split(".") if attr else ():
+        obj = getattr(obj, name)
+    return obj
+
+
+def _instantiate(factory: Any, name: str) -> Part:
+    part = factory() if callable(factory) else factory
+    if not isinstance(part, Part):
+        raise TypeError(f"part '{name}' ({factory!r}) is not a beastbt.robot.part.Part")
+    return part
+
+
+def external_part(name: str, profile: RobotProfile) -> Part:
+    """The part called ``name`` from the ``beastbt.parts`` entry points; InvalidInput when none is installed."""
+    found = [ep for ep in metadata.entry_points(group=PART_ENTRY_POINTS) if ep.name == name]
+    if not found:
+        installed = sorted(ep.name for ep in metadata.entry_points(group=PART_ENTRY_POINTS))
+        hint = (f"installed parts: {', '.join(installed)}" if installed
+                else "no package providing beastbt parts is installed (entry-point group 'beastbt.parts')")
+        raise InvalidInput([_profile_problem(profile, ("parts", name), f"no part called '{name}' is installed", hint)])
+    return _instantiate(found[0].load(), name)
+
+
+def _profile_problem(profile: RobotProfile, path: tuple, message: str, hint: str) -> Problem:
+    if profile.doc is not None:
+        return profile.doc.problem(path, message, hint)
+    return Problem(str(profile.file or profile.name), Position(), message, hint)
+
+
+def base_part(profile: RobotProfile, simulated: bool) -> BasePart:
+    """The part that opens the profile's base (on the simulator, the Waveshare emulator for a type without its own)."""
+    kind = str((profile.section("base") or {}).get("type", DEFAULT_BASE))
+    target = BASES.get(kind)
+    if target is None:
+        if not simulated:
+            from beastbt.robot.hardware import DeviceUnavailable
+            raise DeviceUnavailable(f"base: type '{kind}' is not supported by this version of beastbt")
+        target = BASES[DEFAULT_BASE]
+    part = _instantiate(_import_target(target), kind)
+    assert isinstance(part, BasePart)
+    return part
+
+
+def parts_for(profile: RobotProfile, options: RunOptions,
+              builtin: Sequence[PartEntry] = BUILTIN_PARTS) -> list[Part]:
+    """The parts a run of ``profile`` with ``options`` needs: the built-in ones it uses, then the profile's ``parts:``."""
+    parts = [entry.load() for entry in builtin if entry.needed(profile, options)]
+    for name in (profile.section("parts") or {}):
+        parts.append(external_part(str(name), profile))
+    return parts
+
+
+def step_builders(parts: Sequence[Part]) -> dict[str, StepBuilder]:
+    """The language's own steps with every part's added (a part may not redefine a core step)."""
+    builders = dict(CORE_STEPS)
+    for part in parts:
+        for kind, builder in part.steps().items():
+            if kind in CORE_STEPS:
+                raise ValueError(f"part '{part.name}' redefines the core step '{kind}'")
+            builders[kind] = builder
+    return builders
+
+
+def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode: str,
+             world: Optional[World] = None, io: Optional[RobotIO] = None, clock: Optional[Clock] = None,
+             services: Optional[dict] = None, parts: Optional[Sequence[Part]] = None) -> Prepared:
+    """Assemble the run of ``mission`` on ``profile``'s robot in ``mode``; raise InvalidInput or DeviceUnavailable first.
+
+    ``world`` is the simulated world (:data:`SIM`); ``io`` the recorded robot
+    (:data:`REPLAY`); ``clock`` defaults to a simulated clock except on the
+    robot. ``io``, when given, is used as the robot instead of opening its
+    base (a replay's recorded robot, or a test's fakes); ``parts`` replaces
+    the parts the profile and options call for. Nothing moves before the run
+    is executed.
+    """
+    if clock is None:
+        clock = WallClock() if mode == REAL else SimClock()
+    events = EventLog(clock)
+    if parts is None:
+        parts = parts_for(profile, options)
+    build = Build(mode, profile, clock, events)
+    if mode not in (REAL, SIM, REPLAY):
+        raise ValueError(f"unknown build mode {mode!r}")
+    if io is not None:
+        build.io, build.sim = io, io.sim  # a robot opened by the caller (a replay's recording, a test's fakes)
+    elif mode == SIM:
+        from beastbt.sim.robot import build_simulator
+        build.sim = build_simulator(profile, world if world is not None else empty_world(), options.seed)
+        build.io = base_part(profile, simulated=True).open_sim(build)
+    elif mode == REAL:
+        build.io = base_part(profile, simulated=False).open_real(build)
+    else:
+        raise ValueError("a replay is assembled around the recorded robot's RobotIO: pass io")
+    try:
+        for part in parts:
+            part.attach(build)
+        estimator = None
+        for part in parts:
+            estimator = part.estimator(build)
+            if estimator is not None:
+                break
+        run = MissionRun(mission, profile, build.io, clock, events, services, estimator, step_builders(parts))
+        prepared = Prepared(mission, profile, world, run, options, events, clock)
+        if options.record:
+            prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
+            run.ctx.services["save_snapshot"] = prepared.folder.save_snapshot
+        for part in parts:
+            part.install(prepared)
+    except BaseException:
+        build.io.close()  # whatever was opened is released (the base sends its stop)
+        raise
+    return prepared
+
+
+def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
+    """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves."""
+    mission = load_mission(mission_path, text=mission_text)
+    profile = load_profile(options.robot)
+    if options.simulated:
+        world_path = options.world or (str(mission.world) if mission.world is not None else None)
+        world = load_world(world_path) if world_path else empty_world()
+        return assemble(mission, profile, options, SIM, world=world)
+    return assemble(mission, profile, options, REAL)
+
+
+def run_file(mission_path: str, options: RunOptions) -> dict:
+    """Prepare and execute a run (the Python API of ``beastbt run``); return the summary."""
+    from beastbt.run.session import execute
+    return execute(prepare(mission_path, options))
+
+
+__all__ = ["assemble", "prepare", "run_file", "parts_for", "base_part", "step_builders", "external_part",
+           "BUILTIN_PARTS", "BASES", "PartEntry", "PART_ENTRY_POINTS", "RunOptions", "Prepared"]
