@@ -211,6 +211,9 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
             run.ctx.services["save_snapshot"] = prepared.folder.save_snapshot
         for part in parts:
             part.install(prepared)
+        # Per-tick work and closing only for the parts that have any: the others cost nothing per tick.
+        run.hooks[:0] = [part.tick for part in parts if part.overrides("tick")]
+        prepared.closers.extend(part.close for part in parts if part.overrides("close"))
     except BaseException:
         build.io.close()  # whatever was opened is released (the base sends its stop)
         raise

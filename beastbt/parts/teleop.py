@@ -296,16 +296,23 @@ class TeleopPart(Part):
         """teleop."""
         return {"teleop": _teleop_step}
 
+    def __init__(self) -> None:
+        self.override: Optional[TeleopOverride] = None
+
     def install(self, prepared: Prepared) -> None:
-        """A scripted joystick if asked for; the override as the run's first per-tick hook; the summary."""
+        """A scripted joystick if asked for; the override and its handlers as services; the summary."""
         attach_joystick_script(prepared)
         run = prepared.run
-        override = TeleopOverride(run, teleop_config(run.profile))
+        override = self.override = TeleopOverride(run, teleop_config(run.profile))
         run.ctx.services["teleop"] = override
         run.ctx.services["on_failure_teleop"] = override.on_failure
         run.ctx.services["failsafe_teleop"] = override.on_failsafe
-        run.hooks.insert(0, override)
         run.summary_contributors.append(teleop_summary)
+
+    def tick(self, run: MissionRun, now_s: float) -> None:
+        """The joystick's say this tick: e-stop buttons, teleop to the mux, pause and resume."""
+        if self.override is not None:
+            self.override(run, now_s)
 
 
 __all__ = ["TeleopPart", "TeleopOverride", "restart_running_leaves", "attach_joystick_script", "teleop_summary",

@@ -13,12 +13,16 @@ order and for every part:
    nothing is opened: recorded readings stand in for every device.
 2. :meth:`Part.estimator` until one part gives an estimator (the EKF).
 3. :meth:`Part.install` once the run (tree, mux, gate, watchdog) exists:
-   services for behaviours, per-tick hooks (``run.hooks``), recorders
-   (``run.recorders``), closers.
-4. :meth:`Part.summarise` after the run, to add its fields to the summary.
+   services for behaviours, recorders (``run.recorders``), summary fields
+   (``run.summary_contributors``).
+4. :meth:`Part.tick` every tick, after sensing and before the tree, but only
+   for a part whose class overrides it (a part without per-tick work costs
+   nothing per tick).
+5. :meth:`Part.close` once the run has ended (whatever ended it), for a part
+   that overrides it; devices are released by ``RobotIO.close``.
 
-A part that the profile and the mission do not use returns early from each
-call and adds nothing to the tick. Base parts (:class:`BasePart`) open the
+A part that the profile and the mission do not use is not even imported
+(the composition root decides from the profile and the run options). Base parts (:class:`BasePart`) open the
 drive base named by the profile's ``base.type``.
 
 Safety is not a part: the mux, the gate, the e-stop latch and the command
@@ -105,10 +109,17 @@ class Part:
         return None
 
     def install(self, prepared: "Prepared") -> None:
-        """Hook into the assembled run: services, ``run.hooks``, ``run.recorders``, ``prepared.closers``."""
+        """Hook into the assembled run: services, ``run.recorders``, ``run.summary_contributors``."""
 
-    def summarise(self, run: "MissionRun", summary: dict) -> None:
-        """Add this part's fields to the run summary."""
+    def tick(self, run: "MissionRun", now_s: float) -> None:
+        """Per-tick work after sensing, before the tree (``now_s`` clock seconds). Only called when overridden."""
+
+    def close(self) -> None:
+        """Release what :meth:`install` started, once the run has ended. Only called when overridden."""
+
+    def overrides(self, hook: str) -> bool:
+        """True when this part's class overrides ``hook`` (``tick`` or ``close``) of :class:`Part`."""
+        return getattr(type(self), hook) is not getattr(Part, hook)
 
 
 class BasePart(Part):
@@ -132,9 +143,10 @@ PartFactory = Callable[[], Part]
 
 
 def describe(part: Part) -> dict[str, Any]:
-    """A part as a plain dict (for ``beastbt parts`` and the docs): name, section, opens, fills, takes, steps."""
+    """A part as a plain dict (for the docs and tools): name, section, schema, opens, fills, takes, steps, per-tick."""
     return {"name": part.name, "section": part.section, "schema": part.schema, "opens": part.opens,
-            "fills": list(part.fills), "takes": list(part.takes), "steps": sorted(part.steps())}
+            "fills": list(part.fills), "takes": list(part.takes), "steps": sorted(part.steps()),
+            "per_tick": part.overrides("tick")}
 
 
 __all__ = ["Part", "BasePart", "Build", "PartFactory", "REAL", "SIM", "REPLAY", "describe"]
