@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Any, Callable, Mapping, Optional, Sequence
 
+from beastbt.behaviours.context import RunServices
 from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.events import EventLog
@@ -168,7 +169,7 @@ def step_builders(parts: Sequence[Part]) -> dict[str, StepBuilder]:
 
 def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode: str,
              world: Optional[World] = None, io: Optional[RobotIO] = None, clock: Optional[Clock] = None,
-             services: Optional[dict] = None, parts: Optional[Sequence[Part]] = None) -> Prepared:
+             services: Optional[RunServices] = None, parts: Optional[Sequence[Part]] = None) -> Prepared:
     """Assemble the run of ``mission`` on ``profile``'s robot in ``mode``; raise InvalidInput or DeviceUnavailable first.
 
     ``world`` is the simulated world (:data:`SIM`); ``io`` the recorded robot
@@ -208,7 +209,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         prepared = Prepared(mission, profile, world, run, options, events, clock)
         if options.record:
             prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
-            run.ctx.services["save_snapshot"] = prepared.folder.save_snapshot
+            run.ctx.services.save_snapshot = prepared.folder.save_snapshot
         for part in parts:
             part.install(prepared)
         # Per-tick work and closing only for the parts that have any: the others cost nothing per tick.

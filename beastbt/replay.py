@@ -33,6 +33,7 @@ from beastbt.robot.profile import load_profile, profile_path
 from beastbt.recording.reader import Recording, find_recording, read_recording
 from beastbt.robot.robot_io import RobotIO
 from beastbt.assembly import assemble
+from beastbt.behaviours.context import RunServices
 from beastbt.robot.part import REPLAY
 from beastbt.run.runner import TickRecord
 from beastbt.run.session import RunOptions
@@ -362,7 +363,7 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
         base.imu_tap = io.extras["imu_tap"] = ImuTap(
             ready=(lambda: bool(driver.bias_ready)) if driver is not None and hasattr(driver, "bias_ready") else None)
     snapshots: list[str] = []
-    services = {"save_snapshot": lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg"}
+    services = RunServices(save_snapshot=lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg")
     # The same assembly as the run, with the recording in place of every device: the same parts
     # (navigation tuning, teleop, line following...) install the same hooks; nothing is recorded.
     options = RunOptions(robot=str(info.get("robot", "sim")), seed=int(info.get("seed", 0) or 0), record=False)

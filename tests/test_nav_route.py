@@ -47,7 +47,7 @@ steps:
   - route: {{places: [a, b], loops: forever}}
 """)
     assert h.node("route a -> b (forever)").status.name == "INVALID"
-    visits = h.run.ctx.services["nav_visits"].visits
+    visits = h.run.ctx.services.nav_visits.visits
     assert h.tick_until(lambda h: sum(v.reached for v in visits) >= 5, timeout_s=600)
     assert h.result is None and h.status_of("route a -> b (forever)") == "RUNNING"
 

@@ -27,7 +27,7 @@ def lower_stack_tick(h: MissionHarness) -> None:
     now = h.now_s
     run.io.sim.advance(now)
     run.sense(now)
-    h.run.ctx.services["teleop"](run, now)
+    h.run.ctx.services.teleop(run, now)
     out = run.gate.filter(run.mux.select(now), now)
     run.io.base.send_velocity(out, now)
 

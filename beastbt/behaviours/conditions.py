@@ -101,10 +101,7 @@ def near(lat: Optional[float], lon: Optional[float], within_m: float, place: str
             return False
         target = (lat, lon)
         if lat is None:
-            home = r.ctx.services.get("home")
-            if home is None:
-                return False
-            target = home()
+            target = r.ctx.services.home()
             if target is None:
                 return False
         return distance_m(pose.lat, pose.lon, target[0], target[1]) <= within_m

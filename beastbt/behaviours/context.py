@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Callable, Optional, Protocol
 
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.clock import Clock
@@ -63,6 +63,57 @@ class ControlParams:
         return dataclass_from_dict(cls, d, "control")
 
 
+FailureHandler = Callable[[Any], None]
+"""What ``on_failure: ACTION`` does: ``fn(run)`` (the run is a ``beastbt.run.runner.MissionRun``)."""
+FailsafeHandler = Callable[[Any, Any], None]
+"""What a failsafe's ``then: ACTION`` does: ``fn(run, failsafe)``."""
+
+
+class TeleopService(Protocol):
+    """What the teleop step asks of the run's teleop part."""
+
+    @property
+    def has_joystick(self) -> bool:
+        """True when the robot has a joystick device (it may be unplugged right now)."""
+
+    def request_handover(self, step: Any) -> None:
+        """A teleop step starts: the operator may drive while it runs."""
+
+    def release_handover(self, step: Any) -> None:
+        """A teleop step ended."""
+
+
+@dataclass
+class RunServices:
+    """What the parts of a run offer its behaviours and its runner; None where this robot has no such part.
+
+    Filled by the assembly and the parts' ``install`` before the run starts.
+    """
+
+    home: Callable[[], Optional[tuple[float, float]]] = lambda: None
+    """Where the mission started, (lat, lon) degrees, once the first good fix came (None before)."""
+    save_snapshot: Optional[Callable[[str, Any], str]] = None
+    """Save a camera frame under a name; returns where it went (None: the run is not recorded)."""
+    teleop: Optional[TeleopService] = None
+    """The teleop part (the teleop step's hand-over); None without it."""
+    camera: Optional[Any] = None
+    """The camera pipeline (``beastbt.vision.camera_pipeline.CameraPipeline``); None without a camera."""
+    line_follower: Optional[Any] = None
+    """The profile's line follower tuning (``beastbt.behaviours.follow_line.FollowLineConfig``)."""
+    line_metrics: Optional[Any] = None
+    """Truth scores of line following (``beastbt.run.line_metrics.LineTruthMetrics``), in the simulator."""
+    navigation: Optional[Any] = None
+    """The profile's navigation tuning (``beastbt.behaviours.navigation.NavConfig``)."""
+    nav_visits: Optional[Any] = None
+    """The log of place visits (``beastbt.behaviours.navigation.VisitLog``), made on first use."""
+    video_stream: Optional[Any] = None
+    """The live video server (``beastbt.live.video_stream.VideoStreamServer``) with ``--stream``."""
+    on_failure: dict[str, FailureHandler] = field(default_factory=dict)
+    """``on_failure`` actions beyond stop and hold that parts provide: action -> handler (teleop, return_home)."""
+    failsafe: dict[str, FailsafeHandler] = field(default_factory=dict)
+    """Failsafe ``then:`` actions beyond stop and hold that parts provide: action -> handler."""
+
+
 @dataclass
 class MissionContext:
     """Everything a behaviour may use besides the blackboard.
@@ -81,8 +132,8 @@ class MissionContext:
     speed_limit_mps: float = 1.0
     turn_rate_limit_rps: float = math.pi
     run_dir: Optional[Path] = None
-    services: dict[str, Any] = field(default_factory=dict)
-    """Optional services by name, provided by the runtime (``snapshot``, ``places``, ``frame``...)."""
+    services: RunServices = field(default_factory=RunServices)
+    """What the run's parts offer (home, snapshots, teleop, camera, navigation tuning...)."""
 
     def now(self) -> float:
         """The current time in seconds."""

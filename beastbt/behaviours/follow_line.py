@@ -164,10 +164,10 @@ class FollowLine(BeastBehaviour):
     def initialise(self) -> None:
         self._reset()
         services = self.ctx.services
-        follower = services.get("line_follower")
+        follower = services.line_follower
         if isinstance(follower, FollowLineConfig):
             self.config = follower
-        camera = services.get("camera")
+        camera = services.camera
         if camera is not None:
             camera.enable("follow_line")
             camera.reset_detector()

@@ -27,12 +27,6 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import LocalFrame
 
-NAV_SERVICE = "navigation"
-"""``ctx.services`` key of the run's :class:`NavConfig` (set from the profile before the run starts)."""
-VISITS_SERVICE = "nav_visits"
-"""``ctx.services`` key of the run's :class:`VisitLog`."""
-
-
 @dataclass(frozen=True)
 class NavConfig:
     """Tuning of go_to, route and return_home (the robot profile's ``navigation:`` section), SI units.
@@ -130,10 +124,9 @@ class VisitLog:
 
 def visit_log(ctx: MissionContext) -> VisitLog:
     """The run's visit log (created on first use)."""
-    log = ctx.services.get(VISITS_SERVICE)
+    log = ctx.services.nav_visits
     if log is None:
-        log = VisitLog()
-        ctx.services[VISITS_SERVICE] = log
+        log = ctx.services.nav_visits = VisitLog()
     return log
 
 
@@ -184,7 +177,7 @@ class GoTo(BeastBehaviour):
 
     # -- lifecycle ------------------------------------------------------------------------
     def initialise(self) -> None:
-        self.nav = self.ctx.services.get(NAV_SERVICE) or NavConfig()
+        self.nav = self.ctx.services.navigation or NavConfig()
         now = self.now()
         self.started_s = self.last_tick_s = now
         self.goal = None
@@ -399,6 +392,5 @@ def place_target(lat: float, lon: float) -> Target:
 def home_target(ctx: MissionContext) -> Target:
     """Home: where the mission started (the first good fix), once known."""
     def target() -> Optional[tuple[float, float]]:
-        home: Any = ctx.services.get("home")
-        return home() if home is not None else None
+        return ctx.services.home()
     return target

@@ -35,7 +35,7 @@ class Snapshot(BeastBehaviour):
         frame = self.read("camera_frame")
         if frame is None or self.now() - frame.stamp_s > self.ctx.params.sensor_max_age_s:
             return self.fail("no camera frame")
-        save = self.ctx.services.get("save_snapshot")
+        save = self.ctx.services.save_snapshot
         if save is None:
             self.ctx.events.add("snapshot", f"{self.label}: not saved (the run is not recorded)")
             return Status.SUCCESS

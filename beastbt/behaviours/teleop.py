@@ -40,7 +40,7 @@ class TeleopStep(BeastBehaviour):
         self.start_s = self.now()
         self.engaged = False
         self.first = True
-        service = self.ctx.services.get("teleop")
+        service = self.ctx.services.teleop
         if service is not None:
             service.request_handover(self)
 
@@ -51,7 +51,7 @@ class TeleopStep(BeastBehaviour):
     def update(self) -> Status:
         self.command(0.0, 0.0)
         first, self.first = self.first, False
-        if self.ctx.services.get("teleop") is None:
+        if self.ctx.services.teleop is None:
             return self.fail("no joystick (teleop is not available on this robot)")
         connected = self._connected()
         active = bool(self.read("teleop_active"))
@@ -74,6 +74,6 @@ class TeleopStep(BeastBehaviour):
         return Status.RUNNING
 
     def terminate(self, new_status: Status) -> None:
-        service = self.ctx.services.get("teleop")
+        service = self.ctx.services.teleop
         if service is not None:
             service.release_handover(self)

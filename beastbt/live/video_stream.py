@@ -498,7 +498,7 @@ def install_stream(prepared: Any) -> Optional[VideoStreamServer]:
         raise InvalidInput([Problem("--stream", Position(), f"cannot listen on {config.host}:{config.port}: {exc}",
                                     "pick another port, or 0 for any free one")]) from None
     prepared.closers.append(server.close)
-    run.ctx.services["video_stream"] = server
+    run.ctx.services.video_stream = server
     run.io.extras["video_stream"] = server
     pipeline = run.io.extras.get("camera")
     if pipeline is not None:

@@ -89,15 +89,15 @@ def follow_nodes(root: py_trees.behaviour.Behaviour) -> list[FollowLine]:
 
 
 def install_vision(prepared: Prepared) -> None:
-    """PREPARE_HOOK: the camera and follower services; in the simulator, switch the camera on if used and score it."""
+    """The camera and follower services; in the simulator, switch the camera on if used and score it."""
     run = prepared.run
     profile = prepared.profile
     follower: FollowLineConfig = section_config(profile, "line_follower", FollowLineConfig)
-    run.ctx.services["line_follower"] = follower
+    run.ctx.services.line_follower = follower
     pipeline: Optional[CameraPipeline] = run.io.extras.get("camera")
     if pipeline is None:
         return
-    run.ctx.services["camera"] = pipeline
+    run.ctx.services.camera = pipeline
     if run.io.sim is None:
         return
     uses = camera_uses(prepared.mission.doc.data if prepared.mission.doc is not None else {})
@@ -109,14 +109,14 @@ def install_vision(prepared: Prepared) -> None:
         floor()  # build it now: a bad floor is an InvalidInput before anything moves
         metrics = LineTruthMetrics(floor, nodes)
         run.recorders.append(metrics.on_tick)
-        run.ctx.services["line_metrics"] = metrics
+        run.ctx.services.line_metrics = metrics
 
 
 def _summary(run: Any, summary: dict) -> None:
-    metrics = run.ctx.services.get("line_metrics")
+    metrics = run.ctx.services.line_metrics
     if isinstance(metrics, LineTruthMetrics) and "truth" in summary:
         summary["truth"].update(metrics.summary())
-    pipeline = run.ctx.services.get("camera")
+    pipeline = run.ctx.services.camera
     if isinstance(pipeline, CameraPipeline) and pipeline.enabled:
         summary["camera"] = {"frames": pipeline.frames, "enabled_for": list(pipeline.reasons)}
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from typing import Any, Optional
 
-from beastbt.behaviours.navigation import VISITS_SERVICE, Visit, visit_log
+from beastbt.behaviours.navigation import Visit, visit_log
 from beastbt.blackboard.types import GpsFix
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import distance_m
@@ -119,7 +119,7 @@ def install_truth(p: Prepared) -> None:
 
 def contribute(run: Any, summary: dict) -> None:
     """Add ``waypoints`` and the truth metrics of navigation to a run summary."""
-    log = run.ctx.services.get(VISITS_SERVICE)
+    log = run.ctx.services.nav_visits
     if log is not None:
         out = []
         for v in log.visits:

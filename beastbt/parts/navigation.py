@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
 import py_trees
 
-from beastbt.behaviours.navigation import NAV_SERVICE, GoTo, NavConfig, home_target
+from beastbt.behaviours.navigation import GoTo, NavConfig, home_target
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.estimation.gps_epochs import EpochFilter
@@ -139,7 +139,7 @@ def return_home_instead(run: MissionRun, why: str) -> None:
 def install_navigation(p: Prepared) -> None:
     """Give go_to the profile's navigation tuning; on a robot with a GPS, offer going home."""
     run = p.run
-    run.ctx.services[NAV_SERVICE] = section_config(p.profile, "navigation", NavConfig)
+    run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
     if "gps" not in run.ctx.capabilities:
         return
 
@@ -150,8 +150,8 @@ def install_navigation(p: Prepared) -> None:
         tip = r.root.tip()
         return_home_instead(r, f"steps failed at {tip.name}" if tip is not None else "steps failed")
 
-    run.ctx.services["failsafe_return_home"] = failsafe_return_home
-    run.ctx.services["on_failure_return_home"] = on_failure_return_home
+    run.ctx.services.failsafe["return_home"] = failsafe_return_home
+    run.ctx.services.on_failure["return_home"] = on_failure_return_home
 
 
 

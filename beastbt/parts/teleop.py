@@ -270,7 +270,7 @@ def attach_joystick_script(prepared: Prepared) -> None:
 
 def teleop_summary(run: Any, summary: dict) -> None:
     """``teleop: {joystick, takeovers, teleop_time_s, estop_latched, watchdog_trips}``."""
-    override = run.ctx.services.get("teleop")
+    override = run.ctx.services.teleop
     dog = watchdog_of(run)
     if not isinstance(override, TeleopOverride):
         return
@@ -304,9 +304,9 @@ class TeleopPart(Part):
         attach_joystick_script(prepared)
         run = prepared.run
         override = self.override = TeleopOverride(run, teleop_config(run.profile))
-        run.ctx.services["teleop"] = override
-        run.ctx.services["on_failure_teleop"] = override.on_failure
-        run.ctx.services["failsafe_teleop"] = override.on_failsafe
+        run.ctx.services.teleop = override
+        run.ctx.services.on_failure["teleop"] = override.on_failure
+        run.ctx.services.failsafe["teleop"] = override.on_failsafe
         run.summary_contributors.append(teleop_summary)
 
     def tick(self, run: MissionRun, now_s: float) -> None:

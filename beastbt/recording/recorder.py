@@ -616,14 +616,14 @@ def install(prepared: Any) -> Optional[McapRecorder]:
     run.recorders.append(rec.on_tick)
     run.events.listeners.append(rec.on_event)
     _record_servo_commands(run, rec)
-    save = run.ctx.services.get("save_snapshot")
+    save = run.ctx.services.save_snapshot
     if save is not None:
         def save_and_record(name: str, frame: Any) -> str:
             path = save(name, frame)
             rec.on_snapshot(path, getattr(frame, "stamp_s", 0.0))
             return path
 
-        run.ctx.services["save_snapshot"] = save_and_record
+        run.ctx.services.save_snapshot = save_and_record
     rec.tag_sources(run.io)
     rec.run = run
     rec.launch()  # the writer process imports while the rest of the run gets ready

@@ -16,7 +16,7 @@ import py_trees
 
 from beastbt.actuation.gate import GateLimits, SafetyGate, tightest
 from beastbt.actuation.mux import CommandMux
-from beastbt.behaviours.context import MissionContext
+from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
                                       LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
@@ -75,7 +75,7 @@ class MissionRun:
     """
 
     def __init__(self, mission: Mission, profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog,
-                 ctx_services: Optional[dict] = None, estimator: Optional[Estimator] = None,
+                 services: Optional[RunServices] = None, estimator: Optional[Estimator] = None,
                  steps: Optional[Mapping[str, StepBuilder]] = None) -> None:
         self.mission = mission
         self.profile = profile
@@ -93,9 +93,9 @@ class MissionRun:
             capabilities=frozenset(io.capabilities),
             speed_limit_mps=tightest(mission.speed_limit_mps, profile.max_speed_mps),
             turn_rate_limit_rps=tightest(mission.turn_rate_limit_rps, profile.max_turn_rate_rps),
-            services=dict(ctx_services or {}),
+            services=services if services is not None else RunServices(),
         )
-        self.ctx.services.setdefault("home", lambda: self.home)
+        self.ctx.services.home = lambda: self.home
         self.root = compile_mission(mission, self.ctx, steps)
         self.nodes = list(self.root.iterate())
         self._last_status = {id(n): n.status for n in self.nodes}
@@ -216,7 +216,7 @@ class MissionRun:
                 elif spec.then == "hold":
                     self.paused_by = f"hold ({spec.kind})"
                 else:
-                    handler = self.ctx.services.get(f"failsafe_{spec.then}")
+                    handler = self.ctx.services.failsafe.get(spec.then)
                     if handler is None:
                         self.events.add("failsafe", f"'{spec.then}' is not available on this robot: stopping instead")
                         self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable")
@@ -241,7 +241,7 @@ class MissionRun:
         tip = self.root.tip()
         why = f"{tip.name}: {tip.feedback_message}" if tip is not None else "a step failed"
         action = self.mission.on_failure
-        handler = self.ctx.services.get(f"on_failure_{action}") if action != "stop" else None
+        handler = self.ctx.services.on_failure.get(action) if action != "stop" else None
         if action == "hold":
             self.events.add("on_failure", f"steps failed ({why}); holding still until the run is ended")
             self.paused_by = "on_failure hold"
