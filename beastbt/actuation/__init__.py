@@ -1,1 +1,1 @@
-"""Below the tree: the command mux, the safety gate and watchdog, teleop, and the actuator adapters."""
+"""Below the tree: the command mux (e-stop latch, sources by priority), the safety gate (limits), the command watchdog, teleop_twist_joy logic, and the base and servo adapters."""

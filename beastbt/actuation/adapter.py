@@ -10,11 +10,9 @@ robots it arrives on the same wire.
 
 from __future__ import annotations
 
-from typing import Protocol, Union
+from typing import Protocol
 
-from beastbt.blackboard.types import BatteryState, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
-
-Feedback = Union[WheelOdometry, ImuSample, BatteryState]
+from beastbt.blackboard.types import Feedback, ServoCommand, VelocityCommand
 
 
 class BaseAdapter(Protocol):

@@ -9,7 +9,7 @@ at which it was measured (or received, when the device gives no better time).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Optional, Union
 
 import numpy as np
 
@@ -186,3 +186,7 @@ class CameraFrame:
     stamp_s: float
     image: np.ndarray
     seq: int = 0
+
+
+Feedback = Union[WheelOdometry, ImuSample, BatteryState]
+"""What a drive base reports on the wire it is commanded over (wheel odometry, its IMU, the battery)."""

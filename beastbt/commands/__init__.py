@@ -1,1 +1,1 @@
-"""Subcommands of ``beastbt`` beyond run, validate and tree; each module is imported only when its command runs."""
+"""Subcommands of ``beastbt``; each module is imported only when its command runs."""

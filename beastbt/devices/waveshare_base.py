@@ -16,8 +16,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from beastbt.actuation.adapter import Feedback
-from beastbt.blackboard.types import BatteryState, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
+from beastbt.blackboard.types import BatteryState, Feedback, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 

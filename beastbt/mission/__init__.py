@@ -1,1 +1,1 @@
-"""Mission files: YAML loading with source positions, units, schema validation, the mission model, and compilation to a py_trees tree."""
+"""Mission files: the mission model (loading, the checks a schema cannot make) and the compiler from a mission to a py_trees tree."""

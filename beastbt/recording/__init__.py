@@ -1,1 +1,1 @@
-"""Every run recorded: the recorder and its writer process, the wire between them, the channel schemas, the reader, replay, report and the list of runs."""
+"""Every run recorded: the recorder and its writer process, the wire between them, the channel schemas, the reader, the report and the list of runs. Replay is ``beastbt.replay``, above the assembly."""

@@ -1,1 +1,1 @@
-"""A robot from its profile: the profile itself, its ports and devices (``RobotIO``), the part protocol and the assembly that wires every part and the safety layers."""
+"""A robot from its profile: the profile itself, its ports and devices (``RobotIO``), the part protocol, and helpers to open a real robot's ports. The assembly itself is ``beastbt.assembly``."""

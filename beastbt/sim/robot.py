@@ -10,15 +10,17 @@ robot.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from beastbt.core.errors import InvalidInput
-from beastbt.robot.profile import RobotProfile
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.world import World
+
+if TYPE_CHECKING:  # the simulator reads a profile's sections; it does not depend on the robot package
+    from beastbt.robot.profile import RobotProfile
 
 DEFAULT_PHYSICS_RATE_HZ = 100.0
 """Physics steps per simulated second unless the profile's ``sim.physics_rate_hz`` says otherwise (Hz)."""
@@ -67,7 +69,7 @@ def world_problem(world: World, section: str, exc: Exception) -> InvalidInput:
                                            "see the schema in schemas/parts/ for the knobs this section takes")])
 
 
-def build_simulator(profile: RobotProfile, world: World, seed: int) -> Simulator:
+def build_simulator(profile: "RobotProfile", world: World, seed: int) -> Simulator:
     """The simulated robot of ``profile`` in ``world`` (dynamics only, no emulators yet), deterministic for ``seed``."""
     rng = np.random.default_rng(seed)
     sim_cfg = dict(profile.section("sim") or {})
