@@ -33,11 +33,11 @@ from dataclasses import dataclass
 from importlib import metadata
 from typing import Any, Callable, Mapping, Optional, Sequence
 
-from beastbt.behaviours.context import RunServices
+from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.events import EventLog
-from beastbt.mission.compile import CORE_STEPS, StepBuilder
+from beastbt.mission.compile import CORE_STEPS, Behaviour, StepBuilder, compile_mission
 from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part
 from beastbt.robot.profile import RobotProfile, load_profile
@@ -53,11 +53,19 @@ PART_ENTRY_POINTS = "beastbt.parts"
 
 @dataclass(frozen=True)
 class PartEntry:
-    """One built-in part: its name, where it lives (``module:Class``) and when a run needs it."""
+    """One built-in part: its name, where it lives (``module:Class``), when a run needs it, what it gives.
+
+    ``capability`` is the word a device part adds to the robot's capabilities
+    when it attaches (``gps``, ``camera``...; ``real_only`` when it attaches
+    nothing on the simulator), so that a tree can be compiled for a profile
+    without opening or emulating its devices.
+    """
 
     name: str
     target: str
     needed: Callable[[RobotProfile, RunOptions], bool]
+    capability: Optional[str] = None
+    real_only: bool = False
 
     def load(self) -> Part:
         """Import the part's module and make the part."""
@@ -83,11 +91,11 @@ DEFAULT_BASE = "waveshare_serial"
 
 BUILTIN_PARTS: tuple[PartEntry, ...] = (
     # Devices, in attach order (the base is opened first, by BASES).
-    PartEntry("servos", "beastbt.parts.servo_board:ServoBoardPart", _has("servos")),
-    PartEntry("gps", "beastbt.parts.gps:GpsPart", _has("gps")),
-    PartEntry("imu", "beastbt.parts.imu:ImuPart", _has("imu")),
-    PartEntry("camera", "beastbt.parts.camera:CameraPart", _has("camera")),
-    PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick")),
+    PartEntry("servos", "beastbt.parts.servo_board:ServoBoardPart", _has("servos"), "pwm_servos"),
+    PartEntry("gps", "beastbt.parts.gps:GpsPart", _has("gps"), "gps"),
+    PartEntry("imu", "beastbt.parts.imu:ImuPart", _has("imu"), "imu"),
+    PartEntry("camera", "beastbt.parts.camera:CameraPart", _has("camera"), "camera"),
+    PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
@@ -232,11 +240,30 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
     return assemble(mission, profile, options, REAL)
 
 
+def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True) -> Behaviour:
+    """The tree ``mission`` compiles to on ``profile``'s robot, without opening or emulating any device.
+
+    The robot's capabilities are those its device parts would give
+    (:attr:`PartEntry.capability`); the steps are those of the parts that add
+    steps (the device parts of beastbt add none, so they are not imported:
+    no OpenCV, no EKF). What ``beastbt tree`` prints.
+    """
+    options = RunOptions(record=False)
+    entries = [entry for entry in BUILTIN_PARTS if entry.needed(profile, options)]
+    capabilities = frozenset(entry.capability for entry in entries
+                             if entry.capability is not None and not (simulated and entry.real_only))
+    parts = [entry.load() for entry in entries if entry.capability is None]
+    parts += [external_part(str(name), profile) for name in (profile.section("parts") or {})]
+    clock = SimClock()
+    ctx = MissionContext(clock=clock, events=EventLog(clock), params=profile.control, capabilities=capabilities)
+    return compile_mission(mission, ctx, step_builders(parts))
+
+
 def run_file(mission_path: str, options: RunOptions) -> dict:
     """Prepare and execute a run (the Python API of ``beastbt run``); return the summary."""
     from beastbt.run.session import execute
     return execute(prepare(mission_path, options))
 
 
-__all__ = ["assemble", "prepare", "run_file", "parts_for", "base_part", "step_builders", "external_part",
+__all__ = ["assemble", "prepare", "run_file", "compile_for_profile", "parts_for", "base_part", "step_builders", "external_part",
            "BUILTIN_PARTS", "BASES", "PartEntry", "PART_ENTRY_POINTS", "RunOptions", "Prepared"]

@@ -1,4 +1,9 @@
-"""The ``beastbt`` command: run, validate and inspect missions.
+"""The ``beastbt`` command: a static table of subcommands, each imported only when it runs.
+
+``beastbt`` alone prints the overview and exits 2 (a usage error, as argparse
+does for a missing subcommand); ``beastbt --version`` prints the version. A
+mistyped subcommand or option gets a did-you-mean and exit 2 before anything
+starts. ``python -m beastbt`` is the same command.
 
 Exit status: 0 the mission succeeded (or every file is valid), 1 it failed or
 was stopped, 2 invalid input (nothing moved).
@@ -7,182 +12,124 @@ was stopped, 2 invalid input (nothing moved).
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
+import os
 import sys
-from typing import Any, Callable, Optional, Sequence
-
-from beastbt.core.errors import InvalidInput
-from beastbt.core.units import UnitError, parse_duration
+from types import MappingProxyType
+from typing import Mapping, NoReturn, Optional, Sequence
 
 EXIT_SUCCESS = 0
 EXIT_FAILURE = 1
 EXIT_INVALID = 2
 
+PROG = "beastbt"
 
-def _duration(text: str) -> float:
-    try:
-        return parse_duration(text)
-    except UnitError as exc:
-        raise argparse.ArgumentTypeError(str(exc))
-
-
-def _add_run(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mission", help="the mission file (YAML)")
-    p.add_argument("--robot", default="sim", help="'sim' (default: the built-in simulator) or a robot profile file")
-    p.add_argument("--world", help="simulated world file (default: the mission's 'world:')")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the simulator (default 0)")
-    p.add_argument("--speed", default="max", help="max (default), realtime, or a factor of real time such as 10")
-    p.add_argument("--max-time", type=_duration, help="end the run after this much mission time, e.g. '10 min'")
-    p.add_argument("--summary", metavar="FILE", help="write the run summary as JSON to FILE")
-    p.add_argument("--record", metavar="FILE", help="also write the run's recording to FILE")
-    p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
-    p.add_argument("--no-record", action="store_true", help="do not write a run folder")
-    p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
-    p.add_argument("--joystick", metavar="FILE",
-                   help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
-                        "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
-    p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_parse_endpoint),
-                   help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
-                        "HOST defaults to 127.0.0.1")
-    p.add_argument("--stream-size", metavar="WxH", type=_checked(_parse_size), help="size of the streamed frames (default 640x480)")
-    p.add_argument("--stream-quality", metavar="Q", type=int, help="JPEG quality 1-100 (default 80)")
-    p.add_argument("--stream-fps", metavar="FPS", type=float, help="most frames streamed per second (default 25)")
-    p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
-    p.add_argument("--record-images", type=float, metavar="HZ", dest="record_images",
-                   help="camera images recorded per second as JPEG (default 2; 0 for none)")
-
-
-def _parse_endpoint(text: str) -> tuple[str, int]:
-    from beastbt.live.endpoint import parse_endpoint
-    return parse_endpoint(text)
-
-
-def _parse_size(text: str) -> tuple[int, int]:
-    from beastbt.live.endpoint import parse_size
-    return parse_size(text)
-
-
-def _checked(parse: Callable[[str], Any]) -> Callable[[str], Any]:
-    def convert(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc))
-    return convert
-
-
-def _cmd_run(args: argparse.Namespace) -> int:
-    from beastbt.assembly import prepare
-    from beastbt.robot.hardware import DeviceUnavailable
-    from beastbt.run.session import RunOptions, execute, parse_speed
-    from beastbt.run.summary import human_summary
-    try:
-        speed = parse_speed(args.speed)
-    except ValueError as exc:
-        print(f"beastbt run: error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
-    opts = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, max_time_s=args.max_time,
-                      summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
-                      record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
-                      joystick_script=args.joystick, stream=args.stream, stream_size=args.stream_size,
-                      stream_quality=args.stream_quality, stream_fps=args.stream_fps,
-                      stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images)
-    try:
-        prepared = prepare(args.mission, opts)
-    except InvalidInput as exc:
-        print(exc.format(), file=sys.stderr)
-        return EXIT_INVALID
-    except DeviceUnavailable as exc:
-        print(f"beastbt run: error: {exc}", file=sys.stderr)
-        return EXIT_INVALID
-    summary = execute(prepared, sys.stdout)
-    print(human_summary(summary))
-    return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE
-
-
-def _add_validate(p: argparse.ArgumentParser) -> None:
-    p.add_argument("files", nargs="+", help="mission files (or robot profiles / worlds, recognised by their first key)")
-
-
-def _cmd_validate(args: argparse.Namespace) -> int:
-    from beastbt.validate import validate_file
-    bad = 0
-    for f in args.files:
-        problems = validate_file(f)
-        if problems:
-            bad += 1
-            for p in problems:
-                print(p.format(), file=sys.stderr)
-        else:
-            print(f"{f}: ok")
-    return EXIT_INVALID if bad else EXIT_SUCCESS
-
-
-def _add_tree(p: argparse.ArgumentParser) -> None:
-    p.add_argument("mission", help="the mission file (YAML)")
-    p.add_argument("--robot", default="sim", help="robot profile the tree is compiled for (default: sim)")
-    p.add_argument("--dot", metavar="FILE", help="also write the tree as Graphviz DOT to FILE")
-
-
-def _cmd_tree(args: argparse.Namespace) -> int:
-    import py_trees
-
-    from beastbt.assembly import prepare
-    from beastbt.mission.compile import tree_to_dot
-    from beastbt.run.session import RunOptions
-    try:
-        prepared = prepare(args.mission, RunOptions(robot=args.robot, record=False))
-    except InvalidInput as exc:
-        print(exc.format(), file=sys.stderr)
-        return EXIT_INVALID
-    root = prepared.run.root
-    print(py_trees.display.unicode_tree(root))
-    if args.dot:
-        with open(args.dot, "w", encoding="utf-8") as f:
-            f.write(tree_to_dot(root))
-        print(f"wrote {args.dot}")
-    prepared.run.io.close()
-    return EXIT_SUCCESS
-
-
-LAZY_COMMANDS: dict[str, tuple[str, str]] = {
+COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
+    "run": ("beastbt.commands.run", "run a mission (on the simulator unless --robot names a profile)"),
+    "validate": ("beastbt.commands.validate", "check missions, robot profiles and worlds; errors as FILE:LINE:COLUMN"),
+    "tree": ("beastbt.commands.tree", "print the behaviour tree a mission compiles to (--dot FILE for Graphviz)"),
     "gps": ("beastbt.commands.gps", "GPS tools: decode a recorded NMEA log through the driver (one JSON line per fix)"),
-    "report": ("beastbt.recording.report", "summarise a recorded run and draw its plots"),
-    "replay": ("beastbt.replay", "replay a recorded run through the estimator and the tree; show where the commands differ"),
-    "runs": ("beastbt.recording.runs_list", "list the recorded runs"),
-}
-"""Subcommands whose code lives elsewhere: name -> (module with add_arguments and command, help)."""
+    "report": ("beastbt.commands.report", "summarise a recorded run and draw its plots (report.html)"),
+    "replay": ("beastbt.commands.replay", "feed a recorded run back through the estimator and the tree; show differences"),
+    "runs": ("beastbt.commands.runs", "list the recorded runs with their outcome, one line each"),
+})
+"""Subcommand -> (module with ``add_arguments(parser)`` and ``command(args) -> exit status``, one-line help)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``beastbt`` command."""
-    parser = argparse.ArgumentParser(prog="beastbt", description="Run YAML missions as behaviour trees on a robot or its simulator.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    builtin = {
-        "run": (_add_run, _cmd_run, "run a mission (on the simulator unless --robot names a profile)"),
-        "validate": (_add_validate, _cmd_validate, "check mission files; errors as FILE:LINE:COLUMN"),
-        "tree": (_add_tree, _cmd_tree, "print the behaviour tree a mission compiles to"),
-    }
-    for name, (add, handler, help_text) in builtin.items():
-        p = sub.add_parser(name, help=help_text, description=help_text)
-        add(p)
-        p.set_defaults(func=handler)
-    for name, (target, help_text) in LAZY_COMMANDS.items():
-        module = importlib.import_module(target)
-        p = sub.add_parser(name, help=help_text, description=help_text)
-        module.add_arguments(p)
-        p.set_defaults(func=module.command)
+def version() -> str:
+    """The installed version of beastbt (the package's own when it is not installed)."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version as dist_version
+        return dist_version("beastbt")
+    except PackageNotFoundError:
+        from beastbt import __version__
+        return __version__
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors say what was expected, with a did-you-mean, and exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_INVALID, f"{self.prog}: error: {message}\n")
+
+
+def overview_parser() -> argparse.ArgumentParser:
+    """The top-level parser: the subcommands with their help, and ``--version``."""
+    parser = _Parser(prog=PROG, description="Run YAML missions as behaviour trees on a robot or its simulator.",
+                     epilog=f"'{PROG} COMMAND --help' shows a command's options.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text)
     return parser
 
 
+def command_parser(name: str) -> tuple[argparse.ArgumentParser, object]:
+    """The parser of one subcommand and its module (imported now: only this command's code is loaded)."""
+    module_name, help_text = COMMANDS[name]
+    module = importlib.import_module(module_name)
+    parser = _Parser(prog=f"{PROG} {name}", description=help_text)
+    module.add_arguments(parser)  # type: ignore[attr-defined]
+    return parser, module
+
+
+def _first_command(argv: Sequence[str]) -> Optional[int]:
+    """The index of the subcommand word in ``argv`` (the first word that is not an option), or None."""
+    for i, word in enumerate(argv):
+        if not word.startswith("-"):
+            return i
+    return None
+
+
+def _unknown_options(parser: argparse.ArgumentParser, unknown: Sequence[str]) -> str:
+    """One line naming the unknown options, each with a did-you-mean when one is close."""
+    known = [s for action in parser._actions for s in action.option_strings]
+    words = []
+    for i, word in enumerate(unknown):
+        option = word.split("=", 1)[0]
+        if not option.startswith("-"):
+            if i == 0 or not unknown[i - 1].startswith("-"):  # not the value of the unknown option before it
+                words.append(f"unexpected argument '{word}'")
+            continue
+        close = difflib.get_close_matches(option, known, n=1, cutoff=0.6)
+        words.append(f"unknown option '{option}'" + (f"; did you mean '{close[0]}'?" if close else ""))
+    return "; ".join(words) + f" (see '{parser.prog} --help')"
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of the ``beastbt`` console script; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Entry point of the ``beastbt`` console script and of ``python -m beastbt``; returns the exit status."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    top = overview_parser()
+    at = _first_command(args)
+    if at is None:
+        if args:
+            top.parse_args(args)  # --help and --version exit here; anything else is an error
+        top.print_help()
+        return EXIT_INVALID
+    name = args[at]
+    if name not in COMMANDS:
+        close = difflib.get_close_matches(name, list(COMMANDS), n=1, cutoff=0.5)
+        hint = f"; did you mean '{close[0]}'?" if close else f"; the commands are: {', '.join(COMMANDS)}"
+        top.print_usage(sys.stderr)
+        print(f"{PROG}: error: unknown command '{name}'{hint}", file=sys.stderr)
+        return EXIT_INVALID
+    if at:
+        top.parse_args(args[:at])  # options before the command: --help, --version, or an error
+    parser, module = command_parser(name)
+    parsed, unknown = parser.parse_known_args(args[at + 1:])
+    if unknown:
+        parser.error(_unknown_options(parser, unknown))
     try:
-        return args.func(args)
+        return int(module.command(parsed))  # type: ignore[attr-defined]
     except KeyboardInterrupt:
         return EXIT_FAILURE
+    except BrokenPipeError:
+        # The reader went away (``beastbt tree m.yaml | head``): not an error of ours; say nothing more.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_SUCCESS
 
 
 if __name__ == "__main__":

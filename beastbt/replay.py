@@ -12,21 +12,17 @@ replays with no difference; a field run shows where a changed mission
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
-from mcap.exceptions import McapError
 
 from beastbt.blackboard import types as bt
 from beastbt.blackboard.types import (BatteryState, CameraFrame, GpsFix, ImuSample, JoystickState, LineObservation,
                                       ServoCommand, VelocityCommand, WheelOdometry)
-from beastbt.core.errors import InvalidInput
 from beastbt.mission.model import load_mission
 from beastbt.core.clock import SimClock
 from beastbt.robot.profile import load_profile, profile_path
@@ -370,7 +366,6 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     clock = SimClock()
     prepared = assemble(mission, profile, options, REPLAY, io=io, clock=clock, services=services)
     run = prepared.run
-    events = prepared.events
     if "ctx_capabilities" in info:
         # What other parts added after the tree was compiled (a scripted joystick...).
         run.ctx.capabilities = frozenset(json.loads(info["ctx_capabilities"]))
@@ -427,42 +422,6 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     if rec.messages.get("/sensors/camera") and not rec.messages.get("/camera/image"):
         result.notes.append("camera frames were recorded without pixels: vision in the tree sees grey images")
     return result
-
-
-# -- the command --------------------------------------------------------------------------------
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Options of ``beastbt replay``."""
-    p.add_argument("run", help="a run folder (runs/<time>_<mission>/) or its .mcap file")
-    p.add_argument("--mission", metavar="FILE", help="replay with this mission file instead of the recorded one")
-    p.add_argument("--max-diffs", type=int, default=20, help="differences to print (default 20)")
-
-
-def command(args: argparse.Namespace) -> int:
-    """replay a recorded run through the estimator and the tree; show where the commands differ"""
-    try:
-        result = replay(args.run, args.mission)
-    except InvalidInput as exc:
-        print(exc.format(), file=sys.stderr)
-        return 2
-    except (OSError, ValueError) as exc:
-        print(f"beastbt replay: error: {exc}", file=sys.stderr)
-        return 2
-    except McapError as exc:
-        print(f"beastbt replay: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
-        return 2
-    print(f"replayed {result.ticks} ticks ({result.duration_s:.2f} s) of mission {result.mission}: "
-          f"recorded {result.recorded_status or '?'}, replay {result.replay_status or 'still running at the end'}")
-    for note in result.notes:
-        print(f"  note: {note}")
-    if result.identical:
-        print("  no difference: every command matches the recording")
-        return 0
-    print(f"  commands differ at {result.differing_ticks} of {result.ticks} ticks; the first differences:")
-    for d in result.differences[:args.max_diffs]:
-        print(f"  {d.describe()}")
-    return 1
 
 
 __all__ = ["replay", "ReplayResult", "Difference", "ReplayBase", "ReplayServos", "recorded_ticks", "READING_BUILDERS"]

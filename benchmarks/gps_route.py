@@ -36,7 +36,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from beastbt.estimation.estimator import wrap_angle  # noqa: E402
-from beastbt.assembly import prepare
+from beastbt.assembly import prepare  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 MISSION = REPO / "missions" / "gps_route.yaml"

@@ -43,7 +43,7 @@ import yaml
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from beastbt.assembly import prepare
+from beastbt.assembly import prepare  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 from beastbt.live.video_stream import StreamConfig, VideoStreamServer  # noqa: E402
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera  # noqa: E402

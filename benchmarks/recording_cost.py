@@ -41,7 +41,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from beastbt.recording.recorder import recorder_of  # noqa: E402
-from beastbt.assembly import prepare
+from beastbt.assembly import prepare  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 PATROL = REPO / "missions" / "patrol.yaml"

@@ -25,7 +25,7 @@ sys.path.insert(0, str(REPO))
 
 from beastbt.blackboard import catalogue  # noqa: E402
 from beastbt.blackboard.types import FusedPose, VelocityCommand  # noqa: E402
-from beastbt.assembly import prepare
+from beastbt.assembly import prepare  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 PATROL = str(REPO / "missions" / "patrol.yaml")

@@ -42,7 +42,7 @@ from beastbt.core.events import EventLog
 from beastbt.robot.profile import load_profile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.runner import MissionRun
-from beastbt.run.session import Prepared, RunOptions, execute
+from beastbt.run.session import RunOptions, execute
 from beastbt.assembly import assemble
 from beastbt.parts.teleop import TeleopPart
 from beastbt.robot.part import REAL

@@ -29,7 +29,6 @@ from beastbt.parts.teleop import TeleopPart
 from beastbt.robot.part import REAL
 from beastbt.robot.profile import load_profile
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.runner import MissionRun
 from beastbt.assembly import prepare
 from beastbt.run.session import RunOptions, execute
 from beastbt.sim.i2c_bus import SimI2CBus

@@ -22,7 +22,6 @@ from mcap.reader import make_reader
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
                                       LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.cli import main
-from beastbt.recording import recorder as recmod
 from beastbt.core.events import Event
 from beastbt.recording.recorder import McapRecorder, RecordingConfig, contribute_summary
 from beastbt.recording.reader import read_recording

@@ -18,7 +18,7 @@ import jsonschema
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from beastbt.core.errors import Problem, closest, did_you_mean
+from beastbt.core.errors import Problem, did_you_mean
 from beastbt.core.resources import data_dir
 from beastbt.core.units import UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc

@@ -16,7 +16,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional
+from typing import TYPE_CHECKING, Any, Mapping, Optional
 
 import py_trees
 
@@ -25,11 +25,12 @@ from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission.model import Step
 from beastbt.core.units import format_quantity, parse_quantity
-from beastbt.vision.camera_pipeline import CameraPipeline
-from beastbt.run.line_metrics import LineTruthMetrics
 from beastbt.robot.part import Part
 from beastbt.robot.profile import section_config
 from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # OpenCV comes with these: imported only for a run that has a camera
+    from beastbt.vision.camera_pipeline import CameraPipeline
 
 CAMERA_STEPS = frozenset({"follow_line", "snapshot"})
 """Steps that need camera frames."""
@@ -94,7 +95,7 @@ def install_vision(prepared: Prepared) -> None:
     profile = prepared.profile
     follower: FollowLineConfig = section_config(profile, "line_follower", FollowLineConfig)
     run.ctx.services.line_follower = follower
-    pipeline: Optional[CameraPipeline] = run.io.extras.get("camera")
+    pipeline: Optional["CameraPipeline"] = run.io.extras.get("camera")
     if pipeline is None:
         return
     run.ctx.services.camera = pipeline
@@ -106,6 +107,7 @@ def install_vision(prepared: Prepared) -> None:
     floor = run.io.extras.get("floor_map")
     nodes = follow_nodes(run.root)
     if floor is not None and nodes and (prepared.world is not None and prepared.world.section("floor") is not None):
+        from beastbt.run.line_metrics import LineTruthMetrics
         floor()  # build it now: a bad floor is an InvalidInput before anything moves
         metrics = LineTruthMetrics(floor, nodes)
         run.recorders.append(metrics.on_tick)
@@ -113,11 +115,11 @@ def install_vision(prepared: Prepared) -> None:
 
 
 def _summary(run: Any, summary: dict) -> None:
-    metrics = run.ctx.services.line_metrics
-    if isinstance(metrics, LineTruthMetrics) and "truth" in summary:
+    metrics = run.ctx.services.line_metrics  # set only in the simulator, with a floor and a follow_line step
+    if metrics is not None and "truth" in summary:
         summary["truth"].update(metrics.summary())
     pipeline = run.ctx.services.camera
-    if isinstance(pipeline, CameraPipeline) and pipeline.enabled:
+    if pipeline is not None and pipeline.enabled:
         summary["camera"] = {"frames": pipeline.frames, "enabled_for": list(pipeline.reasons)}
 
 

@@ -19,11 +19,9 @@ line) is left out, and the report says so.
 
 from __future__ import annotations
 
-import argparse
 import html
 import json
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
@@ -574,32 +572,6 @@ def write_html(d: RunData, report: Report) -> Path:
     target = report.folder / "report.html"
     target.write_text("\n".join(parts) + "\n", encoding="utf-8")
     return target
-
-
-# -- the command ---------------------------------------------------------------------------------------
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Options of ``beastbt report``."""
-    p.add_argument("run", help="a run folder (runs/<time>_<mission>/) or an .mcap recording")
-    p.add_argument("--out", metavar="DIR", help="where the plots and report.html go (default: report/ in the run folder)")
-
-
-def command(args: argparse.Namespace) -> int:
-    """summarise a recorded run and plot it (PNG plots and report.html)"""
-    try:
-        report = make_report(args.run, args.out)
-    except (OSError, ValueError) as exc:
-        print(f"beastbt report: error: {exc}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # mcap's InvalidMagic and friends: not a recording
-        print(f"beastbt report: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
-        return 2
-    print(report.text)
-    print(f"  report: {report.html} ({len(report.plots)} plots"
-          + (f"; not plotted: {', '.join(f'{k} ({v})' for k, v in report.skipped.items())}" if report.skipped else "")
-          + ")")
-    return 0
 
 
 __all__ = ["make_report", "Report", "RunData", "summary_text", "step_intervals", "PLOTS", "FIG_SIZE_IN",

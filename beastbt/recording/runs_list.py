@@ -8,7 +8,6 @@ still running), and its line says so.
 
 from __future__ import annotations
 
-import argparse
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,22 +66,6 @@ def list_runs(runs_dir: str) -> list[RunEntry]:
 def _mission_from_name(name: str) -> str:
     """``20250101T120000Z_patrol`` -> ``patrol`` (the folder name when the summary is missing)."""
     return name.split("_", 1)[1] if "_" in name else name
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Options of ``beastbt runs``."""
-    p.add_argument("--runs-dir", default="runs", help="where the run folders are (default: ./runs)")
-
-
-def command(args: argparse.Namespace) -> int:
-    """list the recorded runs with their outcome, one line each"""
-    runs = list_runs(args.runs_dir)
-    if not runs:
-        print(f"no runs in {args.runs_dir}")
-        return 0
-    for r in runs:
-        print(r.line())
-    return 0
 
 
 __all__ = ["list_runs", "RunEntry"]

@@ -2,8 +2,7 @@
 
 One place that reads ``can_base:``, ``pwm_base:``, ``pca9685:``, ``servos:``,
 ``joystick:``, ``teleop:`` and ``watchdog:`` for both the real robot
-(``beastbt.parts.hardware_devices``) and the simulator
-(``beastbt.parts.sim_actuators``), so that a profile means the same on both.
+and the simulator (the parts in ``beastbt.parts``), so that a profile means the same on both.
 A bad value becomes an :class:`~beastbt.core.errors.InvalidInput` at the
 section's line, before anything moves. Wheel geometry the base section leaves
 out (``track_width_m``, ``wheel_radius_m``) comes from the profile's ``geometry:``.
@@ -11,9 +10,8 @@ out (``track_width_m``, ``wheel_radius_m``) comes from the profile's ``geometry:
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from beastbt.actuation.can_base import CanBaseConfig
 from beastbt.actuation.pwm_base import PwmBaseConfig
 from beastbt.actuation.teleop import TeleopConfig
 from beastbt.actuation.watchdog import WatchdogConfig
@@ -21,6 +19,9 @@ from beastbt.devices.joystick import JoystickMapping
 from beastbt.devices.pca9685 import Pca9685Config, ServoCalibration, servo_calibrations_from_dict
 from beastbt.core.errors import InvalidInput
 from beastbt.robot.profile import RobotProfile
+
+if TYPE_CHECKING:  # python-can comes with it: imported only for a robot with a CAN base
+    from beastbt.actuation.can_base import CanBaseConfig
 
 
 def _build(profile: RobotProfile, section: str, build: Any, raw: Any) -> Any:
@@ -41,8 +42,9 @@ def _with_geometry(profile: RobotProfile, raw: dict, keys: tuple[str, ...]) -> d
     return out
 
 
-def can_config(profile: RobotProfile) -> CanBaseConfig:
+def can_config(profile: RobotProfile) -> "CanBaseConfig":
     """The ``can_base:`` section (defaults: HARDWARE.md's example protocol; geometry from ``geometry:``)."""
+    from beastbt.actuation.can_base import CanBaseConfig
     raw = _with_geometry(profile, profile.section("can_base") or {}, ("track_width_m", "wheel_radius_m"))
     return _build(profile, "can_base", CanBaseConfig.from_dict, raw)
 

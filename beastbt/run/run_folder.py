@@ -9,7 +9,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-import cv2
 
 
 @dataclass
@@ -40,6 +39,7 @@ class RunFolder:
         while target.exists():
             n += 1
             target = self.path / f"{name}-{n}.jpg"
+        import cv2  # only a run that takes snapshots needs OpenCV here
         cv2.imwrite(str(target), frame.image)
         return str(target)
 

@@ -9,7 +9,7 @@ safety gate to the base and the servos, and record what happened.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any, Callable, Mapping, Optional
 
 import py_trees

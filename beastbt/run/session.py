@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, TextIO, Union
 
-from beastbt.core.errors import InvalidInput
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock, SimClock
 from beastbt.core.events import EventLog

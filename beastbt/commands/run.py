@@ -1,0 +1,100 @@
+"""``beastbt run MISSION``: run a mission on the simulator (default) or on a robot, and summarise it.
+
+Exit status: 0 the mission succeeded, 1 it failed or was stopped, 2 invalid
+input (nothing moved). Every option is checked before anything is loaded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any, Callable
+
+from beastbt.core.units import UnitError, parse_duration
+
+EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+
+
+def _duration(text: str) -> float:
+    try:
+        return parse_duration(text)
+    except UnitError as exc:
+        raise argparse.ArgumentTypeError(str(exc))
+
+
+def _checked(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc))
+    return convert
+
+
+def _endpoint(text: str) -> tuple[str, int]:
+    from beastbt.live.endpoint import parse_endpoint
+    return parse_endpoint(text)
+
+
+def _size(text: str) -> tuple[int, int]:
+    from beastbt.live.endpoint import parse_size
+    return parse_size(text)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``beastbt run``."""
+    p.add_argument("mission", help="the mission file (YAML)")
+    p.add_argument("--robot", default="sim", help="'sim' (default: the built-in simulator) or a robot profile file")
+    p.add_argument("--world", help="simulated world file (default: the mission's 'world:')")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the simulator (default 0)")
+    p.add_argument("--speed", default="max", help="max (default), realtime, or a factor of real time such as 10")
+    p.add_argument("--max-time", type=_duration, help="end the run after this much mission time, e.g. '10 min'")
+    p.add_argument("--summary", metavar="FILE", help="write the run summary as JSON to FILE")
+    p.add_argument("--record", metavar="FILE", help="also write the run's recording to FILE")
+    p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
+    p.add_argument("--no-record", action="store_true", help="do not write a run folder")
+    p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
+    p.add_argument("--joystick", metavar="FILE",
+                   help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
+                        "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
+    p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint),
+                   help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
+                        "HOST defaults to 127.0.0.1")
+    p.add_argument("--stream-size", metavar="WxH", type=_checked(_size), help="size of the streamed frames (default 640x480)")
+    p.add_argument("--stream-quality", metavar="Q", type=int, help="JPEG quality 1-100 (default 80)")
+    p.add_argument("--stream-fps", metavar="FPS", type=float, help="most frames streamed per second (default 25)")
+    p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
+    p.add_argument("--record-images", type=float, metavar="HZ", dest="record_images",
+                   help="camera images recorded per second as JPEG (default 2; 0 for none)")
+
+
+def command(args: argparse.Namespace) -> int:
+    """Run the mission; print the summary. 0 success, 1 failure or stopped, 2 invalid input."""
+    from beastbt.run.session import RunOptions, parse_speed
+    try:
+        speed = parse_speed(args.speed)
+    except ValueError as exc:
+        print(f"beastbt run: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    opts = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, max_time_s=args.max_time,
+                      summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
+                      record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
+                      joystick_script=args.joystick, stream=args.stream, stream_size=args.stream_size,
+                      stream_quality=args.stream_quality, stream_fps=args.stream_fps,
+                      stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images)
+    from beastbt.assembly import prepare
+    from beastbt.core.errors import InvalidInput
+    from beastbt.robot.hardware import DeviceUnavailable
+    from beastbt.run.session import execute
+    from beastbt.run.summary import human_summary
+    try:
+        prepared = prepare(args.mission, opts)
+    except InvalidInput as exc:
+        print(exc.format(), file=sys.stderr)
+        return EXIT_INVALID
+    except DeviceUnavailable as exc:
+        print(f"beastbt run: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    summary = execute(prepared, sys.stdout)
+    print(human_summary(summary))
+    return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE
