@@ -137,7 +137,7 @@ def external_part(name: str, profile: RobotProfile) -> Part:
 
 def _profile_problem(profile: RobotProfile, path: tuple, message: str, hint: str) -> Problem:
     if profile.doc is not None:
-        return profile.doc.problem(path, message, hint)
+        return profile.doc.problem(path, message, hint, key=True)
     return Problem(str(profile.file or profile.name), Position(), message, hint)
 
 
@@ -223,6 +223,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         # Per-tick work and closing only for the parts that have any: the others cost nothing per tick.
         run.hooks[:0] = [part.tick for part in parts if part.overrides("tick")]
         prepared.closers.extend(part.close for part in parts if part.overrides("close"))
+        run.summary_contributors.extend(part.summarise for part in parts if part.overrides("summarise"))
     except BaseException:
         build.io.close()  # whatever was opened is released (the base sends its stop)
         raise

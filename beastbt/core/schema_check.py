@@ -63,16 +63,27 @@ def load_schema(name: str) -> dict:
     return _schema_texts()[name]
 
 
+_BASE_URI = "https://beastbt.dev/schemas/"
+
+
+@lru_cache(maxsize=None)
+def _registry() -> Registry:
+    resources_ = [(_BASE_URI + key, Resource.from_contents(doc, default_specification=DRAFT202012))
+                  for key, doc in _schema_texts().items()]
+    return Registry().with_resources(resources_)
+
+
+def validator_of(schema: dict, name: str) -> jsonschema.Draft202012Validator:
+    """A validator for ``schema`` (the schema ``name``, possibly extended); relative ``$ref`` resolve."""
+    schema = dict(schema)
+    schema.setdefault("$id", _BASE_URI + name)
+    return jsonschema.Draft202012Validator(schema, registry=_registry())
+
+
 @lru_cache(maxsize=None)
 def validator_for(name: str) -> jsonschema.Draft202012Validator:
     """A cached validator for schema ``name``; relative ``$ref`` to ``parts/*.json`` resolve."""
-    base = "https://beastbt.dev/schemas/"
-    resources_ = [(base + key, Resource.from_contents(doc, default_specification=DRAFT202012))
-                  for key, doc in _schema_texts().items()]
-    registry = Registry().with_resources(resources_)
-    schema = dict(load_schema(name))
-    schema.setdefault("$id", base + name)
-    return jsonschema.Draft202012Validator(schema, registry=registry)
+    return validator_of(load_schema(name), name)
 
 
 def _where(path: tuple) -> str:
@@ -242,7 +253,7 @@ class _Explainer:
         return [self.at(path, f"expected a {label}, got {_type_of(inst)}", f"the {label}s are: {listing}")]
 
 
-def schema_problems(doc: SourceDoc, schema_name: str, what: str) -> list[Problem]:
-    """Validate ``doc`` against ``schema_name``; return every problem found, positioned and explained."""
-    validator = validator_for(schema_name)
+def schema_problems(doc: SourceDoc, schema_name: str, what: str, schema: Optional[dict] = None) -> list[Problem]:
+    """Validate ``doc`` against ``schema_name`` (or ``schema``, an extension of it); every problem, explained."""
+    validator = validator_for(schema_name) if schema is None else validator_of(schema, schema_name)
     return _Explainer(doc, what).problems(validator.iter_errors(doc.data))

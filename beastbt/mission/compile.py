@@ -64,6 +64,8 @@ class Compiler:
     def step(self, s: Step) -> Behaviour:
         """The behaviour (or subtree) for one step."""
         builder = self.builders.get(s.kind)
+        if builder is None and s.kind in self.mission.external_steps:
+            builder = self.mission.external_steps[s.kind].build
         if builder is None:
             needs = NEEDS_A_PART.get(s.kind)
             why = (f"'{s.kind}' needs {needs}, which this robot or version does not provide" if needs
@@ -80,7 +82,7 @@ class Compiler:
 
     def steps_at(self, values: list, path: tuple) -> list[Step]:
         """Steps of a nested list."""
-        return steps_of(values, path)
+        return steps_of(values, path, self.mission.external_steps)
 
     def place(self, name: str) -> tuple[Optional[float], Optional[float], Optional[float]]:
         """(lat, lon, tolerance_m) of a named place; ``home`` is (None, None, None) until known."""

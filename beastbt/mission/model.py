@@ -12,10 +12,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional, Union
+from typing import Any, Collection, Optional, Union
 
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
-from beastbt.core.schema_check import schema_problems
+from beastbt.core.schema_check import load_schema, schema_problems
+from beastbt.mission.external_steps import ExternalStep, load_external_steps, step_keywords_in, with_external_steps
 from beastbt.core.units import parse_count, parse_quantity
 from beastbt.core.yaml_source import PathKey, SourceDoc, load_yaml
 
@@ -81,6 +82,8 @@ class Mission:
     teleop_override: bool = True
     teleop_on_release: str = "resume"
     failsafes: list[Failsafe] = field(default_factory=list)
+    external_steps: dict[str, ExternalStep] = field(default_factory=dict)
+    """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
 
     def quantity(self, path: PathKey, kind: str, default: Optional[float] = None) -> Optional[float]:
         """The value at ``path`` of the document converted to SI (``default`` when absent)."""
@@ -93,19 +96,22 @@ class Mission:
         return parse_quantity(node, kind)
 
 
-def step_of(value: Any, path: PathKey) -> Step:
-    """Name the step written at ``path`` (a bare word like ``stop`` or a one-keyword mapping)."""
+def step_of(value: Any, path: PathKey, extra: Collection[str] = ()) -> Step:
+    """Name the step written at ``path`` (a bare word like ``stop`` or a one-keyword mapping).
+
+    ``extra``: step keywords of installed packages that the mission uses.
+    """
     if isinstance(value, str):
         return Step(value, None, path)
     for key in value:
-        if key in STEP_KEYWORDS:
+        if key in STEP_KEYWORDS or key in extra:
             return Step(key, value[key], path)
     raise ValueError(f"not a step: {value!r}")
 
 
-def steps_of(values: list, path: PathKey) -> list[Step]:
-    """The steps of a list at ``path``."""
-    return [step_of(v, path + (i,)) for i, v in enumerate(values)]
+def steps_of(values: list, path: PathKey, extra: Collection[str] = ()) -> list[Step]:
+    """The steps of a list at ``path`` (``extra``: step keywords of installed packages)."""
+    return [step_of(v, path + (i,), extra) for i, v in enumerate(values)]
 
 
 def _accel(value: Union[str, float]) -> float:
@@ -338,18 +344,22 @@ class _SemanticChecker:
 def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None) -> Mission:
     """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path, text=text, display_name=display_name)
-    problems = schema_problems(doc, "mission.schema.json", "mission")
+    # A keyword the language does not know may be a step of an installed package: only those are loaded.
+    external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
+    schema = with_external_steps(load_schema("mission.schema.json"), external) if external else None
+    problems = schema_problems(doc, "mission.schema.json", "mission", schema)
     problems += _SemanticChecker(doc).run_guarded()
     if problems:
         raise InvalidInput(problems)
-    return _build(doc, Path(path))
+    return _build(doc, Path(path), external)
 
 
-def _build(doc: SourceDoc, path: Path) -> Mission:
+def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:
     d = doc.data
     limits = d.get("limits") or {}
     base = path.parent if str(path) else Path(".")
-    m = Mission(name=d["mission"], file=doc.file, doc=doc, description=d.get("description", ""))
+    m = Mission(name=d["mission"], file=doc.file, doc=doc, description=d.get("description", ""),
+                external_steps=external)
     if "world" in d:
         m.world = (base / d["world"]).resolve() if not Path(d["world"]).is_absolute() else Path(d["world"])
     m.rate_hz = parse_quantity(d.get("rate", 20), "frequency")
@@ -363,8 +373,8 @@ def _build(doc: SourceDoc, path: Path) -> Mission:
         tol = parse_quantity(place["tolerance"], "distance") if "tolerance" in place else None
         m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
     for name, steps in (d.get("tasks") or {}).items():
-        m.tasks[name] = steps_of(steps, ("tasks", name))
-    m.steps = steps_of(d["steps"], ("steps",))
+        m.tasks[name] = steps_of(steps, ("tasks", name), external)
+    m.steps = steps_of(d["steps"], ("steps",), external)
     m.on_failure = d.get("on_failure", "stop")
     teleop = d.get("teleop", True)
     if isinstance(teleop, dict):

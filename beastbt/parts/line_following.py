@@ -138,7 +138,10 @@ class LineFollowingPart(Part):
     def install(self, prepared: Prepared) -> None:
         """The camera and follower services; in the simulator, the camera on when the mission uses it."""
         install_vision(prepared)
-        prepared.run.summary_contributors.append(_summary)
+
+    def summarise(self, run: Any, summary: dict) -> None:
+        """``camera`` (frames, why it was on) and, in the simulator, the line truth metrics."""
+        _summary(run, summary)
 
 
 __all__ = ["LineFollowingPart", "install_vision", "camera_uses", "follow_nodes"]

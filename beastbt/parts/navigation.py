@@ -176,7 +176,10 @@ class NavigationPart(Part):
         """Navigation tuning and going home; in the simulator, the truth of every arrival."""
         install_navigation(prepared)
         install_truth(prepared)
-        prepared.run.summary_contributors.append(contribute)
+
+    def summarise(self, run: MissionRun, summary: dict) -> None:
+        """``waypoints`` and, in the simulator, the truth metrics of the pose."""
+        contribute(run, summary)
 
 
 __all__ = ["NavigationPart", "NavEstimator", "ekf_estimator", "install_navigation", "return_home_instead",

@@ -307,7 +307,10 @@ class TeleopPart(Part):
         run.ctx.services.teleop = override
         run.ctx.services.on_failure["teleop"] = override.on_failure
         run.ctx.services.failsafe["teleop"] = override.on_failsafe
-        run.summary_contributors.append(teleop_summary)
+
+    def summarise(self, run: MissionRun, summary: dict) -> None:
+        """``teleop``: joystick, take-overs, time driven by the operator, e-stop, watchdog trips."""
+        teleop_summary(run, summary)
 
     def tick(self, run: MissionRun, now_s: float) -> None:
         """The joystick's say this tick: e-stop buttons, teleop to the mux, pause and resume."""

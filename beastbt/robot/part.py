@@ -20,6 +20,8 @@ order and for every part:
    nothing per tick).
 5. :meth:`Part.close` once the run has ended (whatever ended it), for a part
    that overrides it; devices are released by ``RobotIO.close``.
+6. :meth:`Part.summarise` when the summary is built, for a part that
+   overrides it.
 
 A part that the profile and the mission do not use is not even imported
 (the composition root decides from the profile and the run options). Base parts (:class:`BasePart`) open the
@@ -117,8 +119,15 @@ class Part:
     def close(self) -> None:
         """Release what :meth:`install` started, once the run has ended. Only called when overridden."""
 
+    def summarise(self, run: "MissionRun", summary: dict) -> None:
+        """Add this part's fields to the run summary. Only called when overridden."""
+
+    def settings(self, profile: RobotProfile) -> dict[str, Any]:
+        """A part of another package's settings: the mapping under its name in the profile's ``parts:``."""
+        return dict((profile.section("parts") or {}).get(self.name) or {})
+
     def overrides(self, hook: str) -> bool:
-        """True when this part's class overrides ``hook`` (``tick`` or ``close``) of :class:`Part`."""
+        """True when this part's class overrides ``hook`` (``tick``, ``close``, ``summarise``) of :class:`Part`."""
         return getattr(type(self), hook) is not getattr(Part, hook)
 
 
