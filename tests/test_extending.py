@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -35,10 +36,12 @@ steps:
 def installed(tmp_path_factory) -> Path:
     """The fixture package installed with pip into a folder of its own; that folder."""
     target = tmp_path_factory.mktemp("site")
+    source = tmp_path_factory.mktemp("src") / FIXTURE.name
+    shutil.copytree(FIXTURE, source)  # the build leaves its build/ and egg-info there, not in the checkout
     base = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(target)]
-    done = subprocess.run(base + ["--no-build-isolation", str(FIXTURE)], capture_output=True, text=True, timeout=300)
+    done = subprocess.run(base + ["--no-build-isolation", str(source)], capture_output=True, text=True, timeout=300)
     if done.returncode != 0:  # no setuptools in this environment: let pip fetch a build backend
-        done = subprocess.run(base + [str(FIXTURE)], capture_output=True, text=True, timeout=300)
+        done = subprocess.run(base + [str(source)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert any(p.name.startswith("beastbt_blinker") and p.name.endswith(".dist-info") for p in target.iterdir())
     return target
