@@ -7,6 +7,7 @@ import math
 
 from beastbt import cli
 from beastbt.mission.model import load_mission
+from beastbt.mission.steps import Repeat
 from conftest import REPO
 
 PATROL = REPO / "missions" / "patrol.yaml"
@@ -62,7 +63,8 @@ def test_max_time_stops_the_run_with_exit_1(tmp_path, capsys):
 def test_the_patrol_is_the_language_docs_example():
     m = load_mission(PATROL)
     assert m.speed_limit_mps == 0.3 and set(m.tasks) == {"look_around"}
-    assert m.steps[0].kind == "repeat"
+    assert isinstance(m.steps[0], Repeat) and m.steps[0].times == 3
+    assert [type(s).__name__ for s in m.steps[0].steps] == ["DriveDistance", "Do", "TurnBy"] * 2
     assert math.isclose(m.rate_hz, 20.0)
 
 

@@ -1,88 +1,77 @@
 """Compile a :class:`~beastbt.mission.model.Mission` into a py_trees behaviour tree.
 
-Each step keyword has a builder: the language's own are in :data:`CORE_STEPS`;
-parts of a robot that add steps (navigation, vision, teleop) hand theirs to
-the compiler through the assembly (``Part.steps``). Node names read like the mission (``drive 3 m at 0.15 m/s``).
-A step whose part is missing on this robot compiles to a leaf that fails with
-"not available on this robot" and says why.
+The loader has already turned every step into a typed dataclass
+(:mod:`beastbt.mission.steps`, SI units); here each step maps to its
+behaviour. The builders of the language's own steps are in
+:data:`CORE_STEPS`, keyed by keyword; parts of a robot that add steps
+(navigation, line following, teleop) hand theirs to the compiler through the
+assembly (``Part.steps``), and steps of installed packages come with the
+mission (``Mission.external_steps``). Node names read like the mission
+(``drive 3 m at 0.15 m/s``). A step whose part is missing on this robot
+compiles to a leaf that fails with "not available on this robot" and says why.
 """
 
 from __future__ import annotations
 
 import math
 from types import MappingProxyType
-from typing import Any, Callable, Mapping, Optional
+from typing import Callable, Mapping, Optional, Sequence
 
 import py_trees
 
-from beastbt.behaviours.conditions import (Condition, ConditionReader, CheckCondition, battery_below, elapsed,
-                                           gps_fix, line_flag, near, teleop_active)
+from beastbt.behaviours import drive, stand, turn
+from beastbt.behaviours.conditions import (Condition, ConditionReader, battery_below, elapsed, gps_fix, line_flag,
+                                           near, teleop_active)
 from beastbt.behaviours.context import MissionContext
-from beastbt.behaviours.drive import DriveDistance, DriveTime
 from beastbt.behaviours.flow import ClockTimeout, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
 from beastbt.behaviours.operator import NotAvailable, Say, Snapshot
 from beastbt.behaviours.servos import SetServos
-from beastbt.behaviours.stand import StopRobot, Wait, WaitUntil
-from beastbt.behaviours.turn import TurnBy, TurnToHeading
 from beastbt.blackboard.types import ServoCommand
-from beastbt.mission.model import HOME, Mission, Step, parse_count, step_of, steps_of
-from beastbt.core.units import format_quantity, parse_quantity
+from beastbt.core.units import format_quantity
+from beastbt.mission import steps as st
+from beastbt.mission.model import HOME, Mission
 
 Behaviour = py_trees.behaviour.Behaviour
-StepBuilder = Callable[["Compiler", Step], Behaviour]
+StepBuilder = Callable[["Compiler", st.Step], Behaviour]
+"""Makes the behaviour (or subtree) of one typed step: ``fn(compiler, step)``."""
 
-DEFAULT_NEAR_WITHIN_M = 3.0
-"""``{near: place}`` without ``within`` means within this many metres."""
-
-
-def _q(value: Any, kind: str) -> str:
-    return format_quantity(parse_quantity(value, kind), kind)
+LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
+"""Condition words read from the line observation, and the observation's flag each reads."""
 
 
 class Compiler:
-    """Builds the tree of one mission for one robot (its context)."""
+    """Builds the tree of one mission for one robot (its context) with the given step builders."""
 
     def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None) -> None:
         self.mission = mission
         self.ctx = ctx
         self.builders: Mapping[str, StepBuilder] = CORE_STEPS if builders is None else builders
         self.reader = ConditionReader(ctx)
-        self.call_stack: list[str] = []
 
     # -- structure --------------------------------------------------------
     def compile(self) -> Behaviour:
         """The whole mission: a sequence of its steps, named after the mission."""
         return self.sequence(f"mission {self.mission.name}", self.mission.steps, always_wrap=True)
 
-    def sequence(self, name: str, steps: list[Step], always_wrap: bool = False) -> Behaviour:
+    def sequence(self, name: str, steps: Sequence[st.Step], always_wrap: bool = False) -> Behaviour:
         """Run ``steps`` in order; a single step stands alone unless ``always_wrap``."""
         children = [self.step(s) for s in steps]
         if len(children) == 1 and not always_wrap:
             return children[0]
         return py_trees.composites.Sequence(name=name, memory=True, children=children)
 
-    def step(self, s: Step) -> Behaviour:
+    def step(self, s: st.Step) -> Behaviour:
         """The behaviour (or subtree) for one step."""
-        builder = self.builders.get(s.kind)
-        if builder is None and s.kind in self.mission.external_steps:
-            builder = self.mission.external_steps[s.kind].build
+        kind = st.keyword_of(s)
+        builder = self.builders.get(kind)
+        if builder is None and kind in self.mission.external_steps:
+            builder = self.mission.external_steps[kind].build
         if builder is None:
-            needs = NEEDS_A_PART.get(s.kind)
-            why = (f"'{s.kind}' needs {needs}, which this robot or version does not provide" if needs
-                   else f"'{s.kind}' is not supported by this version of beastbt")
-            return NotAvailable(s.kind, self.ctx, why)
+            needs = NEEDS_A_PART.get(kind)
+            why = (f"'{kind}' needs {needs}, which this robot or version does not provide" if needs
+                   else f"'{kind}' is not supported by this version of beastbt")
+            return NotAvailable(kind, self.ctx, why)
         return builder(self, s)
-
-    def raw(self, s: Step) -> dict:
-        """The whole mapping a step was written as (for keys beside the keyword, like ``then``)."""
-        node: Any = self.mission.doc.data
-        for part in s.path:
-            node = node[part]
-        return node
-
-    def steps_at(self, values: list, path: tuple) -> list[Step]:
-        """Steps of a nested list."""
-        return steps_of(values, path, self.mission.external_steps)
 
     def place(self, name: str) -> tuple[Optional[float], Optional[float], Optional[float]]:
         """(lat, lon, tolerance_m) of a named place; ``home`` is (None, None, None) until known."""
@@ -92,100 +81,86 @@ class Compiler:
         return p.lat, p.lon, p.tolerance_m
 
     # -- conditions -------------------------------------------------------
-    def condition(self, raw: Any) -> Condition:
-        """Compile a condition written in the mission language."""
+    def condition(self, c: st.Condition) -> Condition:
+        """The test of a typed condition, named as the mission says it."""
         r = self.reader
-        if isinstance(raw, str):
-            tests = {"intersection": line_flag("intersection"), "line_seen": line_flag("seen"),
-                     "gps_fix": gps_fix, "teleop_active": teleop_active}
-            return Condition(raw, tests[raw], r)
-        if "battery_below" in raw:
-            v = parse_quantity(raw["battery_below"], "voltage")
-            return Condition(f"battery below {v:g} V", battery_below(v), r)
-        if "near" in raw:
-            within = parse_quantity(raw.get("within", DEFAULT_NEAR_WITHIN_M), "distance")
-            lat, lon, _ = self.place(raw["near"])
-            return Condition(f"near {raw['near']} within {within:g} m", near(lat, lon, within, raw["near"]), r)
-        if "elapsed" in raw:
-            t = parse_quantity(raw["elapsed"], "duration")
-            return Condition(f"elapsed {t:g} s", elapsed(t), r)
-        if "not" in raw:
-            inner = self.condition(raw["not"])
-            return Condition(f"not {inner}", lambda rd, c=inner: not c.test(rd), r)
-        if "all" in raw:
-            parts = [self.condition(c) for c in raw["all"]]
-            return Condition("all of (" + ", ".join(map(str, parts)) + ")", lambda rd: all(c.test(rd) for c in parts), r)
-        parts = [self.condition(c) for c in raw["any"]]
-        return Condition("any of (" + ", ".join(map(str, parts)) + ")", lambda rd: any(c.test(rd) for c in parts), r)
+        if isinstance(c, st.Flag):
+            test = {"gps_fix": gps_fix, "teleop_active": teleop_active}.get(c.word)
+            return Condition(c.word, test if test is not None else line_flag(LINE_FLAGS[c.word]), r)
+        if isinstance(c, st.BatteryBelow):
+            return Condition(f"battery below {c.volts:g} V", battery_below(c.volts), r)
+        if isinstance(c, st.Near):
+            lat, lon, _ = self.place(c.place)
+            return Condition(f"near {c.place} within {c.within_m:g} m", near(lat, lon, c.within_m, c.place), r)
+        if isinstance(c, st.Elapsed):
+            return Condition(f"elapsed {c.duration_s:g} s", elapsed(c.duration_s), r)
+        if isinstance(c, st.Not):
+            inner = self.condition(c.condition)
+            return Condition(f"not {inner}", lambda rd, i=inner: not i.test(rd), r)
+        parts = [self.condition(x) for x in c.conditions]
+        if isinstance(c, st.AllOf):
+            return Condition("all of (" + ", ".join(map(str, parts)) + ")", lambda rd: all(p.test(rd) for p in parts), r)
+        return Condition("any of (" + ", ".join(map(str, parts)) + ")", lambda rd: any(p.test(rd) for p in parts), r)
+
+
+def _at(speed_mps: Optional[float]) -> str:
+    return f" at {format_quantity(speed_mps, 'speed')}" if speed_mps is not None else ""
 
 
 # -- actions ----------------------------------------------------------------
 
-def _drive(c: Compiler, s: Step) -> Behaviour:
-    v = s.value
-    speed = parse_quantity(v["speed"], "speed") if "speed" in v else None
-    at = f" at {_q(v['speed'], 'speed')}" if "speed" in v else ""
-    if "distance" in v:
-        d = parse_quantity(v["distance"], "distance")
-        stuck = parse_quantity(v["stuck_after"], "duration") if "stuck_after" in v else None
-        return DriveDistance(f"drive {_q(v['distance'], 'distance')}{at}", c.ctx, d, speed, stuck)
-    t = parse_quantity(v["time"], "duration")
-    return DriveTime(f"drive for {_q(v['time'], 'duration')}{at}", c.ctx, t, speed)
+def _drive(c: Compiler, s: st.Step) -> Behaviour:
+    if isinstance(s, st.DriveDistance):
+        return drive.DriveDistance(f"drive {format_quantity(s.distance_m, 'distance')}{_at(s.speed_mps)}", c.ctx,
+                                   s.distance_m, s.speed_mps, s.stuck_after_s)
+    assert isinstance(s, st.DriveTime)
+    return drive.DriveTime(f"drive for {format_quantity(s.duration_s, 'duration')}{_at(s.speed_mps)}", c.ctx,
+                           s.duration_s, s.speed_mps)
 
 
-def _turn(c: Compiler, s: Step) -> Behaviour:
-    v = s.value
-    rate = parse_quantity(v["rate"], "turn_rate") if "rate" in v else None
-    stuck = parse_quantity(v["stuck_after"], "duration") if "stuck_after" in v else None
-    if "angle" in v:
-        a = parse_quantity(v["angle"], "angle")
-        return TurnBy(f"turn {math.degrees(a):g} deg", c.ctx, a, rate, stuck)
-    h = parse_quantity(v["heading"], "angle")
-    return TurnToHeading(f"turn to heading {math.degrees(h):g} deg", c.ctx, h, rate, stuck)
+def _turn(c: Compiler, s: st.Step) -> Behaviour:
+    if isinstance(s, st.TurnBy):
+        return turn.TurnBy(f"turn {math.degrees(s.angle_rad):g} deg", c.ctx, s.angle_rad, s.rate_rps, s.stuck_after_s)
+    assert isinstance(s, st.TurnToHeading)
+    return turn.TurnToHeading(f"turn to heading {math.degrees(s.heading_rad):g} deg", c.ctx, s.heading_rad,
+                              s.rate_rps, s.stuck_after_s)
 
 
-def _wait(c: Compiler, s: Step) -> Behaviour:
-    return Wait(f"wait {_q(s.value, 'duration')}", c.ctx, parse_quantity(s.value, "duration"))
+def _wait(c: Compiler, s: st.Wait) -> Behaviour:
+    return stand.Wait(f"wait {format_quantity(s.duration_s, 'duration')}", c.ctx, s.duration_s)
 
 
-def _stop(c: Compiler, s: Step) -> Behaviour:
-    return StopRobot("stop", c.ctx)
+def _stop(c: Compiler, s: st.Stop) -> Behaviour:
+    return stand.StopRobot("stop", c.ctx)
 
 
-def _look(c: Compiler, s: Step) -> Behaviour:
-    v = s.value
+def _look(c: Compiler, s: st.Look) -> Behaviour:
     cmds, words = [], []
-    for axis in ("pan", "tilt"):
-        if axis in v:
-            angle = parse_quantity(v[axis], "angle")
+    for axis, angle in (("pan", s.pan_rad), ("tilt", s.tilt_rad)):
+        if angle is not None:
             cmds.append(ServoCommand(name=axis, angle_rad=angle))
             words.append(f"{axis} {math.degrees(angle):g} deg")
-    settle = parse_quantity(v["settle"], "duration") if "settle" in v else None
-    return SetServos("look " + ", ".join(words), c.ctx, cmds, settle)
+    return SetServos("look " + ", ".join(words), c.ctx, cmds, s.settle_s)
 
 
-def _servo(c: Compiler, s: Step) -> Behaviour:
-    v = s.value
-    settle = parse_quantity(v["settle"], "duration") if "settle" in v else None
-    if "name" in v:
-        angle = parse_quantity(v["angle"], "angle")
-        return SetServos(f"servo {v['name']} {math.degrees(angle):g} deg", c.ctx,
-                         [ServoCommand(name=v["name"], angle_rad=angle)], settle)
-    pulse = parse_quantity(v["pulse"], "pulse")
-    return SetServos(f"servo channel {v['channel']} {pulse * 1000:g} ms", c.ctx,
-                     [ServoCommand(channel=v["channel"], pulse_s=pulse)], settle)
+def _servo(c: Compiler, s: st.Step) -> Behaviour:
+    if isinstance(s, st.ServoAngle):
+        return SetServos(f"servo {s.name} {math.degrees(s.angle_rad):g} deg", c.ctx,
+                         [ServoCommand(name=s.name, angle_rad=s.angle_rad)], s.settle_s)
+    assert isinstance(s, st.ServoPulse)
+    return SetServos(f"servo channel {s.channel} {s.pulse_s * 1000:g} ms", c.ctx,
+                     [ServoCommand(channel=s.channel, pulse_s=s.pulse_s)], s.settle_s)
 
 
-def _say(c: Compiler, s: Step) -> Behaviour:
-    text = str(s.value)
-    short = text if len(text) <= 30 else text[:27] + "..."
-    return Say(f'say "{short}"', c.ctx, text)
+def _say(c: Compiler, s: st.Say) -> Behaviour:
+    short = s.text if len(s.text) <= 30 else s.text[:27] + "..."
+    return Say(f'say "{short}"', c.ctx, s.text)
 
 
-def _snapshot(c: Compiler, s: Step) -> Behaviour:
+def _snapshot(c: Compiler, s: st.Snapshot) -> Behaviour:
     if "camera" not in c.ctx.capabilities:
-        return NotAvailable(f"snapshot {s.value['name']}", c.ctx, "this robot has no camera")
-    return Snapshot(f"snapshot {s.value['name']}", c.ctx, s.value["name"])
+        return NotAvailable(f"snapshot {s.name}", c.ctx, "this robot has no camera")
+    return Snapshot(f"snapshot {s.name}", c.ctx, s.name)
 
 
 NEEDS_A_PART: Mapping[str, str] = MappingProxyType({
@@ -197,70 +172,55 @@ NEEDS_A_PART: Mapping[str, str] = MappingProxyType({
 
 # -- flow -------------------------------------------------------------------
 
-def _repeat(c: Compiler, s: Step) -> Behaviour:
-    times = parse_count(s.value["times"])
-    body = c.sequence("pass", c.steps_at(s.value["steps"], s.path + ("repeat", "steps")), always_wrap=True)
-    label = "forever" if times < 0 else f"{times} times"
-    return RepeatTimes(f"repeat {label}", body, times)
+def _repeat(c: Compiler, s: st.Repeat) -> Behaviour:
+    body = c.sequence("pass", s.steps, always_wrap=True)
+    label = "forever" if s.times < 0 else f"{s.times} times"
+    return RepeatTimes(f"repeat {label}", body, s.times)
 
 
-def _do(c: Compiler, s: Step) -> Behaviour:
-    name = s.value
-    c.call_stack.append(name)
-    try:
-        return c.sequence(f"do {name}", c.mission.tasks[name], always_wrap=True)
-    finally:
-        c.call_stack.pop()
+def _do(c: Compiler, s: st.Do) -> Behaviour:
+    return c.sequence(f"do {s.task}", c.mission.tasks[s.task], always_wrap=True)
 
 
-def _first_of(c: Compiler, s: Step) -> Behaviour:
-    alts = [c.sequence(f"alternative {i + 1}", c.steps_at(alt, s.path + ("first_of", i)), always_wrap=True)
-            for i, alt in enumerate(s.value)]
+def _first_of(c: Compiler, s: st.FirstOf) -> Behaviour:
+    alts = [c.sequence(f"alternative {i + 1}", alt, always_wrap=True) for i, alt in enumerate(s.alternatives)]
     return py_trees.composites.Selector(name=f"first of {len(alts)} alternatives", memory=True, children=alts)
 
 
-def _retry(c: Compiler, s: Step) -> Behaviour:
-    times = parse_count(s.value["times"])
-    body = c.sequence("attempt", c.steps_at(s.value["steps"], s.path + ("retry", "steps")), always_wrap=True)
-    label = "forever" if times < 0 else f"up to {times} attempts"
-    return RetryAttempts(f"retry {label}", body, times)
+def _retry(c: Compiler, s: st.Retry) -> Behaviour:
+    body = c.sequence("attempt", s.steps, always_wrap=True)
+    label = "forever" if s.times < 0 else f"up to {s.times} attempts"
+    return RetryAttempts(f"retry {label}", body, s.times)
 
 
-def _timeout(c: Compiler, s: Step) -> Behaviour:
-    after = parse_quantity(s.value["after"], "duration")
-    body = c.sequence("steps", c.steps_at(s.value["steps"], s.path + ("timeout", "steps")), always_wrap=True)
-    return ClockTimeout(f"timeout {_q(s.value['after'], 'duration')}", body, after, c.ctx.clock)
+def _timeout(c: Compiler, s: st.Timeout) -> Behaviour:
+    body = c.sequence("steps", s.steps, always_wrap=True)
+    return ClockTimeout(f"timeout {format_quantity(s.after_s, 'duration')}", body, s.after_s, c.ctx.clock)
 
 
-def _parallel(c: Compiler, s: Step) -> Behaviour:
-    on = s.value.get("succeed_on", "all")
-    children = [c.step(x) for x in c.steps_at(s.value["steps"], s.path + ("parallel", "steps"))]
-    policy = (py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=True) if on == "all"
+def _parallel(c: Compiler, s: st.Parallel) -> Behaviour:
+    children = [c.step(x) for x in s.steps]
+    policy = (py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=True) if s.succeed_on == "all"
               else py_trees.common.ParallelPolicy.SuccessOnOne())
-    return py_trees.composites.Parallel(name=f"parallel (succeed on {on})", policy=policy, children=children)
+    return py_trees.composites.Parallel(name=f"parallel (succeed on {s.succeed_on})", policy=policy, children=children)
 
 
-def _if(c: Compiler, s: Step) -> Behaviour:
-    raw = c.raw(s)
-    cond = c.condition(raw["if"])
-    then = c.sequence("then", c.steps_at(raw["then"], s.path + ("then",)), always_wrap=True)
-    other = c.sequence("else", c.steps_at(raw["else"], s.path + ("else",)), always_wrap=True) if "else" in raw else None
+def _if(c: Compiler, s: st.If) -> Behaviour:
+    cond = c.condition(s.condition)
+    then = c.sequence("then", s.then, always_wrap=True)
+    other = c.sequence("else", s.otherwise, always_wrap=True) if s.otherwise is not None else None
     return IfThenElse(f"if {cond}", cond, then, other)
 
 
-def _while(c: Compiler, s: Step) -> Behaviour:
-    raw = c.raw(s)
-    cond = c.condition(raw["while"])
-    body = c.sequence("pass", c.steps_at(raw["steps"], s.path + ("steps",)), always_wrap=True)
-    return WhileLoop(f"while {cond}", cond, body)
+def _while(c: Compiler, s: st.While) -> Behaviour:
+    cond = c.condition(s.condition)
+    return WhileLoop(f"while {cond}", cond, c.sequence("pass", s.steps, always_wrap=True))
 
 
-def _wait_until(c: Compiler, s: Step) -> Behaviour:
-    raw = c.raw(s)
-    cond = c.condition(raw["wait_until"])
-    timeout = parse_quantity(raw["timeout"], "duration") if "timeout" in raw else None
-    name = f"wait until {cond}" + (f" (at most {_q(raw['timeout'], 'duration')})" if timeout else "")
-    return WaitUntil(name, c.ctx, cond, timeout)
+def _wait_until(c: Compiler, s: st.WaitUntil) -> Behaviour:
+    cond = c.condition(s.condition)
+    limit = f" (at most {format_quantity(s.timeout_s, 'duration')})" if s.timeout_s else ""
+    return stand.WaitUntil(f"wait until {cond}{limit}", c.ctx, cond, s.timeout_s)
 
 
 CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
@@ -282,7 +242,7 @@ CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
     "while": _while,
     "wait_until": _wait_until,
 })
-"""The builders of the language's own steps (read-only); parts add theirs through the assembly."""
+"""The builders of the language's own steps by keyword (read-only); parts add theirs through the assembly."""
 
 
 def compile_mission(mission: Mission, ctx: MissionContext,
@@ -312,4 +272,4 @@ def tree_to_dot(root: Behaviour) -> str:
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["Compiler", "compile_mission", "CORE_STEPS", "NEEDS_A_PART", "StepBuilder", "tree_to_dot", "CheckCondition", "step_of"]
+__all__ = ["Compiler", "compile_mission", "CORE_STEPS", "NEEDS_A_PART", "StepBuilder", "Behaviour", "tree_to_dot"]

@@ -16,6 +16,7 @@ from typing import Any, Collection, Optional, Union
 
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
 from beastbt.core.schema_check import load_schema, schema_problems
+from beastbt.mission import steps as st
 from beastbt.mission.external_steps import ExternalStep, load_external_steps, step_keywords_in, with_external_steps
 from beastbt.core.units import parse_count, parse_quantity
 from beastbt.core.yaml_source import PathKey, SourceDoc, load_yaml
@@ -41,8 +42,8 @@ class Place:
 
 
 @dataclass(frozen=True)
-class Step:
-    """One step as written: its keyword, its raw value and where it sits in the document."""
+class RawStep:
+    """One step as written, for the loader's own checks: its keyword, its raw value, where it sits."""
 
     kind: str
     value: Any
@@ -76,8 +77,9 @@ class Mission:
     turn_rate_limit_rps: Optional[float] = None
     accel_limit_mps2: Optional[float] = None
     places: dict[str, Place] = field(default_factory=dict)
-    tasks: dict[str, list[Step]] = field(default_factory=dict)
-    steps: list[Step] = field(default_factory=list)
+    tasks: dict[str, tuple[st.Step, ...]] = field(default_factory=dict)
+    """Each task's steps, by name (``do: name`` runs them)."""
+    steps: tuple[st.Step, ...] = ()
     on_failure: str = "stop"
     teleop_override: bool = True
     teleop_on_release: str = "resume"
@@ -85,31 +87,21 @@ class Mission:
     external_steps: dict[str, ExternalStep] = field(default_factory=dict)
     """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
 
-    def quantity(self, path: PathKey, kind: str, default: Optional[float] = None) -> Optional[float]:
-        """The value at ``path`` of the document converted to SI (``default`` when absent)."""
-        node: Any = self.doc.data
-        for part in path:
-            try:
-                node = node[part]
-            except (KeyError, IndexError, TypeError):
-                return default
-        return parse_quantity(node, kind)
 
-
-def step_of(value: Any, path: PathKey, extra: Collection[str] = ()) -> Step:
+def step_of(value: Any, path: PathKey, extra: Collection[str] = ()) -> RawStep:
     """Name the step written at ``path`` (a bare word like ``stop`` or a one-keyword mapping).
 
     ``extra``: step keywords of installed packages that the mission uses.
     """
     if isinstance(value, str):
-        return Step(value, None, path)
+        return RawStep(value, None, path)
     for key in value:
         if key in STEP_KEYWORDS or key in extra:
-            return Step(key, value[key], path)
+            return RawStep(key, value[key], path)
     raise ValueError(f"not a step: {value!r}")
 
 
-def steps_of(values: list, path: PathKey, extra: Collection[str] = ()) -> list[Step]:
+def steps_of(values: list, path: PathKey, extra: Collection[str] = ()) -> list[RawStep]:
     """The steps of a list at ``path`` (``extra``: step keywords of installed packages)."""
     return [step_of(v, path + (i,), extra) for i, v in enumerate(values)]
 
@@ -211,7 +203,7 @@ class _SemanticChecker:
                 # only add what it cannot see, so a step it rejected is skipped.
                 continue
 
-    def check_step(self, s: Step) -> None:
+    def check_step(self, s: RawStep) -> None:
         p = s.path + (s.kind,)
         v = s.value
         if s.kind == "drive":
@@ -341,6 +333,127 @@ class _SemanticChecker:
                         stack.append((callee, chain + [callee]))
 
 
+# -- from what the author wrote to typed steps -------------------------------------------------------------
+
+class _StepReader:
+    """Turns the checked YAML of a mission's steps into the typed steps of :mod:`beastbt.mission.steps`."""
+
+    def __init__(self, doc: SourceDoc, external: Collection[str]) -> None:
+        self.doc = doc
+        self.external = external
+
+    def steps(self, values: list, path: PathKey) -> tuple[st.Step, ...]:
+        return tuple(self.step(v, path + (i,)) for i, v in enumerate(values))
+
+    def step(self, raw: Any, path: PathKey) -> st.Step:
+        s = step_of(raw, path, self.external)
+        v, at = s.value, self.doc.position(path)
+        where = {"at": at, "path": path}
+        q = parse_quantity
+
+        def opt(key: str, kind: str, mapping: Any = None) -> Optional[float]:
+            m = v if mapping is None else mapping
+            return q(m[key], kind) if isinstance(m, dict) and key in m else None
+
+        def nav(mapping: Any) -> dict:
+            return {"tolerance_m": opt("tolerance", "distance", mapping), "speed_mps": opt("speed", "speed", mapping),
+                    "gps_timeout_s": opt("gps_timeout", "duration", mapping),
+                    "stuck_after_s": opt("stuck_after", "duration", mapping)}
+
+        k = s.kind
+        if k in self.external:
+            return st.PluginStep(keyword=k, value=v, **where)
+        if k == "drive":
+            if "distance" in v:
+                return st.DriveDistance(distance_m=q(v["distance"], "distance"), speed_mps=opt("speed", "speed"),
+                                        stuck_after_s=opt("stuck_after", "duration"), **where)
+            return st.DriveTime(duration_s=q(v["time"], "duration"), speed_mps=opt("speed", "speed"), **where)
+        if k == "turn":
+            common = {"rate_rps": opt("rate", "turn_rate"), "stuck_after_s": opt("stuck_after", "duration")}
+            if "angle" in v:
+                return st.TurnBy(angle_rad=q(v["angle"], "angle"), **common, **where)
+            return st.TurnToHeading(heading_rad=q(v["heading"], "angle"), **common, **where)
+        if k == "wait":
+            return st.Wait(duration_s=q(v, "duration"), **where)
+        if k == "stop":
+            return st.Stop(**where)
+        if k == "go_to":
+            if isinstance(v, str):
+                return st.GoToPlace(place=v, **where)
+            if "place" in v:
+                return st.GoToPlace(place=v["place"], **nav(v), **where)
+            return st.GoToPoint(lat_deg=float(v["lat"]), lon_deg=float(v["lon"]), **nav(v), **where)
+        if k == "route":
+            return st.Route(places=tuple(v["places"]), loops=parse_count(v["loops"]) if "loops" in v else 1,
+                            **nav(v), **where)
+        if k == "return_home":
+            return st.ReturnHome(**nav(v), **where)
+        if k == "follow_line":
+            until, amount = v["until"], None
+            if isinstance(until, dict):
+                until = next(iter(v["until"]))
+                amount = q(v["until"][until], "distance" if until == "distance" else "duration")
+            return st.FollowLine(until=until, amount=amount, speed_mps=opt("speed", "speed"),
+                                 lost_after_s=opt("lost_after", "duration"), **where)
+        if k == "look":
+            return st.Look(pan_rad=opt("pan", "angle"), tilt_rad=opt("tilt", "angle"), settle_s=opt("settle", "duration"),
+                           **where)
+        if k == "servo":
+            if "name" in v:
+                return st.ServoAngle(name=v["name"], angle_rad=q(v["angle"], "angle"), settle_s=opt("settle", "duration"),
+                                     **where)
+            return st.ServoPulse(channel=int(v["channel"]), pulse_s=q(v["pulse"], "pulse"),
+                                 settle_s=opt("settle", "duration"), **where)
+        if k == "snapshot":
+            return st.Snapshot(name=v["name"], **where)
+        if k == "say":
+            return st.Say(text=str(v), **where)
+        if k == "teleop":
+            return st.Teleop(duration_s=opt("for", "duration"), **where)
+        if k in ("repeat", "retry"):
+            cls = st.Repeat if k == "repeat" else st.Retry
+            return cls(times=parse_count(v["times"]), steps=self.steps(v["steps"], path + (k, "steps")), **where)
+        if k == "timeout":
+            return st.Timeout(after_s=q(v["after"], "duration"), steps=self.steps(v["steps"], path + (k, "steps")),
+                              **where)
+        if k == "parallel":
+            return st.Parallel(succeed_on=v.get("succeed_on", "all"), steps=self.steps(v["steps"], path + (k, "steps")),
+                               **where)
+        if k == "first_of":
+            return st.FirstOf(alternatives=tuple(self.steps(alt, path + (k, i)) for i, alt in enumerate(v)), **where)
+        if k == "do":
+            return st.Do(task=v, **where)
+        if k == "if":
+            return st.If(condition=condition_of(v), then=self.steps(raw["then"], path + ("then",)),
+                         otherwise=self.steps(raw["else"], path + ("else",)) if "else" in raw else None, **where)
+        if k == "while":
+            return st.While(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
+        if k == "wait_until":
+            return st.WaitUntil(condition=condition_of(v), timeout_s=opt("timeout", "duration", raw), **where)
+        raise ValueError(f"no typed step for '{k}'")
+
+
+DEFAULT_NEAR_WITHIN_M = 3.0
+"""``{near: place}`` without ``within`` means within this many metres."""
+
+
+def condition_of(raw: Any) -> st.Condition:
+    """The typed condition of what the author wrote (already checked by the schema)."""
+    if isinstance(raw, str):
+        return st.Flag(word=raw)
+    if "battery_below" in raw:
+        return st.BatteryBelow(volts=parse_quantity(raw["battery_below"], "voltage"))
+    if "near" in raw:
+        return st.Near(place=raw["near"], within_m=parse_quantity(raw.get("within", DEFAULT_NEAR_WITHIN_M), "distance"))
+    if "elapsed" in raw:
+        return st.Elapsed(duration_s=parse_quantity(raw["elapsed"], "duration"))
+    if "not" in raw:
+        return st.Not(condition=condition_of(raw["not"]))
+    if "all" in raw:
+        return st.AllOf(conditions=tuple(condition_of(c) for c in raw["all"]))
+    return st.AnyOf(conditions=tuple(condition_of(c) for c in raw["any"]))
+
+
 def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None) -> Mission:
     """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path, text=text, display_name=display_name)
@@ -372,9 +485,10 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     for name, place in (d.get("places") or {}).items():
         tol = parse_quantity(place["tolerance"], "distance") if "tolerance" in place else None
         m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
+    reader = _StepReader(doc, external)
     for name, steps in (d.get("tasks") or {}).items():
-        m.tasks[name] = steps_of(steps, ("tasks", name), external)
-    m.steps = steps_of(d["steps"], ("steps",), external)
+        m.tasks[name] = reader.steps(steps, ("tasks", name))
+    m.steps = reader.steps(d["steps"], ("steps",))
     m.on_failure = d.get("on_failure", "stop")
     teleop = d.get("teleop", True)
     if isinstance(teleop, dict):
@@ -396,4 +510,5 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     return m
 
 
-__all__ = ["Mission", "Place", "Step", "Failsafe", "load_mission", "step_of", "steps_of", "parse_count", "HOME"]
+__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "step_of", "steps_of", "condition_of",
+           "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M"]

@@ -23,8 +23,8 @@ import py_trees
 from beastbt.behaviours.follow_line import FollowLine, FollowLineConfig
 from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
-from beastbt.mission.model import Step
-from beastbt.core.units import format_quantity, parse_quantity
+from beastbt.mission import steps as st
+from beastbt.core.units import format_quantity
 from beastbt.robot.part import Part
 from beastbt.robot.profile import section_config
 from beastbt.run.session import Prepared
@@ -42,22 +42,15 @@ NOT_CONDITIONS = frozenset({"say", "description", "mission", "places", "world"})
 
 # -- the step ------------------------------------------------------------------------------
 
-def _follow_line(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
-    v = s.value
-    until = v["until"]
-    if isinstance(until, dict):
-        kind = next(iter(until))
-        amount = parse_quantity(until[kind], "distance" if kind == "distance" else "duration")
-        words = f"{format_quantity(amount, 'distance' if kind == 'distance' else 'duration')}"
-        label = f"for {words}"
+def _follow_line(c: Compiler, s: st.FollowLine) -> py_trees.behaviour.Behaviour:
+    if s.amount is not None:
+        label = f"for {format_quantity(s.amount, 'distance' if s.until == 'distance' else 'duration')}"
     else:
-        kind, amount, label = until, None, f"until {until.replace('_', ' ')}"
-    speed = parse_quantity(v["speed"], "speed") if "speed" in v else None
-    lost = parse_quantity(v["lost_after"], "duration") if "lost_after" in v else None
-    name = f"follow line {label}" + (f" at {format_quantity(speed, 'speed')}" if speed is not None else "")
+        label = f"until {s.until.replace('_', ' ')}"
+    name = f"follow line {label}" + (f" at {format_quantity(s.speed_mps, 'speed')}" if s.speed_mps is not None else "")
     if "camera" not in c.ctx.capabilities:
         return NotAvailable(name, c.ctx, "follow_line needs a camera, and this robot has none (add a camera: section)")
-    return FollowLine(name, c.ctx, kind, amount, speed, lost)
+    return FollowLine(name, c.ctx, s.until, s.amount, s.speed_mps, s.lost_after_s)
 
 
 # -- every run -------------------------------------------------------------------------------

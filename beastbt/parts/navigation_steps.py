@@ -10,7 +10,7 @@ steps compile to a leaf that fails at once, saying so.
 from __future__ import annotations
 
 from types import MappingProxyType
-from typing import Any, Mapping, Optional
+from typing import Mapping, Optional
 
 import py_trees
 
@@ -18,22 +18,17 @@ from beastbt.behaviours.flow import RepeatTimes
 from beastbt.behaviours.navigation import GoTo, NavConfig, home_target, place_target
 from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
-from beastbt.mission.model import HOME, Step, parse_count
-from beastbt.core.units import parse_quantity
+from beastbt.mission import steps as st
+from beastbt.mission.model import HOME
 
 Behaviour = py_trees.behaviour.Behaviour
 
 _DEFAULT_TOLERANCE_M = NavConfig().default_tolerance_m
 
 
-def _options(v: Any) -> dict:
-    """speed_mps, gps_timeout_s and stuck_after_s of a step mapping (None when not given)."""
-    v = v if isinstance(v, dict) else {}
-    return {
-        "speed_mps": parse_quantity(v["speed"], "speed") if "speed" in v else None,
-        "gps_timeout_s": parse_quantity(v["gps_timeout"], "duration") if "gps_timeout" in v else None,
-        "stuck_after_s": parse_quantity(v["stuck_after"], "duration") if "stuck_after" in v else None,
-    }
+def _options(s: st.NavOptions) -> dict:
+    """speed_mps, gps_timeout_s and stuck_after_s of a navigation step (None when not given)."""
+    return {"speed_mps": s.speed_mps, "gps_timeout_s": s.gps_timeout_s, "stuck_after_s": s.stuck_after_s}
 
 
 def _within(tolerance_m: Optional[float]) -> str:
@@ -57,44 +52,34 @@ def _go_to_place(c: Compiler, name: str, step_tolerance_m: Optional[float], opti
     return GoTo(f"{label} {name} {_within(tolerance)}", c.ctx, name, target, tolerance, **options)
 
 
-def build_go_to(c: Compiler, s: Step) -> Behaviour:
+def build_go_to(c: Compiler, s: st.Step) -> Behaviour:
     """``go_to: gate`` or ``go_to: {place: gate | lat:, lon:, tolerance:, speed:, gps_timeout:, stuck_after:}``."""
-    v = s.value
-    if isinstance(v, str):
-        return _go_to_place(c, v, None, _options(None))
-    tolerance = parse_quantity(v["tolerance"], "distance") if "tolerance" in v else None
-    if "place" in v:
-        return _go_to_place(c, v["place"], tolerance, _options(v))
-    lat, lon = float(v["lat"]), float(v["lon"])
-    label = f"{lat:.6f}, {lon:.6f}"
+    if isinstance(s, st.GoToPlace):
+        return _go_to_place(c, s.place, s.tolerance_m, _options(s))
+    assert isinstance(s, st.GoToPoint)
+    label = f"{s.lat_deg:.6f}, {s.lon_deg:.6f}"
     if "gps" not in c.ctx.capabilities:
         return NotAvailable(f"go_to {label}", c.ctx, "this robot has no GPS")
-    return GoTo(f"go_to {label} {_within(tolerance)}", c.ctx, label, place_target(lat, lon), tolerance, **_options(v))
+    return GoTo(f"go_to {label} {_within(s.tolerance_m)}", c.ctx, label, place_target(s.lat_deg, s.lon_deg),
+                s.tolerance_m, **_options(s))
 
 
-def build_route(c: Compiler, s: Step) -> Behaviour:
+def build_route(c: Compiler, s: st.Route) -> Behaviour:
     """``route: {places: [a, b, c], loops: 2 | forever, ...}``: go_to each place in order, loops times."""
-    v = s.value
-    places = list(v["places"])
-    tolerance = parse_quantity(v["tolerance"], "distance") if "tolerance" in v else None
-    options = _options(v)
-    loops = parse_count(v["loops"]) if "loops" in v else 1
-    name = "route " + " -> ".join(places)
-    legs = [_go_to_place(c, p, tolerance, options) for p in places]
-    body: Behaviour = py_trees.composites.Sequence(name=name if loops == 1 else "pass", memory=True, children=legs)
-    if loops == 1:
+    name = "route " + " -> ".join(s.places)
+    legs = [_go_to_place(c, p, s.tolerance_m, _options(s)) for p in s.places]
+    body: Behaviour = py_trees.composites.Sequence(name=name if s.loops == 1 else "pass", memory=True, children=legs)
+    if s.loops == 1:
         return body
-    label = "forever" if loops < 0 else f"{loops} times"
-    return RepeatTimes(f"{name} ({label})", body, loops)
+    label = "forever" if s.loops < 0 else f"{s.loops} times"
+    return RepeatTimes(f"{name} ({label})", body, s.loops)
 
 
-def build_return_home(c: Compiler, s: Step) -> Behaviour:
+def build_return_home(c: Compiler, s: st.ReturnHome) -> Behaviour:
     """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:}``."""
-    v = s.value if isinstance(s.value, dict) else {}
-    tolerance = parse_quantity(v["tolerance"], "distance") if "tolerance" in v else None
     if "gps" not in c.ctx.capabilities:
         return NotAvailable("return_home", c.ctx, "this robot has no GPS")
-    return GoTo(f"return_home {_within(tolerance)}", c.ctx, HOME, home_target(c.ctx), tolerance, **_options(v))
+    return GoTo(f"return_home {_within(s.tolerance_m)}", c.ctx, HOME, home_target(c.ctx), s.tolerance_m, **_options(s))
 
 
 __all__ = ["build_go_to", "build_route", "build_return_home"]

@@ -53,8 +53,8 @@ from beastbt.blackboard.types import JoystickState
 from beastbt.devices.joystick import BUTTON_ENABLE
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.core.errors import InvalidInput, Position, Problem
-from beastbt.mission.model import Step
-from beastbt.core.units import format_quantity, parse_quantity
+from beastbt.mission import steps as st
+from beastbt.core.units import format_quantity
 from beastbt.robot.actuator_profile import joystick_mapping, teleop_config
 from beastbt.robot.part import Part
 from beastbt.run.runner import MissionRun
@@ -243,11 +243,9 @@ def restart_running_leaves(root: py_trees.behaviour.Behaviour) -> list[str]:
 
 # -- the part -------------------------------------------------------------------------------
 
-def _teleop_step(c: Compiler, s: Step) -> py_trees.behaviour.Behaviour:
-    v = s.value
-    if "for" in v:
-        duration = parse_quantity(v["for"], "duration")
-        return TeleopStep(f"teleop for {format_quantity(duration, 'duration')}", c.ctx, duration_s=duration)
+def _teleop_step(c: Compiler, s: st.Teleop) -> py_trees.behaviour.Behaviour:
+    if s.duration_s is not None:
+        return TeleopStep(f"teleop for {format_quantity(s.duration_s, 'duration')}", c.ctx, duration_s=s.duration_s)
     return TeleopStep("teleop until released", c.ctx, until_released=True)
 
 

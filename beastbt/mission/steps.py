@@ -1,0 +1,367 @@
+"""The steps and conditions of the mission language as typed values: one frozen dataclass each, SI units.
+
+The loader (:mod:`beastbt.mission.model`) turns what the author wrote into
+these; the compiler (:mod:`beastbt.mission.compile`) turns each into a
+behaviour. Every step knows where it was written (``at``: line and column in
+the mission file; ``path``: its place in the document) and its keyword
+(``KEYWORD``). Quantities are SI floats with the unit in the field's name;
+an optional field the author left out is None, and the behaviour then uses
+the robot's default. Nested steps are tuples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Optional, Union
+
+from beastbt.core.errors import Position
+from beastbt.core.yaml_source import PathKey
+
+FOREVER = -1
+"""``times``/``loops`` of ``forever``."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Step:
+    """What every step has: where it was written."""
+
+    KEYWORD: ClassVar[str] = ""
+    at: Position = Position()
+    """Line and column of the step in the mission file."""
+    path: PathKey = ()
+    """The step's place in the mission document (``("steps", 2)``)."""
+
+
+# -- motion -----------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class DriveDistance(Step):
+    """``drive: {distance: 3 m}``: drive straight for a distance (negative: backwards), by odometry."""
+
+    KEYWORD: ClassVar[str] = "drive"
+    distance_m: float
+    speed_mps: Optional[float] = None
+    stuck_after_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriveTime(Step):
+    """``drive: {time: 2 s}``: drive straight for a time."""
+
+    KEYWORD: ClassVar[str] = "drive"
+    duration_s: float
+    speed_mps: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class TurnBy(Step):
+    """``turn: {angle: 90 deg}``: turn in place by an angle (positive: left)."""
+
+    KEYWORD: ClassVar[str] = "turn"
+    angle_rad: float
+    rate_rps: Optional[float] = None
+    stuck_after_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class TurnToHeading(Step):
+    """``turn: {heading: 90 deg}``: turn in place to a compass heading (0 north, 90 east)."""
+
+    KEYWORD: ClassVar[str] = "turn"
+    heading_rad: float
+    rate_rps: Optional[float] = None
+    stuck_after_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Wait(Step):
+    """``wait: 2 s``: stand still for a time."""
+
+    KEYWORD: ClassVar[str] = "wait"
+    duration_s: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Stop(Step):
+    """``stop``: command zero and wait until the robot is still."""
+
+    KEYWORD: ClassVar[str] = "stop"
+
+
+@dataclass(frozen=True, kw_only=True)
+class NavOptions:
+    """What go_to, route and return_home share; None: the robot's navigation defaults."""
+
+    tolerance_m: Optional[float] = None
+    speed_mps: Optional[float] = None
+    gps_timeout_s: Optional[float] = None
+    stuck_after_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class GoToPlace(Step, NavOptions):
+    """``go_to: gate``: drive to a named place (``home`` included)."""
+
+    KEYWORD: ClassVar[str] = "go_to"
+    place: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class GoToPoint(Step, NavOptions):
+    """``go_to: {lat: 40.4168, lon: -3.7038}``: drive to a WGS84 point (degrees)."""
+
+    KEYWORD: ClassVar[str] = "go_to"
+    lat_deg: float
+    lon_deg: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Route(Step, NavOptions):
+    """``route: {places: [a, b, c], loops: 2}``: go to each place in order, ``loops`` times (-1: forever)."""
+
+    KEYWORD: ClassVar[str] = "route"
+    places: tuple[str, ...]
+    loops: int = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReturnHome(Step, NavOptions):
+    """``return_home``: drive back to where the mission started (its first good GPS fix)."""
+
+    KEYWORD: ClassVar[str] = "return_home"
+
+
+@dataclass(frozen=True, kw_only=True)
+class FollowLine(Step):
+    """``follow_line: {until: intersection}``: follow the line on the floor until something happens.
+
+    ``until`` is ``intersection``, ``line_end``, ``distance`` or ``time``;
+    ``amount`` is the distance (m) or the time (s) of the last two.
+    """
+
+    KEYWORD: ClassVar[str] = "follow_line"
+    until: str
+    amount: Optional[float] = None
+    speed_mps: Optional[float] = None
+    lost_after_s: Optional[float] = None
+
+
+# -- the camera, servos, the operator ---------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class Look(Step):
+    """``look: {pan: -45 deg, tilt: 10 deg}``: point the camera's gimbal."""
+
+    KEYWORD: ClassVar[str] = "look"
+    pan_rad: Optional[float] = None
+    tilt_rad: Optional[float] = None
+    settle_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ServoAngle(Step):
+    """``servo: {name: arm, angle: 30 deg}``: move a named servo to an angle."""
+
+    KEYWORD: ClassVar[str] = "servo"
+    name: str
+    angle_rad: float
+    settle_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ServoPulse(Step):
+    """``servo: {channel: 1, pulse: 1.5 ms}``: send a raw pulse width to a PWM channel."""
+
+    KEYWORD: ClassVar[str] = "servo"
+    channel: int
+    pulse_s: float
+    settle_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Snapshot(Step):
+    """``snapshot: {name: gate}``: save a camera frame into the run folder."""
+
+    KEYWORD: ClassVar[str] = "snapshot"
+    name: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class Say(Step):
+    """``say: text``: log a message (and show it to the operator)."""
+
+    KEYWORD: ClassVar[str] = "say"
+    text: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class Teleop(Step):
+    """``teleop: {for: 30 s}`` or ``teleop: {until: released}``: hand the robot to the joystick's operator."""
+
+    KEYWORD: ClassVar[str] = "teleop"
+    duration_s: Optional[float] = None
+    """None: until the operator releases the enable button."""
+
+
+# -- conditions --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class Flag:
+    """A condition word: ``intersection``, ``line_seen``, ``gps_fix``, ``teleop_active``."""
+
+    word: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class BatteryBelow:
+    """``{battery_below: 11 V}``."""
+
+    volts: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Near:
+    """``{near: gate, within: 3 m}``: the fused position is within ``within_m`` of a place (``home`` included)."""
+
+    place: str
+    within_m: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Elapsed:
+    """``{elapsed: 10 min}``: mission time since the start, s."""
+
+    duration_s: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Not:
+    """``{not: CONDITION}``."""
+
+    condition: "Condition"
+
+
+@dataclass(frozen=True, kw_only=True)
+class AllOf:
+    """``{all: [CONDITION, ...]}``."""
+
+    conditions: tuple["Condition", ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class AnyOf:
+    """``{any: [CONDITION, ...]}``."""
+
+    conditions: tuple["Condition", ...]
+
+
+Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf]
+"""A condition of ``if``, ``while`` and ``wait_until``."""
+
+
+# -- flow ---------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, kw_only=True)
+class Repeat(Step):
+    """``repeat: {times: 3, steps: [...]}``: run the steps ``times`` times (-1: forever); fails when they fail."""
+
+    KEYWORD: ClassVar[str] = "repeat"
+    times: int
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Retry(Step):
+    """``retry: {times: 3, steps: [...]}``: run the steps until they succeed, at most ``times`` attempts."""
+
+    KEYWORD: ClassVar[str] = "retry"
+    times: int
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Timeout(Step):
+    """``timeout: {after: 2 min, steps: [...]}``: the steps fail when they take longer than ``after_s``."""
+
+    KEYWORD: ClassVar[str] = "timeout"
+    after_s: float
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Parallel(Step):
+    """``parallel: {steps: [...], succeed_on: all|one}``: run the steps together."""
+
+    KEYWORD: ClassVar[str] = "parallel"
+    succeed_on: str
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FirstOf(Step):
+    """``first_of: [[...], [...]]``: try each list of steps in turn until one succeeds."""
+
+    KEYWORD: ClassVar[str] = "first_of"
+    alternatives: tuple[tuple[Step, ...], ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Do(Step):
+    """``do: task``: run a task of the mission by name."""
+
+    KEYWORD: ClassVar[str] = "do"
+    task: str
+
+
+@dataclass(frozen=True, kw_only=True)
+class If(Step):
+    """``if: CONDITION, then: [...], else: [...]``: choose once, when the step starts."""
+
+    KEYWORD: ClassVar[str] = "if"
+    condition: Condition
+    then: tuple[Step, ...]
+    otherwise: Optional[tuple[Step, ...]] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class While(Step):
+    """``while: CONDITION, steps: [...]``: run the steps again and again while the condition holds."""
+
+    KEYWORD: ClassVar[str] = "while"
+    condition: Condition
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class WaitUntil(Step):
+    """``wait_until: CONDITION, timeout: 30 s``: stand still until the condition holds (fails after the timeout)."""
+
+    KEYWORD: ClassVar[str] = "wait_until"
+    condition: Condition
+    timeout_s: Optional[float] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class PluginStep(Step):
+    """A step of an installed package (``beastbt.steps`` entry points): its keyword and its value as written."""
+
+    keyword: str
+    value: Any
+
+
+CORE_STEP_CLASSES: tuple[type[Step], ...] = (
+    DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
+    Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
+    WaitUntil,
+)
+"""Every step class of the language (not PluginStep)."""
+
+
+def keyword_of(step: Step) -> str:
+    """The step's keyword as written (``drive``; a package's own for a PluginStep)."""
+    return step.keyword if isinstance(step, PluginStep) else step.KEYWORD
+
+
+__all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
+    "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
+    "AnyOf", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]
