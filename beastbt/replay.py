@@ -148,7 +148,7 @@ class ReplayServos:
 
 
 class RecordedDevice:
-    """Stands in for a device of the recorded robot (``io.extras``) whose recorded states replay sets."""
+    """Stands in for a device of the recorded robot (a ``RobotIO`` device field) whose recorded states replay sets."""
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -164,9 +164,10 @@ class DeviceFlags:
         self.changes: dict[int, list[tuple[str, str, Any]]] = {}
         for m in rec.topic("/devices/state"):
             self.changes.setdefault(m["tick"], []).append((m["device"], m["field"], m["value"]))
-            device = io.extras.get(m["device"])
+            device = getattr(io, m["device"], None)
             if device is None:
-                device = io.extras[m["device"]] = RecordedDevice(m["device"])
+                device = RecordedDevice(m["device"])
+                setattr(io, m["device"], device)
             if not hasattr(device, m["field"]):
                 setattr(device, m["field"], m["value"])
         self.io = io
@@ -174,7 +175,7 @@ class DeviceFlags:
     def apply(self, tick: int) -> None:
         """Set the states recorded at ``tick`` (they held from that tick's sensing on)."""
         for device, attr, value in self.changes.get(tick, ()):
-            setattr(self.io.extras[device], attr, value)
+            setattr(getattr(self.io, device), attr, value)
 
 
 @dataclass
@@ -347,16 +348,16 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     sensors = [s for s in json.loads(info.get("sensor_sources", "[]")) if s != "base"]
     for name in sensors:
         io.sensors[name] = base.sensor_poll(name)
-    extras = set(json.loads(info.get("io_extras", "[]")))
-    if "joystick" in extras:
-        io.extras["joystick"] = RecordedDevice("joystick")  # teleop asks whether there is one
+    devices = set(json.loads(info.get("io_extras", "[]")))  # the recorded robot's devices, by name
+    if "joystick" in devices:
+        io.joystick = RecordedDevice("joystick")  # teleop asks whether there is one
     if "magnetic_declination_deg" in info:
-        io.extras["magnetic_declination_deg"] = float(info["magnetic_declination_deg"])
+        io.magnetic_declination_deg = float(info["magnetic_declination_deg"])
     flags = DeviceFlags(rec, io)
-    if "imu_tap" in extras:
+    if "imu_tap" in devices:
         from beastbt.estimation.imu_tap import ImuTap
-        driver = io.extras.get("imu_driver")
-        base.imu_tap = io.extras["imu_tap"] = ImuTap(
+        driver = io.imu_driver
+        base.imu_tap = io.imu_tap = ImuTap(
             ready=(lambda: bool(driver.bias_ready)) if driver is not None and hasattr(driver, "bias_ready") else None)
     snapshots: list[str] = []
     services = RunServices(save_snapshot=lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg")

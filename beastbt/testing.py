@@ -157,7 +157,7 @@ class MissionHarness:
     @property
     def wire(self) -> list[dict]:
         """Every JSON command the emulated Waveshare base received, in order."""
-        return self.run.io.extras["esp32"].commands
+        return self.run.io.esp32.commands
 
     @property
     def truth(self) -> Any:

@@ -72,7 +72,7 @@ def run(seed: int, mission: Path = MISSION, world: Path = WORLD, jump: bool = Fa
     p.run.recorders.append(trace)
     if jump:
         angle = 2.0 * math.pi * ((seed * 0.618034) % 1.0)  # a different direction per seed, reproducible
-        p.run.io.extras["sim_gps"].inject_jump(JUMP_M * math.cos(angle), JUMP_M * math.sin(angle), JUMP_AT_S, 1.0)
+        p.run.io.sim_gps.inject_jump(JUMP_M * math.cos(angle), JUMP_M * math.sin(angle), JUMP_AT_S, 1.0)
     t0 = time.perf_counter()
     summary = execute(p, io.StringIO())
     return summary, trace, time.perf_counter() - t0

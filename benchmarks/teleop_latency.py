@@ -199,7 +199,7 @@ def run_adapter(kind: str, n_events: int, n_freezes: int, seed: int) -> dict:
     io_ = RobotIO(base=base)  # type: ignore[arg-type]
     io_.sensors["tick"] = lambda now: ticks.append(time.perf_counter()) or []
     io_.sensors["joystick"] = lambda now: [device.poll()]
-    io_.extras["joystick"] = device
+    io_.joystick = device
     io_.capabilities.add("joystick")
     duration_s = 2.0 + n_events * 0.4 + n_freezes * 2.0 + 5.0
     options = RunOptions(robot="bench", record=False, speed="realtime", max_time_s=duration_s)

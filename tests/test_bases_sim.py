@@ -120,9 +120,9 @@ steps:
 
 def test_can_profile_on_the_simulator_drives_through_the_virtual_bus():
     h = MissionHarness.from_yaml(MISSION, robot=str(ROBOTS / "diy_can.yaml"))
-    controller = h.run.io.extras["can_controller"]
+    controller = h.run.io.can_controller
     assert isinstance(h.run.io.base, AdapterWatchdog) and isinstance(h.run.io.base.inner, CanBase)
-    assert "esp32" not in h.run.io.extras
+    assert h.run.io.esp32 is None
     assert h.run_to_end(30) == "success"
     assert controller.commands_received >= h.run.ticks
     odo = h.blackboard("odometry")
@@ -142,7 +142,7 @@ steps:
   - drive: {time: 2 s, speed: 0.2 m/s}
   - teleop: {for: 2 s}
 """, robot=str(ROBOTS / "diy_pwm.yaml"), joystick=[{"at": "3.5 s", "press": "enable"}, {"at": "3.5 s", "angular": 1.0}])
-    chip = h.run.io.extras["sim_pca9685"]
+    chip = h.run.io.sim_pca9685
     h.tick_until(lambda h: h.now_s >= 0.3)
     assert h.truth.pan_rad == pytest.approx(0.5236, abs=0.01)   # pan servo on channel 0 turned the camera
     assert h.truth.tilt_rad == pytest.approx(0.3491, abs=0.01)
@@ -167,12 +167,12 @@ def test_the_last_thing_on_the_wire_is_a_stop(tmp_path, robot):
     m.write_text("mission: t\nsteps:\n  - drive: {time: 5 s, speed: 0.2 m/s}\n")
     profile = "sim" if robot == "sim" else str(ROBOTS / f"{robot}.yaml")
     p = prepare(str(m), RunOptions(robot=profile, record=False, max_time_s=1.0, simulate=True))
-    x = p.run.io.extras
-    sniffer = can.Bus(interface="virtual", channel=x["can_channel"]) if "can_channel" in x else None
+    x = p.run.io
+    sniffer = can.Bus(interface="virtual", channel=x.can_channel) if x.can_channel is not None else None
     summary = execute(p, io.StringIO())
     assert summary["status"] == "stopped" and summary["distance_m"] > 0.05
     if robot == "sim":
-        assert x["esp32"].commands[-1] == {"T": 13, "X": 0, "Z": 0}
+        assert x.esp32.commands[-1] == {"T": 13, "X": 0, "Z": 0}
     elif robot == "diy_can":
         frames = []
         while (f := sniffer.recv(timeout=0)) is not None:
@@ -181,7 +181,7 @@ def test_the_last_thing_on_the_wire_is_a_stop(tmp_path, robot):
         assert any(bytes(f.data) != bytes(4) for f in frames if f.arbitration_id == 0x100)
         assert frames[-1].arbitration_id == 0x100 and bytes(frames[-1].data) == bytes(4)
     else:
-        chip = x["sim_pca9685"]
+        chip = x.sim_pca9685
         assert chip.pulse_s(14) * 1e3 == pytest.approx(1.5, abs=0.006)
         assert chip.pulse_s(15) * 1e3 == pytest.approx(1.5, abs=0.006)
         last = chip.writes[-8:]

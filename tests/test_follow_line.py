@@ -162,7 +162,7 @@ def test_no_camera_means_not_available(tmp_path):
 def test_a_mission_that_never_looks_renders_nothing(tmp_path):
     h = harness(tmp_path, "  - drive: {distance: 0.3 m}\n", CROSS_WORLD.format(x0=0.2))
     assert h.run_to_end(10) == "success"
-    assert h.run.io.extras["camera"].frames == 0 and "sim_camera" not in h.run.io.extras
+    assert h.run.io.camera.frames == 0 and h.run.io.sim_camera is None
     assert "line_error_p95_m" not in h.summary()["truth"]
 
 
@@ -176,8 +176,8 @@ def test_pca9685_pan_tilt_are_centred_for_follow_line(tmp_path):
     h = harness(tmp_path, steps, CROSS_WORLD.format(x0=0.2), robot=str(p))
     h.tick(3)  # the look step is settling
     assert h.status_of("look pan -30 deg") == "RUNNING"
-    chip = h.run.io.extras["sim_pca9685"]
-    board = h.run.io.extras["servo_board"]
+    chip = h.run.io.sim_pca9685
+    board = h.run.io.servo_board
     pan = board.servos.servos["pan"]
     assert chip.pulse_s(pan.channel) * 1000 == pytest.approx(pan.pulse_ms_for(-30.0), abs=0.01)
     assert h.run_to_end(10) == "success"

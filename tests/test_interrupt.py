@@ -57,7 +57,7 @@ def test_interrupt_and_internal_errors_leave_a_stop_on_the_wire(tmp_path):
             return original()
 
         p.run.tick = tick
-        esp32 = p.run.io.extras["esp32"]
+        esp32 = p.run.io.esp32
         if isinstance(exc, KeyboardInterrupt):
             s = execute(p, io.StringIO())
             assert s["status"] == "stopped"

@@ -172,7 +172,7 @@ steps:
 """)
     h.tick_until(lambda h: h.now_s >= 2.0)
     last_tick_s = h.records[-1].now_s
-    esp32 = h.run.io.extras["esp32"]
+    esp32 = h.run.io.esp32
     assert esp32.commands[-1]["X"] > 0.25 and h.truth.v_mps > 0.25
     zero_at = None
     for _ in range(100):  # one second of a frozen loop: the simulator and the watchdog go on

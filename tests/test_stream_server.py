@@ -80,8 +80,8 @@ def get(port: int, path: str) -> tuple[int, str, bytes]:
 
 def test_stream_of_a_running_mission_gives_real_jpeg_frames():
     h = MissionHarness.from_file(MISSION, seed=2, stream=("127.0.0.1", 0), stream_size=(320, 240))
-    server: VideoStreamServer = h.run.io.extras["video_stream"]
-    pipeline = h.run.io.extras["camera"]
+    server: VideoStreamServer = h.run.ctx.services.video_stream
+    pipeline = h.run.io.camera
     try:
         assert server.port != 0 and server.config.host == "127.0.0.1"
         viewer = Viewer(server.port, want=5)

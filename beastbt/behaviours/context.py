@@ -106,6 +106,8 @@ class RunServices:
     """The profile's navigation tuning (``beastbt.behaviours.navigation.NavConfig``)."""
     nav_visits: Optional[Any] = None
     """The log of place visits (``beastbt.behaviours.navigation.VisitLog``), made on first use."""
+    nav_truth: Optional[Any] = None
+    """Pose and arrival errors against the simulator's truth (``beastbt.parts.nav_summary.NavTruth``)."""
     video_stream: Optional[Any] = None
     """The live video server (``beastbt.live.video_stream.VideoStreamServer``) with ``--stream``."""
     on_failure: dict[str, FailureHandler] = field(default_factory=dict)

@@ -23,7 +23,7 @@ when it is ready again; its kernel send buffer is kept to a few frames,
 a client that takes nothing for ``client_timeout_s`` is dropped. The server is closed at the end of the run
 (``Prepared.closers``): the encoder stops and every client connection is shut.
 
-Options (``RunOptions.extras`` / the command line): ``stream`` (``--stream``),
+Options (``RunOptions`` / the command line): ``stream`` (``--stream``),
 ``stream_size`` (``--stream-size 640x480``), ``stream_quality``
 (``--stream-quality 80``), ``stream_fps`` (``--stream-fps 25``),
 ``stream_no_overlay`` (``--stream-no-overlay``). In the simulator the camera
@@ -499,8 +499,7 @@ def install_stream(prepared: Any) -> Optional[VideoStreamServer]:
                                     "pick another port, or 0 for any free one")]) from None
     prepared.closers.append(server.close)
     run.ctx.services.video_stream = server
-    run.io.extras["video_stream"] = server
-    pipeline = run.io.extras.get("camera")
+    pipeline = run.io.camera
     if pipeline is not None:
         pipeline.enable("stream")
     run.recorders.append(_feeder(run, server, pipeline))

@@ -11,7 +11,7 @@ detector runs on the frames (:class:`~beastbt.vision.camera_pipeline.CameraPipel
 Simulated rendering is lazy: nothing is drawn (and the floor raster is not
 even built) until the pipeline is enabled, which the run does when the
 mission uses the camera or video is streamed
-(:mod:`beastbt.parts.line_following`). ``io.extras``: ``camera`` (the
+(:mod:`beastbt.parts.line_following`). On ``RobotIO``: ``camera`` (the
 pipeline), ``sim_camera`` (the emulator, once built: tests unplug it),
 ``floor_map`` (a function returning the :class:`~beastbt.sim.floor.FloorMap`).
 """
@@ -76,7 +76,7 @@ def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: Even
     pipeline.start_thread()
     io.sensors["camera"] = pipeline.poll
     io.capabilities.add("camera")
-    io.extras["camera"] = pipeline
+    io.camera = pipeline
     io.closers.append(pipeline.close)
 
 
@@ -109,7 +109,7 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     def make_camera() -> Camera:
         sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects)
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
-        io.extras["sim_camera"] = sim_camera
+        io.sim_camera = sim_camera
         return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
 
     pipeline = CameraPipeline(make_camera, config, detector_config, events.sink("camera"))
@@ -120,14 +120,14 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
                                                 "lower the camera's pitch_deg or raise line_detector.roi_far_m")]) from None
     io.sensors["camera"] = pipeline.poll
     io.capabilities.add("camera")
-    io.extras["camera"] = pipeline
-    io.extras["floor_map"] = floor_map
+    io.camera = pipeline
+    io.floor_map = floor_map
     io.closers.append(pipeline.close)
 
 
 def floor_of(io: RobotIO) -> Optional[FloorMap]:
     """The simulated robot's floor (built on first call), or None without a simulated camera."""
-    get: Optional[Callable[[], FloorMap]] = io.extras.get("floor_map")
+    get: Optional[Callable[[], FloorMap]] = io.floor_map
     return get() if get is not None else None
 
 

@@ -73,7 +73,7 @@ def sim_can_base(sim: Simulator, profile: RobotProfile, events: EventLog) -> Rob
 
     sim.emulators.append(update)
     io = RobotIO(base=base, sim=sim)
-    io.extras.update(can_controller=controller, can_channel=config.channel)
+    io.can_controller, io.can_channel = controller, config.channel
     io.closers.append(controller.close)
     return io
 

@@ -63,7 +63,7 @@ def attach_real_gps(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     io.sensors["gps"] = poll
     io.capabilities.add("gps")
     io.closers.append(close)
-    io.extras["gps_driver"] = driver
+    io.gps_driver = driver
 
 
 def attach_sim_gps(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
@@ -94,8 +94,8 @@ def attach_sim_gps(sim: Simulator, profile: RobotProfile, io: RobotIO, events: E
 
     io.sensors["gps"] = poll
     io.capabilities.add("gps")
-    io.extras["sim_gps"] = gps
-    io.extras["gps_driver"] = driver
+    io.sim_gps = gps
+    io.gps_driver = driver
 
 
 class GpsPart(Part):

@@ -63,8 +63,8 @@ def attach_real_imu(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     io.sensors["imu"] = poll
     io.capabilities.add("imu")
     io.closers.append(bus.close)
-    io.extras["imu_driver"] = driver
-    io.extras["imu_tap"] = tap
+    io.imu_driver = driver
+    io.imu_tap = tap
 
 
 def attach_sim_imu(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
@@ -89,10 +89,10 @@ def attach_sim_imu(sim: Simulator, profile: RobotProfile, io: RobotIO, events: E
 
     io.sensors["imu"] = poll
     io.capabilities.add("imu")
-    io.extras["sim_imu"] = imu
-    io.extras["imu_bus"] = bus
-    io.extras["imu_driver"] = driver
-    io.extras["imu_tap"] = tap
+    io.sim_imu = imu
+    io.imu_bus = bus
+    io.imu_driver = driver
+    io.imu_tap = tap
 
 
 def _sampler(imu: SimImu, sim: Simulator) -> Callable[[float, float], None]:

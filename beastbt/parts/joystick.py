@@ -39,7 +39,7 @@ def attach_joystick(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
         return [device.poll()]
 
     io.sensors["joystick"] = poll
-    io.extras["joystick"] = device
+    io.joystick = device
     io.capabilities.add("joystick")
 
 

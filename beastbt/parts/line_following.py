@@ -88,7 +88,7 @@ def install_vision(prepared: Prepared) -> None:
     profile = prepared.profile
     follower: FollowLineConfig = section_config(profile, "line_follower", FollowLineConfig)
     run.ctx.services.line_follower = follower
-    pipeline: Optional["CameraPipeline"] = run.io.extras.get("camera")
+    pipeline: Optional["CameraPipeline"] = run.io.camera
     if pipeline is None:
         return
     run.ctx.services.camera = pipeline
@@ -97,7 +97,7 @@ def install_vision(prepared: Prepared) -> None:
     uses = camera_uses(prepared.mission.doc.data if prepared.mission.doc is not None else {})
     for why in uses:
         pipeline.enable(why)
-    floor = run.io.extras.get("floor_map")
+    floor = run.io.floor_map
     nodes = follow_nodes(run.root)
     if floor is not None and nodes and (prepared.world is not None and prepared.world.section("floor") is not None):
         from beastbt.run.line_metrics import LineTruthMetrics

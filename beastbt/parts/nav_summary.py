@@ -28,9 +28,6 @@ from beastbt.estimation.geodesy import distance_m
 from beastbt.run.runner import TickRecord
 from beastbt.run.session import Prepared
 
-TRUTH_KEY = "nav_truth"
-"""``io.extras`` key of the run's :class:`NavTruth` (simulator only)."""
-
 
 class NavTruth:
     """Accumulates fused and raw GPS errors against the simulator's truth, tick by tick (a run recorder)."""
@@ -104,8 +101,8 @@ def install_truth(p: Prepared) -> None:
     if sim is None or p.world is None:
         return
     frame = p.world.frame
-    tracker = NavTruth(frame, run.io.extras.get("sim_gps"))
-    run.io.extras[TRUTH_KEY] = tracker
+    tracker = NavTruth(frame, run.io.sim_gps)
+    run.ctx.services.nav_truth = tracker
     if run.estimator is not None:
         run.recorders.append(tracker)
 
@@ -132,6 +129,6 @@ def contribute(run: Any, summary: dict) -> None:
                 "time_s": round(v.time_s, 3) if v.time_s is not None else None,
             })
         summary["waypoints"] = out
-    tracker = run.io.extras.get(TRUTH_KEY)
+    tracker = run.ctx.services.nav_truth
     if tracker is not None and run.estimator is not None and "truth" in summary:
         summary["truth"].update(tracker.metrics())

@@ -86,14 +86,14 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
     if "declination_deg" not in raw:
         # On the simulator the world is where the robot is: unless the profile says
         # otherwise, use the world's declination, as a user sets theirs for their place.
-        # Kept in io.extras so that a recording (and its replay) carries the same value.
+        # Kept on the robot's io so that a recording (and its replay) carries the same value.
         world = getattr(io.sim, "world", None)
-        if "magnetic_declination_deg" not in io.extras and world is not None:
-            io.extras["magnetic_declination_deg"] = float((world.section("imu") or {}).get("mag_declination_deg", 0.0))
-        if "magnetic_declination_deg" in io.extras:
-            config = replace(config, declination_deg=float(io.extras["magnetic_declination_deg"]))
+        if io.magnetic_declination_deg is None and world is not None:
+            io.magnetic_declination_deg = float((world.section("imu") or {}).get("mag_declination_deg", 0.0))
+        if io.magnetic_declination_deg is not None:
+            config = replace(config, declination_deg=float(io.magnetic_declination_deg))
     ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
-    return NavEstimator(ekf, io.extras.get("imu_tap"))
+    return NavEstimator(ekf, io.imu_tap)
 
 
 class ReturnHomeInstead(py_trees.decorators.Decorator):

@@ -4,7 +4,7 @@ On the robot :func:`open_pca9685` opens ``/dev/i2c-N`` through smbus2 and
 checks the chip answers; on the simulator :func:`sim_chip` puts a
 :class:`~beastbt.sim.pca9685_emulator.SimPca9685` on a
 :class:`~beastbt.sim.i2c_bus.SimI2CBus` behind the same driver. Either way
-the driver is kept in ``io.extras['pca9685']`` for the next part that needs it.
+the driver is kept in ``io.pca9685`` for the next part that needs it.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def open_pca9685(profile: RobotProfile, events: EventLog, what: str) -> Pca9685:
 
 def sim_chip(profile: RobotProfile, io: RobotIO, events: EventLog) -> Pca9685:
     """The emulated PCA9685 of this robot (made on first use), as the driver sees it."""
-    pca = io.extras.get("pca9685")
+    pca = io.pca9685
     if pca is None:
         cfg = pca_config(profile)
         bus = SimI2CBus()
@@ -58,7 +58,7 @@ def sim_chip(profile: RobotProfile, io: RobotIO, events: EventLog) -> Pca9685:
         bus.attach(cfg.address, chip)
         # The profile's oscillator_hz is the chip's calibrated true clock: emulate exactly that chip.
         pca = Pca9685(bus, cfg.address, cfg.oscillator_hz, events.sink("pca9685"))
-        io.extras.update(pca9685=pca, sim_pca9685=chip, i2c_bus=bus)
+        io.pca9685, io.sim_pca9685, io.i2c_bus = pca, chip, bus
     return pca
 
 

@@ -27,7 +27,7 @@ def open_pwm_base(profile: RobotProfile, clock: Clock, events: EventLog) -> Robo
     pca = open_pca9685(profile, events, "base")
     base = PwmBase(pca, config, events.sink("base"), wait=real_sleep)
     io = RobotIO(base=base)
-    io.extras["pca9685"] = pca
+    io.pca9685 = pca
     return io
 
 
@@ -37,8 +37,8 @@ def sim_pwm_base(sim: Simulator, profile: RobotProfile, events: EventLog) -> Rob
     io = RobotIO(base=None, sim=sim)  # type: ignore[arg-type]  # the base is set just below
     pca = sim_chip(profile, io, events)
     io.base = PwmBase(pca, config, events.sink("base"))
-    motors = SimPwmMotors(io.extras["sim_pca9685"], config)
-    io.extras["pwm_motors"] = motors
+    motors = SimPwmMotors(io.sim_pca9685, config)
+    io.pwm_motors = motors
 
     def update(t_s: float, dt_s: float) -> None:
         sim.drive.set_wheel_targets(*motors.wheel_targets_mps())

@@ -26,14 +26,14 @@ def attach_servos(profile: RobotProfile, io: RobotIO, clock: Clock, events: Even
     cals = servo_calibrations(profile)
     if not cals:
         return
-    pca = io.extras.get("pca9685")
+    pca = io.pca9685
     if pca is None:
         pca = open_pca9685(profile, events, "servos")
-        io.extras["pca9685"] = pca
+        io.pca9685 = pca
     board = PcaServoBoard(pca, cals, pca_config(profile).frequency_hz, events.sink("servos"), wait=real_sleep)
     io.servos.append(board)
     io.capabilities.add("pwm_servos")
-    io.extras["servo_board"] = board
+    io.servo_board = board
 
 
 def sim_pca_servos(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
@@ -45,9 +45,9 @@ def sim_pca_servos(sim: Simulator, profile: RobotProfile, io: RobotIO, events: E
     board = PcaServoBoard(pca, cals, pca_config(profile).frequency_hz, events.sink("servos"))
     io.servos.append(board)
     io.capabilities.add("pwm_servos")
-    io.extras["servo_board"] = board
-    chip: SimPca9685 = io.extras["sim_pca9685"]
-    if "esp32" in io.extras:
+    io.servo_board = board
+    chip: SimPca9685 = io.sim_pca9685
+    if io.esp32 is not None:
         return  # the base's gimbal points the camera
     aimed = {name: cal for name, cal in cals.items() if name in ("pan", "tilt")}
     if not aimed:

@@ -64,7 +64,7 @@ def attach_scripted_joystick(sim: Simulator, io: RobotIO, clock: Clock, events: 
 
     sim.emulators.append(play)
     io.sensors["joystick"] = joystick_poll(device)
-    io.extras.update(joystick=device, joystick_script=script)
+    io.joystick, io.joystick_script = device, script
     io.capabilities.add("joystick")
     return device
 

@@ -100,7 +100,7 @@ class TeleopOverride:
     @property
     def has_joystick(self) -> bool:
         """True when the robot has a joystick device (it may be unplugged right now)."""
-        return self.run.io.extras.get("joystick") is not None
+        return self.run.io.joystick is not None
 
     def request_handover(self, step: Any) -> None:
         """A teleop step starts: the operator may drive while it runs, without pausing the mission."""

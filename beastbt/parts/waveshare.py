@@ -52,7 +52,7 @@ class WaveshareBasePart(BasePart):
         sim.emulators.append(esp32.update)
         base = WaveshareBase(esp32.port, config, build.events.sink("base"))
         io = RobotIO(base=base, servos=[base] if config.gimbal else [], sim=sim)
-        io.extras["esp32"] = esp32
+        io.esp32 = esp32
         return io
 
 

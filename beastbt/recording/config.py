@@ -1,6 +1,6 @@
 """How a run is recorded: :class:`RecordingConfig`, every knob with its unit and default.
 
-Set through ``RunOptions.extras['recording']`` (a dict) and ``beastbt run
+Set through ``RunOptions.recording`` (a mapping) and ``beastbt run
 --record-images HZ``; described for users in
 ``schemas/parts/recording.schema.json``.
 """
@@ -16,7 +16,7 @@ from beastbt.core.config import dataclass_from_dict
 
 @dataclass
 class RecordingConfig:
-    """How a run is recorded (``RunOptions.extras['recording']``; ``--record-images HZ`` sets image_rate_hz)."""
+    """How a run is recorded (``RunOptions.recording``; ``--record-images HZ`` sets image_rate_hz)."""
 
     # Camera frames stored as JPEG on /camera/image, frames per clock second (Hz). 0 turns images off;
     # every frame still gets a small /sensors/camera message. Raise it to see more, lower it for smaller files.

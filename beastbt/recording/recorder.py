@@ -59,7 +59,7 @@ from beastbt.recording.writer import (MCAP_PROFILE, RECORDING_FORMAT, TRUTH_FIEL
 _UNSET = object()
 
 WATCHED_DEVICE_FLAGS: list[tuple[str, str]] = [("imu_driver", "bias_ready")]
-"""``(io.extras key, attribute)`` of device states that parts of the run read besides the readings (the
+"""``(RobotIO device name, attribute)`` of device states that parts of the run read besides the readings (the
 navigation estimator uses the IMU only once the driver's gyro bias is final); recorded on /devices/state
 whenever they change, so that replay can give the estimator the same answers."""
 
@@ -235,12 +235,13 @@ class McapRecorder:
     def _snapshot_run(self, run: Any) -> None:
         """What the other parts did to the run after it was built, for replay; and the device flags to watch."""
         self.info["ctx_capabilities"] = json.dumps(sorted(run.ctx.capabilities))
-        self.info["io_extras"] = json.dumps(sorted(str(k) for k in run.io.extras))
+        # Named io_extras in recordings made before the devices were typed fields; replay reads both alike.
+        self.info["io_extras"] = json.dumps(sorted(run.io.devices()))
         self.info["tree"] = json.dumps(tree_nodes(run.root))
         self.tag_sources(run.io)
         self.info["sensor_sources"] = json.dumps(["base"] + [str(k) for k in run.io.sensors])
         for key, attr in WATCHED_DEVICE_FLAGS:
-            device = run.io.extras.get(key)
+            device = getattr(run.io, key, None)
             if device is not None and hasattr(device, attr):
                 self._watched.append((key, attr, device))
     def stop(self) -> None:
@@ -554,8 +555,8 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }
-    if "magnetic_declination_deg" in run.io.extras:
-        info["magnetic_declination_deg"] = repr(run.io.extras["magnetic_declination_deg"])
+    if run.io.magnetic_declination_deg is not None:
+        info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:
         info["world_start"] = json.dumps([world.start_x, world.start_y, world.start_yaw])
         info["world_datum"] = json.dumps([world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m])

@@ -192,7 +192,7 @@ TREE_CHANGES = _obj("beastbt.TreeChanges", "The tree nodes whose status changed 
 DEVICE_STATE = _obj("beastbt.DeviceState",
                     "A device state that parts of the run read besides its readings, when it changes.", {
                         "tick": _TICK, "now_s": _NOW,
-                        "device": {"type": "string", "description": "The io.extras key (imu_driver...)."},
+                        "device": {"type": "string", "description": "The device's name on the robot (imu_driver...)."},
                         "field": {"type": "string", "description": "The attribute (bias_ready...)."},
                         "value": {"type": ["boolean", "number", "string", "null"]}})
 

@@ -56,7 +56,7 @@ def guard_actuators(io: RobotIO, clock: Clock, profile: RobotProfile, events: Ev
         dog = AdapterWatchdog(io.base, clock, watchdog_config(profile), events.sink("watchdog"))
         io.servos = [LockedServos(s, dog.lock) if s is dog.inner else s for s in io.servos]
         io.base = dog
-        io.extras["watchdog"] = dog
+        io.watchdog = dog
     if io.sim is not None:
         if dog.on_physics_step not in io.sim.emulators:
             io.sim.emulators.append(dog.on_physics_step)

@@ -34,7 +34,7 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
     }
     if run.events.dropped:
         summary["events_dropped"] = run.events.dropped
-    esp32 = run.io.extras.get("esp32")
+    esp32 = run.io.esp32
     if esp32 is not None:
         summary["servos"] = {name: list(v) for name, v in esp32.gimbal.visits.items()}
     if sim is not None:
