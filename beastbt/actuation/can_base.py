@@ -24,6 +24,7 @@ from typing import Any, Literal, Optional
 
 import can
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import VelocityCommand, WheelOdometry
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
@@ -36,50 +37,51 @@ MAX_FRAMES_PER_POLL = 1000  # bounds one poll even when a babbling node floods t
 
 
 @dataclass
+@schema_defaults("parts/can_base.schema.json")
 class CanBaseConfig:
     """How the motor controller on the CAN bus is spoken to (robot profile ``can_base:``)."""
 
     # SocketCAN interface name (bring it up with `ip link set can0 up type can bitrate 500000`).
-    channel: str = "can0"
+    channel: str
     # python-can interface: "socketcan" on the Pi with the Waveshare CAN HAT, "virtual" in tests.
-    interface: str = "socketcan"
+    interface: str
     # Bus bitrate in bit/s; must match every node on the bus.
-    bitrate: int = 500_000
+    bitrate: int
     # Arbitration id of the wheel speed command frame.
-    command_id: int = 0x100
+    command_id: int
     # True when the controller uses 29-bit (extended) ids for commands and feedback.
-    extended_id: bool = False
+    extended_id: bool
     # Unit of the wheel speeds in command (and wheel-speed feedback) frames.
-    speed_unit: SpeedUnit = "rad/s"
+    speed_unit: SpeedUnit
     # Integer counts per speed_unit on the wire: 100 means hundredths of rad/s.
-    scale: float = 100.0
+    scale: float
     # Byte order of each value in command and feedback frames.
-    byte_order: ByteOrder = "little"
+    byte_order: ByteOrder
     # True when values are two's complement (negative = backwards).
-    signed: bool = True
+    signed: bool
     # Bytes per value in the command frame (left then right): 1, 2 or 4.
-    value_bytes: int = 2
+    value_bytes: int
     # Wheel (or drive sprocket) radius in metres: converts rad/s to m/s.
-    wheel_radius_m: float = 0.04
+    wheel_radius_m: float
     # Distance between the left and right wheel contact lines, metres.
-    track_width_m: float = 0.2
+    track_width_m: float
     # Wheel surface speed limit in m/s: faster requests are scaled down keeping the turn radius.
-    max_wheel_speed_mps: float = 1.0
+    max_wheel_speed_mps: float
     # True when the left motor turns backwards for a positive value (mounted mirrored).
-    invert_left: bool = False
+    invert_left: bool
     # True when the right motor turns backwards for a positive value.
-    invert_right: bool = False
+    invert_right: bool
     # What the controller reports: "wheel_speeds" (same unit and scale as commands),
     # "encoder_ticks" (cumulative counts) or "none".
-    feedback_kind: FeedbackKind = "wheel_speeds"
+    feedback_kind: FeedbackKind
     # Arbitration id of the feedback frame (ignored when feedback_kind is "none").
-    feedback_id: int = 0x101
+    feedback_id: int
     # Bytes per value in the feedback frame (left then right): 2 for speeds, often 4 for ticks.
-    feedback_value_bytes: int = 2
+    feedback_value_bytes: int
     # encoder_ticks only: counts per wheel revolution (after any gearbox).
-    ticks_per_rev: float = 1000.0
+    ticks_per_rev: float
     # Feedback older than this (s) is reported lost; wheel speeds are not integrated across a gap longer than this.
-    feedback_timeout_s: float = 0.5
+    feedback_timeout_s: float
 
     def __post_init__(self) -> None:
         if not self.channel:

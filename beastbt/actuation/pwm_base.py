@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, Literal
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import VelocityCommand
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
@@ -23,39 +24,40 @@ PwmMode = Literal["esc", "hbridge"]
 
 
 @dataclass
+@schema_defaults("parts/pwm_base.schema.json")
 class PwmBaseConfig:
     """Wiring and scaling of a PWM-driven base (robot profile ``pwm_base:``)."""
 
     # How the motor drivers take speed: "esc" = RC pulses (neutral_pulse_ms stops),
     # "hbridge" = duty on the speed channel plus a direction channel.
-    mode: PwmMode = "esc"
+    mode: PwmMode
     # PCA9685 channel of the left motor's ESC signal (esc) or PWM input (hbridge).
-    left_channel: int = 0
+    left_channel: int
     # PCA9685 channel of the right motor's ESC signal (esc) or PWM input (hbridge).
-    right_channel: int = 1
+    right_channel: int
     # hbridge only: PCA9685 channel wired to the left driver's DIR input (fully on = reverse).
-    left_dir_channel: int = 2
+    left_dir_channel: int
     # hbridge only: PCA9685 channel wired to the right driver's DIR input (fully on = reverse).
-    right_dir_channel: int = 3
+    right_dir_channel: int
     # PWM frequency in Hz for the whole chip. 50 Hz for ESCs (and any servos on the
     # same HAT); an H-bridge runs quieter at 1000 Hz if no servos share the chip.
-    frequency_hz: float = 50.0
+    frequency_hz: float
     # esc only: pulse in ms at which the ESC stops. Trim if the robot creeps at zero.
-    neutral_pulse_ms: float = 1.5
+    neutral_pulse_ms: float
     # esc only: pulse in ms for full reverse.
-    min_pulse_ms: float = 1.0
+    min_pulse_ms: float
     # esc only: pulse in ms for full forward.
-    max_pulse_ms: float = 2.0
+    max_pulse_ms: float
     # Wheel (or track) surface speed in m/s at full pulse or 100 % duty. Measure it:
     # higher commands are scaled down keeping the turn radius.
-    max_wheel_speed_mps: float = 0.5
+    max_wheel_speed_mps: float
     # Distance between the left and right wheel contact lines, metres.
-    track_width_m: float = 0.2
+    track_width_m: float
     # True when the left motor turns backwards for a positive command (wired reversed).
-    invert_left: bool = False
+    invert_left: bool
     # True when the right motor turns backwards for a positive command (usually the
     # mirrored side of a base with identical motors).
-    invert_right: bool = False
+    invert_right: bool
 
     def __post_init__(self) -> None:
         if self.mode not in ("esc", "hbridge"):

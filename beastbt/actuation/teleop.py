@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE, BUTTON_ESTOP, BUTTON_ESTOP_RESET, BUTTON_TURBO
@@ -23,17 +24,18 @@ TELEOP_SOURCE = "teleop"
 
 
 @dataclass
+@schema_defaults("parts/teleop.schema.json")
 class TeleopConfig:
     """Teleop speeds (robot profile ``teleop:``), as teleop_twist_joy's scale parameters."""
 
     # Forward speed in m/s at full stick deflection (enable held).
-    scale_linear_mps: float = 0.5
+    scale_linear_mps: float
     # Turn rate in rad/s at full stick deflection (enable held).
-    scale_angular_rps: float = 0.5
+    scale_angular_rps: float
     # Forward speed in m/s at full deflection with enable and turbo held.
-    scale_linear_turbo_mps: float = 1.0
+    scale_linear_turbo_mps: float
     # Turn rate in rad/s at full deflection with enable and turbo held.
-    scale_angular_turbo_rps: float = 1.0
+    scale_angular_turbo_rps: float
 
     def __post_init__(self) -> None:
         for key in ("scale_linear_mps", "scale_angular_rps", "scale_linear_turbo_mps", "scale_angular_turbo_rps"):

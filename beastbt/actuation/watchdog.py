@@ -27,6 +27,7 @@ import threading
 from dataclasses import dataclass, fields
 from typing import Any, Callable, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.actuation.adapter import BaseAdapter, ServoAdapter
 from beastbt.blackboard.types import ServoCommand, VelocityCommand
 from beastbt.devices.interfaces import EventSink, ignore_events
@@ -37,6 +38,7 @@ Sleeper = Callable[[float], Any]
 
 
 @dataclass
+@schema_defaults("parts/watchdog.schema.json")
 class WatchdogConfig:
     """Settings of the adapter-side watchdog (robot profile ``watchdog:``).
 
@@ -46,15 +48,15 @@ class WatchdogConfig:
 
     # Seconds without a fresh velocity command before the watchdog sends zero itself.
     # Keep timeout_s + check_period_s below the 0.5 s the field asks for.
-    timeout_s: float = 0.45
+    timeout_s: float
     # Seconds between two checks of the watchdog thread on the robot (the simulator
     # checks at every physics step instead). Smaller reacts sooner, costs a wake-up each time.
-    check_period_s: float = 0.02
+    check_period_s: float
     # Seconds the watchdog gives the tick loop to send the base's own stop after an
     # e-stop was latched through the API; past that it sends it itself (a frozen loop).
-    estop_grace_s: float = 0.1
+    estop_grace_s: float
     # False turns the watchdog off (commands pass straight through). Only for bench tests.
-    enabled: bool = True
+    enabled: bool
 
     def __post_init__(self) -> None:
         for key in ("timeout_s", "check_period_s", "estop_grace_s"):

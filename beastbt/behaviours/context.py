@@ -12,11 +12,13 @@ from pathlib import Path
 from typing import Any, Callable, Optional, Protocol
 
 from beastbt.core.config import dataclass_from_dict
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 
 
 @dataclass
+@schema_defaults("robot.schema.json#/properties/control")
 class ControlParams:
     """Tuning of the motion behaviours, as in a Nav2 parameter file (SI units).
 
@@ -24,37 +26,37 @@ class ControlParams:
     suits a small tracked robot at walking pace.
     """
 
-    default_speed_mps: float = 0.2
+    default_speed_mps: float
     """Speed of drive/go_to when the step gives none (m/s)."""
-    default_turn_rate_rps: float = math.radians(60.0)
+    default_turn_rate_rps: float
     """Top turn rate of turn steps when none is given (rad/s)."""
-    decel_mps2: float = 0.3
+    decel_mps2: float
     """Deceleration planned at the end of a drive, so it stops on the mark (m/s^2)."""
-    min_drive_speed_mps: float = 0.03
+    min_drive_speed_mps: float
     """Slowest creeping speed at the end of a drive, so it never stalls short (m/s)."""
-    heading_gain: float = 2.0
+    heading_gain: float
     """Heading hold while driving straight: turn rate per radian of heading error (1/s)."""
-    turn_gain: float = 2.5
+    turn_gain: float
     """Turning in place: turn rate per radian of remaining angle (1/s)."""
-    min_turn_rate_rps: float = 0.2
+    min_turn_rate_rps: float
     """Slowest turn rate commanded while turning in place; tracks stall below it (rad/s)."""
-    turn_tolerance_rad: float = math.radians(3.0)
+    turn_tolerance_rad: float
     """A turn is done within this angle of its target (rad). The language says 3 deg."""
-    drive_tolerance_m: float = 0.005
+    drive_tolerance_m: float
     """A drive is done this close to its distance (m)."""
-    still_speed_mps: float = 0.01
+    still_speed_mps: float
     """Below this forward speed the robot counts as still (m/s)."""
-    still_turn_rps: float = 0.03
+    still_turn_rps: float
     """Below this turn rate the robot counts as still (rad/s)."""
-    stuck_progress_m: float = 0.02
+    stuck_progress_m: float
     """Progress smaller than this within stuck_after counts as no progress (m)."""
-    stuck_progress_rad: float = math.radians(1.0)
+    stuck_progress_rad: float
     """Turning progress smaller than this within stuck_after counts as none (rad)."""
-    default_stuck_after_s: float = 5.0
+    default_stuck_after_s: float
     """How long without progress before a motion step fails (s). The language says 5 s."""
-    default_settle_s: float = 0.5
+    default_settle_s: float
     """How long a servo is given to reach its angle (s). The language says 0.5 s."""
-    sensor_max_age_s: float = 0.5
+    sensor_max_age_s: float
     """Data older than this is stale and not trusted by behaviours (s)."""
 
     @classmethod

@@ -39,6 +39,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose, LineObservation, ServoCommand
@@ -51,33 +52,34 @@ POSE_HISTORY_S = 1.0
 
 
 @dataclass
+@schema_defaults("parts/line_follower.schema.json")
 class FollowLineConfig:
     """Tuning of ``follow_line`` (robot profile ``line_follower:``), SI units."""
 
     # Speed when the step gives none, m/s. The detector is tested at 0.12-0.15 m/s.
-    default_speed_mps: float = 0.12
+    default_speed_mps: float
     # Highest turn rate the follower commands, rad/s (the mission's and robot's limits still apply).
-    max_turn_rate_rps: float = 1.5
+    max_turn_rate_rps: float
     # Slow down in curves: speed / (1 + curve_slowdown_m x curvature); 0 keeps the speed, metres.
-    curve_slowdown_m: float = 0.2
+    curve_slowdown_m: float
     # Never slower than this fraction of the step's speed because of a curve (0-1).
-    min_speed_fraction: float = 0.4
+    min_speed_fraction: float
     # While the line is briefly out of sight: this fraction of the speed, last turn rate held (0-1).
-    lost_speed_fraction: float = 0.5
+    lost_speed_fraction: float
     # How long the line may be out of sight before the step fails, s (the step's lost_after overrides it).
-    default_lost_after_s: float = 1.0
+    default_lost_after_s: float
     # A line observation older than this counts as not seeing the line, s (3 frames at 15 fps + a tick).
-    observation_max_age_s: float = 0.25
+    observation_max_age_s: float
     # Frames that must see a junction (within junction_merge_m) before the step heads for it.
-    junction_confirm_frames: int = 2
+    junction_confirm_frames: int
     # Sightings closer than this are the same junction, m.
-    junction_merge_m: float = 0.12
+    junction_merge_m: float
     # until intersection / distance: done when the centre is this close to the mark, m.
-    stop_tolerance_m: float = 0.005
+    stop_tolerance_m: float
     # Deceleration planned to stop on the junction or the distance mark, m/s^2.
-    stop_decel_mps2: float = 0.3
+    stop_decel_mps2: float
     # Slowest speed of the final approach, so it never stalls short, m/s.
-    min_approach_speed_mps: float = 0.03
+    min_approach_speed_mps: float
 
     def __post_init__(self) -> None:
         for name in ("default_speed_mps", "max_turn_rate_rps", "default_lost_after_s", "observation_max_age_s",

@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose
@@ -28,43 +29,44 @@ from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import LocalFrame
 
 @dataclass(frozen=True)
+@schema_defaults("parts/navigation.schema.json")
 class NavConfig:
     """Tuning of go_to, route and return_home (the robot profile's ``navigation:`` section), SI units.
 
     Named after Nav2's regulated pure pursuit parameters where they match.
     """
 
-    default_tolerance_m: float = 2.0
+    default_tolerance_m: float
     """A place counts as reached this close to it when neither the place nor the step says (m).
     The language says 2 m."""
-    default_gps_timeout_s: float = 10.0
+    default_gps_timeout_s: float
     """go_to fails after this long without a GPS fix when the step gives no gps_timeout (s)."""
-    lookahead_m: float = 1.5
+    lookahead_m: float
     """Distance of the carrot ahead along the line to the target (m). Longer: smoother, cuts
     corners more; shorter: tracks the line tighter but reacts to every GPS wobble."""
-    rotate_to_heading_min_angle_rad: float = math.radians(50.0)
+    rotate_to_heading_min_angle_rad: float
     """Turn in place instead of driving when the carrot is more than this off the heading (rad)."""
-    regulated_min_radius_m: float = 0.9
+    regulated_min_radius_m: float
     """Below this turning radius the speed is scaled down by radius / this (m): slow in sharp turns."""
-    replan_cross_track_m: float = 3.0
+    replan_cross_track_m: float
     """When the fused position is this far to the side of the line (the estimate jumped, or the
     robot was pushed off), the line starts again from where the robot is (m)."""
-    approach_dist_m: float = 1.0
+    approach_dist_m: float
     """Start slowing down this far before the tolerance circle around the target (m)."""
-    min_speed_mps: float = 0.08
+    min_speed_mps: float
     """Slowest speed while approaching or turning on the move, so it never stalls short (m/s)."""
-    heading_init_distance_m: float = 15.0
+    heading_init_distance_m: float
     """Without a heading, drive straight at most this far for the estimator to find it (m);
     then stop and fail if it still has none. Keep it above the estimator's own
     heading_init_distance_m (10 m by default)."""
-    progress_m: float = 0.2
+    progress_m: float
     """Getting this much closer to the target (by the fused position, or by the wheels' travel
     toward it), or this much farther along while finding the heading, counts as progress for
     stuck detection (m). Larger than the fused position's wobble at standstill."""
-    stuck_position_factor: float = 4.0
+    stuck_position_factor: float
     """Also fail when the fused position has come no progress_m closer for this many times
     stuck_after, even though the wheels turn (tracks slipping against an obstacle)."""
-    resume_gap_s: float = 1.0
+    resume_gap_s: float
     """A gap this long between two ticks of the step (the mission was held or teleoperated)
     restarts the stuck timer, so that the pause does not count as being stuck (s)."""
 

@@ -26,6 +26,7 @@ from typing import Any, Callable, Optional, Union
 import cv2
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import CameraFrame
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, FrameSource, ignore_events
@@ -67,28 +68,29 @@ class CameraMounting:
 
 
 @dataclass
+@schema_defaults("parts/camera.schema.json", computed={"mounting": "a nested config: CameraMounting reads its own defaults"})
 class CameraConfig:
     """Which camera to open and how (robot profile ``camera:``)."""
 
     # V4L2 device: a path ("/dev/video0") or an index (0). On a Pi 4 with the
     # libcamera stack the CSI camera appears as /dev/video0 through the V4L2 compat layer.
-    device: Union[str, int] = "/dev/video0"
+    device: Union[str, int]
     # Requested frame width and height, pixels. 320x240 is plenty for line following
     # and cheapest; 640x480 is the common native mode (the detector downsamples).
-    width_px: int = 320
-    height_px: int = 240
+    width_px: int
+    height_px: int
     # Requested frame rate, frames per second. poll() also reads at most this often
     # (by the injected clock), so a simulated camera renders exactly this rate.
-    fps: float = 15.0
+    fps: float
     # Mounting geometry of the camera on the robot.
     mounting: CameraMounting = field(default_factory=CameraMounting)
     # While the camera is lost, seconds between attempts to reopen it.
-    reopen_interval_s: float = 1.0
+    reopen_interval_s: float
     # Frames older than this are stale, seconds. Default 3 frame periods at 15 fps.
-    stale_after_s: float = 0.2
+    stale_after_s: float
     # Consecutive failed reads from a source that still claims to be open before it
     # is declared lost and reopened (V4L2 occasionally drops a single frame).
-    lost_after_failures: int = 3
+    lost_after_failures: int
 
     def __post_init__(self) -> None:
         if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):

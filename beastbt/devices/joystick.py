@@ -24,6 +24,7 @@ import struct
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import JoystickState
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
@@ -52,6 +53,7 @@ ByteSource = Callable[[], bytes]
 
 
 @dataclass
+@schema_defaults("parts/joystick.schema.json")
 class JoystickMapping:
     """Which joystick axes and buttons drive the robot (robot profile ``joystick:``).
 
@@ -60,28 +62,28 @@ class JoystickMapping:
     """
 
     # Device path of the joystick on the robot.
-    device: str = "/dev/input/js0"
+    device: str
     # Axis for forward speed: 1 = left stick vertical.
-    linear_axis: int = 1
+    linear_axis: int
     # True because the kernel reports stick-up as negative; up must mean forward.
-    invert_linear: bool = True
+    invert_linear: bool
     # Axis for turning: 0 = left stick horizontal.
-    angular_axis: int = 0
+    angular_axis: int
     # True because the kernel reports stick-left as negative; left must mean +angular (CCW).
-    invert_angular: bool = True
+    invert_angular: bool
     # Deadman: nothing moves unless this button is held. 4 = LB / L1.
-    enable_button: int = 4
+    enable_button: int
     # Held together with enable for turbo speeds. 5 = RB / R1; null for none.
-    turbo_button: Optional[int] = 5
+    turbo_button: Optional[int]
     # Emergency stop (latched by the command mux). 1 = B / circle; null for none.
-    estop_button: Optional[int] = 1
+    estop_button: Optional[int]
     # Clears a latched emergency stop. 7 = Start / Options; null for none.
-    estop_reset_button: Optional[int] = 7
+    estop_reset_button: Optional[int]
     # Fraction of full deflection (0..1) treated as centred; the rest is rescaled to 0..1.
     # Raise it if the robot creeps with the stick released.
-    dead_zone: float = 0.05
+    dead_zone: float
     # Seconds between attempts to reopen an unplugged joystick.
-    reopen_interval_s: float = 0.5
+    reopen_interval_s: float
 
     def __post_init__(self) -> None:
         for key in ("linear_axis", "angular_axis", "enable_button", "turbo_button", "estop_button", "estop_reset_button"):

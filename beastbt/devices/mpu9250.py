@@ -24,6 +24,7 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import ImuSample
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SMBusLike, ignore_events
@@ -157,57 +158,58 @@ def rotation_from_axes(axes: Sequence[str]) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+@schema_defaults("parts/imu_device.schema.json")
 class ImuConfig:
     """Configuration of the MPU9250 driver (the robot profile's ``imu`` section).
 
     Every field has a unit and a default; :meth:`from_dict` rejects unknown keys.
     """
 
-    bus: int = 1
+    bus: int
     """Linux I2C bus number (/dev/i2c-N). 1 on the Raspberry Pi header."""
-    address: int = MPU9250_DEFAULT_ADDRESS
+    address: int
     """7-bit I2C address of the MPU9250 (decimal in YAML: 104 = 0x68, 105 = 0x69 with AD0 high)."""
-    mag_address: int = AK8963_DEFAULT_ADDRESS
+    mag_address: int
     """7-bit address of the AK8963 once bypass is on (12 = 0x0C). Change only for odd breakouts."""
-    gyro_range_dps: int = 500
+    gyro_range_dps: int
     """Gyro full scale, deg/s: 250, 500, 1000 or 2000. 500 covers a spinning tracked robot with margin."""
-    accel_range_g: int = 4
+    accel_range_g: int
     """Accelerometer full scale, g: 2, 4, 8 or 16. Raise it if bumps saturate the readings."""
-    dlpf: int = 3
+    dlpf: int
     """Digital low-pass filter setting (DLPF_CFG and A_DLPF_CFG) 1..6: 1=184 Hz ... 3=41 Hz ... 6=5 Hz.
 
     Lower bandwidth means less vibration noise but more lag."""
-    sample_rate_hz: float = 100.0
+    sample_rate_hz: float
     """Output data rate, Hz (4..1000): sets SMPLRT_DIV = 1000 / rate - 1. Keep >= twice the poll rate."""
-    mag_enabled: bool = True
+    mag_enabled: bool
     """Use the AK8963 magnetometer. Off when the breakout has none or the robot's motors disturb it."""
-    mag_rate_hz: int = 100
+    mag_rate_hz: int
     """Magnetometer continuous-mode rate, Hz: 8 or 100."""
-    mag_offset_ut: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mag_offset_ut: tuple[float, float, float]
     """Hard-iron offset subtracted from the field, microtesla, in the accelerometer's axes."""
-    mag_scale: tuple = (1.0, 1.0, 1.0)
+    mag_scale: tuple
     """Soft-iron correction applied after the offset: 3 per-axis factors or a 3x3 matrix (unitless)."""
-    mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mounting_rpy_deg: tuple[float, float, float]
     """Orientation of the sensor in the body frame, degrees [roll, pitch, yaw] (ROS order Rz*Ry*Rx).
 
     Zero: sensor x forward, y left, z up."""
-    mounting_axes: Optional[tuple[str, str, str]] = None
+    mounting_axes: Optional[tuple[str, str, str]]
     """Alternative to mounting_rpy_deg: which sensor axis points along body x, y, z, e.g. ["-y", "x", "z"]."""
-    retries: int = 2
+    retries: int
     """Extra attempts for a failed I2C transaction before the reading counts as lost."""
-    failures_before_reinit: int = 10
+    failures_before_reinit: int
     """Consecutive failed readings after which the device is treated as lost and re-initialised."""
-    reinit_interval_s: float = 1.0
+    reinit_interval_s: float
     """Seconds between attempts to start the device again while it is lost or missing."""
-    event_interval_s: float = 5.0
+    event_interval_s: float
     """At most one event of each kind per this many seconds (the rest are counted in the next one)."""
-    bias_window_s: float = 2.0
+    bias_window_s: float
     """Seconds of standstill averaged for the gyro bias after start. 0 disables the estimation.
 
     The running mean is subtracted once a quarter of the window was still, the final mean when it is full."""
-    bias_motion_threshold_rps: float = 0.02
+    bias_motion_threshold_rps: float
     """Gyro standard deviation, rad/s, above which the robot counts as moving (the window restarts)."""
-    bias_max_rps: float = 0.15
+    bias_max_rps: float
     """A mean rate above this, rad/s, is a turn, not a bias (the window restarts)."""
 
     def __post_init__(self) -> None:

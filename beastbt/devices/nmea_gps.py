@@ -30,6 +30,7 @@ from typing import Any, Callable, Optional
 import pynmea2
 import serial
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import GpsFix
 from beastbt.core.config import require_number as _require_number
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
@@ -105,45 +106,46 @@ _RMC_MODE_QUALITY = {"A": 1, "D": 2, "R": 4, "F": 5, "E": 6, "M": 7, "S": 8, "P"
 
 
 @dataclass
+@schema_defaults("parts/gps_device.schema.json", convert={"base_error_m": lambda d: {int(k): v for k, v in d.items()}})
 class GpsConfig:
     """Settings of the NMEA GPS driver (the ``gps`` device of a robot profile).
 
     Every time is in seconds of the injected clock; distances in metres.
     """
 
-    port: str = "/dev/serial0"
+    port: str
     """Serial device of the receiver (the Pi 4's GPIO UART for the Adafruit HAT)."""
-    port_baud: int = MTK_FACTORY_BAUD
+    port_baud: int
     """Baud rate the port is opened at (9600 = MTK3339 factory setting)."""
-    baud: Optional[int] = None
+    baud: Optional[int]
     """Baud rate to switch the receiver to with PMTK251 at start-up; None leaves it. Raise it
     (57600/115200) before asking for 5-10 Hz with many sentences: 9600 baud carries ~960 chars/s."""
-    rate_hz: Optional[float] = None
+    rate_hz: Optional[float]
     """Output rate to set with PMTK220 (0.1-10 Hz); None leaves the receiver's rate (1 Hz default)."""
-    sentences: Optional[list[str]] = None
+    sentences: Optional[list[str]]
     """Sentences to enable with PMTK314, e.g. ["RMC", "GGA"] (from GLL, RMC, VTG, GGA, GSA, GSV,
     ZDA); None leaves the receiver's selection."""
-    position_sentences: list[str] = field(default_factory=lambda: list(POSITION_SENTENCES))
+    position_sentences: list[str]
     """Which sentence types give positions (GGA, RMC, GLL). A receiver sending GGA and RMC yields
     two fixes per epoch with the same time; set ["GGA"] to get one per epoch."""
-    reopen_interval_s: float = 2.0
+    reopen_interval_s: float
     """How often to try to reopen a port that failed, seconds."""
-    stale_after_s: float = 2.5
+    stale_after_s: float
     """A fix older than this is stale (2.5 s = two missed epochs at 1 Hz), seconds."""
-    ack_timeout_s: float = 2.0
+    ack_timeout_s: float
     """How long to wait for a ``$PMTK001`` answer to a configuration command, seconds."""
-    base_error_m: dict[int, float] = field(default_factory=lambda: dict(DEFAULT_BASE_ERROR_M))
+    base_error_m: dict[int, float]
     """One-sigma horizontal error per unit HDOP by GGA quality, metres (merged over the
     defaults 1: 4.0, 2: 0.1, 4: 0.02, 5: 4.0, 9: 3.0)."""
-    other_quality_error_m: float = 10.0
+    other_quality_error_m: float
     """Base error for qualities not in base_error_m (3 PPS, 6 dead reckoning, 7 manual, 8 simulated), metres."""
-    hdop_when_unknown: float = 2.0
+    hdop_when_unknown: float
     """HDOP assumed when the receiver has not sent one yet (no GGA/GSA), unitless."""
-    vertical_error_factor: float = 2.0
+    vertical_error_factor: float
     """Vertical sigma = this x horizontal sigma (GPS height is ~2x worse, as nmea_navsat_driver assumes)."""
-    min_sigma_m: float = 0.01
+    min_sigma_m: float
     """Floor on the horizontal sigma so that the covariance is never zero, metres."""
-    bad_data_event_interval_s: float = 30.0
+    bad_data_event_interval_s: float
     """After the first event for a kind of bad data, report that kind at most this often, seconds."""
 
     @classmethod

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import ServoCommand
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SMBusLike, ignore_events
@@ -68,18 +69,19 @@ def frequency_for(prescale: int, oscillator_hz: float = INTERNAL_OSCILLATOR_HZ) 
 
 
 @dataclass
+@schema_defaults("parts/pca9685.schema.json")
 class Pca9685Config:
     """Where the PCA9685 is and how it is clocked (robot profile ``pca9685:``)."""
 
     # I2C bus number: /dev/i2c-1 on a Raspberry Pi.
-    bus: int = 1
+    bus: int
     # 7-bit I2C address; 0x40 on the Adafruit HAT with no address jumpers soldered.
-    address: int = 0x40
+    address: int
     # Oscillator frequency in Hz. Nominally 25 MHz, but real chips are off by a few
     # percent: measure the output period with a scope and put the calibrated value here.
-    oscillator_hz: float = INTERNAL_OSCILLATOR_HZ
+    oscillator_hz: float
     # PWM frequency in Hz. 50 Hz suits analog servos and RC ESCs; every channel shares it.
-    frequency_hz: float = 50.0
+    frequency_hz: float
 
     def __post_init__(self) -> None:
         if not 0 <= self.bus:

@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Optional
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import BatteryState, Feedback, ImuSample, ServoCommand, VelocityCommand, WheelOdometry
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
@@ -33,6 +34,7 @@ MAX_LINE_BYTES = 1024
 
 
 @dataclass
+@schema_defaults("parts/waveshare_base.schema.json", computed={"type": "the base type this config is for, not a knob"})
 class WaveshareConfig:
     """Settings of the Waveshare serial base (a robot profile's ``base:`` section).
 
@@ -46,17 +48,17 @@ class WaveshareConfig:
     values sent with T:133 (0 = the firmware's fastest).
     """
 
-    port: str = "/dev/serial0"
-    baud: int = 115200
-    feedback_interval_s: float = 0.05
-    min_turn_rate_in_place_rps: float = 0.2
-    gimbal: bool = True
-    pan_min_deg: float = -180.0
-    pan_max_deg: float = 180.0
-    tilt_min_deg: float = -30.0
-    tilt_max_deg: float = 90.0
-    gimbal_speed: int = 0
-    gimbal_accel: int = 0
+    port: str
+    baud: int
+    feedback_interval_s: float
+    min_turn_rate_in_place_rps: float
+    gimbal: bool
+    pan_min_deg: float
+    pan_max_deg: float
+    tilt_min_deg: float
+    tilt_max_deg: float
+    gimbal_speed: int
+    gimbal_accel: int
     type: str = "waveshare_serial"
 
     @classmethod

@@ -40,6 +40,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, ignore_events
@@ -62,6 +63,7 @@ _TILT_ACCEL_TOLERANCE_MPS2 = 1.5
 
 
 @dataclass(frozen=True)
+@schema_defaults("parts/ekf.schema.json")
 class EkfConfig:
     """Tuning of the EKF (the robot profile's ``ekf`` section), in the spirit of robot_localization.
 
@@ -70,109 +72,109 @@ class EkfConfig:
     """
 
     # --- robot geometry -------------------------------------------------------------------
-    track_width_m: float = 0.20
+    track_width_m: float
     """Effective distance between left and right wheels/tracks, m: odometry yaw rate = (vr - vl) / this.
 
     Tracked robots skid: calibrate by spinning in place and comparing with the gyro."""
 
     # --- process noise ----------------------------------------------------------------------
-    accel_noise_mps2: float = 0.5
+    accel_noise_mps2: float
     """Unmodelled forward acceleration, m/s^2 per sqrt(s) (speed random walk). Raise for jerky driving."""
-    yaw_accel_noise_rps2: float = 1.0
+    yaw_accel_noise_rps2: float
     """Unmodelled yaw acceleration, rad/s^2 per sqrt(s) (yaw-rate random walk)."""
-    position_noise_mps: float = 0.05
+    position_noise_mps: float
     """Position random walk, m per sqrt(s): slip and sideways motion the unicycle model lacks."""
-    yaw_noise_rps: float = 0.005
+    yaw_noise_rps: float
     """Heading random walk, rad per sqrt(s), on top of the integrated yaw rate."""
-    gyro_bias_walk_rps_sqrts: float = 1e-4
+    gyro_bias_walk_rps_sqrts: float
     """How fast the gyro z bias may drift, rad/s per sqrt(s). Larger re-learns a changed bias faster."""
 
     # --- initial uncertainty ----------------------------------------------------------------
-    initial_position_sigma_m: float = 3.0
+    initial_position_sigma_m: float
     """Position uncertainty at the datum when starting there (start_at_datum), m."""
-    initial_speed_sigma_mps: float = 0.5
+    initial_speed_sigma_mps: float
     """Speed uncertainty at start, m/s."""
-    initial_yaw_rate_sigma_rps: float = 1.0
+    initial_yaw_rate_sigma_rps: float
     """Yaw rate uncertainty at start, rad/s. Large, so a first gyro reading is taken as turning, not bias."""
-    initial_gyro_bias_sigma_rps: float = 0.05
+    initial_gyro_bias_sigma_rps: float
     """Gyro z bias uncertainty at start, rad/s (the driver removes most of it at rest)."""
-    start_at_datum: bool = True
+    start_at_datum: bool
     """With a datum given, the robot starts at the datum (position valid at once); false: wait for a fix."""
 
     # --- wheel odometry ---------------------------------------------------------------------
-    odom_speed_noise_mps: float = 0.03
+    odom_speed_noise_mps: float
     """Odometry forward speed noise, m/s (constant part)."""
-    odom_speed_noise_frac: float = 0.05
+    odom_speed_noise_frac: float
     """Odometry forward speed noise growing with speed (fraction of |v|): wheel slip, radius error."""
-    odom_yaw_rate_noise_rps: float = 0.05
+    odom_yaw_rate_noise_rps: float
     """Odometry yaw rate noise, rad/s (constant part)."""
-    odom_yaw_rate_noise_frac: float = 0.3
+    odom_yaw_rate_noise_frac: float
     """Odometry yaw rate noise growing with the turn rate (fraction of |w|): tracks skid in turns."""
-    odom_yaw_rate_with_gyro: bool = False
+    odom_yaw_rate_with_gyro: bool
     """Also fuse the wheels' yaw rate while the gyro works.
 
     Off for tracked/skid-steer bases: they turn less than their wheels say, and the filter would blame
     the gyro bias. The wheels' yaw rate is always used at standstill (to learn the bias) and when no
     gyro sample came in the last 0.5 s."""
-    standstill_speed_mps: float = 0.005
+    standstill_speed_mps: float
     """Below this wheel speed (each side) the robot is standing still: a zero-velocity update."""
-    standstill_speed_noise_mps: float = 0.005
+    standstill_speed_noise_mps: float
     """Speed noise while standing still, m/s (small: the wheels really are stopped)."""
-    standstill_yaw_rate_noise_rps: float = 0.002
+    standstill_yaw_rate_noise_rps: float
     """Yaw rate noise while standing still, rad/s: lets the filter learn the gyro bias at rest."""
-    odom_max_step_m: float = 2.0
+    odom_max_step_m: float
     """A wheel travel jump larger than this between two readings is a counter reset, not motion, m."""
 
     # --- gyro -------------------------------------------------------------------------------
-    use_gyro: bool = True
+    use_gyro: bool
     """Fuse the IMU's z rate."""
-    gyro_noise_rps: float = 0.005
+    gyro_noise_rps: float
     """Noise of one gyro z sample, rad/s (several samples in one call are averaged)."""
 
     # --- magnetometer -----------------------------------------------------------------------
-    use_magnetometer: bool = False
+    use_magnetometer: bool
     """Fuse the magnetometer heading. Off by default: motors and steel disturb it on small robots."""
-    mag_heading_noise_rad: float = 0.1
+    mag_heading_noise_rad: float
     """Magnetometer heading noise, rad."""
-    declination_deg: float = 0.0
+    declination_deg: float
     """Magnetic declination at the site, degrees, positive east (true heading = magnetic + this)."""
-    mag_tilt_compensation: bool = True
+    mag_tilt_compensation: bool
     """Use the accelerometer's gravity direction to level the field before taking the heading."""
-    mag_gate_chi2: float = 10.83
+    mag_gate_chi2: float
     """Reject a magnetometer heading beyond this chi-square (1 dof; 10.83 = 99.9 %)."""
 
     # --- GPS position -----------------------------------------------------------------------
-    use_gps: bool = True
+    use_gps: bool
     """Fuse GPS fixes."""
-    min_gps_quality: int = 1
+    min_gps_quality: int
     """Lowest NMEA fix quality used (1 GPS, 2 DGPS, 4 RTK fixed, 5 RTK float)."""
-    gps_gate_chi2: float = 13.82
+    gps_gate_chi2: float
     """Reject a fix whose Mahalanobis distance squared exceeds this (chi-square 2 dof; 13.82 = 99.9 %)."""
-    gps_reset_after_s: float = 10.0
+    gps_reset_after_s: float
     """When fixes have been rejected for this long the filter is lost: accept the fix and inflate, s."""
-    gps_reset_inflation: float = 4.0
+    gps_reset_inflation: float
     """On such a reset the position covariance becomes the fix covariance times this (unitless)."""
-    gps_max_lag_s: float = 1.0
+    gps_max_lag_s: float
     """Fixes older than the update time are moved back along the motion by at most this lag, s."""
 
     # --- GPS course over ground -------------------------------------------------------------
-    use_gps_course: bool = True
+    use_gps_course: bool
     """Fuse the receiver's course over ground as a heading while moving."""
-    course_min_speed_mps: float = 0.3
+    course_min_speed_mps: float
     """Course is used only above this speed (GPS and odometry), m/s: it is noise when slow."""
-    course_speed_noise_mps: float = 0.1
+    course_speed_noise_mps: float
     """GPS velocity noise, m/s: the course noise is this / speed rad, so it grows as speed falls."""
-    course_noise_floor_rad: float = 0.02
+    course_noise_floor_rad: float
     """Smallest course noise, rad."""
-    course_gate_chi2: float = 10.83
+    course_gate_chi2: float
     """Reject a course beyond this chi-square (1 dof)."""
 
     # --- heading initialisation without magnetometer ----------------------------------------
-    heading_init_distance_m: float = 10.0
+    heading_init_distance_m: float
     """Odometric distance after which the heading is fitted from GPS displacement, m."""
-    heading_init_from_course: bool = True
+    heading_init_from_course: bool
     """Also initialise the heading from the first GPS course that is precise enough."""
-    heading_init_course_max_sigma_rad: float = 0.35
+    heading_init_course_max_sigma_rad: float
     """A course this precise (or better) may initialise the heading, rad (0.35 = 20 deg)."""
 
     def __post_init__(self) -> None:

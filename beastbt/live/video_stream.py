@@ -45,6 +45,7 @@ from urllib.parse import urlsplit
 import cv2
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.live.endpoint import parse_endpoint, parse_size
 from beastbt.core.config import dataclass_from_dict
 from beastbt.vision.camera_model import CameraGeometry
@@ -59,28 +60,29 @@ NO_CAMERA_PERIOD_S = 1.0
 
 
 @dataclass
+@schema_defaults("parts/video_stream.schema.json")
 class StreamConfig:
     """The live video server (``beastbt run --stream ...``)."""
 
     # Address to listen on. 127.0.0.1 (default) is this machine only; 0.0.0.0 every interface.
-    host: str = "127.0.0.1"
+    host: str
     # TCP port; 0 picks a free one (see VideoStreamServer.port).
-    port: int = 8080
+    port: int
     # Size of the streamed frames, pixels; 0 x 0 streams the camera's own size.
-    width_px: int = 640
-    height_px: int = 480
+    width_px: int
+    height_px: int
     # JPEG quality, 1-100 (OpenCV's IMWRITE_JPEG_QUALITY). 80 is sharp; 50 halves the bytes.
-    jpeg_quality: int = 80
+    jpeg_quality: int
     # Most frames encoded per second (wall clock); newer camera frames in between are skipped.
-    fps: float = 25.0
+    fps: float
     # Draw the detected line, junctions and the current step on the frames.
-    overlay: bool = True
+    overlay: bool
     # A client that accepts no data for this long is disconnected, seconds.
-    client_timeout_s: float = 10.0
+    client_timeout_s: float
     # Kernel send buffer per viewer, bytes (a few frames). Small keeps a slow viewer on the newest
     # frame instead of seconds-old ones queued in the OS; too small limits throughput on links with
     # long round trips (rate <= buffer / round trip). 0 leaves the OS's autotuning (up to megabytes).
-    send_buffer_bytes: int = 262144
+    send_buffer_bytes: int
 
     def __post_init__(self) -> None:
         if not 0 <= self.port <= 65535:

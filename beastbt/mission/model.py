@@ -16,6 +16,7 @@ from typing import Any, Collection, Optional, Union
 
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
 from beastbt.core.schema_check import load_schema, schema_problems
+from beastbt.core.schema_defaults import schema_default
 from beastbt.mission import steps as st
 from beastbt.mission.external_steps import ExternalStep, load_external_steps, step_keywords_in, with_external_steps
 from beastbt.core.units import parse_count, parse_quantity
@@ -29,6 +30,11 @@ STEP_KEYWORDS = (
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
     "wait_until",
 )
+
+
+def mission_default(pointer: str, name: str) -> Any:
+    """The default the mission schema states for property ``name`` at JSON ``pointer`` (``/properties``)."""
+    return schema_default(f"mission.schema.json#{pointer}", name)
 
 
 @dataclass(frozen=True)
@@ -72,7 +78,7 @@ class Mission:
     doc: SourceDoc
     description: str = ""
     world: Optional[Path] = None
-    rate_hz: float = 20.0
+    rate_hz: float = field(default_factory=lambda: parse_quantity(mission_default("/properties", "rate"), "frequency"))
     speed_limit_mps: Optional[float] = None
     turn_rate_limit_rps: Optional[float] = None
     accel_limit_mps2: Optional[float] = None
@@ -80,9 +86,10 @@ class Mission:
     tasks: dict[str, tuple[st.Step, ...]] = field(default_factory=dict)
     """Each task's steps, by name (``do: name`` runs them)."""
     steps: tuple[st.Step, ...] = ()
-    on_failure: str = "stop"
-    teleop_override: bool = True
-    teleop_on_release: str = "resume"
+    on_failure: str = field(default_factory=lambda: mission_default("/properties", "on_failure"))
+    teleop_override: bool = field(default_factory=lambda: mission_default("/properties", "teleop"))
+    teleop_on_release: str = field(
+        default_factory=lambda: mission_default("/properties/teleop/anyOf/1/properties", "on_release"))
     failsafes: list[Failsafe] = field(default_factory=list)
     external_steps: dict[str, ExternalStep] = field(default_factory=dict)
     """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
@@ -384,7 +391,8 @@ class _StepReader:
                 return st.GoToPlace(place=v["place"], **nav(v), **where)
             return st.GoToPoint(lat_deg=float(v["lat"]), lon_deg=float(v["lon"]), **nav(v), **where)
         if k == "route":
-            return st.Route(places=tuple(v["places"]), loops=parse_count(v["loops"]) if "loops" in v else 1,
+            loops = v.get("loops", mission_default("/$defs/step/anyOf/6/properties/route/properties", "loops"))
+            return st.Route(places=tuple(v["places"]), loops=parse_count(loops),
                             **nav(v), **where)
         if k == "return_home":
             return st.ReturnHome(**nav(v), **where)
@@ -417,7 +425,8 @@ class _StepReader:
             return st.Timeout(after_s=q(v["after"], "duration"), steps=self.steps(v["steps"], path + (k, "steps")),
                               **where)
         if k == "parallel":
-            return st.Parallel(succeed_on=v.get("succeed_on", "all"), steps=self.steps(v["steps"], path + (k, "steps")),
+            on = v.get("succeed_on", mission_default("/$defs/step/anyOf/19/properties/parallel/properties", "succeed_on"))
+            return st.Parallel(succeed_on=on, steps=self.steps(v["steps"], path + (k, "steps")),
                                **where)
         if k == "first_of":
             return st.FirstOf(alternatives=tuple(self.steps(alt, path + (k, i)) for i, alt in enumerate(v)), **where)
@@ -433,8 +442,8 @@ class _StepReader:
         raise ValueError(f"no typed step for '{k}'")
 
 
-DEFAULT_NEAR_WITHIN_M = 3.0
-"""``{near: place}`` without ``within`` means within this many metres."""
+DEFAULT_NEAR_WITHIN_M = parse_quantity(mission_default("/$defs/condition/anyOf/2/properties", "within"), "distance")
+"""``{near: place}`` without ``within`` means within this many metres (the schema's default)."""
 
 
 def condition_of(raw: Any) -> st.Condition:
@@ -475,7 +484,7 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
                 external_steps=external)
     if "world" in d:
         m.world = (base / d["world"]).resolve() if not Path(d["world"]).is_absolute() else Path(d["world"])
-    m.rate_hz = parse_quantity(d.get("rate", 20), "frequency")
+    m.rate_hz = parse_quantity(d.get("rate", mission_default("/properties", "rate")), "frequency")
     if "speed" in limits:
         m.speed_limit_mps = parse_quantity(limits["speed"], "speed")
     if "turn_rate" in limits:
@@ -489,20 +498,23 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     for name, steps in (d.get("tasks") or {}).items():
         m.tasks[name] = reader.steps(steps, ("tasks", name))
     m.steps = reader.steps(d["steps"], ("steps",))
-    m.on_failure = d.get("on_failure", "stop")
-    teleop = d.get("teleop", True)
+    m.on_failure = d.get("on_failure", mission_default("/properties", "on_failure"))
+    teleop = d.get("teleop", mission_default("/properties", "teleop"))
     if isinstance(teleop, dict):
         m.teleop_override = True
-        m.teleop_on_release = teleop.get("on_release", "resume")
+        m.teleop_on_release = teleop.get("on_release", mission_default("/properties/teleop/anyOf/1/properties",
+                                                                         "on_release"))
     else:
         m.teleop_override = bool(teleop)
     for kind, spec in (d.get("failsafes") or {}).items():
         params: dict[str, Any] = {}
         if kind == "gps_lost":
-            params["after_s"] = parse_quantity(spec.get("after", 3), "duration")
+            after = spec.get("after", mission_default("/properties/failsafes/properties/gps_lost/properties", "after"))
+            params["after_s"] = parse_quantity(after, "duration")
         elif kind == "battery_low":
             params["below_v"] = parse_quantity(spec["below"], "voltage")
-            params["for_s"] = parse_quantity(spec.get("for", 10), "duration")
+            hold = spec.get("for", mission_default("/properties/failsafes/properties/battery_low/properties", "for"))
+            params["for_s"] = parse_quantity(hold, "duration")
         elif kind == "geofence":
             params["center"] = spec["center"]
             params["radius_m"] = parse_quantity(spec["radius"], "distance")

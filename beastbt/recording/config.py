@@ -11,38 +11,40 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 
 
 @dataclass
+@schema_defaults("parts/recording.schema.json")
 class RecordingConfig:
     """How a run is recorded (``RunOptions.recording``; ``--record-images HZ`` sets image_rate_hz)."""
 
     # Camera frames stored as JPEG on /camera/image, frames per clock second (Hz). 0 turns images off;
     # every frame still gets a small /sensors/camera message. Raise it to see more, lower it for smaller files.
-    image_rate_hz: float = 2.0
+    image_rate_hz: float
     # JPEG quality of recorded images, 1-100 (OpenCV's IMWRITE_JPEG_QUALITY).
-    image_jpeg_quality: int = 75
+    image_jpeg_quality: int
     # Images wider than this are scaled down before encoding (pixels); 0 keeps the camera's size.
-    image_max_width_px: int = 640
+    image_max_width_px: int
     # Ticks, events and servo commands waiting for the writer process (items), beyond what the pipe to it
     # holds (up to 1 MiB, ~1000 ticks). ~200 s at 20 Hz; on the robot an overflow drops items (counted in
     # the summary), in the simulator the loop waits instead.
-    queue_max_items: int = 4000
+    queue_max_items: int
     # What a full queue does: "auto" (wait on a simulated clock, drop on the robot), "block" or "drop".
-    overflow: str = "auto"
+    overflow: str
     # The tick loop hands its items to the writer process in batches, one pipe write per batch, at least
     # every this many clock seconds (s); events go at once. A run whose process dies loses at most this much.
-    send_interval_s: float = 0.5
+    send_interval_s: float
     # A chunk is closed and handed to the OS every this many clock seconds of records (s). A run killed
     # hard loses at most this much; shorter chunks compress less well.
-    chunk_interval_s: float = 1.0
+    chunk_interval_s: float
     # A chunk is also closed when its uncompressed size passes this (bytes), e.g. with many images.
-    chunk_max_bytes: int = 4 * 1024 * 1024
+    chunk_max_bytes: int
     # Chunk compression: "auto" (zstd if installed, else lz4, else none), "zstd", "lz4" or "none".
-    compression: str = "auto"
+    compression: str
     # How long the end of a run waits for the writer to drain its queue before giving up (wall seconds).
-    drain_timeout_s: float = 60.0
+    drain_timeout_s: float
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.image_rate_hz) and self.image_rate_hz >= 0):

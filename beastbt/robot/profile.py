@@ -14,11 +14,12 @@ from typing import Any, Optional, Union
 
 from beastbt.behaviours.context import ControlParams
 from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_defaults import schema_default
 from beastbt.core.schema_check import schema_problems
 from beastbt.core.yaml_source import SourceDoc, load_yaml
 from beastbt.core.resources import data_dir
 
-DEFAULT_COMMAND_TIMEOUT_S = 0.5
+DEFAULT_COMMAND_TIMEOUT_S: float = schema_default("robot.schema.json#/properties/safety", "command_timeout_s")
 """No fresh command for this long means zero velocity (s): the field's watchdog figure."""
 
 
@@ -73,11 +74,15 @@ def load_profile(name: Union[str, Path]) -> RobotProfile:
         track_width_m=float(d["geometry"]["track_width_m"]),
         max_speed_mps=float(lim["max_speed_mps"]),
         max_turn_rate_rps=math.radians(float(lim["max_turn_rate_dps"])),
-        max_accel_mps2=float(lim.get("max_accel_mps2", 1.0)),
-        max_angular_accel_rps2=math.radians(float(lim.get("max_angular_accel_dps2", 360.0))),
+        max_accel_mps2=float(lim.get("max_accel_mps2", _limit_default("max_accel_mps2"))),
+        max_angular_accel_rps2=math.radians(float(lim.get("max_angular_accel_dps2", _limit_default("max_angular_accel_dps2")))),
         command_timeout_s=float((d.get("safety") or {}).get("command_timeout_s", DEFAULT_COMMAND_TIMEOUT_S)),
         control=control,
     )
+
+
+def _limit_default(name: str) -> float:
+    return float(schema_default("robot.schema.json#/properties/limits", name))
 
 
 def section_config(profile: RobotProfile, section: str, config_cls: Any) -> Any:

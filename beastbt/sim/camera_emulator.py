@@ -22,6 +22,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.truth import RobotTruth
@@ -35,22 +36,23 @@ NOISE_BANK_MARGIN_PX = 16
 
 
 @dataclass
+@schema_defaults("parts/camera_effects.schema.json")
 class CameraEffects:
     """Imperfections of the simulated camera (world file ``camera_effects:``). Zero turns an effect off."""
 
     # Standard deviation of per-pixel sensor noise, grey levels (0-255 scale).
-    noise_std: float = 3.0
+    noise_std: float
     # Standard deviation of the frame-to-frame exposure (brightness) gain, fraction (0.03 = 3 %).
-    exposure_jitter: float = 0.03
+    exposure_jitter: float
     # Darkening of the image corners by the lens, fraction at the corners (0.25 = 25 % darker).
-    vignetting: float = 0.2
+    vignetting: float
     # Exposure time for motion blur, seconds: the image smears by speed x exposure.
     # 0 turns motion blur off.
-    exposure_s: float = 0.01
+    exposure_s: float
     # Grey level rendered above the horizon (walls, far away), 0-255.
-    sky_grey: int = 140
+    sky_grey: int
     # Probability that a read() returns no frame (a dropped frame), 0-1.
-    drop_probability: float = 0.0
+    drop_probability: float
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.noise_std <= 100.0:

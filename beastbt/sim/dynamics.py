@@ -16,10 +16,13 @@ from typing import Any
 import numpy as np
 
 from beastbt.core.config import dataclass_from_dict
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.sim.truth import RobotTruth
 
 
 @dataclass
+@schema_defaults("robot.schema.json#/properties/sim",
+                 computed={"track_width_m": "the profile's geometry.track_width_m (set by build_simulator)"})
 class DriveModel:
     """Physical parameters of the simulated base (a robot profile's ``sim:`` section, SI units).
 
@@ -33,12 +36,12 @@ class DriveModel:
     """
 
     track_width_m: float = 0.17
-    max_wheel_speed_mps: float = 0.5
-    max_wheel_accel_mps2: float = 1.5
-    motor_time_constant_s: float = 0.08
-    slip_sigma: float = 0.02
-    slip_bias: float = 0.005
-    footprint_radius_m: float = 0.15
+    max_wheel_speed_mps: float
+    max_wheel_accel_mps2: float
+    motor_time_constant_s: float
+    slip_sigma: float
+    slip_bias: float
+    footprint_radius_m: float
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "DriveModel":

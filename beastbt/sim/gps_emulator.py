@@ -22,6 +22,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import require_number as _number
 import pynmea2
 
@@ -51,6 +52,7 @@ _EPS_S = 1e-6
 
 
 @dataclass
+@schema_defaults("parts/gps_sim.schema.json")
 class GpsNoiseModel:
     """How the emulated GPS errs and what it sends (the ``gps`` block of a simulated world).
 
@@ -59,39 +61,39 @@ class GpsNoiseModel:
     Errors are per axis (east, north); times are simulated seconds.
     """
 
-    rate_hz: float = 1.0
+    rate_hz: float
     """Output rate at power-on, Hz (MTK3339 factory 1 Hz; PMTK220 can set up to 10)."""
-    white_sigma_m: float = 1.5
+    white_sigma_m: float
     """Independent noise per epoch and horizontal axis, one sigma, metres."""
-    bias_sigma_m: float = 2.0
+    bias_sigma_m: float
     """Slowly wandering bias (Gauss-Markov) per horizontal axis, stationary one sigma, metres."""
-    bias_tau_s: float = 60.0
+    bias_tau_s: float
     """Correlation time of the bias, seconds (atmosphere and orbit errors change over minutes)."""
-    vertical_factor: float = 1.5
+    vertical_factor: float
     """Vertical errors are this many times the horizontal ones."""
-    jump_rate_per_s: float = 0.002
+    jump_rate_per_s: float
     """Probability per second that a multipath jump starts (0.002 = one every ~8 min)."""
-    jump_magnitude_m: float = 15.0
+    jump_magnitude_m: float
     """Typical size of a multipath jump, metres (each one is 0.5-1.5x this, random direction)."""
-    jump_duration_s: float = 5.0
+    jump_duration_s: float
     """Typical length of a multipath jump, seconds (each one 0.5-1.5x this)."""
-    dropouts_s: list[tuple[float, float]] = field(default_factory=list)
+    dropouts_s: list[tuple[float, float]]
     """Windows [start_s, end_s) of simulated time with no fix (tunnel, trees, buildings)."""
-    cold_start_s: float = 0.0
+    cold_start_s: float
     """Seconds after power-on without a fix (MTK3339: ~35 s cold, ~1 s hot start)."""
-    hdop: float = 0.9
+    hdop: float
     """Horizontal dilution of precision reported, unitless."""
-    sats: int = 9
+    sats: int
     """Satellites reported in use."""
-    fix_quality: int = 1
+    fix_quality: int
     """GGA fix quality reported: 1 GPS, 2 DGPS/SBAS."""
-    speed_sigma_mps: float = 0.05
+    speed_sigma_mps: float
     """Noise on each horizontal velocity component behind RMC speed and course, m/s."""
-    coord_decimals: int = 4
+    coord_decimals: int
     """Decimals of minutes in the coordinates (MTK3339: 4, ~0.2 m)."""
-    sentences: list[str] = field(default_factory=lambda: ["GGA", "GSA", "RMC"])
+    sentences: list[str]
     """Sentences sent every epoch at power-on (from GGA, GSA, RMC, VTG, GLL, ZDA)."""
-    talker: str = "GP"
+    talker: str
     """Talker id of the sentences (GP for GPS-only receivers like the MTK3339, GN for multi-GNSS)."""
 
     @classmethod

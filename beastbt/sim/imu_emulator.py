@@ -25,6 +25,7 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices import mpu9250 as hw
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.i2c_bus import RegisterDevice, SimI2CBus
@@ -56,32 +57,33 @@ def _int16(value: float) -> int:
 
 
 @dataclass(frozen=True)
+@schema_defaults("parts/imu_sim.schema.json")
 class ImuNoiseModel:
     """How the simulated IMU errs and which Earth field it sees (the world file's ``imu`` section)."""
 
-    gyro_noise_density_rps_sqrthz: float = 1.75e-4
+    gyro_noise_density_rps_sqrthz: float
     """Gyro white noise density, rad/s/sqrt(Hz) (datasheet 0.01 deg/s/sqrt(Hz)); times sqrt(DLPF bandwidth)."""
-    gyro_bias_sigma_rps: float = 0.02
+    gyro_bias_sigma_rps: float
     """Standard deviation of the constant gyro bias drawn per axis at start, rad/s (about 1 deg/s)."""
-    gyro_bias_walk_rps_sqrts: float = 2e-5
+    gyro_bias_walk_rps_sqrts: float
     """Gyro bias random walk, rad/s per sqrt(s): how fast the bias drifts (temperature, ageing)."""
-    accel_noise_density_mps2_sqrthz: float = 2.9e-3
+    accel_noise_density_mps2_sqrthz: float
     """Accelerometer white noise density, m/s^2/sqrt(Hz) (datasheet 300 ug/sqrt(Hz))."""
-    mag_field_ut: float = 50.0
+    mag_field_ut: float
     """Total intensity of the local Earth field, microtesla (25..65 on Earth)."""
-    mag_inclination_deg: float = 60.0
+    mag_inclination_deg: float
     """Field inclination (dip) below the horizontal, degrees: positive in the northern hemisphere."""
-    mag_declination_deg: float = 0.0
+    mag_declination_deg: float
     """Magnetic declination, degrees, positive east: magnetic north is this far clockwise of true north."""
-    mag_noise_ut: float = 0.4
+    mag_noise_ut: float
     """White noise of each magnetometer axis, microtesla."""
-    mag_hard_iron_ut: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mag_hard_iron_ut: tuple[float, float, float]
     """Constant field of the robot itself (hard iron), microtesla, in the accelerometer's axes."""
-    temperature_c: float = 25.0
+    temperature_c: float
     """Die temperature reported, degrees Celsius."""
-    whoami: Optional[int] = None
+    whoami: Optional[int]
     """Override of the MPU's WHO_AM_I value (fault tests); null (None) = 0x71, a genuine MPU9250."""
-    mag_present: bool = True
+    mag_present: bool
     """False leaves the AK8963 off the bus (a breakout without a magnetometer)."""
 
     def __post_init__(self) -> None:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_defaults import schema_default
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.world import World
@@ -22,7 +23,7 @@ from beastbt.sim.world import World
 if TYPE_CHECKING:  # the simulator reads a profile's sections; it does not depend on the robot package
     from beastbt.robot.profile import RobotProfile
 
-DEFAULT_PHYSICS_RATE_HZ = 100.0
+DEFAULT_PHYSICS_RATE_HZ: float = schema_default("robot.schema.json#/properties/sim", "physics_rate_hz")
 """Physics steps per simulated second unless the profile's ``sim.physics_rate_hz`` says otherwise (Hz)."""
 
 

@@ -10,11 +10,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Union
+from typing import Any, Optional, Union
 
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_check import schema_problems
+from beastbt.core.schema_defaults import schema_default
 from beastbt.core.yaml_source import SourceDoc, load_yaml
 from beastbt.sim.dynamics import Wall
 
@@ -24,16 +25,16 @@ class World:
     """A checked world. Positions in metres in the world's local ENU frame, yaw in radians CCW from east."""
 
     name: str
-    file: Optional[str] = None
-    doc: Optional[SourceDoc] = None
-    frame: LocalFrame = field(default_factory=lambda: LocalFrame(0.0, 0.0, 0.0))
-    start_x: float = 0.0
-    start_y: float = 0.0
-    start_yaw: float = 0.0
-    walls: list[Wall] = field(default_factory=list)
-    battery_start_v: float = 12.3
-    battery_drain_v_per_s: float = 0.0002
-    data: dict = field(default_factory=dict)
+    file: Optional[str]
+    doc: Optional[SourceDoc]
+    frame: LocalFrame
+    start_x: float
+    start_y: float
+    start_yaw: float
+    walls: list[Wall]
+    battery_start_v: float
+    battery_drain_v_per_s: float
+    data: dict
 
     def section(self, name: str) -> Optional[dict]:
         """A model section (``gps``, ``imu``, ``floor``, ``camera``), or None."""
@@ -41,9 +42,14 @@ class World:
         return dict(value) if isinstance(value, dict) else None
 
 
+def _world_default(section: str, name: str) -> Any:
+    """The world schema's default for ``name`` (in ``section``; "" for a top-level key)."""
+    return schema_default("world.schema.json#/properties" + (f"/{section}" if section else ""), name)
+
+
 def empty_world() -> World:
-    """An empty plain at 0 deg N, 0 deg E, the robot at the origin facing east."""
-    return World(name="empty")
+    """An empty plain where the world schema's defaults put it (0 deg N, 0 deg E, the robot at the origin facing east)."""
+    return world_of({"world": "empty"})
 
 
 def load_world(path: Union[str, Path]) -> World:
@@ -52,17 +58,22 @@ def load_world(path: Union[str, Path]) -> World:
     problems = schema_problems(doc, "world.schema.json", "world")
     if problems:
         raise InvalidInput(problems)
-    d = doc.data
-    datum = d.get("datum") or {"lat": 0.0, "lon": 0.0}
+    return world_of(doc.data, doc)
+
+
+def world_of(d: dict, doc: Optional[SourceDoc] = None) -> World:
+    """The :class:`World` of a checked world mapping; what it leaves out takes the world schema's defaults."""
+    datum = d.get("datum") or _world_default("", "datum")
     start = d.get("start") or {}
     battery = d.get("battery") or {}
     return World(
-        name=d["world"], file=doc.file, doc=doc,
-        frame=LocalFrame(float(datum["lat"]), float(datum["lon"]), float(datum.get("alt_m", 0.0))),
-        start_x=float(start.get("x", 0.0)), start_y=float(start.get("y", 0.0)),
-        start_yaw=math.radians(float(start.get("yaw_deg", 0.0))),
+        name=d["world"], file=doc.file if doc is not None else None, doc=doc,
+        frame=LocalFrame(float(datum["lat"]), float(datum["lon"]), float(datum.get("alt_m", _world_default("datum", "alt_m")))),
+        start_x=float(start.get("x", _world_default("start", "x"))),
+        start_y=float(start.get("y", _world_default("start", "y"))),
+        start_yaw=math.radians(float(start.get("yaw_deg", _world_default("start", "yaw_deg")))),
         walls=[Wall(*map(float, w)) for w in d.get("walls") or []],
-        battery_start_v=float(battery.get("start_v", 12.3)),
-        battery_drain_v_per_s=float(battery.get("drain_v_per_s", 0.0002)),
+        battery_start_v=float(battery.get("start_v", _world_default("battery", "start_v"))),
+        battery_drain_v_per_s=float(battery.get("drain_v_per_s", _world_default("battery", "drain_v_per_s"))),
         data=d,
     )

@@ -52,6 +52,7 @@ from typing import Any, Literal, Optional, Sequence
 import cv2
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import LineObservation
 from beastbt.core.config import dataclass_from_dict
 from beastbt.vision.camera_model import CameraGeometry
@@ -73,59 +74,60 @@ GLARE_GAP_WEIGHT = 0.25
 
 
 @dataclass
+@schema_defaults("parts/line_detector.schema.json")
 class LineDetectorConfig:
     """Knobs of the line detector (robot profile ``line_detector:``)."""
 
     # What the line looks like: "dark_on_light" (black tape on a light floor),
     # "light_on_dark" (white tape on a dark floor) or "colour" (hsv_low..hsv_high).
-    mode: Literal["dark_on_light", "light_on_dark", "colour"] = "dark_on_light"
+    mode: Literal["dark_on_light", "light_on_dark", "colour"]
     # HSV range for mode "colour", OpenCV scale (H 0-179, S and V 0-255). Default: yellow tape.
-    hsv_low: list = field(default_factory=lambda: [18, 80, 80])
-    hsv_high: list = field(default_factory=lambda: [40, 255, 255])
+    hsv_low: list
+    hsv_high: list
     # Wider images are downsampled (area average) to this width first, pixels; 0 = never.
     # The bird's-eye grid below is coarser than 320 px anyway.
-    process_width_px: int = 320
+    process_width_px: int
     # Cell size of the bird's-eye floor grid, metres. Keep it <= a third of the line width.
-    grid_resolution_m: float = 0.005
+    grid_resolution_m: float
     # Nearest floor examined, metres ahead of the robot centre; null = just inside the
     # nearest floor the camera sees.
-    roi_near_m: Optional[float] = None
+    roi_near_m: Optional[float]
     # Farthest floor examined, metres ahead of the robot centre (capped by what the camera sees).
-    roi_far_m: float = 0.8
+    roi_far_m: float
     # Half width of the examined floor strip, metres to each side of the robot's centreline.
-    roi_half_width_m: float = 0.35
+    roi_half_width_m: float
     # Height of one band (a strip of constant distance ahead), metres.
-    band_height_m: float = 0.01
+    band_height_m: float
     # Size of the local-floor-brightness window, metres; must exceed about twice the
     # line width (or the line counts as floor) but stay below shadow/lighting detail.
-    background_kernel_m: float = 0.06
+    background_kernel_m: float
     # A line cell is at least this fraction darker than its local floor (0.6 = 60 %).
     # Keep it above the darkness of the deepest shadow (a narrow shadow looks like a
     # line) and below the tape's: black tape on a light floor is about 0.85. Lower it
     # for grey or faded tape.
-    contrast_ratio: float = 0.6
+    contrast_ratio: float
     # ... and at least this many grey levels darker (guards against noise in dark areas).
-    min_contrast: float = 20.0
+    min_contrast: float
     # Brightness above this multiple of the median floor is clipped (glare); 0 = off.
-    highlight_clip: float = 1.2
+    highlight_clip: float
     # Expected true line width range, metres. Runs outside it are not taken for the line.
-    line_width_min_m: float = 0.008
-    line_width_max_m: float = 0.04
+    line_width_min_m: float
+    line_width_max_m: float
     # Distance ahead of the robot centre at which offset_m and angle_rad are reported, metres.
-    lookahead_m: float = 0.25
+    lookahead_m: float
     # Tracked centres within this distance of the look-ahead are fitted, metres.
-    fit_window_m: float = 0.12
+    fit_window_m: float
     # Longest stretch without line that is bridged (worn tape, glare), metres.
-    max_gap_m: float = 0.06
+    max_gap_m: float
     # Radius of the ring that counts the arms of a junction, metres (about 2.5 line widths,
     # at least line_width_max_m).
-    junction_radius_m: float = 0.05
+    junction_radius_m: float
     # Consecutive rings (one per band) that must see 3+ arms before a junction is reported.
-    junction_min_hits: int = 2
+    junction_min_hits: int
     # Observations below this confidence (0-1) are reported as not seen.
-    min_confidence: float = 0.4
+    min_confidence: float
     # Shortest tracked stretch of line that counts as seeing it, metres.
-    min_line_length_m: float = 0.05
+    min_line_length_m: float
 
     def __post_init__(self) -> None:
         for name in ("hsv_low", "hsv_high"):
