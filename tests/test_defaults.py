@@ -19,7 +19,6 @@ import re
 from pathlib import Path
 from typing import Any, Iterator, Optional
 
-import jsonschema
 import pytest
 
 import beastbt
