@@ -7,6 +7,16 @@ Prints:
    tree of the same shape whose leaves do the same blackboard work (goal: the
    compiled tree costs no more than 1.3 times the hand-built one).
 
+3. the cost of a full simulated tick of the patrol (the default simulated
+   robot as users get it: Waveshare base, GPS, IMU, EKF and camera parts;
+   physics, emulators, drivers, estimator, tree, mux, gate, watchdog) against
+   the sum of two anchors measured in the same run: one tick of a hand-built
+   py_trees tree of the same shape, and one filterpy EKF predict+update with
+   the state size of ours. Goal (issue 11): at most 8x;
+4. what a part that the mission does not use costs per tick: the patrol on
+   the default robot against the same robot without its GPS, IMU and camera
+   sections (goal: nothing, within the noise).
+
 Run: python benchmarks/sim_speed.py [--seeds N]
 """
 
@@ -89,6 +99,49 @@ def tree_cost(ticks: int = 20000, rounds: int = 5) -> tuple[float, float]:
     return statistics.median(c), statistics.median(h)
 
 
+def full_tick_us(profile: str, seed: int = 1) -> tuple[float, int]:
+    """Wall time per tick (us) of a whole patrol run at --speed max, unrecorded; and the ticks."""
+    p = prepare(PATROL, RunOptions(robot=profile, seed=seed, record=False, simulate=profile != "sim"))
+    t0 = time.perf_counter()
+    with open("/dev/null", "w") as devnull:
+        s = execute(p, devnull)
+    return (time.perf_counter() - t0) / s["ticks"] * 1e6, s["ticks"]
+
+
+def ekf_anchor_us(calls: int = 5000) -> float:
+    """One filterpy ExtendedKalmanFilter predict+update with our EKF's state size and a 2-D position fix (us)."""
+    import numpy as np
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    from beastbt.estimation.ekf import STATE_SIZE
+    ekf = ExtendedKalmanFilter(dim_x=STATE_SIZE, dim_z=2)
+    ekf.F = np.eye(STATE_SIZE)
+    ekf.Q = np.eye(STATE_SIZE) * 1e-3
+    ekf.R = np.eye(2)
+    H = np.zeros((2, STATE_SIZE))
+    H[0, 0] = H[1, 1] = 1.0
+    z = np.array([0.1, 0.2])
+    t0 = time.perf_counter()
+    for _ in range(calls):
+        ekf.predict()
+        ekf.update(z, lambda x: H, lambda x: H @ x)
+    return (time.perf_counter() - t0) / calls * 1e6
+
+
+def without_unused_parts() -> str:
+    """robots/sim.yaml without the GPS, IMU and camera the patrol does not use: a profile file."""
+    import tempfile
+
+    import yaml
+    data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    for section in ("gps", "imu", "camera", "line_detector", "line_follower", "estimator"):
+        data.pop(section, None)
+    data["robot"] = "sim_bare"
+    path = Path(tempfile.mkdtemp()) / "sim_bare.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return str(path)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
@@ -99,6 +152,17 @@ def main() -> None:
     compiled_us, hand_us = tree_cost()
     print(f"per-tick cost: compiled patrol tree {compiled_us:.1f} us, hand-built py_trees tree of the same shape "
           f"{hand_us:.1f} us, ratio {compiled_us / hand_us:.2f} (goal <= 1.3)")
+    bare = without_unused_parts()
+    full, bare_ticks, ekf = [], [], []
+    for _ in range(3):  # interleaved, so both see the same machine
+        full.append(full_tick_us("sim")[0])
+        bare_ticks.append(full_tick_us(bare)[0])
+        ekf.append(ekf_anchor_us())
+    tick, anchor = statistics.median(full), hand_us + statistics.median(ekf)
+    print(f"full sim tick of the patrol: {tick:.0f} us; anchors: hand-built tree {hand_us:.1f} us + filterpy EKF "
+          f"predict+update {statistics.median(ekf):.1f} us = {anchor:.1f} us; ratio {tick / anchor:.1f}x (goal <= 8x)")
+    print(f"unused parts: the patrol ticks in {tick:.0f} us on the default robot (GPS, IMU, camera, EKF) and "
+          f"{statistics.median(bare_ticks):.0f} us without them")
 
 
 if __name__ == "__main__":
