@@ -121,7 +121,7 @@ def read_lines(fd: int, until: float, out: list[tuple[float, dict]], stop: Optio
     """Read the JSON lines the driver writes to the pseudo-terminal until ``until`` (monotonic s)."""
     buf = b""
     while time.monotonic() < until and not (stop and stop(out)):
-        ready, _, _ = select.select([fd], [], [], 0.02)
+        ready, _, _ = select.select([fd], [], [], 0.005)
         if not ready:
             continue
         try:
