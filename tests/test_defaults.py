@@ -100,7 +100,7 @@ def test_the_configs_of_every_profile_section_read_their_schema():
     assert {"WatchdogConfig", "ControlParams", "EkfConfig", "NavConfig", "GpsConfig", "ImuConfig", "CameraConfig",
             "LineDetectorConfig", "FollowLineConfig", "TeleopConfig", "CanBaseConfig", "PwmBaseConfig",
             "WaveshareConfig", "RecordingConfig", "StreamConfig", "DriveModel", "GpsNoiseModel", "ImuNoiseModel",
-            "CameraEffects", "JoystickMapping", "Pca9685Config"} <= names
+            "CameraEffects", "JoystickMapping", "Pca9685Config", "CameraMounting", "ServoCalibration"} <= names
 
 
 @pytest.mark.parametrize("cls", CONFIGS, ids=lambda c: c.__name__)

@@ -69,12 +69,14 @@ def _tupled(value: Any) -> Any:
 
 
 def schema_defaults(ref: str, computed: Optional[Mapping[str, str]] = None,
-                    convert: Optional[Mapping[str, Callable[[Any], Any]]] = None) -> Callable[[type[T]], type[T]]:
+                    convert: Optional[Mapping[str, Callable[[Any], Any]]] = None,
+                    required: tuple[str, ...] = ()) -> Callable[[type[T]], type[T]]:
     """Class decorator (under ``@dataclass``): every annotated field's default is its property's ``default`` in ``ref``.
 
     ``computed``: fields whose default stays in code, each with the reason
     (they must then have one in the class). ``convert``: field -> function
-    from the JSON value to the field's value.
+    from the JSON value to the field's value. ``required``: fields the author
+    must always give (the schema requires them and states no default).
     """
     computed = dict(computed or {})
     convert = dict(convert or {})
@@ -84,6 +86,10 @@ def schema_defaults(ref: str, computed: Optional[Mapping[str, str]] = None,
         for name, annotation in cls.__dict__.get("__annotations__", {}).items():
             if name.startswith("_") or name.isupper() or "ClassVar" in str(annotation):
                 continue  # class constants, not fields
+            if name in required:
+                if name in cls.__dict__ or "default" in props.get(name, {}):
+                    raise TypeError(f"{cls.__name__}.{name}: marked required, but a default is stated")
+                continue
             if name in computed:
                 if name not in cls.__dict__:
                     raise TypeError(f"{cls.__name__}.{name}: marked computed ({computed[name]}) but has no default")

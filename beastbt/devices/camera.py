@@ -34,6 +34,7 @@ from beastbt.core.clock import Clock
 
 
 @dataclass
+@schema_defaults("parts/camera.schema.json#/properties/mounting")
 class CameraMounting:
     """Where the camera sits on the robot and where it looks (profile ``camera.mounting:``).
 
@@ -41,15 +42,15 @@ class CameraMounting:
     """
 
     # Height of the camera's optical centre above the floor, metres.
-    height_m: float = 0.20
+    height_m: float
     # Downward pitch of the optical axis below horizontal, degrees (down positive).
     # Line following needs the floor in view: 30-60 deg is typical.
-    pitch_deg: float = 40.0
+    pitch_deg: float
     # Horizontal field of view, degrees (Pi Camera v2: 62.2; Module 3: 66; OV5647: 54).
     # The vertical field follows from the image aspect ratio (square pixels).
-    hfov_deg: float = 62.2
+    hfov_deg: float
     # Forward offset of the camera from the robot centre, metres (ahead positive).
-    x_offset_m: float = 0.10
+    x_offset_m: float
 
     def __post_init__(self) -> None:
         if not 0.0 < self.height_m <= 5.0:

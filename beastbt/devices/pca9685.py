@@ -289,6 +289,7 @@ class Pca9685:
 
 
 @dataclass
+@schema_defaults("parts/servos.schema.json#/$defs/servo", required=("channel",))
 class ServoCalibration:
     """How one hobby servo on a PCA9685 channel maps angles to pulses (profile ``servos.<name>``).
 
@@ -301,17 +302,17 @@ class ServoCalibration:
     channel: int
     # Pulse in milliseconds at one end of travel (min_angle_deg for direction +1).
     # Find it by stepping the pulse until the horn stops moving, then back off a little.
-    min_pulse_ms: float = 1.0
+    min_pulse_ms: float
     # Pulse in milliseconds at the middle of the angle range.
-    center_pulse_ms: float = 1.5
+    center_pulse_ms: float
     # Pulse in milliseconds at the other end of travel (max_angle_deg for direction +1).
-    max_pulse_ms: float = 2.0
+    max_pulse_ms: float
     # Angle in degrees reached at min_pulse_ms (direction +1). Commands below are clamped.
-    min_angle_deg: float = -90.0
+    min_angle_deg: float
     # Angle in degrees reached at max_pulse_ms (direction +1). Commands above are clamped.
-    max_angle_deg: float = 90.0
+    max_angle_deg: float
     # +1 when a longer pulse turns towards max_angle_deg; -1 when the servo is mounted reversed.
-    direction: int = 1
+    direction: int
 
     def __post_init__(self) -> None:
         if not 0 <= self.channel < CHANNELS:
