@@ -29,6 +29,7 @@ from beastbt.estimation.imu_tap import ImuTap
 from beastbt.mission.compile import StepBuilder
 from beastbt.mission.model import HOME
 from beastbt.core.events import EventLog
+from beastbt.core.schema_defaults import schema_default
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.parts.nav_summary import contribute, install_truth
@@ -89,7 +90,9 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
         # Kept on the robot's io so that a recording (and its replay) carries the same value.
         world = getattr(io.sim, "world", None)
         if io.magnetic_declination_deg is None and world is not None:
-            io.magnetic_declination_deg = float((world.section("imu") or {}).get("mag_declination_deg", 0.0))
+            declination = (world.section("imu") or {}).get(
+                "mag_declination_deg", schema_default("parts/imu_sim.schema.json", "mag_declination_deg"))
+            io.magnetic_declination_deg = float(declination)
         if io.magnetic_declination_deg is not None:
             config = replace(config, declination_deg=float(io.magnetic_declination_deg))
     ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)

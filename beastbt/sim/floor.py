@@ -45,6 +45,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
+from beastbt.core.schema_defaults import schema_default
 from beastbt.vision.line_detector import junction_kind
 
 MAX_RASTER_PIXELS = 40_000_000
@@ -75,6 +76,13 @@ NAMED_COLOURS_RGB: dict[str, tuple[int, int, int]] = {
     "blue": (30, 60, 200),
 }
 """Colours a world file may name, as (r, g, b) 0-255 (tape and floor paint, not pure primaries)."""
+
+_GRADIENT = "/properties/lighting/properties/gradient/properties"
+
+
+def _default(pointer: str, name: str) -> Any:
+    """The floor schema's default for ``name`` at ``pointer`` (the one place a floor default is stated)."""
+    return schema_default("parts/floor.schema.json#" + pointer, name)
 
 
 # --- validation helpers ------------------------------------------------------------------
@@ -229,23 +237,23 @@ class FloorMap:
     def from_dict(cls, floor: Any, rng: Optional[np.random.Generator] = None) -> "FloorMap":
         """Build from a world file's ``floor:`` mapping (see the module docstring); ValueError on bad input."""
         f = _check_keys(floor, ("resolution_m", "margin_m", "extent_m", "background", "lines", "lighting", "shadows", "glare", "gaps"), "floor")
-        res = _number(f.get("resolution_m", 0.005), "floor.resolution_m", 0.0005, 0.1)
-        margin = _number(f.get("margin_m", 1.0), "floor.margin_m", 0.0, 100.0)
+        res = _number(f.get("resolution_m", _default("/properties", "resolution_m")), "floor.resolution_m", 0.0005, 0.1)
+        margin = _number(f.get("margin_m", _default("/properties", "margin_m")), "floor.margin_m", 0.0, 100.0)
         extent = None
         if "extent_m" in f:
             e = _check_keys(f["extent_m"], ("x", "y"), "floor.extent_m", ("x", "y"))
             ex, ey = _point(e["x"], "floor.extent_m.x"), _point(e["y"], "floor.extent_m.y")
             extent = (ex[0], ex[1], ey[0], ey[1])
         bg = _check_keys(f.get("background", {}), ("colour", "texture", "texture_scale_m"), "floor.background")
-        background = parse_colour(bg.get("colour", 200), "floor.background.colour")
-        texture = _number(bg.get("texture", 8.0), "floor.background.texture", 0.0, 100.0)
-        texture_scale = _number(bg.get("texture_scale_m", 0.02), "floor.background.texture_scale_m", res, 10.0)
+        background = parse_colour(bg.get("colour", _default("/properties/background/properties", "colour")), "floor.background.colour")
+        texture = _number(bg.get("texture", _default("/properties/background/properties", "texture")), "floor.background.texture", 0.0, 100.0)
+        texture_scale = _number(bg.get("texture_scale_m", _default("/properties/background/properties", "texture_scale_m")), "floor.background.texture_scale_m", res, 10.0)
 
         lines: list[FloorLine] = []
         if "lines" in f:
             ld = _check_keys(f["lines"], ("width_m", "colour", "paths"), "floor.lines", ("paths",))
-            width = _number(ld.get("width_m", 0.019), "floor.lines.width_m", 0.001, 1.0)
-            colour = parse_colour(ld.get("colour", "black"), "floor.lines.colour")
+            width = _number(ld.get("width_m", _default("/properties/lines/properties", "width_m")), "floor.lines.width_m", 0.001, 1.0)
+            colour = parse_colour(ld.get("colour", _default("/properties/lines/properties", "colour")), "floor.lines.colour")
             paths = ld["paths"]
             if not isinstance(paths, Sequence) or isinstance(paths, str):
                 raise ValueError("floor.lines.paths: expected a list of paths")
@@ -265,7 +273,7 @@ class FloorMap:
                     for q in new:  # drop repeated points (an arc starting where the last point was)
                         if not pts or math.hypot(q[0] - pts[-1][0], q[1] - pts[-1][1]) > 1e-9:
                             pts.append(q)
-                closed = pd.get("closed", False)
+                closed = pd.get("closed", _default("/$defs/path/properties", "closed"))
                 if not isinstance(closed, bool):
                     raise ValueError(f"{what}.closed: expected true or false, got {closed!r}")
                 if closed and len(pts) > 2 and math.hypot(pts[0][0] - pts[-1][0], pts[0][1] - pts[-1][1]) < 1e-9:
@@ -287,9 +295,9 @@ class FloorMap:
             if "gradient" in li:
                 g = _check_keys(li["gradient"], ("direction_deg", "min_gain", "max_gain"), "floor.lighting.gradient")
                 lighting = {
-                    "direction_deg": _number(g.get("direction_deg", 0.0), "floor.lighting.gradient.direction_deg"),
-                    "min_gain": _number(g.get("min_gain", 0.8), "floor.lighting.gradient.min_gain", 0.0, 4.0),
-                    "max_gain": _number(g.get("max_gain", 1.0), "floor.lighting.gradient.max_gain", 0.0, 4.0),
+                    "direction_deg": _number(g.get("direction_deg", _default(_GRADIENT, "direction_deg")), "floor.lighting.gradient.direction_deg"),
+                    "min_gain": _number(g.get("min_gain", _default(_GRADIENT, "min_gain")), "floor.lighting.gradient.min_gain", 0.0, 4.0),
+                    "max_gain": _number(g.get("max_gain", _default(_GRADIENT, "max_gain")), "floor.lighting.gradient.max_gain", 0.0, 4.0),
                 }
         shadows = []
         for i, s in enumerate(_as_list(f.get("shadows", []), "floor.shadows")):
@@ -298,15 +306,15 @@ class FloorMap:
             if ("rect" in sd) == ("circle" in sd):
                 raise ValueError(f"{what}: give exactly one shape, 'rect' or 'circle'")
             shadow: dict = {
-                "darkness": _number(sd.get("darkness", 0.5), f"{what}.darkness", 0.0, 1.0),
-                "softness_m": _number(sd.get("softness_m", 0.02), f"{what}.softness_m", 0.0, 5.0),
+                "darkness": _number(sd.get("darkness", _default("/properties/shadows/items/properties", "darkness")), f"{what}.darkness", 0.0, 1.0),
+                "softness_m": _number(sd.get("softness_m", _default("/properties/shadows/items/properties", "softness_m")), f"{what}.softness_m", 0.0, 5.0),
             }
             if "rect" in sd:
                 r = _check_keys(sd["rect"], ("center", "size_m", "angle_deg"), f"{what}.rect", ("center", "size_m"))
                 shadow["rect"] = (
                     _point(r["center"], f"{what}.rect.center"),
                     _point(r["size_m"], f"{what}.rect.size_m"),
-                    _number(r.get("angle_deg", 0.0), f"{what}.rect.angle_deg"),
+                    _number(r.get("angle_deg", _default("/properties/shadows/items/properties/rect/properties", "angle_deg")), f"{what}.rect.angle_deg"),
                 )
             else:
                 c = _check_keys(sd["circle"], ("center", "radius_m"), f"{what}.circle", ("center", "radius_m"))
@@ -320,7 +328,7 @@ class FloorMap:
                 {
                     "center": _point(gd["center"], f"{what}.center"),
                     "radius_m": _number(gd["radius_m"], f"{what}.radius_m", 1e-3, 100.0),
-                    "strength": _number(gd.get("strength", 0.8), f"{what}.strength", 0.0, 2.0),
+                    "strength": _number(gd.get("strength", _default("/properties/glare/items/properties", "strength")), f"{what}.strength", 0.0, 2.0),
                 }
             )
         gaps = []
