@@ -238,7 +238,14 @@ def test_the_robot_camera_runs_in_its_own_thread_and_survives_a_missing_device(t
     io = RobotIO(base=None)  # type: ignore[arg-type]  # only the camera is attached here
     attach_camera(load_profile(p), io, clock, events)
     try:
-        assert "camera" in io.capabilities and io.sensors["camera"](clock.now()) == []
+        assert "camera" in io.capabilities and io.camera._thread is None  # nothing read until the run needs it
+        io.camera.enable("follow_line")
+        assert io.camera._thread is not None
+        for _ in range(200):  # bounded wait for the thread's first attempt to open the device
+            if any(e.kind == "camera_lost" for e in events.events):
+                break
+            threading.Event().wait(0.01)
+        assert io.sensors["camera"](clock.now()) == []
         assert any(e.kind == "camera_lost" and "video_beastbt_missing" in e.text for e in events.events)
     finally:
         for close in io.closers:

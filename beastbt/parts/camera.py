@@ -1,6 +1,8 @@
 """The camera (the profile's ``camera:``) and the line detector on its frames, on the robot or simulated.
 
-On the robot the camera is read on V4L2 in a thread; on the simulator a
+On the robot the camera is read on V4L2 in a thread of its own, from when
+the run enables it (a mission that uses the camera, the video stream); on
+the simulator a
 :class:`~beastbt.sim.camera_emulator.SimCamera` renders the world's
 ``floor:`` (or a plain floor) through the profile's mounting and the gimbal's
 true pan/tilt, with the world's ``camera:`` effects, behind the same
@@ -73,7 +75,9 @@ def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: Even
     except ValueError as exc:
         raise InvalidInput([profile.doc.problem(("camera",), f"in 'camera': {exc}",
                                                 "lower the camera's pitch_deg or raise line_detector.roi_far_m")]) from None
-    pipeline.start_thread()
+    # On the robot the camera is read in a thread of its own, started when the run enables it (a mission
+    # that uses the camera, the video stream): a mission that never looks costs no capture and no detection.
+    pipeline.threaded = True
     io.sensors["camera"] = pipeline.poll
     io.capabilities.add("camera")
     io.camera = pipeline

@@ -83,7 +83,7 @@ def follow_nodes(root: py_trees.behaviour.Behaviour) -> list[FollowLine]:
 
 
 def install_vision(prepared: Prepared) -> None:
-    """The camera and follower services; in the simulator, switch the camera on if used and score it."""
+    """The camera and follower services; the camera on if the mission uses it; in the simulator, score it."""
     run = prepared.run
     profile = prepared.profile
     follower: FollowLineConfig = section_config(profile, "line_follower", FollowLineConfig)
@@ -92,11 +92,11 @@ def install_vision(prepared: Prepared) -> None:
     if pipeline is None:
         return
     run.ctx.services.camera = pipeline
-    if run.io.sim is None:
-        return
     uses = camera_uses(prepared.mission.doc.data if prepared.mission.doc is not None else {})
     for why in uses:
-        pipeline.enable(why)
+        pipeline.enable(why)  # on the robot this starts the camera's thread; a missing camera is reported now
+    if run.io.sim is None:
+        return
     floor = run.io.floor_map
     nodes = follow_nodes(run.root)
     if floor is not None and nodes and (prepared.world is not None and prepared.world.section("floor") is not None):

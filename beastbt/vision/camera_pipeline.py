@@ -62,7 +62,9 @@ class CameraPipeline:
         self._make_camera = make_camera
         self.camera: Optional[Camera] = None
         self.enabled = False
-        """True once something asked for frames (always on the robot)."""
+        """True once something asked for frames (a mission that uses the camera, the video stream)."""
+        self.threaded = False
+        """Read in a thread of its own once enabled (the robot); False: :meth:`poll` reads (the simulator)."""
         self.reasons: list[str] = []
         """Why the pipeline was enabled (``follow_line``, ``stream``...), first reason first."""
         self.latest: Optional[Latest] = None
@@ -73,6 +75,7 @@ class CameraPipeline:
         self._lock = threading.Lock()
         self._handed_seq = 0
         self._thread: Optional[threading.Thread] = None
+        self._idle_wait_s = 0.005
         self._stop = threading.Event()
 
     # -- switching on ---------------------------------------------------------------
@@ -97,6 +100,8 @@ class CameraPipeline:
         self.enabled = True
         if self.camera is None:
             self.camera = self._make_camera()
+        if self.threaded:
+            self._start_reader()
 
     def reset_detector(self) -> None:
         """Forget where the line was (a new follow_line step starts looking straight ahead)."""
@@ -145,9 +150,17 @@ class CameraPipeline:
         ``Camera.poll`` returns at once when no frame is due; the thread then
         waits ``idle_wait_s`` (s) on its stop event instead of spinning.
         """
+        self._idle_wait_s = idle_wait_s
+        self.threaded = True
+        if self.enabled:
+            self._start_reader()
+        else:
+            self.enable("robot")
+
+    def _start_reader(self) -> None:
         if self._thread is not None:
             return
-        self.enable("robot")
+        idle_wait_s = self._idle_wait_s
 
         def loop() -> None:
             while not self._stop.is_set():
