@@ -286,10 +286,21 @@ class ReplayResult:
         return not self.differences
 
 
-def _cmd_text(d: Optional[dict]) -> str:
+def _cmd_text(d: Optional[dict], exact: bool = False) -> str:
     if d is None:
         return "none"
+    if exact:  # every field, every digit: what made two commands differ
+        return (f"{d['linear_mps']!r} m/s {d['angular_rps']!r} rad/s at {d['stamp_s']!r} s "
+                f"({d['source']}, mux {d['mux_source']})")
     return f"{d['linear_mps']:.4f} m/s {d['angular_rps']:.4f} rad/s ({d['source']}, mux {d['mux_source']})"
+
+
+def command_texts(recorded: Optional[dict], replayed: Optional[dict]) -> tuple[str, str]:
+    """How two differing commands are printed: rounded, or exactly when rounding would print them the same."""
+    a, b = _cmd_text(recorded), _cmd_text(replayed)
+    if a == b:
+        a, b = _cmd_text(recorded, exact=True), _cmd_text(replayed, exact=True)
+    return a, b
 
 
 def _same(rec: Optional[dict], cmd: Optional[VelocityCommand], mux_source: str) -> bool:
@@ -397,8 +408,8 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
             if not _same(recorded, cmd, got.mux_source):
                 differs = True
                 if len(diffs) < max_differences:
-                    diffs.append(Difference(rt.tick, rt.now_s, stage, _cmd_text(recorded),
-                                            _cmd_text(_as_dict(cmd, got.mux_source))))
+                    diffs.append(Difference(rt.tick, rt.now_s, stage,
+                                            *command_texts(recorded, _as_dict(cmd, got.mux_source))))
         result.differing_ticks += differs
     # Servo commands: the same names and angles at the same times.
     rec_servos = [(m["now_s"], m["name"], m["angle_rad"], m["channel"], m["pulse_s"]) for m in rec.topic("/cmd/servo")]

@@ -124,3 +124,13 @@ def test_replay_uses_the_recorded_mission_and_profile_even_when_the_files_change
     result = replay(str(p.folder.path))
     assert result.identical, [d.describe() for d in result.differences[:5]]
     assert result.ticks == summary["ticks"]
+
+
+def test_a_listed_difference_never_prints_two_equal_values():
+    from beastbt.replay import command_texts
+    base = {"linear_mps": 0.3, "angular_rps": 0.1, "stamp_s": 1.0, "source": "nav", "mux_source": "mission"}
+    for other in ({**base, "linear_mps": 0.3 + 1e-9}, {**base, "stamp_s": 1.05}, {**base, "linear_mps": 0.2}):
+        recorded, replayed = command_texts(base, other)
+        assert recorded != replayed, (recorded, replayed)
+    assert command_texts(base, {**base, "linear_mps": 0.2}) == (
+        "0.3000 m/s 0.1000 rad/s (nav, mux mission)", "0.2000 m/s 0.1000 rad/s (nav, mux mission)")
