@@ -39,7 +39,7 @@ from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.events import EventLog
 from beastbt.mission.compile import CORE_STEPS, Behaviour, StepBuilder, compile_mission
 from beastbt.mission.model import Mission, load_mission
-from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part
+from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
 from beastbt.robot.profile import RobotProfile, load_profile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.run_folder import RunFolder
@@ -218,6 +218,12 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         if options.record:
             prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
+        sleeping = asleep(parts, run.reads())
+        for part in sleeping:
+            part.sleep(prepared)
+        if sleeping:
+            events.add("asleep", f"not read by this run, so neither polled nor computed: "
+                                 f"{', '.join(part.name for part in sleeping)}")
         for part in parts:
             part.install(prepared)
         # Per-tick work and closing only for the parts that have any: the others cost nothing per tick.

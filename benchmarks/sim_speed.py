@@ -15,7 +15,9 @@ Prints:
    the state size of ours. Goal (issue 11): at most 8x;
 4. what a part that the mission does not use costs per tick: the patrol on
    the default robot against the same robot without its GPS, IMU and camera
-   sections (goal: nothing, within the noise).
+   sections (goal: nothing, within the noise: the parts that nothing reads
+   sleep); and, for comparison, the recorded patrol, whose recording reads
+   them.
 
 Run: python benchmarks/sim_speed.py [--seeds N]
 """
@@ -108,6 +110,17 @@ def full_tick_us(profile: str, seed: int = 1) -> tuple[float, int]:
     return (time.perf_counter() - t0) / s["ticks"] * 1e6, s["ticks"]
 
 
+def recorded_tick_us(seed: int = 1) -> float:
+    """Wall time per tick (us) of the patrol recorded to MCAP: the recording reads the GPS, IMU and EKF, so they are awake."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        p = prepare(PATROL, RunOptions(seed=seed, record=False, record_path=str(Path(tmp) / "run.mcap")))
+        t0 = time.perf_counter()
+        with open("/dev/null", "w") as devnull:
+            s = execute(p, devnull)
+        return (time.perf_counter() - t0) / s["ticks"] * 1e6
+
+
 def ekf_anchor_us(calls: int = 5000) -> float:
     """One filterpy ExtendedKalmanFilter predict+update with our EKF's state size and a 2-D position fix (us)."""
     import numpy as np
@@ -163,6 +176,8 @@ def main() -> None:
           f"predict+update {statistics.median(ekf):.1f} us = {anchor:.1f} us; ratio {tick / anchor:.1f}x (goal <= 8x)")
     print(f"unused parts: the patrol ticks in {tick:.0f} us on the default robot (GPS, IMU, camera, EKF) and "
           f"{statistics.median(bare_ticks):.0f} us without them")
+    print(f"for comparison, recorded to MCAP (the recording reads GPS, IMU and the fused pose, so they stay awake): "
+          f"{recorded_tick_us():.0f} us per tick")
 
 
 if __name__ == "__main__":

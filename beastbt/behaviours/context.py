@@ -140,6 +140,8 @@ class MissionContext:
     run_dir: Optional[Path] = None
     services: RunServices = field(default_factory=RunServices)
     """What the run's parts offer (home, snapshots, teleop, camera, navigation tuning...)."""
+    condition_reads: set[str] = field(default_factory=set)
+    """Blackboard keys the mission's compiled conditions read (leaves declare theirs on their own clients)."""
 
     def now(self) -> float:
         """The current time in seconds."""

@@ -35,6 +35,9 @@ Behaviour = py_trees.behaviour.Behaviour
 StepBuilder = Callable[["Compiler", st.Step], Behaviour]
 """Makes the behaviour (or subtree) of one typed step: ``fn(compiler, step)``."""
 
+CONDITION_READS: Mapping[type, tuple[str, ...]] = MappingProxyType({
+    st.BatteryBelow: ("battery",), st.Near: ("pose",), st.Elapsed: ("mission_start_s",)})
+"""Blackboard keys each kind of condition reads (flags read the key they name, or ``line``)."""
 LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
 """Condition words read from the line observation, and the observation's flag each reads."""
 
@@ -84,13 +87,17 @@ class Compiler:
     def condition(self, c: st.Condition) -> Condition:
         """The test of a typed condition, named as the mission says it."""
         r = self.reader
+        self.ctx.condition_reads.update(CONDITION_READS.get(type(c), ()))
         if isinstance(c, st.Flag):
+            self.ctx.condition_reads.add("line" if c.word in LINE_FLAGS else c.word)
             test = {"gps_fix": gps_fix, "teleop_active": teleop_active}.get(c.word)
             return Condition(c.word, test if test is not None else line_flag(LINE_FLAGS[c.word]), r)
         if isinstance(c, st.BatteryBelow):
             return Condition(f"battery below {c.volts:g} V", battery_below(c.volts), r)
         if isinstance(c, st.Near):
             lat, lon, _ = self.place(c.place)
+            if lat is None:
+                self.ctx.condition_reads.add("home")
             return Condition(f"near {c.place} within {c.within_m:g} m", near(lat, lon, c.within_m, c.place), r)
         if isinstance(c, st.Elapsed):
             return Condition(f"elapsed {c.duration_s:g} s", elapsed(c.duration_s), r)

@@ -12,18 +12,19 @@ frame on Earth, and nothing else of the world is told to the driver.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Optional
 
 from beastbt.blackboard.types import GpsFix
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.devices.nmea_gps import GpsConfig, NmeaGps
 from beastbt.robot.hardware import open_serial
-from beastbt.robot.part import REAL, SIM, Build, Part
+from beastbt.robot.part import REAL, SIM, Build, Part, sleep_device
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
+from beastbt.run.session import Prepared
 from beastbt.sim.gps_emulator import GpsNoiseModel, SimGps
-from beastbt.sim.robot import Simulator
+from beastbt.sim.robot import Emulator, Simulator
 
 
 GPS_HINT = ("check the GPS HAT is seated, that the serial port is enabled (raspi-config: serial hardware on, "
@@ -66,19 +67,23 @@ def attach_real_gps(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     io.gps_driver = driver
 
 
-def attach_sim_gps(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
+def attach_sim_gps(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> Optional[Emulator]:
     """An emulated MTK3339 on a serial port, read by the NMEA driver (``io.sensors['gps']``).
 
     Only when the profile has a ``gps:`` section. The fixes are in the world's
     datum frame on Earth; nothing else of the world is told to the driver.
+    Returns the emulator's update (one of ``sim.emulators``), or None.
     """
     if profile.section("gps") is None:
-        return
+        return None
     config: GpsConfig = section_config(profile, "gps", GpsConfig)
     model: GpsNoiseModel = sim.world_model("gps", GpsNoiseModel)
     gps = SimGps(sim.world.frame, model, sim.child_rng())
     truth = sim.truth
-    sim.emulators.append(lambda now_s, dt_s: gps.update(truth))
+
+    def emulate(now_s: float, dt_s: float) -> None:
+        gps.update(truth)
+    sim.emulators.append(emulate)
 
     def reopen() -> Any:
         # The device node comes back when the receiver does: opening fails while unplugged.
@@ -96,6 +101,7 @@ def attach_sim_gps(sim: Simulator, profile: RobotProfile, io: RobotIO, events: E
     io.capabilities.add("gps")
     io.sim_gps = gps
     io.gps_driver = driver
+    return emulate
 
 
 class GpsPart(Part):
@@ -105,7 +111,9 @@ class GpsPart(Part):
     section = "gps"
     schema = "parts/gps_device.schema.json"
     opens = "serial port (NMEA 0183)"
-    fills = ("gps_fix",)
+    fills = ("gps_fix", "home",)
+    emulator: Optional[Emulator] = None
+    """The emulator's update on the simulator (removed when the part sleeps)."""
 
     def attach(self, build: Build) -> None:
         """Open the receiver (robot) or the emulated one (simulator) when the profile has ``gps:``."""
@@ -114,7 +122,11 @@ class GpsPart(Part):
             attach_real_gps(build.profile, build.io, build.clock, build.events)
         elif build.mode == SIM:
             assert build.sim is not None
-            attach_sim_gps(build.sim, build.profile, build.io, build.events)
+            self.emulator = attach_sim_gps(build.sim, build.profile, build.io, build.events)
+
+    def sleep(self, prepared: Prepared) -> None:
+        """Nothing reads the fixes: neither poll the driver nor emulate the chip."""
+        sleep_device(prepared, "gps", self.emulator)
 
 
 __all__ = ["GpsPart", "attach_real_gps", "attach_sim_gps", "GPS_HINT"]

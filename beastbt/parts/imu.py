@@ -10,7 +10,7 @@ through an :class:`~beastbt.estimation.imu_tap.ImuTap` for the EKF.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Optional
 
 from beastbt.blackboard.types import ImuSample
 from beastbt.core.clock import Clock
@@ -18,12 +18,13 @@ from beastbt.core.events import EventLog
 from beastbt.devices.mpu9250 import ImuConfig, Mpu9250
 from beastbt.estimation.imu_tap import ImuTap
 from beastbt.robot.hardware import DeviceUnavailable
-from beastbt.robot.part import REAL, SIM, Build, Part
+from beastbt.robot.part import REAL, SIM, Build, Part, sleep_device
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
+from beastbt.run.session import Prepared
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.imu_emulator import ImuNoiseModel, SimImu, attach_imu
-from beastbt.sim.robot import Simulator
+from beastbt.sim.robot import Emulator, Simulator
 
 
 IMU_EMULATOR_RATE_HZ = 20.0
@@ -67,20 +68,22 @@ def attach_real_imu(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     io.imu_tap = tap
 
 
-def attach_sim_imu(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> None:
+def attach_sim_imu(sim: Simulator, profile: RobotProfile, io: RobotIO, events: EventLog) -> Optional[Emulator]:
     """An emulated MPU9250 + AK8963 on an I2C bus, read by the MPU9250 driver (``io.sensors['imu']``).
 
     Only when the profile has an ``imu:`` section. The board is mounted as
     the profile says (the emulator and the driver share the mounting).
+    Returns the emulator's update (one of ``sim.emulators``), or None.
     """
     if profile.section("imu") is None:
-        return
+        return None
     config: ImuConfig = section_config(profile, "imu", ImuConfig)
     model: ImuNoiseModel = sim.world_model("imu", ImuNoiseModel)
     bus = SimI2CBus()
     imu = attach_imu(bus, model, sim.child_rng(), address=config.address, mag_address=config.mag_address,
                      body_from_sensor=config.body_from_sensor())
-    sim.emulators.append(_sampler(imu, sim))
+    emulate = _sampler(imu, sim)
+    sim.emulators.append(emulate)
     driver = Mpu9250(bus, events.clock, events.sink("imu"), config)
     tap = ImuTap(ready=lambda: driver.bias_ready)
 
@@ -93,6 +96,7 @@ def attach_sim_imu(sim: Simulator, profile: RobotProfile, io: RobotIO, events: E
     io.imu_bus = bus
     io.imu_driver = driver
     io.imu_tap = tap
+    return emulate
 
 
 def _sampler(imu: SimImu, sim: Simulator) -> Callable[[float, float], None]:
@@ -117,6 +121,8 @@ class ImuPart(Part):
     schema = "parts/imu_device.schema.json"
     opens = "I2C bus (MPU9250 + AK8963)"
     fills = ("imu",)
+    emulator: Optional[Emulator] = None
+    """The emulator's update on the simulator (removed when the part sleeps)."""
 
     def attach(self, build: Build) -> None:
         """Open the chip's bus (robot) or the emulated chip (simulator) when the profile has ``imu:``."""
@@ -125,7 +131,11 @@ class ImuPart(Part):
             attach_real_imu(build.profile, build.io, build.clock, build.events)
         elif build.mode == SIM:
             assert build.sim is not None
-            attach_sim_imu(build.sim, build.profile, build.io, build.events)
+            self.emulator = attach_sim_imu(build.sim, build.profile, build.io, build.events)
+
+    def sleep(self, prepared: Prepared) -> None:
+        """Nothing reads the samples: neither poll the driver nor emulate the chip."""
+        sleep_device(prepared, "imu", self.emulator)
 
 
 __all__ = ["ImuPart", "attach_real_imu", "attach_sim_imu", "IMU_EMULATOR_RATE_HZ"]

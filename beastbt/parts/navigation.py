@@ -165,6 +165,7 @@ class NavigationPart(Part):
     section = "navigation"
     schema = "parts/navigation.schema.json"
     fills = ("pose", "home")
+    reads = ("odometry", "imu", "gps_fix")
 
     def steps(self) -> Mapping[str, StepBuilder]:
         """go_to, route and return_home."""
@@ -174,6 +175,10 @@ class NavigationPart(Part):
         """The EKF on a robot with a GPS or an IMU."""
         assert build.io is not None
         return ekf_estimator(build.profile, build.io, build.events)
+
+    def sleep(self, prepared: Prepared) -> None:
+        """Nothing reads the fused pose: no EKF this run (the pose is the wheels' alone, marked not valid)."""
+        prepared.run.estimator = None
 
     def install(self, prepared: Prepared) -> None:
         """Navigation tuning and going home; in the simulator, the truth of every arrival."""

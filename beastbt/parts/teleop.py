@@ -288,6 +288,7 @@ class TeleopPart(Part):
     section = "teleop"
     schema = "parts/teleop.schema.json"
     fills = ("teleop_active", "mux_source")
+    reads = ("joystick",)
     takes = ("velocity (teleop source of the mux)",)
 
     def steps(self) -> Mapping[str, StepBuilder]:

@@ -12,6 +12,7 @@ class VideoStreamPart(Part):
     name = "video_stream"
     schema = "parts/video_stream.schema.json"
     opens = "TCP port (HTTP, MJPEG)"
+    reads = ("camera_frame", "line")
 
     def install(self, prepared: Prepared) -> None:
         """Start the stream server when the run asks for one."""

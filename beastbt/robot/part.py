@@ -4,7 +4,7 @@ A robot is assembled from an explicit list of parts (the composition root,
 :mod:`beastbt.assembly`). Each part says what it is (``name``), which section
 of the robot profile configures it (``section``, with its schema in
 ``schemas/parts/``), what it opens (``opens``), which readings and blackboard
-keys it fills (``fills``), which commands it takes (``takes``), and which
+keys it fills (``fills``) and uses (``reads``), which commands it takes (``takes``), and which
 mission steps it adds (:meth:`Part.steps`). The assembly then calls, in this
 order and for every part:
 
@@ -12,15 +12,19 @@ order and for every part:
    robot, or their emulators on the simulator (``build.mode``). In a replay
    nothing is opened: recorded readings stand in for every device.
 2. :meth:`Part.estimator` until one part gives an estimator (the EKF).
-3. :meth:`Part.install` once the run (tree, mux, gate, watchdog) exists:
+3. :meth:`Part.sleep` for a part that can sleep and fills nothing the run
+   reads (:func:`asleep`): the GPS, the IMU and the EKF of a mission that
+   never looks at the fused pose cost nothing per tick. A recording reads
+   them all, so a recorded run keeps them awake.
+4. :meth:`Part.install` once the run (tree, mux, gate, watchdog) exists:
    services for behaviours, recorders (``run.recorders``), summary fields
    (``run.summary_contributors``).
-4. :meth:`Part.tick` every tick, after sensing and before the tree, but only
+5. :meth:`Part.tick` every tick, after sensing and before the tree, but only
    for a part whose class overrides it (a part without per-tick work costs
    nothing per tick).
-5. :meth:`Part.close` once the run has ended (whatever ended it), for a part
+6. :meth:`Part.close` once the run has ended (whatever ended it), for a part
    that overrides it; devices are released by ``RobotIO.close``.
-6. :meth:`Part.summarise` when the summary is built, for a part that
+7. :meth:`Part.summarise` when the summary is built, for a part that
    overrides it.
 
 A part that the profile and the mission do not use is not even imported
@@ -34,7 +38,7 @@ watchdog are wired by the run itself around whatever base a part opened.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Optional
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Mapping, Optional, Sequence
 
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
@@ -98,6 +102,8 @@ class Part:
     """Blackboard keys (and readings) it fills."""
     takes: ClassVar[tuple[str, ...]] = ()
     """Commands it takes (``velocity``, ``servo``)."""
+    reads: ClassVar[tuple[str, ...]] = ()
+    """Blackboard keys (and readings) it uses: the parts that fill them stay awake while this one is in the run."""
 
     def steps(self) -> Mapping[str, "StepBuilder"]:
         """The mission steps it adds: keyword -> builder ``fn(compiler, step) -> Behaviour``."""
@@ -109,6 +115,15 @@ class Part:
     def estimator(self, build: Build) -> Optional["Estimator"]:
         """An estimator for this robot (the first part to give one wins), or None."""
         return None
+
+    def sleep(self, prepared: "Prepared") -> None:
+        """Nothing in the run reads what this part fills: drop its per-tick work (polling, emulation, fusion).
+
+        Called once, before :meth:`install`, and only for a part whose class
+        overrides it (a part that does not is always awake): see
+        :func:`asleep`. Like a lazy ROS publisher, a sensor nobody listens
+        to is neither read nor emulated.
+        """
 
     def install(self, prepared: "Prepared") -> None:
         """Hook into the assembled run: services, ``run.recorders``, ``run.summary_contributors``."""
@@ -127,7 +142,7 @@ class Part:
         return dict((profile.section("parts") or {}).get(self.name) or {})
 
     def overrides(self, hook: str) -> bool:
-        """True when this part's class overrides ``hook`` (``tick``, ``close``, ``summarise``) of :class:`Part`."""
+        """True when this part's class overrides ``hook`` (``tick``, ``close``, ``summarise``, ``sleep``) of :class:`Part`."""
         return getattr(type(self), hook) is not getattr(Part, hook)
 
 
@@ -155,7 +170,40 @@ def describe(part: Part) -> dict[str, Any]:
     """A part as a plain dict (for the docs and tools): name, section, schema, opens, fills, takes, steps, per-tick."""
     return {"name": part.name, "section": part.section, "schema": part.schema, "opens": part.opens,
             "fills": list(part.fills), "takes": list(part.takes), "steps": sorted(part.steps()),
-            "per_tick": part.overrides("tick")}
+            "reads": list(part.reads), "per_tick": part.overrides("tick"), "can_sleep": part.overrides("sleep")}
 
 
-__all__ = ["Part", "BasePart", "Build", "PartFactory", "REAL", "SIM", "REPLAY", "describe"]
+def sleep_device(prepared: "Prepared", sensor: str, emulator: Optional[Callable[[float, float], None]]) -> None:
+    """Put a device part to sleep: stop polling ``io.sensors[sensor]`` and drop its emulator from the simulator."""
+    io = prepared.run.io
+    io.sensors.pop(sensor, None)
+    sim = io.sim
+    if emulator is not None and sim is not None and emulator in sim.emulators:
+        sim.emulators.remove(emulator)
+
+
+def asleep(parts: "Sequence[Part]", demand: "Iterable[str]") -> list[Part]:
+    """The parts that may sleep (they override :meth:`Part.sleep`) and fill nothing that is read.
+
+    ``demand`` is what the run itself reads (its tree, conditions, failsafes).
+    A part that is awake (one that cannot sleep, or one whose ``fills`` meet
+    the demand) adds its ``reads`` to the demand, so a sensor feeding an
+    awake estimator stays awake; this repeats until nothing changes.
+    """
+    wanted = set(demand)
+    awake = [p for p in parts if not p.overrides("sleep")]
+    for part in awake:
+        wanted.update(part.reads)
+    sleepy = [p for p in parts if p.overrides("sleep")]
+    changed = True
+    while changed:
+        changed = False
+        for part in list(sleepy):
+            if wanted.intersection(part.fills):
+                sleepy.remove(part)
+                wanted.update(part.reads)
+                changed = True
+    return sleepy
+
+
+__all__ = ["Part", "BasePart", "Build", "PartFactory", "REAL", "SIM", "REPLAY", "describe", "asleep", "sleep_device"]

@@ -38,6 +38,22 @@ class FailsafeWatch:
     since_s: Optional[float] = None
 
 
+FAILSAFE_READS: dict[str, tuple[str, ...]] = {
+    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home")}
+"""Blackboard keys (and readings) each failsafe watches."""
+ACTION_READS: dict[str, tuple[str, ...]] = {"return_home": ("pose", "home")}
+"""What a ``then:`` or ``on_failure:`` action needs kept up to date."""
+
+
+def failsafe_reads(mission: Mission) -> frozenset[str]:
+    """What the mission's failsafes and its ``on_failure`` action read."""
+    keys: set[str] = set(ACTION_READS.get(mission.on_failure, ()))
+    for f in mission.failsafes:
+        keys.update(FAILSAFE_READS.get(f.kind, ("pose", "gps_fix", "battery", "home")))
+        keys.update(ACTION_READS.get(f.then, ()))
+    return frozenset(keys)
+
+
 class FailsafeMonitor:
     """Evaluates the mission's failsafes every tick."""
 

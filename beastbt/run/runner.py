@@ -25,7 +25,7 @@ from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
-from beastbt.run.failsafes import FailsafeMonitor, Situation
+from beastbt.run.failsafes import FailsafeMonitor, Situation, failsafe_reads
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.safety import TICK, guard_actuators
@@ -123,6 +123,18 @@ class MissionRun:
         self.failure_handled = False
         self.last_sent: VelocityCommand = VelocityCommand()
         self.want_node_changes = False
+
+    def reads(self) -> frozenset[str]:
+        """The blackboard keys (and readings) this run reads: its tree, conditions, failsafes and on_failure.
+
+        What the parts that fill them must keep up to date; the others may
+        sleep (:func:`beastbt.robot.part.asleep`).
+        """
+        keys = set(self.ctx.condition_reads) | failsafe_reads(self.mission)
+        for node in self.nodes:
+            for client in node.blackboards:
+                keys.update(key.lstrip("/") for key in client.read)
+        return frozenset(keys)
 
     # -- the tick -------------------------------------------------------------
     def tick(self) -> Optional[str]:

@@ -27,6 +27,10 @@ DEFAULT_PHYSICS_RATE_HZ: float = schema_default("robot.schema.json#/properties/s
 """Physics steps per simulated second unless the profile's ``sim.physics_rate_hz`` says otherwise (Hz)."""
 
 
+Emulator = Callable[[float, float], None]
+"""An emulator's update, called as ``update(now_s, dt_s)`` after every physics step (s)."""
+
+
 @dataclass
 class Simulator:
     """The simulated world in lockstep with the clock: physics at a fixed rate, then every emulator."""
@@ -36,7 +40,7 @@ class Simulator:
     drive: DiffDriveSim
     rng: np.random.Generator
     physics_dt_s: float = 0.01
-    emulators: list[Callable[[float, float], None]] = field(default_factory=list)
+    emulators: list[Emulator] = field(default_factory=list)
     """Each called as ``update(now_s, dt_s)`` after every physics step."""
     t_s: float = 0.0
 
@@ -85,4 +89,4 @@ def build_simulator(profile: "RobotProfile", world: World, seed: int) -> Simulat
     return Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
 
 
-__all__ = ["Simulator", "build_simulator", "world_problem", "DEFAULT_PHYSICS_RATE_HZ"]
+__all__ = ["Simulator", "Emulator", "build_simulator", "world_problem", "DEFAULT_PHYSICS_RATE_HZ"]
