@@ -153,8 +153,8 @@ class TimedPca(SimPca9685):
 def build_base(kind: str, writes: Writes) -> tuple[object, Callable[[object], bool]]:
     """(adapter, is_zero(payload)) for one adapter kind, writes timestamped into ``writes``."""
     if kind == "waveshare":
-        port = SimSerialPort("bench", on_write=lambda data: writes.add(data) if data.startswith(b'{"T":13') else None)
-        return WaveshareBase(port), lambda p: p in (b'{"T":13,"X":0.0,"Z":0.0}\n', b'{"T":13,"X":0,"Z":0}\n')
+        port = SimSerialPort("bench", on_write=lambda data: writes.add(data) if data.startswith(b'{"T":1,') else None)
+        return WaveshareBase(port), lambda p: p == b'{"T":1,"L":0.0,"R":0.0}\n'
     if kind == "can":
         channel = f"beastbt-bench-{os.getpid()}-{time.perf_counter_ns()}"
         cfg = CanBaseConfig(interface="virtual", channel=channel, feedback_kind="none")

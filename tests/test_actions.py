@@ -20,7 +20,7 @@ def test_drive_distance_covers_it_and_stops():
     assert h.last_sent.linear_mps > 0
     assert h.run_to_end(30) == "success"
     assert math.hypot(h.truth.x, h.truth.y) == pytest.approx(1.5, abs=0.05)
-    assert h.wire[-1] == {"T": 13, "X": 0.0, "Z": 0.0}
+    assert h.wire[-1] == {"T": 1, "L": 0.0, "R": 0.0}
 
 
 def test_drive_backwards_with_negative_distance():

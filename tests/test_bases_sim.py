@@ -55,12 +55,16 @@ def test_waveshare_bytes_for_a_known_sequence():
     written = bytearray()
     play(WaveshareBase(SimSerialPort(on_write=written.extend)))
     assert bytes(written).decode().splitlines() == [
-        '{"T":142,"cmd":50}', '{"T":131,"cmd":1}', '{"T":143,"cmd":0}',  # feedback 50 ms, continuous, echo off
-        '{"T":13,"X":0.2,"Z":0.0}',
-        '{"T":13,"X":0.0,"Z":0.2}',    # 0.1 rad/s in place is raised to the tracks' 0.2 rad/s minimum
-        '{"T":13,"X":-0.1,"Z":0.5}',
-        '{"T":0}',                      # the base's own emergency stop
-        '{"T":13,"X":0,"Z":0}',         # close: a final stop
+        '{"T":143,"cmd":0}',                      # echo off
+        '{"T":900,"main":3,"module":2}', '{"T":4,"cmd":2}',  # UGV Beast with its gimbal (as ugv_rpi sends)
+        '{"T":136,"cmd":500}',                    # the base's own heartbeat: 0.5 s
+        '{"T":142,"cmd":50}', '{"T":131,"cmd":1}',  # feedback every 50 ms, continuously
+        '{"T":1,"L":0.0,"R":0.0}',                # arms the heartbeat
+        '{"T":1,"L":0.2,"R":0.2}',                # wheel speeds, m/s: they reset the heartbeat (T:13 would not)
+        '{"T":1,"L":-0.0141,"R":0.0141}',         # 0.1 rad/s in place raised to 0.2 rad/s, 0.141 m track
+        '{"T":1,"L":-0.1353,"R":-0.0648}',
+        '{"T":1,"L":0.0,"R":0.0}', '{"T":135}',   # e-stop: zero speed, gimbal stopped; torque kept
+        '{"T":1,"L":0.0,"R":0.0}',                # close: a final stop
     ]
 
 
@@ -172,7 +176,7 @@ def test_the_last_thing_on_the_wire_is_a_stop(tmp_path, robot):
     summary = execute(p, io.StringIO())
     assert summary["status"] == "stopped" and summary["distance_m"] > 0.05
     if robot == "sim":
-        assert x.esp32.commands[-1] == {"T": 13, "X": 0, "Z": 0}
+        assert x.esp32.commands[-1] == {"T": 1, "L": 0.0, "R": 0.0}
     elif robot == "diy_can":
         frames = []
         while (f := sniffer.recv(timeout=0)) is not None:

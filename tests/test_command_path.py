@@ -76,5 +76,7 @@ def test_estop_during_a_mission_stops_it_with_status_stopped():
     h.run.mux.latch_estop("test")
     assert h.tick() == "stopped"
     assert h.last_sent.is_zero()
-    assert {"T": 0} in h.wire
-    assert math.isclose(h.wire[-1]["X"], 0.0)
+    stop = h.wire.index({"T": 1, "L": 0.0, "R": 0.0}, -3)
+    assert h.wire[stop + 1] == {"T": 135}  # zero wheel speed and the gimbal stopped where it is...
+    assert {"T": 0} not in h.wire and {"T": 210, "cmd": 0} not in h.wire  # ...with no servo torque released
+    assert h.wire[-1] == {"T": 1, "L": 0.0, "R": 0.0}

@@ -65,6 +65,6 @@ def test_interrupt_and_internal_errors_leave_a_stop_on_the_wire(tmp_path):
             with pytest.raises(RuntimeError):
                 execute(p, io.StringIO())
             assert p.run.status == "failure"
-        moving = [c for c in esp32.commands if c.get("T") == 13 and c["X"] != 0]
+        moving = [c for c in esp32.commands if c.get("T") == 1 and c["L"] != 0]
         assert moving, "the robot was driving before the interruption"
-        assert esp32.commands[-1] == {"T": 13, "X": 0, "Z": 0} or esp32.commands[-1] == {"T": 13, "X": 0.0, "Z": 0.0}
+        assert esp32.commands[-1] == {"T": 1, "L": 0.0, "R": 0.0}

@@ -17,7 +17,7 @@ steps:
 
 
 def moving_after(wire: list, index: int) -> list:
-    return [c for c in wire[index + 1:] if c.get("T") == 13 and (c["X"] != 0 or c["Z"] != 0)]
+    return [c for c in wire[index + 1:] if c.get("T") == 1 and (c["L"] != 0 or c["R"] != 0)]
 
 
 def lower_stack_tick(h: MissionHarness) -> None:
@@ -40,8 +40,9 @@ def test_joystick_estop_ends_the_mission_and_sends_the_base_stop_once():
     assert h.records[-1].now_s == pytest.approx(2.0)
     assert h.blackboard("estop") is True and h.records[-1].mux_source == "estop"
     wire = h.wire
-    stops = [i for i, c in enumerate(wire) if c == {"T": 0}]
-    assert len(stops) == 1
+    stops = [i for i, c in enumerate(wire) if c == {"T": 135}]  # the e-stop: zero wheel speed, then the gimbal stop
+    assert len(stops) == 1 and wire[stops[0] - 1] == {"T": 1, "L": 0.0, "R": 0.0}
+    assert {"T": 0} not in wire, "T:0 would release every bus servo's torque"
     assert not moving_after(wire, stops[0]), "nothing may move after the e-stop"
     assert any(e.kind == "estop" and "joystick e-stop button" in e.text for e in h.events)
     assert any(e.kind == "mission_end" and "stopped: emergency stop" in e.text for e in h.events)
@@ -86,7 +87,7 @@ def test_api_estop_from_another_thread_and_reset():
     t.join()
     assert request_estop(h.run, "again") is False  # already latched
     assert h.tick() == "stopped"
-    assert [c for c in h.wire if c == {"T": 0}] == [{"T": 0}]
+    assert [c for c in h.wire if c == {"T": 135}] == [{"T": 135}]
     assert any(e.kind == "estop" and "operator console" in e.text for e in h.events)
     assert reset_estop(h.run, "test") is True
     assert reset_estop(h.run, "test") is False
@@ -101,5 +102,5 @@ def test_api_estop_reaches_the_base_even_with_the_loop_frozen():
     # The loop never ticks again; only the simulator (and so the watchdog) runs on.
     h.clock.advance(0.2)
     h.run.io.sim.advance(h.now_s)
-    assert {"T": 0} in h.wire[n:]
+    assert h.wire[n:][:2] == [{"T": 1, "L": 0.0, "R": 0.0}, {"T": 135}]
     assert h.run.io.base.estops_sent == 1

@@ -156,8 +156,8 @@ def test_cli_on_a_real_robot_frozen_tree_stops_the_wheels_and_sigterm_ends_with_
         try:
             # 30 ticks at 20 Hz is 1.5 s of driving, then the tree freezes; give the watchdog its time.
             read_lines(master, time.monotonic() + 15.0, lines,
-                       stop=lambda out: any(o.get("T") == 13 and o["X"] == 0 for _, o in out[-3:])
-                       and any(o.get("T") == 13 and o["X"] > 0 for _, o in out))
+                       stop=lambda out: any(o.get("T") == 1 and o["L"] == 0 for _, o in out[-3:])
+                       and any(o.get("T") == 1 and o["L"] > 0 for _, o in out))
             read_lines(master, time.monotonic() + 1.0, lines)  # the loop stays frozen: nothing moves again
             assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
             proc.send_signal(signal.SIGTERM)
@@ -166,13 +166,13 @@ def test_cli_on_a_real_robot_frozen_tree_stops_the_wheels_and_sigterm_ends_with_
         finally:
             if proc.poll() is None:
                 proc.kill()
-        velocity = [(t, "velocity", float(o["X"]), float(o["Z"])) for t, o in lines if o.get("T") == 13]
+        velocity = [(t, "velocity", float(o["L"]), float(o["R"])) for t, o in lines if o.get("T") == 1]
         gap = zero_after_last_motion(velocity)
         assert gap is not None and gap <= LIMIT_S, (gap, velocity[-5:])
         assert proc.returncode == 1, err  # stopped
         assert "interrupted" in out or "stopped" in out
-        last = [o for _, o in lines if o.get("T") in (13, 0)][-1]
-        assert last == {"T": 0} or (last.get("T") == 13 and last["X"] == 0 and last["Z"] == 0)
+        last = [o for _, o in lines if o.get("T") in (1, 13, 0)][-1]
+        assert last == {"T": 1, "L": 0.0, "R": 0.0}
     finally:
         os.close(master)
         os.close(slave)
@@ -248,9 +248,9 @@ def test_harness_limits_and_the_estop_latch():
     request_estop(h.run, "test")
     h.tick(5)  # the run ends on the next tick, with a stop
     assert h.result == "stopped" and h.records[-1].cmd_gate.linear_mps == 0.0
-    assert h.wire[-1] in ({"T": 0}, {"T": 13, "X": 0.0, "Z": 0.0})
+    assert h.wire[-1] in ({"T": 135}, {"T": 1, "L": 0.0, "R": 0.0})
     h.run.io.base.send_velocity(VelocityCommand(0.3, 0.0, h.now_s, "mission"), h.now_s)  # a bug above the latch...
-    assert h.wire[-1] in ({"T": 0}, {"T": 13, "X": 0.0, "Z": 0.0})  # ...is refused below it
+    assert h.wire[-1] in ({"T": 135}, {"T": 1, "L": 0.0, "R": 0.0})  # ...is refused below it
     assert h.run.io.base.estop_latched
     assert reset_estop(h.run, "test") and not h.run.io.base.estop_latched
 

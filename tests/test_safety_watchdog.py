@@ -173,12 +173,12 @@ steps:
     h.tick_until(lambda h: h.now_s >= 2.0)
     last_tick_s = h.records[-1].now_s
     esp32 = h.run.io.esp32
-    assert esp32.commands[-1]["X"] > 0.25 and h.truth.v_mps > 0.25
+    assert esp32.commands[-1]["L"] > 0.25 and h.truth.v_mps > 0.25
     zero_at = None
     for _ in range(100):  # one second of a frozen loop: the simulator and the watchdog go on
         h.clock.advance(0.01)
         h.run.io.sim.advance(h.now_s)
-        if zero_at is None and esp32.commands[-1] == {"T": 13, "X": 0.0, "Z": 0.0}:
+        if zero_at is None and esp32.commands[-1] == {"T": 1, "L": 0.0, "R": 0.0}:
             zero_at = h.now_s
     assert zero_at is not None and zero_at - last_tick_s <= 0.5
     assert h.truth.v_mps < 0.01  # the motors' lag decays to a stop

@@ -43,7 +43,7 @@ def test_no_motion_without_enable():
     assert all(r.cmd_gate.is_zero() for r in h.records)
     assert all(r.mux_source == "mission" for r in h.records[1:])
     assert not h.blackboard("teleop_active")
-    assert all(c["X"] == 0 and c["Z"] == 0 for c in h.wire if c.get("T") == 13)
+    assert all(c["L"] == 0 and c["R"] == 0 for c in h.wire if c.get("T") == 1)
 
 
 def test_sticks_without_enable_leave_the_mission_untouched():
@@ -68,7 +68,8 @@ def test_motion_within_one_tick_of_enable_and_the_mission_pauses():
     assert h.blackboard("teleop_active") is True
     assert h.run.paused_by == "teleop"
     assert h.status_of("drive 2 m at 0.2 m/s") == "RUNNING"
-    assert h.wire[n_wire]["T"] == 13 and h.wire[n_wire]["X"] == pytest.approx(rec.cmd_gate.linear_mps, abs=1e-4)
+    sent = h.wire[n_wire]
+    assert sent["T"] == 1 and (sent["L"] + sent["R"]) / 2 == pytest.approx(rec.cmd_gate.linear_mps, abs=1e-4)
     # From rest the first teleop tick already moves: enable with deflection -> motion the same tick.
     h2 = harness(WAIT, [{"at": "1 s", "linear": 0.6}, {"at": "2 s", "press": "enable"}])
     tick_to(h2, 1.95)

@@ -1,12 +1,27 @@
 """The Waveshare UGV base (ESP32 sub-controller): serial JSON, one object per line.
 
-Commands (``HARDWARE.md``): ``{"T":13,"X":v,"Z":w}`` body velocity,
-``{"T":0}`` emergency stop, ``{"T":133,"X":pan,"Y":tilt,"SPD":s,"ACC":a}`` the
-pan/tilt gimbal, ``{"T":132,"IO4":a,"IO5":b}`` lights, start-up
-``{"T":142,"cmd":ms}``, ``{"T":131,"cmd":1}``, ``{"T":143,"cmd":0}``. Feedback
-``{"T":1001,...}`` carries wheel speeds, raw IMU, odometry in centimetres and
-the battery in hundredths of a volt. Lines can arrive broken or interleaved:
-the parser resynchronises on the next newline and never raises.
+Written against the firmware that ships on the base, not against our own idea
+of it (facts, with file and line, in ``docs/hardware/waveshare.md``). Two
+firmwares exist: ``ugv_base_ros`` (``ROS_Driver/``) and ``ugv_base_general``
+(``General_Driver/``). The driver works with either, told by the profile
+(``base.firmware``) or detected from the first ``T:1001`` feedback line.
+
+At start it sends echo off (``T:143``), the robot and module type (``T:900``
+main 3 = UGV Beast, module 2 = gimbal, 0 = none; ``T:4``), the base's own
+heartbeat (``T:136``, ms), the feedback interval (``T:142``, ms) and
+feedback on (``T:131``). It drives with ``{"T":1,"L":l,"R":r}`` (wheel
+speeds, m/s), the only motion command that resets the heartbeat on both
+firmwares (``T:13`` does not on ugv_base_ros): if beastbt dies, freezes or
+loses the cable, the base stops by itself ``heartbeat_s`` later. Its
+emergency stop is zero wheel speed plus a gimbal stop (``T:135``); servo
+torque is released (``T:210`` cmd 0) only when the profile asks for it
+(``{"T":0}`` would release it on ugv_base_ros and does nothing on
+ugv_base_general). Feedback: wheel speeds, odometry in whole centimetres,
+raw IMU and the battery in hundredths of a volt on ugv_base_ros; wheel
+speeds, attitude in degrees and the battery in volts, without odometry, on
+ugv_base_general (the driver integrates the wheel speeds instead). ``T:1005``
+bus-servo errors become events. Lines can arrive broken or interleaved: the
+parser resynchronises on the next newline and never raises.
 """
 
 from __future__ import annotations
@@ -31,6 +46,18 @@ STANDARD_GRAVITY = 9.80665
 """m/s^2 per g."""
 MAX_LINE_BYTES = 1024
 """A 'line' longer than this without a newline is garbage and is dropped."""
+FIRMWARE_MAX_WHEEL_MPS = 2.0
+"""Both firmwares ignore (not clamp) a T:1 whose L or R is beyond +-2.0 m/s (``setGoalSpeed``, movtion_module.h)."""
+ROS_FIRMWARE = "ros"
+"""waveshareteam/ugv_base_ros (``ROS_Driver``): odometry and raw IMU in T:1001, T:13 does not reset the heartbeat."""
+GENERAL_FIRMWARE = "general"
+"""waveshareteam/ugv_base_general (``General_Driver``): attitude and volts in T:1001, no odometry, no T:0."""
+MODULE_NONE, MODULE_ARM, MODULE_GIMBAL = 0, 1, 2
+"""``T:4``/``T:900`` module types: nothing, RoArm-M2, pan/tilt gimbal."""
+BUS_SERVO_NAMES = {1: "gimbal tilt", 2: "gimbal pan"}
+"""Bus servo ids of the gimbal (``GIMBAL_TILT_ID``, ``GIMBAL_PAN_ID`` in ugv_config.h)."""
+SERVO_ERROR_REPEAT_S = 10.0
+"""A bus servo that keeps failing is reported again at most this often (the firmware reports it every loop), s."""
 
 
 @dataclass
@@ -40,6 +67,11 @@ class WaveshareConfig:
 
     ``port``: serial device (``/dev/serial0`` on a Pi 4, ``/dev/ttyAMA0`` on a Pi 5).
     ``baud``: 115200. ``feedback_interval_s``: how often the base reports (T:142), s.
+    ``firmware``: ``auto`` (detected from the feedback), ``ros`` or ``general``.
+    ``main_type``: the robot type sent with T:900 (1 RaspRover, 2 UGV Rover,
+    3 UGV Beast): the firmware's wheel diameter, encoder counts and track width.
+    ``heartbeat_s``: the base stops by itself when no T:1 came for this long (T:136), s.
+    ``estop_releases_servos``: whether the e-stop also releases bus servo torque (T:210 cmd 0).
     ``min_turn_rate_in_place_rps``: a non-zero |w| below this is raised to it
     when v is 0, as Waveshare's ROS driver does: the tracks do not turn slower (rad/s).
     ``gimbal``: whether a pan/tilt gimbal is on the base. ``pan_min_deg``..``tilt_max_deg``:
@@ -59,12 +91,20 @@ class WaveshareConfig:
     tilt_max_deg: float
     gimbal_speed: int
     gimbal_accel: int
+    firmware: str
+    main_type: int
+    heartbeat_s: float
+    estop_releases_servos: bool
     type: str = "waveshare_serial"
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "WaveshareConfig":
         """Build from a profile mapping; unknown keys are a ValueError."""
         return dataclass_from_dict(cls, d, "base")
+
+
+DEFAULT_TRACK_WIDTH_M = 0.141
+"""The UGV Beast's track width in its firmware (main type 3, movtion_module.h), m: used when no profile says."""
 
 
 @dataclass
@@ -78,24 +118,32 @@ class FeedbackStats:
 
 
 class WaveshareBase:
-    """Adapter for the Waveshare base: velocity and gimbal commands out, feedback in.
+    """Adapter for the Waveshare base: wheel speeds and gimbal commands out, feedback in.
 
     Implements :class:`~beastbt.actuation.adapter.BaseAdapter` and
     :class:`~beastbt.actuation.adapter.ServoAdapter` (servos ``pan`` and ``tilt``
     when the gimbal is present; angles positive left/up in beastbt's convention).
+    ``track_width_m`` turns body velocity into the wheel speeds of ``T:1`` (m).
     """
 
     name = "waveshare_serial"
 
-    def __init__(self, port: SerialLike, config: Optional[WaveshareConfig] = None, events: EventSink = ignore_events) -> None:
+    def __init__(self, port: SerialLike, config: Optional[WaveshareConfig] = None, events: EventSink = ignore_events,
+                 track_width_m: Optional[float] = None) -> None:
         self.port = port
         self.config = config or WaveshareConfig()
         self.events = events
+        self.track_width_m = track_width_m if track_width_m is not None else DEFAULT_TRACK_WIDTH_M
         self.stats = FeedbackStats()
+        self.firmware: Optional[str] = None if self.config.firmware == "auto" else self.config.firmware
+        """The firmware in use (``ros``/``general``), or None until the feedback tells."""
         self._buf = bytearray()
         self._pan_deg = 0.0
         self._tilt_deg = 0.0
         self._port_ok = True
+        self._clamp_warned = False
+        self._servo_errors: dict[int, tuple[float, int]] = {}
+        self._wheel_odom: Optional[list[float]] = None  # [left m, right m, left m/s, right m/s, stamp s] (general)
         self.last_sent: Optional[dict] = None
 
     # -- sending ------------------------------------------------------------
@@ -114,23 +162,54 @@ class WaveshareBase:
                 self.events("base_port_error", f"cannot write to the base: {exc}")
             return False
 
-    def start(self, now_s: float) -> None:
-        """Send Waveshare's start-up sequence: feedback interval, continuous feedback on, echo off."""
-        self._send({"T": 142, "cmd": int(round(self.config.feedback_interval_s * 1000))})
-        self._send({"T": 131, "cmd": 1})
-        self._send({"T": 143, "cmd": 0})
+    def start_commands(self) -> list[dict]:
+        """The set-up sent at start, in order: echo off, robot and module type, heartbeat, feedback interval and flow."""
+        c = self.config
+        module = MODULE_GIMBAL if c.gimbal else MODULE_NONE
+        return [{"T": 143, "cmd": 0},
+                {"T": 900, "main": int(c.main_type), "module": module},
+                {"T": 4, "cmd": module},
+                {"T": 136, "cmd": int(round(c.heartbeat_s * 1000))},
+                {"T": 142, "cmd": int(round(c.feedback_interval_s * 1000))},
+                {"T": 131, "cmd": 1}]
 
-    def send_velocity(self, cmd: VelocityCommand, now_s: float) -> None:
-        """Send ``{"T":13,"X":v,"Z":w}`` (m/s, rad/s), raising tiny in-place turn rates to the minimum."""
+    def start(self, now_s: float) -> None:
+        """Send the set-up (:meth:`start_commands`) and a first zero wheel speed, which arms the base's heartbeat."""
+        for command in self.start_commands():
+            self._send(command)
+        self._send({"T": 1, "L": 0.0, "R": 0.0})
+
+    def wheel_speeds(self, cmd: VelocityCommand) -> tuple[float, float]:
+        """Left and right wheel speeds (m/s) for a body velocity, within the firmware's limit (ratio kept)."""
         v, w = cmd.linear_mps, cmd.angular_rps
         floor = self.config.min_turn_rate_in_place_rps
         if v == 0.0 and w != 0.0 and abs(w) < floor:
             w = math.copysign(floor, w)
-        self._send({"T": 13, "X": round(v, 4), "Z": round(w, 4)})
+        half = w * self.track_width_m / 2.0
+        left, right = v - half, v + half
+        top = max(abs(left), abs(right))
+        if top > FIRMWARE_MAX_WHEEL_MPS:
+            # The firmware ignores the whole command beyond its limit: scale both sides, keeping the curvature.
+            scale = FIRMWARE_MAX_WHEEL_MPS / top
+            left, right = left * scale, right * scale
+            if not self._clamp_warned:
+                self._clamp_warned = True
+                self.events("base_speed_clamped", f"wheel speed {top:.2f} m/s is beyond the firmware's "
+                                                  f"{FIRMWARE_MAX_WHEEL_MPS:g} m/s: clamped (warned once)")
+        return left, right
+
+    def send_velocity(self, cmd: VelocityCommand, now_s: float) -> None:
+        """Send ``{"T":1,"L":l,"R":r}`` (m/s): resets the base's heartbeat; tiny in-place turns raised to the minimum."""
+        left, right = self.wheel_speeds(cmd)
+        self._send({"T": 1, "L": round(left, 4), "R": round(right, 4)})
 
     def emergency_stop(self, now_s: float) -> None:
-        """Send the base's own emergency stop ``{"T":0}``."""
-        self._send({"T": 0})
+        """Zero wheel speed and a gimbal stop (T:135); servo torque released (T:210 cmd 0) only if the profile asks."""
+        self._send({"T": 1, "L": 0.0, "R": 0.0})
+        if self.config.gimbal:
+            self._send({"T": 135})
+        if self.config.estop_releases_servos:
+            self._send({"T": 210, "cmd": 0})
 
     def set_lights(self, io4: int, io5: int) -> None:
         """Set the two light outputs (PWM 0-255)."""
@@ -198,7 +277,11 @@ class WaveshareBase:
         except (ValueError, UnicodeDecodeError):
             self.stats.garbage += 1
             return []
-        if not isinstance(obj, dict) or obj.get("T") != 1001:
+        kind = obj.get("T") if isinstance(obj, dict) else None
+        if kind == 1005:
+            self._servo_error(obj, now_s)
+            return []
+        if kind != 1001:
             self.stats.other_json += 1
             return []
         try:
@@ -214,13 +297,30 @@ class WaveshareBase:
             return None
         return float(v)
 
+    def _detect(self, obj: dict) -> None:
+        if "odl" in obj or "gx" in obj:
+            self.firmware = ROS_FIRMWARE
+            why = "its feedback carries odometry (odl/odr) and raw IMU"
+        elif "r" in obj or "temp" in obj or isinstance(obj.get("v"), float):
+            self.firmware = GENERAL_FIRMWARE
+            why = ("its feedback carries attitude and volts but no odometry: odometry is integrated from the "
+                   "wheel speeds (flash ugv_base_ros for encoder odometry, or set base.firmware)")
+        else:
+            return
+        self.events("base_firmware", f"firmware ugv_base_{self.firmware} detected: {why}")
+
     def _readings(self, obj: dict, now_s: float) -> list[Feedback]:
         self.stats.feedback += 1
+        if self.firmware is None:
+            self._detect(obj)
         out: list[Feedback] = []
         num = self._num
+        speed_l, speed_r = num(obj, "L"), num(obj, "R")
         odl, odr = num(obj, "odl"), num(obj, "odr")
         if odl is not None and odr is not None:
-            out.append(WheelOdometry(now_s, odl / 100.0, odr / 100.0, num(obj, "L") or 0.0, num(obj, "R") or 0.0))
+            out.append(self._refine(now_s, odl, odr, speed_l or 0.0, speed_r or 0.0))
+        elif self.firmware == GENERAL_FIRMWARE and speed_l is not None and speed_r is not None:
+            out.append(self._integrate(now_s, speed_l, speed_r))
         g = [num(obj, k) for k in ("gx", "gy", "gz")]
         a = [num(obj, k) for k in ("ax", "ay", "az")]
         if None not in g and None not in a:
@@ -231,12 +331,62 @@ class WaveshareBase:
             out.append(ImuSample(now_s, gyro, acc, mag))  # type: ignore[arg-type]
         v = num(obj, "v")
         if v is not None:
-            out.append(BatteryState(now_s, v / 100.0))
+            # ugv_base_ros sends hundredths of a volt as an integer, ugv_base_general volts as a float.
+            volts = v if self.firmware == GENERAL_FIRMWARE or (self.firmware is None and v < 50.0) else v / 100.0
+            out.append(BatteryState(now_s, volts))
         return out
 
+    def _refine(self, now_s: float, odl_cm: float, odr_cm: float, left_mps: float, right_mps: float) -> WheelOdometry:
+        """Odometry finer than the firmware's whole centimetres: wheel speeds integrated, kept within each count.
+
+        ugv_base_ros truncates each side's distance to whole centimetres
+        (``long int odl_cm``): at 20 Hz that is a 4 deg heading jitter on a
+        0.14 m track. The integrated speeds give the fine part; the counts
+        bound it, so it cannot drift: a truncated ``n`` means the distance is
+        in [n, n+1) cm (n > 0), (n-1, n] (n < 0) or (-1, 1) (n = 0).
+        """
+        state = self._wheel_odom
+        if state is None:
+            state = self._wheel_odom = [odl_cm / 100.0, odr_cm / 100.0, left_mps, right_mps, now_s]
+        dt = max(0.0, now_s - state[4])
+        for i, (count, speed) in enumerate(((odl_cm, left_mps), (odr_cm, right_mps))):
+            estimate = state[i] + 0.5 * (state[2 + i] + speed) * dt
+            low = count - 1.0 if count <= 0 else count
+            high = count + 1.0 if count >= 0 else count
+            state[i] = min(max(estimate, low / 100.0), high / 100.0)
+        state[2], state[3], state[4] = left_mps, right_mps, now_s
+        return WheelOdometry(now_s, state[0], state[1], left_mps, right_mps)
+
+    def _integrate(self, now_s: float, left_mps: float, right_mps: float) -> WheelOdometry:
+        """Odometry from the wheel speeds of a firmware that reports none (trapezoids between feedback lines)."""
+        state = self._wheel_odom
+        if state is None:
+            state = self._wheel_odom = [0.0, 0.0, left_mps, right_mps, now_s]
+        dt = max(0.0, now_s - state[4])
+        state[0] += 0.5 * (state[2] + left_mps) * dt
+        state[1] += 0.5 * (state[3] + right_mps) * dt
+        state[2], state[3], state[4] = left_mps, right_mps, now_s
+        return WheelOdometry(now_s, state[0], state[1], left_mps, right_mps)
+
+    def _servo_error(self, obj: dict, now_s: float) -> None:
+        """``{"T":1005,"id":n,"status":0}``: bus servo ``n`` did not answer (the firmware repeats it every loop)."""
+        ident = obj.get("id")
+        if not isinstance(ident, int) or isinstance(ident, bool):
+            self.stats.garbage += 1
+            return
+        last_s, count = self._servo_errors.get(ident, (-math.inf, 0))
+        count += 1
+        if now_s - last_s >= SERVO_ERROR_REPEAT_S:
+            name = BUS_SERVO_NAMES.get(ident, f"bus servo {ident}")
+            again = f" ({count} reports so far)" if count > 1 else ""
+            self.events("bus_servo_error", f"{name} (bus servo id {ident}) does not answer (T:1005){again}: "
+                                           f"check its cable and that the base's module type is right")
+            last_s = now_s
+        self._servo_errors[ident] = (last_s, count)
+
     def close(self) -> None:
-        """Send a stop, then close the port."""
-        self._send({"T": 13, "X": 0, "Z": 0})
+        """Send zero wheel speed, then close the port."""
+        self._send({"T": 1, "L": 0.0, "R": 0.0})
         try:
             self.port.close()
         except Exception:

@@ -35,7 +35,7 @@ class WaveshareBasePart(BasePart):
         """Open ``base.port``; DeviceUnavailable when it cannot be opened."""
         config = section_config(build.profile, "base", WaveshareConfig)
         port = open_serial("base (Waveshare ESP32)", config.port, config.baud, SERIAL_HINT)
-        base = WaveshareBase(port, config, build.events.sink("base"))
+        base = WaveshareBase(port, config, build.events.sink("base"), track_width_m=build.profile.track_width_m)
         return RobotIO(base=base, servos=[base] if config.gimbal else [])
 
     def open_sim(self, build: Build) -> RobotIO:
@@ -48,9 +48,10 @@ class WaveshareBasePart(BasePart):
         config = WaveshareConfig.from_dict({k: v for k, v in base_cfg.items() if k != "port"})
         world = sim.world
         esp32 = SimWaveshareBase(sim.drive, sim.child_rng(), battery_v=world.battery_start_v,
-                                 battery_drain_v_per_s=world.battery_drain_v_per_s)
+                                 battery_drain_v_per_s=world.battery_drain_v_per_s,
+                                 firmware="general" if config.firmware == "general" else "ros")
         sim.emulators.append(esp32.update)
-        base = WaveshareBase(esp32.port, config, build.events.sink("base"))
+        base = WaveshareBase(esp32.port, config, build.events.sink("base"), track_width_m=build.profile.track_width_m)
         io = RobotIO(base=base, servos=[base] if config.gimbal else [], sim=sim)
         io.esp32 = esp32
         return io
