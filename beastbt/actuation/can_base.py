@@ -161,6 +161,37 @@ def open_can_bus(config: CanBaseConfig) -> can.BusABC:
     return can.Bus(interface=config.interface, channel=config.channel, bitrate=config.bitrate)
 
 
+def socketcan_link(channel: str) -> Optional[dict]:
+    """What the kernel says of a SocketCAN interface: ``{"up": bool, "bitrate": int|None}``, or None if there is none.
+
+    From ``ip -details -json link show CHANNEL`` (iproute2): python-can's
+    socketcan backend does not set the bitrate, the kernel does, so a profile's
+    ``bitrate`` is only true if the interface was brought up with it.
+    """
+    import json
+    import subprocess
+    try:
+        out = subprocess.run(["ip", "-details", "-json", "link", "show", channel], capture_output=True, text=True,
+                             timeout=5)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    if out.returncode != 0:
+        return None
+    try:
+        link = (json.loads(out.stdout or "[]") or [{}])[0]
+    except ValueError:
+        return None
+    timing = ((link.get("linkinfo") or {}).get("info_data") or {}).get("bittiming") or {}
+    bitrate = timing.get("bitrate")
+    return {"up": "UP" in (link.get("flags") or []), "bitrate": int(bitrate) if bitrate is not None else None}
+
+
+def bring_up_hint(config: CanBaseConfig) -> str:
+    """The commands that bring the profile's interface up at its bitrate."""
+    return (f"sudo ip link set {config.channel} down; "
+            f"sudo ip link set {config.channel} up type can bitrate {config.bitrate}")
+
+
 class CanBase:
     """:class:`~beastbt.actuation.adapter.BaseAdapter` for a CAN motor controller.
 

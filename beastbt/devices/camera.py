@@ -92,6 +92,8 @@ class CameraConfig:
     # Consecutive failed reads from a source that still claims to be open before it
     # is declared lost and reopened (V4L2 occasionally drops a single frame).
     lost_after_failures: int
+    # Which camera stack reads it: auto (picamera2 when it sees a Pi camera, else V4L2), picamera2 or v4l2.
+    backend: str
 
     def __post_init__(self) -> None:
         if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):
@@ -119,14 +121,84 @@ class CameraConfig:
         return dataclass_from_dict(cls, d, "camera")
 
 
-def open_video_capture(config: CameraConfig) -> "cv2.VideoCapture":
-    """Open the real camera with OpenCV's V4L2 backend and request size, rate and a 1-frame buffer.
+class Picamera2Capture:
+    """A Raspberry Pi camera (libcamera, through picamera2) behind the ``cv2.VideoCapture`` methods the driver uses.
+
+    ``read()`` returns the newest BGR frame of ``width_px`` x ``height_px``.
+    Pi cameras on a recent Raspberry Pi OS are libcamera devices, which
+    OpenCV's V4L2 backend cannot read.
+    """
+
+    def __init__(self, config: CameraConfig) -> None:
+        from picamera2 import Picamera2  # only on a Pi with the camera stack installed
+
+        self._camera = Picamera2()
+        size = (int(config.width_px), int(config.height_px))
+        frame_us = int(1e6 / config.fps)
+        video = self._camera.create_video_configuration(
+            main={"size": size, "format": "RGB888"}, buffer_count=2,
+            controls={"FrameDurationLimits": (frame_us, frame_us)})
+        self._camera.configure(video)
+        self._camera.start()
+        self._open = True
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True until released."""
+        return self._open
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """(True, the newest frame as BGR uint8), or (False, None) when it cannot be had."""
+        try:
+            # picamera2's "RGB888" is laid out B, G, R in memory: already OpenCV's order.
+            return True, self._camera.capture_array("main")
+        except Exception:  # noqa: BLE001 - a camera that fails is "lost" for the driver, never an exception
+            return False, None
+
+    def release(self) -> None:
+        """Stop and close the camera."""
+        if self._open:
+            self._open = False
+            try:
+                self._camera.stop()
+                self._camera.close()
+            except Exception:  # noqa: BLE001 - closing a vanished camera may fail; it is gone anyway
+                pass
+
+
+def picamera2_cameras() -> int:
+    """How many cameras libcamera sees through picamera2 (0 when picamera2 is not installed)."""
+    try:
+        from picamera2 import Picamera2
+    except Exception:  # noqa: BLE001 - not installed, or its native parts are missing
+        return 0
+    try:
+        return len(Picamera2.global_camera_info())
+    except Exception:  # noqa: BLE001
+        return 0
+
+
+def camera_backend(config: CameraConfig) -> str:
+    """Which backend opens ``config``'s camera: ``picamera2`` or ``v4l2`` (``backend: auto`` tries picamera2 first)."""
+    if config.backend != "auto":
+        return config.backend
+    return "picamera2" if picamera2_cameras() > 0 else "v4l2"
+
+
+def open_video_capture(config: CameraConfig) -> Any:
+    """Open the real camera: a Pi camera through picamera2, or ``device`` through OpenCV's V4L2 (see :func:`camera_backend`).
+
+    For V4L2: request size, rate and a 1-frame buffer.
 
     ``config.device`` may be ``/dev/videoN``, ``"N"`` or ``N``. The buffer of one
     frame makes ``read()`` return the newest frame instead of a queued old one.
     The returned capture may be unopened (``isOpened()`` False) if the device is
     missing; :class:`Camera` treats that as "lost" and retries.
     """
+    if camera_backend(config) == "picamera2":
+        try:
+            return Picamera2Capture(config)
+        except Exception:  # noqa: BLE001 - a missing or busy Pi camera is "lost" for the driver, which retries
+            return _Unopened()
     device: Union[str, int] = config.device
     if isinstance(device, str) and device.isdigit():
         device = int(device)
@@ -137,6 +209,19 @@ def open_video_capture(config: CameraConfig) -> "cv2.VideoCapture":
         cap.set(cv2.CAP_PROP_FPS, float(config.fps))
         cap.set(cv2.CAP_PROP_BUFFERSIZE, 1.0)
     return cap
+
+
+class _Unopened:
+    """A capture that could not be opened (``isOpened()`` False), as ``cv2.VideoCapture`` returns one."""
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        return False
+
+    def read(self) -> tuple[bool, None]:
+        return False, None
+
+    def release(self) -> None:
+        pass
 
 
 class Camera:

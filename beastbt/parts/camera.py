@@ -29,7 +29,7 @@ import numpy as np
 from beastbt.core.clock import Clock
 from beastbt.core.errors import InvalidInput
 from beastbt.core.events import EventLog
-from beastbt.devices.camera import Camera, CameraConfig, open_video_capture
+from beastbt.devices.camera import Camera, CameraConfig, camera_backend, open_video_capture
 from beastbt.robot.part import REAL, SIM, Build, Part
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
@@ -78,6 +78,9 @@ def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: Even
     # On the robot the camera is read in a thread of its own, started when the run enables it (a mission
     # that uses the camera, the video stream): a mission that never looks costs no capture and no detection.
     pipeline.threaded = True
+    backend = camera_backend(config)
+    where = "the Pi camera (libcamera)" if backend == "picamera2" else str(config.device)
+    events.add("camera_backend", f"camera: {where} read through {backend}")
     io.sensors["camera"] = pipeline.poll
     io.capabilities.add("camera")
     io.camera = pipeline

@@ -17,7 +17,7 @@ import os
 
 import can
 
-from beastbt.actuation.can_base import CanBase, open_can_bus
+from beastbt.actuation.can_base import CanBase, bring_up_hint, open_can_bus, socketcan_link
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.robot.actuator_profile import can_config
@@ -53,6 +53,14 @@ def open_can_base(profile: RobotProfile, clock: Clock, events: EventLog) -> Robo
             f"/boot/firmware/config.txt), that the interface is up (sudo ip link set {config.channel} up type can "
             f"bitrate {config.bitrate}; ip -details link show {config.channel}), and the wiring and 120 ohm termination"
         ) from exc
+    if config.interface == "socketcan":
+        link = socketcan_link(config.channel)
+        if link is not None and link["bitrate"] is not None and link["bitrate"] != config.bitrate:
+            bus.shutdown()
+            raise DeviceUnavailable(
+                f"base (CAN motor controller): {config.channel} runs at {link['bitrate']} bit/s but the profile says "
+                f"{config.bitrate} bit/s (python-can does not set a SocketCAN bitrate, the kernel does): "
+                f"{bring_up_hint(config)}, or set can_base.bitrate to {link['bitrate']}")
     base = CanBase(bus, config, events.sink("base"))
     return RobotIO(base=base)
 
