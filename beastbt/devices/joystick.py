@@ -186,6 +186,11 @@ class JoystickDevice:
         """True while the joystick is open."""
         return self._read is not None
 
+    def fileno(self) -> Optional[int]:
+        """The open device's file descriptor (for ``select()``), or None (closed, or a source without one)."""
+        get = getattr(self._read, "fileno", None)
+        return get() if get is not None else None
+
     def _try_open(self, now_s: float) -> None:
         if self._next_open_s is not None and now_s < self._next_open_s:
             return
@@ -303,7 +308,62 @@ def open_linux_joystick(path: str = "/dev/input/js0") -> ByteSource:
                 state["fd"] = None
             raise
 
+    read.fileno = lambda: state["fd"]  # type: ignore[attr-defined]  # for JoystickWatcher's select()
     return read
+
+
+class JoystickWatcher:
+    """A thread that calls ``wake()`` as soon as the joystick has input, so teleop need not wait for the next tick.
+
+    It only watches (``select()`` on the device's file descriptor): the
+    bytes are read by whoever polls the :class:`JoystickDevice`. After each
+    wake it waits until :meth:`drained` is called (or ``hold_s`` passes), so
+    unread input does not make it spin. A device whose byte source has no
+    ``fileno`` (a script) is never watched.
+    """
+
+    def __init__(self, device: "JoystickDevice", wake: Callable[[], None], hold_s: float = 0.05) -> None:
+        import threading
+        self.device = device
+        self.wake = wake
+        self.hold_s = hold_s
+        self.wakes = 0
+        self._drained = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="joystick-watcher", daemon=True)
+
+    def start(self) -> "JoystickWatcher":
+        """Start watching; returns itself."""
+        self._thread.start()
+        return self
+
+    def drained(self) -> None:
+        """The input that caused the last wake has been read."""
+        self._drained.set()
+
+    def stop(self) -> None:
+        """Stop the thread (within about 0.1 s)."""
+        self._stop.set()
+        self._drained.set()
+        self._thread.join(timeout=1.0)
+
+    def _run(self) -> None:
+        import select
+        while not self._stop.is_set():
+            fd = self.device.fileno()
+            if fd is None:
+                self._stop.wait(0.05)  # unplugged: the poll reopens it
+                continue
+            try:
+                ready, _, _ = select.select([fd], [], [], 0.1)
+            except (OSError, ValueError):
+                self._stop.wait(0.05)  # closed under us: it will be reopened or replaced
+                continue
+            if ready and not self._stop.is_set():
+                self._drained.clear()
+                self.wakes += 1
+                self.wake()
+                self._drained.wait(self.hold_s)
 
 
 def linux_joystick_opener(path: str = "/dev/input/js0") -> Callable[[], ByteSource]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
-from beastbt.devices.joystick import JoystickDevice, linux_joystick_opener
+from beastbt.devices.joystick import JoystickDevice, JoystickWatcher, linux_joystick_opener
 from beastbt.robot.actuator_profile import joystick_mapping
 from beastbt.robot.part import REAL, Build, Part
 from beastbt.robot.profile import RobotProfile
@@ -41,6 +41,9 @@ def attach_joystick(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     io.sensors["joystick"] = poll
     io.joystick = device
     io.capabilities.add("joystick")
+    # Input wakes the loop: a stick or e-stop reaches the base in milliseconds, not at the next tick.
+    watcher = io.joystick_watcher = JoystickWatcher(device, io.wakeup.set).start()
+    io.closers.append(watcher.stop)
 
 
 class JoystickPart(Part):

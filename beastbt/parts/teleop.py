@@ -306,6 +306,24 @@ class TeleopPart(Part):
         run.ctx.services.teleop = override
         run.ctx.services.on_failure["teleop"] = override.on_failure
         run.ctx.services.failsafe["teleop"] = override.on_failsafe
+        if run.io.joystick_watcher is not None:
+            run.reactors.append(self.react)
+
+    def react(self, run: MissionRun, now_s: float) -> None:
+        """Joystick input between ticks: read it, and give it its say at once (e-stop, teleop to the mux)."""
+        poll = run.io.sensors.get("joystick")
+        watcher = run.io.joystick_watcher
+        if poll is None or self.override is None:
+            return
+        try:
+            states = poll(now_s)
+        finally:
+            if watcher is not None:
+                watcher.drained()
+        for state in states:
+            run.latest[JoystickState] = state
+            run.bb.joystick = state
+        self.override(run, now_s)
 
     def summarise(self, run: MissionRun, summary: dict) -> None:
         """``teleop``: joystick, take-overs, time driven by the operator, e-stop, watchdog trips."""

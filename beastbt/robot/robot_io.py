@@ -8,6 +8,8 @@ simulated one has a world to step and a ground truth to compare against.
 
 from __future__ import annotations
 
+import threading
+
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, Callable, Optional
 
@@ -51,6 +53,11 @@ class RobotIO:
     capabilities: set[str] = field(default_factory=set)
     sim: Optional[Any] = None
     closers: list[Callable[[], None]] = field(default_factory=list)
+    wakeup: threading.Event = field(default_factory=threading.Event)
+    """Set by a device's thread when input wants an answer before the next tick (the joystick): the real
+    loop then runs :meth:`~beastbt.run.runner.MissionRun.react` at once."""
+    joystick_watcher: Optional[Any] = None
+    """The :class:`~beastbt.devices.joystick.JoystickWatcher` that sets :attr:`wakeup`, on the robot."""
 
     # -- the devices the parts opened (None: this robot has none), by what they are --------------------
     watchdog: Optional["AdapterWatchdog"] = None
@@ -88,7 +95,7 @@ class RobotIO:
 
     def devices(self) -> dict[str, Any]:
         """Every device this robot has, by field name (what a recording lists, and replay stands in for)."""
-        skip = {"base", "servos", "sensors", "capabilities", "sim", "closers", "plugins"}
+        skip = {"base", "servos", "sensors", "capabilities", "sim", "closers", "plugins", "wakeup", "joystick_watcher"}
         return {f.name: getattr(self, f.name) for f in fields(self)
                 if f.name not in skip and getattr(self, f.name) is not None}
 

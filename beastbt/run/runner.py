@@ -109,6 +109,8 @@ class MissionRun:
         self.estimator: Optional[Estimator] = estimator
         self.failsafes = FailsafeMonitor(mission)
         self.hooks: list[TickHook] = []
+        self.reactors: list[TickHook] = []
+        """Called by :meth:`react` between ticks when a device wakes the loop (teleop's joystick)."""
         self.recorders: list[Callable[[TickRecord], None]] = []
         self.summary_contributors: list[SummaryContributor] = []
         self.recorder: Optional[Any] = None
@@ -169,6 +171,31 @@ class MissionRun:
         self.actuate(now, readings, cmd)
         self.ticks += 1
         return self.status
+
+    def react(self, now: float) -> None:
+        """Answer input between ticks (a joystick event): the reactors, then mux, gate and the base at once.
+
+        The tree is not ticked and nothing is recorded: this only lets the
+        operator's stick and e-stop reach the wheels without waiting for the
+        next tick. The next tick carries on as usual.
+        """
+        if self.status is not None or not self.reactors:
+            return
+        for reactor in self.reactors:
+            reactor(self, now)
+        out = self.gate.filter(self.mux.select(now), now)
+        self._send_velocity(out, now)
+
+    def _send_velocity(self, out: VelocityCommand, now: float) -> None:
+        if self.mux.estop_latched:
+            if not self.bb.estop:
+                self.io.base.emergency_stop(now)
+            self.bb.estop = True
+        else:
+            self.bb.estop = False
+        self.io.base.send_velocity(out, now)
+        self.last_sent = out
+        self.bb.mux_source = self.mux.source
 
     def sense(self, now: float) -> list:
         """Poll every device, update the estimators and publish everything on the blackboard."""
@@ -275,15 +302,7 @@ class MissionRun:
             # The run has ended: the last thing sent is a stop, not a ramp down.
             out = VelocityCommand(0.0, 0.0, now, "end")
             self.gate.reset()
-        if self.mux.estop_latched:
-            if not self.bb.estop:
-                self.io.base.emergency_stop(now)
-            self.bb.estop = True
-        else:
-            self.bb.estop = False
-        self.io.base.send_velocity(out, now)
-        self.last_sent = out
-        self.bb.mux_source = self.mux.source
+        self._send_velocity(out, now)
         requests = self.bb.servo_requests
         if requests:
             angles = self.bb.servo_angles

@@ -102,6 +102,31 @@ def parse_speed(text: str) -> Union[str, float]:
     return factor
 
 
+REACT_MIN_INTERVAL_S = 0.005
+"""Between ticks, input is answered at most this often (s): a stick sweep sends hundreds of events a second,
+and each answer writes to the base (a T:1 line is about 30 bytes at 115200 baud)."""
+
+
+def wait_for_tick(run: Any, clock: Any, deadline_s: float) -> None:
+    """Sleep until the next tick at ``deadline_s`` (clock s), answering device input meanwhile (:meth:`MissionRun.react`)."""
+    wakeup = run.io.wakeup
+    if not run.reactors:
+        clock.sleep_until(deadline_s)
+        return
+    last = -1.0
+    while True:
+        remaining = deadline_s - clock.now()
+        if remaining <= 0 or not wakeup.wait(remaining):
+            return
+        wakeup.clear()
+        now = clock.now()
+        if now - last < REACT_MIN_INTERVAL_S:
+            clock.sleep_until(min(deadline_s, last + REACT_MIN_INTERVAL_S))
+            now = clock.now()
+        last = now
+        run.react(now)
+
+
 def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     """Run the loop until the mission ends (or max time, or Ctrl-C); return the summary."""
     run, clock, opts = p.run, p.clock, p.options
@@ -135,7 +160,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                     if delay > 0:
                         time.sleep(delay)
             else:
-                clock.sleep_until(run.start_s + run.ticks * dt)
+                wait_for_tick(run, clock, run.start_s + run.ticks * dt)
             if tty:
                 now_wall = time.perf_counter()
                 if now_wall - last_status_wall > 0.1:
