@@ -21,8 +21,9 @@ from __future__ import annotations
 import errno
 import os
 import struct
-from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Callable, Optional
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import JoystickState
@@ -48,12 +49,20 @@ BUTTON_ESTOP_RESET = "estop_reset"
 AXIS_NAMES = (AXIS_LINEAR, AXIS_ANGULAR)
 BUTTON_NAMES = (BUTTON_ENABLE, BUTTON_TURBO, BUTTON_ESTOP, BUTTON_ESTOP_RESET)
 
+if TYPE_CHECKING:
+    from beastbt.devices.gamepad_presets import GamepadPreset
+
+PRESET_KEYS = ("linear_axis", "invert_linear", "angular_axis", "invert_angular", "enable_button", "turbo_button",
+               "estop_button", "estop_reset_buttons")
+"""JoystickMapping fields a gamepad preset sets (unless the profile wrote them)."""
+
 ByteSource = Callable[[], bytes]
 """An open joystick: returns the bytes available now (b"" if none); raises OSError when gone."""
 
 
 @dataclass
-@schema_defaults("parts/joystick.schema.json")
+@schema_defaults("parts/joystick.schema.json", computed={"explicit": "what the profile wrote, not a knob"},
+                 convert={"estop_reset_buttons": lambda v: tuple(v) if v is not None else None})
 class JoystickMapping:
     """Which joystick axes and buttons drive the robot (robot profile ``joystick:``).
 
@@ -77,19 +86,33 @@ class JoystickMapping:
     turbo_button: Optional[int]
     # Emergency stop (latched by the command mux). 1 = B / circle; null for none.
     estop_button: Optional[int]
-    # Clears a latched emergency stop. 7 = Start / Options; null for none.
-    estop_reset_button: Optional[int]
+    # Clears a latched emergency stop when all are held together (a chord of two or more, never one
+    # button). 6 + 7 = Back + Start; null for none.
+    estop_reset_buttons: Optional[tuple[int, ...]]
     # Fraction of full deflection (0..1) treated as centred; the rest is rescaled to 0..1.
     # Raise it if the robot creeps with the stick released.
     dead_zone: float
     # Seconds between attempts to reopen an unplugged joystick.
     reopen_interval_s: float
+    # Layout preset: auto (by the device's name), or one of gamepad_presets.PRESETS.
+    preset: str
+    # The fields the profile wrote: a preset fills the others.
+    explicit: frozenset = field(default=frozenset(), compare=False)
 
     def __post_init__(self) -> None:
-        for key in ("linear_axis", "angular_axis", "enable_button", "turbo_button", "estop_button", "estop_reset_button"):
+        if self.estop_reset_buttons is not None:
+            self.estop_reset_buttons = tuple(self.estop_reset_buttons)
+        for key in ("linear_axis", "angular_axis", "enable_button", "turbo_button", "estop_button"):
             value = getattr(self, key)
             if value is not None and not 0 <= value <= 255:
                 raise ValueError(f"{key} must be 0..255 (a joystick API number), got {value}")
+        chord = self.estop_reset_buttons
+        if chord is not None:
+            if len(chord) < 2 or len(set(chord)) != len(chord) or not all(0 <= b <= 255 for b in chord):
+                raise ValueError(f"estop_reset_buttons must be two or more different buttons 0..255 (a chord: one "
+                                 f"button alone never clears the e-stop), got {list(chord)}")
+            if self.estop_button is not None and self.estop_button in chord:
+                raise ValueError("the e-stop button cannot be part of the reset chord")
         if self.linear_axis == self.angular_axis:
             raise ValueError("linear_axis and angular_axis must differ")
         buttons = [b for b in self.buttons().values()]
@@ -99,25 +122,55 @@ class JoystickMapping:
             raise ValueError(f"dead_zone must be in 0..1 (exclusive of 1), got {self.dead_zone}")
         if not self.reopen_interval_s >= 0:
             raise ValueError(f"reopen_interval_s must be >= 0, got {self.reopen_interval_s}")
+        from beastbt.devices.gamepad_presets import PRESETS
+        if self.preset != "auto" and self.preset not in PRESETS:
+            raise ValueError(f"preset must be auto or one of {', '.join(PRESETS)}, got {self.preset!r}")
 
     @classmethod
     def from_dict(cls, d: Any) -> "JoystickMapping":
-        """Build from a profile dict; unknown keys or bad values raise ``ValueError``."""
-        return dataclass_from_dict(cls, d, "joystick")
+        """Build from a profile dict; unknown keys or bad values raise ``ValueError``. Remembers what was written."""
+        if isinstance(d, Mapping) and "estop_reset_button" in d:
+            raise ValueError("estop_reset_button (one button) is not accepted: clearing the e-stop needs a chord, "
+                             "e.g. estop_reset_buttons: [6, 7] (Back + Start), or leave it to the preset")
+        mapping = dataclass_from_dict(cls, d, "joystick")
+        mapping.explicit = frozenset(d or {})
+        return mapping
+
+    def for_device(self, device_name: Optional[str]) -> tuple["JoystickMapping", "GamepadPreset"]:
+        """This mapping with the preset's numbers where the profile wrote none, and the preset used.
+
+        ``preset: auto`` picks the preset by the kernel's device name
+        (:func:`~beastbt.devices.gamepad_presets.preset_for_name`); the
+        numbers the profile wrote win over the preset's.
+        """
+        from beastbt.devices.gamepad_presets import PRESETS, preset_for_name
+        preset = preset_for_name(device_name) if self.preset == "auto" else PRESETS[self.preset]
+        changes = {key: getattr(preset, key) for key in PRESET_KEYS if key not in self.explicit}
+        return replace(self, **changes), preset
 
     def axes(self) -> dict[str, tuple[int, bool]]:
         """Axis name -> (axis number, inverted)."""
         return {AXIS_LINEAR: (self.linear_axis, self.invert_linear), AXIS_ANGULAR: (self.angular_axis, self.invert_angular)}
 
     def buttons(self) -> dict[str, int]:
-        """Button name -> button number, for the buttons that are present."""
+        """Single-button role -> button number, for the roles that are present (the reset chord: :meth:`chord`)."""
         out = {
             BUTTON_ENABLE: self.enable_button,
             BUTTON_TURBO: self.turbo_button,
             BUTTON_ESTOP: self.estop_button,
-            BUTTON_ESTOP_RESET: self.estop_reset_button,
         }
         return {k: v for k, v in out.items() if v is not None}
+
+    def chord(self) -> tuple[int, ...]:
+        """The buttons that clear a latched e-stop when all are held (empty: none)."""
+        return tuple(self.estop_reset_buttons or ())
+
+    def roles(self) -> dict[str, tuple[int, ...]]:
+        """Every button role -> its button numbers (``estop_reset``: the chord)."""
+        out = {name: (number,) for name, number in self.buttons().items()}
+        if self.chord():
+            out[BUTTON_ESTOP_RESET] = self.chord()
+        return out
 
     def scale_axis(self, raw: int, inverted: bool) -> float:
         """Raw kernel value (-32767..32767) -> -1..1 with the dead zone removed and rescaled.
@@ -164,8 +217,11 @@ class JoystickDevice:
         clock: Clock,
         events: EventSink = ignore_events,
         mapping: Optional[JoystickMapping] = None,
+        identify: Optional[Callable[[], JoystickMapping]] = None,
     ) -> None:
         self.open_device = open_device
+        self.identify = identify
+        """Called each time the device opens: the mapping for the pad now plugged in (its preset)."""
         self.clock = clock
         self.events = events
         self.mapping = mapping if mapping is not None else JoystickMapping()
@@ -203,6 +259,8 @@ class JoystickDevice:
                 self.events("joystick_unavailable", f"cannot open the joystick {self.mapping.device}: {exc}")
             return
         self._read = reader
+        if self.identify is not None:
+            self.mapping = self.identify()  # another pad may have been plugged in: its own layout
         self._buffer.clear()  # the kernel starts a fresh stream with the initial-state burst
         self._axes.clear()
         self._buttons.clear()
@@ -279,7 +337,8 @@ class JoystickDevice:
         connected = self._read is not None
         stamp = (self.clock.now() if now_s is None else now_s) if connected else self._lost_at_s
         axes = {name: m.scale_axis(self._axes.get(num, 0), inv) if connected else 0.0 for name, (num, inv) in m.axes().items()}
-        buttons = {name: connected and self._buttons.get(num, 0) == 1 for name, num in m.buttons().items()}
+        buttons = {name: connected and all(self._buttons.get(num, 0) == 1 for num in numbers)
+                   for name, numbers in m.roles().items()}
         return JoystickState(stamp_s=stamp, axes=axes, buttons=buttons, connected=connected)
 
 
@@ -364,6 +423,27 @@ class JoystickWatcher:
                 self.wakes += 1
                 self.wake()
                 self._drained.wait(self.hold_s)
+
+
+JSIOCGNAME_128 = 0x80806A13
+"""``_IOC(_IOC_READ, 'j', 0x13, 128)``: the ioctl that reads a joystick's name, up to 128 bytes."""
+
+
+def device_name(path: str) -> Optional[str]:
+    """The joystick's name as the kernel gives it (JSIOCGNAME, what ``jstest`` prints), or None."""
+    import fcntl
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        buf = bytearray(128)
+        fcntl.ioctl(fd, JSIOCGNAME_128, buf)
+        return buf.split(b"\0", 1)[0].decode("utf-8", "replace") or None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
 
 
 def linux_joystick_opener(path: str = "/dev/input/js0") -> Callable[[], ByteSource]:

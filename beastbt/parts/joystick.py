@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
-from beastbt.devices.joystick import JoystickDevice, JoystickWatcher, linux_joystick_opener
+from beastbt.devices.gamepad_presets import describe_controls
+from beastbt.devices.joystick import JoystickDevice, JoystickMapping, JoystickWatcher, device_name, linux_joystick_opener
 from beastbt.robot.actuator_profile import joystick_mapping
 from beastbt.robot.part import REAL, Build, Part
 from beastbt.robot.profile import RobotProfile
@@ -32,7 +33,16 @@ def attach_joystick(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     def with_hint(kind: str, text: str) -> None:
         sink(kind, f"{text}; {hint}" if kind == "joystick_unavailable" else text)
 
-    device = JoystickDevice(linux_joystick_opener(mapping.device), clock, with_hint, mapping)
+    def identify() -> JoystickMapping:
+        # The layout of the pad plugged in now: a preset by its name, the profile's own numbers winning.
+        name = device_name(mapping.device)
+        resolved, preset = mapping.for_device(name)
+        sink("joystick_preset", f"'{name or 'unnamed device'}' -> preset {preset.name}: "
+                                f"{describe_controls(resolved, preset)}")
+        return resolved
+
+    device = JoystickDevice(linux_joystick_opener(mapping.device), clock, with_hint, mapping.for_device(None)[0],
+                            identify=identify)
     device.poll()  # open it now, so that a missing gamepad is reported before the run starts
 
     def poll(now_s: float) -> list:

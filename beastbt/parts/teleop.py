@@ -260,7 +260,7 @@ def attach_joystick_script(prepared: Prepared) -> None:
                                     "add --sim to run this robot profile on the simulator, or drop --joystick "
                                     "to drive with the real gamepad")])
     from beastbt.parts.sim_joystick import attach_scripted_joystick, load_joystick_script
-    mapping = joystick_mapping(prepared.profile)
+    mapping = joystick_mapping(prepared.profile).for_device(None)[0]  # a script has no name: the preset, or generic
     script = load_joystick_script(spec, mapping)
     attach_scripted_joystick(io.sim, io, prepared.clock, prepared.events, script, mapping)
     run.ctx.capabilities = frozenset(run.ctx.capabilities | {"joystick"})

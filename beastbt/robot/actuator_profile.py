@@ -65,14 +65,72 @@ def servo_calibrations(profile: RobotProfile) -> dict[str, ServoCalibration]:
     return _build(profile, "servos", servo_calibrations_from_dict, profile.section("servos") or {})
 
 
+TELEOP_TWIST_JOY_NAMES = ("axis_linear", "axis_angular", "scale_linear", "scale_linear_turbo", "scale_angular",
+                          "scale_angular_turbo", "enable_button", "enable_turbo_button", "require_enable_button")
+"""teleop_twist_joy's parameter names, accepted in ``teleop:`` so that a ROS user's config ports over."""
+
+
+def _ros_value(value: Any, key: str) -> Any:
+    """``{x: 1}`` / ``{yaw: 0.5}`` (ROS 2 parameter files) or a plain value (ROS 1)."""
+    if isinstance(value, dict):
+        return value[key]
+    return value
+
+
+def teleop_twist_joy(profile: RobotProfile) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The teleop_twist_joy names in ``teleop:`` as (``joystick:`` values, ``teleop:`` values).
+
+    ``axis_linear.x``/``axis_angular.yaw`` are axis numbers; ``enable_button``
+    and ``enable_turbo_button`` buttons; ``scale_*`` speeds in m/s and rad/s
+    per full stick, whose sign says the direction: ROS's joy node reports
+    stick-up and stick-left as positive (the kernel as negative), so a
+    positive scale is beastbt's inverted axis. ``require_enable_button``
+    must be true: beastbt never drives without the deadman.
+    """
+    raw = profile.section("teleop") or {}
+    joystick: dict[str, Any] = {}
+    teleop: dict[str, Any] = {}
+    if "axis_linear" in raw:
+        joystick["linear_axis"] = _ros_value(raw["axis_linear"], "x")
+    if "axis_angular" in raw:
+        joystick["angular_axis"] = _ros_value(raw["axis_angular"], "yaw")
+    if "enable_button" in raw:
+        joystick["enable_button"] = raw["enable_button"]
+    if "enable_turbo_button" in raw:
+        joystick["turbo_button"] = raw["enable_turbo_button"]
+    for ros, ours, axis, invert in (("scale_linear", "scale_linear_mps", "x", "invert_linear"),
+                                    ("scale_linear_turbo", "scale_linear_turbo_mps", "x", None),
+                                    ("scale_angular", "scale_angular_rps", "yaw", "invert_angular"),
+                                    ("scale_angular_turbo", "scale_angular_turbo_rps", "yaw", None)):
+        if ros in raw:
+            value = float(_ros_value(raw[ros], axis))
+            teleop[ours] = abs(value)
+            if invert is not None:
+                joystick[invert] = value >= 0.0
+    return joystick, teleop
+
+
+def _merged(profile: RobotProfile, section: str, native: dict, aliases: dict) -> dict:
+    both = sorted(set(native) & set(aliases))
+    if both:
+        raise InvalidInput([profile.doc.problem(("teleop",), f"'{both[0]}' is set twice: in '{section}:' and by a "
+                                                f"teleop_twist_joy name in 'teleop:'",
+                                                "keep one of them")])
+    return {**native, **aliases}
+
+
 def joystick_mapping(profile: RobotProfile) -> JoystickMapping:
-    """The ``joystick:`` section (an Xbox/PS-style pad on /dev/input/js0 by default)."""
-    return _build(profile, "joystick", JoystickMapping.from_dict, profile.section("joystick") or {})
+    """The ``joystick:`` section, with teleop_twist_joy's names from ``teleop:`` (a preset fills the rest)."""
+    aliases, _ = teleop_twist_joy(profile)
+    raw = _merged(profile, "joystick", dict(profile.section("joystick") or {}), aliases)
+    return _build(profile, "joystick", JoystickMapping.from_dict, raw)
 
 
 def teleop_config(profile: RobotProfile) -> TeleopConfig:
-    """The ``teleop:`` section (teleop_twist_joy's scales by default)."""
-    return _build(profile, "teleop", TeleopConfig.from_dict, profile.section("teleop") or {})
+    """The ``teleop:`` section (teleop_twist_joy's scales by default; its parameter names accepted too)."""
+    _, aliases = teleop_twist_joy(profile)
+    native = {k: v for k, v in (profile.section("teleop") or {}).items() if k not in TELEOP_TWIST_JOY_NAMES}
+    return _build(profile, "teleop", TeleopConfig.from_dict, _merged(profile, "teleop", native, aliases))
 
 
 def watchdog_config(profile: RobotProfile) -> WatchdogConfig:

@@ -22,6 +22,7 @@ from typing import Any, Callable, Iterator, Optional
 
 from beastbt.core.clock import WallClock
 from beastbt.robot.profile import RobotProfile
+from beastbt.devices.gamepad_presets import describe_controls
 
 OK, WARN, FAIL = "OK", "WARN", "FAIL"
 BASE_WAIT_S = 2.0
@@ -34,8 +35,6 @@ WHO_AM_I_REGISTER = 0x75
 """MPU9250 register holding the chip id."""
 WHO_AM_I = {0x71: "MPU9250", 0x73: "MPU9255"}
 """Chip ids the MPU9250 driver accepts."""
-JSIOCGNAME_128 = 0x80806A13
-"""``_IOC(_IOC_READ, 'j', 0x13, 128)``: the joystick's name, up to 128 bytes."""
 
 
 @dataclass(frozen=True)
@@ -271,23 +270,6 @@ def check_camera(ctx: DoctorContext) -> Iterator[Finding]:
 
 # -- the joystick --------------------------------------------------------------------------------
 
-def joystick_name(path: str) -> Optional[str]:
-    """The joystick's name from the JSIOCGNAME ioctl, or None (not a joystick device)."""
-    import fcntl
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-    except OSError:
-        return None
-    try:
-        buf = bytearray(128)
-        fcntl.ioctl(fd, JSIOCGNAME_128, buf)
-        return buf.split(b"\0", 1)[0].decode("utf-8", "replace") or None
-    except OSError:
-        return None
-    finally:
-        os.close(fd)
-
-
 def check_joystick(ctx: DoctorContext) -> Iterator[Finding]:
     """The gamepad's device is there, with its name."""
     joystick = ctx.profile.section("joystick")
@@ -298,12 +280,15 @@ def check_joystick(ctx: DoctorContext) -> Iterator[Finding]:
         yield Finding(WARN, "joystick", f"{path} is not there (teleop and the joystick e-stop need it)",
                       "plug in or pair the gamepad (ls /dev/input/js*), and add your user to the 'input' group")
         return
-    name = joystick_name(str(ctx.path(path)))
+    from beastbt.devices.joystick import device_name
+    from beastbt.robot.actuator_profile import joystick_mapping
+    name = device_name(str(ctx.path(path)))
+    mapping, preset = joystick_mapping(ctx.profile).for_device(name)
     if name is None:
-        yield Finding(WARN, "joystick", f"{path} is there but does not tell its name (JSIOCGNAME)",
-                      "check it with jstest; set the button numbers in joystick: explicitly")
+        yield Finding(WARN, "joystick", f"{path} is there but does not tell its name (JSIOCGNAME): preset {preset.name}",
+                      "check its buttons with beastbt joystick test; set joystick.preset or the numbers explicitly")
         return
-    yield Finding(OK, "joystick", f"{path}: {name}")
+    yield Finding(OK, "joystick", f"{path}: '{name}', preset {preset.name} ({describe_controls(mapping, preset)})")
 
 
 # -- CAN -------------------------------------------------------------------------------------------
@@ -394,4 +379,4 @@ def diagnose(profile: RobotProfile, clock: Optional[WallClock] = None, root: Pat
     return findings
 
 
-__all__ = ["Finding", "diagnose", "CHECKS", "OK", "WARN", "FAIL", "joystick_name", "serial_ports"]
+__all__ = ["Finding", "diagnose", "CHECKS", "OK", "WARN", "FAIL", "serial_ports"]

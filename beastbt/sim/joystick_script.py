@@ -144,7 +144,7 @@ class ScriptedJoystick:
         self._handles: list[_Handle] = []
         self._time_ms = 0
         n_axes = max([n_axes] + [num + 1 for num, _ in self.mapping.axes().values()])
-        n_buttons = max([n_buttons] + [num + 1 for num in self.mapping.buttons().values()])
+        n_buttons = max([n_buttons] + [num + 1 for nums in self.mapping.roles().values() for num in nums])
         self.raw_axes = [0] * n_axes
         self.raw_buttons = [0] * n_buttons
 
@@ -180,7 +180,7 @@ class ScriptedJoystick:
             raise ValueError(f"{self.source}: error: a joystick script is a list of events, got {type(events).__name__}")
         errors: list[str] = []
         out: list[ScriptEvent] = []
-        buttons = self.mapping.buttons()
+        buttons = self.mapping.roles()
         for i, ev in enumerate(events):
             pos = positions[i] if positions is not None and i < len(positions) else None
             where = f"{self.source}:{pos[0]}:{pos[1]}" if pos else self.source
@@ -261,11 +261,11 @@ class ScriptedJoystick:
     def _apply(self, ev: ScriptEvent) -> None:
         m = self.mapping
         if ev.action in ("press", "release"):
-            number = m.buttons()[ev.button]  # type: ignore[index]
             value = 1 if ev.action == "press" else 0
-            self.raw_buttons[number] = value
-            if self.plugged:
-                self._emit(JS_EVENT_BUTTON, number, value)
+            for number in m.roles()[ev.button]:  # type: ignore[index]  # a chord: every button of it
+                self.raw_buttons[number] = value
+                if self.plugged:
+                    self._emit(JS_EVENT_BUTTON, number, value)
         elif ev.action == "sticks":
             for name, value in ((AXIS_LINEAR, ev.linear), (AXIS_ANGULAR, ev.angular)):
                 if value is None:
