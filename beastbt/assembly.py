@@ -216,7 +216,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         run = MissionRun(mission, profile, build.io, clock, events, services, estimator, step_builders(parts))
         prepared = Prepared(mission, profile, world, run, options, events, clock)
         if options.record:
-            prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
+            prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
         sleeping = asleep(parts, run.reads())
         for part in sleeping:

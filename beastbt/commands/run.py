@@ -31,6 +31,47 @@ def _checked(parse: Callable[[str], Any]) -> Callable[[str], Any]:
     return convert
 
 
+def _positive_duration(text: str) -> float:
+    seconds = _duration(text)
+    if not seconds > 0:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a positive duration (e.g. '10 min', '90 s')")
+    return seconds
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"'{text}' is negative; give 0 or more")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not value >= 0:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"'{text}' is negative; give 0 or more (0: none)")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = _non_negative_float(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f"'{text}' must be more than 0")
+    return value
+
+
+def _quality(text: str) -> int:
+    value = _non_negative_int(text)
+    if not 1 <= value <= 100:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a JPEG quality 1-100")
+    return value
+
+
 def _endpoint(text: str) -> tuple[str, int]:
     from beastbt.live.endpoint import parse_endpoint
     return parse_endpoint(text)
@@ -46,9 +87,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("mission", help="the mission file (YAML)")
     p.add_argument("--robot", default="sim", help="'sim' (default: the built-in simulator) or a robot profile file")
     p.add_argument("--world", help="simulated world file (default: the mission's 'world:')")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the simulator (default 0)")
+    p.add_argument("--seed", type=_non_negative_int, default=0, help="random seed of the simulator (default 0)")
     p.add_argument("--speed", default="max", help="max (default), realtime, or a factor of real time such as 10")
-    p.add_argument("--max-time", type=_duration, help="end the run after this much mission time, e.g. '10 min'")
+    p.add_argument("--max-time", type=_positive_duration, help="end the run after this much mission time, e.g. '10 min'")
     p.add_argument("--summary", metavar="FILE", help="write the run summary as JSON to FILE")
     p.add_argument("--record", metavar="FILE", help="also write the run's recording to FILE")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
@@ -61,10 +102,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
                         "HOST defaults to 127.0.0.1")
     p.add_argument("--stream-size", metavar="WxH", type=_checked(_size), help="size of the streamed frames (default 640x480)")
-    p.add_argument("--stream-quality", metavar="Q", type=int, help="JPEG quality 1-100 (default 80)")
-    p.add_argument("--stream-fps", metavar="FPS", type=float, help="most frames streamed per second (default 25)")
+    p.add_argument("--stream-quality", metavar="Q", type=_quality, help="JPEG quality 1-100 (default 80)")
+    p.add_argument("--stream-fps", metavar="FPS", type=_positive_float, help="most frames streamed per second (default 25)")
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
-    p.add_argument("--record-images", type=float, metavar="HZ", dest="record_images",
+    p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (default 2; 0 for none)")
 
 
@@ -76,6 +117,12 @@ def command(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    from beastbt.commands.paths import output_file_problem, output_folder_problem
+    for problem in (output_file_problem("--summary", args.summary), output_file_problem("--record", args.record),
+                    None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)):
+        if problem is not None:
+            print(f"beastbt run: error: {problem}", file=sys.stderr)
+            return EXIT_INVALID
     opts = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, max_time_s=args.max_time,
                       summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
                       record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,

@@ -21,6 +21,11 @@ def command(args: argparse.Namespace) -> int:
     """Print the tree; 2 for an invalid mission or profile."""
     import py_trees
 
+    from beastbt.commands.paths import output_file_problem
+    problem = output_file_problem("--dot", args.dot)
+    if problem is not None:
+        print(f"beastbt tree: error: {problem}", file=sys.stderr)
+        return 2
     from beastbt.assembly import compile_for_profile
     from beastbt.core.errors import InvalidInput
     from beastbt.mission.compile import tree_to_dot

@@ -137,10 +137,10 @@ class _Explainer:
             return [self.at(path, msg)]
         if v == "pattern":
             return [self.at(path, f"{_type_of(err.instance)} is not a valid name{_where(path)}",
-                            "names use letters, digits, _ and -, and start with a letter")]
+                            "names use letters (of any alphabet), digits, _ and -, and start with a letter")]
         if v == "propertyNames":
             return [self.at(path + (err.instance,), f"'{err.instance}' is not a valid name{_where(path)}",
-                            "names use letters, digits, _ and -, and start with a letter", key=True)]
+                            "names use letters (of any alphabet), digits, _ and -, and start with a letter", key=True)]
         if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
             return [self.at(path, f"{err.instance} is out of range{_where(path)}: must be {v.replace('exclusive', '').lower()} {err.validator_value}"
                             .replace("minimum", "at least").replace("maximum", "at most"), self.describe(schema))]

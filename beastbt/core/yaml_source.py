@@ -20,6 +20,10 @@ from beastbt.core.errors import InvalidInput, Position, Problem
 
 PathKey = tuple[Union[str, int], ...]
 
+MAX_NESTING = 100
+"""Most lists and mappings one inside another in a file (a step nested in a step takes about three):
+deeper documents are refused with a position instead of exhausting Python's recursion."""
+
 
 @dataclass
 class SourceDoc:
@@ -55,14 +59,35 @@ class _Builder:
         self.doc = doc
         self.constructor = yaml.SafeLoader("")  # used only for scalar construction
         self.problems: list[Problem] = []
+        self.too_deep = False
 
     def build(self, node: yaml.Node, path: PathKey) -> Any:
         self.doc.positions[path] = _pos(node.start_mark)
+        if len(path) >= MAX_NESTING and isinstance(node, (yaml.MappingNode, yaml.SequenceNode)):
+            if not self.too_deep:
+                self.too_deep = True
+                self.problems.append(Problem(
+                    self.doc.file, _pos(node.start_mark),
+                    f"nested too deeply: more than {MAX_NESTING} levels of lists and mappings (about "
+                    f"{MAX_NESTING // 3} steps inside one another)",
+                    "move the inner steps into a task under 'tasks:' and run it with 'do: <task>'"))
+            return None
         if isinstance(node, yaml.MappingNode):
+            # YAML merge keys (<<: *base): the merged pairs come first and the mapping's own keys override
+            # them, as in PyYAML; only a key written twice in the mapping itself is a duplicate.
+            own = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
             self.constructor.flatten_mapping(node)
             out: dict = {}
+            merged: set = set()
             for key_node, value_node in node.value:
                 key = self.build_scalar_key(key_node)
+                if id(key_node) not in own:
+                    merged.add(key)
+                elif key in merged:
+                    merged.discard(key)
+                    out.pop(key, None)
+                if key in out and key in merged:
+                    out.pop(key)  # a later merged mapping's value: the earlier one wins, as PyYAML orders them
                 if key in out:
                     first = self.doc.key_positions[path + (key,)]
                     self.problems.append(Problem(
@@ -122,6 +147,10 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
         node = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
         raise InvalidInput([_syntax_problem(name, text, exc)])
+    except RecursionError:
+        raise InvalidInput([Problem(name, Position(1, 1), "nested too deeply for a YAML reader",
+                                    f"keep lists and mappings within {MAX_NESTING} levels; move inner steps "
+                                    f"into a task under 'tasks:' and run it with 'do: <task>'")]) from None
     if node is None:
         raise InvalidInput([Problem(name, Position(1, 1), "the file is empty",
                                     "a mission needs at least 'mission: <name>' and 'steps:'")])

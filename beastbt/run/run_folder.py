@@ -1,4 +1,9 @@
-"""The run folder: ``runs/<UTC time>_<mission>/`` with the summary, the event log and snapshots."""
+"""The run folder: ``runs/<UTC time>_<mission>/`` with the summary, the event log and snapshots.
+
+When the mission file's name differs from the mission's ``mission:`` name,
+both are in the folder's name (``<time>_<file>_<mission>``), so a run is
+found by either.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +12,13 @@ import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Optional
 
+
+
+def _safe(name: str) -> str:
+    """``name`` as a file name: letters of any alphabet, digits, _ and - kept, anything else as _."""
+    return re.sub(r"[^\w-]", "_", name)
 
 
 @dataclass
@@ -19,11 +29,12 @@ class RunFolder:
     finishers: list[Callable[[dict], None]] = field(default_factory=list)
 
     @classmethod
-    def create(cls, runs_dir: str, mission: str, clock: Any) -> "RunFolder":
-        """Make ``runs_dir/<UTC time>_<mission>/`` (a suffix keeps two runs in one second apart)."""
+    def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None) -> "RunFolder":
+        """Make ``runs_dir/<UTC time>_[<file>_]<mission>/`` (a suffix keeps two runs in one second apart)."""
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-        safe = re.sub(r"[^A-Za-z0-9_-]", "_", mission)
-        base = Path(runs_dir) / f"{stamp}_{safe}"
+        safe = _safe(mission)
+        stem = _safe(Path(mission_file).stem) if mission_file else safe
+        base = Path(runs_dir) / (f"{stamp}_{safe}" if stem == safe else f"{stamp}_{stem}_{safe}")
         path = base
         n = 1
         while path.exists():
