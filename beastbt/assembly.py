@@ -214,7 +214,8 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
             if estimator is not None:
                 break
         run = MissionRun(mission, profile, build.io, clock, events, services, estimator, step_builders(parts))
-        prepared = Prepared(mission, profile, world, run, options, events, clock)
+        prepared = Prepared(mission, profile, world, run, options, events, clock,
+                            warnings=run_warnings(mission, profile, world, mode))
         if options.record:
             prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
@@ -236,13 +237,33 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
     return prepared
 
 
+def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World], mode: str) -> list:
+    """The mission's warnings (its places against the world's datum) and those of running it on this robot."""
+    from beastbt.mission.warnings import by_position, mission_warnings, robot_warnings
+    warnings = list(mission.warnings)
+    if world is not None and world.doc is not None:
+        warnings = mission_warnings(mission, (world.frame.lat0_deg, world.frame.lon0_deg))
+    if mode == REPLAY:
+        return warnings
+    has_battery = "battery" in base_part(profile, simulated=mode == SIM).fills
+    return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery))
+
+
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
     """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves."""
     mission = load_mission(mission_path, text=mission_text)
     profile = load_profile(options.robot)
     if options.simulated:
         world_path = options.world or (str(mission.world) if mission.world is not None else None)
-        world = load_world(world_path) if world_path else empty_world()
+        try:
+            world = load_world(world_path) if world_path else empty_world()
+        except InvalidInput as exc:
+            if options.world:
+                raise
+            raise InvalidInput([mission.doc.problem(("world",), f"the world file {world_path} has problems "
+                                                              f"(listed with its own lines)",
+                                                    "fix the world file, or point 'world:' at another")]
+                               + exc.problems) from None
         return assemble(mission, profile, options, SIM, world=world)
     return assemble(mission, profile, options, REAL)
 

@@ -1,8 +1,12 @@
 """``beastbt validate``: check files without running anything.
 
 A file is checked as a mission, a robot profile or a world according to its
-first key (``mission:``, ``robot:``, ``world:``); anything else is checked as a
-mission, whose errors then say what a mission needs.
+first key (``mission:``, ``robot:``, ``world:``), and a file whose top level
+is a list of ``{at: ...}`` events as a joystick script (``--joystick FILE``); anything else is
+checked as a mission, whose errors then say what a mission needs. A
+mission's world file is checked with it: its problems are reported in the
+world file, and at the mission's ``world:`` line. Warnings (valid, but
+probably not meant) come with the errors; ``--strict`` counts them as errors.
 """
 
 from __future__ import annotations
@@ -12,19 +16,40 @@ from beastbt.core.yaml_source import load_yaml
 
 
 def validate_file(path: str) -> list[Problem]:
-    """Every problem in the file at ``path`` (an empty list when it is valid)."""
+    """Every problem in the file at ``path``, errors and warnings (an empty list when it is clean)."""
     from beastbt.mission.model import load_mission
     from beastbt.robot.profile import load_profile
     from beastbt.sim.world import load_world
     try:
-        doc = load_yaml(path)
+        doc = load_yaml(path, require_mapping=False)
+        if isinstance(doc.data, list) and doc.data and all(isinstance(e, dict) and "at" in e for e in doc.data):
+            from beastbt.devices.joystick import JoystickMapping
+            from beastbt.parts.sim_joystick import load_joystick_script
+            load_joystick_script(path, JoystickMapping())
+            return []
         first = next(iter(doc.data), None) if isinstance(doc.data, dict) else None
         if first == "robot":
             load_profile(path)
         elif first == "world":
             load_world(path)
         else:
-            load_mission(path)
+            mission = load_mission(path)
+            return mission_with_world(mission, load_world)
     except InvalidInput as exc:
         return exc.problems
     return []
+
+
+def mission_with_world(mission, load_world) -> list[Problem]:  # type: ignore[no-untyped-def]
+    """The mission's warnings, with its world file checked and its places checked against the world's datum."""
+    from beastbt.mission.warnings import mission_warnings
+    if mission.world is None:
+        return list(mission.warnings)
+    try:
+        world = load_world(str(mission.world))
+    except InvalidInput as exc:
+        here = mission.doc.problem(("world",), f"the world file {mission.world} has problems (listed with its "
+                                                f"own lines)", "fix the world file, or point 'world:' at another")
+        return [here] + exc.problems
+    frame = world.frame
+    return mission_warnings(mission, (frame.lat0_deg, frame.lon0_deg))

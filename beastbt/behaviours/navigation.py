@@ -136,6 +136,10 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
+FARTHEST_TARGET_M = 50_000.0
+"""A go_to target farther than this from the robot (m) is refused: a typo, not a destination."""
+
+
 class GoTo(BeastBehaviour):
     """Drive to a GPS position (a place, coordinates or home), regulated-pure-pursuit style.
 
@@ -255,6 +259,11 @@ class GoTo(BeastBehaviour):
         e, n, _ = self.frame.to_enu(pose.lat, pose.lon, 0.0)
         dist = math.hypot(e, n)
         self.distance_m = dist
+        if dist > FARTHEST_TARGET_M:
+            # Thousands of kilometres away is a typo (lat and lon swapped), not a destination.
+            self.command(0.0, 0.0)
+            return self.fail(f"{self.place} is {dist / 1000:.0f} km away (more than {FARTHEST_TARGET_M / 1000:g} km): "
+                             f"are its lat and lon swapped? Not driving there")
         if dist <= tolerance:
             self.command(0.0, 0.0)
             self.feedback_message = f"reached, {dist:.1f} m from {self.place}"

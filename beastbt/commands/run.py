@@ -94,6 +94,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--record", metavar="FILE", help="also write the run's recording to FILE")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
     p.add_argument("--no-record", action="store_true", help="do not write a run folder")
+    p.add_argument("--strict", action="store_true", help="refuse to start when the mission has warnings (exit 2)")
     p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
@@ -141,6 +142,12 @@ def command(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     except DeviceUnavailable as exc:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    for problem in prepared.warnings:
+        print(problem.format(), file=sys.stderr)
+    if args.strict and prepared.warnings:
+        print(f"beastbt run: error: {len(prepared.warnings)} warning(s) and --strict: not started", file=sys.stderr)
+        prepared.abandon()
         return EXIT_INVALID
     summary = execute(prepared, sys.stdout)
     print(human_summary(summary))

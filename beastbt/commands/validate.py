@@ -1,7 +1,8 @@
 """``beastbt validate FILE...``: check missions, robot profiles and worlds without running anything.
 
 Exit 0 when every file is valid, else 2 with ``FILE:LINE:COLUMN: error: ...``
-lines on standard error.
+lines on standard error. Warnings (``FILE:LINE:COLUMN: warning: ...``) do not
+change the exit status unless ``--strict`` is given.
 """
 
 from __future__ import annotations
@@ -12,19 +13,24 @@ import sys
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``beastbt validate``."""
-    p.add_argument("files", nargs="+", help="mission files (or robot profiles / worlds, recognised by their first key)")
+    p.add_argument("files", nargs="+", help="mission files (or robot profiles / worlds, recognised by their first key; "
+                                            "joystick scripts, a list)")
+    p.add_argument("--strict", action="store_true", help="count warnings as errors (exit 2)")
 
 
 def command(args: argparse.Namespace) -> int:
-    """Check each file; print its problems, or 'FILE: ok'."""
+    """Check each file; print its problems, or 'FILE: ok'. 2 when any has an error (or, with --strict, a warning)."""
     from beastbt.validate import validate_file
     bad = 0
     for f in args.files:
         problems = validate_file(f)
-        if problems:
+        errors = [p for p in problems if p.severity == "error" or args.strict]
+        for p in problems:
+            print(p.format(), file=sys.stderr)
+        if errors:
             bad += 1
-            for p in problems:
-                print(p.format(), file=sys.stderr)
+        elif problems:
+            print(f"{f}: ok, with {len(problems)} warning(s) (--strict refuses them)")
         else:
             print(f"{f}: ok")
     return 2 if bad else 0

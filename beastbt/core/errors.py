@@ -23,16 +23,18 @@ class Position:
 
 @dataclass(frozen=True)
 class Problem:
-    """One error in a user's file."""
+    """One error (or warning) in a user's file."""
 
     file: str
     position: Position
     message: str
     hint: Optional[str] = None
+    severity: str = "error"
+    """``error`` (nothing runs) or ``warning`` (it runs, unless ``--strict``)."""
 
     def format(self) -> str:
-        """Render as ``FILE:LINE:COLUMN: error: message`` plus an indented hint line."""
-        text = f"{self.file}:{self.position.line}:{self.position.column}: error: {self.message}"
+        """Render as ``FILE:LINE:COLUMN: error: message`` (or ``warning:``) plus an indented hint line."""
+        text = f"{self.file}:{self.position.line}:{self.position.column}: {self.severity}: {self.message}"
         if self.hint:
             text += f"\n    hint: {self.hint}"
         return text
@@ -51,6 +53,11 @@ class InvalidInput(Exception):
     def format(self) -> str:
         """All problems, one per line (hints indented below)."""
         return "\n".join(p.format() for p in self.problems)
+
+
+def warning(problem: Problem) -> Problem:
+    """The same problem as a warning."""
+    return Problem(problem.file, problem.position, problem.message, problem.hint, "warning")
 
 
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:

@@ -53,13 +53,34 @@ for _kind in KINDS.values():
         _UNIT_TO_KIND.setdefault(_unit, _kind.name)
 
 
+UNIT_SYNONYMS: dict[str, str] = {
+    "meter": "m", "meters": "m", "metre": "m", "metres": "m", "mtr": "m",
+    "centimeter": "cm", "centimeters": "cm", "centimetre": "cm", "centimetres": "cm",
+    "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm",
+    "kilometer": "km", "kilometers": "km", "kilometre": "km", "kilometres": "km",
+    "sec": "s", "secs": "s", "second": "s", "seconds": "s",
+    "msec": "ms", "millisecond": "ms", "milliseconds": "ms",
+    "minute": "min", "minutes": "min", "mins": "min", "m": "min",
+    "hour": "h", "hours": "h", "hr": "h", "hrs": "h",
+    "mps": "m/s", "m/sec": "m/s", "kmh": "km/h", "kph": "km/h", "km/hr": "km/h",
+    "degree": "deg", "degrees": "deg", "degs": "deg", "radian": "rad", "radians": "rad",
+    "dps": "deg/s", "deg/sec": "deg/s", "degrees/s": "deg/s", "rad/sec": "rad/s",
+    "hertz": "Hz", "khz": "kHz", "volt": "V", "volts": "V", "v": "V", "millivolt": "mV",
+    "percent": "%", "pct": "%",
+}
+"""Units authors write for the ones the language knows: a did-you-mean, never accepted silently."""
+_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+")
+
+
 class UnitError(ValueError):
     """A value could not be read as the expected kind of quantity."""
 
 
 def _describe(kind: UnitKind) -> str:
     units = ", ".join(k for k in kind.factors if k != "°")
-    return f"a {kind.name.replace('_', ' ')} such as '{kind.example}' (units: {units})"
+    name = kind.name.replace("_", " ")
+    article = "an" if name[0] in "aeiou" else "a"
+    return f"{article} {name} such as '{kind.example}' (units: {units})"
 
 
 def parse_quantity(value: Union[str, int, float], kind: str) -> float:
@@ -83,6 +104,9 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
         raise UnitError(f"expected {_describe(k)}, got {type(value).__name__}")
     m = _VALUE.match(value)
     if not m:
+        if _DECIMAL_COMMA.match(value):
+            fixed = value.replace(",", ".", 1)
+            raise UnitError(f"'{value}' has a decimal comma: write '{fixed.strip()}' (a point, not a comma)")
         raise UnitError(f"expected {_describe(k)}, got '{value}'")
     number, unit = float(m.group(1)), m.group(2)
     if unit is None:
@@ -92,6 +116,13 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
     other = _UNIT_TO_KIND.get(unit)
     if other is not None:
         raise UnitError(f"expected {_describe(k)}, got '{value}', which is a {other.replace('_', ' ')}")
+    meant = UNIT_SYNONYMS.get(unit) or UNIT_SYNONYMS.get(unit.lower())
+    if meant is None or meant not in k.factors:
+        from beastbt.core.errors import closest
+        meant = closest(unit, [u for u in k.factors if u != "°"])
+    if meant in k.factors:
+        raise UnitError(f"unknown unit '{unit}' in '{value}'; did you mean '{m.group(1)} {meant}'? "
+                        f"Expected {_describe(k)}")
     raise UnitError(f"unknown unit '{unit}' in '{value}': expected {_describe(k)}")
 
 

@@ -33,6 +33,8 @@ class SourceDoc:
     data: Any
     positions: dict[PathKey, Position] = field(default_factory=dict)
     key_positions: dict[PathKey, Position] = field(default_factory=dict)
+    comments_after: dict[PathKey, str] = field(default_factory=dict)
+    """Unquoted text values followed by a ``#`` comment on the same line: YAML cut the text there."""
 
     def position(self, path: PathKey, key: bool = False) -> Position:
         """Where the value (or, with ``key=True``, the key) at ``path`` is; falls back to its parents."""
@@ -55,8 +57,9 @@ def _pos(mark: yaml.Mark) -> Position:
 
 
 class _Builder:
-    def __init__(self, doc: SourceDoc) -> None:
+    def __init__(self, doc: SourceDoc, text: str = "") -> None:
         self.doc = doc
+        self.lines = text.splitlines()
         self.constructor = yaml.SafeLoader("")  # used only for scalar construction
         self.problems: list[Problem] = []
         self.too_deep = False
@@ -101,7 +104,13 @@ class _Builder:
             return out
         if isinstance(node, yaml.SequenceNode):
             return [self.build(child, path + (i,)) for i, child in enumerate(node.value)]
-        return self.constructor.construct_object(node, deep=True)
+        value = self.constructor.construct_object(node, deep=True)
+        if isinstance(value, str) and node.style is None and self.lines:
+            end = node.end_mark
+            rest = self.lines[end.line][end.column:] if end.line < len(self.lines) else ""
+            if rest.lstrip().startswith("#"):
+                self.doc.comments_after[path] = rest.lstrip()
+        return value
 
     def build_scalar_key(self, node: yaml.Node) -> Any:
         if not isinstance(node, yaml.ScalarNode):
@@ -154,7 +163,7 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
     if node is None:
         raise InvalidInput([Problem(name, Position(1, 1), "the file is empty",
                                     "a mission needs at least 'mission: <name>' and 'steps:'")])
-    builder = _Builder(doc)
+    builder = _Builder(doc, text)
     try:
         doc.data = builder.build(node, ())
     except yaml.YAMLError as exc:

@@ -91,6 +91,8 @@ class Mission:
     teleop_on_release: str = field(
         default_factory=lambda: mission_default("/properties/teleop/anyOf/1/properties", "on_release"))
     failsafes: list[Failsafe] = field(default_factory=list)
+    warnings: list[Problem] = field(default_factory=list)
+    """What is valid but probably not meant (:mod:`beastbt.mission.warnings`): it runs, unless ``--strict``."""
     external_steps: dict[str, ExternalStep] = field(default_factory=dict)
     """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
 
@@ -473,7 +475,10 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     problems += _SemanticChecker(doc).run_guarded()
     if problems:
         raise InvalidInput(problems)
-    return _build(doc, Path(path), external)
+    mission = _build(doc, Path(path), external)
+    from beastbt.mission.warnings import mission_warnings
+    mission.warnings = mission_warnings(mission)
+    return mission
 
 
 def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:

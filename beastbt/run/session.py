@@ -87,6 +87,20 @@ class Prepared:
     clock: Clock
     folder: Optional[RunFolder] = None
     closers: list[Callable[[], None]] = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    """Problems (severity ``warning``) of the mission on this robot: printed before the run; ``--strict`` refuses."""
+
+    def abandon(self) -> None:
+        """Release what was opened without running (the base sends its stop) and remove the unused run folder."""
+        for close in self.closers:
+            try:
+                close()
+            except Exception:  # noqa: BLE001 - closing must not hide why the run was abandoned
+                pass
+        self.run.io.close()
+        if self.folder is not None:
+            import shutil
+            shutil.rmtree(self.folder.path, ignore_errors=True)  # made for this run, which never started
 
 
 def parse_speed(text: str) -> Union[str, float]:

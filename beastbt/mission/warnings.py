@@ -1,0 +1,107 @@
+"""Warnings: what is valid but probably not what the author meant. The mission runs; ``--strict`` refuses it.
+
+From the mission alone (:func:`mission_warnings`): text cut by a ``#``, a
+mission without steps, a step faster than the mission's own speed limit,
+places far from each other or from the world (latitude and longitude
+swapped?). Against the robot it runs on (:func:`robot_warnings`): a step
+faster than the robot's limit, a ``battery_low`` failsafe on a robot that
+does not report its battery.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Iterator, Optional
+
+from beastbt.core.errors import Problem, warning
+from beastbt.core.units import format_quantity
+from beastbt.estimation.geodesy import distance_m
+from beastbt.mission import steps as st
+
+FAR_PLACE_M = 50_000.0
+"""Places farther apart than this (m) are almost surely a typo, typically latitude and longitude swapped."""
+
+
+def all_steps(steps: tuple) -> Iterator[st.Step]:
+    """Every step of ``steps``, nested ones included, in document order."""
+    for step in steps:
+        yield step
+        for f in dataclasses.fields(step):
+            value = getattr(step, f.name)
+            if isinstance(value, tuple) and value and isinstance(value[0], st.Step):
+                yield from all_steps(value)
+
+
+def _value_at(data: Any, path: tuple) -> Any:
+    for key in path:
+        data = data[key]
+    return data
+
+
+def _every_step(mission: Any) -> Iterator[st.Step]:
+    yield from all_steps(tuple(mission.steps))
+    for task in mission.tasks.values():
+        yield from all_steps(tuple(task))
+
+
+def _speed_warnings(mission: Any, limit_mps: Optional[float], whose: str) -> list[Problem]:
+    out = []
+    if limit_mps is None:
+        return out
+    for step in _every_step(mission):
+        speed = getattr(step, "speed_mps", None)
+        if speed is not None and abs(speed) > limit_mps + 1e-9:
+            out.append(warning(mission.doc.problem(step.path + (step.KEYWORD, "speed"),
+                                                   f"speed {format_quantity(speed, 'speed')} is above {whose} "
+                                                   f"{format_quantity(limit_mps, 'speed')}: it will be capped",
+                                                   f"write a speed up to {format_quantity(limit_mps, 'speed')}")))
+    return out
+
+
+def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = None) -> list[Problem]:
+    """What looks wrong in the mission itself; ``world_datum`` (lat, lon) is where its world is, if known."""
+    doc = mission.doc
+    out: list[Problem] = []
+    for path, comment in doc.comments_after.items():
+        if path and path[-1] in ("say", "description"):
+            kept = _value_at(doc.data, path)
+            out.append(warning(doc.problem(path, f"the text of '{path[-1]}' stops before '{comment}': YAML reads "
+                                                 f"'#' after a space as the start of a comment",
+                                           f"put the whole text in quotes: {path[-1]}: \"{kept} {comment}\"")))
+    if not mission.steps:
+        out.append(warning(doc.problem(("steps",), "the mission has no steps: it succeeds at once, doing nothing",
+                                       "add what the robot should do under 'steps:'")))
+    out += _speed_warnings(mission, mission.speed_limit_mps, "the mission's limit")
+    places = list(mission.places.values())
+    for i, place in enumerate(places):
+        far = [(other.name, distance_m(place.lat, place.lon, other.lat, other.lon)) for other in places[:i]]
+        if world_datum is not None:
+            far.append(("the world's datum", distance_m(place.lat, place.lon, *world_datum)))
+        far = [(name, d) for name, d in far if d > FAR_PLACE_M]
+        if far:
+            name, d = far[0]
+            out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {d / 1000:.0f} km from "
+                                                                   f"{name}: are its lat and lon swapped?",
+                                           f"lat is north-south (-90..90), lon east-west: check lat: "
+                                           f"{place.lat:.6f}, lon: {place.lon:.6f}")))
+    return by_position(out)
+
+
+def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool) -> list[Problem]:
+    """What looks wrong when the mission runs on this robot."""
+    out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    for failsafe in mission.failsafes:
+        if failsafe.kind == "battery_low" and not has_battery:
+            out.append(warning(mission.doc.problem(failsafe.path, f"robot '{robot}' does not report its battery: "
+                                                                  f"this battery_low failsafe can never trigger",
+                                                   "run it on a robot whose base reports the battery (the Waveshare "
+                                                   "base does), or remove it", key=True)))
+    return by_position(out)
+
+
+def by_position(problems: list[Problem]) -> list[Problem]:
+    """Problems in the order of the file."""
+    return sorted(problems, key=lambda p: (p.file, p.position))
+
+
+__all__ = ["mission_warnings", "robot_warnings", "all_steps", "FAR_PLACE_M"]

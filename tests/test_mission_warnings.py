@@ -1,0 +1,87 @@
+"""Valid but probably not meant: warnings with positions, which --strict refuses; far targets refused at run time."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from beastbt.core.units import UnitError, parse_quantity
+from beastbt.testing import MissionHarness
+from conftest import REPO
+
+
+def beastbt(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "beastbt", *args], capture_output=True, text=True, timeout=120,
+                          cwd=cwd, env=dict(os.environ, PYTHONPATH=str(REPO)))
+
+
+WARNED = """mission: warned
+description: patrol #2 of the day
+limits: {speed: 0.2 m/s}
+places:
+  a: {lat: 44.0, lon: -121.0}
+  b: {lat: 44.0, lon: 11.0}
+steps:
+  - say: step #1 done
+  - drive: {distance: 0.5 m, speed: 0.5 m/s}
+"""
+
+
+def test_warnings_name_their_place_and_strict_refuses_them(tmp_path):
+    path = tmp_path / "warned.yaml"
+    path.write_text(WARNED)
+    done = beastbt("validate", str(path))
+    assert done.returncode == 0 and "4 warning(s)" in done.stdout
+    lines = [line for line in done.stderr.splitlines() if ": warning: " in line]
+    assert [line.split(":")[1:3] for line in lines] == [["2", "14"], ["6", "6"], ["8", "10"], ["9", "37"]]
+    assert 'say: "step #1 done"' in done.stderr and "lat and lon swapped" in done.stderr
+    assert "above the mission's limit 0.2 m/s" in done.stderr
+    assert beastbt("validate", "--strict", str(path)).returncode == 2
+    run = beastbt("run", str(path), "--strict", "--runs-dir", str(tmp_path / "runs"))
+    assert run.returncode == 2 and "not started" in run.stderr and not list((tmp_path / "runs").glob("*"))
+    run = beastbt("run", str(path), "--no-record")
+    assert run.returncode == 0 and "top speed of robot 'sim'" in run.stderr
+
+
+def test_no_steps_and_a_battery_failsafe_on_a_robot_without_battery(tmp_path):
+    path = tmp_path / "empty.yaml"
+    path.write_text("mission: empty\nfailsafes:\n  battery_low: {below: 10.8 V, for: 5 s, then: stop}\nsteps: []\n")
+    assert "no steps" in beastbt("validate", str(path)).stderr
+    on_can = beastbt("run", str(path), "--robot", str(REPO / "robots" / "diy_can.yaml"), "--sim", "--no-record")
+    assert "does not report its battery" in on_can.stderr and "empty.yaml:3:3: warning" in on_can.stderr
+    on_beast = beastbt("run", str(path), "--no-record")
+    assert "does not report its battery" not in on_beast.stderr
+
+
+@pytest.mark.parametrize("text, says", [
+    ("3 meter", "did you mean '3 m'?"),
+    ("2 seconds", None),
+    ("0,5 m", "decimal comma: write '0.5 m'"),
+    ("5 parsecs", "unknown unit 'parsecs'"),
+])
+def test_unit_mistakes_get_a_did_you_mean(text, says):
+    kind = "duration" if "second" in text else "distance"
+    with pytest.raises(UnitError) as info:
+        parse_quantity(text, kind)
+    assert (says or "did you mean '2 s'?") in str(info.value)
+
+
+def test_a_target_thousands_of_km_away_is_refused_at_run_time():
+    h = MissionHarness.from_yaml("mission: far\nworld: campus.yaml\nplaces:\n  typo: {lat: 44.06, lon: 11.31}\n"
+                                 "steps:\n  - go_to: typo\n", base_dir=REPO / "worlds")
+    assert h.run_to_end(120) == "failure"
+    assert any("lat and lon swapped" in e.text for e in h.events)
+    assert max(abs(r.cmd_gate.linear_mps) for r in h.records) == 0.0
+
+
+def test_validate_checks_the_missions_world_and_joystick_scripts(tmp_path):
+    (tmp_path / "bad_world.yaml").write_text("world: w\nbogus: 1\n")
+    mission = tmp_path / "m.yaml"
+    mission.write_text("mission: t\nworld: bad_world.yaml\nsteps:\n  - wait: 1 s\n")
+    done = beastbt("validate", str(mission))
+    assert done.returncode == 2
+    assert f"{mission}:2:8: error: the world file" in done.stderr and "bad_world.yaml:2:1: error" in done.stderr
+    assert beastbt("validate", str(REPO / "missions" / "joystick" / "teleop_demo.yaml")).returncode == 0
