@@ -11,8 +11,18 @@ OK_HEAD = "mission: t\nsteps:\n"
 
 # (id, text, line, column, words the message must contain)
 CASES = [
-    ("yaml_syntax", "mission: t\nsteps: [drive: {distance: 3 m}\n", 3, 1, "YAML syntax error"),
+    ("yaml_syntax", "mission: t\nsteps: [drive: {distance: 3 m}\n", 2, 31, "the '[' at line 2 column 8 is never closed"),
     ("tab_indent", "mission: t\nsteps:\n\t- wait: 2 s\n", 3, 1, "tab character"),
+    # Where the author must type: after the word that lacks its colon, at the quote or brace left open.
+    ("step_missing_colon", OK_HEAD + "  - drive {distance: 1 m}\n", 3, 10, "missing ':' after 'drive'"),
+    ("key_missing_colon", OK_HEAD + "  - drive:\n      distance 3 m\n      speed: 0.2 m/s\n", 4, 15,
+     "missing ':' after 'distance'"),
+    ("unclosed_quote", OK_HEAD + '  - say: "hello\n  - wait: 1 s\n', 3, 10, "never closed"),
+    ("unclosed_brace", OK_HEAD + "  - drive: {distance: 1 m\n  - wait: 1 s\n", 3, 26, "the '{' at line 3 column 12"),
+    ("until_mapping", OK_HEAD + "  - follow_line: {until: {meters: 3}}\n", 3, 26, "until: {distance: 3 m}"),
+    ("turn_both", OK_HEAD + "  - turn: {angle: 90 deg, heading: 10 deg}\n", 3, 27, "either 'angle' or 'heading'"),
+    ("times_infinite", OK_HEAD + "  - repeat: {times: infinite, steps: [wait: 1 s]}\n", 3, 21, "times: forever"),
+    ("if_without_then", OK_HEAD + "  - if: gps_fix\n", 3, 5, "'if' needs 'then:'"),
     ("duplicate_key", "mission: t\nmission: u\nsteps: [stop]\n", 2, 1, "duplicate key 'mission'"),
     ("empty_file", "", 1, 1, "empty"),
     ("top_not_mapping", "- mission: t\n- steps: []\n", 1, 1, "top level must be a mapping"),

@@ -18,7 +18,7 @@ import jsonschema
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from beastbt.core.errors import Problem, did_you_mean
+from beastbt.core.errors import Position, Problem, did_you_mean
 from beastbt.core.resources import data_dir
 from beastbt.core.units import UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
@@ -86,6 +86,28 @@ def validator_for(name: str) -> jsonschema.Draft202012Validator:
     return validator_of(load_schema(name), name)
 
 
+EXCLUSIVE_KEYS = (
+    ("angle", "heading", "angle: turn by that much (positive: left); heading: turn to that compass heading"),
+    ("distance", "time", "distance: drive that far; time: drive for that long"),
+)
+"""Keys that choose between forms of a step: written together, the author gets this, not 'unknown key'."""
+
+_WHAT_IT_IS = {"then": ": the steps to run when the condition holds", "steps": ": the steps to run",
+               "else": ": the steps to run when the condition does not hold"}
+
+
+def _what_it_is(key: str) -> str:
+    return _WHAT_IT_IS.get(key, "")
+
+
+def _step_keyword(instance: Any, schema: dict) -> Optional[str]:
+    """The step a mapping is (its first required key, when that key is written), or None."""
+    required = schema.get("required") or []
+    if isinstance(instance, dict) and required and required[0] in instance:
+        return str(required[0])
+    return None
+
+
 def _where(path: tuple) -> str:
     for part in reversed(path):
         if isinstance(part, str):
@@ -120,6 +142,10 @@ class _Explainer:
             return self.unknown_keys(err, path, schema)
         if v == "required":
             missing = err.message.split("'")[1] if "'" in err.message else err.message
+            step = _step_keyword(err.instance, schema) if path else None
+            if step is not None and step != missing:
+                return [self.at(path, f"'{step}' needs '{missing}:'{_what_it_is(missing)}",
+                                self.required_hint(missing, schema) or f"add '{missing}:' under '{step}'")]
             return [self.at(path, f"missing '{missing}'{_where(path)}", self.required_hint(missing, schema))]
         if v == "type":
             expected = schema.get("type")
@@ -127,7 +153,20 @@ class _Explainer:
             hint = self.describe(schema)
             if isinstance(err.instance, bool) and "string" in (expected if isinstance(expected, list) else [expected]):
                 hint = "YAML reads yes, no, on, off, true and false as true/false: put the text in quotes"
+            if path and path[-1] in ("times", "loops") and isinstance(err.instance, str):
+                return [self.at(path, f"'{path[-1]}' is a whole number or 'forever', got '{err.instance}'",
+                                f"write '{path[-1]}: forever' to repeat without end, or a number such as "
+                                f"'{path[-1]}: 3'")]
             return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", hint)]
+        if v in ("enum", "const") and path and path[-1] == "until" and isinstance(err.instance, dict):
+            choices = schema.get("enum", [schema.get("const")])
+            amount = next(iter(err.instance), "")
+            value = err.instance.get(amount, 3) if amount else 3
+            number = value if isinstance(value, (int, float)) else str(value).split()[0] if str(value).split() else 3
+            return [self.at(path, f"'until' takes {', '.join(map(str, choices))}, {{distance: ...}} or {{time: ...}}; "
+                                  f"'{amount}' is not one of them",
+                            f"to stop after a distance write until: {{distance: {number} m}}; after a time, "
+                            f"until: {{time: 10 s}}")]
         if v in ("enum", "const"):
             choices = schema.get("enum", [schema.get("const")])
             word = err.instance if isinstance(err.instance, str) else None
@@ -170,6 +209,11 @@ class _Explainer:
         return self.at(path, f"{label}{message}")
 
     def unknown_keys(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
+        inst = err.instance
+        for a, b, words in EXCLUSIVE_KEYS:
+            if isinstance(inst, dict) and a in inst and b in inst:
+                return [self.at(path + (b,), f"'{path[-1] if path else 'this'}' takes either '{a}' or '{b}', not both",
+                                words, key=True)]
         allowed = list(schema.get("properties", {}))
         extras = [k for k in err.instance if k not in allowed] if isinstance(err.instance, dict) else []
         out = []
@@ -243,6 +287,12 @@ class _Explainer:
                 first = next(iter(inst), "")
                 if not first:
                     return [self.at(path, f"empty {label}", f"the {label}s are: {listing}")]
+                head = str(first).replace("{", " ").replace("[", " ").split()
+                if head and head[0] in words and head[0] != str(first):
+                    at = self.doc.position(path + (first,), key=True)
+                    return [Problem(self.doc.file, Position(at.line, at.column + len(head[0])),
+                                    f"missing ':' after '{head[0]}'",
+                                    f"write '{head[0]}: ' (with a space after the colon) before its settings")]
                 return [self.at(path + (first,), f"unknown {label} '{first}'{did_you_mean(str(first), words)}",
                                 f"the {label}s are: {listing}", key=True)]
             if len(present) > 1 and not all(k in ("then", "else", "steps", "timeout") for k in present[1:]):

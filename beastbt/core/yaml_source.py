@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Union
+from typing import Any, Optional, Union
 
 import yaml
 
@@ -121,6 +121,22 @@ class _Builder:
         return key if isinstance(key, str) else str(key)
 
 
+def _missing_colon(lines: list[str], error_line: int) -> Optional[tuple[tuple[int, int], str]]:
+    """The line above ``error_line`` (0-based) at its indentation that has no ':': ((line, column after its key), key)."""
+    if not 0 <= error_line < len(lines):
+        return None
+    indent = len(lines[error_line]) - len(lines[error_line].lstrip())
+    for i in range(error_line - 1, -1, -1):
+        text = lines[i]
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        if len(text) - len(text.lstrip()) != indent or ":" in text:
+            return None
+        word = text.strip().split()[0].lstrip("-").strip() or text.strip()
+        return (i + 1, text.index(word) + len(word) + 1), word
+    return None
+
+
 def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
     mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
     pos = _pos(mark) if mark is not None else Position(1, 1)
@@ -132,6 +148,25 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
         return Problem(file, Position(pos.line, max(col, 1)), "tab character used for indentation",
                        "YAML indentation must use spaces; replace the tab with spaces (2 per level is usual)")
     context = getattr(exc, "context", None)
+    context_mark = getattr(exc, "context_mark", None)
+    if context == "while scanning a quoted scalar" and context_mark is not None:
+        quote = lines[context_mark.line][context_mark.column] if context_mark.line < len(lines) else '"'
+        return Problem(file, _pos(context_mark), f"this {quote} opens a text that is never closed",
+                       f"end the text with {quote} on the same line (a text in quotes may not run past its line "
+                       f"unless you mean it to)")
+    if context in ("while parsing a flow mapping", "while parsing a flow sequence") and context_mark is not None:
+        opener, closer = ("{", "}") if "mapping" in context else ("[", "]")
+        line = context_mark.line
+        end = len(lines[line].rstrip()) + 1 if line < len(lines) else 1
+        return Problem(file, Position(line + 1, end), f"the '{opener}' at line {line + 1} column "
+                                                      f"{context_mark.column + 1} is never closed",
+                       f"add '{closer}' at the end of line {line + 1}")
+    if str(problem).startswith(("mapping values are not allowed here", "could not find expected ':'")):
+        missing = _missing_colon(lines, pos.line - 1)
+        if missing is not None:
+            (line_no, column), word = missing
+            return Problem(file, Position(line_no, column), f"missing ':' after '{word}'",
+                           f"write '{word}: <value>' (a key, a colon and a space, then its value)")
     message = f"YAML syntax error: {problem}" + (f" ({context})" if context else "")
     return Problem(file, pos, message, "check the indentation and the ':' and '-' around this line; quote text that contains ': ' or '#'")
 
