@@ -42,7 +42,7 @@ from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
 from beastbt.robot.profile import RobotProfile, load_profile
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.run_folder import RunFolder
+from beastbt.run.run_folder import RunFolder, temporary_snapshots
 from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared, RunOptions
 from beastbt.sim.world import World, empty_world, load_world
@@ -219,6 +219,8 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         if options.record:
             prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
+        elif run.ctx.services.save_snapshot is None:
+            run.ctx.services.save_snapshot = temporary_snapshots(mission.name)
         sleeping = asleep(parts, run.reads())
         for part in sleeping:
             part.sleep(prepared)

@@ -87,3 +87,33 @@ def test_a_mission_named_with_accents_runs_and_its_folder_names_file_and_mission
     assert done.returncode == 0, done.stderr
     [folder] = (tmp_path / "runs").iterdir()
     assert folder.name.endswith("_tour_café_straße")
+
+
+def test_joystick_script_on_a_real_robot_says_why_before_opening_anything(tmp_path):
+    done = beastbt("run", PATROL, "--robot", str(REPO / "robots" / "ugv_beast.yaml"), "--joystick",
+                   str(REPO / "missions" / "joystick" / "teleop_demo.yaml"), cwd=tmp_path)
+    assert done.returncode == 2 and "simulator only" in done.stderr and "--sim" in done.stderr
+    assert "serial0" not in done.stderr  # not the base's error: the real reason
+
+
+def test_a_missing_device_is_said_in_words_not_errno(tmp_path):
+    done = beastbt("run", PATROL, "--robot", str(REPO / "robots" / "ugv_beast.yaml"), cwd=tmp_path)
+    assert done.returncode == 2 and "it does not exist" in done.stderr and "Errno" not in done.stderr
+
+
+def test_on_failure_hold_says_what_it_waits_for(tmp_path):
+    path = tmp_path / "hold.yaml"
+    path.write_text("mission: t\non_failure: hold\nsteps:\n  - follow_line: {until: intersection}\n")
+    done = beastbt("run", str(path), "--no-record", "--max-time", "5 s")
+    assert done.returncode == 1
+    assert "on_failure: hold: the robot stands still and waits for the run to be ended: Ctrl-C" in done.stdout
+
+
+def test_a_snapshot_without_a_run_folder_goes_to_a_temporary_folder_and_says_where(tmp_path):
+    path = tmp_path / "snap.yaml"
+    path.write_text(f"mission: t\nworld: {REPO / 'worlds' / 'line_track.yaml'}\nsteps:\n  - wait: 0.5 s\n"
+                    f"  - snapshot: {{name: start}}\n")
+    done = beastbt("run", str(path), "--no-record")
+    assert done.returncode == 0, done.stderr
+    saved = [line.split("saved ", 1)[1] for line in done.stdout.splitlines() if "snapshot: start: saved" in line]
+    assert saved and Path(saved[0]).is_file() and Path(saved[0]).stat().st_size > 1000

@@ -130,6 +130,11 @@ def command(args: argparse.Namespace) -> int:
                       joystick_script=args.joystick, stream=args.stream, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images)
+    if opts.joystick_script is not None and not opts.simulated:
+        print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
+              f"--robot {args.robot} is a real robot; add --sim to run its profile on the simulator, or drop "
+              f"--joystick to drive with the real gamepad", file=sys.stderr)
+        return EXIT_INVALID
     from beastbt.assembly import prepare
     from beastbt.core.errors import InvalidInput
     from beastbt.robot.hardware import DeviceUnavailable

@@ -60,6 +60,32 @@ def warning(problem: Problem) -> Problem:
     return Problem(problem.file, problem.position, problem.message, problem.hint, "warning")
 
 
+def plain_reason(exc: BaseException) -> str:
+    """Why an OS call failed, in words and without ``[Errno N]``: ``it does not exist``, ``permission denied``..."""
+    import errno as _errno
+    code = getattr(exc, "errno", None)
+    inner = exc.__context__ if code is None else None
+    if code is None and isinstance(inner, OSError):
+        code = inner.errno
+    if code is None:
+        text = str(exc)
+        for number, word in (("[Errno 2]", _errno.ENOENT), ("[Errno 13]", _errno.EACCES), ("[Errno 16]", _errno.EBUSY),
+                             ("[Errno 19]", _errno.ENODEV), ("[Errno 6]", _errno.ENXIO)):
+            if number in text:
+                code = word
+                break
+    words = {_errno.ENOENT: "it does not exist", _errno.EACCES: "permission denied",
+             _errno.EPERM: "permission denied", _errno.EBUSY: "it is busy (another program has it open)",
+             _errno.ENODEV: "no such device", _errno.ENXIO: "no device answers there",
+             _errno.EIO: "input/output error (a loose cable?)", _errno.ENOTDIR: "a part of the path is not a folder",
+             _errno.EISDIR: "it is a folder"}
+    if code in words:
+        return words[code]
+    text = getattr(exc, "strerror", None) or str(exc)
+    import re as _re
+    return _re.sub(r"\[Errno \d+\]\s*", "", text).strip() or type(exc).__name__
+
+
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:
     """The valid word closest to a misspelt ``word``, or None when nothing is close."""
     matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

@@ -19,6 +19,7 @@ import can
 
 from beastbt.actuation.can_base import CanBase, bring_up_hint, open_can_bus, socketcan_link
 from beastbt.core.clock import Clock
+from beastbt.core.errors import plain_reason
 from beastbt.core.events import EventLog
 from beastbt.robot.actuator_profile import can_config
 from beastbt.robot.hardware import DeviceUnavailable
@@ -49,7 +50,7 @@ def open_can_base(profile: RobotProfile, clock: Clock, events: EventLog) -> Robo
     except Exception as exc:  # python-can raises CanInitializationError, OSError or ValueError by backend
         raise DeviceUnavailable(
             f"base (CAN motor controller): cannot open {config.interface} channel '{config.channel}' at "
-            f"{config.bitrate} bit/s ({exc}); check that the CAN HAT is enabled (dtoverlay=mcp2515-can0 in "
+            f"{config.bitrate} bit/s ({plain_reason(exc)}); check that the CAN HAT is enabled (dtoverlay=mcp2515-can0 in "
             f"/boot/firmware/config.txt), that the interface is up (sudo ip link set {config.channel} up type can "
             f"bitrate {config.bitrate}; ip -details link show {config.channel}), and the wiring and 120 ohm termination"
         ) from exc

@@ -14,6 +14,7 @@ from typing import Callable, Optional
 
 from beastbt.blackboard.types import ImuSample
 from beastbt.core.clock import Clock
+from beastbt.core.errors import plain_reason
 from beastbt.core.events import EventLog
 from beastbt.devices.mpu9250 import ImuConfig, Mpu9250
 from beastbt.estimation.imu_tap import ImuTap
@@ -51,7 +52,7 @@ def attach_real_imu(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     try:
         bus = smbus2.SMBus(config.bus)
     except (OSError, ValueError) as exc:
-        raise DeviceUnavailable(f"imu (MPU9250): cannot open /dev/i2c-{config.bus} ({exc}); enable I2C "
+        raise DeviceUnavailable(f"imu (MPU9250): cannot open /dev/i2c-{config.bus} ({plain_reason(exc)}); enable I2C "
                                 f"(raspi-config: interface options, I2C) and check that your user is in the 'i2c' "
                                 f"group") from exc
     driver = Mpu9250(bus, clock, events.sink("imu"), config)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 
+from beastbt.core.errors import plain_reason
 from beastbt.core.events import EventLog
 from beastbt.devices.pca9685 import MODE1, Pca9685
 from beastbt.robot.actuator_profile import pca_config
@@ -36,14 +37,14 @@ def open_pca9685(profile: RobotProfile, events: EventLog, what: str) -> Pca9685:
         bus = smbus2.SMBus(cfg.bus)
     except (OSError, FileNotFoundError) as exc:
         raise DeviceUnavailable(
-            f"{what} (PCA9685): cannot open {path} ({exc}); check that I2C is enabled (raspi-config: Interface "
+            f"{what} (PCA9685): cannot open {path} ({plain_reason(exc)}); check that I2C is enabled (raspi-config: Interface "
             f"Options > I2C), that the HAT is seated, and that your user is in the 'i2c' group") from exc
     try:
         bus.read_byte_data(cfg.address, MODE1)
     except OSError as exc:
         bus.close()
         raise DeviceUnavailable(
-            f"{what} (PCA9685): nothing answers at address 0x{cfg.address:02x} on {path} ({exc}); check "
+            f"{what} (PCA9685): nothing answers at address 0x{cfg.address:02x} on {path} ({plain_reason(exc)}); check "
             f"'i2cdetect -y {cfg.bus}' shows 0x{cfg.address:02x}, the HAT's power and its address jumpers") from exc
     return Pca9685(bus, cfg.address, cfg.oscillator_hz, events.sink("pca9685"))
 

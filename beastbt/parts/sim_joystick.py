@@ -16,6 +16,7 @@ import re
 from pathlib import Path
 from typing import Any, Union
 
+from beastbt.core.errors import plain_reason
 from beastbt.devices.joystick import JoystickDevice, JoystickMapping
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.clock import Clock
@@ -39,7 +40,7 @@ def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping)
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as exc:
-            raise InvalidInput([Problem(str(path), Position(), f"cannot read the joystick script: {exc.strerror or exc}",
+            raise InvalidInput([Problem(str(path), Position(), f"cannot read the joystick script: {plain_reason(exc)}",
                                         "--joystick takes a YAML file: a list like [{at: 2 s, press: enable}]")])
         return ScriptedJoystick.from_yaml(text, mapping, source=str(spec))
     except ValueError as exc:

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Optional
 
 from beastbt.core.clock import WallClock
+from beastbt.core.errors import plain_reason
 from beastbt.robot.profile import RobotProfile
 from beastbt.devices.gamepad_presets import describe_controls
 
@@ -153,7 +154,7 @@ def _open_serial(path: str, baud: int) -> Any:
     try:
         return serial.Serial(path, baud, timeout=0, write_timeout=0.2)
     except (serial.SerialException, OSError, ValueError) as exc:
-        return str(exc)
+        return plain_reason(exc)
 
 
 # -- the GPS -------------------------------------------------------------------------------------
@@ -216,13 +217,13 @@ def check_imu(ctx: DoctorContext) -> Iterator[Finding]:
         import smbus2
         bus = smbus2.SMBus(bus_number)
     except (OSError, ValueError, ImportError) as exc:
-        yield Finding(FAIL, "imu", f"cannot open /dev/i2c-{bus_number} ({exc})",
+        yield Finding(FAIL, "imu", f"cannot open /dev/i2c-{bus_number} ({plain_reason(exc)})",
                       "enable I2C (raspi-config: interface options, I2C) and add your user to the 'i2c' group")
         return
     try:
         who = bus.read_byte_data(address, WHO_AM_I_REGISTER)
     except OSError as exc:
-        yield Finding(FAIL, "imu", f"no answer at 0x{address:02x} on /dev/i2c-{bus_number} ({exc})",
+        yield Finding(FAIL, "imu", f"no answer at 0x{address:02x} on /dev/i2c-{bus_number} ({plain_reason(exc)})",
                       "check the IMU's wiring and address (i2cdetect -y 1)")
         return
     finally:

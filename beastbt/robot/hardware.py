@@ -6,6 +6,8 @@ device, the path tried and what to check; nothing has moved when it is raised.
 
 from __future__ import annotations
 
+from beastbt.core.errors import plain_reason
+
 
 class DeviceUnavailable(Exception):
     """A device of the profile could not be opened; the message says which, where, and what to check."""
@@ -17,7 +19,7 @@ def open_serial(device: str, path: str, baud: int, hint: str):
     try:
         return serial.Serial(path, baud, timeout=0, write_timeout=0.05)
     except (serial.SerialException, OSError, ValueError) as exc:
-        raise DeviceUnavailable(f"{device}: cannot open {path} at {baud} baud ({exc}); {hint}") from exc
+        raise DeviceUnavailable(f"{device}: cannot open {path} at {baud} baud ({plain_reason(exc)}); {hint}") from exc
 
 
 __all__ = ["DeviceUnavailable", "open_serial"]

@@ -16,6 +16,30 @@ from typing import Any, Callable, Optional
 
 
 
+def save_jpeg(folder: Path, name: str, frame: Any) -> str:
+    """Save a camera frame as ``folder/<name>.jpg`` (``-2``, ``-3``... when taken); return its path."""
+    target = folder / f"{name}.jpg"
+    n = 1
+    while target.exists():
+        n += 1
+        target = folder / f"{name}-{n}.jpg"
+    import cv2  # only a run that takes snapshots needs OpenCV here
+    cv2.imwrite(str(target), frame.image)
+    return str(target)
+
+
+def temporary_snapshots(mission: str) -> Callable[[str, Any], str]:
+    """A snapshot saver for a run that is not recorded: a temporary folder, made at the first snapshot."""
+    folder: list[Path] = []
+
+    def save(name: str, frame: Any) -> str:
+        if not folder:
+            import tempfile
+            folder.append(Path(tempfile.mkdtemp(prefix=f"beastbt-{_safe(mission)}-snapshots-")))
+        return save_jpeg(folder[0], name, frame)
+    return save
+
+
 def _safe(name: str) -> str:
     """``name`` as a file name: letters of any alphabet, digits, _ and - kept, anything else as _."""
     return re.sub(r"[^\w-]", "_", name)
@@ -45,14 +69,7 @@ class RunFolder:
 
     def save_snapshot(self, name: str, frame: Any) -> str:
         """Save a :class:`~beastbt.blackboard.types.CameraFrame` as ``<name>.jpg``; return its path."""
-        target = self.path / f"{name}.jpg"
-        n = 1
-        while target.exists():
-            n += 1
-            target = self.path / f"{name}-{n}.jpg"
-        import cv2  # only a run that takes snapshots needs OpenCV here
-        cv2.imwrite(str(target), frame.image)
-        return str(target)
+        return save_jpeg(self.path, name, frame)
 
     def finish(self, summary: dict) -> None:
         """Write ``summary.json`` and ``events.log``, then let the other writers finish."""

@@ -282,7 +282,12 @@ class MissionRun:
         action = self.mission.on_failure
         handler = self.ctx.services.on_failure.get(action) if action != "stop" else None
         if action == "hold":
-            self.events.add("on_failure", f"steps failed ({why}); holding still until the run is ended")
+            teleop = (" or drive it: an operator holding the joystick's enable button has the robot"
+                      if "joystick" in self.ctx.capabilities else "")
+            ends = ("the simulator's time limit (--max-time, 1 h by default)" if self.io.sim is not None
+                    else "--max-time, if given")
+            self.events.add("on_failure", f"steps failed ({why}); on_failure: hold: the robot stands still and "
+                                          f"waits for the run to be ended: Ctrl-C, SIGTERM or {ends}{teleop}")
             self.paused_by = "on_failure hold"
             self.failure_handled = True
         elif handler is not None:

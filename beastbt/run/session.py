@@ -213,11 +213,16 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     return summary
 
 
+CONSOLE_EVENTS = frozenset({"mission_end", "failsafe", "estop", "step_failed", "device_error", "on_failure",
+                            "snapshot", "bus_servo_error", "base_speed_clamped", "camera_backend", "joystick_preset"})
+"""Events printed on the terminal as they happen (all of them are in the summary and the recording)."""
+
+
 def _console_listener(out: TextIO) -> Callable:
     def listener(ev) -> None:
         if ev.kind in ("say",):
             out.write(f"\r[{ev.time_s:7.1f} s] say: {ev.text}\n")
-        elif ev.kind in ("mission_end", "failsafe", "estop", "step_failed", "device_error"):
+        elif ev.kind in CONSOLE_EVENTS:
             out.write(f"\r[{ev.time_s:7.1f} s] {ev.kind}: {ev.text}\n")
     return listener
 
