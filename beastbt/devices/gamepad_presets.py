@@ -43,7 +43,7 @@ class GamepadPreset:
     enable_button: int
     turbo_button: int
     estop_button: int
-    estop_reset_buttons: tuple[int, int]
+    estop_reset_buttons: Optional[tuple[int, int]]
     labels: Mapping[str, str]
     invert_linear: bool = True
     invert_angular: bool = True
@@ -88,12 +88,16 @@ SHANWAN = GamepadPreset(
 """Android gamepad HID order: 0 A, 1 B, 3 X, 4 Y, 6 L1, 7 R1, 8 L2, 9 R2, 10 Select, 11 Start, 12 Home."""
 
 GENERIC = GamepadPreset(
-    "generic", "any other pad: the Xbox-style numbering most drivers follow",
+    "generic", "any other pad: the Xbox-style numbering most drivers follow, and no reset chord",
     (),
-    linear_axis=1, angular_axis=0, enable_button=4, turbo_button=5, estop_button=1, estop_reset_buttons=(6, 7),
-    labels=MappingProxyType({"enable": "button 4", "turbo": "button 5", "estop": "button 1",
-                             "estop_reset": "buttons 6 + 7"}))
-"""The fallback when no name matches; the same numbers as the schema's defaults."""
+    linear_axis=1, angular_axis=0, enable_button=4, turbo_button=5, estop_button=1, estop_reset_buttons=None,
+    labels=MappingProxyType({"enable": "button 4", "turbo": "button 5", "estop": "button 1"}))
+"""The fallback when no name matches; the same numbers as the schema's defaults. No reset chord: on a pad
+whose layout is unknown, any two buttons could be its triggers (the e-stop ends the mission anyway; set
+``estop_reset_buttons`` or ``preset`` to clear it from the pad)."""
+
+SIMULATED_PAD_NAME = "Microsoft X-Box 360 pad"
+"""The name a scripted joystick on the simulator gives: it gets the xbox layout, with its reset chord."""
 
 PRESETS: Mapping[str, GamepadPreset] = MappingProxyType(
     {p.name: p for p in (XBOX, DUALSENSE, EIGHTBITDO, DUALSHOCK4, SHANWAN, GENERIC)})
@@ -126,11 +130,11 @@ def describe_controls(mapping: Any, preset: GamepadPreset) -> str:
     for role, word, preset_numbers in (("enable", "enable", (preset.enable_button,)),
                                        ("turbo", "turbo", (preset.turbo_button,)),
                                        ("estop", "e-stop", (preset.estop_button,)),
-                                       ("estop_reset", "reset", tuple(preset.estop_reset_buttons))):
+                                       ("estop_reset", "reset", tuple(preset.estop_reset_buttons or ()))):
         numbers = mapping.roles().get(role)
         parts.append(f"{word}: {named(role, numbers, preset_numbers)}" if numbers else f"{word}: none")
     return ", ".join(parts)
 
 
 __all__ = ["GamepadPreset", "PRESETS", "preset_for_name", "describe_controls", "GENERIC", "XBOX", "DUALSHOCK4", "DUALSENSE", "SHANWAN",
-           "EIGHTBITDO"]
+           "EIGHTBITDO", "SIMULATED_PAD_NAME"]

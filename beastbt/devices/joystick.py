@@ -87,7 +87,7 @@ class JoystickMapping:
     # Emergency stop (latched by the command mux). 1 = B / circle; null for none.
     estop_button: Optional[int]
     # Clears a latched emergency stop when all are held together (a chord of two or more, never one
-    # button). 6 + 7 = Back + Start; null for none.
+    # button); null for none (the generic layout: any two buttons could be triggers).
     estop_reset_buttons: Optional[tuple[int, ...]]
     # Fraction of full deflection (0..1) treated as centred; the rest is rescaled to 0..1.
     # Raise it if the robot creeps with the stick released.
@@ -339,6 +339,7 @@ class JoystickDevice:
         axes = {name: m.scale_axis(self._axes.get(num, 0), inv) if connected else 0.0 for name, (num, inv) in m.axes().items()}
         buttons = {name: connected and all(self._buttons.get(num, 0) == 1 for num in numbers)
                    for name, numbers in m.roles().items()}
+        buttons.setdefault(BUTTON_ESTOP_RESET, False)  # no chord on this layout: it is never held
         return JoystickState(stamp_s=stamp, axes=axes, buttons=buttons, connected=connected)
 
 

@@ -55,6 +55,7 @@ from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.mission import steps as st
 from beastbt.core.units import format_quantity
+from beastbt.devices.gamepad_presets import SIMULATED_PAD_NAME
 from beastbt.robot.actuator_profile import joystick_mapping, teleop_config
 from beastbt.robot.part import Part
 from beastbt.run.runner import MissionRun
@@ -260,7 +261,7 @@ def attach_joystick_script(prepared: Prepared) -> None:
                                     "add --sim to run this robot profile on the simulator, or drop --joystick "
                                     "to drive with the real gamepad")])
     from beastbt.parts.sim_joystick import attach_scripted_joystick, load_joystick_script
-    mapping = joystick_mapping(prepared.profile).for_device(None)[0]  # a script has no name: the preset, or generic
+    mapping = joystick_mapping(prepared.profile).for_device(SIMULATED_PAD_NAME)[0]  # the sim's pad: an Xbox layout
     script = load_joystick_script(spec, mapping)
     attach_scripted_joystick(io.sim, io, prepared.clock, prepared.events, script, mapping)
     run.ctx.capabilities = frozenset(run.ctx.capabilities | {"joystick"})
