@@ -117,3 +117,24 @@ def test_a_snapshot_without_a_run_folder_goes_to_a_temporary_folder_and_says_whe
     assert done.returncode == 0, done.stderr
     saved = [line.split("saved ", 1)[1] for line in done.stdout.splitlines() if "snapshot: start: saved" in line]
     assert saved and Path(saved[0]).is_file() and Path(saved[0]).stat().st_size > 1000
+
+
+def test_profiles_and_worlds_take_values_with_units(tmp_path):
+    text = (REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8")
+    text = text.replace("  track_width_m: 0.17 ", "  track_width_m: 17 cm ").replace(
+        "  physics_rate_hz: 100", "  physics_rate_hz: 100 Hz").replace("  timeout_s: 0.45 ", "  timeout_s: 450 ms ")
+    path = tmp_path / "robot.yaml"
+    path.write_text(text, encoding="utf-8")
+    from beastbt.robot.profile import load_profile
+    profile = load_profile(path)
+    assert profile.track_width_m == pytest.approx(0.17) and profile.section("sim")["physics_rate_hz"] == 100.0
+    assert profile.section("watchdog")["timeout_s"] == pytest.approx(0.45)
+    path.write_text(text.replace("17 cm", "17 meter"), encoding="utf-8")
+    done = beastbt("validate", str(path))
+    assert done.returncode == 2 and "did you mean '17 m'?" in done.stderr and "robot.yaml:" in done.stderr
+    world = tmp_path / "world.yaml"
+    world.write_text((REPO / "worlds" / "corridor.yaml").read_text(encoding="utf-8")
+                     .replace("start_v: 12.3", "start_v: 12300 mV").replace("alt_m: 650", "alt_m: 0.65 km"))
+    from beastbt.sim.world import load_world
+    loaded = load_world(world)
+    assert loaded.battery_start_v == pytest.approx(12.3) and loaded.frame.alt0_m == pytest.approx(650.0)

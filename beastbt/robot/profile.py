@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Union
 
+from beastbt.core.unit_fields import read_unit_values
 from beastbt.behaviours.context import ControlParams
 from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_defaults import schema_default
@@ -58,7 +59,7 @@ def load_profile(name: Union[str, Path]) -> RobotProfile:
     """Load and check a robot profile; raise :class:`InvalidInput` with every problem found."""
     path = profile_path(name)
     doc = load_yaml(path, display_name=str(name) if Path(str(name)).suffix else str(path))
-    problems = schema_problems(doc, "robot.schema.json", "robot profile")
+    problems = read_unit_values(doc) or schema_problems(doc, "robot.schema.json", "robot profile")
     control = ControlParams()
     if not problems:
         try:

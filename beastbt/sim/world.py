@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional, Union
 
+from beastbt.core.unit_fields import read_unit_values
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_check import schema_problems
@@ -55,7 +56,7 @@ def empty_world() -> World:
 def load_world(path: Union[str, Path]) -> World:
     """Load and check a world file; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path)
-    problems = schema_problems(doc, "world.schema.json", "world")
+    problems = read_unit_values(doc) or schema_problems(doc, "world.schema.json", "world")
     if problems:
         raise InvalidInput(problems)
     return world_of(doc.data, doc)
