@@ -138,3 +138,20 @@ def test_profiles_and_worlds_take_values_with_units(tmp_path):
     from beastbt.sim.world import load_world
     loaded = load_world(world)
     assert loaded.battery_start_v == pytest.approx(12.3) and loaded.frame.alt0_m == pytest.approx(650.0)
+
+
+def test_sigterm_to_a_simulated_run_gives_its_summary_and_a_readable_recording(tmp_path):
+    import signal
+    import time
+    proc = subprocess.Popen([sys.executable, "-m", "beastbt", "run", PATROL, "--speed", "realtime", "--runs-dir",
+                             str(tmp_path / "runs")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    time.sleep(3.0)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1 and "Traceback" not in err
+    assert "interrupted (SIGTERM)" in out and "run recorded in" in out, out
+    [folder] = (tmp_path / "runs").iterdir()
+    report = beastbt("report", str(folder), "--out", str(tmp_path / "report"))
+    assert report.returncode == 0 and "file complete" in report.stdout, report.stdout + report.stderr
+    assert (tmp_path / "report" / "report.html").is_file()

@@ -181,9 +181,9 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                     last_status_wall = now_wall
                     out.write(f"\r[{run.elapsed_s:7.1f} s] {run.current_step()[:40]:40s} {run.pose_text()}  ")
                     out.flush()
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         run.stop_robot(clock.now())
-        run.finish("stopped", "interrupted (Ctrl-C)")
+        run.finish("stopped", f"interrupted ({'SIGTERM' if str(exc) == 'SIGTERM' else 'Ctrl-C'})")
     except Exception as exc:
         # Whatever broke, the robot must not keep moving: stop first, then report.
         run.stop_robot(clock.now())
