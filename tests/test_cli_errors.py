@@ -155,3 +155,18 @@ def test_sigterm_to_a_simulated_run_gives_its_summary_and_a_readable_recording(t
     report = beastbt("report", str(folder), "--out", str(tmp_path / "report"))
     assert report.returncode == 0 and "file complete" in report.stdout, report.stdout + report.stderr
     assert (tmp_path / "report" / "report.html").is_file()
+
+
+def test_validate_explain_gives_every_step_its_help_from_the_schema():
+    from beastbt.mission.explain import explain_step, steps_and_help
+    from beastbt.mission.model import STEP_KEYWORDS
+    steps = steps_and_help()
+    assert set(STEP_KEYWORDS) <= set(steps)
+    for keyword, (description, _, _) in steps.items():
+        assert description, keyword
+        assert explain_step(keyword).startswith(f"{keyword}: {description}")
+    drive = beastbt("validate", "--explain", "drive")
+    assert drive.returncode == 0 and "distance (required, a distance)" in drive.stdout and "time (required" in drive.stdout
+    assert "with then:" in beastbt("validate", "--explain", "if").stdout
+    wrong = beastbt("validate", "--explain", "folow_line")
+    assert wrong.returncode == 2 and "did you mean 'follow_line'?" in wrong.stderr

@@ -13,13 +13,25 @@ import sys
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``beastbt validate``."""
-    p.add_argument("files", nargs="+", help="mission files (or robot profiles / worlds, recognised by their first key; "
+    p.add_argument("files", nargs="*", help="mission files (or robot profiles / worlds, recognised by their first key; "
                                             "joystick scripts, a list)")
     p.add_argument("--strict", action="store_true", help="count warnings as errors (exit 2)")
+    p.add_argument("--explain", metavar="STEP", help="print a short help for a step (from the mission schema) and exit")
 
 
 def command(args: argparse.Namespace) -> int:
     """Check each file; print its problems, or 'FILE: ok'. 2 when any has an error (or, with --strict, a warning)."""
+    if args.explain:
+        from beastbt.mission.explain import explain_step, unknown_step_message
+        text = explain_step(args.explain)
+        if text is None:
+            print(f"beastbt validate: error: {unknown_step_message(args.explain)}", file=sys.stderr)
+            return 2
+        print(text)
+        return 0
+    if not args.files:
+        print("beastbt validate: error: give the files to check (or --explain STEP)", file=sys.stderr)
+        return 2
     from beastbt.validate import validate_file
     bad = 0
     for f in args.files:
