@@ -170,3 +170,9 @@ def test_validate_explain_gives_every_step_its_help_from_the_schema():
     assert "with then:" in beastbt("validate", "--explain", "if").stdout
     wrong = beastbt("validate", "--explain", "folow_line")
     assert wrong.returncode == 2 and "did you mean 'follow_line'?" in wrong.stderr
+
+
+def test_output_that_is_not_a_terminal_has_no_carriage_returns(tmp_path):
+    done = beastbt("run", PATROL, "--no-record", cwd=tmp_path)
+    assert done.returncode == 0 and "\r" not in done.stdout and "\x1b" not in done.stdout
+    assert done.stdout.startswith("[  174.1 s] mission_end: success")

@@ -148,7 +148,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     simulated = isinstance(clock, SimClock)
     max_time = opts.max_time_s if opts.max_time_s is not None else (DEFAULT_SIM_MAX_TIME_S if simulated else None)
     factor = None if opts.speed == "max" else (1.0 if opts.speed == "realtime" else float(opts.speed))
-    say_listener = _console_listener(out)
+    say_listener = _console_listener(out, opts.status_line)
     p.events.listeners.append(say_listener)
     wall0 = time.perf_counter()
     last_status_wall = 0.0
@@ -179,7 +179,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                 now_wall = time.perf_counter()
                 if now_wall - last_status_wall > 0.1:
                     last_status_wall = now_wall
-                    out.write(f"\r[{run.elapsed_s:7.1f} s] {run.current_step()[:40]:40s} {run.pose_text()}  ")
+                    out.write(status_line(run))
                     out.flush()
     except KeyboardInterrupt as exc:
         run.stop_robot(clock.now())
@@ -200,7 +200,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                 pass
         run.io.close()
         if tty:
-            out.write("\r" + " " * 110 + "\r")
+            out.write(CLEAR_LINE)
     wall = time.perf_counter() - wall0
     world_name = p.world.name if p.world is not None else None
     summary = build_summary(run, opts.seed, wall, world_name, p.profile.name)
@@ -218,12 +218,27 @@ CONSOLE_EVENTS = frozenset({"mission_end", "failsafe", "estop", "step_failed", "
 """Events printed on the terminal as they happen (all of them are in the summary and the recording)."""
 
 
-def _console_listener(out: TextIO) -> Callable:
+CLEAR_LINE = "\r\x1b[K"
+"""Back to the start of the terminal's line, and erase it."""
+
+
+def status_line(run: Any) -> str:
+    """The live status line: time, step, pose, cut to the terminal's width (written after :data:`CLEAR_LINE`)."""
+    import shutil
+    width = shutil.get_terminal_size((100, 24)).columns
+    text = f"[{run.elapsed_s:7.1f} s] {run.current_step()} | {run.pose_text()}"
+    if len(text) > width - 1:
+        text = text[: max(0, width - 2)] + "…"
+    return CLEAR_LINE + text
+
+
+def _console_listener(out: TextIO, tty: bool = False) -> Callable:
+    """Print the events a person should see as they happen; on a terminal the status line is cleared first."""
+    start = CLEAR_LINE if tty else ""
+
     def listener(ev) -> None:
-        if ev.kind in ("say",):
-            out.write(f"\r[{ev.time_s:7.1f} s] say: {ev.text}\n")
-        elif ev.kind in CONSOLE_EVENTS:
-            out.write(f"\r[{ev.time_s:7.1f} s] {ev.kind}: {ev.text}\n")
+        if ev.kind in ("say",) or ev.kind in CONSOLE_EVENTS:
+            out.write(f"{start}[{ev.time_s:7.1f} s] {ev.kind}: {ev.text}\n")
     return listener
 
 
