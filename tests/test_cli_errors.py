@@ -176,3 +176,13 @@ def test_output_that_is_not_a_terminal_has_no_carriage_returns(tmp_path):
     done = beastbt("run", PATROL, "--no-record", cwd=tmp_path)
     assert done.returncode == 0 and "\r" not in done.stdout and "\x1b" not in done.stdout
     assert done.stdout.startswith("[  174.1 s] mission_end: success")
+
+
+@pytest.mark.parametrize("args, says", [
+    (["validate", "/tmp"], "this is a folder, not a file"),
+    (["validate", sys.executable], "this is not a text file"),
+    (["run", PATROL, "--robot", "ugv_beats"], "no robot profile called 'ugv_beats'; did you mean 'ugv_beast'?"),
+])
+def test_wrong_files_are_named_in_words(tmp_path, args, says):
+    done = beastbt(*args, cwd=tmp_path)
+    assert done.returncode == 2 and says in done.stderr and "Errno" not in done.stderr and "Traceback" not in done.stderr

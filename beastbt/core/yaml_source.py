@@ -16,7 +16,7 @@ from typing import Any, Optional, Union
 
 import yaml
 
-from beastbt.core.errors import InvalidInput, Position, Problem
+from beastbt.core.errors import InvalidInput, Position, Problem, plain_reason
 
 PathKey = tuple[Union[str, int], ...]
 
@@ -184,8 +184,15 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
             text = Path(path).read_text(encoding="utf-8")
         except FileNotFoundError:
             raise InvalidInput([Problem(name, Position(1, 1), "file not found", "check the path; relative paths are relative to the current directory")])
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {exc}", "it must be a UTF-8 text file")])
+        except IsADirectoryError:
+            raise InvalidInput([Problem(name, Position(1, 1), "this is a folder, not a file",
+                                        "give the path of a YAML file in it")])
+        except UnicodeDecodeError:
+            raise InvalidInput([Problem(name, Position(1, 1), "this is not a text file",
+                                        "it must be a YAML text file (UTF-8)")])
+        except OSError as exc:
+            raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {plain_reason(exc)}",
+                                        "check the path and the file's permissions")])
     doc = SourceDoc(file=name, data=None)
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)

@@ -14,7 +14,7 @@ from typing import Any, Optional, Union
 
 from beastbt.core.unit_fields import read_unit_values
 from beastbt.behaviours.context import ControlParams
-from beastbt.core.errors import InvalidInput
+from beastbt.core.errors import InvalidInput, Position, Problem, did_you_mean
 from beastbt.core.schema_defaults import schema_default
 from beastbt.core.schema_check import schema_problems
 from beastbt.core.yaml_source import SourceDoc, load_yaml
@@ -58,6 +58,11 @@ def profile_path(name: Union[str, Path]) -> Path:
 def load_profile(name: Union[str, Path]) -> RobotProfile:
     """Load and check a robot profile; raise :class:`InvalidInput` with every problem found."""
     path = profile_path(name)
+    if not path.exists() and Path(str(name)).suffix not in (".yaml", ".yml"):
+        bundled = sorted(p.stem for p in data_dir("robots").glob("*.yaml"))
+        raise InvalidInput([Problem(str(name), Position(1, 1),
+                                    f"no robot profile called '{name}'{did_you_mean(str(name), bundled)}",
+                                    f"the bundled profiles are {', '.join(bundled)}; or give a profile's file path")])
     doc = load_yaml(path, display_name=str(name) if Path(str(name)).suffix else str(path))
     problems = read_unit_values(doc) or schema_problems(doc, "robot.schema.json", "robot profile")
     control = ControlParams()
