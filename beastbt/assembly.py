@@ -215,7 +215,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
                 break
         run = MissionRun(mission, profile, build.io, clock, events, services, estimator, step_builders(parts))
         prepared = Prepared(mission, profile, world, run, options, events, clock,
-                            warnings=run_warnings(mission, profile, world, mode))
+                            warnings=run_warnings(mission, profile, world, mode, options))
         if options.record:
             prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
@@ -239,7 +239,8 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
     return prepared
 
 
-def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World], mode: str) -> list:
+def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World], mode: str,
+                 options: Optional[RunOptions] = None) -> list:
     """The mission's warnings (its places against the world's datum) and those of running it on this robot."""
     from beastbt.mission.warnings import by_position, mission_warnings, robot_warnings
     warnings = list(mission.warnings)
@@ -248,7 +249,10 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
     if mode == REPLAY:
         return warnings
     has_battery = "battery" in base_part(profile, simulated=mode == SIM).fills
-    return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery))
+    has_joystick = profile.section("joystick") is not None or (options is not None and
+                                                               options.joystick_script is not None)
+    return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery,
+                                                 has_joystick))
 
 
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:

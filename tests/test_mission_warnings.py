@@ -85,3 +85,12 @@ def test_validate_checks_the_missions_world_and_joystick_scripts(tmp_path):
     assert done.returncode == 2
     assert f"{mission}:2:8: error: the world file" in done.stderr and "bad_world.yaml:2:1: error" in done.stderr
     assert beastbt("validate", str(REPO / "missions" / "joystick" / "teleop_demo.yaml")).returncode == 0
+
+
+def test_on_failure_hold_with_nothing_that_could_clear_it(tmp_path):
+    path = tmp_path / "hold.yaml"
+    path.write_text("mission: t\non_failure: hold\nsteps:\n  - wait: 1 s\n")
+    assert "nothing can clear the hold" in beastbt("run", str(path), "--no-record").stderr  # sim: no joystick
+    with_pad = beastbt("run", str(path), "--no-record", "--joystick", str(REPO / "missions" / "joystick" /
+                                                                          "teleop_demo.yaml"))
+    assert "nothing can clear the hold" not in with_pad.stderr

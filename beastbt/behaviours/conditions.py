@@ -16,7 +16,7 @@ from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard import catalogue
 from beastbt.estimation.geodesy import distance_m
 
-CONDITION_KEYS = ("now_s", "mission_start_s", "line", "gps_fix", "teleop_active", "battery", "pose")
+CONDITION_KEYS = ("now_s", "mission_start_s", "line", "gps_fix", "teleop_active", "battery", "pose", "pose_odom")
 
 
 class ConditionReader:

@@ -134,3 +134,83 @@ class RetryAttempts(py_trees.decorators.Retry):
 
     def __init__(self, name: str, child: Behaviour, attempts: int) -> None:
         super().__init__(name=name, child=child, num_failures=self.FOREVER if attempts < 0 else attempts)
+
+
+class GuardedBlock(py_trees.composites.Composite):
+    """``until`` / ``abort_if``: run ``body``, checking ``condition`` on every tick before it, while it runs.
+
+    When the condition holds, the running step is halted at once (its
+    ``terminate`` runs; with no leaf commanding, the robot is commanded to
+    stop) and the block ends: SUCCESS for ``until``, FAILURE for ``abort_if``
+    (the condition, in words, as the reason). When the body ends first, the
+    block ends as it did. ``block`` records when and where (odometry
+    distance) the block started, for ``time_in_block`` and
+    ``distance_travelled``.
+    """
+
+    def __init__(self, name: str, condition: Condition, body: Behaviour, on_hold: Status, block: "BlockStart",
+                 events: typing.Any) -> None:
+        super().__init__(name=name, children=[body])
+        self.condition = condition
+        self.body = body
+        self.on_hold = on_hold
+        self.block = block
+        self.events = events
+
+    def tick(self) -> typing.Iterator[Behaviour]:
+        if self.status != Status.RUNNING:
+            if self.body.status != Status.INVALID:
+                self.body.stop(Status.INVALID)
+            self.block.start()
+            self.initialise()
+        if self.condition.holds():
+            halted = self.body.tip() if self.body.status == Status.RUNNING else None
+            if self.body.status == Status.RUNNING:
+                self.body.stop(Status.INVALID)  # the running step's terminate runs now
+            what = f", halting {halted.name}" if halted is not None else ""
+            self.feedback_message = f"{self.condition} holds{what}"
+            self.events.add("guard" if self.on_hold == Status.SUCCESS else "step_failed",
+                            f"{self.name}: {self.feedback_message}")
+            self.current_child = None  # the block itself is where it ended (tip() is this block)
+            self.stop(self.on_hold)
+            yield self
+            return
+        self.current_child = self.body
+        for node in self.body.tick():
+            yield node
+        if self.body.status in (Status.SUCCESS, Status.FAILURE):
+            self.feedback_message = self.body.feedback_message
+            self.stop(self.body.status)
+        else:
+            self.status = Status.RUNNING
+        yield self
+
+
+class BlockStart:
+    """When and where a guard block started: ``start_s`` (clock s) and ``start_distance_m`` (odometry, m).
+
+    Outside any block the mission itself is the block (its start time, and
+    the odometry distance 0 it starts from).
+    """
+
+    def __init__(self, clock: Clock, distance: typing.Callable[[], float],
+                 mission_start: typing.Callable[[], Optional[float]]) -> None:
+        self.clock = clock
+        self.distance = distance
+        self.mission_start = mission_start
+        self.start_s: Optional[float] = None
+        self.start_distance_m = 0.0
+
+    def start(self) -> None:
+        """The block starts now."""
+        self.start_s = self.clock.now()
+        self.start_distance_m = self.distance()
+
+    def elapsed_s(self) -> float:
+        """Seconds since the block (or the mission) started."""
+        start = self.start_s if self.start_s is not None else self.mission_start()
+        return 0.0 if start is None else self.clock.now() - start
+
+    def travelled_m(self) -> float:
+        """Odometry distance (m) since the block (or the mission) started."""
+        return self.distance() - (self.start_distance_m if self.start_s is not None else 0.0)

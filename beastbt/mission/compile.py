@@ -23,7 +23,7 @@ from beastbt.behaviours import drive, stand, turn
 from beastbt.behaviours.conditions import (Condition, ConditionReader, battery_below, elapsed, gps_fix, line_flag,
                                            near, teleop_active)
 from beastbt.behaviours.context import MissionContext
-from beastbt.behaviours.flow import ClockTimeout, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
+from beastbt.behaviours.flow import BlockStart, ClockTimeout, GuardedBlock, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
 from beastbt.behaviours.operator import NotAvailable, Say, Snapshot
 from beastbt.behaviours.servos import SetServos
 from beastbt.blackboard.types import ServoCommand
@@ -32,6 +32,7 @@ from beastbt.mission import steps as st
 from beastbt.mission.model import HOME, Mission
 
 Behaviour = py_trees.behaviour.Behaviour
+Status = py_trees.common.Status
 StepBuilder = Callable[["Compiler", st.Step], Behaviour]
 """Makes the behaviour (or subtree) of one typed step: ``fn(compiler, step)``."""
 
@@ -50,6 +51,8 @@ class Compiler:
         self.ctx = ctx
         self.builders: Mapping[str, StepBuilder] = CORE_STEPS if builders is None else builders
         self.reader = ConditionReader(ctx)
+        self.blocks: list[BlockStart] = [self.new_block()]
+        """The guard blocks being compiled, innermost last; the first stands for the mission itself."""
 
     # -- structure --------------------------------------------------------
     def compile(self) -> Behaviour:
@@ -83,6 +86,16 @@ class Compiler:
         p = self.mission.places[name]
         return p.lat, p.lon, p.tolerance_m
 
+    def new_block(self) -> BlockStart:
+        """Where a guard block (or the mission) starts: the clock, and the odometry distance read then."""
+        reader = self.reader
+
+        def distance() -> float:
+            pose = reader.get("pose_odom")
+            return float(getattr(pose, "distance_m", 0.0) or 0.0)
+
+        return BlockStart(self.ctx.clock, distance, lambda: reader.get("mission_start_s"))  # type: ignore[arg-type]
+
     # -- conditions -------------------------------------------------------
     def condition(self, c: st.Condition) -> Condition:
         """The test of a typed condition, named as the mission says it."""
@@ -101,6 +114,16 @@ class Compiler:
             return Condition(f"near {c.place} within {c.within_m:g} m", near(lat, lon, c.within_m, c.place), r)
         if isinstance(c, st.Elapsed):
             return Condition(f"elapsed {c.duration_s:g} s", elapsed(c.duration_s), r)
+        if isinstance(c, st.DistanceTravelled):
+            block, metres = self.blocks[-1], c.distance_m
+            self.ctx.condition_reads.add("pose_odom")
+            return Condition(f"distance travelled {format_quantity(metres, 'distance')}",
+                             lambda rd: block.travelled_m() >= metres, r)
+        if isinstance(c, st.TimeInBlock):
+            block, seconds = self.blocks[-1], c.duration_s
+            self.ctx.condition_reads.add("mission_start_s")
+            return Condition(f"time in block {format_quantity(seconds, 'duration')}",
+                             lambda rd: block.elapsed_s() >= seconds, r)
         if isinstance(c, st.Not):
             inner = self.condition(c.condition)
             return Condition(f"not {inner}", lambda rd, i=inner: not i.test(rd), r)
@@ -224,6 +247,25 @@ def _while(c: Compiler, s: st.While) -> Behaviour:
     return WhileLoop(f"while {cond}", cond, c.sequence("pass", s.steps, always_wrap=True))
 
 
+def _guarded(c: Compiler, s: st.Step, on_hold: Status, word: str) -> Behaviour:
+    block = c.new_block()
+    c.blocks.append(block)
+    try:
+        cond = c.condition(s.condition)  # type: ignore[attr-defined]
+        body = c.sequence("steps", s.steps, always_wrap=True)  # type: ignore[attr-defined]
+    finally:
+        c.blocks.pop()
+    return GuardedBlock(f"{word} {cond}", cond, body, on_hold, block, c.ctx.events)
+
+
+def _until(c: Compiler, s: st.UntilBlock) -> Behaviour:
+    return _guarded(c, s, Status.SUCCESS, "until")
+
+
+def _abort_if(c: Compiler, s: st.AbortIf) -> Behaviour:
+    return _guarded(c, s, Status.FAILURE, "abort if")
+
+
 def _wait_until(c: Compiler, s: st.WaitUntil) -> Behaviour:
     cond = c.condition(s.condition)
     limit = f" (at most {format_quantity(s.timeout_s, 'duration')})" if s.timeout_s else ""
@@ -248,6 +290,8 @@ CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
     "if": _if,
     "while": _while,
     "wait_until": _wait_until,
+    "until": _until,
+    "abort_if": _abort_if,
 })
 """The builders of the language's own steps by keyword (read-only); parts add theirs through the assembly."""
 

@@ -28,7 +28,7 @@ HOME = "home"
 STEP_KEYWORDS = (
     "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
-    "wait_until",
+    "wait_until", "until", "abort_if",
 )
 
 
@@ -286,6 +286,9 @@ class _SemanticChecker:
         elif s.kind == "while":
             self.check_condition(v, p)
             self.walk_steps(self.get(s.path)["steps"], s.path + ("steps",))
+        elif s.kind in ("until", "abort_if"):
+            self.check_condition(v, p)
+            self.walk_steps(self.get(s.path)["steps"], s.path + ("steps",))
         elif s.kind == "wait_until":
             self.check_condition(v, p)
             if "timeout" in self.get(s.path):
@@ -299,6 +302,10 @@ class _SemanticChecker:
                     self.positive(path + ("within",), "distance")
             if "battery_below" in c:
                 self.positive(path + ("battery_below",), "voltage")
+            if "distance_travelled" in c:
+                self.positive(path + ("distance_travelled",), "distance")
+            if "time_in_block" in c:
+                self.positive(path + ("time_in_block",), "duration")
             if "not" in c:
                 self.check_condition(c["not"], path + ("not",))
             for key in ("all", "any"):
@@ -439,6 +446,10 @@ class _StepReader:
                          otherwise=self.steps(raw["else"], path + ("else",)) if "else" in raw else None, **where)
         if k == "while":
             return st.While(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
+        if k == "until":
+            return st.UntilBlock(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
+        if k == "abort_if":
+            return st.AbortIf(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
         if k == "wait_until":
             return st.WaitUntil(condition=condition_of(v), timeout_s=opt("timeout", "duration", raw), **where)
         raise ValueError(f"no typed step for '{k}'")
@@ -458,6 +469,10 @@ def condition_of(raw: Any) -> st.Condition:
         return st.Near(place=raw["near"], within_m=parse_quantity(raw.get("within", DEFAULT_NEAR_WITHIN_M), "distance"))
     if "elapsed" in raw:
         return st.Elapsed(duration_s=parse_quantity(raw["elapsed"], "duration"))
+    if "distance_travelled" in raw:
+        return st.DistanceTravelled(distance_m=parse_quantity(raw["distance_travelled"], "distance"))
+    if "time_in_block" in raw:
+        return st.TimeInBlock(duration_s=parse_quantity(raw["time_in_block"], "duration"))
     if "not" in raw:
         return st.Not(condition=condition_of(raw["not"]))
     if "all" in raw:

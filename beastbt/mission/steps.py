@@ -255,8 +255,22 @@ class AnyOf:
     conditions: tuple["Condition", ...]
 
 
-Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf]
-"""A condition of ``if``, ``while`` and ``wait_until``."""
+@dataclass(frozen=True, kw_only=True)
+class DistanceTravelled:
+    """``{distance_travelled: 5 m}``: odometry distance since the enclosing guard block started, m."""
+
+    distance_m: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class TimeInBlock:
+    """``{time_in_block: 30 s}``: time since the enclosing guard block started, s."""
+
+    duration_s: float
+
+
+Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock]
+"""A condition of ``if``, ``while``, ``wait_until``, ``until`` and ``abort_if``."""
 
 
 # -- flow ---------------------------------------------------------------------------------------------------
@@ -333,6 +347,24 @@ class While(Step):
 
 
 @dataclass(frozen=True, kw_only=True)
+class UntilBlock(Step):
+    """``until: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and succeed."""
+
+    KEYWORD: ClassVar[str] = "until"
+    condition: Condition
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class AbortIf(Step):
+    """``abort_if: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and fail."""
+
+    KEYWORD: ClassVar[str] = "abort_if"
+    condition: Condition
+    steps: tuple[Step, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
 class WaitUntil(Step):
     """``wait_until: CONDITION, timeout: 30 s``: stand still until the condition holds (fails after the timeout)."""
 
@@ -352,7 +384,7 @@ class PluginStep(Step):
 CORE_STEP_CLASSES: tuple[type[Step], ...] = (
     DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
     Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
-    WaitUntil,
+    WaitUntil, UntilBlock, AbortIf,
 )
 """Every step class of the language (not PluginStep)."""
 
@@ -364,4 +396,4 @@ def keyword_of(step: Step) -> str:
 
 __all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
     "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
-    "AnyOf", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]
+    "AnyOf", "DistanceTravelled", "TimeInBlock", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]

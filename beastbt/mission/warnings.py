@@ -87,9 +87,15 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
     return by_position(out)
 
 
-def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool) -> list[Problem]:
+def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
+                   has_joystick: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
     out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    if mission.on_failure == "hold" and not has_joystick and "on_failure" in (mission.doc.data or {}):
+        out.append(warning(mission.doc.problem(("on_failure",), f"on_failure: hold on robot '{robot}', which has no "
+                                                                f"joystick: nothing can clear the hold, the robot "
+                                                                f"stands still until the run is ended",
+                                               "use on_failure: stop, or give the robot a joystick: section")))
     for failsafe in mission.failsafes:
         if failsafe.kind == "battery_low" and not has_battery:
             out.append(warning(mission.doc.problem(failsafe.path, f"robot '{robot}' does not report its battery: "
