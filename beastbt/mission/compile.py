@@ -209,6 +209,9 @@ def _repeat(c: Compiler, s: st.Repeat) -> Behaviour:
 
 
 def _do(c: Compiler, s: st.Do) -> Behaviour:
+    if s.args:
+        label = ", ".join(f"{k}: {v}" for k, v in s.args)
+        return c.sequence(f"do {s.task} ({label})", c.mission.task_variants[(s.task, s.args)], always_wrap=True)
     return c.sequence(f"do {s.task}", c.mission.tasks[s.task], always_wrap=True)
 
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Collection, Optional, Union
 
+from beastbt.mission.task_params import expand_task_parameters
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
 from beastbt.core.schema_check import load_schema, schema_problems
 from beastbt.core.schema_defaults import schema_default
@@ -84,6 +85,8 @@ class Mission:
     accel_limit_mps2: Optional[float] = None
     places: dict[str, Place] = field(default_factory=dict)
     tasks: dict[str, tuple[st.Step, ...]] = field(default_factory=dict)
+    task_variants: dict[tuple[str, tuple], tuple[st.Step, ...]] = field(default_factory=dict)
+    """(task, arguments of a ``do: {task, ...}``) -> that task's steps with those values."""
     """Each task's steps, by name (``do: name`` runs them)."""
     steps: tuple[st.Step, ...] = ()
     on_failure: str = field(default_factory=lambda: mission_default("/properties", "on_failure"))
@@ -150,7 +153,10 @@ class _SemanticChecker:
         if "acceleration" in (d.get("limits") or {}) and _accel(d["limits"]["acceleration"]) <= 0:
             self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
         for name, task in self.tasks.items():
-            self.walk_steps(task, ("tasks", name))
+            if isinstance(task, dict):
+                self.walk_steps(task.get("steps") or [], ("tasks", name, "steps"))
+            else:
+                self.walk_steps(task, ("tasks", name))
         self.walk_steps(d.get("steps") or [], ("steps",))
         self.check_recursion()
         for kind, spec in (d.get("failsafes") or {}).items():
@@ -264,8 +270,10 @@ class _SemanticChecker:
         elif s.kind == "teleop" and "for" in v:
             self.positive(p + ("for",), "duration")
         elif s.kind == "do":
+            if isinstance(v, dict):
+                p, v = p + ("task",), v.get("task")
             if v not in self.tasks:
-                self.error(p, f"unknown task '{v}'{did_you_mean(v, self.tasks)}",
+                self.error(p, f"unknown task '{v}'{did_you_mean(str(v), self.tasks)}",
                            f"tasks are defined under 'tasks:' ({', '.join(sorted(self.tasks)) or 'none yet'})")
         elif s.kind in ("repeat", "retry"):
             self.walk_steps(v["steps"], p + ("steps",))
@@ -321,6 +329,8 @@ class _SemanticChecker:
                 for k, val in node.items():
                     if k == "do" and isinstance(val, str):
                         out.append((val, p + ("do",)))
+                    elif k == "do" and isinstance(val, dict) and isinstance(val.get("task"), str):
+                        out.append((val["task"], p + ("do", "task")))
                     else:
                         visit(val, p + (k,))
             elif isinstance(node, list):
@@ -331,7 +341,8 @@ class _SemanticChecker:
         return out
 
     def check_recursion(self) -> None:
-        calls = {name: self.task_calls(steps, ("tasks", name)) for name, steps in self.tasks.items()}
+        calls = {name: self.task_calls(steps.get("steps") or [] if isinstance(steps, dict) else steps, ("tasks", name))
+                 for name, steps in self.tasks.items()}
         reported: set[str] = set()
         for start in self.tasks:
             stack = [(start, [start])]
@@ -440,6 +451,9 @@ class _StepReader:
         if k == "first_of":
             return st.FirstOf(alternatives=tuple(self.steps(alt, path + (k, i)) for i, alt in enumerate(v)), **where)
         if k == "do":
+            if isinstance(v, dict):
+                args = tuple(sorted((str(a), b) for a, b in v.items() if a != "task"))
+                return st.Do(task=v["task"], args=args, **where)
             return st.Do(task=v, **where)
         if k == "if":
             return st.If(condition=condition_of(v), then=self.steps(raw["then"], path + ("then",)),
@@ -480,17 +494,34 @@ def condition_of(raw: Any) -> st.Condition:
     return st.AnyOf(conditions=tuple(condition_of(c) for c in raw["any"]))
 
 
+def _do_steps(mission: "Mission") -> list[st.Do]:
+    from beastbt.mission.warnings import all_steps
+    everything = list(all_steps(tuple(mission.steps)))
+    for steps in mission.tasks.values():
+        everything += list(all_steps(tuple(steps)))
+    return [s for s in everything if isinstance(s, st.Do)]
+
+
 def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None) -> Mission:
     """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path, text=text, display_name=display_name)
+    params, param_problems = expand_task_parameters(doc)
     # A keyword the language does not know may be a step of an installed package: only those are loaded.
     external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
     schema = with_external_steps(load_schema("mission.schema.json"), external) if external else None
-    problems = schema_problems(doc, "mission.schema.json", "mission", schema)
+    taken = {(p.file, p.position) for p in param_problems}  # a bad $name: said once, not again by the schema
+    problems = param_problems + [p for p in schema_problems(doc, "mission.schema.json", "mission", schema)
+                                 if (p.file, p.position) not in taken]
     problems += _SemanticChecker(doc).run_guarded()
     if problems:
         raise InvalidInput(problems)
     mission = _build(doc, Path(path), external)
+    reader = _StepReader(doc, external)
+    for call_args in {(d.task, d.args) for d in _do_steps(mission) if d.args}:
+        task, args = call_args
+        raw = params.task_steps(task, dict(args))
+        if raw is not None:
+            mission.task_variants[call_args] = reader.steps(raw, ("tasks", task, "steps"))
     from beastbt.mission.warnings import mission_warnings
     mission.warnings = mission_warnings(mission)
     return mission
@@ -516,7 +547,10 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
         m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
     reader = _StepReader(doc, external)
     for name, steps in (d.get("tasks") or {}).items():
-        m.tasks[name] = reader.steps(steps, ("tasks", name))
+        if isinstance(steps, dict):
+            m.tasks[name] = reader.steps(steps["steps"], ("tasks", name, "steps"))
+        else:
+            m.tasks[name] = reader.steps(steps, ("tasks", name))
     m.steps = reader.steps(d["steps"], ("steps",))
     m.on_failure = d.get("on_failure", mission_default("/properties", "on_failure"))
     teleop = d.get("teleop", mission_default("/properties", "teleop"))

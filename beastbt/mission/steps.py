@@ -325,6 +325,8 @@ class Do(Step):
 
     KEYWORD: ClassVar[str] = "do"
     task: str
+    args: tuple = ()
+    """``(parameter, value as written)`` pairs of ``do: {task, ...}``, sorted; empty: the task's defaults."""
 
 
 @dataclass(frozen=True, kw_only=True)
