@@ -221,6 +221,8 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
         elif run.ctx.services.save_snapshot is None:
             run.ctx.services.save_snapshot = temporary_snapshots(mission.name)
+        from beastbt.behaviours.ask import OperatorQuestions
+        run.ctx.services.questions = OperatorQuestions(events, options.answers)
         sleeping = asleep(parts, run.reads())
         for part in sleeping:
             part.sleep(prepared)

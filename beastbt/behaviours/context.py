@@ -116,6 +116,8 @@ class RunServices:
     """``on_failure`` actions beyond stop and hold that parts provide: action -> handler (teleop, return_home)."""
     failsafe: dict[str, FailsafeHandler] = field(default_factory=dict)
     """Failsafe ``then:`` actions beyond stop and hold that parts provide: action -> handler."""
+    questions: Optional[Any] = None
+    """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
     plugins: dict[str, Any] = field(default_factory=dict)
     """What parts from other packages offer their steps, by the part's name (see docs/extending.md)."""
 

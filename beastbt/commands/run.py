@@ -72,6 +72,15 @@ def _quality(text: str) -> int:
     return value
 
 
+def _answer(text: str) -> tuple[str, str]:
+    from beastbt.behaviours.ask import choice_of
+    qid, sep, value = text.partition("=")
+    choice = choice_of(value) if sep else None
+    if not qid.strip() or choice is None:
+        raise argparse.ArgumentTypeError(f"'{text}' is not ID=yes or ID=no (e.g. --answer door=yes)")
+    return qid.strip(), choice
+
+
 def _endpoint(text: str) -> tuple[str, int]:
     from beastbt.live.endpoint import parse_endpoint
     return parse_endpoint(text)
@@ -95,6 +104,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
     p.add_argument("--no-record", action="store_true", help="do not write a run folder")
     p.add_argument("--strict", action="store_true", help="refuse to start when the mission has warnings (exit 2)")
+    p.add_argument("--answer", action="append", type=_answer, metavar="ID=yes|no", default=[],
+                   help="answer the mission's question ID in advance (repeatable): --answer door=yes")
     p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
@@ -129,7 +140,8 @@ def command(args: argparse.Namespace) -> int:
                       record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
                       joystick_script=args.joystick, stream=args.stream, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
-                      stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images)
+                      stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
+                      answers=dict(args.answer))
     if opts.joystick_script is not None and not opts.simulated:
         print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
               f"--robot {args.robot} is a real robot; add --sim to run its profile on the simulator, or drop "

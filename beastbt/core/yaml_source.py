@@ -158,6 +158,10 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
         opener, closer = ("{", "}") if "mapping" in context else ("[", "]")
         line = context_mark.line
         end = len(lines[line].rstrip()) + 1 if line < len(lines) else 1
+        if line < len(lines) and closer in lines[line][context_mark.column:]:
+            return Problem(file, _pos(context_mark), f"the '{opener}...{closer}' here cannot be read",
+                           f"put quotes around any text in it that has ':', '?', '#', ',' or brackets, "
+                           f"e.g. question: \"Drive forward?\"")
         return Problem(file, Position(line + 1, end), f"the '{opener}' at line {line + 1} column "
                                                       f"{context_mark.column + 1} is never closed",
                        f"add '{closer}' at the end of line {line + 1}")

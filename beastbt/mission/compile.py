@@ -114,6 +114,11 @@ class Compiler:
             return Condition(f"near {c.place} within {c.within_m:g} m", near(lat, lon, c.within_m, c.place), r)
         if isinstance(c, st.Elapsed):
             return Condition(f"elapsed {c.duration_s:g} s", elapsed(c.duration_s), r)
+        if isinstance(c, st.Answered):
+            ctx, qid, choice = self.ctx, c.question_id, c.choice
+            return Condition(f"{qid} answered {choice}",
+                             lambda rd: ctx.services.questions is not None
+                             and ctx.services.questions.answer_of(qid) == choice, r)
         if isinstance(c, st.DistanceTravelled):
             block, metres = self.blocks[-1], c.distance_m
             self.ctx.condition_reads.add("pose_odom")
@@ -261,6 +266,20 @@ def _guarded(c: Compiler, s: st.Step, on_hold: Status, word: str) -> Behaviour:
     return GuardedBlock(f"{word} {cond}", cond, body, on_hold, block, c.ctx.events)
 
 
+def _ask(c: Compiler, s: st.Ask) -> Behaviour:
+    from beastbt.behaviours.ask import AskOperator
+    limit = f", {format_quantity(s.timeout_s, 'duration')} then {s.default or 'fail'}" if s.timeout_s else ""
+    ask = AskOperator(f"ask {s.question_id}: {s.question}{limit}", c.ctx, s.question_id, s.question, s.timeout_s,
+                      s.default)
+    if not s.then and not s.otherwise:
+        return ask
+    cond = c.condition(st.Answered(question_id=s.question_id, choice="yes"))
+    then = c.sequence("then", s.then, always_wrap=True)
+    other = c.sequence("else", s.otherwise, always_wrap=True) if s.otherwise else None
+    choose = IfThenElse(f"if {cond}", cond, then, other)
+    return py_trees.composites.Sequence(name=f"ask {s.question_id}", memory=True, children=[ask, choose])
+
+
 def _until(c: Compiler, s: st.UntilBlock) -> Behaviour:
     return _guarded(c, s, Status.SUCCESS, "until")
 
@@ -295,6 +314,7 @@ CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
     "wait_until": _wait_until,
     "until": _until,
     "abort_if": _abort_if,
+    "ask": _ask,
 })
 """The builders of the language's own steps by keyword (read-only); parts add theirs through the assembly."""
 

@@ -29,7 +29,7 @@ HOME = "home"
 STEP_KEYWORDS = (
     "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
-    "wait_until", "until", "abort_if",
+    "wait_until", "until", "abort_if", "ask",
 )
 
 
@@ -294,6 +294,13 @@ class _SemanticChecker:
         elif s.kind == "while":
             self.check_condition(v, p)
             self.walk_steps(self.get(s.path)["steps"], s.path + ("steps",))
+        elif s.kind == "ask":
+            raw = self.get(s.path)
+            if "timeout" in v:
+                self.positive(p + ("timeout",), "duration")
+            for branch in ("then", "else"):
+                if branch in raw:
+                    self.walk_steps(raw[branch], s.path + (branch,))
         elif s.kind in ("until", "abort_if"):
             self.check_condition(v, p)
             self.walk_steps(self.get(s.path)["steps"], s.path + ("steps",))
@@ -460,6 +467,13 @@ class _StepReader:
                          otherwise=self.steps(raw["else"], path + ("else",)) if "else" in raw else None, **where)
         if k == "while":
             return st.While(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
+        if k == "ask":
+            from beastbt.behaviours.ask import choice_of
+            default = choice_of(v["default"]) if "default" in v else None
+            return st.Ask(question_id=str(v.get("id") or f"q{where['at'].line}"), question=str(v["question"]),
+                          timeout_s=opt("timeout", "duration", v), default=default,
+                          then=self.steps(raw.get("then") or [], path + ("then",)),
+                          otherwise=self.steps(raw.get("else") or [], path + ("else",)), **where)
         if k == "until":
             return st.UntilBlock(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
         if k == "abort_if":
@@ -483,6 +497,9 @@ def condition_of(raw: Any) -> st.Condition:
         return st.Near(place=raw["near"], within_m=parse_quantity(raw.get("within", DEFAULT_NEAR_WITHIN_M), "distance"))
     if "elapsed" in raw:
         return st.Elapsed(duration_s=parse_quantity(raw["elapsed"], "duration"))
+    if "answered" in raw:
+        from beastbt.behaviours.ask import choice_of
+        return st.Answered(question_id=str(raw["answered"]), choice=choice_of(raw["is"]) or "yes")
     if "distance_travelled" in raw:
         return st.DistanceTravelled(distance_m=parse_quantity(raw["distance_travelled"], "distance"))
     if "time_in_block" in raw:

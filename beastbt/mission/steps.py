@@ -269,7 +269,15 @@ class TimeInBlock:
     duration_s: float
 
 
-Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock]
+@dataclass(frozen=True, kw_only=True)
+class Answered:
+    """``{answered: ID, is: yes|no}``: the question ``ID`` was answered so."""
+
+    question_id: str
+    choice: str
+
+
+Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered]
 """A condition of ``if``, ``while``, ``wait_until``, ``until`` and ``abort_if``."""
 
 
@@ -367,6 +375,20 @@ class AbortIf(Step):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Ask(Step):
+    """``ask: {id, question, timeout, default}, then: [...], else: [...]``: ask the operator yes or no, then choose."""
+
+    KEYWORD: ClassVar[str] = "ask"
+    question_id: str
+    question: str
+    timeout_s: Optional[float] = None
+    default: Optional[str] = None
+    """``yes``/``no``: the answer when the timeout passes."""
+    then: tuple[Step, ...] = ()
+    otherwise: tuple[Step, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
 class WaitUntil(Step):
     """``wait_until: CONDITION, timeout: 30 s``: stand still until the condition holds (fails after the timeout)."""
 
@@ -386,7 +408,7 @@ class PluginStep(Step):
 CORE_STEP_CLASSES: tuple[type[Step], ...] = (
     DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
     Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
-    WaitUntil, UntilBlock, AbortIf,
+    WaitUntil, UntilBlock, AbortIf, Ask,
 )
 """Every step class of the language (not PluginStep)."""
 
@@ -398,4 +420,4 @@ def keyword_of(step: Step) -> str:
 
 __all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
     "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
-    "AnyOf", "DistanceTravelled", "TimeInBlock", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]
+    "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]

@@ -55,6 +55,8 @@ class RunOptions:
     """A scripted joystick played on the simulator (``--joystick FILE``): a file, or the list of events itself."""
     stream: Optional[Union[str, tuple[str, int]]] = None
     """Serve the camera live as MJPEG on ``[HOST:]PORT`` (``--stream``)."""
+    answers: Optional[Mapping[str, str]] = None
+    """Answers to the mission's questions given before the run (``--answer ID=yes``): question id -> yes/no."""
     stream_size: Optional[Union[str, tuple[int, int]]] = None
     """Streamed frame size, ``WxH`` or (width, height) pixels (``--stream-size``)."""
     stream_quality: Optional[int] = None
@@ -154,6 +156,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     last_status_wall = 0.0
     tty = opts.status_line
     restore_sigterm = _sigterm_as_interrupt()
+    terminal = TerminalAnswers(run.ctx.services.questions, out) if tty and sys.stdin.isatty() else None
     # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
     # out of the garbage collector's sight, so that a full collection during the run walks only what the run
     # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.
@@ -175,6 +178,8 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                         time.sleep(delay)
             else:
                 wait_for_tick(run, clock, run.start_s + run.ticks * dt)
+            if tty and terminal is not None:
+                terminal.poll()
             if tty:
                 now_wall = time.perf_counter()
                 if now_wall - last_status_wall > 0.1:
@@ -213,7 +218,8 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     return summary
 
 
-CONSOLE_EVENTS = frozenset({"mission_end", "failsafe", "estop", "step_failed", "device_error", "on_failure",
+CONSOLE_EVENTS = frozenset({"mission_end", "failsafe", "estop", "step_failed", "device_error", "on_failure", "ask",
+                            "answer", "guard",
                             "snapshot", "bus_servo_error", "base_speed_clamped", "camera_backend", "joystick_preset"})
 """Events printed on the terminal as they happen (all of them are in the summary and the recording)."""
 
@@ -230,6 +236,35 @@ def status_line(run: Any) -> str:
     if len(text) > width - 1:
         text = text[: max(0, width - 2)] + "…"
     return CLEAR_LINE + text
+
+
+class TerminalAnswers:
+    """Answer the mission's questions from an interactive terminal: the question is shown, y or n + Enter answers."""
+
+    def __init__(self, questions: Any, out: TextIO) -> None:
+        self.questions = questions
+        self.out = out
+        self.prompted: Optional[str] = None
+
+    def poll(self) -> None:
+        """Show the open question once; take a typed answer if a line is waiting (never blocks)."""
+        import select
+        question = self.questions.current() if self.questions is not None else None
+        if question is None:
+            self.prompted = None
+            return
+        if self.prompted != question.id:
+            self.prompted = question.id
+            self.out.write(f"{CLEAR_LINE}? {question.text} [y/n] (question '{question.id}')\n")
+            self.out.flush()
+        try:
+            ready, _, _ = select.select([sys.stdin], [], [], 0)
+        except (OSError, ValueError):
+            return
+        if ready:
+            line = sys.stdin.readline()
+            if not self.questions.answer(question.id, line, "terminal"):
+                self.out.write(f"{CLEAR_LINE}? please type y or n, then Enter\n")
 
 
 def _console_listener(out: TextIO, tty: bool = False) -> Callable:
