@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Collection, Optional, Union
 
+from beastbt.mission.geo_files import resolve_geo_files
 from beastbt.mission.task_params import expand_task_parameters
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
 from beastbt.core.schema_check import load_schema, schema_problems
@@ -94,6 +95,8 @@ class Mission:
     teleop_on_release: str = field(
         default_factory=lambda: mission_default("/properties/teleop/anyOf/1/properties", "on_release"))
     failsafes: list[Failsafe] = field(default_factory=list)
+    load_warnings: list[Problem] = field(default_factory=list)
+    """Warnings found while reading it (what a route or places file carries that beastbt ignores)."""
     warnings: list[Problem] = field(default_factory=list)
     """What is valid but probably not meant (:mod:`beastbt.mission.warnings`): it runs, unless ``--strict``."""
     external_steps: dict[str, ExternalStep] = field(default_factory=dict)
@@ -523,6 +526,8 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path, text=text, display_name=display_name)
     params, param_problems = expand_task_parameters(doc)
+    geo_errors, geo_warnings = resolve_geo_files(doc, Path(path).parent if str(path) else Path("."))
+    param_problems = param_problems + geo_errors
     # A keyword the language does not know may be a step of an installed package: only those are loaded.
     external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
     schema = with_external_steps(load_schema("mission.schema.json"), external) if external else None
@@ -540,6 +545,7 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
         if raw is not None:
             mission.task_variants[call_args] = reader.steps(raw, ("tasks", task, "steps"))
     from beastbt.mission.warnings import mission_warnings
+    mission.load_warnings = geo_warnings
     mission.warnings = mission_warnings(mission)
     return mission
 

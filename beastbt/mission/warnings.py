@@ -61,7 +61,7 @@ def _speed_warnings(mission: Any, limit_mps: Optional[float], whose: str) -> lis
 def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = None) -> list[Problem]:
     """What looks wrong in the mission itself; ``world_datum`` (lat, lon) is where its world is, if known."""
     doc = mission.doc
-    out: list[Problem] = []
+    out: list[Problem] = list(getattr(mission, "load_warnings", []))
     for path, comment in doc.comments_after.items():
         if path and path[-1] in ("say", "description"):
             kept = _value_at(doc.data, path)
