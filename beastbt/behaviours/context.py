@@ -116,6 +116,9 @@ class RunServices:
     """``on_failure`` actions beyond stop and hold that parts provide: action -> handler (teleop, return_home)."""
     failsafe: dict[str, FailsafeHandler] = field(default_factory=dict)
     """Failsafe ``then:`` actions beyond stop and hold that parts provide: action -> handler."""
+    driven_path: Optional[Any] = None
+    """The fused path driven so far (:class:`~beastbt.behaviours.navigation.DrivenPath`), kept only when a
+    ``return_home: {along: path}`` needs it."""
     questions: Optional[Any] = None
     """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
     plugins: dict[str, Any] = field(default_factory=dict)

@@ -17,8 +17,11 @@ distance. The tuning is :class:`NavConfig` (the robot profile's
 from __future__ import annotations
 
 import math
+import typing
 from dataclasses import dataclass
 from typing import Callable, Optional
+
+import py_trees
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.behaviours.base import BeastBehaviour, Status
@@ -26,7 +29,7 @@ from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose
 from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
-from beastbt.estimation.geodesy import LocalFrame
+from beastbt.estimation.geodesy import LocalFrame, distance_m
 
 @dataclass(frozen=True)
 @schema_defaults("parts/navigation.schema.json")
@@ -405,3 +408,66 @@ def home_target(ctx: MissionContext) -> Target:
     def target() -> Optional[tuple[float, float]]:
         return ctx.services.home()
     return target
+
+
+BREADCRUMB_SPACING_M = 2.0
+"""return_home along the path keeps a point of the fused path every this many metres (m)."""
+
+
+class DrivenPath:
+    """The fused path driven so far, one point every :data:`BREADCRUMB_SPACING_M` (for ``return_home: {along: path}``)."""
+
+    def __init__(self) -> None:
+        self.points: list[tuple[float, float]] = []
+
+    def add(self, lat: float, lon: float) -> None:
+        """A fused position (deg): kept when it is far enough from the last point kept."""
+        if not self.points or distance_m(self.points[-1][0], self.points[-1][1], lat, lon) >= BREADCRUMB_SPACING_M:
+            self.points.append((lat, lon))
+
+
+class RetracePath(py_trees.composites.Composite):
+    """``return_home: {along: path}``: drive the path driven so far backwards, point by point, then home.
+
+    ``leg`` is a :class:`GoTo` whose target is this block's current point.
+    SUCCESS at home; FAILURE when a leg fails (as the leg says).
+    """
+
+    def __init__(self, name: str, leg_factory: Callable[[Target], "GoTo"], path: DrivenPath,
+                 home: Target) -> None:
+        self.points: list[tuple[float, float]] = []
+        self.index = 0
+        self.path = path
+        self.home = home
+        self.leg = leg_factory(self._current)
+        super().__init__(name=name, children=[self.leg])
+
+    def _current(self) -> Optional[tuple[float, float]]:
+        return self.points[self.index] if self.index < len(self.points) else None
+
+    def tick(self) -> typing.Iterator[py_trees.behaviour.Behaviour]:
+        if self.status != Status.RUNNING:
+            if self.leg.status != Status.INVALID:
+                self.leg.stop(Status.INVALID)
+            home = self.home()
+            self.points = list(reversed(self.path.points)) + ([home] if home is not None else [])
+            self.index = 0
+            self.initialise()
+        self.current_child = self.leg
+        for node in self.leg.tick():
+            yield node
+        if self.leg.status == Status.FAILURE:
+            self.feedback_message = self.leg.feedback_message
+            self.stop(Status.FAILURE)
+        elif self.leg.status == Status.SUCCESS:
+            self.index += 1
+            if self.index >= len(self.points):
+                self.feedback_message = "home, along the path driven"
+                self.stop(Status.SUCCESS)
+            else:
+                self.leg.stop(Status.INVALID)  # the next tick starts the leg to the next point
+                self.feedback_message = f"back along the path: point {self.index + 1} of {len(self.points)}"
+                self.status = Status.RUNNING
+        else:
+            self.status = Status.RUNNING
+        yield self

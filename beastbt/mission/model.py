@@ -425,7 +425,8 @@ class _StepReader:
             return st.Route(places=tuple(v["places"]), loops=parse_count(loops),
                             **nav(v), **where)
         if k == "return_home":
-            return st.ReturnHome(**nav(v), **where)
+            along = v.get("along", "straight") if isinstance(v, dict) else "straight"
+            return st.ReturnHome(along=along, **nav(v), **where)
         if k == "follow_line":
             until, amount = v["until"], None
             if isinstance(until, dict):

@@ -129,6 +129,8 @@ class ReturnHome(Step, NavOptions):
     """``return_home``: drive back to where the mission started (its first good GPS fix)."""
 
     KEYWORD: ClassVar[str] = "return_home"
+    along: str = "straight"
+    """``straight`` home, or ``path``: back along the path driven so far."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -143,6 +143,14 @@ def install_navigation(p: Prepared) -> None:
     """Give go_to the profile's navigation tuning; on a robot with a GPS, offer going home."""
     run = p.run
     run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
+    path = run.ctx.services.driven_path
+    if path is not None:  # a return_home: {along: path} will need the way back
+
+        def keep_the_path(r: MissionRun, now_s: float) -> None:
+            pose = r.bb.pose
+            if pose is not None and pose.position_valid and pose.lat is not None:
+                path.add(pose.lat, pose.lon)
+        run.hooks.append(keep_the_path)
     if "gps" not in run.ctx.capabilities:
         return
 

@@ -15,7 +15,7 @@ from typing import Mapping, Optional
 import py_trees
 
 from beastbt.behaviours.flow import RepeatTimes
-from beastbt.behaviours.navigation import GoTo, NavConfig, home_target, place_target
+from beastbt.behaviours.navigation import DrivenPath, GoTo, NavConfig, RetracePath, Target, home_target, place_target
 from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission import steps as st
@@ -79,6 +79,15 @@ def build_return_home(c: Compiler, s: st.ReturnHome) -> Behaviour:
     """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:}``."""
     if "gps" not in c.ctx.capabilities:
         return NotAvailable("return_home", c.ctx, "this robot has no GPS")
+    if s.along == "path":
+        path = c.ctx.services.driven_path
+        if path is None:
+            path = c.ctx.services.driven_path = DrivenPath()
+
+        def leg(target: Target) -> GoTo:
+            return GoTo(f"back along the path {_within(s.tolerance_m)}", c.ctx, "path", target, s.tolerance_m,
+                        **_options(s))
+        return RetracePath("return_home along the path driven", leg, path, home_target(c.ctx))
     return GoTo(f"return_home {_within(s.tolerance_m)}", c.ctx, HOME, home_target(c.ctx), s.tolerance_m, **_options(s))
 
 
