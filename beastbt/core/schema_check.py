@@ -183,6 +183,9 @@ class _Explainer:
         if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
             return [self.at(path, f"{err.instance} is out of range{_where(path)}: must be {v.replace('exclusive', '').lower()} {err.validator_value}"
                             .replace("minimum", "at least").replace("maximum", "at most"), self.describe(schema))]
+        if v == "minItems" and isinstance(err.instance, list) and err.instance:
+            return [self.at(path, f"{_where(path).strip().replace('in ', '', 1) or 'this'} needs at least "
+                                  f"{err.validator_value} items, has {len(err.instance)}", self.describe(schema))]
         if v in ("minItems", "minProperties"):
             return [self.at(path, f"{_where(path).strip() or 'this'} is empty".replace("in ", "", 1), self.describe(schema))]
         return [self.at(path, err.message, self.describe(schema))]

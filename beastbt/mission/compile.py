@@ -114,6 +114,16 @@ class Compiler:
             return Condition(f"near {c.place} within {c.within_m:g} m", near(lat, lon, c.within_m, c.place), r)
         if isinstance(c, st.Elapsed):
             return Condition(f"elapsed {c.duration_s:g} s", elapsed(c.duration_s), r)
+        if isinstance(c, st.InFence):
+            fence, inside = self.mission.fences[c.fence], c.inside
+            self.ctx.condition_reads.add("pose")
+
+            def where(rd: ConditionReader) -> bool:
+                pose = rd.get("pose")
+                if pose is None or not pose.position_valid or pose.lat is None:
+                    return False
+                return fence.contains(pose.lat, pose.lon) is inside
+            return Condition(f"{'inside' if inside else 'outside'} {c.fence}", where, r)
         if isinstance(c, st.Answered):
             ctx, qid, choice = self.ctx, c.question_id, c.choice
             return Condition(f"{qid} answered {choice}",

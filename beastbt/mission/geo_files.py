@@ -84,6 +84,9 @@ def _kml(path: Path, want: str) -> GeoPoints:
         name = placemark.findtext(f"{KML_NS}name")
         if want == "places":
             coords = placemark.findtext(f"{KML_NS}Point/{KML_NS}coordinates")
+        elif want == "polygon":
+            coords = placemark.findtext(f".//{KML_NS}Polygon/{KML_NS}outerBoundaryIs/{KML_NS}LinearRing/"
+                                        f"{KML_NS}coordinates")
         else:
             coords = placemark.findtext(f".//{KML_NS}LineString/{KML_NS}coordinates")
         if not coords:
@@ -96,8 +99,8 @@ def _kml(path: Path, want: str) -> GeoPoints:
                 raise GeoFileError(f"KML coordinates '{triple}' are not lon,lat[,alt]") from None
             altitudes |= len(parts) > 2 and float(parts[2] or 0) != 0.0
             out.points.append((name if want == "places" else None, *_check(lat, lon, "a KML point")))
-        if want == "route" and out.points:
-            break  # the first LineString is the route
+        if want in ("route", "polygon") and out.points:
+            break  # the first LineString (or Polygon) is the one
     if altitudes:
         out.ignored.append("altitudes (a ground robot drives on the ground)")
     return out
@@ -120,6 +123,11 @@ def _geojson(path: Path, want: str) -> GeoPoints:
         elif want == "route" and kind == "LineString":
             for c in coords:
                 out.points.append((None, *_check(float(c[1]), float(c[0]), "a GeoJSON LineString point")))
+            break
+        elif want == "polygon" and kind in ("Polygon", "MultiPolygon"):
+            ring = coords[0] if kind == "Polygon" else coords[0][0]
+            for c in ring:
+                out.points.append((None, *_check(float(c[1]), float(c[0]), "a GeoJSON Polygon corner")))
             break
     return out
 
@@ -188,9 +196,12 @@ def read_points(path: Path, want: str) -> GeoPoints:
         raise GeoFileError(f"{path} does not exist (paths are relative to the mission file)") from None
     except OSError as exc:
         raise GeoFileError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if want == "polygon" and len(got.points) > 3 and got.points[0][1:] == got.points[-1][1:]:
+        got.points.pop()  # a closed ring repeats its first corner
     if not got.points:
-        what = "named points (GPX wpt, KML Placemark Point, GeoJSON Point with a name)" if want == "places" else \
-            "a route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)"
+        what = {"polygon": "a polygon (KML Polygon, GeoJSON Polygon)",
+                "places": "named points (GPX wpt, KML Placemark Point, GeoJSON Point with a name)"}.get(
+            want, "a route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)")
         raise GeoFileError(f"{path.name} has no {what}")
     return got
 
@@ -222,7 +233,7 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
         try:
             got = read_points(path, want)
         except GeoFileError as exc:
-            errors.append(doc.problem(path_key, f"the {'places' if want == 'places' else 'route'} file {relative} "
+            errors.append(doc.problem(path_key, f"the {want if want != 'places' else 'places'} file {relative} "
                                                 f"cannot be read: {exc}", "fix the file, or point 'file:' at another"))
             if exc.line is not None:
                 errors.append(Problem(str(path), Position(exc.line, 1), str(exc)))
@@ -237,6 +248,13 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
         data["places"] = {} if got is None else {
             _name(name or f"point_{i + 1}", "place"): {"lat": lat, "lon": lon}
             for i, (name, lat, lon) in enumerate(got.points)}
+    fences = data.get("fences")
+    for name, fence in (fences.items() if isinstance(fences, dict) else []):
+        if isinstance(fence, dict) and isinstance(fence.get("file"), str) and "polygon" not in fence:
+            relative = fence.pop("file")
+            got = load(("fences", name, "file"), relative, "polygon")
+            fence["polygon"] = [{"lat": lat, "lon": lon} for _, lat, lon in got.points] if got else [
+                {"lat": 0.0, "lon": 0.0}] * 3
     for path_key, route in _routes_with_files(data, ()):
         relative = route.pop("file")
         got = load(path_key + ("file",), relative, "route")

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Collection, Optional, Union
 
+from beastbt.mission.fences import Fence
 from beastbt.mission.geo_files import resolve_geo_files
 from beastbt.mission.task_params import expand_task_parameters
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
@@ -85,6 +86,8 @@ class Mission:
     turn_rate_limit_rps: Optional[float] = None
     accel_limit_mps2: Optional[float] = None
     places: dict[str, Place] = field(default_factory=dict)
+    fences: dict[str, Fence] = field(default_factory=dict)
+    """Named polygons to keep in or out of (``fences:``)."""
     tasks: dict[str, tuple[st.Step, ...]] = field(default_factory=dict)
     task_variants: dict[tuple[str, tuple], tuple[st.Step, ...]] = field(default_factory=dict)
     """(task, arguments of a ``do: {task, ...}``) -> that task's steps with those values."""
@@ -167,8 +170,16 @@ class _SemanticChecker:
             for k in spec:
                 if k in self.POSITIVE:
                     self.positive(path + (k,), self.POSITIVE[k])
-            if kind == "geofence":
+            if kind == "geofence" and "center" in spec:
                 self.place_ref(path + ("center",), spec["center"])
+            if kind in ("geofence", "keepout") and "fence" in spec:
+                self.fence_ref(path + ("fence",), spec["fence"])
+            if "margin" in spec:
+                self.positive(path + ("margin",), "distance", allow_zero=True)
+        for name, fence in (d.get("fences") or {}).items():
+            for i, corner in enumerate(fence.get("polygon") or []):
+                if isinstance(corner, str):
+                    self.place_ref(("fences", name, "polygon", i), corner)
             if kind == "battery_low":
                 self.positive(path + ("below",), "voltage")
         return self.problems
@@ -312,8 +323,17 @@ class _SemanticChecker:
             if "timeout" in self.get(s.path):
                 self.positive(s.path + ("timeout",), "duration")
 
+    def fence_ref(self, path: PathKey, name: Any) -> None:
+        fences = self.data.get("fences") or {}
+        if name not in fences:
+            self.error(path, f"unknown fence '{name}'{did_you_mean(str(name), list(fences))}",
+                       f"fences are defined under 'fences:' ({', '.join(sorted(fences)) or 'none yet'})")
+
     def check_condition(self, c: Any, path: PathKey) -> None:
         if isinstance(c, dict):
+            for word in ("inside", "outside"):
+                if word in c:
+                    self.fence_ref(path + (word,), c[word])
             if "near" in c:
                 self.place_ref(path + ("near",), c["near"])
                 if "within" in c:
@@ -501,6 +521,10 @@ def condition_of(raw: Any) -> st.Condition:
         return st.Near(place=raw["near"], within_m=parse_quantity(raw.get("within", DEFAULT_NEAR_WITHIN_M), "distance"))
     if "elapsed" in raw:
         return st.Elapsed(duration_s=parse_quantity(raw["elapsed"], "duration"))
+    if "inside" in raw:
+        return st.InFence(fence=raw["inside"], inside=True)
+    if "outside" in raw:
+        return st.InFence(fence=raw["outside"], inside=False)
     if "answered" in raw:
         from beastbt.behaviours.ask import choice_of
         return st.Answered(question_id=str(raw["answered"]), choice=choice_of(raw["is"]) or "yes")
@@ -539,6 +563,10 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     if problems:
         raise InvalidInput(problems)
     mission = _build(doc, Path(path), external)
+    bad_fences = [doc.problem(("fences", name), why, "list the corners in order around the area")
+                  for name, fence in mission.fences.items() if (why := fence.valid_problem()) is not None]
+    if bad_fences:
+        raise InvalidInput(bad_fences)
     reader = _StepReader(doc, external)
     for call_args in {(d.task, d.args) for d in _do_steps(mission) if d.args}:
         task, args = call_args
@@ -569,6 +597,15 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     for name, place in (d.get("places") or {}).items():
         tol = parse_quantity(place["tolerance"], "distance") if "tolerance" in place else None
         m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
+    for name, fence in (d.get("fences") or {}).items():
+        corners = []
+        for corner in fence.get("polygon") or fence.get("points") or []:
+            if isinstance(corner, str):
+                place = m.places[corner]
+                corners.append((place.lat, place.lon))
+            else:
+                corners.append((float(corner["lat"]), float(corner["lon"])))
+        m.fences[name] = Fence(name, corners, fence.get("keep", "in"))
     reader = _StepReader(doc, external)
     for name, steps in (d.get("tasks") or {}).items():
         if isinstance(steps, dict):
@@ -593,6 +630,9 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
             params["below_v"] = parse_quantity(spec["below"], "voltage")
             hold = spec.get("for", mission_default("/properties/failsafes/properties/battery_low/properties", "for"))
             params["for_s"] = parse_quantity(hold, "duration")
+        elif kind in ("geofence", "keepout") and "fence" in spec:
+            params["fence"] = spec["fence"]
+            params["margin_m"] = parse_quantity(spec.get("margin", "0 m"), "distance")
         elif kind == "geofence":
             params["center"] = spec["center"]
             params["radius_m"] = parse_quantity(spec["radius"], "distance")

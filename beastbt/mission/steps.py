@@ -279,7 +279,16 @@ class Answered:
     choice: str
 
 
-Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered]
+@dataclass(frozen=True, kw_only=True)
+class InFence:
+    """``{inside: FENCE}`` / ``{outside: FENCE}``: where the fused position is with respect to a fence."""
+
+    fence: str
+    inside: bool
+
+
+Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered,
+                  InFence]
 """A condition of ``if``, ``while``, ``wait_until``, ``until`` and ``abort_if``."""
 
 
@@ -422,4 +431,4 @@ def keyword_of(step: Step) -> str:
 
 __all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
     "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
-    "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]
+    "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "InFence", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]

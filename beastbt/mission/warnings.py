@@ -84,6 +84,14 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
                                                                    f"{name}: are its lat and lon swapped?",
                                            f"lat is north-south (-90..90), lon east-west: check lat: "
                                            f"{place.lat:.6f}, lon: {place.lon:.6f}")))
+    for fence in getattr(mission, "fences", {}).values():
+        for place in places:
+            inside = fence.contains(place.lat, place.lon)
+            if inside != (fence.keep == "in"):
+                where = "outside the keep-in" if fence.keep == "in" else "inside the keep-out"
+                out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {where} fence "
+                                                                       f"'{fence.name}': going there crosses it",
+                                               "move the place, or the fence")))
     return by_position(out)
 
 

@@ -39,7 +39,7 @@ class FailsafeWatch:
 
 
 FAILSAFE_READS: dict[str, tuple[str, ...]] = {
-    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home")}
+    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home"), "keepout": ("pose",)}
 """Blackboard keys (and readings) each failsafe watches."""
 ACTION_READS: dict[str, tuple[str, ...]] = {"return_home": ("pose", "home")}
 """What a ``then:`` or ``on_failure:`` action needs kept up to date."""
@@ -79,6 +79,14 @@ class FailsafeMonitor:
                     state["below_since"] = s.now_s
                 return s.now_s - state["below_since"] >= p["for_s"]
             return battery_low
+        if "fence" in p:
+            fence, margin = mission.fences[p["fence"]], p["margin_m"]
+
+            def crossed(s: Situation) -> bool:
+                if s.pose is None or not s.pose.position_valid or s.pose.lat is None:
+                    return False
+                return fence.crossed(s.pose.lat, s.pose.lon, margin)
+            return crossed
         center = p["center"]
 
         def geofence(s: Situation) -> bool:
