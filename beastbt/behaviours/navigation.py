@@ -471,3 +471,52 @@ class RetracePath(py_trees.composites.Composite):
         else:
             self.status = Status.RUNNING
         yield self
+
+
+class RouteLegs(py_trees.composites.Sequence):
+    """The legs of a ``route`` in order; with ``resume: nearest``, a pause moves on to the nearest remaining leg.
+
+    A pause is a gap between ticks longer than the navigation's
+    ``resume_gap_s`` (a hold, a take-over). Then the leg whose place is the
+    closest to the fused position, among the one under way and those after
+    it, is driven next; the legs skipped are not visited.
+    """
+
+    def __init__(self, name: str, ctx: MissionContext, legs: list["GoTo"], resume: str) -> None:
+        super().__init__(name=name, memory=True, children=legs)
+        self.ctx = ctx
+        self.resume = resume
+        self.last_tick_s: Optional[float] = None
+        self.reader = py_trees.blackboard.Client(name=f"{name} (resume)")
+        self.reader.register_key("pose", access=py_trees.common.Access.READ)
+
+    def tick(self) -> typing.Iterator[py_trees.behaviour.Behaviour]:
+        now = self.ctx.clock.now()
+        nav = self.ctx.services.navigation or NavConfig()
+        if (self.resume == "nearest" and self.status == Status.RUNNING and self.current_child is not None
+                and self.last_tick_s is not None and now - self.last_tick_s > nav.resume_gap_s):
+            self._go_on_from_the_nearest()
+        self.last_tick_s = now
+        yield from super().tick()
+
+    def _go_on_from_the_nearest(self) -> None:
+        try:
+            pose = self.reader.get("pose")
+        except KeyError:
+            return
+        if pose is None or not pose.position_valid or pose.lat is None:
+            return
+        start = self.children.index(self.current_child)
+        best, best_m = None, math.inf
+        for leg in self.children[start:]:
+            goal = leg.target() if isinstance(leg, GoTo) else None
+            if goal is not None:
+                d = distance_m(pose.lat, pose.lon, goal[0], goal[1])
+                if d < best_m:
+                    best, best_m = leg, d
+        if best is not None and best is not self.current_child:
+            if self.current_child.status == Status.RUNNING:
+                self.current_child.stop(Status.INVALID)
+            self.ctx.events.add("route", f"{self.name}: resuming at the nearest place, {best.place} "
+                                         f"({best_m:.1f} m away)")
+            self.current_child = best

@@ -442,7 +442,7 @@ class _StepReader:
             return st.GoToPoint(lat_deg=float(v["lat"]), lon_deg=float(v["lon"]), **nav(v), **where)
         if k == "route":
             loops = v.get("loops", mission_default("/$defs/step/anyOf/6/properties/route/properties", "loops"))
-            return st.Route(places=tuple(v["places"]), loops=parse_count(loops),
+            return st.Route(places=tuple(v["places"]), loops=parse_count(loops), resume=v.get("resume", "current"),
                             **nav(v), **where)
         if k == "return_home":
             along = v.get("along", "straight") if isinstance(v, dict) else "straight"

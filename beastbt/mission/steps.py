@@ -122,6 +122,8 @@ class Route(Step, NavOptions):
     KEYWORD: ClassVar[str] = "route"
     places: tuple[str, ...]
     loops: int = 1
+    resume: str = "current"
+    """After a pause: ``current`` place, or the ``nearest`` remaining one."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,7 +15,8 @@ from typing import Mapping, Optional
 import py_trees
 
 from beastbt.behaviours.flow import RepeatTimes
-from beastbt.behaviours.navigation import DrivenPath, GoTo, NavConfig, RetracePath, Target, home_target, place_target
+from beastbt.behaviours.navigation import (DrivenPath, GoTo, NavConfig, RetracePath, RouteLegs, Target, home_target,
+                                           place_target)
 from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission import steps as st
@@ -68,7 +69,11 @@ def build_route(c: Compiler, s: st.Route) -> Behaviour:
     """``route: {places: [a, b, c], loops: 2 | forever, ...}``: go_to each place in order, loops times."""
     name = "route " + " -> ".join(s.places)
     legs = [_go_to_place(c, p, s.tolerance_m, _options(s)) for p in s.places]
-    body: Behaviour = py_trees.composites.Sequence(name=name if s.loops == 1 else "pass", memory=True, children=legs)
+    body: Behaviour
+    if s.resume == "nearest" and all(isinstance(leg, GoTo) for leg in legs):
+        body = RouteLegs(name if s.loops == 1 else "pass", c.ctx, legs, s.resume)  # type: ignore[arg-type]
+    else:
+        body = py_trees.composites.Sequence(name=name if s.loops == 1 else "pass", memory=True, children=legs)
     if s.loops == 1:
         return body
     label = "forever" if s.loops < 0 else f"{s.loops} times"
