@@ -37,6 +37,7 @@ from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.events import EventLog
+from beastbt.mission.mission_world import load_mission_world
 from beastbt.mission.compile import CORE_STEPS, Behaviour, StepBuilder, compile_mission
 from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
@@ -262,16 +263,12 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
     mission = load_mission(mission_path, text=mission_text)
     profile = load_profile(options.robot)
     if options.simulated:
-        world_path = options.world or (str(mission.world) if mission.world is not None else None)
-        try:
-            world = load_world(world_path) if world_path else empty_world()
-        except InvalidInput as exc:
-            if options.world:
-                raise
-            raise InvalidInput([mission.doc.problem(("world",), f"the world file {world_path} has problems "
-                                                              f"(listed with its own lines)",
-                                                    "fix the world file, or point 'world:' at another")]
-                               + exc.problems) from None
+        if options.world:
+            world = load_world(options.world)
+        elif mission.world is not None:
+            world = load_mission_world(mission)
+        else:
+            world = empty_world()
         return assemble(mission, profile, options, SIM, world=world)
     return assemble(mission, profile, options, REAL)
 

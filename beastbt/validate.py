@@ -34,22 +34,21 @@ def validate_file(path: str) -> list[Problem]:
             load_world(path)
         else:
             mission = load_mission(path)
-            return mission_with_world(mission, load_world)
+            return mission_with_world(mission)
     except InvalidInput as exc:
         return exc.problems
     return []
 
 
-def mission_with_world(mission, load_world) -> list[Problem]:  # type: ignore[no-untyped-def]
+def mission_with_world(mission) -> list[Problem]:  # type: ignore[no-untyped-def]
     """The mission's warnings, with its world file checked and its places checked against the world's datum."""
+    from beastbt.mission.mission_world import load_mission_world
     from beastbt.mission.warnings import mission_warnings
     if mission.world is None:
         return list(mission.warnings)
     try:
-        world = load_world(str(mission.world))
+        world = load_mission_world(mission)
     except InvalidInput as exc:
-        here = mission.doc.problem(("world",), f"the world file {mission.world} has problems (listed with its "
-                                                f"own lines)", "fix the world file, or point 'world:' at another")
-        return [here] + exc.problems
+        return exc.problems
     frame = world.frame
     return mission_warnings(mission, (frame.lat0_deg, frame.lon0_deg))

@@ -415,14 +415,16 @@ BREADCRUMB_SPACING_M = 2.0
 
 
 class DrivenPath:
-    """The fused path driven so far, one point every :data:`BREADCRUMB_SPACING_M` (for ``return_home: {along: path}``)."""
+    """A path thinned to one point every ``spacing_m`` (m): the fused path driven so far for ``return_home: {along:
+    path}``, a recorded one for ``beastbt route from-run``."""
 
-    def __init__(self) -> None:
+    def __init__(self, spacing_m: float = BREADCRUMB_SPACING_M) -> None:
+        self.spacing_m = spacing_m
         self.points: list[tuple[float, float]] = []
 
     def add(self, lat: float, lon: float) -> None:
-        """A fused position (deg): kept when it is far enough from the last point kept."""
-        if not self.points or distance_m(self.points[-1][0], self.points[-1][1], lat, lon) >= BREADCRUMB_SPACING_M:
+        """A position (deg): kept when it is at least ``spacing_m`` from the last point kept."""
+        if not self.points or distance_m(self.points[-1][0], self.points[-1][1], lat, lon) >= self.spacing_m:
             self.points.append((lat, lon))
 
 

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
-from typing import Optional
+from typing import Callable, Optional, TypeVar
+
+T = TypeVar("T")
 
 
 def output_file_problem(option: str, path: Optional[str]) -> Optional[str]:
@@ -34,4 +37,21 @@ def output_folder_problem(option: str, path: Optional[str]) -> Optional[str]:
     return None
 
 
-__all__ = ["output_file_problem", "output_folder_problem"]
+def read_run(command: str, run: str, read: Callable[[], T]) -> Optional[T]:
+    """``read()`` a recorded run; when it cannot be read, say why on standard error and return None (exit 2).
+
+    A missing folder or file and a recording without what the command needs
+    (OSError, ValueError) say so; a file that is not MCAP says it cannot be read.
+    """
+    from mcap.exceptions import McapError
+    try:
+        return read()
+    except (OSError, ValueError) as exc:
+        message = str(exc)
+    except McapError as exc:
+        message = f"{run}: cannot read the recording ({exc})"
+    print(f"beastbt {command}: error: {message}", file=sys.stderr)
+    return None
+
+
+__all__ = ["output_file_problem", "output_folder_problem", "read_run"]

@@ -15,20 +15,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def command(args: argparse.Namespace) -> int:
     """Replay a recorded run; 0 when every command matches, 1 when some differ, 2 when it cannot be read."""
-    from mcap.exceptions import McapError
 
     from beastbt.core.errors import InvalidInput
     from beastbt.replay import replay
+    from beastbt.commands.paths import read_run
     try:
-        result = replay(args.run, args.mission)
+        result = read_run("replay", args.run, lambda: replay(args.run, args.mission))
     except InvalidInput as exc:
         print(exc.format(), file=sys.stderr)
         return 2
-    except (OSError, ValueError) as exc:
-        print(f"beastbt replay: error: {exc}", file=sys.stderr)
-        return 2
-    except McapError as exc:
-        print(f"beastbt replay: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
+    if result is None:
         return 2
     print(f"replayed {result.ticks} ticks ({result.duration_s:.2f} s) of mission {result.mission}: "
           f"recorded {result.recorded_status or '?'}, replay {result.replay_status or 'still running at the end'}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -14,14 +13,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def command(args: argparse.Namespace) -> int:
     """Summarise a recorded run and plot it (PNG plots and report.html); 2 when it cannot be read."""
+    from beastbt.commands.paths import read_run
     from beastbt.recording.report import make_report
-    try:
-        report = make_report(args.run, args.out)
-    except (OSError, ValueError) as exc:
-        print(f"beastbt report: error: {exc}", file=sys.stderr)
-        return 2
-    except Exception as exc:  # mcap's InvalidMagic and friends: not a recording
-        print(f"beastbt report: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
+    report = read_run("report", args.run, lambda: make_report(args.run, args.out))
+    if report is None:
         return 2
     print(report.text)
     print(f"  report: {report.html} ({len(report.plots)} plots"

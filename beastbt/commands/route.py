@@ -31,20 +31,16 @@ def command(args: argparse.Namespace) -> int:
     """Read the run's path, thin it, write the GPX; 2 when the run cannot be read or has no position."""
     from pathlib import Path
 
-    from beastbt.commands.paths import output_file_problem
+    from beastbt.commands.paths import output_file_problem, read_run
     problem = output_file_problem("--out", args.out)
     if problem is not None:
         print(f"beastbt route: error: {problem}", file=sys.stderr)
         return 2
     from beastbt.recording.teach import driven_path, thin, write_gpx
-    try:
-        path, source = driven_path(args.run)
-    except (OSError, ValueError) as exc:
-        print(f"beastbt route: error: {exc}", file=sys.stderr)
+    got = read_run("route", args.run, lambda: driven_path(args.run))
+    if got is None:
         return 2
-    except Exception as exc:  # mcap's InvalidMagic and friends: not a recording
-        print(f"beastbt route: error: {args.run}: cannot read the recording ({exc})", file=sys.stderr)
-        return 2
+    path, source = got
     points = thin(path, args.every)
     out = Path(args.out)
     write_gpx(points, out, Path(str(args.run).rstrip("/")).name)

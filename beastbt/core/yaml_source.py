@@ -52,6 +52,21 @@ class SourceDoc:
         return Problem(self.file, self.position(path, key=key), message, hint)
 
 
+def values_at_key(node: Any, key: str, path: PathKey = ()) -> list[tuple[PathKey, Any]]:
+    """Every value stored under ``key`` in a document, with its path, in document order (not looking inside them)."""
+    out: list[tuple[PathKey, Any]] = []
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if k == key:
+                out.append((path + (k,), v))
+            else:
+                out.extend(values_at_key(v, key, path + (k,)))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            out.extend(values_at_key(v, key, path + (i,)))
+    return out
+
+
 def _pos(mark: yaml.Mark) -> Position:
     return Position(mark.line + 1, mark.column + 1)
 
@@ -160,8 +175,8 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
         end = len(lines[line].rstrip()) + 1 if line < len(lines) else 1
         if line < len(lines) and closer in lines[line][context_mark.column:]:
             return Problem(file, _pos(context_mark), f"the '{opener}...{closer}' here cannot be read",
-                           f"put quotes around any text in it that has ':', '?', '#', ',' or brackets, "
-                           f"e.g. question: \"Drive forward?\"")
+                           "put quotes around any text in it that has ':', '?', '#', ',' or brackets, "
+                           "e.g. question: \"Drive forward?\"")
         return Problem(file, Position(line + 1, end), f"the '{opener}' at line {line + 1} column "
                                                       f"{context_mark.column + 1} is never closed",
                        f"add '{closer}' at the end of line {line + 1}")

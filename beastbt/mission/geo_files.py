@@ -106,11 +106,16 @@ def _kml(path: Path, want: str) -> GeoPoints:
     return out
 
 
-def _geojson(path: Path, want: str) -> GeoPoints:
+def _json(path: Path, what: str) -> object:
+    """The JSON document at ``path``; GeoFileError at its line when it is not JSON."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
-        raise GeoFileError(f"not valid GeoJSON (JSON): {exc.msg}", exc.lineno) from None
+        raise GeoFileError(f"not valid {what} (JSON): {exc.msg}", exc.lineno) from None
+
+
+def _geojson(path: Path, want: str) -> GeoPoints:
+    data = _json(path, "GeoJSON")
     features = data.get("features", [data]) if isinstance(data, dict) else []
     out = GeoPoints()
     for feature in features:
@@ -133,10 +138,7 @@ def _geojson(path: Path, want: str) -> GeoPoints:
 
 
 def _plan(path: Path, want: str) -> GeoPoints:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise GeoFileError(f"not valid QGroundControl .plan (JSON): {exc.msg}", exc.lineno) from None
+    data = _json(path, "QGroundControl .plan")
     items = ((data.get("mission") or {}).get("items") or []) if isinstance(data, dict) else []
     out = GeoPoints()
     others: set[int] = set()
@@ -224,6 +226,7 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     ignores (once per file).
     """
     from beastbt.core.errors import Position, Problem, warning
+    from beastbt.core.yaml_source import values_at_key
     errors: list = []
     warnings: list = []
     data = doc.data if isinstance(doc.data, dict) else {}
@@ -255,7 +258,9 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
             got = load(("fences", name, "file"), relative, "polygon")
             fence["polygon"] = [{"lat": lat, "lon": lon} for _, lat, lon in got.points] if got else [
                 {"lat": 0.0, "lon": 0.0}] * 3
-    for path_key, route in _routes_with_files(data, ()):
+    for path_key, route in values_at_key(data, "route"):
+        if not (isinstance(route, dict) and isinstance(route.get("file"), str) and "places" not in route):
+            continue
         relative = route.pop("file")
         got = load(path_key + ("file",), relative, "route")
         if got is None:
@@ -271,20 +276,6 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
             names.append(name)
         route["places"] = names
     return errors, warnings
-
-
-def _routes_with_files(node: object, path: tuple) -> list[tuple[tuple, dict]]:
-    out: list[tuple[tuple, dict]] = []
-    if isinstance(node, dict):
-        for k, v in node.items():
-            if k == "route" and isinstance(v, dict) and isinstance(v.get("file"), str) and "places" not in v:
-                out.append((path + ("route",), v))
-            else:
-                out.extend(_routes_with_files(v, path + (k,)))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out.extend(_routes_with_files(v, path + (i,)))
-    return out
 
 
 __all__ = ["read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]

@@ -18,7 +18,7 @@ from typing import Any, Optional
 
 from beastbt.core.errors import Problem, did_you_mean
 from beastbt.core.units import KINDS, UnitError, parse_quantity
-from beastbt.core.yaml_source import PathKey, SourceDoc
+from beastbt.core.yaml_source import PathKey, SourceDoc, values_at_key
 
 PARAM_PREFIX = "$"
 
@@ -115,7 +115,9 @@ def expand_task_parameters(doc: SourceDoc) -> tuple[TaskParameters, list[Problem
                                             f"its parameters are: {', '.join(defaults) or 'none'}; declare it under "
                                             f"'params:' with a default"))
         task["steps"] = params.task_steps(name)
-    for path, call in _do_calls(data, ()):
+    for path, call in values_at_key(data, "do"):
+        if not isinstance(call, dict):
+            continue  # do: NAME, a call without arguments
         task_name = call.get("task")
         if not isinstance(task_name, str) or task_name not in tasks:
             continue  # an unknown task is reported by the loader's own checks
@@ -138,21 +140,6 @@ def expand_task_parameters(doc: SourceDoc) -> tuple[TaskParameters, list[Problem
 
 def _article(word: str) -> str:
     return "an" if word[:1] in "aeiou" else "a"
-
-
-def _do_calls(node: Any, path: PathKey) -> list[tuple[PathKey, dict]]:
-    """Every ``do: {task: ..., ...}`` of the document: (path of its mapping, the mapping)."""
-    out: list[tuple[PathKey, dict]] = []
-    if isinstance(node, dict):
-        for k, v in node.items():
-            if k == "do" and isinstance(v, dict):
-                out.append((path + ("do",), v))
-            else:
-                out.extend(_do_calls(v, path + (k,)))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out.extend(_do_calls(v, path + (i,)))
-    return out
 
 
 __all__ = ["expand_task_parameters", "TaskParameters", "kind_of"]

@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Union
 
+from beastbt.behaviours.navigation import DrivenPath
 from beastbt.estimation.geodesy import distance_m
 from beastbt.recording.reader import find_recording, read_recording
 
@@ -35,10 +36,10 @@ def thin(points: list[tuple[float, float]], every_m: float) -> list[tuple[float,
     """One point every ``every_m`` metres along ``points`` (m), the first and the last kept."""
     if not points:
         return []
-    kept = [points[0]]
-    for lat, lon in points[1:]:
-        if distance_m(kept[-1][0], kept[-1][1], lat, lon) >= every_m:
-            kept.append((lat, lon))
+    path = DrivenPath(every_m)
+    for lat, lon in points:
+        path.add(lat, lon)
+    kept = path.points
     if kept[-1] != points[-1] and distance_m(kept[-1][0], kept[-1][1], *points[-1]) > 0.05 * every_m:
         kept.append(points[-1])
     return kept
