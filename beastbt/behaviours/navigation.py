@@ -29,7 +29,7 @@ from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose
 from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
-from beastbt.estimation.geodesy import LocalFrame, distance_m
+from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
 
 @dataclass(frozen=True)
 @schema_defaults("parts/navigation.schema.json")
@@ -139,7 +139,7 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
-FARTHEST_TARGET_M = 50_000.0
+FARTHEST_TARGET_M = TYPO_DISTANCE_M
 """A go_to target farther than this from the robot (m) is refused: a typo, not a destination."""
 
 

@@ -20,6 +20,10 @@ WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
 """Semi-minor axis, metres."""
 
 
+TYPO_DISTANCE_M = 50_000.0
+"""Two points of one mission farther apart than this (m) are a typo, typically latitude and longitude swapped,
+not a plan: go_to refuses such a target and validate warns about such places."""
+
 def geodetic_to_ecef(lat_deg: float, lon_deg: float, alt_m: float = 0.0) -> tuple[float, float, float]:
     """Convert WGS84 latitude, longitude (degrees) and ellipsoidal height (m) to ECEF metres."""
     lat = math.radians(lat_deg)

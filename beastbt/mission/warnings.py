@@ -14,12 +14,11 @@ import dataclasses
 from typing import Any, Iterator, Optional
 
 from beastbt.core.errors import Problem, warning
-from beastbt.behaviours.navigation import FARTHEST_TARGET_M
 from beastbt.core.units import format_quantity
-from beastbt.estimation.geodesy import distance_m
+from beastbt.estimation.geodesy import TYPO_DISTANCE_M, distance_m
 from beastbt.mission import steps as st
 
-FAR_PLACE_M = FARTHEST_TARGET_M
+FAR_PLACE_M = TYPO_DISTANCE_M
 """Places farther apart than this (m) are almost surely a typo, typically latitude and longitude swapped (the
 distance beyond which go_to refuses to drive)."""
 

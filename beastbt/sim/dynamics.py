@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:  # only for an annotation: validating a world (which needs Wall) does not load NumPy
+    import numpy as np
 
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
