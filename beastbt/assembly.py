@@ -106,6 +106,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
               lambda profile, options: bool(options.record or options.record_path)),
     PartEntry("video_stream", "beastbt.parts.video_stream:VideoStreamPart",
               lambda profile, options: options.stream is not None),
+    PartEntry("console", "beastbt.parts.console:ConsolePart",
+              lambda profile, options: options.console is not None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 

@@ -110,6 +110,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
+    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint),
+                   help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
+                        "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
+                        "127.0.0.1; off loopback the page needs the token printed at start")
     p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint),
                    help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
                         "HOST defaults to 127.0.0.1")
@@ -138,7 +142,7 @@ def command(args: argparse.Namespace) -> int:
     opts = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, max_time_s=args.max_time,
                       summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
                       record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
-                      joystick_script=args.joystick, stream=args.stream, stream_size=args.stream_size,
+                      joystick_script=args.joystick, stream=args.stream, console=args.console, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
                       answers=dict(args.answer))

@@ -13,9 +13,9 @@ def parse_endpoint(text: str) -> tuple[str, int]:
     try:
         number = int(port)
     except ValueError:
-        raise ValueError(f"--stream takes [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
+        raise ValueError(f"expected [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
     if not 0 <= number <= 65535:
-        raise ValueError(f"--stream port must be 0..65535, not {number}")
+        raise ValueError(f"the port must be 0..65535, not {number}")
     return host, number
 
 

@@ -96,12 +96,16 @@ class TeleopOverride:
         self.takeovers = 0
         self.teleop_time_s = 0.0
         self._active_since_s: Optional[float] = None
+        self.remote: Optional[JoystickState] = None
+        """The operator console's on-page stick or browser gamepad (set by the console on the tick thread), or None."""
+        self.remote_attached = False
+        """True when an operator console can drive this run (it counts as a joystick for hand-overs)."""
 
     # -- what the teleop step and the runner's handlers use --------------------------
     @property
     def has_joystick(self) -> bool:
         """True when the robot has a joystick device (it may be unplugged right now)."""
-        return self.run.io.joystick is not None
+        return self.run.io.joystick is not None or self.remote_attached
 
     def request_handover(self, step: Any) -> None:
         """A teleop step starts: the operator may drive while it runs, without pausing the mission."""
@@ -132,10 +136,17 @@ class TeleopOverride:
 
     # -- the tick ---------------------------------------------------------------------
     def joystick(self, now_s: float) -> Optional[JoystickState]:
-        """This tick's joystick state, or None when there is none, it is unplugged or stale."""
+        """This tick's joystick state, or None when there is none, it is unplugged or stale.
+
+        The console's remote stick, when there is one, counts while its deadman
+        is held, or when there is no usable joystick (so that its release is seen).
+        """
         js = self.run.latest.get(JoystickState)
         if js is None or not js.connected or now_s - js.stamp_s > JOYSTICK_MAX_AGE_S:
-            return None
+            js = None
+        remote = self.remote
+        if remote is not None and (js is None or remote.buttons.get(BUTTON_ENABLE, False)):
+            return remote
         return js
 
     def allowed(self) -> bool:

@@ -122,6 +122,14 @@ class MissionRun:
         self.latest: dict[type, Any] = {}
         self.paused_by: Optional[str] = None
         """Why the tree is not ticked now (``hold``, ``teleop``...), or None."""
+        self.operator_paused = False
+        """The operator pressed pause (the console): the tree is not ticked and the robot is stopped until resume."""
+        self.operator_driving = False
+        """The operator drives from the console (its stick's deadman is held)."""
+        self.ended_by: Optional[str] = None
+        """Who ended the run when it was not the mission itself (``operator``: an abort from the console)."""
+        self._paused_total_s = 0.0
+        self._pause_started_s: Optional[float] = None
         self.failure_handled = False
         self.last_sent: VelocityCommand = VelocityCommand()
         self.want_node_changes = False
@@ -158,13 +166,13 @@ class MissionRun:
         for hook in self.hooks:
             hook(self, now)
         self.check_failsafes(now)
-        if self.status is None and not self.mux.estop_latched and self.paused_by is None:
+        if self.status is None and not self.mux.estop_latched and self.paused_by is None and not self.operator_paused:
             self.root.tick_once()
             self.after_tree(now)
         if self.mux.estop_latched and self.status is None:
             self.finish("stopped", f"emergency stop: {self.mux.estop_reason}")
         cmd = self.bb.cmd_mission
-        if self.paused_by is None and self.status is None:
+        if self.paused_by is None and not self.operator_paused and self.status is None:
             self.mux.submit("mission", cmd if cmd is not None else VelocityCommand(0.0, 0.0, now, "mission"), now)
         else:
             self.mux.withdraw("mission")
@@ -340,9 +348,48 @@ class MissionRun:
                 out.append((n.name, n.status.value, n.feedback_message))
         return out
 
+    # -- the operator ---------------------------------------------------------------
+    def pause(self, who: str) -> bool:
+        """Hold the mission where it is, with the robot stopped (any step keeps its place); False if already paused."""
+        if self.status is not None or self.operator_paused:
+            return False
+        self.operator_paused = True
+        self._pause_started_s = self.clock.now()
+        self.events.add("pause", f"paused by {who}: the robot stops and the mission waits at {self.current_step()}")
+        return True
+
+    def resume(self, who: str) -> bool:
+        """Go on with the mission after :meth:`pause`; False when it was not paused."""
+        if self.status is not None or not self.operator_paused:
+            return False
+        self.operator_paused = False
+        if self._pause_started_s is not None:
+            self._paused_total_s += self.clock.now() - self._pause_started_s
+            self._pause_started_s = None
+        self.events.add("pause", f"resumed by {who} at {self.current_step()}")
+        return True
+
+    def abort(self, who: str) -> bool:
+        """End the run now (status ``stopped``, robot stopped, summary and recording as usual); False if it had ended."""
+        if self.status is not None:
+            return False
+        self.ended_by = "operator"
+        self.finish("stopped", f"aborted by {who}")
+        return True
+
+    @property
+    def mission_time_s(self) -> float:
+        """Seconds the mission has been under way: clock time since the start, less the operator's pauses."""
+        paused = self._paused_total_s
+        if self._pause_started_s is not None:
+            paused += self.clock.now() - self._pause_started_s
+        return max(0.0, self.elapsed_s - paused)
+
     # -- the end ----------------------------------------------------------------
     def current_step(self) -> str:
         """The name of the leaf the tree is running now (or why it is paused)."""
+        if self.operator_paused:
+            return "(paused)"
         if self.paused_by is not None:
             return f"({self.paused_by})"
         tip = self.root.tip()

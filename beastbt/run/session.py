@@ -55,6 +55,8 @@ class RunOptions:
     """A scripted joystick played on the simulator (``--joystick FILE``): a file, or the list of events itself."""
     stream: Optional[Union[str, tuple[str, int]]] = None
     """Serve the camera live as MJPEG on ``[HOST:]PORT`` (``--stream``)."""
+    console: Optional[Union[str, tuple[str, int]]] = None
+    """Serve the operator console on ``[HOST:]PORT`` (``--console``): live state, map, tree, video and controls."""
     answers: Optional[Mapping[str, str]] = None
     """Answers to the mission's questions given before the run (``--answer ID=yes``): question id -> yes/no."""
     stream_size: Optional[Union[str, tuple[int, int]]] = None
@@ -161,6 +163,8 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     # out of the garbage collector's sight, so that a full collection during the run walks only what the run
     # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.
     gc.freeze()
+    pacing: Optional[float] = factor
+    anchor = wall0
     try:
         while run.status is None:
             run.tick()
@@ -171,9 +175,13 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                 break
             if simulated:
                 clock.advance(dt)
-                if factor is not None:
-                    target = wall0 + clock.now() / factor
-                    delay = target - time.perf_counter()
+                # While the operator holds the mission or drives, a fast simulation runs in real time:
+                # the robot waits for a person, not the other way round (and max time is not raced to).
+                pace = 1.0 if factor is None and (run.operator_paused or run.operator_driving) else factor
+                if pace != pacing:
+                    pacing, anchor = pace, time.perf_counter() - clock.now() / pace if pace else 0.0
+                if pace is not None:
+                    delay = anchor + clock.now() / pace - time.perf_counter()
                     if delay > 0:
                         time.sleep(delay)
             else:

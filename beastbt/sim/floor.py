@@ -173,6 +173,44 @@ def _point_segment_distances(p: np.ndarray, segs: np.ndarray) -> np.ndarray:
     return np.sqrt((d * d).sum(-1))
 
 
+def path_points(path: Mapping, what: str = "path") -> tuple[list[tuple[float, float]], bool]:
+    """One ``floor.lines.paths`` entry -> its centreline points (x, y metres, arcs expanded) and ``closed``.
+
+    ValueError on bad input. Used without building the raster by what only
+    draws the track (the operator console's map).
+    """
+    pd = path
+    pts: list[tuple[float, float]] = []
+    items = pd["path"]
+    if not isinstance(items, Sequence) or isinstance(items, str):
+        raise ValueError(f"{what}.path: expected a list of points [x, y] and arcs")
+    for j, item in enumerate(items):
+        if isinstance(item, Mapping):
+            _check_keys(item, ("arc",), f"{what}.path[{j}]", ("arc",))
+            new = _arc_points(item["arc"], f"{what}.path[{j}].arc")
+        else:
+            new = [_point(item, f"{what}.path[{j}]")]
+        for q in new:  # drop repeated points (an arc starting where the last point was)
+            if not pts or math.hypot(q[0] - pts[-1][0], q[1] - pts[-1][1]) > 1e-9:
+                pts.append(q)
+    closed = pd.get("closed", _default("/$defs/path/properties", "closed"))
+    if not isinstance(closed, bool):
+        raise ValueError(f"{what}.closed: expected true or false, got {closed!r}")
+    if closed and len(pts) > 2 and math.hypot(pts[0][0] - pts[-1][0], pts[0][1] - pts[-1][1]) < 1e-9:
+        pts.pop()
+    if len(pts) < 2:
+        raise ValueError(f"{what}.path: a path needs at least two distinct points")
+    return pts, closed
+
+
+def track_centrelines(floor: Any) -> list[tuple[list[tuple[float, float]], bool]]:
+    """The painted lines of a world's ``floor:`` mapping as (points, closed), without rasterising; [] when none."""
+    if not isinstance(floor, Mapping) or not isinstance(floor.get("lines"), Mapping):
+        return []
+    paths = floor["lines"].get("paths") or []
+    return [path_points(p, f"floor.lines.paths[{i}]") for i, p in enumerate(paths) if isinstance(p, Mapping)]
+
+
 class FloorMap:
     """A floor with lines: a BGR raster for the camera and centreline segments for ground truth.
 
@@ -260,26 +298,7 @@ class FloorMap:
             for i, p in enumerate(paths):
                 what = f"floor.lines.paths[{i}]"
                 pd = _check_keys(p, ("path", "closed", "width_m", "colour"), what, ("path",))
-                pts: list[tuple[float, float]] = []
-                items = pd["path"]
-                if not isinstance(items, Sequence) or isinstance(items, str):
-                    raise ValueError(f"{what}.path: expected a list of points [x, y] and arcs")
-                for j, item in enumerate(items):
-                    if isinstance(item, Mapping):
-                        _check_keys(item, ("arc",), f"{what}.path[{j}]", ("arc",))
-                        new = _arc_points(item["arc"], f"{what}.path[{j}].arc")
-                    else:
-                        new = [_point(item, f"{what}.path[{j}]")]
-                    for q in new:  # drop repeated points (an arc starting where the last point was)
-                        if not pts or math.hypot(q[0] - pts[-1][0], q[1] - pts[-1][1]) > 1e-9:
-                            pts.append(q)
-                closed = pd.get("closed", _default("/$defs/path/properties", "closed"))
-                if not isinstance(closed, bool):
-                    raise ValueError(f"{what}.closed: expected true or false, got {closed!r}")
-                if closed and len(pts) > 2 and math.hypot(pts[0][0] - pts[-1][0], pts[0][1] - pts[-1][1]) < 1e-9:
-                    pts.pop()
-                if len(pts) < 2:
-                    raise ValueError(f"{what}.path: a path needs at least two distinct points")
+                pts, closed = path_points(pd, what)
                 lines.append(
                     FloorLine(
                         points=np.array(pts, dtype=float),

@@ -1,0 +1,365 @@
+// beastbt operator console: the page's script. No framework, no CDN: it works offline in a field.
+// Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG frames), POST /api/<control>.
+"use strict";
+
+const token = new URLSearchParams(location.search).get("token");
+const withToken = (path) => token ? path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token) : path;
+const wsUrl = (path) => (location.protocol === "https:" ? "wss://" : "ws://") + location.host + withToken(path);
+const $ = (id) => document.getElementById(id);
+const ENDED = new Set(["succeeded", "failed", "aborted"]);
+
+let state = null;
+let mapLayers = null;
+let mapVersion = -1;
+let trail = [];
+let mapDirty = true;
+
+// ---- controls -------------------------------------------------------------------------------
+async function post(path, body) {
+  try {
+    const r = await fetch(withToken("/api/" + path), {method: "POST", headers: {"Content-Type": "application/json"},
+                                                      body: JSON.stringify(body || {})});
+    const answer = await r.json().catch(() => ({}));
+    if (!r.ok) notice(answer.error || ("HTTP " + r.status));
+    return answer;
+  } catch (e) { notice("the robot did not answer: " + e); return {}; }
+}
+function notice(text) {
+  const n = $("notice");
+  n.textContent = text; n.hidden = false;
+  clearTimeout(notice.timer); notice.timer = setTimeout(() => { n.hidden = true; }, 5000);
+}
+$("pause").onclick = () => post("pause");
+$("resume").onclick = () => post("resume");
+$("abort").onclick = () => { if (confirm("Abort the mission? The robot stops and the run ends.")) post("abort"); };
+$("estop").onclick = () => post("estop");
+$("estop-reset").onclick = () => post("estop/reset");
+$("answer-yes").onclick = () => state && state.question && post("answer", {id: state.question.id, choice: "yes"});
+$("answer-no").onclick = () => state && state.question && post("answer", {id: state.question.id, choice: "no"});
+document.addEventListener("keydown", (e) => { if (e.key === " " && e.target === document.body) { e.preventDefault(); post("estop"); } });
+
+// ---- state ------------------------------------------------------------------------------------
+function connectState() {
+  const ws = new WebSocket(wsUrl("/api/ws"));
+  ws.onmessage = (ev) => render(JSON.parse(ev.data));
+  ws.onclose = () => {
+    if (state && ENDED.has(state.status)) { $("status").title = "the run has ended"; return; }
+    setTimeout(connectState, 1000);
+  };
+}
+
+function fmtTime(s) {
+  if (s == null) return "-";
+  s = Math.round(s);
+  return s >= 60 ? Math.floor(s / 60) + " min " + (s % 60) + " s" : s + " s";
+}
+
+function render(s) {
+  state = s;
+  $("mission").textContent = s.mission;
+  const st = $("status");
+  st.textContent = s.estop && !ENDED.has(s.status) ? "e-stop" : s.status;
+  st.className = "status " + s.status;
+  $("step").textContent = s.step;
+  const p = s.progress || {};
+  const frac = p.total ? Math.min(1, p.done / p.total) : 0;
+  $("progress-fill").style.width = (ENDED.has(s.status) && s.status === "succeeded" ? 100 : frac * 100) + "%";
+  $("progress-text").textContent = p.total ? `${p.done}/${p.total} steps` + (p.eta_s != null && p.done < p.total ? ` · ETA ${fmtTime(p.eta_s)}` : "")
+                                            : `${p.done || 0} steps`;
+  const b = s.battery;
+  $("battery").textContent = b ? `battery ${b.volts.toFixed(1)} V (${Math.round(b.percent)} %)` : "battery -";
+  $("battery").classList.toggle("low", !!b && b.percent < 20);
+  $("clock").textContent = "t " + s.time_s.toFixed(1) + " s";
+  const ended = ENDED.has(s.status);
+  $("pause").disabled = ended || s.status === "paused";
+  $("resume").disabled = ended || s.status !== "paused" || s.paused_by !== "operator";
+  $("abort").disabled = ended;
+  $("estop").disabled = ended;
+  $("estop").classList.toggle("latched", s.estop);
+  $("estop-reset").disabled = !s.estop || ended;
+  const q = s.question;
+  $("question").hidden = !q;
+  if (q) $("question-text").textContent = q.text;
+  const pose = s.pose;
+  $("pose-text").textContent = pose ? `x ${pose.x.toFixed(2)} m  y ${pose.y.toFixed(2)} m  heading ${pose.heading_deg.toFixed(0)}°  ` +
+    `${s.speed_mps.toFixed(2)} m/s` + (s.gps ? `  GPS ${s.gps.sats ?? "?"} sats ±${s.gps.accuracy_m} m` : "  no GPS") +
+    (s.teleop ? "  TELEOP" : "") : "pose -";
+  if (pose) {
+    const last = trail[trail.length - 1];
+    if (!last || Math.hypot(pose.x - last[0], pose.y - last[1]) > 0.05) trail.push([pose.x, pose.y]);
+  }
+  if (s.map_version !== mapVersion) { mapVersion = s.map_version; loadMap(); }
+  renderTree(s.tree);
+  mapDirty = true;
+}
+
+// ---- tree --------------------------------------------------------------------------------------
+let treeIds = "";
+const treeRows = new Map();
+let foldDone = false;
+$("tree-fold").onclick = () => { foldDone = !foldDone; $("tree-fold").textContent = foldDone ? "unfold" : "fold done"; treeIds = ""; state && renderTree(state.tree); };
+
+function renderTree(nodes) {
+  const ids = nodes.map((n) => n.id).join(",");
+  if (ids !== treeIds) buildTree(nodes, ids);
+  const byId = new Map(nodes.map((n) => [n.id, n]));
+  let tip = null;
+  for (const n of nodes) {
+    const row = treeRows.get(n.id);
+    if (!row) continue;
+    row.div.className = "node " + n.status;
+    if (n.status === "running") { tip = n; }
+  }
+  // The running branch: from the deepest running node up to the root.
+  for (const r of treeRows.values()) r.div.classList.remove("on-path");
+  let deepest = null;
+  for (const n of nodes) if (n.status === "running" && (!deepest || n.id.length >= deepest.id.length)) deepest = n;
+  for (let n = deepest; n; n = n.parent != null ? byId.get(n.parent) : null) {
+    const row = treeRows.get(n.id);
+    if (row) { row.div.classList.add("on-path"); row.li.classList.remove("folded"); }
+  }
+  if (deepest && deepest.id !== renderTree.lastTip) {
+    renderTree.lastTip = deepest.id;
+    const row = treeRows.get(deepest.id);
+    if (row) row.div.scrollIntoView({block: "nearest"});
+  }
+  $("tree-info").textContent = `${nodes.length} nodes`;
+}
+
+function buildTree(nodes, ids) {
+  treeIds = ids;
+  treeRows.clear();
+  const root = $("tree");
+  root.textContent = "";
+  const lists = new Map();
+  const top = document.createElement("ul");
+  root.appendChild(top);
+  const children = new Map();
+  for (const n of nodes) { if (n.parent != null) children.set(n.parent, (children.get(n.parent) || 0) + 1); }
+  for (const n of nodes) {
+    const li = document.createElement("li");
+    const div = document.createElement("div");
+    div.dataset.nodeId = n.id;
+    const twist = document.createElement("span");
+    twist.className = "twist";
+    twist.textContent = children.get(n.id) ? "▾" : "·";
+    twist.onclick = () => { li.classList.toggle("folded"); twist.textContent = li.classList.contains("folded") ? "▸" : "▾"; };
+    const name = document.createElement("span");
+    name.textContent = n.name;
+    const kind = document.createElement("span");
+    kind.className = "kind";
+    kind.textContent = n.kind;
+    div.append(twist, name, kind);
+    li.appendChild(div);
+    if (children.get(n.id)) {
+      const ul = document.createElement("ul");
+      li.appendChild(ul);
+      lists.set(n.id, ul);
+      if (foldDone && n.status !== "running" && n.parent != null) { li.classList.add("folded"); twist.textContent = "▸"; }
+    }
+    (n.parent != null && lists.get(n.parent) || top).appendChild(li);
+    treeRows.set(n.id, {li, div});
+  }
+}
+
+// ---- map -----------------------------------------------------------------------------------------
+async function loadMap() {
+  try {
+    const r = await fetch(withToken("/api/map"));
+    if (!r.ok) return;
+    mapLayers = await r.json();
+    if (mapLayers.trail && mapLayers.trail.length > trail.length) trail = mapLayers.trail.slice();
+    mapDirty = true;
+  } catch (e) { /* the next state retries */ }
+}
+
+function mapBounds() {
+  const xs = [], ys = [];
+  const add = (p) => { if (p) { xs.push(p[0]); ys.push(p[1]); } };
+  if (mapLayers) {
+    for (const w of mapLayers.walls) { add([w[0], w[1]]); add([w[2], w[3]]); }
+    for (const t of mapLayers.track) t.points.forEach(add);
+    for (const p of mapLayers.places) add(p.xy);
+    for (const w of mapLayers.waypoints) add(w.xy);
+    for (const f of mapLayers.fences) f.points.forEach(add);
+    if (mapLayers.start) add([mapLayers.start.x, mapLayers.start.y]);
+  }
+  trail.forEach(add);
+  if (state && state.pose) add([state.pose.x, state.pose.y]);
+  if (!xs.length) return {x0: -5, x1: 5, y0: -5, y1: 5};
+  const pad = 1.0, least = 6.0;  // metres: a robot that has not moved yet is not drawn a metre long
+  let x0 = Math.min(...xs) - pad, x1 = Math.max(...xs) + pad, y0 = Math.min(...ys) - pad, y1 = Math.max(...ys) + pad;
+  if (x1 - x0 < least) { const c = (x0 + x1) / 2; x0 = c - least / 2; x1 = c + least / 2; }
+  if (y1 - y0 < least) { const c = (y0 + y1) / 2; y0 = c - least / 2; y1 = c + least / 2; }
+  return {x0, x1, y0, y1};
+}
+
+function drawMap() {
+  requestAnimationFrame(drawMap);
+  if (!mapDirty) return;
+  mapDirty = false;
+  const c = $("map"), g = c.getContext("2d");
+  const W = c.width, H = c.height;
+  g.fillStyle = "#101214"; g.fillRect(0, 0, W, H);
+  const b = mapBounds();
+  const scale = Math.min(W / (b.x1 - b.x0), H / (b.y1 - b.y0));
+  const ox = (W - scale * (b.x1 - b.x0)) / 2, oy = (H - scale * (b.y1 - b.y0)) / 2;
+  const px = (x, y) => [ox + (x - b.x0) * scale, H - (oy + (y - b.y0) * scale)];  // ENU: north up
+  // grid: 1 m, or 10 m when the plan is large
+  const step = (b.x1 - b.x0) > 60 ? 10 : 1;
+  g.strokeStyle = "#1d2126"; g.lineWidth = 1;
+  for (let x = Math.ceil(b.x0 / step) * step; x <= b.x1; x += step) { const [a] = px(x, 0); g.beginPath(); g.moveTo(a, 0); g.lineTo(a, H); g.stroke(); }
+  for (let y = Math.ceil(b.y0 / step) * step; y <= b.y1; y += step) { const [, a] = px(0, y); g.beginPath(); g.moveTo(0, a); g.lineTo(W, a); g.stroke(); }
+  const poly = (pts, closed) => { g.beginPath(); pts.forEach((p, i) => { const [x, y] = px(p[0], p[1]); i ? g.lineTo(x, y) : g.moveTo(x, y); }); if (closed) g.closePath(); g.stroke(); };
+  if (mapLayers) {
+    g.strokeStyle = "#9aa0a6"; g.lineWidth = 3;
+    for (const w of mapLayers.walls) poly([[w[0], w[1]], [w[2], w[3]]]);
+    g.strokeStyle = "#e0e0e0"; g.lineWidth = Math.max(1.5, 0.02 * scale);
+    for (const t of mapLayers.track) poly(t.points, t.closed);
+    for (const f of mapLayers.fences) {
+      if (f.points.some((p) => !p)) continue;
+      g.strokeStyle = f.keep === "out" ? "#e5534b" : "#4caf50"; g.lineWidth = 2; g.setLineDash([6, 4]); poly(f.points, true); g.setLineDash([]);
+    }
+    g.font = "12px sans-serif";
+    for (const p of mapLayers.places) {
+      if (!p.xy) continue;
+      const [x, y] = px(p.xy[0], p.xy[1]);
+      g.fillStyle = "#4aa3ff"; g.beginPath(); g.arc(x, y, 4, 0, 2 * Math.PI); g.fill();
+      g.fillText(p.name, x + 6, y - 6);
+    }
+    const wps = mapLayers.waypoints.filter((w) => w.xy);
+    if (wps.length) {
+      g.strokeStyle = "#4aa3ff88"; g.lineWidth = 1.5; g.setLineDash([4, 4]); poly(wps.map((w) => w.xy)); g.setLineDash([]);
+      for (const w of wps) {
+        const [x, y] = px(w.xy[0], w.xy[1]);
+        if (w.tolerance_m) { g.strokeStyle = "#4aa3ff"; g.beginPath(); g.arc(x, y, w.tolerance_m * scale, 0, 2 * Math.PI); g.stroke(); }
+      }
+    }
+    if (mapLayers.start) {
+      const [x, y] = px(mapLayers.start.x, mapLayers.start.y);
+      g.strokeStyle = "#9aa0a6"; g.strokeRect(x - 5, y - 5, 10, 10);
+    }
+  }
+  if (trail.length > 1) { g.strokeStyle = "#f2c744aa"; g.lineWidth = 2; poly(trail); }
+  if (state && state.gps && state.gps.xy) {
+    const [x, y] = px(state.gps.xy[0], state.gps.xy[1]);
+    g.fillStyle = "#ff7ab412"; g.strokeStyle = "#ff7ab488"; g.lineWidth = 1;
+    g.beginPath(); g.arc(x, y, Math.max(3, state.gps.accuracy_m * scale), 0, 2 * Math.PI); g.fill(); g.stroke();
+    g.fillStyle = "#ff7ab4"; g.beginPath(); g.arc(x, y, 3, 0, 2 * Math.PI); g.fill();
+  }
+  if (state && state.pose) {
+    const p = state.pose, yaw = p.yaw_deg * Math.PI / 180;
+    const [x, y] = px(p.x, p.y);
+    const r = Math.max(9, 0.15 * scale);
+    g.save(); g.translate(x, y); g.rotate(-yaw);
+    g.fillStyle = state.estop ? "#e5534b" : "#f2c744"; g.strokeStyle = "#000";
+    g.beginPath(); g.moveTo(r, 0); g.lineTo(-r * 0.7, r * 0.6); g.lineTo(-r * 0.4, 0); g.lineTo(-r * 0.7, -r * 0.6); g.closePath();
+    g.fill(); g.stroke(); g.restore();
+  }
+  // scale bar and north
+  g.fillStyle = "#9aa0a6"; g.font = "12px sans-serif";
+  const bar = step * scale; g.fillRect(10, H - 14, bar, 3); g.fillText(step + " m", 14 + bar, H - 9);
+  g.fillText("N ↑", W - 32, 16);
+  $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
+}
+
+// ---- video -------------------------------------------------------------------------------------
+const videoStats = {frames: 0, bytes: 0, ages: [], window: []};
+window.beastbtVideoStats = videoStats;  // read by the benchmark and the tests
+function connectVideo() {
+  const ws = new WebSocket(wsUrl("/api/video"));
+  ws.binaryType = "arraybuffer";
+  let busy = false;
+  ws.onmessage = async (ev) => {
+    const buf = ev.data;
+    const view = new DataView(buf);
+    const capturedMs = view.getFloat64(0, true);
+    const now = Date.now();
+    videoStats.frames += 1; videoStats.bytes += buf.byteLength;
+    videoStats.window.push([now, buf.byteLength]);
+    while (videoStats.window.length && now - videoStats.window[0][0] > 1000) videoStats.window.shift();
+    if (busy) return;  // still drawing the last one: the newest wins
+    busy = true;
+    try {
+      const bitmap = await createImageBitmap(new Blob([buf.slice(16)], {type: "image/jpeg"}));
+      const c = $("video");
+      if (c.width !== bitmap.width) { c.width = bitmap.width; c.height = bitmap.height; }
+      c.getContext("2d").drawImage(bitmap, 0, 0);
+      bitmap.close();
+      const age = Date.now() - capturedMs;
+      videoStats.ages.push(age);
+      if (videoStats.ages.length > 500) videoStats.ages.shift();
+      const kbps = videoStats.window.reduce((a, w) => a + w[1], 0) * 8 / 1000;
+      $("video-info").textContent = `${videoStats.window.length} fps · ${(kbps / 1000).toFixed(2)} Mbit/s · ${Math.round(age)} ms old`;
+    } catch (e) { /* a frame that does not decode is skipped */ }
+    busy = false;
+  };
+  ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
+}
+
+// ---- driving: the on-page joystick and the browser's gamepad ---------------------------------------
+const stick = {linear: 0, angular: 0, held: false, source: null};
+let lastSend = 0;
+function sendStick(force) {
+  const now = performance.now();
+  if (!force && now - lastSend < 100) return;
+  lastSend = now;
+  post("teleop", {linear: stick.linear, angular: stick.angular, deadman: stick.held});
+}
+setInterval(() => { if (stick.held) sendStick(true); }, 100);  // keep the deadman alive while held
+
+const pad = $("joystick"), knob = $("knob");
+function padMove(ev) {
+  const r = pad.getBoundingClientRect();
+  const cx = r.left + r.width / 2, cy = r.top + r.height / 2, R = r.width / 2 - 35;
+  let dx = ev.clientX - cx, dy = ev.clientY - cy;
+  const d = Math.hypot(dx, dy);
+  if (d > R) { dx *= R / d; dy *= R / d; }
+  knob.style.left = (r.width / 2 - 35 + dx) + "px"; knob.style.top = (r.height / 2 - 35 + dy) + "px";
+  stick.linear = +(-dy / R).toFixed(3); stick.angular = +(-dx / R).toFixed(3);
+}
+function padRelease() {
+  if (stick.source !== "pad") return;
+  pad.classList.remove("active");
+  knob.style.left = "75px"; knob.style.top = "75px";
+  Object.assign(stick, {linear: 0, angular: 0, held: false, source: null});
+  sendStick(true);
+  $("drive-info").textContent = "hold the pad to drive";
+}
+pad.addEventListener("pointerdown", (ev) => {
+  pad.setPointerCapture(ev.pointerId);
+  pad.classList.add("active");
+  stick.held = true; stick.source = "pad";
+  padMove(ev); sendStick(true);
+  $("drive-info").textContent = "driving: release to stop";
+});
+pad.addEventListener("pointermove", (ev) => { if (stick.source === "pad") { padMove(ev); sendStick(false); } });
+pad.addEventListener("pointerup", padRelease);
+pad.addEventListener("pointercancel", padRelease);
+pad.addEventListener("lostpointercapture", padRelease);
+window.addEventListener("blur", () => { padRelease(); if (stick.source === "gamepad") gamepadRelease(); });
+
+const DEADMAN_BUTTON = 4;  // LB on the standard mapping, as teleop_twist_joy's enable button
+function gamepadRelease() { Object.assign(stick, {linear: 0, angular: 0, held: false, source: null}); sendStick(true); }
+function pollGamepad() {
+  requestAnimationFrame(pollGamepad);
+  const pads = navigator.getGamepads ? Array.from(navigator.getGamepads()).filter(Boolean) : [];
+  const gp = pads[0];
+  if (!gp) { if (stick.source === "gamepad") gamepadRelease(); return; }
+  const held = !!(gp.buttons[DEADMAN_BUTTON] && gp.buttons[DEADMAN_BUTTON].pressed);
+  $("gamepad-info").textContent = `gamepad: ${gp.id.slice(0, 40)}${held ? " · driving" : " · hold LB to drive"}`;
+  const dz = (v) => Math.abs(v) < 0.08 ? 0 : v;
+  if (held && stick.source !== "pad") {
+    stick.source = "gamepad"; stick.held = true;
+    stick.linear = +(-dz(gp.axes[1] || 0)).toFixed(3); stick.angular = +(-dz(gp.axes[0] || 0)).toFixed(3);
+    sendStick(false);
+  } else if (!held && stick.source === "gamepad") {
+    gamepadRelease();
+  }
+}
+
+connectState();
+connectVideo();
+loadMap();
+requestAnimationFrame(drawMap);
+requestAnimationFrame(pollGamepad);

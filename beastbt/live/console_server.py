@@ -1,0 +1,332 @@
+"""The operator console's web server (aiohttp, in a thread of its own): the page, the API, the live pushes.
+
+The contract (tests and other tools rely on it):
+
+* ``GET /api/state``: the run's state (:mod:`beastbt.live.console_state`);
+  ``GET /api/map``: the map's fixed layers and the trail so far.
+* ``WS /api/ws``: the state, pushed at least 5 times a second; the final state
+  is always sent before the socket closes at the end of the run.
+* ``WS /api/video``: the camera as binary JPEG messages
+  (:mod:`beastbt.live.console_video`).
+* ``POST /api/pause``, ``/api/resume``, ``/api/abort``, ``/api/estop``,
+  ``/api/estop/reset``, ``/api/answer`` (``{id, choice}``), ``/api/teleop``
+  (``{linear, angular, deadman}``). Each answers ``{ok: true, ...}``, or a 4xx
+  with ``{error}`` when it cannot be done (409: not now, 400: a bad request).
+* Off loopback every request needs the run's token (printed once at start):
+  ``?token=``, an ``Authorization: Bearer`` header, or the cookie the page
+  gets. Without it: 401. A server bound to loopback needs none.
+
+Nothing a request does can end the run by accident: every handler's error
+becomes a JSON answer, and the run's state is only touched on the tick thread
+(:mod:`beastbt.live.console_control`), except the e-stop, which is safe from
+any thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import hmac
+import ipaddress
+import json
+import secrets
+import socket
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from importlib import resources
+from typing import Any, Awaitable, Callable, Optional
+
+from aiohttp import WSMsgType, web
+
+from beastbt.live.console_control import ConsoleControls, Refused, check_teleop_body
+from beastbt.live.console_state import ConsoleState, map_layers
+from beastbt.live.console_video import BudgetGuard, ConsoleVideo
+
+PUSH_PERIOD_S = 0.1
+"""The state is pushed to every WebSocket at least this often (s): 10 a second."""
+CONTROL_TIMEOUT_S = 2.0
+"""How long a control waits for the tick thread before the answer is 503 (s)."""
+TOKEN_COOKIE = "beastbt_console_token"
+PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css"}
+"""The page's own files, shipped in the package (no CDN: it works offline in a field)."""
+
+
+def is_loopback(host: str) -> bool:
+    """True for 127.0.0.0/8, ::1 and ``localhost``."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _page(name: str) -> bytes:
+    return resources.files("beastbt.live").joinpath("console_page", name).read_bytes()
+
+
+def _error(status: int, message: str) -> web.Response:
+    return web.json_response({"error": message}, status=status)
+
+
+class ConsoleServer:
+    """The console of one run, served on ``host:port`` until :meth:`close` (see the module docstring)."""
+
+    def __init__(self, state: ConsoleState, controls: ConsoleControls, video: ConsoleVideo, run: Any,
+                 world: Any, host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None) -> None:
+        self.state = state
+        self.controls = controls
+        self.video = video
+        self.run = run
+        self.world = world
+        self.host = host
+        self.requested_port = port
+        self.needs_token = not is_loopback(host)
+        self.token = token or secrets.token_urlsafe(18)
+        self.port = port
+        self._loop: Optional[asyncio.AbstractEventLoop] = None
+        self._thread: Optional[threading.Thread] = None
+        self._runner: Optional[web.AppRunner] = None
+        self._ending: Optional[asyncio.Event] = None
+        self._handlers: set[asyncio.Task] = set()
+        self._waiters = ThreadPoolExecutor(max_workers=8, thread_name_prefix="beastbt-console-wait")
+        self.requests = 0
+
+    # -- life ------------------------------------------------------------------------
+    def start(self) -> "ConsoleServer":
+        """Bind and serve in a daemon thread; raises OSError when the address cannot be bound."""
+        ready = threading.Event()
+        failure: list[BaseException] = []
+
+        def serve() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            asyncio.set_event_loop(loop)
+            try:
+                loop.run_until_complete(self._bind())
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller of start()
+                failure.append(exc)
+                ready.set()
+                loop.close()
+                return
+            ready.set()
+            loop.run_forever()
+            loop.close()
+
+        self._thread = threading.Thread(target=serve, name="beastbt-console", daemon=True)
+        self._thread.start()
+        ready.wait(10.0)
+        if failure:
+            raise failure[0]
+        return self
+
+    async def _bind(self) -> None:
+        self._ending = asyncio.Event()
+        app = web.Application(middlewares=[self._guard], client_max_size=64 * 1024)
+        app.router.add_get("/", self._index)
+        app.router.add_get("/index.html", self._index)
+        app.router.add_get("/static/{name}", self._static)
+        app.router.add_get("/api/state", self._get_state)
+        app.router.add_get("/api/map", self._get_map)
+        app.router.add_get("/api/ws", self._ws_state)
+        app.router.add_get("/api/video", self._ws_video)
+        for name in ("pause", "resume", "abort", "answer", "teleop"):
+            app.router.add_post(f"/api/{name}", self._control(name))
+        app.router.add_post("/api/estop", self._estop)
+        app.router.add_post("/api/estop/reset", self._estop_reset)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.requested_port, reuse_address=True)
+        await site.start()
+        server = site._server  # the bound port when 0 was asked for
+        sockets = getattr(server, "sockets", None) or []
+        if sockets:
+            self.port = sockets[0].getsockname()[1]
+
+    @property
+    def url(self) -> str:
+        """The page's address, with the token when one is needed."""
+        host = self.host
+        if host in ("0.0.0.0", "::", ""):
+            host = socket.gethostname()
+        elif ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.needs_token else "")
+
+    def close(self, timeout_s: float = 3.0) -> None:
+        """Send every viewer the final state, close their sockets and stop serving."""
+        loop = self._loop
+        if loop is None or not loop.is_running():
+            return
+        future = asyncio.run_coroutine_threadsafe(self._shutdown(), loop)
+        try:
+            future.result(timeout_s)
+        except Exception:  # noqa: BLE001 - closing must finish whatever happened
+            pass
+        loop.call_soon_threadsafe(loop.stop)
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+        self._waiters.shutdown(wait=False, cancel_futures=True)
+
+    async def _shutdown(self) -> None:
+        assert self._ending is not None
+        self._ending.set()  # every socket's handler sends what it owes (the final state) and closes
+        handlers = [t for t in self._handlers if not t.done()]
+        if handlers:
+            await asyncio.wait(handlers, timeout=2.0)
+        if self._runner is not None:
+            await self._runner.cleanup()
+
+    # -- the guard: token, errors as JSON ---------------------------------------------------
+    @web.middleware
+    async def _guard(self, request: web.Request, handler: Callable[[web.Request], Awaitable[web.StreamResponse]]
+                     ) -> web.StreamResponse:
+        self.requests += 1
+        if self.needs_token and not self._has_token(request):
+            return _error(401, "this console needs its token: open the address printed when the run started "
+                               "(it ends in ?token=...)")
+        try:
+            response = await handler(request)
+        except web.HTTPException as exc:
+            if exc.status < 400:
+                raise
+            return _error(exc.status, exc.reason or "bad request")
+        except Refused as exc:
+            return _error(exc.status, str(exc))
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - never a traceback, never the run
+            return _error(500, f"the console could not answer: {exc!r}")
+        if self.needs_token and request.query.get("token") and request.path in ("/", "/index.html"):
+            response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict")
+        return response
+
+    def _has_token(self, request: web.Request) -> bool:
+        given = [request.query.get("token", ""), request.cookies.get(TOKEN_COOKIE, "")]
+        auth = request.headers.get("Authorization", "")
+        if auth.startswith("Bearer "):
+            given.append(auth[7:].strip())
+        return any(g and hmac.compare_digest(g.encode(), self.token.encode()) for g in given)
+
+    # -- the page ------------------------------------------------------------------------
+    async def _index(self, request: web.Request) -> web.Response:
+        return web.Response(body=_page("index.html"), content_type="text/html", charset="utf-8",
+                            headers={"Cache-Control": "no-cache"})
+
+    async def _static(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        if name not in PAGE_FILES:
+            return _error(404, f"no file '{name}'")
+        return web.Response(body=_page(name), content_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
+
+    # -- state -----------------------------------------------------------------------------
+    async def _get_state(self, request: web.Request) -> web.Response:
+        return web.json_response(self.state.latest().state)
+
+    async def _get_map(self, request: web.Request) -> web.Response:
+        layers = map_layers(self.run, self.world, self.state.frame)
+        layers["trail"] = list(self.state.trail)
+        return web.json_response(layers)
+
+    async def _ws_state(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=10.0)
+        await ws.prepare(request)
+        task = asyncio.current_task()
+        assert self._ending is not None and task is not None
+        self._handlers.add(task)
+        reader = asyncio.ensure_future(self._drain(ws))
+        try:
+            while not self._ending.is_set() and not ws.closed and not reader.done():
+                await ws.send_json(self.state.latest().state)
+                try:
+                    await asyncio.wait_for(self._ending.wait(), PUSH_PERIOD_S)
+                except asyncio.TimeoutError:
+                    pass
+            if self._ending.is_set() and not ws.closed:
+                await ws.send_json(self.state.latest().state)  # the final state, always, before the close
+                await ws.close(message=b"the run has ended")
+        except (ConnectionResetError, RuntimeError):
+            pass
+        finally:
+            reader.cancel()
+            self._handlers.discard(task)
+        return ws
+
+    async def _drain(self, ws: web.WebSocketResponse) -> None:
+        async for msg in ws:  # the page sends nothing it needs answered; this notices a closed tab
+            if msg.type in (WSMsgType.CLOSE, WSMsgType.ERROR):
+                break
+
+    async def _ws_video(self, request: web.Request) -> web.WebSocketResponse:
+        ws = web.WebSocketResponse(heartbeat=10.0)
+        await ws.prepare(request)
+        task = asyncio.current_task()
+        assert task is not None
+        self._handlers.add(task)
+        video = self.video
+        guard = BudgetGuard(video.config.budget_bps, video.wall)
+        loop = asyncio.get_running_loop()
+        video.viewers += 1
+        assert self._ending is not None
+        reader = asyncio.ensure_future(self._drain(ws))
+        last = 0
+        try:
+            while not self._ending.is_set() and not ws.closed and not reader.done():
+                got = await loop.run_in_executor(self._waiters, video.encoded.wait_newer, last, 0.5)
+                if got is None:
+                    continue
+                last, encoded = got
+                if guard.allows(len(encoded.message)):
+                    await ws.send_bytes(encoded.message)
+        except (ConnectionResetError, RuntimeError):
+            pass
+        finally:
+            reader.cancel()
+            video.viewers -= 1
+            self._handlers.discard(task)
+            if not ws.closed:
+                await ws.close(message=b"the run has ended")
+        return ws
+
+    # -- controls ------------------------------------------------------------------------
+    async def _body(self, request: web.Request) -> dict:
+        if not request.can_read_body:
+            return {}
+        try:
+            body = await request.json()
+        except (json.JSONDecodeError, UnicodeDecodeError, ValueError):
+            raise Refused(400, "the body is not JSON") from None
+        if not isinstance(body, dict):
+            raise Refused(400, "expected a JSON object")
+        return body
+
+    def _control(self, name: str) -> Callable[[web.Request], Awaitable[web.Response]]:
+        async def handle(request: web.Request) -> web.Response:
+            body = await self._body(request)
+            if name == "teleop":
+                body = check_teleop_body(body)
+            elif name == "answer":
+                if not isinstance(body.get("id"), str) or not isinstance(body.get("choice"), str):
+                    raise Refused(400, "expected {\"id\": QUESTION_ID, \"choice\": \"yes\" or \"no\"}")
+            future = self.controls.submit(name, body)
+            try:
+                outcome = await asyncio.wait_for(asyncio.wrap_future(future), CONTROL_TIMEOUT_S)
+            except asyncio.TimeoutError:
+                return _error(503, f"the run did not take '{name}' within {CONTROL_TIMEOUT_S:g} s")
+            return web.json_response({"ok": True, **outcome})
+        return handle
+
+    async def _estop(self, request: web.Request) -> web.Response:
+        from beastbt.run.safety import request_estop
+        first = request_estop(self.run, "operator console")
+        self.run.io.wakeup.set()
+        return web.json_response({"ok": True, "estop": True, "newly_latched": first})
+
+    async def _estop_reset(self, request: web.Request) -> web.Response:
+        from beastbt.run.safety import reset_estop
+        if not self.run.mux.estop_latched:
+            raise Refused(409, "the e-stop is not latched")
+        reset_estop(self.run, "operator console")
+        return web.json_response({"ok": True, "estop": False})
+
+
+__all__ = ["ConsoleServer", "is_loopback", "PUSH_PERIOD_S"]

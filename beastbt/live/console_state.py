@@ -1,0 +1,280 @@
+"""What the operator console shows: the run's state as JSON, and the map's fixed layers.
+
+:class:`ConsoleState` is called on the tick thread (a tick hook). At most
+``period_s`` of wall time apart it builds the state object of the console's
+contract (``GET /api/state``, ``WS /api/ws``) and hands it over whole; the
+web server only ever reads the last one handed over, so the loop never waits
+for a viewer and a viewer never sees a half-built state.
+
+The map is drawn in a plan of east-north-up metres (:class:`MapFrame`): on the
+simulator the world's own frame (walls, line track, start), on a robot the
+navigation filter's frame once it has a fix (places and fences need a datum),
+else the odometry frame. The pose in the state is in that plan too.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import py_trees
+
+from beastbt.blackboard.types import BatteryState, GpsFix
+from beastbt.estimation.geodesy import LocalFrame
+from beastbt.run.progress import progress_of
+from beastbt.run.tree_ids import tree_layout
+
+STATUS_NAMES = {"success": "succeeded", "failure": "failed", "stopped": "aborted"}
+"""The run's ending (the summary's ``status``) -> the console's status word."""
+NODE_STATUS = {py_trees.common.Status.RUNNING: "running", py_trees.common.Status.SUCCESS: "success",
+               py_trees.common.Status.FAILURE: "failure", py_trees.common.Status.INVALID: "idle"}
+"""py_trees status -> the tree's status word in the console."""
+TRAIL_STEP_M = 0.05
+"""A trail point is kept when the robot has moved this far from the last one (m)."""
+TRAIL_MAX_POINTS = 4000
+"""Above this the trail keeps every other point (the page's drawing cost stays bounded)."""
+GPS_UERE_M = 4.0
+"""Without a covariance, the GPS accuracy circle is HDOP times this (m, a plain receiver's range error)."""
+CELL_FULL_V = 4.2
+CELL_EMPTY_V = 3.3
+"""A Li-ion cell's voltage full and empty (V): the battery's percent is read off this line."""
+
+
+def board(run: Any, key: str) -> Any:
+    """The run's blackboard value ``key``, or None before anything wrote it (the state is built before the first tick)."""
+    try:
+        return getattr(run.bb, key)
+    except KeyError:
+        return None
+
+
+def battery_percent(volts: float, cells: Optional[int] = None) -> float:
+    """Charge left, percent, from the pack voltage (V); ``cells`` in series (None: guessed at 3.7 V a cell)."""
+    n = cells or max(1, round(volts / 3.7))
+    return max(0.0, min(100.0, (volts / n - CELL_EMPTY_V) / (CELL_FULL_V - CELL_EMPTY_V) * 100.0))
+
+
+class MapFrame:
+    """Where the console draws: a plan in ENU metres (see the module docstring)."""
+
+    def __init__(self, run: Any, world: Any) -> None:
+        self.run = run
+        self.world = world
+        self.start = (world.start_x, world.start_y, world.start_yaw) if world is not None else (0.0, 0.0, 0.0)
+        self.fused = run.estimator is not None and "pose" in run.reads()
+        """Show the fused pose (a mission that navigates by it); else odometry from the start, as the steps drive."""
+
+    @property
+    def geo(self) -> Optional[LocalFrame]:
+        """The datum that places latitude and longitude on the plan (None until a robot has a fix)."""
+        if self.world is not None:
+            return self.world.frame
+        return getattr(self.run.estimator, "frame", None)
+
+    def pose(self) -> Optional[tuple[float, float, float]]:
+        """The robot's pose on the plan (x, y m, yaw rad CCW from east), as the robot believes it.
+
+        A mission that navigates by the fused pose (GPS, IMU and odometry) is
+        shown by it; one that drives by odometry by its odometry, placed at
+        the world's start (on a robot, at the origin).
+        """
+        fused = board(self.run, "pose") if self.fused else None
+        geo = self.geo
+        if fused is not None and fused.position_valid and fused.lat is not None and geo is not None:
+            x, y, _ = geo.to_enu(fused.lat, fused.lon, 0.0)
+            return x, y, fused.yaw
+        odo = board(self.run, "pose_odom")
+        if odo is None:
+            return None
+        sx, sy, syaw = self.start  # odometry starts at the start pose
+        c, s = math.cos(syaw), math.sin(syaw)
+        return sx + c * odo.x - s * odo.y, sy + s * odo.x + c * odo.y, syaw + odo.yaw
+
+    def point(self, lat: float, lon: float) -> Optional[list[float]]:
+        """A WGS84 point (deg) on the plan, [x, y] m; None without a datum."""
+        geo = self.geo
+        if geo is None:
+            return None
+        x, y, _ = geo.to_enu(lat, lon, 0.0)
+        return [round(x, 3), round(y, 3)]
+
+
+def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
+    """The map's fixed layers: walls, line track, start, places, the mission's waypoints and fences (plan metres)."""
+    from beastbt.sim.floor import track_centrelines
+    mission = run.mission
+    out: dict = {"datum": None, "walls": [], "track": [], "start": None, "places": [], "waypoints": [], "fences": []}
+    geo = frame.geo
+    if geo is not None:
+        out["datum"] = {"lat": geo.lat0_deg, "lon": geo.lon0_deg}
+    if world is not None:
+        out["walls"] = [[w.x1, w.y1, w.x2, w.y2] for w in world.walls]
+        try:
+            out["track"] = [{"points": [[round(x, 3), round(y, 3)] for x, y in pts], "closed": closed}
+                            for pts, closed in track_centrelines(world.section("floor"))]
+        except ValueError:
+            out["track"] = []  # the world was checked before the run; a drawing must never fail the page
+        out["start"] = {"x": world.start_x, "y": world.start_y, "yaw_deg": math.degrees(world.start_yaw)}
+    for place in mission.places.values():
+        xy = frame.point(place.lat, place.lon)
+        out["places"].append({"name": place.name, "lat": place.lat, "lon": place.lon, "xy": xy,
+                              "tolerance_m": place.tolerance_m})
+    out["waypoints"] = route_waypoints(run, frame)
+    for fence in mission.fences.values():
+        out["fences"].append({"name": fence.name, "keep": fence.keep,
+                              "points": [frame.point(lat, lon) for lat, lon in fence.corners]})
+    return out
+
+
+def route_waypoints(run: Any, frame: MapFrame) -> list[dict]:
+    """The places the mission drives to, in the order of its steps: ``{name, xy, tolerance_m}``."""
+    from beastbt.behaviours.navigation import GoTo
+    out = []
+    for node in run.nodes:
+        if isinstance(node, GoTo):
+            try:
+                target = node.target()
+            except Exception:  # noqa: BLE001 - a target that needs the run (home) may not be known yet
+                target = None
+            if target is None:
+                continue
+            out.append({"name": node.place, "step": node.name, "xy": frame.point(target[0], target[1]),
+                        "tolerance_m": getattr(node, "tolerance_m", None)})
+    return out
+
+
+@dataclass
+class Published:
+    """The last state handed over, with its JSON, and a counter that changes with every hand-over."""
+
+    seq: int
+    state: dict
+
+
+class ConsoleState:
+    """Builds the console's state on the tick thread and hands it to the server (see the module docstring).
+
+    ``wall`` is a monotonic wall clock in seconds (the hand-over rate is for
+    people, not for the simulation); ``period_s`` the least time between
+    two hand-overs.
+    """
+
+    def __init__(self, run: Any, world: Any, wall: Callable[[], float], period_s: float = 0.1,
+                 battery_cells: Optional[int] = None) -> None:
+        self.run = run
+        self.world = world
+        self.wall = wall
+        self.period_s = period_s
+        self.battery_cells = battery_cells
+        self.frame = MapFrame(run, world)
+        self.layout = tree_layout(run.root)
+        self.trail: list[list[float]] = []
+        self._cond = threading.Condition()
+        self._published = Published(0, self.build())
+        self._last_wall = -math.inf
+
+    # -- the tick thread --------------------------------------------------------------
+    def __call__(self, run: Any, now_s: float) -> None:
+        """A tick hook: keep the trail; hand over a new state at most every ``period_s`` (wall)."""
+        self._extend_trail()
+        wall = self.wall()
+        if wall - self._last_wall >= self.period_s:
+            self._last_wall = wall
+            self.publish()
+
+    def publish(self) -> None:
+        """Build the state now and hand it over (the tick thread; also for the final state)."""
+        state = self.build()
+        with self._cond:
+            self._published = Published(self._published.seq + 1, state)
+            self._cond.notify_all()
+
+    def _extend_trail(self) -> None:
+        pose = self.frame.pose()
+        if pose is None:
+            return
+        x, y = pose[0], pose[1]
+        trail = self.trail
+        if not trail or math.hypot(x - trail[-1][0], y - trail[-1][1]) >= TRAIL_STEP_M:
+            trail.append([round(x, 3), round(y, 3)])
+            if len(trail) > TRAIL_MAX_POINTS:
+                self.trail = trail[::2]
+
+    def status_word(self) -> str:
+        """``running``, ``paused``, ``succeeded``, ``failed`` or ``aborted``."""
+        run = self.run
+        if run.status is not None:
+            return STATUS_NAMES.get(run.status, run.status)
+        return "paused" if run.operator_paused or run.paused_by is not None else "running"
+
+    def build(self) -> dict:
+        """The state object of the console's contract (JSON-ready)."""
+        run = self.run
+        pose = self.frame.pose()
+        odo = board(run, "pose_odom")
+        fix = run.latest.get(GpsFix)
+        battery = run.latest.get(BatteryState)
+        questions = self.run.ctx.services.questions
+        question = questions.current() if questions is not None else None
+        mission_time = run.mission_time_s
+        progress = progress_of(run.root, mission_time)
+        override = run.ctx.services.teleop
+        state: dict = {
+            "mission": run.mission.name,
+            "status": self.status_word(),
+            "time_s": round(mission_time, 2),
+            "step": run.current_step(),
+            "progress": progress.as_dict(),
+            "pose": None if pose is None else {
+                "x": round(pose[0], 3), "y": round(pose[1], 3), "yaw_deg": round(math.degrees(pose[2]), 1),
+                "heading_deg": round((90.0 - math.degrees(pose[2])) % 360.0, 1)},
+            "gps": None if fix is None else {
+                "lat": fix.lat, "lon": fix.lon, "fix": fix.quality, "sats": fix.sats, "hdop": fix.hdop,
+                "accuracy_m": round(_accuracy_m(fix), 2), "xy": self.frame.point(fix.lat, fix.lon)},
+            "speed_mps": round(abs(odo.speed_mps), 3) if odo is not None else 0.0,
+            "battery": None if battery is None else {
+                "volts": round(battery.voltage_v, 2),
+                "percent": round(battery_percent(battery.voltage_v, self.battery_cells), 0)},
+            "estop": bool(run.mux.estop_latched),
+            "teleop": bool(getattr(override, "teleop", None) is not None and override.teleop.active),
+            "question": None if question is None else {
+                "id": question.id, "text": question.text, "choices": list(question.choices)},
+            "tree": [{"id": n.id, "name": n.name, "kind": n.kind, "status": NODE_STATUS.get(n.node.status, "idle"),
+                      "parent": n.parent} for n in self.layout],
+            "command": {"linear_mps": round(run.last_sent.linear_mps, 3),
+                        "angular_rps": round(run.last_sent.angular_rps, 3)},
+            "sim_time_s": round(run.elapsed_s, 2),
+            "mux_source": run.mux.source,
+            "paused_by": "operator" if run.operator_paused else run.paused_by,
+            "trail_len": len(self.trail),
+            "map_version": 1 if self.frame.geo is None else 2,
+        }
+        return state
+
+    # -- the server's side -------------------------------------------------------------
+    def latest(self) -> Published:
+        """The last state handed over (any thread)."""
+        with self._cond:
+            return self._published
+
+    def wait_newer(self, seq: int, timeout_s: float) -> Published:
+        """The first state handed over after ``seq``, or the last one after ``timeout_s`` seconds (any thread)."""
+        with self._cond:
+            if self._published.seq <= seq:
+                self._cond.wait(timeout_s)
+            return self._published
+
+
+def _accuracy_m(fix: GpsFix) -> float:
+    cov = getattr(fix, "covariance_enu", None)
+    if cov is not None:
+        try:
+            return math.sqrt(max(0.0, float(cov[0][0]) + float(cov[1][1])))
+        except (TypeError, IndexError, ValueError):
+            pass
+    return (fix.hdop or 1.0) * GPS_UERE_M
+
+
+__all__ = ["ConsoleState", "MapFrame", "map_layers", "route_waypoints", "battery_percent", "STATUS_NAMES"]

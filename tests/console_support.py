@@ -1,0 +1,98 @@
+"""Helpers for the operator console's tests: a real ``beastbt run --console`` in a subprocess, and its API."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+from typing import Any, Optional
+
+CHROMIUM = next((p for p in (os.environ.get("BEASTBT_CHROMIUM"), shutil.which("chromium"), "/usr/bin/chromium",
+                             shutil.which("chromium-browser")) if p and Path(p).exists()), None)
+"""Debian's Chromium (``.ci/run`` installs it); the browser tests skip without it."""
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--disable-dev-shm-usage"]
+"""Flags for Chromium on a machine with no network beyond loopback (no background lookups)."""
+
+
+class ConsoleRun:
+    """``beastbt run MISSION --console HOST:0`` in a subprocess; ``url`` is the printed address (with any token)."""
+
+    def __init__(self, mission: Path, *extra: str, host: str = "127.0.0.1", cwd: Optional[Path] = None) -> None:
+        cmd = [sys.executable, "-m", "beastbt", "run", str(mission), "--console", f"{host}:0", *extra]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     cwd=str(cwd) if cwd else None, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.lines: list[str] = []
+        deadline = time.monotonic() + 60
+        self.url = ""
+        while time.monotonic() < deadline:
+            line = self.proc.stdout.readline()
+            if not line:
+                raise RuntimeError(f"beastbt ended before serving the console: {self.proc.stderr.read()}")
+            self.lines.append(line)
+            m = re.search(r"operator console: (\S+)", line)
+            if m:
+                self.url = m.group(1)
+                break
+        if not self.url:
+            raise RuntimeError("no console address was printed")
+        self.base = re.sub(r"/(\?.*)?$", "", self.url)
+        self.port = int(self.base.rsplit(":", 1)[1])
+        self.token = self.url.split("token=", 1)[1] if "token=" in self.url else None
+
+    def api(self, path: str, body: Any = None, token: bool = True, host: Optional[str] = None) -> tuple[int, Any]:
+        """(HTTP status, JSON) of a GET (no body) or POST (body) to the console."""
+        base = self.base if host is None else f"http://{host}:{self.port}"
+        url = base + path
+        if token and self.token:
+            url += ("&" if "?" in url else "?") + "token=" + self.token
+        data = None if body is None else (body if isinstance(body, bytes) else json.dumps(body).encode())
+        req = urllib.request.Request(url, data=data, method="GET" if body is None else "POST",
+                                     headers={"Content-Type": "application/json"})
+        try:
+            with urllib.request.urlopen(req, timeout=10) as r:
+                return r.status, json.loads(r.read() or b"null")
+        except urllib.error.HTTPError as e:
+            raw = e.read()
+            try:
+                return e.code, json.loads(raw)
+            except ValueError:
+                return e.code, raw.decode(errors="replace")
+
+    def state(self) -> dict:
+        """``GET /api/state``."""
+        status, body = self.api("/api/state")
+        assert status == 200, body
+        return body
+
+    def wait_state(self, predicate, timeout_s: float = 30.0) -> dict:
+        """Poll the state until ``predicate(state)``; the last state (AssertionError on timeout)."""
+        deadline = time.monotonic() + timeout_s
+        state = self.state()
+        while not predicate(state):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"state never matched; last: {({k: v for k, v in state.items() if k != 'tree'})}")
+            time.sleep(0.1)
+            state = self.state()
+        return state
+
+    def finish(self, timeout_s: float = 60.0) -> tuple[int, str, str]:
+        """Wait for the run to end: (exit code, stdout, stderr)."""
+        out, err = self.proc.communicate(timeout=timeout_s)
+        return self.proc.returncode, "".join(self.lines) + out, err
+
+    def kill(self) -> None:
+        """End the run if it is still going (SIGTERM: it stops the robot and writes its summary)."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.communicate(timeout=20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()

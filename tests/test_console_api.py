@@ -1,0 +1,191 @@
+"""The operator console's HTTP/WebSocket contract, on real ``beastbt run --console`` runs of the simulator."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import time
+from pathlib import Path
+
+import aiohttp
+import pytest
+
+from console_support import ConsoleRun
+
+WAIT = "mission: console_wait\nsteps:\n  - wait: 60 s\n"
+SHORT = "mission: console_short\nsteps:\n  - drive: {distance: 0.3 m}\n  - wait: 1 s\n"
+ASK = """mission: console_ask
+steps:
+  - ask: {id: door, question: "Is the door open?"}
+    then:
+      - drive: {distance: 0.3 m}
+"""
+
+
+@pytest.fixture
+def console(tmp_path: Path):
+    runs: list[ConsoleRun] = []
+
+    def start(text: str, *extra: str, host: str = "127.0.0.1") -> ConsoleRun:
+        path = tmp_path / "mission.yaml"
+        path.write_text(text, encoding="utf-8")
+        run = ConsoleRun(path, "--runs-dir", str(tmp_path / "runs"), "--summary", str(tmp_path / "summary.json"),
+                         *extra, host=host, cwd=tmp_path)
+        runs.append(run)
+        return run
+    yield start
+    for run in runs:
+        run.kill()
+
+
+def test_the_state_has_every_field_and_every_node_with_ids_stable_for_the_run(console):
+    steps = "".join(f"  - wait: {i % 3 + 1} s\n" for i in range(210))
+    run = console(f"mission: long_one\nsteps:\n{steps}", "--speed", "realtime")
+    first = run.wait_state(lambda s: s["battery"] is not None, 10)
+    assert set(first) >= {"mission", "status", "time_s", "step", "progress", "pose", "gps", "speed_mps", "battery",
+                          "estop", "teleop", "question", "tree"}
+    assert first["mission"] == "long_one" and first["status"] == "running"
+    assert set(first["progress"]) == {"done", "total", "eta_s"} and first["progress"]["total"] == 210
+    assert set(first["pose"]) >= {"x", "y", "yaw_deg", "heading_deg"}
+    assert first["battery"]["volts"] > 0 and 0 <= first["battery"]["percent"] <= 100
+    tree = first["tree"]
+    assert len(tree) == 211  # no limit on the number of nodes: root and 210 steps
+    assert all(set(n) == {"id", "name", "kind", "status", "parent"} for n in tree)
+    assert len({n["id"] for n in tree}) == 211
+    ids = {n["id"] for n in tree}
+    assert all(n["parent"] is None or n["parent"] in ids for n in tree)
+    later = run.wait_state(lambda s: s["progress"]["done"] >= 1, 10)
+    assert [(n["id"], n["name"]) for n in later["tree"]] == [(n["id"], n["name"]) for n in tree]
+    assert later["progress"]["eta_s"] is not None and later["progress"]["eta_s"] > 0
+    assert [n["status"] for n in later["tree"]] != [n["status"] for n in tree]
+
+
+def test_the_websocket_pushes_5_times_a_second_and_the_final_state_before_closing(console):
+    run = console(SHORT, "--speed", "realtime")
+
+    async def watch() -> list[dict]:
+        got = []
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(run.base + "/api/ws") as ws:
+                async for msg in ws:
+                    if msg.type == aiohttp.WSMsgType.TEXT:
+                        got.append((time.monotonic(), json.loads(msg.data)))
+        return got
+
+    got = asyncio.run(asyncio.wait_for(watch(), 60))
+    stamps = [t for t, _ in got]
+    assert len(got) >= 10
+    running = [t for t, s in got if s["status"] == "running"]
+    span = running[-1] - running[0]
+    assert len(running) - 1 >= 5 * span * 0.9  # at least 5 a second, every second of the run
+    assert max(b - a for a, b in zip(stamps, stamps[1:])) < 0.5
+    assert got[-1][1]["status"] == "succeeded"
+    code, _, _ = run.finish()
+    assert code == 0
+
+
+def test_bad_requests_get_a_json_4xx_and_the_run_goes_on(console):
+    run = console(SHORT, "--speed", "realtime")
+    for path, body in [("/api/teleop", {"linear": "fast", "angular": 0, "deadman": True}),
+                       ("/api/teleop", {"linear": 0.5, "angular": 0, "deadman": "yes"}),
+                       ("/api/teleop", {"linear": 5, "angular": 0, "deadman": True}),
+                       ("/api/teleop", [1, 2]),
+                       ("/api/answer", {"id": 3}),
+                       ("/api/pause", b"{not json")]:
+        status, answer = run.api(path, body)
+        assert status == 400, (path, body, answer)
+        assert isinstance(answer["error"], str) and "Traceback" not in answer["error"]
+    assert run.api("/api/answer", {"id": "door", "choice": "yes"}) == (409, {"error": "no question is open"})
+    assert run.api("/api/resume", {})[0] == 409  # not paused
+    assert run.api("/api/estop/reset", {})[0] == 409  # not latched
+    status, answer = run.api("/api/nothing")
+    assert status == 404 and "error" in answer
+    status, answer = run.api("/api/pause")  # a GET where a POST is needed
+    assert status == 405 and "error" in answer
+    status, answer = run.api("/api/teleop", b"x" * 200_000)
+    assert 400 <= status < 500
+    code, out, err = run.finish()
+    assert code == 0 and "Traceback" not in err
+    assert json.loads((Path(run.proc.args[run.proc.args.index("--summary") + 1])).read_text())["status"] == "success"
+
+
+def test_teleop_stops_within_half_a_second_when_its_messages_stop(console):
+    run = console(WAIT, "--speed", "realtime")
+    run.wait_state(lambda s: s["pose"] is not None, 10)
+    for _ in range(12):
+        status, answer = run.api("/api/teleop", {"linear": 1.0, "angular": 0.0, "deadman": True})
+        assert status == 200 and answer["driving"] is True
+        time.sleep(0.1)
+    assert run.state()["speed_mps"] > 0.1
+    last = time.monotonic()
+    released = run.wait_state(lambda s: s["command"]["linear_mps"] == 0.0 and not s["teleop"], 3)
+    took = time.monotonic() - last
+    assert took < 0.5 + 0.15  # 0.5 s, plus the state's own 0.1 s hand-over and the poll
+    stopped = run.wait_state(lambda s: s["speed_mps"] == 0.0, 3)
+    print(f"commanded zero {took:.2f} s, wheels still {time.monotonic() - last:.2f} s after the last message")
+    assert released["status"] == "running" and stopped["status"] == "running"  # the mission carries on
+    run.kill()
+
+
+def test_abort_ends_the_run_as_aborted_with_a_summary_and_a_recording(console, tmp_path):
+    run = console(WAIT, "--speed", "realtime")
+    run.wait_state(lambda s: s["time_s"] > 0.5, 10)
+
+    async def abort_and_watch() -> dict:
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(run.base + "/api/ws") as ws:
+                async with session.post(run.base + "/api/abort") as r:
+                    assert r.status == 200 and (await r.json())["status"] == "aborted"
+                last = None
+                async for msg in ws:
+                    last = json.loads(msg.data)
+                return last
+
+    final = asyncio.run(asyncio.wait_for(abort_and_watch(), 30))
+    assert final["status"] == "aborted"
+    code, out, _ = run.finish()
+    assert code == 1
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "stopped"
+    assert any(e["kind"] == "mission_end" and "aborted by the operator console" in e["text"] for e in summary["events"])
+    recordings = list((tmp_path / "runs").glob("*/run.mcap"))
+    assert len(recordings) == 1 and recordings[0].stat().st_size > 0
+
+
+def test_answers_are_checked_against_the_open_question(console, tmp_path):
+    run = console(ASK, "--speed", "realtime")
+    q = run.wait_state(lambda s: s["question"] is not None, 10)["question"]
+    assert q == {"id": "door", "text": "Is the door open?", "choices": ["yes", "no"]}
+    assert run.api("/api/answer", {"id": "window", "choice": "yes"})[0] == 409
+    status, answer = run.api("/api/answer", {"id": "door", "choice": "perhaps"})
+    assert status == 400 and "yes" in answer["error"]
+    assert run.api("/api/answer", {"id": "door", "choice": "yes"}) == (200, {"ok": True, "answered": "door",
+                                                                            "choice": "yes"})
+    code, out, _ = run.finish()
+    assert code == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["distance_m"] > 0.25
+
+
+def test_the_estop_latches_at_once_and_the_run_ends_stopped(console, tmp_path):
+    run = console(WAIT, "--speed", "realtime")
+    run.wait_state(lambda s: s["time_s"] > 0.3, 10)
+    status, answer = run.api("/api/estop", {})
+    assert status == 200 and answer["estop"] is True
+    code, out, _ = run.finish()
+    assert code == 1
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "stopped"
+    assert any(e["kind"] == "estop" and "operator console" in e["text"] for e in summary["events"])
+
+
+def test_a_port_in_use_is_a_clear_error_before_anything_moves(console, tmp_path):
+    run = console(WAIT, "--speed", "realtime")
+    path = tmp_path / "second.yaml"
+    path.write_text(WAIT, encoding="utf-8")
+    import subprocess
+    import sys
+    second = subprocess.run([sys.executable, "-m", "beastbt", "run", str(path), "--console", f"127.0.0.1:{run.port}",
+                             "--no-record"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert second.returncode == 2
+    assert "--console" in second.stderr and "cannot listen" in second.stderr and "Traceback" not in second.stderr

@@ -1,0 +1,198 @@
+"""The operator console in a real browser (Debian's Chromium, driven by Playwright) on simulator runs.
+
+Each test starts ``beastbt run ... --console 127.0.0.1:0`` as a user would and
+works the page through its ``data-testid``s; what the robot did is read back
+from ``GET /api/state`` and the run's exit code. Screenshots go to
+``$BEASTBT_SCREENSHOTS`` when it is set (to look at them), else to the test's
+temporary folder.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from console_support import CHROMIUM, CHROMIUM_ARGS, ConsoleRun
+from conftest import REPO
+
+if os.environ.get("BEASTBT_REQUIRE_BROWSER"):  # CI installs both: there a missing one is a failure, not a skip
+    import playwright.sync_api as playwright_api
+    assert CHROMIUM is not None, "Chromium is not installed (.ci/run installs Debian's package)"
+else:
+    playwright_api = pytest.importorskip("playwright.sync_api")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (.ci/run installs Debian's)")
+
+WAIT = "mission: console_wait\nsteps:\n  - wait: 60 s\n"
+ASK = """mission: console_ask
+steps:
+  - ask: {id: door, question: "Is the door open?"}
+    then:
+      - drive: {distance: 0.4 m}
+    else:
+      - say: "staying"
+"""
+SHORT = "mission: console_short\nsteps:\n  - drive: {distance: 0.3 m}\n  - wait: 1 s\n"
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with playwright_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def shots(tmp_path: Path):
+    folder = Path(os.environ.get("BEASTBT_SCREENSHOTS") or tmp_path)
+    folder.mkdir(parents=True, exist_ok=True)
+
+    def shot(page, name: str) -> Path:
+        path = folder / f"console_{name}.png"
+        page.screenshot(path=str(path), full_page=True)
+        return path
+    return shot
+
+
+@pytest.fixture
+def run_console(tmp_path: Path):
+    runs: list[ConsoleRun] = []
+
+    def start(mission, *extra: str, host: str = "127.0.0.1") -> ConsoleRun:
+        path = mission if isinstance(mission, Path) else tmp_path / "mission.yaml"
+        if not isinstance(mission, Path):
+            path.write_text(mission, encoding="utf-8")
+        run = ConsoleRun(path, "--runs-dir", str(tmp_path / "runs"), *extra, host=host, cwd=tmp_path)
+        runs.append(run)
+        return run
+    yield start
+    for run in runs:
+        run.kill()
+
+
+def open_page(browser, run: ConsoleRun):
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.goto(run.url)
+    page.get_by_test_id("status").wait_for()
+    return page
+
+
+def test_the_page_follows_the_mission_step_and_tree(browser, run_console, shots):
+    run = run_console(REPO / "missions" / "patrol.yaml", "--speed", "6", "--max-time", "40 s")
+    page = open_page(browser, run)
+    step = page.get_by_test_id("step")
+    playwright_api.expect(step).not_to_have_text("-", timeout=10000)
+    first = step.inner_text()
+    tree = page.get_by_test_id("tree")
+    rows = tree.locator("[data-node-id]")
+    assert rows.count() == len(run.state()["tree"]) > 10  # every node of the compiled tree
+    running_before = tree.locator(".node.running").evaluate_all("els => els.map(e => e.dataset.nodeId)")
+    playwright_api.expect(step).not_to_have_text(first, timeout=20000)
+    running_after = tree.locator(".node.running").evaluate_all("els => els.map(e => e.dataset.nodeId)")
+    assert running_before and running_after and running_before != running_after
+    assert tree.locator(".node.success").count() >= 1
+    assert tree.locator(".node.on-path").count() >= 2  # the running branch, root to leaf
+    playwright_api.expect(page.get_by_test_id("progress")).to_contain_text("/42 steps")
+    assert page.get_by_test_id("battery").inner_text().startswith("battery ")
+    page.wait_for_function("window.beastbtVideoStats && window.beastbtVideoStats.frames > 2", timeout=20000)
+    shots(page, "patrol")
+
+
+def test_pause_stops_the_robot_and_the_mission_clock_then_resume(browser, run_console, shots):
+    run = run_console(REPO / "missions" / "patrol.yaml", "--speed", "realtime", "--max-time", "60 s")
+    page = open_page(browser, run)
+    run.wait_state(lambda s: s["speed_mps"] > 0.05, 20)
+    page.get_by_test_id("pause").click()
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("paused")
+    paused = run.wait_state(lambda s: s["speed_mps"] == 0.0, 5)
+    time.sleep(1.0)
+    later = run.state()
+    assert later["status"] == "paused" and later["speed_mps"] == 0.0
+    assert later["time_s"] == paused["time_s"]  # the mission's time stands still
+    assert later["pose"] == paused["pose"]
+    shots(page, "paused")
+    page.get_by_test_id("resume").click()
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("running")
+    moving = run.wait_state(lambda s: s["speed_mps"] > 0.05 and s["time_s"] > later["time_s"] + 0.5, 10)
+    assert moving["status"] == "running"
+
+
+def test_the_on_page_joystick_drives_while_pressed_and_stops_on_release(browser, run_console, shots):
+    run = run_console(WAIT, "--speed", "realtime")
+    page = open_page(browser, run)
+    start = run.wait_state(lambda s: s["pose"] is not None, 10)["pose"]
+    pad = page.get_by_test_id("joystick").bounding_box()
+    cx, cy = pad["x"] + pad["width"] / 2, pad["y"] + pad["height"] / 2
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    page.mouse.move(cx, cy - pad["height"] * 0.4, steps=5)  # stick forward
+    driving = run.wait_state(lambda s: s["teleop"] and s["speed_mps"] > 0.05, 5)
+    assert driving["step"] == "(teleop)"  # the operator took over: the mission waits
+    time.sleep(1.0)
+    shots(page, "joystick")
+    page.mouse.up()
+    stopped = run.wait_state(lambda s: not s["teleop"] and s["speed_mps"] == 0.0, 3)
+    moved = abs(stopped["pose"]["x"] - start["x"]) + abs(stopped["pose"]["y"] - start["y"])
+    assert moved > 0.1
+    time.sleep(0.5)
+    assert run.state()["pose"] == stopped["pose"]  # released: it stays stopped
+
+
+def test_the_estop_button_stops_the_robot_and_ends_the_run(browser, run_console, shots):
+    run = run_console(REPO / "missions" / "patrol.yaml", "--speed", "realtime")
+    page = open_page(browser, run)
+    run.wait_state(lambda s: s["speed_mps"] > 0.05, 20)
+    assert page.get_by_test_id("estop").is_visible()
+    page.get_by_test_id("estop").click()
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("aborted", timeout=5000)
+    assert page.get_by_test_id("estop").get_attribute("class").find("latched") >= 0
+    shots(page, "estop")
+    code, out, _ = run.finish()
+    assert code == 1
+    assert "emergency stop" in out
+
+
+def test_a_question_is_answered_on_the_page(browser, run_console, shots):
+    run = run_console(ASK, "--speed", "realtime")
+    page = open_page(browser, run)
+    question = page.get_by_test_id("question")
+    playwright_api.expect(question).to_be_visible(timeout=10000)
+    playwright_api.expect(question).to_contain_text("Is the door open?")
+    assert run.state()["question"] == {"id": "door", "text": "Is the door open?", "choices": ["yes", "no"]}
+    shots(page, "question")
+    page.get_by_test_id("answer-yes").click()
+    playwright_api.expect(question).to_be_hidden(timeout=5000)
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=20000)
+    code, out, _ = run.finish()
+    assert code == 0
+    assert "door: yes (by console)" in out
+
+
+def test_the_page_shows_the_final_status_after_the_end(browser, run_console, shots):
+    run = run_console(SHORT, "--speed", "realtime")
+    page = open_page(browser, run)
+    code, _, _ = run.finish()
+    assert code == 0
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=5000)
+    playwright_api.expect(page.get_by_test_id("pause")).to_be_disabled()
+    shots(page, "final")
+
+
+def test_off_loopback_the_page_and_the_api_need_the_token(browser, run_console):
+    run = run_console(WAIT, "--speed", "realtime", host="0.0.0.0")
+    assert run.token and len(run.token) >= 16
+    for path in ("/", "/api/state", "/api/map"):
+        status, body = run.api(path, token=False, host="127.0.0.1")
+        assert status == 401 and "token" in body["error"]
+    status, body = run.api("/api/estop", {}, token=False, host="127.0.0.1")
+    assert status == 401 and run.state()["estop"] is False  # refused before it did anything
+    assert run.api("/api/state")[0] == 200
+    page = browser.new_page()
+    page.goto(run.url.replace(run.url.split("/")[2].split(":")[0], "127.0.0.1", 1))
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("running", timeout=10000)
+    stranger = browser.new_context().new_page()  # no cookie from the visit with the token
+    response = stranger.goto(f"http://127.0.0.1:{run.port}/")
+    assert response.status == 401 and "token" in stranger.content()
