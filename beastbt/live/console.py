@@ -44,9 +44,18 @@ def install_console(prepared: Any) -> ConsoleServer:
         raise InvalidInput([Problem("--console", Position(), f"cannot listen on {host}:{port}: {exc.strerror or exc}",
                                     "pick another port, or 0 for any free one")]) from None
     video.start()
-    run.hooks.insert(0, controls)  # before the tree: a pause or an answer counts in the tick that follows it
-    run.hooks.append(state)
-    run.hooks.append(video.feed)
+    pending, apply_pending, feed = controls.pending, controls.apply_pending, video.feed
+
+    def console_tick(run: Any, now_s: float) -> None:
+        # One hook for the three, each with its cheap test first: most ticks have nothing queued and
+        # nobody new to show, and the console must cost the loop next to nothing (benchmarks/console.py).
+        if controls.stick_held or not pending.empty():
+            apply_pending(now_s)
+        state(run, now_s)
+        if video.viewers > 0:
+            feed(run, now_s)
+
+    run.hooks.insert(0, console_tick)  # before the tree: a pause or an answer counts in the tick that follows it
     run.reactors.append(controls)
 
     def close() -> None:

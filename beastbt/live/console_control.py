@@ -103,6 +103,8 @@ class ConsoleControls:
 
     def apply_pending(self, now_s: float) -> None:
         """Carry out every queued control (the tick thread)."""
+        if not self.stick_held and self.pending.empty():
+            return  # the usual tick: nothing to do, and no exception raised to find that out
         while True:
             try:
                 cmd = self.pending.get_nowait()

@@ -88,6 +88,7 @@ class ConsoleServer:
         self._runner: Optional[web.AppRunner] = None
         self._ending: Optional[asyncio.Event] = None
         self._handlers: set[asyncio.Task] = set()
+        self._json_cache: tuple[int, str] = (-1, "")
         self._waiters = ThreadPoolExecutor(max_workers=8, thread_name_prefix="beastbt-console-wait")
         self.requests = 0
 
@@ -219,8 +220,16 @@ class ConsoleServer:
         return web.Response(body=_page(name), content_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
 
     # -- state -----------------------------------------------------------------------------
+    def _state_json(self) -> str:
+        """The last state as JSON text, serialised once per hand-over whoever asks (the GIL is shared with the loop)."""
+        published = self.state.latest()
+        cached = self._json_cache
+        if cached[0] != published.seq:
+            cached = self._json_cache = (published.seq, json.dumps(published.state))
+        return cached[1]
+
     async def _get_state(self, request: web.Request) -> web.Response:
-        return web.json_response(self.state.latest().state)
+        return web.Response(text=self._state_json(), content_type="application/json")
 
     async def _get_map(self, request: web.Request) -> web.Response:
         layers = map_layers(self.run, self.world, self.state.frame)
@@ -236,13 +245,13 @@ class ConsoleServer:
         reader = asyncio.ensure_future(self._drain(ws))
         try:
             while not self._ending.is_set() and not ws.closed and not reader.done():
-                await ws.send_json(self.state.latest().state)
+                await ws.send_str(self._state_json())
                 try:
                     await asyncio.wait_for(self._ending.wait(), PUSH_PERIOD_S)
                 except asyncio.TimeoutError:
                     pass
             if self._ending.is_set() and not ws.closed:
-                await ws.send_json(self.state.latest().state)  # the final state, always, before the close
+                await ws.send_str(self._state_json())  # the final state, always, before the close
                 await ws.close(message=b"the run has ended")
         except (ConnectionResetError, RuntimeError):
             pass

@@ -4,8 +4,10 @@ How frames flow, so that nobody waits for anybody:
 
 * the tick side (:meth:`ConsoleVideo.feed`, a tick hook) hands each new
   camera frame over by reference into a latest-frame slot, and only while
-  someone watches; on the simulator it asks the camera for a frame at the
-  video's rate in wall time when the mission itself does not use the camera;
+  someone watches. On the simulator, when the mission itself does not use
+  the camera, the encoder thread renders the simulated camera's view itself
+  (``RobotIO.viewer_camera``, a camera of its own on the same mounting), so
+  that watching costs the loop nothing;
 * one encoder thread takes the newest frame at most ``fps`` times a second,
   scales it, draws the overlay (the detected line and the step) and encodes
   it once for every viewer. Its JPEG quality follows the bytes each frame
@@ -92,6 +94,9 @@ class ConsoleVideo:
         self._fed_seq = 0
         self._next_request_wall = -math.inf
         self._blank_wall = -math.inf
+        self.pull: Optional[Callable[[], np.ndarray]] = None
+        """Renders a frame on demand in the encoder thread (the simulator's viewer camera), when set."""
+
 
     @property
     def target_bytes(self) -> float:
@@ -126,10 +131,15 @@ class ConsoleVideo:
                 self.raw.put((np.full((360, 640, 3), 40, np.uint8), None, None, 0.25, self.epoch()))
             return
         if not pipeline.enabled:
+            viewer = run.io.viewer_camera
+            if viewer is not None:
+                self.pull = viewer  # the encoder renders what it needs, off this thread
+                return
             wall = self.wall()
             if wall >= self._next_request_wall:
                 self._next_request_wall = wall + 1.0 / self.config.fps
                 pipeline.request_frame()
+        self.pull = None
         latest = pipeline.latest
         if latest is None:
             return
@@ -144,7 +154,14 @@ class ConsoleVideo:
         next_wall = self.wall()
         done = 0
         while not self._closing.is_set():
-            got = self.raw.wait_newer(done, 0.5)
+            if self.pull is not None and self.viewers > 0:
+                delay = next_wall - self.wall()
+                if delay > 0:
+                    self._closing.wait(delay)
+                next_wall = max(next_wall + period, self.wall() - 0.5 * period)
+                self._encode_pulled()
+                continue
+            got = self.raw.wait_newer(done, 0.2)
             if got is None:
                 continue
             delay = next_wall - self.wall()
@@ -158,6 +175,17 @@ class ConsoleVideo:
                 self.encoded.put(self.encode(raw, seq))
             except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
                 print(f"beastbt console: could not encode a frame: {exc!r}", file=sys.stderr)
+
+    def _encode_pulled(self) -> None:
+        pull = self.pull
+        if pull is None:
+            return
+        try:
+            image = pull()
+            self._seq += 1
+            self.encoded.put(self.encode((image, None, None, 0.25, self.epoch()), self._seq))
+        except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
+            print(f"beastbt console: could not render a frame: {exc!r}", file=sys.stderr)
 
     def encode(self, raw: tuple, seq: int) -> Encoded:
         """Scale, draw the overlay and JPEG-encode one frame; then steer the quality toward the budget."""

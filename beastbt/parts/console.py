@@ -11,7 +11,9 @@ class ConsolePart(Part):
 
     name = "console"
     opens = "TCP port (HTTP, WebSocket)"
-    reads = ("camera_frame", "line", "pose", "gps_fix", "battery")
+    reads = ("battery",)
+    """It shows what the run computes and wakes no sleeping sensor: watching must not change the run's cost
+    (a mission that never reads GPS shows no GPS fix, and the pose from odometry)."""
     takes = ("pause, resume, abort, e-stop, answers", "velocity (teleop source of the mux, as a joystick)")
 
     def install(self, prepared: Prepared) -> None:

@@ -92,10 +92,13 @@ class RobotIO:
     floor_map: Optional[Callable[[], "FloorMap"]] = None
     """Builds (once) and returns the simulated floor the camera sees."""
     joystick_script: Optional["ScriptedJoystick"] = None
+    viewer_camera: Optional[Callable[[], Any]] = None
+    """Renders the simulated camera's view now, for a live viewer, from any thread (BGR uint8; its own noise)."""
 
     def devices(self) -> dict[str, Any]:
         """Every device this robot has, by field name (what a recording lists, and replay stands in for)."""
-        skip = {"base", "servos", "sensors", "capabilities", "sim", "closers", "plugins", "wakeup", "joystick_watcher"}
+        skip = {"base", "servos", "sensors", "capabilities", "sim", "closers", "plugins", "wakeup", "joystick_watcher",
+                "viewer_camera"}
         return {f.name: getattr(self, f.name) for f in fields(self)
                 if f.name not in skip and getattr(self, f.name) is not None}
 

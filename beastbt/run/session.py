@@ -237,10 +237,15 @@ CLEAR_LINE = "\r\x1b[K"
 
 
 def status_line(run: Any) -> str:
-    """The live status line: time, step, pose, cut to the terminal's width (written after :data:`CLEAR_LINE`)."""
+    """The live status line: time, progress, step, pose, cut to the terminal's width (after :data:`CLEAR_LINE`).
+
+    Most important first, so that a narrow terminal loses the pose, not the step.
+    """
     import shutil
+    from beastbt.run.progress import progress_of
     width = shutil.get_terminal_size((100, 24)).columns
-    text = f"[{run.elapsed_s:7.1f} s] {run.current_step()} | {run.pose_text()}"
+    progress = progress_of(run.root, run.mission_time_s).text()
+    text = f"[{run.elapsed_s:7.1f} s] {progress} | {run.current_step()} | {run.pose_text()}"
     if len(text) > width - 1:
         text = text[: max(0, width - 2)] + "…"
     return CLEAR_LINE + text

@@ -1,0 +1,77 @@
+"""Progress (steps done of planned, ETA) and the terminal's live status line."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+
+from beastbt.run.progress import planned, progress_of
+from beastbt.run.session import CLEAR_LINE, _console_listener, status_line
+from beastbt.testing import MissionHarness
+from conftest import REPO
+
+LOOPED = """mission: looped
+steps:
+  - drive: {distance: 0.3 m}
+  - repeat:
+      times: 3
+      steps:
+        - wait: 1 s
+        - turn: {angle: 10 deg}
+  - say: done
+"""
+
+
+def test_progress_counts_leaf_runs_through_loops_and_gives_an_eta():
+    h = MissionHarness.from_yaml(LOOPED)
+    assert planned(h.run.root) == 1 + 3 * 2 + 1
+    seen = []
+    while not h.done:
+        h.tick()
+        p = progress_of(h.run.root, h.run.mission_time_s)
+        seen.append(p.done)
+        assert p.total == 8 and 0 <= p.done <= 8
+        if 0 < p.done < 8:
+            assert p.eta_s is not None and p.eta_s > 0
+    assert seen == sorted(seen)  # never goes back
+    assert seen[0] == 0 and seen[-1] == 8 and len(set(seen)) >= 6  # steps that end in one tick may share it
+    assert h.result == "success"
+
+
+def test_a_loop_without_a_count_has_no_total_and_no_eta():
+    h = MissionHarness.from_yaml("mission: f\nsteps:\n  - repeat:\n      times: forever\n      steps:\n"
+                                 "        - wait: 1 s\n")
+    h.tick(60)
+    p = progress_of(h.run.root, h.run.mission_time_s)
+    assert p.total is None and p.eta_s is None and p.done >= 2
+    assert p.text() == f"{p.done} steps"
+
+
+def test_the_status_line_fits_the_terminal_and_shows_progress(monkeypatch):
+    h = MissionHarness.from_file(REPO / "missions" / "patrol.yaml")
+    h.tick(50)
+    for columns in (40, 80, 200):
+        monkeypatch.setenv("COLUMNS", str(columns))
+        line = status_line(h.run)
+        assert line.startswith(CLEAR_LINE)
+        text = line[len(CLEAR_LINE):]
+        assert len(text) <= columns - 1
+        assert "/42 steps" in text
+    assert "drive 3 m" in status_line(h.run)
+
+
+def test_events_clear_the_status_line_on_a_terminal_only():
+    from beastbt.core.events import Event
+    tty, pipe = io.StringIO(), io.StringIO()
+    _console_listener(tty, True)(Event(1.0, "say", "hello"))
+    _console_listener(pipe, False)(Event(1.0, "say", "hello"))
+    assert tty.getvalue().startswith(CLEAR_LINE)
+    assert "\r" not in pipe.getvalue() and pipe.getvalue().strip().endswith("say: hello")
+
+
+def test_a_run_into_a_pipe_writes_no_carriage_returns(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "beastbt", "run", str(REPO / "missions" / "patrol.yaml"), "--no-record"],
+                         capture_output=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 0
+    assert b"\r" not in out.stdout and b"\x1b[" not in out.stdout
