@@ -189,3 +189,36 @@ def test_a_port_in_use_is_a_clear_error_before_anything_moves(console, tmp_path)
                              "--no-record"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert second.returncode == 2
     assert "--console" in second.stderr and "cannot listen" in second.stderr and "Traceback" not in second.stderr
+
+
+def test_a_stalled_viewer_slows_neither_the_mission_nor_another_viewer(console):
+    import socket
+    run = console(WAIT, "--speed", "realtime")
+    stalled = socket.create_connection(("127.0.0.1", run.port))
+    stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    stalled.sendall(b"GET /api/video HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                    b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+    try:
+        async def watch(seconds: float) -> tuple[int, int]:
+            frames = size = 0
+            async with aiohttp.ClientSession() as session:
+                async with session.ws_connect(run.base + "/api/video", max_msg_size=0) as ws:
+                    end = time.monotonic() + seconds
+                    while time.monotonic() < end:
+                        try:
+                            msg = await asyncio.wait_for(ws.receive(), 1.0)
+                        except asyncio.TimeoutError:
+                            continue
+                        if msg.type == aiohttp.WSMsgType.BINARY:
+                            frames += 1
+                            size += len(msg.data)
+            return frames, size
+
+        t0 = run.state()["time_s"]
+        frames, size = asyncio.run(watch(4.0))
+        t1 = run.state()["time_s"]
+        assert frames >= 4 * 8  # the other viewer keeps getting frames (25 a second asked, at least 8 here)
+        assert size * 8 / 4.0 <= 5_000_000  # within the bit budget
+        assert t1 - t0 > 3.0  # the mission kept real time meanwhile
+    finally:
+        stalled.close()

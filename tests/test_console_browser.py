@@ -196,3 +196,43 @@ def test_off_loopback_the_page_and_the_api_need_the_token(browser, run_console):
     stranger = browser.new_context().new_page()  # no cookie from the visit with the token
     response = stranger.goto(f"http://127.0.0.1:{run.port}/")
     assert response.status == 401 and "token" in stranger.content()
+
+
+GAMEPAD = """
+window.__pad = {id: "Test pad (STANDARD GAMEPAD)", index: 0, connected: true, mapping: "standard",
+                axes: [0, 0, 0, 0], buttons: Array.from({length: 17}, () => ({pressed: false, value: 0}))};
+navigator.getGamepads = () => [window.__pad];
+"""
+
+
+def test_a_gamepad_drives_through_the_browser_with_the_same_deadman(browser, run_console):
+    run = run_console(WAIT, "--speed", "realtime")
+    page = browser.new_page()
+    page.add_init_script(GAMEPAD)  # a standard-mapping pad, as the Gamepad API reports one
+    page.goto(run.url)
+    start = run.wait_state(lambda s: s["pose"] is not None, 10)["pose"]
+    page.evaluate("window.__pad.axes[1] = -0.9")  # stick forward, deadman not held
+    time.sleep(1.0)
+    assert run.state()["speed_mps"] == 0.0 and not run.state()["teleop"]  # no deadman, no motion
+    page.evaluate("window.__pad.buttons[4] = {pressed: true, value: 1}")  # LB: the deadman
+    run.wait_state(lambda s: s["teleop"] and s["speed_mps"] > 0.05, 5)
+    playwright_api.expect(page.locator("#gamepad-info")).to_contain_text("driving")
+    page.evaluate("window.__pad.buttons[4] = {pressed: false, value: 0}")
+    stopped = run.wait_state(lambda s: not s["teleop"] and s["speed_mps"] == 0.0, 3)
+    assert stopped["pose"]["x"] - start["x"] > 0.05
+
+
+def test_a_tree_of_hundreds_of_nodes_scrolls_and_keeps_the_running_step_in_view(browser, run_console, shots):
+    steps = "  - wait: 200 ms\n" * 220
+    run = run_console(f"mission: many_steps\nsteps:\n{steps}", "--speed", "realtime")
+    page = open_page(browser, run)
+    tree = page.get_by_test_id("tree")
+    playwright_api.expect(tree.locator("[data-node-id]")).to_have_count(221)
+    page.wait_for_function("document.querySelectorAll('#tree .node.success').length > 30", timeout=30000)
+    assert tree.evaluate("t => t.scrollHeight > t.clientHeight")  # it scrolls, not the page
+    in_view = tree.evaluate("""t => { const r = t.querySelector('.node.running:not([data-node-id="0"])');
+        if (!r) return null; const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
+        return a.top >= b.top - 1 && a.bottom <= b.bottom + 1; }""")
+    assert in_view is True
+    page.get_by_role("button", name="fold done").click()
+    shots(page, "tree_220")

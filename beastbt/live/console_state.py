@@ -248,6 +248,7 @@ class ConsoleState:
                 "id": question.id, "text": question.text, "choices": list(question.choices)},
             "tree": [{"id": n.id, "name": n.name, "kind": n.kind, "status": NODE_STATUS.get(n.node.status, "idle"),
                       "parent": n.parent} for n in self.layout],
+            "ended_at": None,
             "command": {"linear_mps": round(run.last_sent.linear_mps, 3),
                         "angular_rps": round(run.last_sent.angular_rps, 3)},
             "sim_time_s": round(run.elapsed_s, 2),
@@ -256,6 +257,16 @@ class ConsoleState:
             "trail_len": len(self.trail),
             "map_version": 1 if self.frame.geo is None else 2,
         }
+        last = getattr(self, "_published", None)
+        reset = self.layout[0].node.status == py_trees.common.Status.INVALID
+        if run.status is not None and reset and last is not None and last.state["status"] in ("running", "paused"):
+            # The run has just ended and its tree was reset: show where it was when it ended.
+            state["tree"] = last.state["tree"]
+            state["ended_at"] = last.state["step"]
+            state["step"] = f"ended at: {last.state['step']}"
+        elif run.status is not None and reset and last is not None:
+            state["tree"], state["ended_at"], state["step"] = (last.state["tree"], last.state["ended_at"],
+                                                               last.state["step"])
         return state
 
     # -- the server's side -------------------------------------------------------------
