@@ -11,7 +11,8 @@ import json
 import pytest
 
 from beastbt.cli import main
-from beastbt.recording.report import DPI, FIG_SIZE_IN, MAP_SIZE_IN, make_report, step_intervals, RunData
+from beastbt.recording.report import (DPI, FIG_SIZE_IN, MAP_SIZE_IN, RunData, make_report, step_intervals,
+                                      timeline_rows)
 from beastbt.recording.runs_list import list_runs
 from recording_support import GPS_ROUTE, PATROL, assert_real_plot, record_run, shared_run
 
@@ -55,7 +56,65 @@ def test_the_timeline_follows_the_steps(runs):
     turns = [iv for iv in intervals if iv[0] == "turn 180 deg"]
     assert turns and turns[0][1] > drives[0][2]
     # Nothing starts before it ends, and nothing is a reset of a step that was not running.
-    assert all(start < end for _, start, end, _ in intervals)
+    assert all(iv.start_s < iv.end_s for iv in intervals)
+
+
+def test_steps_that_share_a_name_get_a_row_each(runs):
+    folder, _ = runs["patrol"]
+    data = RunData.load(str(folder))
+    intervals = step_intervals(data)
+    # The patrol drives 3 m twice in each round: two steps of one name, told apart by their node ids.
+    drives = [iv for iv in intervals if iv.name == "drive 3 m at 0.15 m/s"]
+    nodes = {n["id"]: n for n in json.loads(data.rec.info["tree"])}
+    assert len({iv.node_id for iv in drives}) == 2
+    assert all(nodes[iv.node_id]["name"] == iv.name for iv in drives)
+    first, second = sorted({iv.node_id for iv in drives}, key=lambda i: min(iv.start_s for iv in drives
+                                                                           if iv.node_id == i))
+    # The first one ran once (0-20 s, then the look around and the turn); the second one started after it.
+    assert [iv.how for iv in drives if iv.node_id == first] == ["SUCCESS"]
+    assert min(iv.start_s for iv in drives if iv.node_id == second) > max(iv.end_s for iv in drives
+                                                                        if iv.node_id == first)
+    rows = dict(timeline_rows(intervals))
+    assert rows[first] == f"drive 3 m at 0.15 m/s [{first}]" and rows[second] == f"drive 3 m at 0.15 m/s [{second}]"
+
+
+def _old_recording(path, changes_by_tick, tree):
+    """An .mcap as recorded before the node ids: /tree changes and the tree's nodes by name only."""
+    from mcap.writer import Writer
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start(profile="beastbt", library="test")
+        w.add_metadata("beastbt.run", {"mission": "old_one", "rate_hz": "20.0", "tree": json.dumps(tree)})
+        sid = w.register_schema(name="beastbt.Any", encoding="jsonschema", data=b"{}")
+        tree_ch = w.register_channel(topic="/tree", message_encoding="json", schema_id=sid)
+        gate_ch = w.register_channel(topic="/cmd/gate", message_encoding="json", schema_id=sid)
+        for k in range(60):
+            t = k * 0.05
+            ns = round(t * 1e9)
+            w.add_message(gate_ch, log_time=ns, publish_time=ns, data=json.dumps(
+                {"tick": k, "now_s": t, "linear_mps": 0.1, "angular_rps": 0.0, "stamp_s": t, "source": "mission",
+                 "mux_source": "mission"}).encode())
+            if k in changes_by_tick:
+                w.add_message(tree_ch, log_time=ns, publish_time=ns, data=json.dumps(
+                    {"tick": k, "now_s": t, "changes": [{"name": n, "status": st, "feedback": ""}
+                                                        for n, st in changes_by_tick[k]]}).encode())
+        w.finish()
+
+
+def test_a_recording_from_before_the_node_ids_still_makes_its_timeline(tmp_path):
+    tree = [{"name": "steps", "kind": "Sequence", "depth": 0, "leaf": False},
+            {"name": "wait 1 s", "kind": "Wait", "depth": 1, "leaf": True},
+            {"name": "say hi", "kind": "Say", "depth": 1, "leaf": True}]
+    _old_recording(tmp_path / "old.mcap", {0: [("steps", "RUNNING"), ("wait 1 s", "RUNNING")],
+                                          20: [("wait 1 s", "SUCCESS"), ("say hi", "SUCCESS")],
+                                          21: [("steps", "SUCCESS")]}, tree)
+    data = RunData.load(str(tmp_path / "old.mcap"))
+    intervals = step_intervals(data)
+    assert [(iv.name, iv.start_s, iv.end_s, iv.how, iv.node_id) for iv in intervals] == [
+        ("wait 1 s", 0.0, 1.0, "SUCCESS", None), ("say hi", 1.0, 1.05, "SUCCESS", None)]
+    assert timeline_rows(intervals) == [("wait 1 s", "wait 1 s"), ("say hi", "say hi")]
+    report = make_report(str(tmp_path / "old.mcap"))
+    assert "timeline" in report.plots
 
 
 @pytest.mark.skipif(not GPS_ROUTE.exists(), reason="no GPS route example yet")
@@ -102,7 +161,7 @@ def test_report_without_truth_or_positions_leaves_those_plots_out(tmp_path):
     for k in range(40):
         cmd = VelocityCommand(0.1, 0.0, k * 0.05)
         rec.on_tick(TickRecord(k, k * 0.05, [], None, None, cmd, cmd, cmd, "mission",
-                               [("wait 2 s", "RUNNING", "")] if k == 0 else [], None))
+                               [("wait 2 s", "RUNNING", "", "0")] if k == 0 else [], None))
     rec.finish(None)
     report = make_report(str(tmp_path / "bare.mcap"))
     assert set(report.plots) == {"speeds", "timeline"}
@@ -141,7 +200,7 @@ def test_line_error_is_plotted_when_a_line_was_followed(tmp_path):
         obs = LineObservation(t, seen, 0.03 * math.sin(t), 0.1 * math.cos(t), 0.02, 0.9 if seen else 0.0)
         cmd = VelocityCommand(0.2, -0.5 * obs.offset_m, t)
         rec.on_tick(TickRecord(k, t, [obs], None, None, cmd, cmd, cmd, "mission",
-                               [("follow_line", "RUNNING", "")] if k == 0 else [], None))
+                               [("follow_line", "RUNNING", "", "0")] if k == 0 else [], None))
     rec.finish(None)
     report = make_report(str(tmp_path / "line.mcap"))
     assert "line_error" in report.plots

@@ -24,7 +24,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 from beastbt.recording.reader import Recording, find_recording, read_recording
 
@@ -424,37 +424,77 @@ def plot_line_error(d: RunData, out: Path) -> Optional[str]:
     return None
 
 
-def step_intervals(d: RunData) -> list[tuple[str, float, float, str]]:
-    """(step name, start s, end s, how it ended) for every run of a leaf step, from the /tree channel."""
-    nodes = json.loads(d.rec.info.get("tree", "[]"))
-    # Steps are the tree's leaves; composites (sequences, repeats) are left out. A node the recorded tree
-    # did not have (a return_home put in by a failsafe) counts as a step.
-    composites = {n["name"] for n in nodes if not n.get("leaf")} - {n["name"] for n in nodes if n.get("leaf")}
+class StepRun(NamedTuple):
+    """One run of a leaf step: ``name``, ``start_s`` and ``end_s`` (s), how it ended (``how``: SUCCESS,
+    FAILURE, INVALID when interrupted, RUNNING when the recording ends first) and the node's stable ``node_id``
+    (None in a recording made before the ids: steps are then told apart by name only)."""
+
+    name: str
+    start_s: float
+    end_s: float
+    how: str
+    node_id: Optional[str] = None
+
+    @property
+    def key(self) -> str:
+        """What tells this step apart from the others: its node id, else (an old recording) its name."""
+        return self.node_id if self.node_id is not None else self.name
+
+
+def _composites(nodes: list[dict]) -> set[str]:
+    """The keys (ids, or names in a recording made before the ids) of the recorded tree's inner nodes."""
+    if any("id" in n for n in nodes):
+        return {n["parent"] for n in nodes if n.get("parent") is not None}
+    # Before the ids: by name, and a name that is a leaf somewhere counts as a step.
+    return {n["name"] for n in nodes if not n.get("leaf")} - {n["name"] for n in nodes if n.get("leaf")}
+
+
+def step_intervals(d: RunData) -> list[StepRun]:
+    """Every run of a leaf step, from the /tree channel, in the order they ended.
+
+    Steps are the tree's leaves (composites, repeats and tasks are left
+    out); a node the recorded tree did not list (a return_home put in by a
+    failsafe) counts as a step. Two steps that share a name are two steps.
+    """
+    composites = _composites(json.loads(d.rec.info.get("tree", "[]")))
     dt = 1.0 / float(d.rec.info.get("rate_hz", "20") or 20)
-    open_at: dict[str, float] = {}
-    out: list[tuple[str, float, float, str]] = []
+    open_at: dict[str, tuple[str, float, Optional[str]]] = {}
+    out: list[StepRun] = []
     end_t = 0.0
     for m in d.rec.topic("/tree"):
         t = m["now_s"]
         end_t = t
         for c in m["changes"]:
-            name, status = c["name"], c["status"]
-            if name in composites:
+            name, status, node_id = c["name"], c["status"], c.get("id")
+            key = node_id if node_id is not None else name
+            if key in composites:
                 continue
             if status == "RUNNING":
-                open_at.setdefault(name, t)
-            elif name in open_at:
-                start = open_at.pop(name)
-                out.append((name, start, max(t, start + dt), status))
+                open_at.setdefault(key, (name, t, node_id))
+            elif key in open_at:
+                _, start, _ = open_at.pop(key)
+                out.append(StepRun(name, start, max(t, start + dt), status, node_id))
             elif status != "INVALID":
                 # Done within one tick (never seen RUNNING). A reset to INVALID of a step that was not
                 # running (a repeat starting over) is not a run of it.
-                out.append((name, t, t + dt, status))
+                out.append(StepRun(name, t, t + dt, status, node_id))
     gates = d.rec.times_s("/cmd/gate")
     end_t = max(end_t, gates[-1] if gates else end_t)
-    for name, start in open_at.items():
-        out.append((name, start, max(end_t, start + dt), "RUNNING"))
+    for name, start, node_id in open_at.values():
+        out.append(StepRun(name, start, max(end_t, start + dt), "RUNNING", node_id))
     return out
+
+
+def timeline_rows(intervals: list[StepRun]) -> list[tuple[str, str]]:
+    """(key, label) of the timeline's rows, in the order the steps first started: one row per step.
+
+    A label is the step's name, with its node id when another step shares that name.
+    """
+    keys: dict[str, str] = {}
+    for iv in sorted(intervals, key=lambda iv: iv.start_s):
+        keys.setdefault(iv.key, iv.name)
+    names = [name for name in keys.values()]
+    return [(key, name if names.count(name) == 1 or key == name else f"{name} [{key}]") for key, name in keys.items()]
 
 
 def plot_timeline(d: RunData, out: Path) -> Optional[str]:
@@ -462,22 +502,19 @@ def plot_timeline(d: RunData, out: Path) -> Optional[str]:
     intervals = step_intervals(d)
     if not intervals:
         return "no tree changes recorded"
-    order: list[str] = []
-    for name, *_ in sorted(intervals, key=lambda iv: iv[1]):
-        if name not in order:
-            order.append(name)
-    rows = {name: i for i, name in enumerate(order)}
+    order = timeline_rows(intervals)
+    rows = {key: i for i, (key, _) in enumerate(order)}
     colors = {"SUCCESS": "tab:green", "FAILURE": "tab:red", "INVALID": "tab:gray", "RUNNING": "tab:blue"}
     plt = _plt()
     fig, ax = plt.subplots(figsize=FIG_SIZE_IN, dpi=DPI)
-    span = max(end for _, _, end, _ in intervals) - min(start for _, start, _, _ in intervals)
+    span = max(iv.end_s for iv in intervals) - min(iv.start_s for iv in intervals)
     min_width = span * 0.004  # a step done in one tick still shows
-    for name, start, end, how in intervals:
-        ax.barh(rows[name], max(end - start, min_width), left=start, height=0.6, color=colors.get(how, "tab:blue"),
-                edgecolor="black", linewidth=0.3)
+    for iv in intervals:
+        ax.barh(rows[iv.key], max(iv.end_s - iv.start_s, min_width), left=iv.start_s, height=0.6,
+                color=colors.get(iv.how, "tab:blue"), edgecolor="black", linewidth=0.3)
     _mark_failsafes(ax, d)
     ax.set_yticks(range(len(order)))
-    ax.set_yticklabels(order, fontsize=8 if len(order) < 25 else 6)
+    ax.set_yticklabels([label for _, label in order], fontsize=8 if len(order) < 25 else 6)
     ax.invert_yaxis()
     ax.set_xlabel("time (s)")
     ax.set_title("which step ran when (green: succeeded, red: failed, grey: interrupted, blue: still running)")
@@ -574,5 +611,5 @@ def write_html(d: RunData, report: Report) -> Path:
     return target
 
 
-__all__ = ["make_report", "Report", "RunData", "summary_text", "step_intervals", "PLOTS", "FIG_SIZE_IN",
+__all__ = ["make_report", "Report", "RunData", "summary_text", "step_intervals", "StepRun", "timeline_rows", "PLOTS", "FIG_SIZE_IN",
            "MAP_SIZE_IN", "DPI"]
