@@ -11,8 +11,9 @@ import json
 import pytest
 
 from beastbt.cli import main
-from beastbt.recording.report import (DPI, FIG_SIZE_IN, MAP_SIZE_IN, RunData, make_report, step_intervals,
-                                      timeline_rows)
+from beastbt.recording.report import (DPI, FIG_SIZE_IN, MAP_SIZE_IN, WAYPOINT_COLUMNS, RunData, draw_path,
+                                      make_report, map_extent, position_errors, step_intervals, timeline_rows,
+                                      waypoint_table)
 from beastbt.recording.runs_list import list_runs
 from recording_support import GPS_ROUTE, PATROL, assert_real_plot, record_run, shared_run
 
@@ -215,3 +216,147 @@ def test_report_on_a_camera_run_shows_the_line_and_the_snapshot(tmp_path):
     snap = tmp_path / "cam" / "snapshot_tape.jpg"
     assert snap.read_bytes() == (folder / "tape.jpg").read_bytes()
     assert "src='snapshot_tape.jpg'" in (tmp_path / "cam" / "report.html").read_text(encoding="utf-8")
+
+
+# -- the report's views: map, GPS, waypoints, title ---------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def indoor(tmp_path_factory):
+    """The patrol in the corridor on a simulated robot without a GPS (an indoor robot), 30 s."""
+    import re
+
+    from recording_support import REPO
+    folder = tmp_path_factory.mktemp("indoor")
+    text = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
+    profile = folder / "sim_no_gps.yaml"
+    profile.write_text(re.sub(r"\ngps:.*?\n(?=imu:)", "\n", text, flags=re.S), encoding="utf-8")
+    run_folder, summary = record_run(PATROL, folder / "runs", seed=2, max_time_s=30.0, robot=str(profile),
+                                     simulate=True)
+    return run_folder, summary
+
+
+def _drawn(data):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots()
+    labels = draw_path(data, ax)
+    out = (labels, ax.get_xlim(), ax.get_ylim(), len(ax.collections))
+    plt.close(fig)
+    return out
+
+
+def test_an_indoor_map_has_no_gps_and_is_scaled_to_the_truth(indoor):
+    folder, _ = indoor
+    data = RunData.load(str(folder))
+    assert not data.rec.topic("/sensors/gps") and data.gps_fixes() == []
+    labels, (x0, x1), (y0, y1), scatters = _drawn(data)
+    assert not any(label.startswith("GPS") for label in labels) and scatters == 0
+    assert {"truth", "walls", "start", "end"} <= set(labels)
+    truth = data.rec.topic("/truth")
+    tx = [m["x"] for m in truth]
+    ty = [m["y"] for m in truth]
+    # The whole true path is on the map, with a little room around it, and not much more: the corridor's
+    # far end (x = 10 m) is left out, the walls do not set the scale.
+    assert x0 < min(tx) and x1 > max(tx) and y0 < min(ty) and y1 > max(ty)
+    assert x1 - x0 < max(tx) - min(tx) + 3.0 and x1 < 10.0
+    assert x1 - x0 == pytest.approx(y1 - y0)  # square: a metre is a metre both ways
+
+
+def test_gps_fixes_are_drawn_but_do_not_set_the_scale(runs):
+    folder, _ = runs["gps"]
+    data = RunData.load(str(folder))
+    fixes = data.gps_fixes()
+    assert fixes and len({m["time_utc"] for _, m in fixes}) == len(fixes)  # one per epoch
+    labels, xlim, ylim, scatters = _drawn(data)
+    assert f"GPS fixes ({len(fixes)})" in labels and scatters == 1
+    with_gps = map_extent(data)
+    assert (*xlim, *ylim) == pytest.approx(with_gps)
+    # A wild fix far away changes nothing.
+    t, far = fixes[-1]
+    frame = data.local_frame()
+    lat, lon, _ = frame.to_geodetic(500.0, 500.0, 0.0)
+    data.rec.messages["/sensors/gps"].append((data.t0_ns + 10**9, {**far, "lat": lat, "lon": lon,
+                                                                   "time_utc": "far"}))
+    assert map_extent(data) == pytest.approx(with_gps)
+    # The places the route goes to are on the map, with their tolerance circles.
+    for name, e, n, tol, _ in data.targets():
+        assert with_gps[0] <= e - tol and e + tol <= with_gps[1] and with_gps[2] <= n - tol and n + tol <= with_gps[3]
+
+
+def test_the_position_error_has_the_raw_gps_beside_the_fused_estimate(runs, indoor):
+    folder, summary = runs["gps"]
+    errors = position_errors(RunData.load(str(folder)))
+    assert {"fused estimate", "odometry", "raw GPS fix"} <= set(errors)
+    times, errs = errors["raw GPS fix"]
+    # The same fixes, the same truth as the run's own bookkeeping (parts/nav_summary.py), computed apart.
+    assert len(errs) == summary["truth"]["gps_fixes"]
+    rms = (sum(e * e for e in errs) / len(errs)) ** 0.5
+    assert rms == pytest.approx(summary["truth"]["gps_error_rms_m"], rel=0.03)
+    _, fused = errors["fused estimate"]
+    assert (sum(e * e for e in fused) / len(fused)) ** 0.5 == pytest.approx(
+        summary["truth"]["position_error_rms_m"], rel=0.03)
+    assert times == sorted(times) and 0.0 <= times[0] < 5.0
+    indoor_errors = position_errors(RunData.load(str(indoor[0])))
+    assert "raw GPS fix" not in indoor_errors and "fused estimate" in indoor_errors
+
+
+def test_the_waypoint_table_shows_tolerance_and_error(runs, tmp_path):
+    folder, summary = runs["gps"]
+    data = RunData.load(str(folder))
+    rows = {row[0]: row for row in waypoint_table(data)}
+    assert summary["waypoints"] and set(rows) == {wp["name"] for wp in summary["waypoints"]}
+    for wp in summary["waypoints"]:
+        row = dict(zip(WAYPOINT_COLUMNS, rows[wp["name"]]))
+        assert row["tolerance (m)"] == f"{wp['tolerance_m']:.2f}"
+        if wp["arrival_error_m"] is not None:
+            assert row["arrival error (m)"] == f"{wp['arrival_error_m']:.2f}"
+            assert row["within tolerance"] == ("yes" if wp["arrival_error_m"] <= wp["tolerance_m"] else "NO")
+    assert rows["a"][2] == "2.00"  # the mission gives a no tolerance: the profile's default
+    page = make_report(str(folder), str(tmp_path / "out")).html.read_text(encoding="utf-8")
+    assert "<th>tolerance (m)</th><th>arrival error (m)</th>" in page
+    first = summary["waypoints"][0]
+    assert f"<td>{first['name']}</td>" in page and f"<td class='num'>{first['tolerance_m']:.2f}</td>" in page
+    # A summary from before tolerance_m: the mission's place tolerance (b: 3 m), else the default.
+    data.summary = {**summary, "waypoints": [{k: v for k, v in wp.items() if k != "tolerance_m"}
+                                             for wp in summary["waypoints"]] + [
+        {"name": "b", "lat": 40.417, "lon": -3.7035, "reached": False, "arrival_error_m": None, "time_s": None}]}
+    tolerances = {wp.name: wp.tolerance_m for wp in data.waypoints()}
+    assert tolerances["b"] == 3.0 and tolerances["a"] == 2.0
+
+
+def test_the_title_is_the_mission_and_the_date(runs, tmp_path):
+    import datetime
+    folder, _ = runs["patrol"]
+    data = RunData.load(str(folder))
+    mission, when = data.title().split(", ")
+    assert mission == "corridor_patrol" and when.endswith(" UTC")
+    # The run folder is named after the start time (UTC): the title's date and time agree with it.
+    named = datetime.datetime.strptime(folder.name.split("_", 1)[0], "%Y%m%dT%H%M%SZ")
+    titled = datetime.datetime.strptime(when, "%Y-%m-%d %H:%M UTC")
+    assert abs((titled - named).total_seconds()) < 120
+    page = make_report(str(folder), str(tmp_path / "out")).html.read_text(encoding="utf-8")
+    assert f"<title>{data.title()}</title>" in page and f"<h1>{data.title()}</h1>" in page
+
+
+def test_times_count_from_the_first_tick_whatever_the_time_base(tmp_path):
+    # A recording whose clock is Unix time (as on a robot, or with an epoch time base), no start_utc.
+    import datetime
+
+    from beastbt.blackboard.types import VelocityCommand
+    from beastbt.recording.recorder import McapRecorder
+    from beastbt.run.runner import TickRecord
+    start = 1_764_000_000.0  # 2025-11-24 16:00:00 UTC
+    rec = McapRecorder([tmp_path / "epoch.mcap"], info={"mission": "epoch", "rate_hz": "20.0"})
+    for k in range(40):
+        t = start + k * 0.05
+        cmd = VelocityCommand(0.1, 0.0, t)
+        changes = {0: [("wait 1 s", "RUNNING", "", "0.0")], 20: [("wait 1 s", "SUCCESS", "", "0.0")]}
+        rec.on_tick(TickRecord(k, t, [], None, None, cmd, cmd, cmd, "mission", changes.get(k, []), None))
+    rec.finish(None)
+    data = RunData.load(str(tmp_path / "epoch.mcap"))
+    assert data.times("/cmd/gate")[0] == 0.0 and data.times("/cmd/gate")[-1] == pytest.approx(1.95)
+    assert [(iv.start_s, iv.end_s) for iv in step_intervals(data)] == [(0.0, pytest.approx(1.0))]
+    when = datetime.datetime.fromtimestamp(start, datetime.timezone.utc)
+    assert data.title() == f"epoch, {when:%Y-%m-%d %H:%M} UTC"
