@@ -360,3 +360,25 @@ def test_times_count_from_the_first_tick_whatever_the_time_base(tmp_path):
     assert [(iv.start_s, iv.end_s) for iv in step_intervals(data)] == [(0.0, pytest.approx(1.0))]
     when = datetime.datetime.fromtimestamp(start, datetime.timezone.utc)
     assert data.title() == f"epoch, {when:%Y-%m-%d %H:%M} UTC"
+
+
+def test_a_tree_put_in_during_the_run_shows_its_leaf_only(tmp_path):
+    # A return_home replaces the mission's tree: its nodes ("1", "1.0") are not in the metadata's list.
+    from beastbt.blackboard.types import VelocityCommand
+    from beastbt.recording.recorder import McapRecorder
+    from beastbt.run.runner import TickRecord
+    tree = [{"id": "0", "name": "steps", "kind": "sequence", "parent": None},
+            {"id": "0.0", "name": "go_to a", "kind": "action", "parent": "0"}]
+    rec = McapRecorder([tmp_path / "home.mcap"], info={"mission": "home", "rate_hz": "20.0", "tree": json.dumps(tree)})
+    changes = {0: [("steps", "RUNNING", "", "0"), ("go_to a", "RUNNING", "", "0.0")],
+               10: [("steps", "INVALID", "", "0"), ("go_to a", "INVALID", "", "0.0"),
+                    ("return home (failsafe)", "RUNNING", "", "1"), ("return_home", "RUNNING", "", "1.0")],
+               30: [("return_home", "SUCCESS", "", "1.0")]}
+    for k in range(40):
+        cmd = VelocityCommand(0.1, 0.0, k * 0.05)
+        rec.on_tick(TickRecord(k, k * 0.05, [], None, None, cmd, cmd, cmd, "mission", changes.get(k, []), None))
+    rec.finish(None)
+    intervals = step_intervals(RunData.load(str(tmp_path / "home.mcap")))
+    assert [(iv.node_id, iv.name, iv.how) for iv in intervals] == [
+        ("0.0", "go_to a", "INVALID"), ("1.0", "return_home", "SUCCESS")]
+    assert intervals[1].start_s == pytest.approx(0.5) and intervals[1].end_s == pytest.approx(1.5)

@@ -737,10 +737,16 @@ def step_intervals(d: RunData) -> list[StepRun]:
     """Every run of a leaf step, from the /tree channel, in the order they ended.
 
     Steps are the tree's leaves (composites, repeats and tasks are left
-    out); a node the recorded tree did not list (a return_home put in by a
-    failsafe) counts as a step. Two steps that share a name are two steps.
+    out). A node the recorded tree did not list (a return_home put in by a
+    failsafe) counts as a step unless its id shows it has children ("1" of
+    "1.0"); in a recording from before the ids, unless its name is a
+    composite's. Two steps that share a name are two steps.
     """
     composites = _composites(json.loads(d.rec.info.get("tree", "[]")))
+    for m in d.rec.topic("/tree"):
+        for c in m["changes"]:
+            parts = c.get("id", "").split(".")
+            composites.update(".".join(parts[:i]) for i in range(1, len(parts)))
     dt = 1.0 / float(d.rec.info.get("rate_hz", "20") or 20)
     open_at: dict[str, tuple[str, float, Optional[str]]] = {}
     out: list[StepRun] = []

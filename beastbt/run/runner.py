@@ -102,7 +102,7 @@ class MissionRun:
         self.nodes = list(self.root.iterate())
         self._last_status = {id(n): n.status for n in self.nodes}
         self.layout: list[TreeNode] = []
-        """Every node the run has ticked, with its stable id: the mission's tree (ids from ``"0"``), then any
+        """Every node the run has had, with its stable id: the mission's tree (ids from ``"0"``), then any
         tree put in its place later (a return_home: ids from ``"1"``, so they never clash)."""
         self._node_ids: dict[int, str] = {}
         self._lay_out(self.root)
@@ -348,7 +348,9 @@ class MissionRun:
                 node_id = ids.get(key)
                 if node_id is None:  # a tree put in after the start (a return_home replacing the mission's)
                     self._lay_out(self.root)
-                    node_id = ids.get(key, "?")
+                    if key not in ids:  # a node outside the root's tree: its own root number, still an id
+                        self._lay_out(n)
+                    node_id = ids[key]
                 out.append((n.name, n.status.value, n.feedback_message, node_id))
         return out
 
