@@ -107,7 +107,8 @@ steps:
     assert all(c.is_zero() for c in h.sent)
     assert h.summary()["waypoints"] == [{"name": "a", "lat": round(latlon(0, 10)[0], 8),
                                          "lon": round(latlon(0, 10)[1], 8), "reached": False,
-                                         "arrival_error_m": None, "time_s": h.summary()["waypoints"][0]["time_s"]}]
+                                         "arrival_error_m": None, "time_s": h.summary()["waypoints"][0]["time_s"],
+                                         "tolerance_m": 2.0}]
 
 
 def test_losing_the_fix_while_driving_dead_reckons_then_fails_after_the_timeout(tmp_path):

@@ -167,6 +167,7 @@ def test_the_abc_route_reaches_every_waypoint(tmp_path, seed):
     tolerance = {"a": 2.0, "b": 3.0, "c": 2.0, "home": 2.0}
     for w in s["waypoints"]:
         assert 0.0 <= w["arrival_error_m"] < tolerance[w["name"]] + 1.5
+        assert w["tolerance_m"] == tolerance[w["name"]]  # b's own 3 m, else the profile's default
     # the places are those of the mission; home is the first fix, near the world's datum
     assert (s["waypoints"][1]["lat"], s["waypoints"][1]["lon"]) == (40.417, -3.7035)
     assert distance_m(s["waypoints"][3]["lat"], s["waypoints"][3]["lon"], 40.4168, -3.7038) < 10.0

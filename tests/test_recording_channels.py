@@ -149,7 +149,15 @@ def test_metadata_and_attachments_make_the_recording_self_contained(example_runs
     assert "robot.yaml" in rec.attachments and "world.yaml" in rec.attachments
     assert rec.summary["status"] == example_runs["patrol"][1]["status"]
     nodes = json.loads(info["tree"])
-    assert nodes[0]["depth"] == 0 and any(n["leaf"] for n in nodes)
+    assert nodes[0] == {"id": "0", "name": nodes[0]["name"], "kind": "sequence", "parent": None}
+    ids = {n["id"]: n for n in nodes}
+    assert len(ids) == len(nodes) and all(n["parent"] in ids for n in nodes[1:])
+    assert any(n["kind"] == "action" for n in nodes)
+    # Every change on /tree names a node of that list by its stable id (the patrol's two drives share a name).
+    changes = [c for m in rec.topic("/tree") for c in m["changes"]]
+    assert changes and all(ids[c["id"]]["name"] == c["name"] for c in changes)
+    drives = {c["id"] for c in changes if c["name"] == "drive 3 m at 0.15 m/s"}
+    assert len(drives) == 2
 
 
 def test_same_seed_same_recording_and_summary(tmp_path):
@@ -207,7 +215,7 @@ def _synthetic_ticks(n: int, dt: float = 0.05) -> list[TickRecord]:
         pose = FusedPose(t, 0.1 * t, 0.0, 0.0, lat=40.0, lon=-3.0)
         cmd = VelocityCommand(0.1, 0.0, t, "teleop")
         out.append(TickRecord(k, t, readings, pose, pose, None, cmd, cmd, "teleop",
-                              [("teleop", "RUNNING", "driving")] if k == 0 else [], truth))
+                              [("teleop", "RUNNING", "driving", "0")] if k == 0 else [], truth))
     return out
 
 

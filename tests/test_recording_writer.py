@@ -30,7 +30,7 @@ def _tick(k: int, readings: list) -> tuple:
     t = 0.05 * k
     pose = FusedPose(t, 1.0 + k, 2.0, 0.1, covariance=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 0.1)))
     cmd = VelocityCommand(0.2, 0.0, t, "mission")
-    return ("tick", k, t, readings, None, pose, cmd, cmd, cmd, "mission", [("drive", "RUNNING", "")], None,
+    return ("tick", k, t, readings, None, pose, cmd, cmd, cmd, "mission", [("drive", "RUNNING", "", "0")], None,
             (True, (("base", len(readings)),)))
 
 

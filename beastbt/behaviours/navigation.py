@@ -95,6 +95,7 @@ class Visit:
 
     ``estimated_error_m`` is the fused distance to the place when it was
     reached; the simulator adds ``true_error_m`` (from ground truth).
+    ``tolerance_m`` is how close the step had to come to count as arrived.
     """
 
     name: str
@@ -105,6 +106,7 @@ class Visit:
     end_stamp_s: Optional[float] = None
     estimated_error_m: Optional[float] = None
     true_error_m: Optional[float] = None
+    tolerance_m: Optional[float] = None
 
 
 class VisitLog:
@@ -115,9 +117,10 @@ class VisitLog:
         self.listeners: list[Callable[[Visit], None]] = []
         """Called with a visit when it ends (the simulator's truth metrics listen here)."""
 
-    def start(self, name: str, lat: Optional[float], lon: Optional[float]) -> Visit:
-        """Open a visit of place ``name`` (lat/lon None until home is known)."""
-        v = Visit(name, lat, lon)
+    def start(self, name: str, lat: Optional[float], lon: Optional[float],
+              tolerance_m: Optional[float] = None) -> Visit:
+        """Open a visit of place ``name`` (lat/lon None until home is known; arrival tolerance in m)."""
+        v = Visit(name, lat, lon, tolerance_m=tolerance_m)
         self.visits.append(v)
         return v
 
@@ -195,7 +198,8 @@ class GoTo(BeastBehaviour):
         self.init_start = None
         self.distance_m = math.inf
         self._restart_progress(now)
-        self.visit = visit_log(self.ctx).start(self.place, None, None)
+        tolerance = self.tolerance_m if self.tolerance_m is not None else self.nav.default_tolerance_m
+        self.visit = visit_log(self.ctx).start(self.place, None, None, tolerance)
         self._resolve_goal()
 
     def terminate(self, new_status: Status) -> None:

@@ -105,7 +105,7 @@ class MapFrame:
 
 def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
     """The map's fixed layers: walls, line track, start, places, the mission's waypoints and fences (plan metres)."""
-    from beastbt.sim.floor import track_centrelines
+    from beastbt.sim.floor import floor_lines
     mission = run.mission
     out: dict = {"datum": None, "walls": [], "track": [], "start": None, "places": [], "waypoints": [], "fences": []}
     geo = frame.geo
@@ -113,9 +113,10 @@ def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
         out["datum"] = {"lat": geo.lat0_deg, "lon": geo.lon0_deg}
     if world is not None:
         out["walls"] = [[w.x1, w.y1, w.x2, w.y2] for w in world.walls]
+        floor = world.section("floor")
         try:
-            out["track"] = [{"points": [[round(x, 3), round(y, 3)] for x, y in pts], "closed": closed}
-                            for pts, closed in track_centrelines(world.section("floor"))]
+            out["track"] = [{"points": [[round(float(x), 3), round(float(y), 3)] for x, y in line.points],
+                             "closed": line.closed} for line in (floor_lines(floor) if floor else [])]
         except ValueError:
             out["track"] = []  # the world was checked before the run; a drawing must never fail the page
         out["start"] = {"x": world.start_x, "y": world.start_y, "yaw_deg": math.degrees(world.start_yaw)}

@@ -1,10 +1,13 @@
 """What a navigation run adds to the summary: the places visited and, in the simulator, how good the pose was.
 
 - ``waypoints``: one entry per place visit of go_to, route and return_home:
-  ``{name, lat, lon, reached, arrival_error_m, time_s}``. The arrival error
-  is the true distance (m) from the simulated robot to the place when the
-  step succeeded (the truth converted to WGS84 through the world's datum);
-  on a robot, the estimated one. It is null for a place not reached.
+  ``{name, lat, lon, reached, arrival_error_m, time_s, tolerance_m}``. The
+  arrival error is the true distance (m) from the simulated robot to the
+  place when the step succeeded (the truth converted to WGS84 through the
+  world's datum); on a robot, the estimated one. It is null for a place not
+  reached. The tolerance (m) is the one the step used (the step's, else the
+  place's, else the profile's navigation default): the true error can exceed
+  it, since arrival is judged on the estimate.
 - ``truth.position_error_rms_m``: RMS horizontal distance (m) between the
   fused pose and the truth over every tick with a valid position;
   ``truth.gps_error_rms_m``: the same for the raw GPS fixes (one per epoch),
@@ -127,6 +130,7 @@ def contribute(run: Any, summary: dict) -> None:
                 "name": v.name, "lat": round(v.lat, 8), "lon": round(v.lon, 8), "reached": v.reached,
                 "arrival_error_m": round(err, 3) if v.reached and err is not None else None,
                 "time_s": round(v.time_s, 3) if v.time_s is not None else None,
+                "tolerance_m": round(v.tolerance_m, 3) if v.tolerance_m is not None else None,
             })
         summary["waypoints"] = out
     tracker = run.ctx.services.nav_truth

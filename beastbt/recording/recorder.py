@@ -237,7 +237,7 @@ class McapRecorder:
         self.info["ctx_capabilities"] = json.dumps(sorted(run.ctx.capabilities))
         # Named io_extras in recordings made before the devices were typed fields; replay reads both alike.
         self.info["io_extras"] = json.dumps(sorted(run.io.devices()))
-        self.info["tree"] = json.dumps(tree_nodes(run.root))
+        self.info["tree"] = json.dumps(tree_nodes(run))
         self.tag_sources(run.io)
         self.info["sensor_sources"] = json.dumps(["base"] + [str(k) for k in run.io.sensors])
         for key, attr in WATCHED_DEVICE_FLAGS:
@@ -505,17 +505,16 @@ def _record_servo_commands(run: Any, rec: McapRecorder) -> None:
 # -- what goes in the file besides the messages ---------------------------------------------------
 
 
-def tree_nodes(root: Any) -> list[dict]:
-    """The tree as a list (tick order, parents first): name, class, depth, leaf."""
-    out: list[dict] = []
+def tree_nodes(run: Any) -> list[dict]:
+    """The run's tree as a list, parents first: ``{id, name, kind, parent}`` per node.
 
-    def walk(node: Any, depth: int) -> None:
-        out.append({"name": node.name, "kind": type(node).__name__, "depth": depth, "leaf": not node.children})
-        for child in node.children:
-            walk(child, depth + 1)
-
-    walk(root, 0)
-    return out
+    ``id`` is the node's stable id (its path from the root, the id the /tree
+    channel's changes carry), ``kind`` what sort of node it is (``sequence``,
+    ``action``...: :func:`beastbt.run.tree_ids.kind_of`), ``parent`` its
+    parent's id (None for the root). Recordings made before the ids list
+    ``{name, kind, depth, leaf}`` instead (kind then the class name).
+    """
+    return [n.as_dict() for n in run.layout]
 
 
 def _file_text(path: Optional[str], data: Any) -> Optional[str]:
@@ -551,7 +550,7 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "rate_hz": repr(mission.rate_hz),
         "capabilities": json.dumps(sorted(run.io.capabilities)),
         "servo_names": json.dumps(sorted(run.io.servo_names())),
-        "tree": json.dumps(tree_nodes(run.root)),
+        "tree": json.dumps(tree_nodes(run)),
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }

@@ -3,28 +3,35 @@
 From a run folder (``runs/<time>_<mission>/``) or an ``.mcap`` file:
 
 * a terminal summary: outcome, duration, distance, waypoints with their
-  arrival errors, failsafes, dropped messages;
+  arrival errors and tolerances, failsafes, dropped messages;
 * a report folder (``report/`` in the run folder unless ``--out DIR``) with
-  PNG plots made with matplotlib (Agg backend, no display needed):
-  ``path.png`` (the path on a map in metres: ground truth when simulated, the
-  fused estimate, odometry, raw GPS fixes converted to local metres,
-  waypoints with their tolerance circles, walls), ``position_error.png``
-  (fused and odometry against truth), ``speeds.png`` (commanded against
-  actual), ``line_error.png`` (when a line was followed), ``timeline.png``
-  (which step ran when), and ``report.html`` showing them together.
+  PNG plots made with matplotlib (Agg backend, no display needed), each
+  titled with the mission's name and the date of the run:
+  ``path.png`` (the path on a map in metres, scaled to the true path, the
+  line track and the mission's places: the world's walls and line track,
+  ground truth when simulated, the fused estimate, odometry, the raw GPS
+  fixes when there were any (light, never setting the scale), the places
+  with their tolerance circles), ``position_error.png`` (fused, odometry
+  and raw GPS against truth), ``speeds.png`` (commanded against actual),
+  ``line_error.png`` (when a line was followed), ``timeline.png`` (which
+  step ran when, one row per node of the tree: steps that share a name
+  are told apart by their stable node id), and ``report.html`` showing
+  them together with a waypoint table (tolerance, arrival error).
 
-A plot whose data the run does not have (no truth on the robot, no GPS, no
-line) is left out, and the report says so.
+Times are seconds from the run's first tick, whatever the recording's time
+base. A plot whose data the run does not have (no truth on the robot, no
+GPS, no line) is left out, and the report says so.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
 import html
 import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 
 from beastbt.recording.reader import Recording, find_recording, read_recording
 
@@ -55,14 +62,52 @@ class Report:
 
 
 @dataclass
+class Waypoint:
+    """One row of the waypoint table: a place a go_to, route or return_home aimed for, and how it went.
+
+    ``lat``/``lon`` in degrees; ``tolerance_m`` how close the step had to come
+    (m; the summary's, else the mission's place tolerance or the profile's
+    default for a summary from before it was recorded; None when unknown);
+    ``arrival_error_m`` the true distance at arrival in the simulator (m, None
+    when not reached); ``time_s`` the mission time of arrival (s).
+    """
+
+    name: str
+    lat: Optional[float]
+    lon: Optional[float]
+    reached: bool
+    tolerance_m: Optional[float]
+    arrival_error_m: Optional[float]
+    time_s: Optional[float]
+
+    @property
+    def within(self) -> Optional[bool]:
+        """The arrival error is within the tolerance (None when either is unknown)."""
+        if self.arrival_error_m is None or self.tolerance_m is None:
+            return None
+        return self.arrival_error_m <= self.tolerance_m
+
+
+EPOCH_NS_AFTER = 946_684_800 * 10**9
+"""Log times past this (2000-01-01 in Unix nanoseconds) are taken as wall-clock dates, not clock seconds."""
+
+
+@dataclass
 class RunData:
-    """A recording and its summary, with the series the plots need (seconds, metres, world frame)."""
+    """A recording and its summary, with the series the plots need (seconds, metres, world frame).
+
+    Times are seconds from the run's first tick (its first ``/cmd/gate``
+    message; else the first message decoded), whatever the recording's time
+    base: the clock's seconds, or Unix nanoseconds.
+    """
 
     rec: Recording
     summary: Optional[dict]
     name: str
     world_start: Optional[tuple[float, float, float]] = None
     datum: Optional[tuple[float, float, float]] = None
+    t0_ns: int = 0
+    """Log time of the run's first tick, ns: time 0 of every plot."""
 
     @classmethod
     def load(cls, run: str) -> "RunData":
@@ -87,7 +132,81 @@ class RunData:
             data.world_start = tuple(json.loads(info["world_start"]))
         if info.get("world_datum"):
             data.datum = tuple(json.loads(info["world_datum"]))
+        gates = rec.messages.get("/cmd/gate")
+        firsts = [msgs[0][0] for msgs in rec.messages.values() if msgs]
+        data.t0_ns = gates[0][0] if gates else (min(firsts) if firsts else 0)
         return data
+
+    def times(self, topic: str) -> list[float]:
+        """The log times of a topic's messages, seconds from the run's first tick."""
+        t0 = self.t0_ns
+        return [(t - t0) * 1e-9 for t, _ in self.rec.messages.get(topic, [])]
+
+    def series(self, topic: str) -> tuple[list[float], list[dict]]:
+        """(times in s from the first tick, messages) of a topic."""
+        return self.times(topic), self.rec.topic(topic)
+
+    # -- what the run was -------------------------------------------------------------------
+    def mission_name(self) -> str:
+        """The mission's name (the metadata's, else the summary's, else the run's folder or file name)."""
+        return self.rec.info.get("mission") or (self.summary or {}).get("mission") or self.name
+
+    def started_utc(self) -> Optional[_dt.datetime]:
+        """When the run started (UTC): the metadata's ``start_utc``, else an epoch time base's first tick."""
+        text = self.rec.info.get("start_utc")
+        if text:
+            try:
+                return _dt.datetime.strptime(text, "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=_dt.timezone.utc)
+            except ValueError:
+                pass
+        if self.t0_ns > EPOCH_NS_AFTER:
+            return _dt.datetime.fromtimestamp(self.t0_ns * 1e-9, _dt.timezone.utc)
+        return None
+
+    def title(self) -> str:
+        """The report's title: the mission's name and the date and time the run started."""
+        when = self.started_utc()
+        return f"{self.mission_name()}, {when:%Y-%m-%d %H:%M} UTC" if when else f"{self.mission_name()}, date unknown"
+
+    # -- the world --------------------------------------------------------------------------
+    def world_doc(self) -> Optional[dict]:
+        """The simulated world file as recorded (``world.yaml`` attachment), or None."""
+        if not hasattr(self, "_world_doc"):
+            self._world_doc = None
+            text = self.rec.text("world.yaml")
+            if text is not None:
+                import yaml
+                try:
+                    doc = yaml.safe_load(text)
+                except yaml.YAMLError:
+                    doc = None
+                self._world_doc = doc if isinstance(doc, dict) else None
+        return self._world_doc
+
+    def walls(self) -> list[tuple[float, float, float, float]]:
+        """The world's walls as (x1, y1, x2, y2) metres: the metadata's, else the recorded world file's."""
+        raw = self.rec.info.get("world_walls")
+        walls = json.loads(raw) if raw else (self.world_doc() or {}).get("walls") or []
+        try:
+            return [(float(w[0]), float(w[1]), float(w[2]), float(w[3])) for w in walls]
+        except (TypeError, ValueError, IndexError):
+            return []
+
+    def track(self) -> list[list[tuple[float, float]]]:
+        """The world's painted lines (the line track) as polylines in metres, a closed one back to its start."""
+        floor = (self.world_doc() or {}).get("floor")
+        if not isinstance(floor, dict):
+            return []
+        from beastbt.sim.floor import floor_lines
+        try:
+            lines = floor_lines(floor)
+        except ValueError:
+            return []  # a world file this version does not read: the map goes without the track
+        out = []
+        for line in lines:
+            pts = [(float(x), float(y)) for x, y in line.points]
+            out.append(pts + pts[:1] if line.closed else pts)
+        return out
 
     def to_world(self, p: dict) -> tuple[float, float]:
         """A recorded pose's position in the report's frame (the world's, in the simulator).
@@ -108,10 +227,6 @@ class RunData:
             return x0 + c * x - s * y, y0 + s * x + c * y
         return x, y
 
-    def series(self, topic: str) -> tuple[list[float], list[dict]]:
-        """(times in s, messages) of a topic."""
-        return self.rec.times_s(topic), self.rec.topic(topic)
-
     def local_frame(self) -> Any:
         """The local ENU frame for GPS and waypoints: the world's datum, else the first fix (as the EKF does)."""
         if not hasattr(self, "_frame"):
@@ -122,14 +237,29 @@ class RunData:
         from beastbt.estimation.geodesy import LocalFrame
         if self.datum is not None:
             return LocalFrame(*self.datum)
-        fixes = self.rec.topic("/sensors/gps")
+        fixes = self.gps_fixes()
         if fixes:
-            return LocalFrame(fixes[0]["lat"], fixes[0]["lon"], fixes[0].get("alt_msl") or 0.0)
+            return LocalFrame(fixes[0][1]["lat"], fixes[0][1]["lon"], fixes[0][1].get("alt_msl") or 0.0)
         for wp in (self.summary or {}).get("waypoints", []):
             if wp.get("lat") is not None:
                 return LocalFrame(wp["lat"], wp["lon"])
         return None
 
+    def gps_fixes(self) -> list[tuple[float, dict]]:
+        """(time s, message) of the raw GPS fixes with a position, one per epoch (GGA and RMC say it twice)."""
+        out: list[tuple[float, dict]] = []
+        last_epoch = None
+        for t, m in zip(*self.series("/sensors/gps")):
+            if not m.get("quality") or m.get("lat") is None or m.get("lon") is None:
+                continue  # no fix: nothing to plot
+            epoch = m.get("time_utc")
+            if epoch is not None and epoch == last_epoch:
+                continue
+            last_epoch = epoch
+            out.append((t, m))
+        return out
+
+    # -- the mission ------------------------------------------------------------------------
     def mission(self) -> Any:
         """The recorded mission (for places and tolerances), or None when it no longer loads."""
         text = self.rec.text("mission.yaml")
@@ -157,6 +287,64 @@ class RunData:
         except (yaml.YAMLError, AttributeError, TypeError, ValueError):
             return default
 
+    def waypoints(self) -> list[Waypoint]:
+        """The summary's waypoints with their tolerance: the summary's own, else the place's, else the default.
+
+        The fallback is for summaries written before ``tolerance_m`` was
+        recorded; it cannot know a tolerance given on the step itself.
+        """
+        places = self._places()
+        default = None
+        out = []
+        for wp in (self.summary or {}).get("waypoints") or []:
+            if "tolerance_m" in wp:
+                tol = wp["tolerance_m"]
+            else:
+                place = places.get(wp.get("name"))
+                tol = getattr(place, "tolerance_m", None)
+                if tol is None:
+                    default = default if default is not None else self.default_tolerance_m()
+                    tol = default
+            out.append(Waypoint(str(wp.get("name", "?")), wp.get("lat"), wp.get("lon"), bool(wp.get("reached")),
+                                tol, wp.get("arrival_error_m"), wp.get("time_s")))
+        return out
+
+    def _places(self) -> dict:
+        if not hasattr(self, "_place_map"):
+            mission = self.mission()
+            self._place_map = dict(mission.places) if mission is not None else {}
+        return self._place_map
+
+    def targets(self) -> list[tuple[str, float, float, Optional[float], Optional[bool]]]:
+        """Where the mission meant to go, in the map's frame: (name, east m, north m, tolerance m, reached).
+
+        The summary's waypoints first (reached True or False), then the
+        mission's places no step got to (reached None).
+        """
+        frame = self.local_frame()
+        if frame is None:
+            return []
+        out = []
+        seen = set()
+        for wp in self.waypoints():
+            if wp.lat is None or wp.lon is None or wp.name in seen:
+                continue
+            seen.add(wp.name)
+            e, n, _ = frame.to_enu(wp.lat, wp.lon)
+            out.append((wp.name, e, n, wp.tolerance_m, wp.reached))
+        default = None
+        for name, place in self._places().items():
+            if name in seen or getattr(place, "lat", None) is None:
+                continue
+            tol = getattr(place, "tolerance_m", None)
+            if tol is None:
+                default = default if default is not None else self.default_tolerance_m()
+                tol = default
+            e, n, _ = frame.to_enu(place.lat, place.lon)
+            out.append((name, e, n, tol, None))
+        return out
+
+    # -- what happened ----------------------------------------------------------------------
     def outcome(self) -> str:
         """success / failure / stopped, or why it is unknown."""
         if self.summary:
@@ -170,7 +358,7 @@ class RunData:
         """Mission time covered, seconds."""
         if self.summary and "sim_time_s" in self.summary:
             return float(self.summary["sim_time_s"])
-        times = self.rec.times_s("/cmd/gate")
+        times = self.times("/cmd/gate")
         return times[-1] - times[0] if times else 0.0
 
     def distance_m(self) -> tuple[float, str]:
@@ -191,8 +379,7 @@ def summary_text(d: RunData) -> str:
     """A few lines for a person: outcome, duration, distance, waypoints, failsafes, recording."""
     rec, s = d.rec, d.summary or {}
     info = rec.info
-    mission = info.get("mission") or s.get("mission", "?")
-    lines = [f"run {d.name}: mission {mission}: {d.outcome().upper()}"]
+    lines = [f"run {d.name}: mission {d.mission_name()}: {d.outcome().upper()}"]
     ticks = s.get("ticks", len(rec.messages.get("/cmd/gate", [])))
     dist, source = d.distance_m()
     lines.append(f"  duration {d.duration_s():.1f} s ({ticks} ticks), distance {dist:.2f} m"
@@ -202,23 +389,25 @@ def summary_text(d: RunData) -> str:
     if info.get("world"):
         where.append(f"world {info['world']}")
     where.append(f"seed {info.get('seed', s.get('seed', '?'))}")
+    when = d.started_utc()
+    if when is not None:
+        where.append(f"started {when:%Y-%m-%d %H:%M:%S} UTC")
     lines.append("  " + ", ".join(where))
-    wps = s.get("waypoints") or []
+    wps = d.waypoints()
     if wps:
         lines.append("  waypoints:")
         for wp in wps:
-            err = wp.get("arrival_error_m")
-            when = wp.get("time_s")
-            lines.append(f"    {wp.get('name', '?')}: {'reached' if wp.get('reached') else 'NOT reached'}"
-                         + (f", {err:.2f} m off" if err is not None else "")
-                         + (f" at {when:.1f} s" if when is not None else ""))
+            lines.append(f"    {wp.name}: {'reached' if wp.reached else 'NOT reached'}"
+                         + (f", {wp.arrival_error_m:.2f} m off" if wp.arrival_error_m is not None else "")
+                         + (f" (tolerance {wp.tolerance_m:.2f} m)" if wp.tolerance_m is not None else "")
+                         + (f" at {wp.time_s:.1f} s" if wp.time_s is not None else ""))
     else:
         lines.append("  waypoints: none")
     failsafes = rec.topic("/failsafes")
     if failsafes:
         lines.append("  failsafes:")
-        for m in failsafes:
-            lines.append(f"    [{m['time_s']:8.2f} s] {m['text']}")
+        for t, m in zip(d.times("/failsafes"), failsafes):
+            lines.append(f"    [{t:8.2f} s] {m['text']}")
     else:
         lines.append("  failsafes: none")
     r = s.get("recording") or {}
@@ -232,6 +421,9 @@ def summary_text(d: RunData) -> str:
 
 # -- plots --------------------------------------------------------------------------------------
 
+GPS_COLOUR = "#f2b277"
+"""Raw GPS fixes: a light orange, behind the lines that matter (truth, estimate)."""
+
 
 def _plt() -> Any:
     import matplotlib
@@ -241,10 +433,8 @@ def _plt() -> Any:
 
 
 def _mark_failsafes(ax: Any, d: RunData) -> None:
-    for i, m in enumerate(d.rec.topic("/failsafes")):
-        ax.axvline(m["time_s"], color="tab:red", linestyle=":", linewidth=1,
-                   label="failsafe" if i == 0 else None)
-
+    for i, t in enumerate(d.times("/failsafes")):
+        ax.axvline(t, color="tab:red", linestyle=":", linewidth=1, label="failsafe" if i == 0 else None)
 
 
 def _save(plt, fig, out: Path) -> None:
@@ -253,25 +443,78 @@ def _save(plt, fig, out: Path) -> None:
     fig.savefig(out, dpi=DPI)
     plt.close(fig)
 
-def plot_path(d: RunData, out: Path) -> Optional[str]:
-    """The path on a map in metres; returns why it was skipped, or None."""
+
+MAP_MARGIN_M = 1.0
+"""Least room left around what the map must show, m (also 5 % of its span): indoors, the nearby walls."""
+
+
+def map_extent(d: RunData) -> Optional[tuple[float, float, float, float]]:
+    """The map's (x min, x max, y min, y max) in metres, square: what the robot did and where it was to go.
+
+    It spans the true path (on a robot without truth: the fused estimate,
+    else odometry, else the GPS fixes), the line track, and the mission's
+    places with their tolerance circles. GPS scatter and walls do not
+    widen it: a wild fix or a long building would shrink the path to a dot.
+    """
+    xs: list[float] = []
+    ys: list[float] = []
+    truth = d.rec.topic("/truth")
+    if truth:
+        xs += [m["x"] for m in truth]
+        ys += [m["y"] for m in truth]
+    else:
+        for topic in ("/estimate/fused", "/estimate/odom"):
+            pts = [d.to_world(m) for m in d.rec.topic(topic)]
+            if pts:
+                xs += [p[0] for p in pts]
+                ys += [p[1] for p in pts]
+                break
+    for line in d.track():
+        xs += [p[0] for p in line]
+        ys += [p[1] for p in line]
+    for _, e, n, tol, _ in d.targets():
+        r = tol or 0.0
+        xs += [e - r, e + r]
+        ys += [n - r, n + r]
+    if not xs:
+        frame = d.local_frame()
+        for _, m in d.gps_fixes() if frame is not None else []:
+            e, n, _ = frame.to_enu(m["lat"], m["lon"])
+            xs.append(e)
+            ys.append(n)
+    if not xs:
+        return None
+    x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
+    half = max(x1 - x0, y1 - y0) / 2.0
+    half += max(MAP_MARGIN_M, 0.05 * 2.0 * half)
+    cx, cy = (x0 + x1) / 2.0, (y0 + y1) / 2.0
+    return cx - half, cx + half, cy - half, cy + half
+
+
+def draw_path(d: RunData, ax: Any) -> list[str]:
+    """Draw the map on ``ax``; return the labels of what it drew (for the legend and for tests).
+
+    Walls and the line track under everything; the raw GPS fixes, when the
+    run had any, light and small; the truth, then odometry and the fused
+    estimate over it; where the robot started and ended; the mission's
+    places with their tolerance circles.
+    The axis limits are :func:`map_extent`'s.
+    """
     truth = d.rec.topic("/truth")
     fused = d.rec.topic("/estimate/fused")
     odom = d.rec.topic("/estimate/odom")
-    gps = d.rec.topic("/sensors/gps")
-    if not (truth or fused or odom or gps):
-        return "no positions recorded"
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=MAP_SIZE_IN, dpi=DPI)
-    for w in json.loads(d.rec.info.get("world_walls", "[]")):
-        ax.plot([w[0], w[2]], [w[1], w[3]], color="0.3", linewidth=3, solid_capstyle="butt")
+    for i, (x1, y1, x2, y2) in enumerate(d.walls()):
+        ax.plot([x1, x2], [y1, y2], color="0.3", linewidth=3, solid_capstyle="butt", zorder=1,
+                label="walls" if i == 0 else None)
+    for i, line in enumerate(d.track()):
+        ax.plot([p[0] for p in line], [p[1] for p in line], color="0.55", linewidth=4, alpha=0.5,
+                solid_capstyle="round", zorder=1, label="line track" if i == 0 else None)
     frame = d.local_frame()
-    if gps and frame is not None:
-        pts = [frame.to_enu(m["lat"], m["lon"], m.get("alt_msl"))[:2] for m in gps]
-        ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=6, color="tab:orange", alpha=0.6,
+    fixes = d.gps_fixes() if frame is not None else []
+    if fixes:
+        pts = [frame.to_enu(m["lat"], m["lon"])[:2] for _, m in fixes]
+        ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=5, color=GPS_COLOUR, edgecolors="none",
                    label=f"GPS fixes ({len(pts)})", zorder=2)
-    if truth:
-        ax.plot([m["x"] for m in truth], [m["y"] for m in truth], color="black", linewidth=2, label="truth", zorder=3)
     if odom:
         pts = [d.to_world(m) for m in odom]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], color="tab:green", linewidth=1, linestyle="--",
@@ -280,69 +523,110 @@ def plot_path(d: RunData, out: Path) -> Optional[str]:
         pts = [d.to_world(m) for m in fused]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], color="tab:blue", linewidth=1.2, label="fused estimate",
                 zorder=5)
-    start = truth[0] if truth else None
-    if start is not None:
-        ax.plot(start["x"], start["y"], marker="o", color="black", markersize=8, label="start", zorder=6)
-    _draw_waypoints(ax, d, frame)
-    ax.set_aspect("equal", adjustable="datalim")
+    if truth:
+        # Under the estimates, wider: where they agree with it, they show on top of it.
+        ax.plot([m["x"] for m in truth], [m["y"] for m in truth], color="black", linewidth=2.5, label="truth",
+                zorder=3)
+        ax.plot(truth[0]["x"], truth[0]["y"], marker="o", color="tab:green", markeredgecolor="black", markersize=9,
+                linestyle="none", label="start", zorder=7)
+        ax.plot(truth[-1]["x"], truth[-1]["y"], marker="s", color="tab:red", markeredgecolor="black", markersize=8,
+                linestyle="none", label="end", zorder=7)
+    _draw_targets(ax, d)
+    extent = map_extent(d)
+    if extent is not None:
+        ax.set_xlim(extent[0], extent[1])
+        ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal", adjustable="box")
+    return [h.get_label() for h in ax.get_legend_handles_labels()[0]]
+
+
+def _draw_targets(ax: Any, d: RunData) -> None:
+    """The mission's places, each with its tolerance circle: green reached, red missed, purple not tried."""
+    from matplotlib.patches import Circle
+    for name, e, n, tol, reached in d.targets():
+        color = "tab:green" if reached else ("tab:red" if reached is False else "tab:purple")
+        ax.plot(e, n, marker="x", color=color, markersize=9, zorder=8)
+        if tol:
+            ax.add_patch(Circle((e, n), tol, fill=False, color=color, linestyle="--", linewidth=1, zorder=8))
+        ax.annotate(str(name), (e, n), textcoords="offset points", xytext=(6, 6), fontsize=9, color=color, zorder=8)
+
+
+def plot_path(d: RunData, out: Path) -> Optional[str]:
+    """The path on a map in metres; returns why it was skipped, or None."""
+    if not (d.rec.topic("/truth") or d.rec.topic("/estimate/fused") or d.rec.topic("/estimate/odom")
+            or d.gps_fixes()):
+        return "no positions recorded"
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=MAP_SIZE_IN, dpi=DPI)
+    draw_path(d, ax)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
-    ax.set_title(f"{d.rec.info.get('mission', d.name)}: path")
+    ax.set_title(f"{d.title()}: path")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     _save(plt, fig, out)
     return None
 
 
-def _draw_waypoints(ax: Any, d: RunData, frame: Any) -> None:
-    """Mission places and summary waypoints, each with its tolerance circle."""
-    if frame is None:
-        return
-    from matplotlib.patches import Circle
-    mission = d.mission()
-    places = dict(mission.places) if mission is not None else {}
-    wps = {wp.get("name"): wp for wp in (d.summary or {}).get("waypoints", []) if wp.get("lat") is not None}
-    default_tol = d.default_tolerance_m()
-    seen = set()
-    for name, wp in list(wps.items()) + [(n, None) for n in places if n not in wps]:
-        if name in seen:
-            continue
-        seen.add(name)
-        place = places.get(name)
-        lat = wp["lat"] if wp else place.lat
-        lon = wp["lon"] if wp else place.lon
-        tol = ((wp or {}).get("tolerance_m") or (getattr(place, "tolerance_m", None) if place is not None else None)
-               or default_tol)
-        e, n, _ = frame.to_enu(lat, lon)
-        reached = wp.get("reached") if wp else None
-        color = "tab:green" if reached else ("tab:red" if reached is False else "tab:purple")
-        ax.plot(e, n, marker="x", color=color, markersize=9, zorder=7)
-        if tol:
-            ax.add_patch(Circle((e, n), tol, fill=False, color=color, linestyle="--", linewidth=1, zorder=7))
-        ax.annotate(str(name), (e, n), textcoords="offset points", xytext=(6, 6), fontsize=8, color=color)
+def _truth_at(truth: list[dict], stamps: list[float]) -> list[tuple[float, float]]:
+    """The true position (m) at each clock time in ``stamps`` (s), interpolated between truth samples."""
+    import numpy as np
+    t = np.array([m["t_s"] for m in truth])
+    x = np.interp(stamps, t, [m["x"] for m in truth])
+    y = np.interp(stamps, t, [m["y"] for m in truth])
+    return list(zip(x.tolist(), y.tolist()))
+
+
+def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
+    """Label -> (times s, distances to the truth m) of the fused estimate, odometry and the raw GPS fixes.
+
+    Estimates are compared with the truth of their own tick; a GPS fix with
+    the truth at the moment it was measured (its ``stamp_s``), one per epoch.
+    """
+    truth = d.rec.messages.get("/truth", [])
+    if not truth:
+        return {}
+    by_time = {t: m for t, m in truth}
+    t0 = d.t0_ns
+    out: dict[str, tuple[list[float], list[float]]] = {}
+    for label, topic in (("fused estimate", "/estimate/fused"), ("odometry", "/estimate/odom")):
+        pts = [((t - t0) * 1e-9, d.to_world(p), by_time[t]) for t, p in d.rec.messages.get(topic, []) if t in by_time]
+        if pts:
+            out[label] = ([t for t, _, _ in pts], [math.hypot(p[0] - tr["x"], p[1] - tr["y"]) for _, p, tr in pts])
+    frame = d.local_frame()
+    fixes = d.gps_fixes() if frame is not None and d.datum is not None else []
+    if fixes:
+        true = _truth_at([m for _, m in truth], [m["stamp_s"] for _, m in fixes])
+        errs = []
+        for (_, m), (tx, ty) in zip(fixes, true):
+            e, n, _ = frame.to_enu(m["lat"], m["lon"])
+            errs.append(math.hypot(e - tx, n - ty))
+        out["raw GPS fix"] = ([t for t, _ in fixes], errs)
+    return out
 
 
 def plot_position_error(d: RunData, out: Path) -> Optional[str]:
-    """Distance between the estimates and the truth over time."""
-    t_truth, truth = d.series("/truth")
-    if not truth:
+    """Distance between the estimates (and the raw GPS fixes) and the truth over time."""
+    if not d.rec.topic("/truth"):
         return "no ground truth (not a simulated run)"
-    t_fused, fused = d.series("/estimate/fused")
-    t_odom, odom = d.series("/estimate/odom")
-    if not fused and not odom:
+    errors = position_errors(d)
+    if not errors:
         return "no pose estimate recorded"
-    by_time = {t: m for t, m in zip(t_truth, truth)}
+    styles = {"raw GPS fix": dict(color=GPS_COLOUR, linewidth=0.8, marker=".", markersize=3, zorder=1),
+              "fused estimate": dict(color="tab:blue", linewidth=1.3, zorder=3),
+              "odometry": dict(color="tab:green", linewidth=1, linestyle="--", zorder=2)}
     plt = _plt()
     fig, ax = plt.subplots(figsize=FIG_SIZE_IN, dpi=DPI)
-    for label, times, poses, style in (("fused estimate", t_fused, fused, "-"), ("odometry", t_odom, odom, "--")):
-        pts = [(t, d.to_world(p), by_time[t]) for t, p in zip(times, poses) if t in by_time]
-        if pts:
-            ax.plot([t for t, _, _ in pts], [math.hypot(p[0] - tr["x"], p[1] - tr["y"]) for _, p, tr in pts],
-                    style, label=label)
+    for label in ("raw GPS fix", "odometry", "fused estimate"):
+        if label in errors:
+            times, errs = errors[label]
+            rms = math.sqrt(sum(e * e for e in errs) / len(errs))
+            ax.plot(times, errs, label=f"{label} (RMS {rms:.2f} m)", **styles[label])
     _mark_failsafes(ax, d)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("position error (m)")
-    ax.set_title("position error against ground truth")
+    ax.set_ylabel("distance to the truth (m)")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(f"{d.title()}: position error against ground truth")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     _save(plt, fig, out)
@@ -388,7 +672,7 @@ def plot_speeds(d: RunData, out: Path) -> Optional[str]:
     ax2.set_xlabel("time (s)")
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(True, alpha=0.3)
-    fig.suptitle("commanded against actual")
+    fig.suptitle(f"{d.title()}: commanded against actual")
     _save(plt, fig, out)
     return None
 
@@ -419,42 +703,87 @@ def plot_line_error(d: RunData, out: Path) -> Optional[str]:
     ax2.set_xlabel("time (s)")
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(True, alpha=0.3)
-    fig.suptitle("line error as detected")
+    fig.suptitle(f"{d.title()}: line error as detected")
     _save(plt, fig, out)
     return None
 
 
-def step_intervals(d: RunData) -> list[tuple[str, float, float, str]]:
-    """(step name, start s, end s, how it ended) for every run of a leaf step, from the /tree channel."""
-    nodes = json.loads(d.rec.info.get("tree", "[]"))
-    # Steps are the tree's leaves; composites (sequences, repeats) are left out. A node the recorded tree
-    # did not have (a return_home put in by a failsafe) counts as a step.
-    composites = {n["name"] for n in nodes if not n.get("leaf")} - {n["name"] for n in nodes if n.get("leaf")}
-    dt = 1.0 / float(d.rec.info.get("rate_hz", "20") or 20)
-    open_at: dict[str, float] = {}
-    out: list[tuple[str, float, float, str]] = []
-    end_t = 0.0
+class StepRun(NamedTuple):
+    """One run of a leaf step: ``name``, ``start_s`` and ``end_s`` (s), how it ended (``how``: SUCCESS,
+    FAILURE, INVALID when interrupted, RUNNING when the recording ends first) and the node's stable ``node_id``
+    (None in a recording made before the ids: steps are then told apart by name only)."""
+
+    name: str
+    start_s: float
+    end_s: float
+    how: str
+    node_id: Optional[str] = None
+
+    @property
+    def key(self) -> str:
+        """What tells this step apart from the others: its node id, else (an old recording) its name."""
+        return self.node_id if self.node_id is not None else self.name
+
+
+def _composites(nodes: list[dict]) -> set[str]:
+    """The keys (ids, or names in a recording made before the ids) of the recorded tree's inner nodes."""
+    if any("id" in n for n in nodes):
+        return {n["parent"] for n in nodes if n.get("parent") is not None}
+    # Before the ids: by name, and a name that is a leaf somewhere counts as a step.
+    return {n["name"] for n in nodes if not n.get("leaf")} - {n["name"] for n in nodes if n.get("leaf")}
+
+
+def step_intervals(d: RunData) -> list[StepRun]:
+    """Every run of a leaf step, from the /tree channel, in the order they ended.
+
+    Steps are the tree's leaves (composites, repeats and tasks are left
+    out). A node the recorded tree did not list (a return_home put in by a
+    failsafe) counts as a step unless its id shows it has children ("1" of
+    "1.0"); in a recording from before the ids, unless its name is a
+    composite's. Two steps that share a name are two steps.
+    """
+    composites = _composites(json.loads(d.rec.info.get("tree", "[]")))
     for m in d.rec.topic("/tree"):
-        t = m["now_s"]
+        for c in m["changes"]:
+            parts = c.get("id", "").split(".")
+            composites.update(".".join(parts[:i]) for i in range(1, len(parts)))
+    dt = 1.0 / float(d.rec.info.get("rate_hz", "20") or 20)
+    open_at: dict[str, tuple[str, float, Optional[str]]] = {}
+    out: list[StepRun] = []
+    end_t = 0.0
+    for t, m in zip(*d.series("/tree")):
         end_t = t
         for c in m["changes"]:
-            name, status = c["name"], c["status"]
-            if name in composites:
+            name, status, node_id = c["name"], c["status"], c.get("id")
+            key = node_id if node_id is not None else name
+            if key in composites:
                 continue
             if status == "RUNNING":
-                open_at.setdefault(name, t)
-            elif name in open_at:
-                start = open_at.pop(name)
-                out.append((name, start, max(t, start + dt), status))
+                open_at.setdefault(key, (name, t, node_id))
+            elif key in open_at:
+                _, start, _ = open_at.pop(key)
+                out.append(StepRun(name, start, max(t, start + dt), status, node_id))
             elif status != "INVALID":
                 # Done within one tick (never seen RUNNING). A reset to INVALID of a step that was not
                 # running (a repeat starting over) is not a run of it.
-                out.append((name, t, t + dt, status))
-    gates = d.rec.times_s("/cmd/gate")
+                out.append(StepRun(name, t, t + dt, status, node_id))
+    gates = d.times("/cmd/gate")
     end_t = max(end_t, gates[-1] if gates else end_t)
-    for name, start in open_at.items():
-        out.append((name, start, max(end_t, start + dt), "RUNNING"))
+    for name, start, node_id in open_at.values():
+        out.append(StepRun(name, start, max(end_t, start + dt), "RUNNING", node_id))
     return out
+
+
+def timeline_rows(intervals: list[StepRun]) -> list[tuple[str, str]]:
+    """(key, label) of the timeline's rows, in the order the steps first started: one row per step.
+
+    A label is the step's name, with its node id when another step shares that name.
+    """
+    keys: dict[str, str] = {}
+    for iv in sorted(intervals, key=lambda iv: iv.start_s):
+        keys.setdefault(iv.key, iv.name)
+    names = [name for name in keys.values()]
+    return [(key, name if names.count(name) == 1 or key == name else f"{name} [{key}]") for key, name in keys.items()]
 
 
 def plot_timeline(d: RunData, out: Path) -> Optional[str]:
@@ -462,25 +791,23 @@ def plot_timeline(d: RunData, out: Path) -> Optional[str]:
     intervals = step_intervals(d)
     if not intervals:
         return "no tree changes recorded"
-    order: list[str] = []
-    for name, *_ in sorted(intervals, key=lambda iv: iv[1]):
-        if name not in order:
-            order.append(name)
-    rows = {name: i for i, name in enumerate(order)}
+    order = timeline_rows(intervals)
+    rows = {key: i for i, (key, _) in enumerate(order)}
     colors = {"SUCCESS": "tab:green", "FAILURE": "tab:red", "INVALID": "tab:gray", "RUNNING": "tab:blue"}
     plt = _plt()
     fig, ax = plt.subplots(figsize=FIG_SIZE_IN, dpi=DPI)
-    span = max(end for _, _, end, _ in intervals) - min(start for _, start, _, _ in intervals)
+    span = max(iv.end_s for iv in intervals) - min(iv.start_s for iv in intervals)
     min_width = span * 0.004  # a step done in one tick still shows
-    for name, start, end, how in intervals:
-        ax.barh(rows[name], max(end - start, min_width), left=start, height=0.6, color=colors.get(how, "tab:blue"),
-                edgecolor="black", linewidth=0.3)
+    for iv in intervals:
+        ax.barh(rows[iv.key], max(iv.end_s - iv.start_s, min_width), left=iv.start_s, height=0.6,
+                color=colors.get(iv.how, "tab:blue"), edgecolor="black", linewidth=0.3)
     _mark_failsafes(ax, d)
     ax.set_yticks(range(len(order)))
-    ax.set_yticklabels(order, fontsize=8 if len(order) < 25 else 6)
+    ax.set_yticklabels([label for _, label in order], fontsize=8 if len(order) < 25 else 6)
     ax.invert_yaxis()
     ax.set_xlabel("time (s)")
-    ax.set_title("which step ran when (green: succeeded, red: failed, grey: interrupted, blue: still running)")
+    ax.set_title(f"{d.title()}: which step ran when\n(green: succeeded, red: failed, grey: interrupted, "
+                 "blue: still running)", fontsize=10)
     ax.grid(True, axis="x", alpha=0.3)
     _save(plt, fig, out)
     return None
@@ -526,27 +853,46 @@ def make_report(run: str, out: Optional[str] = None) -> Report:
     return report
 
 
+WAYPOINT_COLUMNS = ("waypoint", "reached", "tolerance (m)", "arrival error (m)", "within tolerance", "arrived at (s)")
+"""The header of the waypoint table."""
+
+
+def waypoint_table(d: RunData) -> list[tuple[str, ...]]:
+    """The waypoint table's rows as text, in :data:`WAYPOINT_COLUMNS` order (empty cells for what is unknown)."""
+    def num(v: Optional[float]) -> str:
+        return "" if v is None else f"{v:.2f}"
+
+    rows = []
+    for wp in d.waypoints():
+        within = {True: "yes", False: "NO", None: ""}[wp.within]
+        rows.append((wp.name, "yes" if wp.reached else "NO", num(wp.tolerance_m), num(wp.arrival_error_m), within,
+                     "" if wp.time_s is None else f"{wp.time_s:.1f}"))
+    return rows
+
+
 def write_html(d: RunData, report: Report) -> Path:
-    """One page with the summary, the plots, the failsafes and the events."""
+    """One page with the summary, the waypoint table, the plots, the failsafes and the events."""
     esc = html.escape
     titles = {stem: title for stem, title, _ in PLOTS}
     parts = [
         "<!DOCTYPE html>",
-        f"<html><head><meta charset='utf-8'><title>beastbt run {esc(d.name)}</title>",
+        f"<html><head><meta charset='utf-8'><title>{esc(d.title())}</title>",
         "<style>body{font-family:sans-serif;margin:2em;max-width:1100px}img{max-width:100%;border:1px solid #ccc}"
         "pre{background:#f4f4f4;padding:1em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
-        "padding:2px 8px;text-align:left}</style></head><body>",
-        f"<h1>Run {esc(d.name)}</h1>",
+        "padding:2px 8px;text-align:left}td.num{text-align:right}</style></head><body>",
+        f"<h1>{esc(d.title())}</h1>",
+        f"<p>run {esc(d.name)}</p>",
         f"<pre>{esc(report.text)}</pre>",
     ]
-    wps = (d.summary or {}).get("waypoints") or []
-    if wps:
-        parts.append("<h2>Waypoints</h2><table><tr><th>name</th><th>reached</th><th>arrival error (m)</th>"
-                     "<th>time (s)</th></tr>")
-        for wp in wps:
-            err = wp.get("arrival_error_m")
-            parts.append(f"<tr><td>{esc(str(wp.get('name')))}</td><td>{'yes' if wp.get('reached') else 'no'}</td>"
-                         f"<td>{'' if err is None else f'{err:.2f}'}</td><td>{wp.get('time_s', '')}</td></tr>")
+    rows = waypoint_table(d)
+    if rows:
+        parts.append("<h2>Waypoints</h2><table><tr>" + "".join(f"<th>{esc(c)}</th>" for c in WAYPOINT_COLUMNS)
+                     + "</tr>")
+        for row in rows:
+            cells = [f"<td>{esc(row[0])}</td>", f"<td>{esc(row[1])}</td>"]
+            cells += [f"<td class='num'>{esc(v)}</td>" for v in row[2:4]]
+            cells += [f"<td>{esc(row[4])}</td>", f"<td class='num'>{esc(row[5])}</td>"]
+            parts.append("<tr>" + "".join(cells) + "</tr>")
         parts.append("</table>")
     for stem, path in report.plots.items():
         parts.append(f"<h2>{esc(titles[stem])}</h2><img src='{esc(path.name)}' alt='{esc(titles[stem])}'>")
@@ -565,8 +911,8 @@ def write_html(d: RunData, report: Report) -> Path:
     events = d.rec.topic("/events")
     if events:
         parts.append(f"<h2>Events ({len(events)})</h2><table><tr><th>time (s)</th><th>kind</th><th>text</th></tr>")
-        for m in events[:500]:
-            parts.append(f"<tr><td>{m['time_s']:.2f}</td><td>{esc(m['kind'])}</td><td>{esc(m['text'])}</td></tr>")
+        for t, m in list(zip(d.times("/events"), events))[:500]:
+            parts.append(f"<tr><td>{t:.2f}</td><td>{esc(m['kind'])}</td><td>{esc(m['text'])}</td></tr>")
         parts.append("</table>")
     parts.append("</body></html>")
     target = report.folder / "report.html"
@@ -574,5 +920,6 @@ def write_html(d: RunData, report: Report) -> Path:
     return target
 
 
-__all__ = ["make_report", "Report", "RunData", "summary_text", "step_intervals", "PLOTS", "FIG_SIZE_IN",
-           "MAP_SIZE_IN", "DPI"]
+__all__ = ["make_report", "Report", "RunData", "Waypoint", "summary_text", "step_intervals", "StepRun",
+           "timeline_rows", "map_extent", "draw_path", "position_errors", "waypoint_table", "WAYPOINT_COLUMNS",
+           "PLOTS", "FIG_SIZE_IN", "MAP_SIZE_IN", "DPI"]

@@ -184,8 +184,13 @@ SERVO_COMMAND = _obj("beastbt.ServoCommand", "A servo command the run sent to it
 TREE_CHANGES = _obj("beastbt.TreeChanges", "The tree nodes whose status changed at one tick.", {
     "tick": _TICK, "now_s": _NOW,
     "changes": {"type": "array", "items": {
-        "type": "object", "additionalProperties": False, "required": ["name", "status", "feedback"],
-        "properties": {"name": {"type": "string"},
+        "type": "object", "additionalProperties": False, "required": ["id", "name", "status", "feedback"],
+        "properties": {"id": {"type": "string", "pattern": "^[0-9]+(\\.[0-9]+)*$",
+                              "description": "The node's stable id, its path from the root ('0.1.2', as in the "
+                                             "'tree' list of the beastbt.run metadata); a tree put in later "
+                                             "(a return_home) counts from '1'. Steps that share a name differ "
+                                             "by id."},
+                       "name": {"type": "string"},
                        "status": {"enum": ["RUNNING", "SUCCESS", "FAILURE", "INVALID"]},
                        "feedback": {"type": "string"}}}}})
 

@@ -369,7 +369,8 @@ class RunFileWriter:
         emit("/cmd/gate", t, stage_dict(tick, now_s, cmd_gate, mux_source))
         if changed:
             emit("/tree", t, {"tick": tick, "now_s": now_s,
-                              "changes": [{"name": n, "status": s, "feedback": f or ""} for n, s, f in changed]})
+                              "changes": [{"id": i, "name": n, "status": s, "feedback": f or ""}
+                                          for n, s, f, i in changed]})
         if truth is not None:
             emit("/truth", t, dict(zip(TRUTH_FIELDS, truth)))
         last = self._last_flush_s

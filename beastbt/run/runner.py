@@ -29,6 +29,7 @@ from beastbt.run.failsafes import FailsafeMonitor, Situation, failsafe_reads
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.safety import TICK, guard_actuators
+from beastbt.run.tree_ids import TreeNode, tree_layout
 
 Status = py_trees.common.Status
 
@@ -50,8 +51,9 @@ class TickRecord:
     cmd_mux: VelocityCommand
     cmd_gate: VelocityCommand
     mux_source: str
-    changed_nodes: list[tuple[str, str, str]]
-    """(node name, new status, feedback message) for nodes whose status changed this tick."""
+    changed_nodes: list[tuple[str, str, str, str]]
+    """(node name, new status, feedback message, stable node id) for nodes whose status changed this tick
+    (ids: :mod:`beastbt.run.tree_ids`, as in :attr:`MissionRun.layout`)."""
     truth: Optional[Any] = None
 
 
@@ -99,6 +101,11 @@ class MissionRun:
         self.root = compile_mission(mission, self.ctx, steps)
         self.nodes = list(self.root.iterate())
         self._last_status = {id(n): n.status for n in self.nodes}
+        self.layout: list[TreeNode] = []
+        """Every node the run has had, with its stable id: the mission's tree (ids from ``"0"``), then any
+        tree put in its place later (a return_home: ids from ``"1"``, so they never clash)."""
+        self._node_ids: dict[int, str] = {}
+        self._lay_out(self.root)
         self.mux = CommandMux()
         self.gate = SafetyGate(GateLimits(
             max_speed_mps=self.ctx.speed_limit_mps, max_turn_rate_rps=self.ctx.turn_rate_limit_rps,
@@ -338,14 +345,21 @@ class MissionRun:
                 return
         self.events.add("servo", f"no servo adapter took {cmd}")
 
-    def node_changes(self) -> list[tuple[str, str, str]]:
-        """Nodes whose status changed since the last call: (name, status, feedback)."""
+    def node_changes(self) -> list[tuple[str, str, str, str]]:
+        """Nodes whose status changed since the last call: (name, status, feedback, stable node id)."""
         out = []
+        ids = self._node_ids
         for n in self.nodes:
             key = id(n)
             if self._last_status.get(key) != n.status:
                 self._last_status[key] = n.status
-                out.append((n.name, n.status.value, n.feedback_message))
+                node_id = ids.get(key)
+                if node_id is None:  # a tree put in after the start (a return_home replacing the mission's)
+                    self._lay_out(self.root)
+                    if key not in ids:  # a node outside the root's tree: its own root number, still an id
+                        self._lay_out(n)
+                    node_id = ids[key]
+                out.append((n.name, n.status.value, n.feedback_message, node_id))
         return out
 
     # -- the operator ---------------------------------------------------------------
@@ -384,6 +398,22 @@ class MissionRun:
         if self._pause_started_s is not None:
             paused += self.clock.now() - self._pause_started_s
         return max(0.0, self.elapsed_s - paused)
+
+    def _lay_out(self, root: py_trees.behaviour.Behaviour) -> None:
+        """Give the nodes under ``root`` that have none a stable id, under the next free root number.
+
+        The layout keeps every node it saw alive, so ``id(node)``, the key,
+        is never reused by a new node while the run lasts.
+        """
+        prefix = str(len({n.id.split(".", 1)[0] for n in self.layout}))
+        given: dict[str, str] = {}  # path under ``root`` -> the id its node has (new, or the one it had)
+        for n in tree_layout(root):
+            node_id = self._node_ids.get(id(n.node))
+            if node_id is None:
+                node_id = prefix + n.id[1:]
+                self._node_ids[id(n.node)] = node_id
+                self.layout.append(replace(n, id=node_id, parent=given.get(n.parent) if n.parent else None))
+            given[n.id] = node_id
 
     # -- the end ----------------------------------------------------------------
     def current_step(self) -> str:
