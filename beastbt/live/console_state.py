@@ -24,7 +24,6 @@ import py_trees
 from beastbt.blackboard.types import BatteryState, GpsFix
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.run.progress import progress_of
-from beastbt.run.tree_ids import tree_layout
 
 STATUS_NAMES = {"success": "succeeded", "failure": "failed", "stopped": "aborted"}
 """The run's ending (the summary's ``status``) -> the console's status word."""
@@ -172,7 +171,6 @@ class ConsoleState:
         self.period_s = period_s
         self.battery_cells = battery_cells
         self.frame = MapFrame(run, world)
-        self.layout = tree_layout(run.root)
         self.trail: list[list[float]] = []
         self._cond = threading.Condition()
         self._published = Published(0, self.build())
@@ -248,7 +246,7 @@ class ConsoleState:
             "question": None if question is None else {
                 "id": question.id, "text": question.text, "choices": list(question.choices)},
             "tree": [{"id": n.id, "name": n.name, "kind": n.kind, "status": NODE_STATUS.get(n.node.status, "idle"),
-                      "parent": n.parent} for n in self.layout],
+                      "parent": n.parent} for n in run.tree_nodes()],
             "ended_at": None,
             "command": {"linear_mps": round(run.last_sent.linear_mps, 3),
                         "angular_rps": round(run.last_sent.angular_rps, 3)},
@@ -259,7 +257,7 @@ class ConsoleState:
             "map_version": 1 if self.frame.geo is None else 2,
         }
         last = getattr(self, "_published", None)
-        reset = self.layout[0].node.status == py_trees.common.Status.INVALID
+        reset = run.root.status == py_trees.common.Status.INVALID
         if run.status is not None and reset and last is not None and last.state["status"] in ("running", "paused"):
             # The run has just ended and its tree was reset: show where it was when it ended.
             state["tree"] = last.state["tree"]

@@ -399,6 +399,12 @@ class MissionRun:
             paused += self.clock.now() - self._pause_started_s
         return max(0.0, self.elapsed_s - paused)
 
+    def tree_nodes(self) -> list[TreeNode]:
+        """Every node the run has had, parents first, each with its stable id (a tree put in since included)."""
+        if id(self.root) not in self._node_ids:
+            self._lay_out(self.root)
+        return self.layout
+
     def _lay_out(self, root: py_trees.behaviour.Behaviour) -> None:
         """Give the nodes under ``root`` that have none a stable id, under the next free root number.
 
