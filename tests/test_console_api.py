@@ -222,3 +222,30 @@ def test_a_stalled_viewer_slows_neither_the_mission_nor_another_viewer(console):
         assert t1 - t0 > 3.0  # the mission kept real time meanwhile
     finally:
         stalled.close()
+
+
+def test_a_pause_at_full_speed_holds_the_simulation_to_real_time(console):
+    run = console("mission: long_wait\nsteps:\n  - wait: 3600 s\n", "--speed", "max", "--max-time", "2 h")
+    status, _ = run.api("/api/pause", {})
+    assert status == 200
+    first = run.wait_state(lambda s: s["status"] == "paused", 5)
+    time.sleep(1.5)
+    later = run.state()
+    assert later["time_s"] == first["time_s"]  # the mission's time stands still
+    ran = later["sim_time_s"] - first["sim_time_s"]
+    assert 0.5 < ran < 5.0  # the clock goes on about as fast as the wall's, not thousands of times faster
+    assert run.api("/api/resume", {})[0] == 200
+    code, _, _ = run.finish(120)
+    assert code == 0
+
+
+def test_the_console_works_the_same_on_a_real_robots_profile(console, tmp_path):
+    from conftest import REPO
+    run = console(WAIT, "--robot", str(REPO / "robots" / "ugv_beast.yaml"), "--sim", "--speed", "realtime")
+    state = run.wait_state(lambda s: s["battery"] is not None and s["time_s"] > 0.3, 15)
+    assert state["status"] == "running" and state["tree"][0]["name"] == "mission console_wait"
+    assert run.api("/api/pause", {})[0] == 200
+    run.wait_state(lambda s: s["status"] == "paused", 5)
+    assert run.api("/api/abort", {})[0] == 200
+    code, out, _ = run.finish()
+    assert code == 1 and "aborted by the operator console" in out
