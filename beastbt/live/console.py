@@ -41,8 +41,12 @@ def install_console(prepared: Any) -> ConsoleServer:
     try:
         server.start()
     except OSError as exc:
+        import errno
+        hint = (f"this computer has no address {host}: use 127.0.0.1 (this computer only), 0.0.0.0 (every "
+                f"network) or one of its own addresses" if exc.errno == errno.EADDRNOTAVAIL
+                else "pick another port, or 0 for any free one")
         raise InvalidInput([Problem("--console", Position(), f"cannot listen on {host}:{port}: {exc.strerror or exc}",
-                                    "pick another port, or 0 for any free one")]) from None
+                                    hint)]) from None
     video.start()
     pending, apply_pending, feed = controls.pending, controls.apply_pending, video.feed
 

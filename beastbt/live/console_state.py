@@ -36,6 +36,10 @@ TRAIL_EVERY_TICKS = 5
 """The trail looks at the pose every this many ticks (0.25 s at 20 Hz): cheap, and fine enough to draw."""
 TRAIL_MAX_POINTS = 4000
 """Above this the trail keeps every other point (the page's drawing cost stays bounded)."""
+EVENTS_SHOWN = 12
+"""The newest events in the state (the page's log); all of them are in the summary and the recording."""
+QUIET_EVENTS = frozenset({"asleep", "camera_backend"})
+"""Events of the set-up that an operator does not need to read during the run."""
 GPS_UERE_M = 4.0
 """Without a covariance, the GPS accuracy circle is HDOP times this (m, a plain receiver's range error)."""
 CELL_FULL_V = 4.2
@@ -248,6 +252,8 @@ class ConsoleState:
             "tree": [{"id": n.id, "name": n.name, "kind": n.kind, "status": NODE_STATUS.get(n.node.status, "idle"),
                       "parent": n.parent} for n in run.tree_nodes()],
             "ended_at": None,
+            "events": [{"time_s": round(e.time_s, 1), "kind": e.kind, "text": e.text}
+                       for e in run.events.events[-EVENTS_SHOWN:] if e.kind not in QUIET_EVENTS],
             "command": {"linear_mps": round(run.last_sent.linear_mps, 3),
                         "angular_rps": round(run.last_sent.angular_rps, 3)},
             "sim_time_s": round(run.elapsed_s, 2),

@@ -41,9 +41,13 @@ document.addEventListener("keydown", (e) => { if (e.key === " " && e.target === 
 // ---- state ------------------------------------------------------------------------------------
 function connectState() {
   const ws = new WebSocket(wsUrl("/api/ws"));
+  ws.onopen = () => { const n = $("notice"); if (n.classList.contains("link")) { n.hidden = true; n.classList.remove("link"); } };
   ws.onmessage = (ev) => render(JSON.parse(ev.data));
   ws.onclose = () => {
     if (state && ENDED.has(state.status)) { $("status").title = "the run has ended"; return; }
+    const n = $("notice");
+    n.textContent = "connection to the robot lost: retrying (the robot stops by itself if you were driving)";
+    n.classList.add("link"); n.hidden = false;
     setTimeout(connectState, 1000);
   };
 }
@@ -90,7 +94,26 @@ function render(s) {
   }
   if (s.map_version !== mapVersion) { mapVersion = s.map_version; loadMap(); }
   renderTree(s.tree);
+  renderEvents(s.events || []);
   mapDirty = true;
+}
+
+let eventsKey = "";
+function renderEvents(events) {
+  const key = events.length ? events[events.length - 1].time_s + events[events.length - 1].text : "";
+  if (key === eventsKey) return;
+  eventsKey = key;
+  const ol = $("events");
+  ol.textContent = "";
+  for (const e of events.slice().reverse()) {  // newest first
+    const li = document.createElement("li");
+    li.className = e.kind;
+    const t = document.createElement("span"); t.className = "t"; t.textContent = e.time_s.toFixed(1) + " s";
+    const k = document.createElement("span"); k.className = "k"; k.textContent = e.kind;
+    li.append(t, k, document.createTextNode(e.text));
+    li.title = e.text;
+    ol.appendChild(li);
+  }
 }
 
 // ---- tree --------------------------------------------------------------------------------------
