@@ -165,6 +165,7 @@ def test_a_question_is_answered_on_the_page(browser, run_console, shots):
     shots(page, "question")
     page.get_by_test_id("answer-yes").click()
     playwright_api.expect(question).to_be_hidden(timeout=5000)
+    playwright_api.expect(page.get_by_test_id("events")).to_contain_text("door: yes (by console)")
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=20000)
     code, out, _ = run.finish()
     assert code == 0

@@ -131,6 +131,8 @@ class ConsoleVideo:
                 self.raw.put((np.full((360, 640, 3), 40, np.uint8), None, None, 0.25, self.epoch()))
             return
         if not pipeline.enabled:
+            if self.pull is not None:
+                return
             viewer = run.io.viewer_camera
             if viewer is not None:
                 self.pull = viewer  # the encoder renders what it needs, off this thread
