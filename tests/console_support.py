@@ -22,6 +22,21 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-
 """Flags for Chromium on a machine with no network beyond loopback (no background lookups)."""
 
 
+WAIT = "mission: console_wait\nsteps:\n  - wait: 60 s\n"
+"""A robot that stands for a minute: for driving it by hand and for the controls."""
+SHORT = "mission: console_short\nsteps:\n  - drive: {distance: 0.3 m}\n  - wait: 1 s\n"
+"""A run of a few seconds that succeeds."""
+ASK = """mission: console_ask
+steps:
+  - ask: {id: door, question: "Is the door open?"}
+    then:
+      - drive: {distance: 0.4 m}
+    else:
+      - say: "staying"
+"""
+"""A question with no timeout: the run waits for the operator."""
+
+
 class ConsoleRun:
     """``beastbt run MISSION --console HOST:0`` in a subprocess; ``url`` is the printed address (with any token)."""
 

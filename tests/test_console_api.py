@@ -10,16 +10,8 @@ from pathlib import Path
 import aiohttp
 import pytest
 
-from console_support import ConsoleRun
+from console_support import ASK, SHORT, WAIT, ConsoleRun
 
-WAIT = "mission: console_wait\nsteps:\n  - wait: 60 s\n"
-SHORT = "mission: console_short\nsteps:\n  - drive: {distance: 0.3 m}\n  - wait: 1 s\n"
-ASK = """mission: console_ask
-steps:
-  - ask: {id: door, question: "Is the door open?"}
-    then:
-      - drive: {distance: 0.3 m}
-"""
 
 
 @pytest.fixture
@@ -104,7 +96,7 @@ def test_bad_requests_get_a_json_4xx_and_the_run_goes_on(console):
     assert status == 405 and "error" in answer
     status, answer = run.api("/api/teleop", b"x" * 200_000)
     assert 400 <= status < 500
-    code, out, err = run.finish()
+    code, _, err = run.finish()
     assert code == 0 and "Traceback" not in err
     assert json.loads((Path(run.proc.args[run.proc.args.index("--summary") + 1])).read_text())["status"] == "success"
 
@@ -143,7 +135,7 @@ def test_abort_ends_the_run_as_aborted_with_a_summary_and_a_recording(console, t
 
     final = asyncio.run(asyncio.wait_for(abort_and_watch(), 30))
     assert final["status"] == "aborted"
-    code, out, _ = run.finish()
+    code, _, _ = run.finish()
     assert code == 1
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "stopped"
@@ -161,7 +153,7 @@ def test_answers_are_checked_against_the_open_question(console, tmp_path):
     assert status == 400 and "yes" in answer["error"]
     assert run.api("/api/answer", {"id": "door", "choice": "yes"}) == (200, {"ok": True, "answered": "door",
                                                                             "choice": "yes"})
-    code, out, _ = run.finish()
+    code, _, _ = run.finish()
     assert code == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["distance_m"] > 0.25
@@ -172,7 +164,7 @@ def test_the_estop_latches_at_once_and_the_run_ends_stopped(console, tmp_path):
     run.wait_state(lambda s: s["time_s"] > 0.3, 10)
     status, answer = run.api("/api/estop", {})
     assert status == 200 and answer["estop"] is True
-    code, out, _ = run.finish()
+    code, _, _ = run.finish()
     assert code == 1
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "stopped"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from console_support import CHROMIUM, CHROMIUM_ARGS, ConsoleRun
+from console_support import ASK, CHROMIUM, CHROMIUM_ARGS, SHORT, WAIT, ConsoleRun
 from conftest import REPO
 
 if os.environ.get("BEASTBT_REQUIRE_BROWSER"):  # CI installs both: there a missing one is a failure, not a skip
@@ -25,16 +25,6 @@ else:
     playwright_api = pytest.importorskip("playwright.sync_api")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (.ci/run installs Debian's)")
 
-WAIT = "mission: console_wait\nsteps:\n  - wait: 60 s\n"
-ASK = """mission: console_ask
-steps:
-  - ask: {id: door, question: "Is the door open?"}
-    then:
-      - drive: {distance: 0.4 m}
-    else:
-      - say: "staying"
-"""
-SHORT = "mission: console_short\nsteps:\n  - drive: {distance: 0.3 m}\n  - wait: 1 s\n"
 
 
 @pytest.fixture(scope="module")
