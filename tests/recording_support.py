@@ -88,6 +88,24 @@ def shared_run(name: str) -> tuple[Path, dict]:
     raise KeyError(name)
 
 
+def without_timestamps(rec: Any) -> dict:
+    """``rec.messages`` without the Foxglove ``timestamp`` fields, after checking each equals its log time.
+
+    Those hold Unix epoch time, which differs run to run; everything else in a run with a given seed does not.
+    """
+    out: dict = {}
+    for topic, entries in rec.messages.items():
+        kept = []
+        for t, m in entries:
+            if "timestamp" in m:
+                stamp = m["timestamp"]
+                assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == t + rec.log_time_offset_ns, topic
+                m = {k: v for k, v in m.items() if k != "timestamp"}
+            kept.append((t, m))
+        out[topic] = kept
+    return out
+
+
 def png_pixels(path: Path) -> np.ndarray:
     """A PNG as a float array (rows, columns, channels), values 0-1."""
     import matplotlib.image

@@ -53,8 +53,8 @@ from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
 from beastbt.recording.config import RecordingConfig, compression_type
 from beastbt.recording.wire import Frame, ItemEncoder
-from beastbt.recording.writer import (MCAP_PROFILE, RECORDING_FORMAT, TRUTH_FIELDS, json_default,
-                                              message_count, ns)
+from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
+                                     json_default, message_count, ns)
 
 _UNSET = object()
 
@@ -213,15 +213,20 @@ class McapRecorder:
         self._doorbell = bell_w
         return self
 
-    def start(self) -> "McapRecorder":
+    def start(self, now_s: float = 0.0) -> "McapRecorder":
         """Open the file: the writer gets the metadata and attachments, then what was queued so far.
 
         :func:`install` leaves this to the first tick, so that the metadata
-        sees the run as every prepare hook left it.
+        sees the run as every prepare hook left it. ``now_s``: the run's
+        clock then (s); with the wall time now it fixes the log times' epoch
+        (metadata ``log_time_offset_ns``) unless ``info`` gave one.
         """
         if self._started:
             return self
         self._started = True
+        # Log times are Unix epoch ns (Foxglove, other tools and other runs line up): the simulator's clock
+        # starts at the wall time of its first tick, the robot's monotonic clock keeps its pace from there.
+        self.info.setdefault(OFFSET_KEY, str(time.time_ns() - ns(now_s)))
         if self.run is not None:
             self._snapshot_run(self.run)
         self.launch()
@@ -252,7 +257,9 @@ class McapRecorder:
         """
         if self._stopped:
             return
-        self.start()  # a run that never ticked still leaves a file (metadata, events)
+        clock = getattr(self.run, "clock", None)
+        # A run that never ticked still leaves a file (metadata, events).
+        self.start(clock.now() if clock is not None else 0.0)
         self._stopped = True
         if self._gone:
             return
@@ -295,7 +302,7 @@ class McapRecorder:
     def on_tick(self, rec: Any) -> None:
         """``run.recorders`` callable: queue what this tick did."""
         if not self._started:
-            self.start()
+            self.start(rec.now_s)
         for key, attr, device in self._watched:
             value = getattr(device, attr)
             if self._flags.get((key, attr), _UNSET) != value:

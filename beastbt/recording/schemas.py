@@ -9,8 +9,13 @@ panel. Everything else is a ``beastbt.*`` schema whose fields are exactly the
 dataclass fields of :mod:`beastbt.blackboard.types` (SI units, ENU frames), so
 that ``beastbt replay`` can rebuild the readings bit for bit.
 
-Log time of every message = the run's clock in nanoseconds (simulated time in
-the simulator), so two runs with the same seed give the same messages.
+Log time (and publish time) of every message = Unix epoch nanoseconds: the
+run's clock plus the offset stored in the ``beastbt.run`` metadata
+(:data:`OFFSET_KEY`): in the simulator the wall time at the first tick plus
+the simulated time, on the robot the wall time. A Foxglove message's own
+``timestamp`` equals its log time. Readers subtract the offset
+(:func:`beastbt.recording.reader.read_recording`), so two runs with the same
+seed give the same messages apart from those timestamps.
 
 Messages are strict JSON: a value that is not a finite number (NaN from a
 diverged estimate, infinity) is written as null, since JSON has no NaN and
@@ -21,6 +26,10 @@ from __future__ import annotations
 
 import json
 from typing import Any
+
+OFFSET_KEY = "log_time_offset_ns"
+"""``beastbt.run`` metadata: log time (Unix epoch ns) = clock time (ns) + this. The recorder sets it at the
+run's first tick (wall time then, minus the clock's time then); a file without it logs clock time."""
 
 # -- building blocks ---------------------------------------------------------------
 
@@ -254,4 +263,4 @@ def schema_bytes(schema: dict) -> bytes:
     return json.dumps(schema, separators=(",", ":"), sort_keys=True).encode()
 
 
-__all__ = ["CHANNELS", "SENSOR_TOPICS", "GENERIC_READING", "schema_bytes"]
+__all__ = ["OFFSET_KEY", "CHANNELS", "SENSOR_TOPICS", "GENERIC_READING", "schema_bytes"]

@@ -40,6 +40,7 @@ from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample
                                       VelocityCommand, WheelOdometry)
 from beastbt.recording import schemas as rs
 from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
 
 RECORDING_FORMAT = "beastbt-run/1"
@@ -55,7 +56,7 @@ TRUTH_FIELDS = ("t_s", "x", "y", "yaw", "v_mps", "w_rps", "left_m", "right_m", "
 
 
 def ns(t_s: float) -> int:
-    """Clock seconds to MCAP log time (integer nanoseconds, never negative)."""
+    """Clock seconds to integer nanoseconds of the clock (never negative)."""
     return max(0, int(round(t_s * 1e9)))
 
 
@@ -245,6 +246,7 @@ class RunFileWriter:
         self._channels: dict[str, int] = {}
         self._schema_ids: dict[str, int] = {}
         self._last_flush_s: Optional[float] = None
+        self._offset_ns = int(info.get(OFFSET_KEY, 0) or 0)
         self._stream = _TeeFile([Path(p) for p in paths])
         w = Writer(self._stream, chunk_size=config.chunk_max_bytes, compression=compression_type(config.compression))
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
@@ -292,6 +294,10 @@ class RunFileWriter:
             self._channels[topic] = cid
         return cid
 
+    def _ns(self, t_s: float) -> int:
+        """Clock seconds to log time: Unix epoch nanoseconds (see OFFSET_KEY)."""
+        return self._offset_ns + ns(t_s)
+
     def _emit(self, topic: str, t_ns: int, obj: dict) -> None:
         cid = self._channels.get(topic)
         if cid is None:
@@ -306,7 +312,7 @@ class RunFileWriter:
             self._write_tick(item)
         elif kind == "event":
             _, time_s, ev_kind, text = item
-            t = ns(time_s)
+            t = self._ns(time_s)
             ev = {"time_s": time_s, "kind": ev_kind, "text": text}
             self._emit("/events", t, ev)
             if ev_kind == "failsafe":
@@ -315,23 +321,24 @@ class RunFileWriter:
                                    "message": f"{ev_kind}: {text}", "name": ev_kind, "file": "", "line": 0})
         elif kind == "flag":
             _, tick, now_s, key, attr, value = item
-            self._emit("/devices/state", ns(now_s), {"tick": tick, "now_s": now_s, "device": key, "field": attr,
-                                                     "value": value})
+            self._emit("/devices/state", self._ns(now_s), {"tick": tick, "now_s": now_s, "device": key,
+                                                           "field": attr, "value": value})
         elif kind == "snapshot":
             _, stamp_s, path = item
             data = Path(path).read_bytes()
-            self._writer.add_attachment(create_time=0, log_time=ns(stamp_s), name=Path(path).name,
+            self._writer.add_attachment(create_time=0, log_time=self._ns(stamp_s), name=Path(path).name,
                                         media_type="image/jpeg", data=data)
         elif kind == "servo":
             _, now_s, c = item
-            self._emit("/cmd/servo", ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
-                                                 "channel": c.channel, "pulse_s": c.pulse_s, "stamp_s": c.stamp_s})
+            self._emit("/cmd/servo", self._ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
+                                                       "channel": c.channel, "pulse_s": c.pulse_s,
+                                                       "stamp_s": c.stamp_s})
 
     def _write_tick(self, item: tuple) -> None:
         (_, tick, now_s, readings, pose_odom, pose, cmd_mission, cmd_mux, cmd_gate, mux_source, changed,
          truth, tags) = item
         sources = reading_sources(*tags, len(readings))
-        t = ns(now_s)
+        t = self._ns(now_s)
         emit = self._emit
         for i, r in enumerate(readings):
             source = sources[i] if sources is not None else None
