@@ -89,21 +89,23 @@ def shared_run(name: str) -> tuple[Path, dict]:
 
 
 def without_timestamps(rec: Any) -> dict:
-    """``rec.messages`` without the Foxglove ``timestamp`` fields, after checking each equals its log time.
+    """``rec.messages`` without the Foxglove ``timestamp`` fields (at any depth: transforms have their own),
+    after checking each equals its message's log time.
 
     Those hold Unix epoch time, which differs run to run; everything else in a run with a given seed does not.
     """
-    out: dict = {}
-    for topic, entries in rec.messages.items():
-        kept = []
-        for t, m in entries:
-            if "timestamp" in m:
-                stamp = m["timestamp"]
-                assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == t + rec.log_time_offset_ns, topic
-                m = {k: v for k, v in m.items() if k != "timestamp"}
-            kept.append((t, m))
-        out[topic] = kept
-    return out
+    def strip(node: Any, epoch_ns: int, topic: str) -> Any:
+        if isinstance(node, dict):
+            stamp = node.get("timestamp")
+            if isinstance(stamp, dict) and set(stamp) == {"sec", "nsec"}:
+                assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == epoch_ns, topic
+            return {k: strip(v, epoch_ns, topic) for k, v in node.items() if k != "timestamp"}
+        if isinstance(node, list):
+            return [strip(v, epoch_ns, topic) for v in node]
+        return node
+
+    return {topic: [(t, strip(m, t + rec.log_time_offset_ns, topic)) for t, m in entries]
+            for topic, entries in rec.messages.items()}
 
 
 def png_pixels(path: Path) -> np.ndarray:

@@ -51,7 +51,9 @@ import yaml
 import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
-from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.devices.camera import CameraConfig
+from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.robot.profile import section_config
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
                                      json_default, message_count, ns)
@@ -562,6 +564,11 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }
+    # For the Foxglove views the writer builds: the frame names and where the camera sits on base_link.
+    info["frames"] = json.dumps(dataclasses.asdict(section_config(profile, "frames", FramesConfig)))
+    camera = profile.section("camera")
+    if camera is not None:
+        info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:

@@ -38,8 +38,10 @@ import numpy as np
 
 from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LineObservation,
                                       VelocityCommand, WheelOdometry)
+from beastbt.recording import foxglove as fx
 from beastbt.recording import schemas as rs
-from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.foxglove import fox_time
 from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
 
@@ -58,10 +60,6 @@ TRUTH_FIELDS = ("t_s", "x", "y", "yaw", "v_mps", "w_rps", "left_m", "right_m", "
 def ns(t_s: float) -> int:
     """Clock seconds to integer nanoseconds of the clock (never negative)."""
     return max(0, int(round(t_s * 1e9)))
-
-
-def _fox_time(t_ns: int) -> dict:
-    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
 
 
 def json_default(o: Any) -> Any:
@@ -163,22 +161,6 @@ def _snake(name: str) -> str:
     return "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
 
 
-def location_fix(r: GpsFix, t_ns: int) -> dict:
-    """GpsFix as a foxglove.LocationFix (for Foxglove's map panel)."""
-    return {"timestamp": _fox_time(t_ns), "frame_id": "gps", "latitude": r.lat, "longitude": r.lon,
-            "altitude": r.alt_msl if r.alt_msl is not None else 0.0,
-            "position_covariance": [float(v) for row in r.covariance_enu for v in row],
-            "position_covariance_type": 1}
-
-
-def pose_in_frame(p: FusedPose, t_ns: int, frame_id: str) -> dict:
-    """FusedPose as a foxglove.PoseInFrame (planar pose, yaw about z)."""
-    half = 0.5 * p.yaw
-    return {"timestamp": _fox_time(t_ns), "frame_id": frame_id,
-            "pose": {"position": {"x": p.x, "y": p.y, "z": 0.0},
-                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
-
-
 def stage_dict(tick: int, now_s: float, c: VelocityCommand, mux_source: str) -> dict:
     """A velocity command at one stage, with the tick it belongs to."""
     return {"tick": tick, "now_s": now_s, "linear_mps": c.linear_mps, "angular_rps": c.angular_rps,
@@ -247,6 +229,14 @@ class RunFileWriter:
         self._schema_ids: dict[str, int] = {}
         self._last_flush_s: Optional[float] = None
         self._offset_ns = int(info.get(OFFSET_KEY, 0) or 0)
+        self.frames = FramesConfig.from_dict(json.loads(info["frames"]) if info.get("frames") else None)
+        self._mount = fx.camera_mount(json.loads(info["camera_mounting"]) if info.get("camera_mounting") else None)
+        self._epochs = fx.EpochFixes()
+        self._gps_altitude_m = 0.0
+        self._gps_up_variance_m2 = 0.0
+        """Altitude (m) and vertical variance (m^2) of the latest GPS fix: the planar EKF's /gps/fused uses them."""
+        self._servo_rad: dict[str, float] = {}
+        """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
         self._stream = _TeeFile([Path(p) for p in paths])
         w = Writer(self._stream, chunk_size=config.chunk_max_bytes, compression=compression_type(config.compression))
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
@@ -317,7 +307,7 @@ class RunFileWriter:
             self._emit("/events", t, ev)
             if ev_kind == "failsafe":
                 self._emit("/failsafes", t, ev)
-            self._emit("/log", t, {"timestamp": _fox_time(t), "level": log_level(ev_kind),
+            self._emit("/log", t, {"timestamp": fox_time(t), "level": log_level(ev_kind),
                                    "message": f"{ev_kind}: {text}", "name": ev_kind, "file": "", "line": 0})
         elif kind == "flag":
             _, tick, now_s, key, attr, value = item
@@ -330,6 +320,8 @@ class RunFileWriter:
                                         media_type="image/jpeg", data=data)
         elif kind == "servo":
             _, now_s, c = item
+            if c.name is not None and c.angle_rad is not None:
+                self._servo_rad[c.name] = c.angle_rad
             self._emit("/cmd/servo", self._ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
                                                        "channel": c.channel, "pulse_s": c.pulse_s,
                                                        "stamp_s": c.stamp_s})
@@ -340,6 +332,8 @@ class RunFileWriter:
         sources = reading_sources(*tags, len(readings))
         t = self._ns(now_s)
         emit = self._emit
+        frames = self.frames
+        fixes: list[GpsFix] = []
         for i, r in enumerate(readings):
             source = sources[i] if sources is not None else None
             conv = _SENSOR_CONVERTERS.get(r.__class__)
@@ -348,7 +342,7 @@ class RunFileWriter:
                 d["source"] = source
                 emit(conv[0], t, d)
                 if r.__class__ is GpsFix:
-                    emit("/gps/fix", t, location_fix(r, t))
+                    fixes.append(r)
             elif r.__class__ is Frame:
                 emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
                                             "height": r.height, "image_recorded": r.image is not None,
@@ -363,11 +357,25 @@ class RunFileWriter:
                 d = generic_dict(r)
                 d.setdefault("source", source)
                 emit(topic, t, d)
+        if fixes:
+            for fix in self._epochs.take(fixes):
+                emit("/gps/fix", t, fx.location_fix(fix, t, frames.gps))
+                if fix.alt_msl is not None:
+                    self._gps_altitude_m = fix.alt_msl
+                self._gps_up_variance_m2 = float(fix.covariance_enu[2][2])
         if pose is not None:
             emit("/estimate/fused", t, pose_dict(pose))
-            emit("/pose/fused", t, pose_in_frame(pose, t, "map"))
+            emit("/pose/fused", t, fx.pose_in_frame(pose, t, frames.map))
+            fused = fx.fused_location_fix(pose, t, frames.base_link, self._gps_altitude_m, self._gps_up_variance_m2)
+            if fused is not None:
+                emit("/gps/fused", t, fused)
         if pose_odom is not None:
             emit("/estimate/odom", t, pose_dict(pose_odom))
+            emit("/odom", t, fx.odometry(t, frames, pose_odom))
+        if pose is not None or pose_odom is not None:
+            servo = self._servo_rad
+            emit("/tf", t, fx.frame_transforms(t, frames, pose, pose_odom, self._mount, servo.get("pan", 0.0),
+                                               servo.get("tilt", 0.0)))
         if cmd_mission is not None:
             emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
         if mux_source == "teleop":
@@ -398,7 +406,7 @@ class RunFileWriter:
         if not ok:
             self.dropped += 1
             return
-        self._emit("/camera/image", t_ns, {"timestamp": _fox_time(t_ns), "frame_id": "camera",
+        self._emit("/camera/image", t_ns, {"timestamp": fox_time(t_ns), "frame_id": self.frames.camera_optical,
                                            "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
                                            "format": "jpeg"})
 
@@ -434,9 +442,15 @@ def message_count(item: tuple, images: bool) -> int:
         return 0
     (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item
     n = 2  # mux, gate
+    epochs = set()
     for r in readings:
-        n += 2 if (r.__class__ is GpsFix or (r.__class__ is Frame and r.image is not None)) else 1
-    n += 2 * (pose is not None) + (pose_odom is not None) + (cmd_mission is not None)
+        n += 2 if (r.__class__ is Frame and r.image is not None) else 1
+        if r.__class__ is GpsFix:
+            epochs.add(r.time_utc)  # /gps/fix: one per epoch (at most: one may have gone out already)
+    n += len(epochs)
+    n += 2 * (pose is not None) + 2 * (pose_odom is not None) + (cmd_mission is not None)
+    n += (pose is not None and pose.position_valid and pose.lat is not None)  # /gps/fused
+    n += (pose is not None or pose_odom is not None)  # /tf
     n += (mux_source == "teleop") + bool(changed) + (truth is not None)
     return n
 
