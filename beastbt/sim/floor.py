@@ -173,6 +173,54 @@ def _point_segment_distances(p: np.ndarray, segs: np.ndarray) -> np.ndarray:
     return np.sqrt((d * d).sum(-1))
 
 
+def floor_lines(f: Mapping) -> list[FloorLine]:
+    """The painted lines of a world's ``floor:`` mapping (centrelines in world metres), without rasterising it.
+
+    :meth:`FloorMap.from_dict` paints them; recordings draw them in Foxglove's 3D view and map. ValueError
+    on bad input.
+    """
+    lines: list[FloorLine] = []
+    if "lines" in f:
+        ld = _check_keys(f["lines"], ("width_m", "colour", "paths"), "floor.lines", ("paths",))
+        width = _number(ld.get("width_m", _default("/properties/lines/properties", "width_m")), "floor.lines.width_m", 0.001, 1.0)
+        colour = parse_colour(ld.get("colour", _default("/properties/lines/properties", "colour")), "floor.lines.colour")
+        paths = ld["paths"]
+        if not isinstance(paths, Sequence) or isinstance(paths, str):
+            raise ValueError("floor.lines.paths: expected a list of paths")
+        for i, p in enumerate(paths):
+            what = f"floor.lines.paths[{i}]"
+            pd = _check_keys(p, ("path", "closed", "width_m", "colour"), what, ("path",))
+            pts: list[tuple[float, float]] = []
+            items = pd["path"]
+            if not isinstance(items, Sequence) or isinstance(items, str):
+                raise ValueError(f"{what}.path: expected a list of points [x, y] and arcs")
+            for j, item in enumerate(items):
+                if isinstance(item, Mapping):
+                    _check_keys(item, ("arc",), f"{what}.path[{j}]", ("arc",))
+                    new = _arc_points(item["arc"], f"{what}.path[{j}].arc")
+                else:
+                    new = [_point(item, f"{what}.path[{j}]")]
+                for q in new:  # drop repeated points (an arc starting where the last point was)
+                    if not pts or math.hypot(q[0] - pts[-1][0], q[1] - pts[-1][1]) > 1e-9:
+                        pts.append(q)
+            closed = pd.get("closed", _default("/$defs/path/properties", "closed"))
+            if not isinstance(closed, bool):
+                raise ValueError(f"{what}.closed: expected true or false, got {closed!r}")
+            if closed and len(pts) > 2 and math.hypot(pts[0][0] - pts[-1][0], pts[0][1] - pts[-1][1]) < 1e-9:
+                pts.pop()
+            if len(pts) < 2:
+                raise ValueError(f"{what}.path: a path needs at least two distinct points")
+            lines.append(
+                FloorLine(
+                    points=np.array(pts, dtype=float),
+                    closed=closed,
+                    width_m=_number(pd.get("width_m", width), f"{what}.width_m", 0.001, 1.0),
+                    colour_bgr=parse_colour(pd["colour"], f"{what}.colour") if "colour" in pd else colour,
+                )
+            )
+    return lines
+
+
 class FloorMap:
     """A floor with lines: a BGR raster for the camera and centreline segments for ground truth.
 
@@ -249,45 +297,7 @@ class FloorMap:
         texture = _number(bg.get("texture", _default("/properties/background/properties", "texture")), "floor.background.texture", 0.0, 100.0)
         texture_scale = _number(bg.get("texture_scale_m", _default("/properties/background/properties", "texture_scale_m")), "floor.background.texture_scale_m", res, 10.0)
 
-        lines: list[FloorLine] = []
-        if "lines" in f:
-            ld = _check_keys(f["lines"], ("width_m", "colour", "paths"), "floor.lines", ("paths",))
-            width = _number(ld.get("width_m", _default("/properties/lines/properties", "width_m")), "floor.lines.width_m", 0.001, 1.0)
-            colour = parse_colour(ld.get("colour", _default("/properties/lines/properties", "colour")), "floor.lines.colour")
-            paths = ld["paths"]
-            if not isinstance(paths, Sequence) or isinstance(paths, str):
-                raise ValueError("floor.lines.paths: expected a list of paths")
-            for i, p in enumerate(paths):
-                what = f"floor.lines.paths[{i}]"
-                pd = _check_keys(p, ("path", "closed", "width_m", "colour"), what, ("path",))
-                pts: list[tuple[float, float]] = []
-                items = pd["path"]
-                if not isinstance(items, Sequence) or isinstance(items, str):
-                    raise ValueError(f"{what}.path: expected a list of points [x, y] and arcs")
-                for j, item in enumerate(items):
-                    if isinstance(item, Mapping):
-                        _check_keys(item, ("arc",), f"{what}.path[{j}]", ("arc",))
-                        new = _arc_points(item["arc"], f"{what}.path[{j}].arc")
-                    else:
-                        new = [_point(item, f"{what}.path[{j}]")]
-                    for q in new:  # drop repeated points (an arc starting where the last point was)
-                        if not pts or math.hypot(q[0] - pts[-1][0], q[1] - pts[-1][1]) > 1e-9:
-                            pts.append(q)
-                closed = pd.get("closed", _default("/$defs/path/properties", "closed"))
-                if not isinstance(closed, bool):
-                    raise ValueError(f"{what}.closed: expected true or false, got {closed!r}")
-                if closed and len(pts) > 2 and math.hypot(pts[0][0] - pts[-1][0], pts[0][1] - pts[-1][1]) < 1e-9:
-                    pts.pop()
-                if len(pts) < 2:
-                    raise ValueError(f"{what}.path: a path needs at least two distinct points")
-                lines.append(
-                    FloorLine(
-                        points=np.array(pts, dtype=float),
-                        closed=closed,
-                        width_m=_number(pd.get("width_m", width), f"{what}.width_m", 0.001, 1.0),
-                        colour_bgr=parse_colour(pd["colour"], f"{what}.colour") if "colour" in pd else colour,
-                    )
-                )
+        lines = floor_lines(f)
 
         lighting: dict = {}
         if "lighting" in f:
