@@ -53,6 +53,7 @@ from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
 from beastbt.devices.camera import CameraConfig
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.scene import scene_description
 from beastbt.robot.profile import section_config
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
@@ -342,6 +343,10 @@ class McapRecorder:
         """Queue a snapshot the run saved (a JPEG file): it becomes an attachment of the recording."""
         self._put(("snapshot", stamp_s, str(path)), stamp_s)
 
+    def on_scene(self, description: dict, now_s: float) -> None:
+        """Queue what the run happens in (:func:`~beastbt.recording.scene.scene_description`): /scene, /route."""
+        self._put(("scene", now_s, description), now_s)
+
     def on_servo(self, cmd: ServoCommand, now_s: float) -> None:
         """Queue a servo command the run sent to its servo adapters."""
         self._put(("servo", now_s, cmd), now_s)
@@ -628,6 +633,9 @@ def install(prepared: Any) -> Optional[McapRecorder]:
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
         rec.on_event(ev)
+    geometry = prepared.profile.section("geometry") or {}
+    rec.on_scene(scene_description(prepared.mission, prepared.world, geometry.get("footprint_radius_m")),
+                 prepared.clock.now())
     run.recorders.append(rec.on_tick)
     run.events.listeners.append(rec.on_event)
     _record_servo_commands(run, rec)

@@ -80,6 +80,8 @@ FOXGLOVE_COMPRESSED_IMAGE = foxglove_schema("CompressedImage")
 FOXGLOVE_LOG = foxglove_schema("Log")
 FOXGLOVE_FRAME_TRANSFORMS = foxglove_schema("FrameTransforms")
 FOXGLOVE_ODOMETRY = foxglove_schema("Odometry")
+FOXGLOVE_SCENE_UPDATE = foxglove_schema("SceneUpdate")
+FOXGLOVE_GEOJSON = foxglove_schema("GeoJSON")
 
 # -- beastbt schemas (exact dataclass fields) ------------------------------------------
 
@@ -171,6 +173,8 @@ CHANNELS: dict[str, dict] = {
     "/gps/fused": FOXGLOVE_LOCATION_FIX,  # the EKF's fused position on Earth
     "/tf": FOXGLOVE_FRAME_TRANSFORMS,  # map -> odom -> base_link -> camera_link -> camera_optical, every tick
     "/odom": FOXGLOVE_ODOMETRY,  # the dead-reckoning estimate, base_link in odom
+    "/scene": FOXGLOVE_SCENE_UPDATE,  # walls, line track, places, route, fences, footprint: at the start and on change
+    "/route": FOXGLOVE_GEOJSON,  # the mission's places, route and fences and the world's walls and lines, lon/lat
     "/pose/fused": FOXGLOVE_POSE_IN_FRAME,
     "/camera/image": FOXGLOVE_COMPRESSED_IMAGE,
     "/log": FOXGLOVE_LOG,

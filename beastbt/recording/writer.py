@@ -42,6 +42,7 @@ from beastbt.recording import foxglove as fx
 from beastbt.recording import schemas as rs
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.foxglove import fox_time
+from beastbt.recording.scene import SceneView
 from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
 
@@ -235,6 +236,8 @@ class RunFileWriter:
         self._gps_altitude_m = 0.0
         self._gps_up_variance_m2 = 0.0
         """Altitude (m) and vertical variance (m^2) of the latest GPS fix: the planar EKF's /gps/fused uses them."""
+        self._scene: Optional[SceneView] = None
+        """What the run happens in (a ``scene`` item): /route once, /scene at the start and when map moves."""
         self._servo_rad: dict[str, float] = {}
         """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
         self._stream = _TeeFile([Path(p) for p in paths])
@@ -318,6 +321,12 @@ class RunFileWriter:
             data = Path(path).read_bytes()
             self._writer.add_attachment(create_time=0, log_time=self._ns(stamp_s), name=Path(path).name,
                                         media_type="image/jpeg", data=data)
+        elif kind == "scene":
+            _, now_s, description = item
+            t = self._ns(now_s)
+            self._scene = SceneView(description, self.frames)
+            self._emit("/route", t, self._scene.route_message())
+            self._emit("/scene", t, self._scene.scene_message(t))
         elif kind == "servo":
             _, now_s, c = item
             if c.name is not None and c.angle_rad is not None:
@@ -369,6 +378,9 @@ class RunFileWriter:
             fused = fx.fused_location_fix(pose, t, frames.base_link, self._gps_altitude_m, self._gps_up_variance_m2)
             if fused is not None:
                 emit("/gps/fused", t, fused)
+            scene = self._scene
+            if scene is not None and scene.on_pose(pose.x, pose.y, pose.lat, pose.lon, pose.position_valid):
+                emit("/scene", t, scene.scene_message(t))  # the map frame found its place on Earth: redraw
         if pose_odom is not None:
             emit("/estimate/odom", t, pose_dict(pose_odom))
             emit("/odom", t, fx.odometry(t, frames, pose_odom))
@@ -438,6 +450,8 @@ def message_count(item: tuple, images: bool) -> int:
         return 3 if item[2] == "failsafe" else 2
     if kind in ("servo", "flag", "snapshot"):
         return 1
+    if kind == "scene":
+        return 2  # /route, /scene
     if kind != "tick":
         return 0
     (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item
