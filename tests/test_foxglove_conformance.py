@@ -86,7 +86,7 @@ def test_every_foxglove_message_validates_against_foxglove_s_own_schema(recordin
             assert not errors, f"{name} {topic}: {errors[:3]}"
             seen.add(topic)
     assert {"/gps/fix", "/gps/fused", "/tf", "/odom", "/pose/fused", "/scene", "/route", "/log",
-            "/camera/image"} <= seen
+            "/camera/image", "/camera/calibration", "/camera/annotations"} <= seen
 
 
 def test_log_times_and_timestamps_are_real_dates_and_agree(recordings):

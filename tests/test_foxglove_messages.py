@@ -10,10 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from beastbt.blackboard.types import FusedPose, GpsFix
+from beastbt.blackboard.types import FusedPose, GpsFix, LineObservation
 from beastbt.recording.config import FramesConfig
-from beastbt.recording.foxglove import (CameraMount, EpochFixes, frame_transforms, fused_location_fix, location_fix,
-                                        map_to_odom, odometry)
+from beastbt.recording.foxglove import (CameraMount, EpochFixes, camera_calibration, frame_transforms,
+                                        fused_location_fix, line_annotations, location_fix, map_to_odom, odometry)
+from beastbt.vision.camera_model import CameraGeometry
 
 
 def gga(t: float, utc: str, lat: float = 40.0) -> GpsFix:
@@ -136,3 +137,36 @@ def test_odometry_puts_the_planar_covariance_at_x_y_and_yaw():
     assert cov[0, 0] == 1.0 and cov[1, 1] == 2.0 and cov[5, 5] == 0.05 and cov[0, 5] == 0.3 and cov[5, 1] == 0.4
     assert cov[2, 2] == 0.0 and msg["linear_velocity"]["x"] == 0.2 and msg["angular_velocity"]["z"] == 0.1
     assert (msg["frame_id"], msg["body_frame_id"]) == ("odom", "base_link")
+
+
+# -- camera ------------------------------------------------------------------------------------------
+
+
+def test_calibration_projects_like_the_camera_model_at_the_published_size():
+    geometry = CameraGeometry(width_px=320, height_px=240).scaled_to(160, 120)
+    cal = camera_calibration(3, "camera_optical", geometry)
+    assert (cal["width"], cal["height"]) == (160, 120)
+    k = np.array(cal["K"]).reshape(3, 3)
+    p = np.array(cal["P"]).reshape(3, 4)
+    # A floor point seen through K (in the optical frame the camera model uses) lands where the model says.
+    u, v = geometry.ground_to_pixel(0.6, 0.05)
+    ray = geometry._r @ (np.array([0.6, 0.05, 0.0]) - geometry._t)  # optical frame, metres
+    uvw = k @ ray
+    assert (uvw[0] / uvw[2], uvw[1] / uvw[2]) == pytest.approx((u, v))
+    assert np.allclose(p[:, :3], k) and np.allclose(p[:, 3], 0.0) and cal["D"] == [0.0] * 5
+
+
+def test_annotations_draw_the_line_its_lookahead_point_and_the_junction_where_the_detector_saw_them():
+    geometry = CameraGeometry(width_px=320, height_px=240)
+    obs = LineObservation(1.0, True, offset_m=0.05, angle_rad=0.2, intersection=True, intersection_distance_m=0.5)
+    ann = line_annotations(9, obs, geometry, lookahead_m=0.35)
+    target, junction = ann["circles"]
+    assert (target["position"]["x"], target["position"]["y"]) == pytest.approx(geometry.ground_to_pixel(0.35, 0.05))
+    along = 0.05 + 0.15 * math.tan(0.2)
+    assert (junction["position"]["x"], junction["position"]["y"]) == pytest.approx(geometry.ground_to_pixel(0.5, along))
+    (strip,) = ann["points"]
+    assert strip["type"] == 3 and len(strip["points"]) >= 2
+    assert all(0 <= p["x"] <= 320 and 0 <= p["y"] <= 240 for p in strip["points"])  # clipped to the image
+    assert "+5.0 cm" in ann["texts"][0]["text"] and "junction at 0.50 m" in ann["texts"][0]["text"]
+    lost = line_annotations(9, LineObservation(1.0, False), geometry, 0.35)
+    assert lost["points"] == [] and lost["circles"] == [] and lost["texts"][0]["text"] == "line: not seen"

@@ -236,8 +236,10 @@ def test_every_stream_type_gets_its_channel_and_validates(tmp_path):
     topics = official_read(tmp_path / "s.mcap")
     validate_all(topics)
     empty = {t for t in CHANNELS if not topics.get(t)}
-    # No mission command (teleop drove), no watched device, no mission or world to draw (no scene item).
-    assert empty == {"/cmd/mission", "/devices/state", "/scene", "/route"}
+    # No mission command (teleop drove), no watched device, no mission or world to draw (no scene item), no
+    # camera mounting in the metadata to calibrate and annotate the images with.
+    assert empty == {"/cmd/mission", "/devices/state", "/scene", "/route", "/camera/calibration",
+                     "/camera/annotations"}
     # Images at 2 Hz out of 20 fps over 2 s: at t = 0, 0.5, 1.0, 1.5, 2.0; each a real JPEG, scaled to 32 px wide.
     images = topics["/camera/image"]
     offset = read_recording(tmp_path / "s.mcap", topics=[]).log_time_offset_ns

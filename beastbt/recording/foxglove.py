@@ -227,6 +227,86 @@ def odometry(t_ns: int, frames: FramesConfig, odom: FusedPose) -> dict:
             "pose_covariance": cov, "velocity_covariance": [0.0] * 36}
 
 
+# -- camera ------------------------------------------------------------------------------------------
+
+
+def camera_calibration(t_ns: int, frame_id: str, geometry: Any) -> dict:
+    """A ``foxglove.CameraCalibration`` of a :class:`~beastbt.vision.camera_model.CameraGeometry` (pixels).
+
+    The pinhole model beastbt uses: no distortion (``plumb_bob`` with zero
+    coefficients), no rectification, P = [K | 0].
+    """
+    k = geometry.camera_matrix
+    fx, fy, cx, cy = float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
+    return {"timestamp": fox_time(t_ns), "frame_id": frame_id, "width": int(geometry.width_px),
+            "height": int(geometry.height_px), "distortion_model": "plumb_bob", "D": [0.0] * 5,
+            "K": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0], "R": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]}
+
+
+_LINE_RGBA = {"r": 0.0, "g": 0.86, "b": 0.0, "a": 1.0}
+_TARGET_RGBA = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}
+_JUNCTION_RGBA = {"r": 1.0, "g": 0.0, "b": 1.0, "a": 1.0}
+_CLEAR = {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}
+_CAPTION_BG = {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.6}
+_WHITE = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
+
+LINE_DRAWN_M = 0.4
+"""How far either side of the look-ahead point the detected line is drawn, along the line (m)."""
+
+
+def line_annotations(t_ns: int, obs: Any, geometry: Any, lookahead_m: float) -> dict:
+    """What the line detector saw in a frame, as ``foxglove.ImageAnnotations`` on that image (pixels).
+
+    ``obs``: the frame's :class:`~beastbt.blackboard.types.LineObservation`
+    (body frame: the line's offset at ``lookahead_m`` and its angle);
+    ``geometry``: the camera as the detector saw it (its mounting at gimbal
+    pan 0, tilt 0), at the published image's size. Drawn: the detected line
+    (straight, through the look-ahead point at the reported angle), the
+    look-ahead point the follower steers to (a circle), the intersection
+    ahead (a magenta circle) and a caption with the numbers.
+    """
+    t = fox_time(t_ns)
+    w, h = geometry.width_px, geometry.height_px
+    points: list[dict] = []
+    circles: list[dict] = []
+
+    def pixel(x: float, y: float) -> Optional[dict]:
+        uv = geometry.ground_to_pixel(x, y)
+        if uv is None or not (-0.5 <= uv[0] <= w - 0.5 and -0.5 <= uv[1] <= h - 0.5):
+            return None
+        return {"x": uv[0], "y": uv[1]}
+
+    if obs.seen:
+        c, s = math.cos(obs.angle_rad), math.sin(obs.angle_rad)
+        along = [LINE_DRAWN_M * (k / 10.0 - 1.0) for k in range(21)]
+        strip = [p for p in (pixel(lookahead_m + d * c, obs.offset_m + d * s) for d in along) if p is not None]
+        if len(strip) >= 2:
+            points.append({"timestamp": t, "type": 3, "points": strip, "outline_color": _LINE_RGBA,
+                           "outline_colors": [], "fill_color": _CLEAR, "thickness": 3.0})
+        target = pixel(lookahead_m, obs.offset_m)
+        if target is not None:
+            circles.append({"timestamp": t, "position": target, "diameter": 12.0, "thickness": 2.0,
+                            "fill_color": _CLEAR, "outline_color": _TARGET_RGBA})
+        if obs.intersection and obs.intersection_distance_m is not None:
+            d = obs.intersection_distance_m
+            junction = pixel(d, obs.offset_m + (d - lookahead_m) * math.tan(obs.angle_rad))
+            if junction is not None:
+                circles.append({"timestamp": t, "position": junction, "diameter": 18.0, "thickness": 3.0,
+                                "fill_color": _CLEAR, "outline_color": _JUNCTION_RGBA})
+        caption = f"line {obs.offset_m * 100:+.1f} cm {math.degrees(obs.angle_rad):+.0f} deg"
+        if obs.intersection:
+            caption += "  junction" + (f" at {obs.intersection_distance_m:.2f} m"
+                                       if obs.intersection_distance_m is not None else "")
+        if obs.line_end:
+            caption += "  end in view"
+    else:
+        caption = "line: not seen"
+    texts = [{"timestamp": t, "position": {"x": 4.0, "y": 14.0}, "text": caption, "font_size": 12.0,
+              "text_color": _WHITE, "background_color": _CAPTION_BG}]
+    return {"circles": circles, "points": points, "texts": texts}
+
+
 def camera_mount(mounting: Any) -> Optional[CameraMount]:
     """A :class:`CameraMount` from the ``camera_mounting`` metadata (a dict of the profile's mounting), or None."""
     if not mounting:
@@ -236,5 +316,5 @@ def camera_mount(mounting: Any) -> Optional[CameraMount]:
 
 
 __all__ = ["fox_time", "quaternion", "vector3", "planar_pose", "pose_in_frame", "merge_fixes", "EpochFixes",
-           "location_fix", "fused_location_fix", "map_to_odom", "CameraMount", "frame_transforms", "odometry",
+           "location_fix", "fused_location_fix", "camera_calibration", "line_annotations", "map_to_odom", "CameraMount", "frame_transforms", "odometry",
            "camera_mount", "OPTICAL_FROM_LINK"]

@@ -52,6 +52,7 @@ import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
 from beastbt.devices.camera import CameraConfig
+from beastbt.vision.line_detector import LineDetectorConfig
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.scene import scene_description
 from beastbt.robot.profile import section_config
@@ -574,6 +575,7 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
     camera = profile.section("camera")
     if camera is not None:
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
+        info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:

@@ -82,6 +82,8 @@ FOXGLOVE_FRAME_TRANSFORMS = foxglove_schema("FrameTransforms")
 FOXGLOVE_ODOMETRY = foxglove_schema("Odometry")
 FOXGLOVE_SCENE_UPDATE = foxglove_schema("SceneUpdate")
 FOXGLOVE_GEOJSON = foxglove_schema("GeoJSON")
+FOXGLOVE_CAMERA_CALIBRATION = foxglove_schema("CameraCalibration")
+FOXGLOVE_IMAGE_ANNOTATIONS = foxglove_schema("ImageAnnotations")
 
 # -- beastbt schemas (exact dataclass fields) ------------------------------------------
 
@@ -177,6 +179,8 @@ CHANNELS: dict[str, dict] = {
     "/route": FOXGLOVE_GEOJSON,  # the mission's places, route and fences and the world's walls and lines, lon/lat
     "/pose/fused": FOXGLOVE_POSE_IN_FRAME,
     "/camera/image": FOXGLOVE_COMPRESSED_IMAGE,
+    "/camera/calibration": FOXGLOVE_CAMERA_CALIBRATION,  # with every image, its size (pinhole, no distortion)
+    "/camera/annotations": FOXGLOVE_IMAGE_ANNOTATIONS,  # the detected line, its look-ahead point, a junction
     "/log": FOXGLOVE_LOG,
     # estimates
     "/estimate/fused": FUSED_POSE,

@@ -231,7 +231,12 @@ class RunFileWriter:
         self._last_flush_s: Optional[float] = None
         self._offset_ns = int(info.get(OFFSET_KEY, 0) or 0)
         self.frames = FramesConfig.from_dict(json.loads(info["frames"]) if info.get("frames") else None)
-        self._mount = fx.camera_mount(json.loads(info["camera_mounting"]) if info.get("camera_mounting") else None)
+        mounting = json.loads(info["camera_mounting"]) if info.get("camera_mounting") else None
+        self._mount = fx.camera_mount(mounting)
+        self._mounting = mounting
+        """The profile's camera mounting (metres, degrees): the camera's geometry for calibration and annotations."""
+        self._lookahead_m = float(info.get("line_lookahead_m") or 0.0)
+        self._geometries: dict[tuple[int, int], Any] = {}
         self._epochs = fx.EpochFixes()
         self._gps_altitude_m = 0.0
         self._gps_up_variance_m2 = 0.0
@@ -343,6 +348,8 @@ class RunFileWriter:
         emit = self._emit
         frames = self.frames
         fixes: list[GpsFix] = []
+        image_at: Optional[tuple[float, tuple[int, int, int, int]]] = None
+        """(stamp, (camera w, h, published w, h)) of the frame published on /camera/image this tick."""
         for i, r in enumerate(readings):
             source = sources[i] if sources is not None else None
             conv = _SENSOR_CONVERTERS.get(r.__class__)
@@ -357,7 +364,9 @@ class RunFileWriter:
                                             "height": r.height, "image_recorded": r.image is not None,
                                             "source": source})
                 if r.image is not None:
-                    self._write_image(r, t)
+                    published = self._write_image(r, t)
+                    if published is not None:
+                        image_at = (r.stamp_s, published)
             elif dataclasses.is_dataclass(r):
                 name = type(r).__name__
                 topic = rs.SENSOR_TOPICS.get(name, f"/sensors/{_snake(name)}")
@@ -366,6 +375,8 @@ class RunFileWriter:
                 d = generic_dict(r)
                 d.setdefault("source", source)
                 emit(topic, t, d)
+        if image_at is not None:
+            self._describe_image(t, image_at[0], image_at[1], readings)
         if fixes:
             for fix in self._epochs.take(fixes):
                 emit("/gps/fix", t, fx.location_fix(fix, t, frames.gps))
@@ -407,7 +418,9 @@ class RunFileWriter:
             self._writer.flush()
             self._last_flush_s = now_s
 
-    def _write_image(self, frame: Frame, t_ns: int) -> None:
+    def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
+        """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
+        height, published width, height) in pixels, or None when it could not be encoded."""
         import cv2  # only runs with a camera need it
         image = frame.image
         max_w = self.config.image_max_width_px
@@ -417,10 +430,35 @@ class RunFileWriter:
         ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
         if not ok:
             self.dropped += 1
-            return
+            return None
         self._emit("/camera/image", t_ns, {"timestamp": fox_time(t_ns), "frame_id": self.frames.camera_optical,
                                            "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
                                            "format": "jpeg"})
+        return frame.width, frame.height, int(image.shape[1]), int(image.shape[0])
+
+    def _describe_image(self, t_ns: int, stamp_s: float, sizes: tuple[int, int, int, int], readings: list) -> None:
+        """/camera/calibration and /camera/annotations of the image just published (same timestamp: Foxglove's
+        image panel pairs them by it). Annotations only when the detector looked at that frame."""
+        if not self._mounting:
+            return
+        geometry = self._geometry(*sizes)
+        self._emit("/camera/calibration", t_ns, fx.camera_calibration(t_ns, self.frames.camera_optical, geometry))
+        for r in readings:
+            if r.__class__ is LineObservation and r.stamp_s == stamp_s:
+                self._emit("/camera/annotations", t_ns, fx.line_annotations(t_ns, r, geometry, self._lookahead_m))
+                break
+
+    def _geometry(self, width: int, height: int, out_w: int, out_h: int) -> Any:
+        """The camera as the line detector sees it (mounting, gimbal at 0), at the published image size."""
+        key = (width, height, out_w, out_h)
+        geometry = self._geometries.get(key)
+        if geometry is None:
+            from beastbt.vision.camera_model import CameraGeometry
+            m = self._mounting
+            geometry = CameraGeometry(width_px=width, height_px=height, hfov_deg=m["hfov_deg"], height_m=m["height_m"],
+                                      pitch_deg=m["pitch_deg"], x_offset_m=m["x_offset_m"]).scaled_to(out_w, out_h)
+            self._geometries[key] = geometry
+        return geometry
 
 
 def reading_sources(base_tagged: bool, tags: tuple, n: int) -> Optional[list]:
@@ -458,7 +496,8 @@ def message_count(item: tuple, images: bool) -> int:
     n = 2  # mux, gate
     epochs = set()
     for r in readings:
-        n += 2 if (r.__class__ is Frame and r.image is not None) else 1
+        # A published image: /sensors/camera, /camera/image, and at most its calibration and annotations.
+        n += 4 if (r.__class__ is Frame and r.image is not None) else 1
         if r.__class__ is GpsFix:
             epochs.add(r.time_utc)  # /gps/fix: one per epoch (at most: one may have gone out already)
     n += len(epochs)
