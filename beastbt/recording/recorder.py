@@ -93,15 +93,21 @@ def _grow_pipe(fd: int) -> None:
 class McapRecorder:
     """Records one run into MCAP file(s): a cheap tick side, a writer process, counts for the summary.
 
-    ``paths``: the files to write (the same bytes to each). ``block_when_full``:
+    ``paths``: the files to write (the same bytes to each; none when the run
+    is only served live). ``live``: (host, port) of a Foxglove WebSocket
+    server the writer process runs with the same messages
+    (:mod:`beastbt.recording.foxglove_live`). ``block_when_full``:
     wait for the writer when the queue is full (simulated clock) instead of
     dropping. ``info``: the ``beastbt.run`` metadata (strings); ``attachments``:
     ``(name, media type, bytes)`` stored at the start of the file.
     """
 
     def __init__(self, paths: list[Path], config: Optional[RecordingConfig] = None, block_when_full: bool = False,
-                 info: Optional[dict] = None, attachments: Optional[list[tuple[str, str, bytes]]] = None) -> None:
+                 info: Optional[dict] = None, attachments: Optional[list[tuple[str, str, bytes]]] = None,
+                 live: Optional[tuple[str, int]] = None) -> None:
         self.paths = [Path(p) for p in paths]
+        self.live = live
+        """(host, port) where the writer process serves the channels to Foxglove live, or None."""
         self.config = config if config is not None else RecordingConfig()
         self.block_when_full = block_when_full
         self.info = {k: str(v) for k, v in (info or {}).items()}
@@ -235,7 +241,7 @@ class McapRecorder:
             self._snapshot_run(self.run)
         self.launch()
         opening = ("open", [str(p) for p in self.paths], dataclasses.asdict(self.config), dict(self.info),
-                   [(n, m, bytes(d)) for n, m, d in self.attachments])
+                   [(n, m, bytes(d)) for n, m, d in self.attachments], self.live)
         self._pending.appendleft((self._encoder.encode([opening]), ()))
         self._send_batch()
         self._pump(block=False)
@@ -615,8 +621,9 @@ def config_from_options(opts: Any) -> RecordingConfig:
     return RecordingConfig.from_dict(cfg)
 
 
-def install(prepared: Any) -> Optional[McapRecorder]:
-    """Attach a recorder to the run when it records (run folder and/or ``--record FILE``)."""
+def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[McapRecorder]:
+    """Attach a recorder to the run when it records (run folder and/or ``--record FILE``) or serves Foxglove
+    live on ``live`` (host, port; ``--foxglove``), through the same writer process."""
     opts = prepared.options
     paths: list[Path] = []
     if prepared.folder is not None:
@@ -625,12 +632,12 @@ def install(prepared: Any) -> Optional[McapRecorder]:
         target = Path(opts.record_path)
         if not paths or target.resolve() != paths[0].resolve():
             paths.append(target)
-    if not paths:
+    if not paths and live is None:
         return None
     config = config_from_options(opts)
     block = config.overflow == "block" or (config.overflow == "auto" and isinstance(prepared.clock, SimClock))
     info, attachments = run_info(prepared)
-    rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments)
+    rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)
     run = prepared.run
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
@@ -653,7 +660,8 @@ def install(prepared: Any) -> Optional[McapRecorder]:
     rec.run = run
     rec.launch()  # the writer process imports while the rest of the run gets ready
     run.recorder = rec
-    run.summary_contributors.append(contribute_summary)
+    if paths:  # served live only: nothing recorded to count in the summary
+        run.summary_contributors.append(contribute_summary)
     prepared.closers.append(rec.stop)
     if prepared.folder is not None:
         prepared.folder.finishers.append(rec.finish)

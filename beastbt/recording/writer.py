@@ -42,6 +42,7 @@ from beastbt.recording import foxglove as fx
 from beastbt.recording import schemas as rs
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.foxglove import fox_time
+from beastbt.recording.foxglove_live import LiveServer, start_live
 from beastbt.recording.scene import SceneView
 from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
@@ -211,8 +212,45 @@ class _TeeFile:
 # -- the writer -----------------------------------------------------------------------------------------
 
 
+class _NoFile:
+    """Stands in for the MCAP writer and its file when the run is only served live (``--foxglove --no-record``)."""
+
+    def __init__(self) -> None:
+        self._ids = 0
+
+    def _next_id(self, **_: Any) -> int:
+        self._ids += 1
+        return self._ids
+
+    register_schema = register_channel = _next_id
+
+    def start(self, **_: Any) -> None:
+        """Nothing to write."""
+
+    def add_message(self, **_: Any) -> None:
+        """Nothing to write: the message went live only."""
+
+    def add_metadata(self, *_: Any) -> None:
+        """Nothing to write."""
+
+    def add_attachment(self, **_: Any) -> None:
+        """Nothing to write."""
+
+    def flush(self) -> None:
+        """Nothing to flush."""
+
+    def finish(self) -> None:
+        """Nothing to close."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
 class RunFileWriter:
-    """Writes the items of one run into MCAP file(s) (the same bytes to each path).
+    """Writes the items of one run into MCAP file(s) (the same bytes to each path), and to Foxglove live.
+
+    ``live``: a :class:`~beastbt.recording.foxglove_live.LiveServer` that gets
+    every message too; with no ``paths`` the run is only served live.
 
     ``messages`` counts the messages written; ``dropped`` the messages an
     item would have made when writing it failed; ``error`` is the first
@@ -220,7 +258,7 @@ class RunFileWriter:
     """
 
     def __init__(self, paths: list[Path], config: RecordingConfig, info: dict,
-                 attachments: list[tuple[str, str, bytes]]) -> None:
+                 attachments: list[tuple[str, str, bytes]], live: Optional[LiveServer] = None) -> None:
         from mcap.writer import Writer
         self.config = config
         self.messages = 0
@@ -245,8 +283,10 @@ class RunFileWriter:
         """What the run happens in (a ``scene`` item): /route once, /scene at the start and when map moves."""
         self._servo_rad: dict[str, float] = {}
         """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
-        self._stream = _TeeFile([Path(p) for p in paths])
-        w = Writer(self._stream, chunk_size=config.chunk_max_bytes, compression=compression_type(config.compression))
+        self._live = live
+        self._stream: Any = _TeeFile([Path(p) for p in paths]) if paths else _NoFile()
+        w: Any = (Writer(self._stream, chunk_size=config.chunk_max_bytes,
+                         compression=compression_type(config.compression)) if paths else _NoFile())
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
         w.add_metadata("beastbt.run", {str(k): str(v) for k, v in info.items()})
         for name, media, data in attachments:
@@ -278,6 +318,8 @@ class RunFileWriter:
             self._writer.finish()
         finally:
             self._stream.close()
+            if self._live is not None:
+                self._live.close()
 
     def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
         cid = self._channels.get(topic)
@@ -290,6 +332,8 @@ class RunFileWriter:
                 self._schema_ids[name] = sid
             cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
             self._channels[topic] = cid
+            if self._live is not None:
+                self._live.add_channel(topic, name, rs.schema_bytes(schema))
         return cid
 
     def _ns(self, t_s: float) -> int:
@@ -301,8 +345,10 @@ class RunFileWriter:
         if cid is None:
             cid = self._channel(topic)
         self.messages += 1
-        self._writer.add_message(channel_id=cid, log_time=t_ns, data=encode_json(obj), publish_time=t_ns,
-                                 sequence=self.messages)
+        data = encode_json(obj)
+        self._writer.add_message(channel_id=cid, log_time=t_ns, data=data, publish_time=t_ns, sequence=self.messages)
+        if self._live is not None:
+            self._live.log(topic, data, t_ns)  # the same bytes and time, to Foxglove live
 
     def _write_item(self, item: tuple) -> None:
         kind = item[0]
@@ -345,6 +391,10 @@ class RunFileWriter:
          truth, tags) = item
         sources = reading_sources(*tags, len(readings))
         t = self._ns(now_s)
+        if self._live is not None and self._scene is not None and self._live.take_resend():
+            # A client subscribed to /scene or /route after they went out: send them again, to it live only.
+            self._live.log("/route", encode_json(self._scene.route_message()), t)
+            self._live.log("/scene", encode_json(self._scene.scene_message(t)), t)
         emit = self._emit
         frames = self.frames
         fixes: list[GpsFix] = []
@@ -537,13 +587,19 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
         for item in read_frames(read, decoder):
             tag = item[0]
             if tag == "open":
-                _, paths, config, info, attachments = item
+                _, paths, config, info, attachments, *more = item
+                live, live_error = start_live(more[0] if more else None)
+                if live_error is not None:
+                    # Said at once, on the run's terminal (the writer shares its standard error): the run goes on.
+                    print(f"beastbt: {live_error}", file=sys.stderr, flush=True)
                 try:
                     cfg = RecordingConfig.from_dict(config)
                     images = cfg.image_rate_hz > 0
-                    writer = RunFileWriter(paths, cfg, info, attachments)
+                    writer = RunFileWriter(paths, cfg, info, attachments, live=live)
                 except Exception as exc:
                     state["error"] = f"could not open the recording: {exc!r}"
+                    if live is not None:
+                        live.close()
             elif tag == "stop":
                 if writer is not None:
                     try:
