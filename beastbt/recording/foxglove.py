@@ -43,6 +43,11 @@ def quaternion(roll_rad: float = 0.0, pitch_rad: float = 0.0, yaw_rad: float = 0
             "z": cr * cp * sy - sr * sp * cy, "w": cr * cp * cy + sr * sp * sy}
 
 
+def color(r: float, g: float, b: float, a: float = 1.0) -> dict:
+    """A ``foxglove.Color``: red, green, blue and opacity, each 0-1."""
+    return {"r": r, "g": g, "b": b, "a": a}
+
+
 def vector3(x: float, y: float, z: float) -> dict:
     """A ``foxglove.Vector3`` (metres, or m/s, rad/s by context)."""
     return {"x": x, "y": y, "z": z}
@@ -244,12 +249,12 @@ def camera_calibration(t_ns: int, frame_id: str, geometry: Any) -> dict:
             "P": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]}
 
 
-_LINE_RGBA = {"r": 0.0, "g": 0.86, "b": 0.0, "a": 1.0}
-_TARGET_RGBA = {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}
-_JUNCTION_RGBA = {"r": 1.0, "g": 0.0, "b": 1.0, "a": 1.0}
-_CLEAR = {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}
-_CAPTION_BG = {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.6}
-_WHITE = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
+_LINE_RGBA = color(0.0, 0.86, 0.0)
+_TARGET_RGBA = color(1.0, 0.0, 0.0)
+_JUNCTION_RGBA = color(1.0, 0.0, 1.0)
+_CLEAR = color(0.0, 0.0, 0.0, 0.0)
+_CAPTION_BG = color(0.0, 0.0, 0.0, 0.6)
+_WHITE = color(1.0, 1.0, 1.0)
 
 LINE_DRAWN_M = 0.4
 """How far either side of the look-ahead point the detected line is drawn, along the line (m)."""
@@ -315,6 +320,6 @@ def camera_mount(mounting: Any) -> Optional[CameraMount]:
                        z_m=float(mounting.get("height_m", 0.2)), pitch_deg=float(mounting.get("pitch_deg", 0.0)))
 
 
-__all__ = ["fox_time", "quaternion", "vector3", "planar_pose", "pose_in_frame", "merge_fixes", "EpochFixes",
+__all__ = ["fox_time", "quaternion", "color", "vector3", "planar_pose", "pose_in_frame", "merge_fixes", "EpochFixes",
            "location_fix", "fused_location_fix", "camera_calibration", "line_annotations", "map_to_odom", "CameraMount", "frame_transforms", "odometry",
            "camera_mount", "OPTICAL_FROM_LINK"]

@@ -28,7 +28,7 @@ from typing import Any, Optional
 
 from beastbt.estimation.geodesy import LocalFrame, distance_m
 from beastbt.recording.config import FramesConfig
-from beastbt.recording.foxglove import fox_time, quaternion, vector3
+from beastbt.recording.foxglove import color, fox_time, quaternion, vector3
 
 REDRAW_M = 0.5
 """The scene is redrawn when the map frame's origin on Earth moves by more than this (m)."""
@@ -36,15 +36,15 @@ REDRAW_M = 0.5
 _FOREVER = {"sec": 0, "nsec": 0}
 
 # Colours (r, g, b, a in 0-1): what a user should tell apart at a glance.
-_WALL = {"r": 0.55, "g": 0.55, "b": 0.6, "a": 0.9}
-_TAPE = {"r": 0.05, "g": 0.05, "b": 0.05, "a": 1.0}
-_PLACE = {"r": 0.1, "g": 0.45, "b": 0.95, "a": 0.9}
-_WAYPOINT = {"r": 0.95, "g": 0.6, "b": 0.1, "a": 0.9}
-_ROUTE = {"r": 0.1, "g": 0.45, "b": 0.95, "a": 0.6}
-_KEEP_IN = {"r": 0.1, "g": 0.75, "b": 0.2, "a": 0.9}
-_KEEP_OUT = {"r": 0.9, "g": 0.15, "b": 0.1, "a": 0.9}
-_FOOTPRINT = {"r": 1.0, "g": 0.85, "b": 0.0, "a": 0.9}
-_TEXT = {"r": 1.0, "g": 1.0, "b": 1.0, "a": 1.0}
+_WALL = color(0.55, 0.55, 0.6, 0.9)
+_TAPE = color(0.05, 0.05, 0.05)
+_PLACE = color(0.1, 0.45, 0.95, 0.9)
+_WAYPOINT = color(0.95, 0.6, 0.1, 0.9)
+_ROUTE = color(0.1, 0.45, 0.95, 0.6)
+_KEEP_IN = color(0.1, 0.75, 0.2, 0.9)
+_KEEP_OUT = color(0.9, 0.15, 0.1, 0.9)
+_FOOTPRINT = color(1.0, 0.85, 0.0, 0.9)
+_TEXT = color(1.0, 1.0, 1.0)
 
 WALL_HEIGHT_M = 0.4
 WALL_THICKNESS_M = 0.05
