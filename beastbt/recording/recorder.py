@@ -51,11 +51,8 @@ import yaml
 import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
-from beastbt.devices.camera import CameraConfig
-from beastbt.vision.line_detector import LineDetectorConfig
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.scene import scene_description
-from beastbt.robot.profile import section_config
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
                                      json_default, message_count, ns)
@@ -577,9 +574,12 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }
     # For the Foxglove views the writer builds: the frame names and where the camera sits on base_link.
+    from beastbt.robot.profile import section_config  # here: jsonschema, OpenCV only for a run being recorded
     info["frames"] = json.dumps(dataclasses.asdict(section_config(profile, "frames", FramesConfig)))
     camera = profile.section("camera")
     if camera is not None:
+        from beastbt.devices.camera import CameraConfig
+        from beastbt.vision.line_detector import LineDetectorConfig
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
         info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
     if run.io.magnetic_declination_deg is not None:
