@@ -74,3 +74,12 @@ def test_a_robots_own_frame_names_go_into_the_3d_view(tmp_path, capsys):
     three_d = json.loads(capsys.readouterr().out)["configById"]["3D!beastbt"]
     assert three_d["followTf"] == "beast/base_link" and three_d["layers"]["grid"]["frameId"] == "world"
     assert cli.main(["foxglove-layout", "--robot", str(tmp_path / "missing.yaml")]) == 2
+
+
+def test_a_misspelt_frame_name_is_refused_with_its_place(tmp_path, capsys):
+    profile = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
+    robot = tmp_path / "typo.yaml"
+    robot.write_text(profile + "\nframes: {base_lnk: beast}\n", encoding="utf-8")
+    assert cli.main(["validate", str(robot)]) == 2
+    err = capsys.readouterr().err
+    assert f"{robot}:" in err and "base_lnk" in err
