@@ -103,7 +103,7 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     # What the run shows and keeps.
     PartEntry("recording", "beastbt.parts.recording:RecordingPart",
-              lambda profile, options: bool(options.record or options.record_path)),
+              lambda profile, options: bool(options.record or options.record_path or options.foxglove is not None)),
     PartEntry("video_stream", "beastbt.parts.video_stream:VideoStreamPart",
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",

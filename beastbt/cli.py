@@ -39,6 +39,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                               "gets and what each control does"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "
                                           "joystick, CAN) without moving"),
+    "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
+                                                            "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })
 """Subcommand -> (module with ``add_arguments(parser)`` and ``command(args) -> exit status``, one-line help)."""
 

@@ -246,7 +246,8 @@ def recorded_ticks(rec: Recording) -> list[RecordedTick]:
 
 # -- the replay ------------------------------------------------------------------------------
 
-NOT_REPLAYED = ("/truth", "/estimate/fused", "/estimate/odom", "/pose/fused", "/gps/fix", "/log", "/tree")
+NOT_REPLAYED = ("/truth", "/estimate/fused", "/estimate/odom", "/pose/fused", "/gps/fix", "/gps/fused", "/tf", "/odom",
+                "/scene", "/route", "/camera/calibration", "/camera/annotations", "/log", "/tree")
 """Topics replay does not need: what the run computed is computed again; only inputs and commands are read."""
 
 

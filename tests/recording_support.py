@@ -88,6 +88,26 @@ def shared_run(name: str) -> tuple[Path, dict]:
     raise KeyError(name)
 
 
+def without_timestamps(rec: Any) -> dict:
+    """``rec.messages`` without the Foxglove ``timestamp`` fields (at any depth: transforms have their own),
+    after checking each equals its message's log time.
+
+    Those hold Unix epoch time, which differs run to run; everything else in a run with a given seed does not.
+    """
+    def strip(node: Any, epoch_ns: int, topic: str) -> Any:
+        if isinstance(node, dict):
+            stamp = node.get("timestamp")
+            if isinstance(stamp, dict) and set(stamp) == {"sec", "nsec"}:
+                assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == epoch_ns, topic
+            return {k: strip(v, epoch_ns, topic) for k, v in node.items() if k != "timestamp"}
+        if isinstance(node, list):
+            return [strip(v, epoch_ns, topic) for v in node]
+        return node
+
+    return {topic: [(t, strip(m, t + rec.log_time_offset_ns, topic)) for t, m in entries]
+            for topic, entries in rec.messages.items()}
+
+
 def png_pixels(path: Path) -> np.ndarray:
     """A PNG as a float array (rows, columns, channels), values 0-1."""
     import matplotlib.image

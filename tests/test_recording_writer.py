@@ -117,8 +117,8 @@ def test_the_writer_reports_a_file_it_cannot_open(tmp_path):
     bad_open = ("open", [str(blocked / "run.mcap")], dataclasses.asdict(RecordingConfig()), {}, [])
     replies, code = _serve(tmp_path, [bad_open, _tick(0, []), ("stop",), ("finish", None)])
     assert code == 1 and "could not open the recording" in replies[-1]["error"]
-    # The tick's would-be messages: fused pose twice (beastbt and Foxglove), mission, mux, gate, tree.
-    assert replies[-1]["messages"] == 0 and replies[-1]["dropped"] == 6
+    # The tick's would-be messages: fused pose twice (beastbt and Foxglove), /tf, mission, mux, gate, tree.
+    assert replies[-1]["messages"] == 0 and replies[-1]["dropped"] == 7
 
 
 def test_a_writer_process_that_dies_loses_messages_but_never_the_run(tmp_path):

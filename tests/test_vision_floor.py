@@ -71,7 +71,7 @@ def test_sample_world_floor_validates_against_the_schema(world: dict) -> None:
     bad = dict(world["floor"], backgrund={"colour": 3})
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.Draft202012Validator(schema).validate(bad)
-    assert set(world) == {"world", "description", "start", "floor"}
+    assert set(world) == {"world", "description", "datum", "start", "floor"}
 
 
 # --- truth geometry -------------------------------------------------------------------

@@ -86,6 +86,16 @@ def _endpoint(text: str) -> tuple[str, int]:
     return parse_endpoint(text)
 
 
+def _foxglove_endpoint(text: str) -> tuple[str, int]:
+    from beastbt.live.endpoint import parse_endpoint
+    return parse_endpoint(text, "--foxglove")
+
+
+def _console_endpoint(text: str) -> tuple[str, int]:
+    from beastbt.live.endpoint import parse_endpoint
+    return parse_endpoint(text, "--console")
+
+
 def _size(text: str) -> tuple[int, int]:
     from beastbt.live.endpoint import parse_size
     return parse_size(text)
@@ -110,13 +120,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
-    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint),
+    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_console_endpoint),
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
                         "127.0.0.1; off loopback the page needs the token printed at start")
     p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint),
                    help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
                         "HOST defaults to 127.0.0.1")
+    p.add_argument("--foxglove", metavar="[HOST:]PORT", type=_checked(_foxglove_endpoint),
+                   help="serve the run live to Foxglove (open connection: Foxglove WebSocket, ws://HOST:PORT) with "
+                        "the recording's channels; 127.0.0.1 unless a host is given, e.g. 0.0.0.0:8765")
     p.add_argument("--stream-size", metavar="WxH", type=_checked(_size), help="size of the streamed frames (default 640x480)")
     p.add_argument("--stream-quality", metavar="Q", type=_quality, help="JPEG quality 1-100 (default 80)")
     p.add_argument("--stream-fps", metavar="FPS", type=_positive_float, help="most frames streamed per second (default 25)")
@@ -142,7 +155,8 @@ def command(args: argparse.Namespace) -> int:
     opts = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, max_time_s=args.max_time,
                       summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
                       record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
-                      joystick_script=args.joystick, stream=args.stream, console=args.console, stream_size=args.stream_size,
+                      joystick_script=args.joystick, stream=args.stream, console=args.console,
+                      foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
                       answers=dict(args.answer))
@@ -170,6 +184,10 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt run: error: {len(prepared.warnings)} warning(s) and --strict: not started", file=sys.stderr)
         prepared.abandon()
         return EXIT_INVALID
+    if args.foxglove is not None:
+        host, port = args.foxglove
+        print(f"Foxglove live: ws://{host}:{port} (in Foxglove: Open connection -> Foxglove WebSocket; "
+              f"layout: beastbt foxglove-layout)", flush=True)
     summary = execute(prepared, sys.stdout)
     print(human_summary(summary))
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

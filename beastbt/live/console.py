@@ -29,7 +29,7 @@ def install_console(prepared: Any) -> ConsoleServer:
     """Start the console for ``prepared``'s run: its hooks, reactor and closer; print its address."""
     spec = prepared.options.console
     try:
-        host, port = spec if isinstance(spec, tuple) else parse_endpoint(spec)
+        host, port = spec if isinstance(spec, tuple) else parse_endpoint(spec, "--console")
     except ValueError as exc:
         raise InvalidInput([Problem("--console", Position(), str(exc), "e.g. --console 8080 or --console 0.0.0.0:8080")]) from None
     run = prepared.run

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 
-def parse_endpoint(text: str) -> tuple[str, int]:
-    """``PORT``, ``:PORT`` or ``HOST:PORT`` -> (host, port); the host defaults to 127.0.0.1."""
+def parse_endpoint(text: str, option: str = "--stream") -> tuple[str, int]:
+    """``PORT``, ``:PORT`` or ``HOST:PORT`` -> (host, port); the host defaults to 127.0.0.1.
+
+    ``option`` names the command-line option in the error message.
+    """
     text = str(text).strip()
     host, sep, port = text.rpartition(":")
     if not sep:
@@ -13,9 +16,9 @@ def parse_endpoint(text: str) -> tuple[str, int]:
     try:
         number = int(port)
     except ValueError:
-        raise ValueError(f"expected [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
+        raise ValueError(f"{option} takes [HOST:]PORT such as 8080 or 0.0.0.0:8080, not '{text}'") from None
     if not 0 <= number <= 65535:
-        raise ValueError(f"the port must be 0..65535, not {number}")
+        raise ValueError(f"{option} port must be 0..65535, not {number}")
     return host, number
 
 

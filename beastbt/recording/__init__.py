@@ -1,1 +1,1 @@
-"""Every run recorded: the recorder and its writer process, the wire between them, the channel schemas, the reader, the report and the list of runs. Replay is ``beastbt.replay``, above the assembly."""
+"""Every run recorded: the recorder and its writer process, the wire between them, the channel schemas, the Foxglove views (their messages, the scene, the layout, the live server the writer process runs), the reader, the report and the list of runs. Replay is ``beastbt.replay``, above the assembly."""

@@ -74,6 +74,35 @@ class RecordingConfig:
         return dataclass_from_dict(cls, d, "recording")
 
 
+@dataclass
+@schema_defaults("parts/frames.schema.json")
+class FramesConfig:
+    """Names of the coordinate frames (robot profile ``frames:``), REP-105: map -> odom -> base_link -> camera."""
+
+    # The world-fixed frame: the estimator's local east-north-up frame (metres) at the datum.
+    map: str
+    # Continuous dead-reckoning frame; map -> odom is the correction the GPS makes.
+    odom: str
+    # The robot body: x forward, y left, z up, origin at the robot centre on the floor.
+    base_link: str
+    # The camera on its gimbal: x along the optical axis, y left, z up.
+    camera_link: str
+    # The camera's optical frame (z forward, x right, y down): images and their calibration are in it.
+    camera_optical: str
+    # The frame of GPS fixes.
+    gps: str
+
+    def __post_init__(self) -> None:
+        names = [self.map, self.odom, self.base_link, self.camera_link, self.camera_optical]
+        if len(set(names)) != len(names):
+            raise ValueError(f"frames: map, odom, base_link, camera_link and camera_optical must differ, got {names}")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "FramesConfig":
+        """Build from a profile's ``frames:`` mapping (None: all defaults); bad keys raise ``ValueError``."""
+        return dataclass_from_dict(cls, d or {}, "frames")
+
+
 def compression_type(name: str) -> Any:
     """The ``mcap`` CompressionType for ``name`` (``auto`` picks zstd, then lz4, then none by what is installed)."""
     from mcap import writer as mw
@@ -86,4 +115,4 @@ def compression_type(name: str) -> Any:
 # -- conversions (writer thread) ----------------------------------------------------------
 
 
-__all__ = ["RecordingConfig", "compression_type"]
+__all__ = ["RecordingConfig", "FramesConfig", "compression_type"]

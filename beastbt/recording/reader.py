@@ -19,13 +19,16 @@ from mcap.exceptions import EndOfFile, InvalidMagic
 from mcap.records import Attachment, Channel, Chunk, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 
+from beastbt.recording.schemas import OFFSET_KEY
+
 
 @dataclass
 class Recording:
     """A decoded run recording.
 
-    ``messages``: topic -> list of ``(log_time_ns, message dict)`` in file
-    order; ``schemas``: topic -> (schema name, JSON Schema dict);
+    ``messages``: topic -> list of ``(clock_ns, message dict)`` in file
+    order, the run's clock in nanoseconds (the file's log time, Unix epoch
+    nanoseconds, minus :attr:`log_time_offset_ns`); ``schemas``: topic -> (schema name, JSON Schema dict);
     ``metadata``: name -> dict of strings; ``attachments``: name -> bytes;
     ``complete``: the file ended with its footer; ``stopped_because``: why
     reading stopped early (a truncated record), or None.
@@ -42,6 +45,9 @@ class Recording:
     """Every message in file order as ``(topic, log_time_ns, message)`` (filled when asked for)."""
     counts: dict[str, int] = field(default_factory=dict)
     """Messages per topic in the file (read whole), decoded or not."""
+    log_time_offset_ns: int = 0
+    """What was taken off every log time: the file logs Unix epoch nanoseconds, ``messages`` and ``order``
+    hold the run's clock (ns, 0 at the start in the simulator); 0 for files that logged clock time."""
 
     @property
     def info(self) -> dict[str, str]:
@@ -59,7 +65,7 @@ class Recording:
         return [m for _, m in self.messages.get(name, [])]
 
     def times_s(self, name: str) -> list[float]:
-        """The log times of one topic's messages, seconds."""
+        """The clock times of one topic's messages (their log times less the offset), seconds."""
         return [t * 1e-9 for t, _ in self.messages.get(name, [])]
 
     def text(self, attachment: str) -> Optional[str]:
@@ -100,9 +106,10 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
                 if (wanted is not None and ch.topic not in wanted) or ch.topic in skipped:
                     continue
                 msg = loads(rec.data)
-                out.messages.setdefault(ch.topic, []).append((rec.log_time, msg))
+                t = rec.log_time - out.log_time_offset_ns
+                out.messages.setdefault(ch.topic, []).append((t, msg))
                 if keep_order:
-                    out.order.append((ch.topic, rec.log_time, msg))
+                    out.order.append((ch.topic, t, msg))
             elif isinstance(rec, Channel):
                 channels[rec.id] = rec
                 schema = schemas.get(rec.schema_id)
@@ -138,6 +145,10 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
                 take([rec])
             elif isinstance(rec, Metadata):
                 out.metadata[rec.name] = dict(rec.metadata)
+                if rec.name == "beastbt.run":
+                    # Written right after the header, before any message: every log time read after it is
+                    # turned back into clock time, which replay and the report work in.
+                    out.log_time_offset_ns = int(rec.metadata.get(OFFSET_KEY, 0) or 0)
             elif isinstance(rec, Attachment):
                 out.attachments[rec.name] = bytes(rec.data)
             elif isinstance(rec, Footer):

@@ -51,10 +51,11 @@ import yaml
 import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
-from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.scene import scene_description
 from beastbt.recording.wire import Frame, ItemEncoder
-from beastbt.recording.writer import (MCAP_PROFILE, RECORDING_FORMAT, TRUTH_FIELDS, json_default,
-                                              message_count, ns)
+from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
+                                     json_default, message_count, ns)
 
 _UNSET = object()
 
@@ -89,15 +90,21 @@ def _grow_pipe(fd: int) -> None:
 class McapRecorder:
     """Records one run into MCAP file(s): a cheap tick side, a writer process, counts for the summary.
 
-    ``paths``: the files to write (the same bytes to each). ``block_when_full``:
+    ``paths``: the files to write (the same bytes to each; none when the run
+    is only served live). ``live``: (host, port) of a Foxglove WebSocket
+    server the writer process runs with the same messages
+    (:mod:`beastbt.recording.foxglove_live`). ``block_when_full``:
     wait for the writer when the queue is full (simulated clock) instead of
     dropping. ``info``: the ``beastbt.run`` metadata (strings); ``attachments``:
     ``(name, media type, bytes)`` stored at the start of the file.
     """
 
     def __init__(self, paths: list[Path], config: Optional[RecordingConfig] = None, block_when_full: bool = False,
-                 info: Optional[dict] = None, attachments: Optional[list[tuple[str, str, bytes]]] = None) -> None:
+                 info: Optional[dict] = None, attachments: Optional[list[tuple[str, str, bytes]]] = None,
+                 live: Optional[tuple[str, int]] = None) -> None:
         self.paths = [Path(p) for p in paths]
+        self.live = live
+        """(host, port) where the writer process serves the channels to Foxglove live, or None."""
         self.config = config if config is not None else RecordingConfig()
         self.block_when_full = block_when_full
         self.info = {k: str(v) for k, v in (info or {}).items()}
@@ -213,20 +220,25 @@ class McapRecorder:
         self._doorbell = bell_w
         return self
 
-    def start(self) -> "McapRecorder":
+    def start(self, now_s: float = 0.0) -> "McapRecorder":
         """Open the file: the writer gets the metadata and attachments, then what was queued so far.
 
         :func:`install` leaves this to the first tick, so that the metadata
-        sees the run as every prepare hook left it.
+        sees the run as every prepare hook left it. ``now_s``: the run's
+        clock then (s); with the wall time now it fixes the log times' epoch
+        (metadata ``log_time_offset_ns``) unless ``info`` gave one.
         """
         if self._started:
             return self
         self._started = True
+        # Log times are Unix epoch ns (Foxglove, other tools and other runs line up): the simulator's clock
+        # starts at the wall time of its first tick, the robot's monotonic clock keeps its pace from there.
+        self.info.setdefault(OFFSET_KEY, str(time.time_ns() - ns(now_s)))
         if self.run is not None:
             self._snapshot_run(self.run)
         self.launch()
         opening = ("open", [str(p) for p in self.paths], dataclasses.asdict(self.config), dict(self.info),
-                   [(n, m, bytes(d)) for n, m, d in self.attachments])
+                   [(n, m, bytes(d)) for n, m, d in self.attachments], self.live)
         self._pending.appendleft((self._encoder.encode([opening]), ()))
         self._send_batch()
         self._pump(block=False)
@@ -252,7 +264,9 @@ class McapRecorder:
         """
         if self._stopped:
             return
-        self.start()  # a run that never ticked still leaves a file (metadata, events)
+        clock = getattr(self.run, "clock", None)
+        # A run that never ticked still leaves a file (metadata, events).
+        self.start(clock.now() if clock is not None else 0.0)
         self._stopped = True
         if self._gone:
             return
@@ -295,7 +309,7 @@ class McapRecorder:
     def on_tick(self, rec: Any) -> None:
         """``run.recorders`` callable: queue what this tick did."""
         if not self._started:
-            self.start()
+            self.start(rec.now_s)
         for key, attr, device in self._watched:
             value = getattr(device, attr)
             if self._flags.get((key, attr), _UNSET) != value:
@@ -332,6 +346,10 @@ class McapRecorder:
     def on_snapshot(self, path: str, stamp_s: float) -> None:
         """Queue a snapshot the run saved (a JPEG file): it becomes an attachment of the recording."""
         self._put(("snapshot", stamp_s, str(path)), stamp_s)
+
+    def on_scene(self, description: dict, now_s: float) -> None:
+        """Queue what the run happens in (:func:`~beastbt.recording.scene.scene_description`): /scene, /route."""
+        self._put(("scene", now_s, description), now_s)
 
     def on_servo(self, cmd: ServoCommand, now_s: float) -> None:
         """Queue a servo command the run sent to its servo adapters."""
@@ -554,6 +572,15 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
     }
+    # For the Foxglove views the writer builds: the frame names and where the camera sits on base_link.
+    from beastbt.robot.profile import section_config  # here: jsonschema, OpenCV only for a run being recorded
+    info["frames"] = json.dumps(dataclasses.asdict(section_config(profile, "frames", FramesConfig)))
+    camera = profile.section("camera")
+    if camera is not None:
+        from beastbt.devices.camera import CameraConfig
+        from beastbt.vision.line_detector import LineDetectorConfig
+        info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
+        info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:
@@ -593,8 +620,9 @@ def config_from_options(opts: Any) -> RecordingConfig:
     return RecordingConfig.from_dict(cfg)
 
 
-def install(prepared: Any) -> Optional[McapRecorder]:
-    """Attach a recorder to the run when it records (run folder and/or ``--record FILE``)."""
+def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[McapRecorder]:
+    """Attach a recorder to the run when it records (run folder and/or ``--record FILE``) or serves Foxglove
+    live on ``live`` (host, port; ``--foxglove``), through the same writer process."""
     opts = prepared.options
     paths: list[Path] = []
     if prepared.folder is not None:
@@ -603,16 +631,19 @@ def install(prepared: Any) -> Optional[McapRecorder]:
         target = Path(opts.record_path)
         if not paths or target.resolve() != paths[0].resolve():
             paths.append(target)
-    if not paths:
+    if not paths and live is None:
         return None
     config = config_from_options(opts)
     block = config.overflow == "block" or (config.overflow == "auto" and isinstance(prepared.clock, SimClock))
     info, attachments = run_info(prepared)
-    rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments)
+    rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)
     run = prepared.run
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
         rec.on_event(ev)
+    geometry = prepared.profile.section("geometry") or {}
+    rec.on_scene(scene_description(prepared.mission, prepared.world, geometry.get("footprint_radius_m")),
+                 prepared.clock.now())
     run.recorders.append(rec.on_tick)
     run.events.listeners.append(rec.on_event)
     _record_servo_commands(run, rec)
@@ -628,7 +659,8 @@ def install(prepared: Any) -> Optional[McapRecorder]:
     rec.run = run
     rec.launch()  # the writer process imports while the rest of the run gets ready
     run.recorder = rec
-    run.summary_contributors.append(contribute_summary)
+    if paths:  # served live only: nothing recorded to count in the summary
+        run.summary_contributors.append(contribute_summary)
     prepared.closers.append(rec.stop)
     if prepared.folder is not None:
         prepared.folder.finishers.append(rec.finish)

@@ -2,15 +2,21 @@
 
 Every channel carries JSON messages (MCAP message encoding ``json``) described
 by a JSON Schema (schema encoding ``jsonschema``). Where Foxglove has a
-well-known schema (``foxglove.LocationFix``, ``foxglove.PoseInFrame``,
-``foxglove.CompressedImage``, ``foxglove.Log``) the channel uses it under that
-name, so a run opens in Foxglove with a map, a 3D pose, the images and a log
-panel. Everything else is a ``beastbt.*`` schema whose fields are exactly the
+well-known schema (``foxglove.LocationFix``, ``foxglove.FrameTransforms``,
+``foxglove.PoseInFrame``, ``foxglove.CompressedImage``, ``foxglove.Log``...)
+the channel declares Foxglove's own schema (shipped in ``foxglove_schemas/``)
+under that name, so a run opens in Foxglove with a map, a 3D view, the images
+and a log panel. Everything else is a ``beastbt.*`` schema whose fields are exactly the
 dataclass fields of :mod:`beastbt.blackboard.types` (SI units, ENU frames), so
 that ``beastbt replay`` can rebuild the readings bit for bit.
 
-Log time of every message = the run's clock in nanoseconds (simulated time in
-the simulator), so two runs with the same seed give the same messages.
+Log time (and publish time) of every message = Unix epoch nanoseconds: the
+run's clock plus the offset stored in the ``beastbt.run`` metadata
+(:data:`OFFSET_KEY`): in the simulator the wall time at the first tick plus
+the simulated time, on the robot the wall time. A Foxglove message's own
+``timestamp`` equals its log time. Readers subtract the offset
+(:func:`beastbt.recording.reader.read_recording`), so two runs with the same
+seed give the same messages apart from those timestamps.
 
 Messages are strict JSON: a value that is not a finite number (NaN from a
 diverged estimate, infinity) is written as null, since JSON has no NaN and
@@ -20,7 +26,12 @@ Foxglove's parser rejects the token.
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
+
+OFFSET_KEY = "log_time_offset_ns"
+"""``beastbt.run`` metadata: log time (Unix epoch ns) = clock time (ns) + this. The recorder sets it at the
+run's first tick (wall time then, minus the clock's time then); a file without it logs clock time."""
 
 # -- building blocks ---------------------------------------------------------------
 
@@ -32,12 +43,6 @@ _NOW = {"type": "number", "description": "Clock time of the tick that handled it
 _TICK = {"type": "integer", "minimum": 0, "description": "Tick number, from 0."}
 _VEC3 = {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}
 _MAT3 = {"type": "array", "items": _VEC3, "minItems": 3, "maxItems": 3}
-
-_FOX_TIME = {
-    "type": "object", "title": "time",
-    "properties": {"sec": {"type": "integer", "minimum": 0},
-                   "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}},
-}
 
 
 _SOURCE = {"type": ["string", "null"],
@@ -58,80 +63,27 @@ def _obj(title: str, description: str, props: dict, required: Any = None) -> dic
     }
 
 
-# -- Foxglove well-known schemas (the subset of fields beastbt fills; same names and types) --
+# -- Foxglove well-known schemas: Foxglove's own, unchanged (foxglove_schemas/, from @foxglove/schemas 2.1.0) --
 
-FOXGLOVE_LOCATION_FIX = {
-    "title": "foxglove.LocationFix",
-    "description": "A navigation satellite fix for any Global Navigation Satellite System",
-    "type": "object",
-    "properties": {
-        "timestamp": {**_FOX_TIME, "description": "Timestamp of the message"},
-        "frame_id": {"type": "string", "description": "Frame for the sensor."},
-        "latitude": {"type": "number", "description": "Latitude in degrees"},
-        "longitude": {"type": "number", "description": "Longitude in degrees"},
-        "altitude": {"type": "number", "description": "Altitude in meters"},
-        "position_covariance": {"type": "array", "items": _NUM, "minItems": 9, "maxItems": 9,
-                                "description": "Position covariance (m^2), ENU, row-major."},
-        "position_covariance_type": {"title": "foxglove.PositionCovarianceType",
-                                     "oneOf": [{"title": "UNKNOWN", "const": 0}, {"title": "APPROXIMATED", "const": 1},
-                                               {"title": "DIAGONAL_KNOWN", "const": 2}, {"title": "KNOWN", "const": 3}]},
-    },
-    "required": ["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
-                 "position_covariance_type"],
-}
+FOXGLOVE_SCHEMAS_DIR = Path(__file__).resolve().parent / "foxglove_schemas"
+"""Where the official JSON Schemas of the Foxglove types beastbt writes are shipped."""
 
-FOXGLOVE_POSE_IN_FRAME = {
-    "title": "foxglove.PoseInFrame",
-    "description": "A timestamped pose for an object or reference frame in 3D space",
-    "type": "object",
-    "properties": {
-        "timestamp": {**_FOX_TIME, "description": "Timestamp of pose"},
-        "frame_id": {"type": "string", "description": "Frame of reference for pose position and orientation"},
-        "pose": {
-            "title": "foxglove.Pose", "type": "object",
-            "properties": {
-                "position": {"title": "foxglove.Vector3", "type": "object",
-                             "properties": {"x": _NUM, "y": _NUM, "z": _NUM}, "required": ["x", "y", "z"]},
-                "orientation": {"title": "foxglove.Quaternion", "type": "object",
-                                "properties": {"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM},
-                                "required": ["x", "y", "z", "w"]},
-            },
-            "required": ["position", "orientation"],
-        },
-    },
-    "required": ["timestamp", "frame_id", "pose"],
-}
 
-FOXGLOVE_COMPRESSED_IMAGE = {
-    "title": "foxglove.CompressedImage",
-    "description": "A compressed image",
-    "type": "object",
-    "properties": {
-        "timestamp": {**_FOX_TIME, "description": "Timestamp of image"},
-        "frame_id": {"type": "string", "description": "Frame of reference for the image."},
-        "data": {"type": "string", "contentEncoding": "base64", "description": "Compressed image data"},
-        "format": {"type": "string", "description": "Image format: jpeg, png, webp, avif"},
-    },
-    "required": ["timestamp", "frame_id", "data", "format"],
-}
+def foxglove_schema(type_name: str) -> dict:
+    """The official JSON Schema of ``foxglove.<type_name>`` (``LocationFix``...), as shipped with beastbt."""
+    return json.loads((FOXGLOVE_SCHEMAS_DIR / f"{type_name}.json").read_text(encoding="utf-8"))
 
-FOXGLOVE_LOG = {
-    "title": "foxglove.Log",
-    "description": "A log message",
-    "type": "object",
-    "properties": {
-        "timestamp": {**_FOX_TIME, "description": "Timestamp of log message"},
-        "level": {"title": "foxglove.LogLevel",
-                  "oneOf": [{"title": "UNKNOWN", "const": 0}, {"title": "DEBUG", "const": 1},
-                            {"title": "INFO", "const": 2}, {"title": "WARNING", "const": 3},
-                            {"title": "ERROR", "const": 4}, {"title": "FATAL", "const": 5}]},
-        "message": {"type": "string", "description": "Log message"},
-        "name": {"type": "string", "description": "Process or node name"},
-        "file": {"type": "string", "description": "Filename"},
-        "line": {"type": "integer", "minimum": 0, "description": "Line number in the file"},
-    },
-    "required": ["timestamp", "level", "message", "name", "file", "line"],
-}
+
+FOXGLOVE_LOCATION_FIX = foxglove_schema("LocationFix")
+FOXGLOVE_POSE_IN_FRAME = foxglove_schema("PoseInFrame")
+FOXGLOVE_COMPRESSED_IMAGE = foxglove_schema("CompressedImage")
+FOXGLOVE_LOG = foxglove_schema("Log")
+FOXGLOVE_FRAME_TRANSFORMS = foxglove_schema("FrameTransforms")
+FOXGLOVE_ODOMETRY = foxglove_schema("Odometry")
+FOXGLOVE_SCENE_UPDATE = foxglove_schema("SceneUpdate")
+FOXGLOVE_GEOJSON = foxglove_schema("GeoJSON")
+FOXGLOVE_CAMERA_CALIBRATION = foxglove_schema("CameraCalibration")
+FOXGLOVE_IMAGE_ANNOTATIONS = foxglove_schema("ImageAnnotations")
 
 # -- beastbt schemas (exact dataclass fields) ------------------------------------------
 
@@ -223,10 +175,17 @@ CHANNELS: dict[str, dict] = {
     "/sensors/joystick": JOYSTICK_STATE,
     "/sensors/line": LINE_OBSERVATION,
     "/sensors/camera": CAMERA_FRAME_INFO,
-    # Foxglove views
-    "/gps/fix": FOXGLOVE_LOCATION_FIX,
+    # Foxglove views (foxglove.* schemas; frames named by the profile's frames:)
+    "/gps/fix": FOXGLOVE_LOCATION_FIX,  # one per GNSS epoch (GGA and RMC merged)
+    "/gps/fused": FOXGLOVE_LOCATION_FIX,  # the EKF's fused position on Earth
+    "/tf": FOXGLOVE_FRAME_TRANSFORMS,  # map -> odom -> base_link -> camera_link -> camera_optical, every tick
+    "/odom": FOXGLOVE_ODOMETRY,  # the dead-reckoning estimate, base_link in odom
+    "/scene": FOXGLOVE_SCENE_UPDATE,  # walls, line track, places, route, fences, footprint: at the start and on change
+    "/route": FOXGLOVE_GEOJSON,  # the mission's places, route and fences and the world's walls and lines, lon/lat
     "/pose/fused": FOXGLOVE_POSE_IN_FRAME,
     "/camera/image": FOXGLOVE_COMPRESSED_IMAGE,
+    "/camera/calibration": FOXGLOVE_CAMERA_CALIBRATION,  # with every image, its size (pinhole, no distortion)
+    "/camera/annotations": FOXGLOVE_IMAGE_ANNOTATIONS,  # the detected line, its look-ahead point, a junction
     "/log": FOXGLOVE_LOG,
     # estimates
     "/estimate/fused": FUSED_POSE,
@@ -259,4 +218,4 @@ def schema_bytes(schema: dict) -> bytes:
     return json.dumps(schema, separators=(",", ":"), sort_keys=True).encode()
 
 
-__all__ = ["CHANNELS", "SENSOR_TOPICS", "GENERIC_READING", "schema_bytes"]
+__all__ = ["OFFSET_KEY", "CHANNELS", "SENSOR_TOPICS", "GENERIC_READING", "schema_bytes"]

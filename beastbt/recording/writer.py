@@ -38,8 +38,13 @@ import numpy as np
 
 from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LineObservation,
                                       VelocityCommand, WheelOdometry)
+from beastbt.recording import foxglove as fx
 from beastbt.recording import schemas as rs
-from beastbt.recording.config import RecordingConfig, compression_type
+from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.foxglove import fox_time
+from beastbt.recording.foxglove_live import LiveServer, start_live
+from beastbt.recording.scene import SceneView
+from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
 
 RECORDING_FORMAT = "beastbt-run/1"
@@ -55,12 +60,8 @@ TRUTH_FIELDS = ("t_s", "x", "y", "yaw", "v_mps", "w_rps", "left_m", "right_m", "
 
 
 def ns(t_s: float) -> int:
-    """Clock seconds to MCAP log time (integer nanoseconds, never negative)."""
+    """Clock seconds to integer nanoseconds of the clock (never negative)."""
     return max(0, int(round(t_s * 1e9)))
-
-
-def _fox_time(t_ns: int) -> dict:
-    return {"sec": t_ns // 1_000_000_000, "nsec": t_ns % 1_000_000_000}
 
 
 def json_default(o: Any) -> Any:
@@ -162,22 +163,6 @@ def _snake(name: str) -> str:
     return "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
 
 
-def location_fix(r: GpsFix, t_ns: int) -> dict:
-    """GpsFix as a foxglove.LocationFix (for Foxglove's map panel)."""
-    return {"timestamp": _fox_time(t_ns), "frame_id": "gps", "latitude": r.lat, "longitude": r.lon,
-            "altitude": r.alt_msl if r.alt_msl is not None else 0.0,
-            "position_covariance": [float(v) for row in r.covariance_enu for v in row],
-            "position_covariance_type": 1}
-
-
-def pose_in_frame(p: FusedPose, t_ns: int, frame_id: str) -> dict:
-    """FusedPose as a foxglove.PoseInFrame (planar pose, yaw about z)."""
-    half = 0.5 * p.yaw
-    return {"timestamp": _fox_time(t_ns), "frame_id": frame_id,
-            "pose": {"position": {"x": p.x, "y": p.y, "z": 0.0},
-                     "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}}}
-
-
 def stage_dict(tick: int, now_s: float, c: VelocityCommand, mux_source: str) -> dict:
     """A velocity command at one stage, with the tick it belongs to."""
     return {"tick": tick, "now_s": now_s, "linear_mps": c.linear_mps, "angular_rps": c.angular_rps,
@@ -227,8 +212,45 @@ class _TeeFile:
 # -- the writer -----------------------------------------------------------------------------------------
 
 
+class _NoFile:
+    """Stands in for the MCAP writer and its file when the run is only served live (``--foxglove --no-record``)."""
+
+    def __init__(self) -> None:
+        self._ids = 0
+
+    def _next_id(self, **_: Any) -> int:
+        self._ids += 1
+        return self._ids
+
+    register_schema = register_channel = _next_id
+
+    def start(self, **_: Any) -> None:
+        """Nothing to write."""
+
+    def add_message(self, **_: Any) -> None:
+        """Nothing to write: the message went live only."""
+
+    def add_metadata(self, *_: Any) -> None:
+        """Nothing to write."""
+
+    def add_attachment(self, **_: Any) -> None:
+        """Nothing to write."""
+
+    def flush(self) -> None:
+        """Nothing to flush."""
+
+    def finish(self) -> None:
+        """Nothing to close."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
 class RunFileWriter:
-    """Writes the items of one run into MCAP file(s) (the same bytes to each path).
+    """Writes the items of one run into MCAP file(s) (the same bytes to each path), and to Foxglove live.
+
+    ``live``: a :class:`~beastbt.recording.foxglove_live.LiveServer` that gets
+    every message too; with no ``paths`` the run is only served live.
 
     ``messages`` counts the messages written; ``dropped`` the messages an
     item would have made when writing it failed; ``error`` is the first
@@ -236,7 +258,7 @@ class RunFileWriter:
     """
 
     def __init__(self, paths: list[Path], config: RecordingConfig, info: dict,
-                 attachments: list[tuple[str, str, bytes]]) -> None:
+                 attachments: list[tuple[str, str, bytes]], live: Optional[LiveServer] = None) -> None:
         from mcap.writer import Writer
         self.config = config
         self.messages = 0
@@ -245,8 +267,26 @@ class RunFileWriter:
         self._channels: dict[str, int] = {}
         self._schema_ids: dict[str, int] = {}
         self._last_flush_s: Optional[float] = None
-        self._stream = _TeeFile([Path(p) for p in paths])
-        w = Writer(self._stream, chunk_size=config.chunk_max_bytes, compression=compression_type(config.compression))
+        self._offset_ns = int(info.get(OFFSET_KEY, 0) or 0)
+        self.frames = FramesConfig.from_dict(json.loads(info["frames"]) if info.get("frames") else None)
+        mounting = json.loads(info["camera_mounting"]) if info.get("camera_mounting") else None
+        self._mount = fx.camera_mount(mounting)
+        self._mounting = mounting
+        """The profile's camera mounting (metres, degrees): the camera's geometry for calibration and annotations."""
+        self._lookahead_m = float(info.get("line_lookahead_m") or 0.0)
+        self._geometries: dict[tuple[int, int], Any] = {}
+        self._epochs = fx.EpochFixes()
+        self._gps_altitude_m = 0.0
+        self._gps_up_variance_m2 = 0.0
+        """Altitude (m) and vertical variance (m^2) of the latest GPS fix: the planar EKF's /gps/fused uses them."""
+        self._scene: Optional[SceneView] = None
+        """What the run happens in (a ``scene`` item): /route once, /scene at the start and when map moves."""
+        self._servo_rad: dict[str, float] = {}
+        """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
+        self._live = live
+        self._stream: Any = _TeeFile([Path(p) for p in paths]) if paths else _NoFile()
+        w: Any = (Writer(self._stream, chunk_size=config.chunk_max_bytes,
+                         compression=compression_type(config.compression)) if paths else _NoFile())
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
         w.add_metadata("beastbt.run", {str(k): str(v) for k, v in info.items()})
         for name, media, data in attachments:
@@ -278,6 +318,8 @@ class RunFileWriter:
             self._writer.finish()
         finally:
             self._stream.close()
+            if self._live is not None:
+                self._live.close()
 
     def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
         cid = self._channels.get(topic)
@@ -290,15 +332,23 @@ class RunFileWriter:
                 self._schema_ids[name] = sid
             cid = self._writer.register_channel(topic=topic, message_encoding="json", schema_id=sid)
             self._channels[topic] = cid
+            if self._live is not None:
+                self._live.add_channel(topic, name, rs.schema_bytes(schema))
         return cid
+
+    def _ns(self, t_s: float) -> int:
+        """Clock seconds to log time: Unix epoch nanoseconds (see OFFSET_KEY)."""
+        return self._offset_ns + ns(t_s)
 
     def _emit(self, topic: str, t_ns: int, obj: dict) -> None:
         cid = self._channels.get(topic)
         if cid is None:
             cid = self._channel(topic)
         self.messages += 1
-        self._writer.add_message(channel_id=cid, log_time=t_ns, data=encode_json(obj), publish_time=t_ns,
-                                 sequence=self.messages)
+        data = encode_json(obj)
+        self._writer.add_message(channel_id=cid, log_time=t_ns, data=data, publish_time=t_ns, sequence=self.messages)
+        if self._live is not None:
+            self._live.log(topic, data, t_ns)  # the same bytes and time, to Foxglove live
 
     def _write_item(self, item: tuple) -> None:
         kind = item[0]
@@ -306,33 +356,50 @@ class RunFileWriter:
             self._write_tick(item)
         elif kind == "event":
             _, time_s, ev_kind, text = item
-            t = ns(time_s)
+            t = self._ns(time_s)
             ev = {"time_s": time_s, "kind": ev_kind, "text": text}
             self._emit("/events", t, ev)
             if ev_kind == "failsafe":
                 self._emit("/failsafes", t, ev)
-            self._emit("/log", t, {"timestamp": _fox_time(t), "level": log_level(ev_kind),
+            self._emit("/log", t, {"timestamp": fox_time(t), "level": log_level(ev_kind),
                                    "message": f"{ev_kind}: {text}", "name": ev_kind, "file": "", "line": 0})
         elif kind == "flag":
             _, tick, now_s, key, attr, value = item
-            self._emit("/devices/state", ns(now_s), {"tick": tick, "now_s": now_s, "device": key, "field": attr,
-                                                     "value": value})
+            self._emit("/devices/state", self._ns(now_s), {"tick": tick, "now_s": now_s, "device": key,
+                                                           "field": attr, "value": value})
         elif kind == "snapshot":
             _, stamp_s, path = item
             data = Path(path).read_bytes()
-            self._writer.add_attachment(create_time=0, log_time=ns(stamp_s), name=Path(path).name,
+            self._writer.add_attachment(create_time=0, log_time=self._ns(stamp_s), name=Path(path).name,
                                         media_type="image/jpeg", data=data)
+        elif kind == "scene":
+            _, now_s, description = item
+            t = self._ns(now_s)
+            self._scene = SceneView(description, self.frames)
+            self._emit("/route", t, self._scene.route_message())
+            self._emit("/scene", t, self._scene.scene_message(t))
         elif kind == "servo":
             _, now_s, c = item
-            self._emit("/cmd/servo", ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
-                                                 "channel": c.channel, "pulse_s": c.pulse_s, "stamp_s": c.stamp_s})
+            if c.name is not None and c.angle_rad is not None:
+                self._servo_rad[c.name] = c.angle_rad
+            self._emit("/cmd/servo", self._ns(now_s), {"now_s": now_s, "name": c.name, "angle_rad": c.angle_rad,
+                                                       "channel": c.channel, "pulse_s": c.pulse_s,
+                                                       "stamp_s": c.stamp_s})
 
     def _write_tick(self, item: tuple) -> None:
         (_, tick, now_s, readings, pose_odom, pose, cmd_mission, cmd_mux, cmd_gate, mux_source, changed,
          truth, tags) = item
         sources = reading_sources(*tags, len(readings))
-        t = ns(now_s)
+        t = self._ns(now_s)
+        if self._live is not None and self._scene is not None and self._live.take_resend():
+            # A client subscribed to /scene or /route after they went out: send them again, to it live only.
+            self._live.log("/route", encode_json(self._scene.route_message()), t)
+            self._live.log("/scene", encode_json(self._scene.scene_message(t)), t)
         emit = self._emit
+        frames = self.frames
+        fixes: list[GpsFix] = []
+        image_at: Optional[tuple[float, tuple[int, int, int, int]]] = None
+        """(stamp, (camera w, h, published w, h)) of the frame published on /camera/image this tick."""
         for i, r in enumerate(readings):
             source = sources[i] if sources is not None else None
             conv = _SENSOR_CONVERTERS.get(r.__class__)
@@ -341,13 +408,15 @@ class RunFileWriter:
                 d["source"] = source
                 emit(conv[0], t, d)
                 if r.__class__ is GpsFix:
-                    emit("/gps/fix", t, location_fix(r, t))
+                    fixes.append(r)
             elif r.__class__ is Frame:
                 emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
                                             "height": r.height, "image_recorded": r.image is not None,
                                             "source": source})
                 if r.image is not None:
-                    self._write_image(r, t)
+                    published = self._write_image(r, t)
+                    if published is not None:
+                        image_at = (r.stamp_s, published)
             elif dataclasses.is_dataclass(r):
                 name = type(r).__name__
                 topic = rs.SENSOR_TOPICS.get(name, f"/sensors/{_snake(name)}")
@@ -356,11 +425,30 @@ class RunFileWriter:
                 d = generic_dict(r)
                 d.setdefault("source", source)
                 emit(topic, t, d)
+        if image_at is not None:
+            self._describe_image(t, image_at[0], image_at[1], readings)
+        if fixes:
+            for fix in self._epochs.take(fixes):
+                emit("/gps/fix", t, fx.location_fix(fix, t, frames.gps))
+                if fix.alt_msl is not None:
+                    self._gps_altitude_m = fix.alt_msl
+                self._gps_up_variance_m2 = float(fix.covariance_enu[2][2])
         if pose is not None:
             emit("/estimate/fused", t, pose_dict(pose))
-            emit("/pose/fused", t, pose_in_frame(pose, t, "map"))
+            emit("/pose/fused", t, fx.pose_in_frame(pose, t, frames.map))
+            fused = fx.fused_location_fix(pose, t, frames.base_link, self._gps_altitude_m, self._gps_up_variance_m2)
+            if fused is not None:
+                emit("/gps/fused", t, fused)
+            scene = self._scene
+            if scene is not None and scene.on_pose(pose.x, pose.y, pose.lat, pose.lon, pose.position_valid):
+                emit("/scene", t, scene.scene_message(t))  # the map frame found its place on Earth: redraw
         if pose_odom is not None:
             emit("/estimate/odom", t, pose_dict(pose_odom))
+            emit("/odom", t, fx.odometry(t, frames, pose_odom))
+        if pose is not None or pose_odom is not None:
+            servo = self._servo_rad
+            emit("/tf", t, fx.frame_transforms(t, frames, pose, pose_odom, self._mount, servo.get("pan", 0.0),
+                                               servo.get("tilt", 0.0)))
         if cmd_mission is not None:
             emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
         if mux_source == "teleop":
@@ -381,7 +469,9 @@ class RunFileWriter:
             self._writer.flush()
             self._last_flush_s = now_s
 
-    def _write_image(self, frame: Frame, t_ns: int) -> None:
+    def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
+        """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
+        height, published width, height) in pixels, or None when it could not be encoded."""
         import cv2  # only runs with a camera need it
         image = frame.image
         max_w = self.config.image_max_width_px
@@ -391,10 +481,35 @@ class RunFileWriter:
         ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
         if not ok:
             self.dropped += 1
-            return
-        self._emit("/camera/image", t_ns, {"timestamp": _fox_time(t_ns), "frame_id": "camera",
+            return None
+        self._emit("/camera/image", t_ns, {"timestamp": fox_time(t_ns), "frame_id": self.frames.camera_optical,
                                            "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
                                            "format": "jpeg"})
+        return frame.width, frame.height, int(image.shape[1]), int(image.shape[0])
+
+    def _describe_image(self, t_ns: int, stamp_s: float, sizes: tuple[int, int, int, int], readings: list) -> None:
+        """/camera/calibration and /camera/annotations of the image just published (same timestamp: Foxglove's
+        image panel pairs them by it). Annotations only when the detector looked at that frame."""
+        if not self._mounting:
+            return
+        geometry = self._geometry(*sizes)
+        self._emit("/camera/calibration", t_ns, fx.camera_calibration(t_ns, self.frames.camera_optical, geometry))
+        for r in readings:
+            if r.__class__ is LineObservation and r.stamp_s == stamp_s:
+                self._emit("/camera/annotations", t_ns, fx.line_annotations(t_ns, r, geometry, self._lookahead_m))
+                break
+
+    def _geometry(self, width: int, height: int, out_w: int, out_h: int) -> Any:
+        """The camera as the line detector sees it (mounting, gimbal at 0), at the published image size."""
+        key = (width, height, out_w, out_h)
+        geometry = self._geometries.get(key)
+        if geometry is None:
+            from beastbt.vision.camera_model import CameraGeometry
+            m = self._mounting
+            geometry = CameraGeometry(width_px=width, height_px=height, hfov_deg=m["hfov_deg"], height_m=m["height_m"],
+                                      pitch_deg=m["pitch_deg"], x_offset_m=m["x_offset_m"]).scaled_to(out_w, out_h)
+            self._geometries[key] = geometry
+        return geometry
 
 
 def reading_sources(base_tagged: bool, tags: tuple, n: int) -> Optional[list]:
@@ -424,13 +539,22 @@ def message_count(item: tuple, images: bool) -> int:
         return 3 if item[2] == "failsafe" else 2
     if kind in ("servo", "flag", "snapshot"):
         return 1
+    if kind == "scene":
+        return 2  # /route, /scene
     if kind != "tick":
         return 0
     (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item
     n = 2  # mux, gate
+    epochs = set()
     for r in readings:
-        n += 2 if (r.__class__ is GpsFix or (r.__class__ is Frame and r.image is not None)) else 1
-    n += 2 * (pose is not None) + (pose_odom is not None) + (cmd_mission is not None)
+        # A published image: /sensors/camera, /camera/image, and at most its calibration and annotations.
+        n += 4 if (r.__class__ is Frame and r.image is not None) else 1
+        if r.__class__ is GpsFix:
+            epochs.add(r.time_utc)  # /gps/fix: one per epoch (at most: one may have gone out already)
+    n += len(epochs)
+    n += 2 * (pose is not None) + 2 * (pose_odom is not None) + (cmd_mission is not None)
+    n += (pose is not None and pose.position_valid and pose.lat is not None)  # /gps/fused
+    n += (pose is not None or pose_odom is not None)  # /tf
     n += (mux_source == "teleop") + bool(changed) + (truth is not None)
     return n
 
@@ -464,13 +588,19 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
         for item in read_frames(read, decoder):
             tag = item[0]
             if tag == "open":
-                _, paths, config, info, attachments = item
+                _, paths, config, info, attachments, *more = item
+                live, live_error = start_live(more[0] if more else None)
+                if live_error is not None:
+                    # Said at once, on the run's terminal (the writer shares its standard error): the run goes on.
+                    print(f"beastbt: {live_error}", file=sys.stderr, flush=True)
                 try:
                     cfg = RecordingConfig.from_dict(config)
                     images = cfg.image_rate_hz > 0
-                    writer = RunFileWriter(paths, cfg, info, attachments)
+                    writer = RunFileWriter(paths, cfg, info, attachments, live=live)
                 except Exception as exc:
                     state["error"] = f"could not open the recording: {exc!r}"
+                    if live is not None:
+                        live.close()
             elif tag == "stop":
                 if writer is not None:
                     try:

@@ -59,6 +59,8 @@ class RunOptions:
     """Serve the operator console on ``[HOST:]PORT`` (``--console``): live state, map, tree, video and controls."""
     answers: Optional[Mapping[str, str]] = None
     """Answers to the mission's questions given before the run (``--answer ID=yes``): question id -> yes/no."""
+    foxglove: Optional[Union[str, tuple[str, int]]] = None
+    """Serve the recording's channels live to Foxglove (WebSocket) on ``[HOST:]PORT`` (``--foxglove``)."""
     stream_size: Optional[Union[str, tuple[int, int]]] = None
     """Streamed frame size, ``WxH`` or (width, height) pixels (``--stream-size``)."""
     stream_quality: Optional[int] = None

@@ -2,7 +2,7 @@
 
 A world is a YAML file checked against ``schemas/world.schema.json``. The
 default world (when neither the mission nor the command line names one) is an
-empty plain at latitude 0, longitude 0.
+empty plain at the world schema's default datum (the bundled worlds' spot).
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ def _world_default(section: str, name: str) -> Any:
 
 
 def empty_world() -> World:
-    """An empty plain where the world schema's defaults put it (0 deg N, 0 deg E, the robot at the origin facing east)."""
+    """An empty plain where the world schema's defaults put it (its default datum, the robot at the origin facing
+    east)."""
     return world_of({"world": "empty"})
 
 
