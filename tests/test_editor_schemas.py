@@ -1,19 +1,31 @@
-"""The schemas as editors use them: every ``$ref`` resolves to a shipped file (no remote address).
+"""The schemas as editors use them (VS Code YAML, Neovim... through the YAML language server).
 
-Editors with the YAML language server (VS Code YAML, Neovim, ...) read a
-schema through the file's first-line comment and resolve its ``$ref`` against
-the schema's own location, unless the schema states an ``$id``, which turns
-``parts/x.schema.json`` into a web address that does not exist.
+An editor reads a file's schema from its first line (``# yaml-language-server:
+$schema=../schemas/mission.schema.json``) and resolves the schema's ``$ref``
+beside it, unless the schema states an ``$id`` (which made ``parts/x.schema.json``
+a web address that does not exist). Without node these tests check the schemas
+themselves: every ``$ref`` resolves to a shipped file; every step, condition and
+field has a title, a description and an example, and the examples validate;
+values with units have a pattern and say what they expect. With node and
+``yaml-language-server`` (see ``tests/yaml_ls.py``; ``.ci/run`` installs it) they
+run the server headless over the shipped missions, robots, worlds and the docs'
+examples, as an editor would.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from typing import Any, Iterator
 
 import pytest
+import yaml
 
 from beastbt.core.resources import data_dir
+from beastbt.core.schema_check import validator_for, validator_of
+from beastbt.core.units import KINDS
+from beastbt.core.unit_fields import SUFFIX_UNITS
+from beastbt.mission.explain import steps_and_help
 
 SCHEMA_DIR = data_dir("schemas")
 
@@ -92,7 +104,6 @@ def test_every_ref_resolves_to_a_shipped_schema(name):
 
 def unit_nodes(name: str) -> Iterator[tuple[str, dict, str]]:
     """(pointer, node, unit kind) for every schema node that takes a value with a unit."""
-    from beastbt.core.unit_fields import SUFFIX_UNITS
     defs = load(name).get("$defs", {})
     for pointer, node in walk(load(name)):
         if not isinstance(node, dict):
@@ -113,8 +124,6 @@ def unit_nodes(name: str) -> Iterator[tuple[str, dict, str]]:
 
 
 def test_values_with_units_have_a_pattern_and_say_what_they_expect():
-    import re
-    from beastbt.core.units import KINDS
     seen = set()
     for name in SCHEMAS:
         for pointer, node, kind in unit_nodes(name):
@@ -134,9 +143,109 @@ def test_values_with_units_have_a_pattern_and_say_what_they_expect():
 
 def test_a_profile_knob_named_with_its_unit_takes_a_value_with_a_unit_in_the_schema_too():
     """``timeout_s: 500 ms`` is read by beastbt (unit_fields), so the schema editors use must not call it wrong."""
-    from beastbt.core.schema_check import validator_for
     watchdog = validator_for("parts/watchdog.schema.json")
     assert watchdog.is_valid({"timeout_s": "400 ms"}) and watchdog.is_valid({"timeout_s": 0.4})
     assert not watchdog.is_valid({"timeout_s": "400 meters"})
     robot = load("robot.schema.json")
     assert robot["properties"]["limits"]["properties"]["max_speed_mps"]["$ref"] == "#/$defs/metres_per_second"
+
+
+# -- what an editor shows: a title, a description and an example for every step and field ----------------------
+
+EDITED = [name for name in SCHEMAS if name != "summary.schema.json"]  # the summary is written by beastbt, not by people
+MISSION = load("mission.schema.json")
+YAML_BLOCK = "```yaml\n"
+
+
+def yaml_examples(markdown: str) -> list[str]:
+    return [block.split("```", 1)[0] for block in markdown.split(YAML_BLOCK)[1:]]
+
+
+def branches(kind: str) -> list[dict]:
+    return MISSION["$defs"][kind]["anyOf"]
+
+
+def keyword_of(branch: dict) -> str:
+    return branch["const"] if "const" in branch else branch["required"][0]
+
+
+def mission_problems(steps: Any) -> list[str]:
+    return [e.message for e in validator_for("mission.schema.json").iter_errors({"mission": "example", "steps": steps})]
+
+
+@pytest.mark.parametrize("kind", ["step", "condition"])
+def test_every_step_and_condition_has_a_title_a_description_and_examples_that_validate(kind):
+    for branch in branches(kind):
+        words = branch.get("enum") or [keyword_of(branch)]
+        title = branch.get("title", "")
+        assert branch.get("description"), words
+        assert title and (kind == "condition" and "enum" in branch or title.startswith(f"{words[0]}: ")), \
+            f"{words}: the title {title!r} should read '{words[0]}: what it does' (editors list it so)"
+        examples = yaml_examples(branch.get("markdownDescription", ""))
+        assert examples, f"{words}: no ```yaml example in markdownDescription"
+        for text in examples:
+            steps = yaml.safe_load(text)
+            assert not mission_problems(steps), f"{words}: the example does not validate:\n{text}"
+            if kind == "step":
+                assert any(w in text for w in words), text
+
+
+def test_every_step_keyword_value_has_a_title_and_a_description():
+    for branch in branches("step"):
+        if "const" in branch:
+            continue
+        value = branch["properties"][keyword_of(branch)]
+        assert value.get("title") and value.get("description"), keyword_of(branch)
+
+
+def resolved(node: dict, defs: dict) -> dict:
+    ref = node.get("$ref", "")
+    return {**defs[ref.rsplit("/", 1)[1]], **node} if ref.startswith("#/$defs/") else node
+
+
+def fields(name: str) -> Iterator[tuple[str, str, Any]]:
+    """(pointer, key, schema) of every property of every object in schema ``name``."""
+    for pointer, node in walk(load(name)):
+        if isinstance(node, dict) and isinstance(node.get("properties"), dict) and not pointer.endswith("/properties"):
+            for key, prop in node["properties"].items():
+                yield f"{pointer}/properties/{key}", key, prop
+
+
+def has_example(prop: dict) -> bool:
+    if any(k in prop for k in ("examples", "default", "enum", "const")) or YAML_BLOCK in prop.get("markdownDescription", ""):
+        return True
+    if prop.get("type") in ("object", "array", "boolean") or "properties" in prop:
+        return True  # a section (its fields have examples), a list, true/false
+    ref = prop.get("$ref", "")
+    return ref.endswith((".json", "/steps", "/condition", "/then_action", "/count", "/place"))
+
+
+@pytest.mark.parametrize("name", EDITED)
+def test_every_field_has_a_title_a_description_and_an_example(name):
+    defs = load(name).get("$defs", {})
+    missing = []
+    for pointer, key, prop in fields(name):
+        if not isinstance(prop, dict):
+            continue  # 'true': anything goes
+        full = resolved(prop, defs)
+        if not prop.get("title"):
+            missing.append(f"{pointer}: no title")
+        if not full.get("description"):
+            missing.append(f"{pointer}: no description")
+        if not has_example(full):
+            missing.append(f"{pointer}: no example (examples, a default, or ```yaml in markdownDescription)")
+    assert not missing, f"{name}:\n" + "\n".join(missing)
+
+
+@pytest.mark.parametrize("name", EDITED)
+def test_every_example_fits_its_own_schema(name):
+    wrong = []
+    for pointer, node in walk(load(name)):
+        if isinstance(node, dict) and isinstance(node.get("examples"), list) and "/properties/examples" not in pointer:
+            check = validator_of({"$ref": f"https://beastbt.dev/schemas/{name}#{pointer}"}, "example-check.json")
+            for example in node["examples"]:
+                errors = [e.message for e in check.iter_errors(example)]
+                if errors:
+                    wrong.append(f"{pointer}: {example!r}: {errors}")
+    assert not wrong, f"{name}:\n" + "\n".join(wrong)
+
