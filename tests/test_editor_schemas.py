@@ -344,13 +344,22 @@ def test_completion_of_a_step_offers_every_step_by_its_title(editor):
     assert "drive: {distance: 3 m" in text_of(drive.get("documentation")), drive
 
 
-def test_hover_shows_a_steps_title_and_a_fields_example(editor):
-    text = MISSION_HEAD + "steps:\n  - drive: {distance: 2 m}\n"
+def test_hover_shows_a_steps_title_and_a_fields_own_title_description_and_example(editor):
+    text = MISSION_HEAD + "steps:\n  - drive: {distance: 2 m, stuck_after: 3 s}\n"
     uri = editor.open(REPO / "missions" / "__editor_hover.yaml", text)
     editor.diagnostics(uri)
     assert "#### drive by distance" in editor.hover(uri, 3, 6)
     field = editor.hover(uri, 3, 15)
     assert "#### Distance" in field and "How far to drive straight" in field and "3 m" in field, field
+    # a field with a keyword beside its $ref (x-default-from, a minimum) is shown by its own words, not its unit's
+    stuck = editor.hover(uri, 3, 31)
+    assert "#### Stuck after" in stuck and "Fail when no progress" in stuck, stuck
+    profile = REPO / "robots" / "sim.yaml"
+    uri = editor.open(profile)
+    editor.diagnostics(uri)
+    line = next(i for i, text in enumerate(profile.read_text(encoding="utf-8").splitlines()) if "max_speed_mps:" in text)
+    knob = editor.hover(uri, line, 4)
+    assert "#### Max speed (m/s)" in knob and "Every command is clamped to it" in knob, knob
 
 
 def robot_text(section: str) -> str:
