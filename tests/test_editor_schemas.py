@@ -328,6 +328,12 @@ def test_a_unit_mistake_says_what_the_editor_expects(editor):
     assert not any("Expected number" in m or 'Expected "number"' in m for m in found)
 
 
+def test_a_count_that_is_not_one_says_whole_number_or_forever(editor):
+    text = MISSION_HEAD + "steps:\n  - repeat: {times: three, steps: [stop]}\n  - repeat: {times: forever, steps: [stop]}\n"
+    found = messages(editor.diagnostics(editor.open(REPO / "missions" / "__editor_count.yaml", text)))
+    assert found == ["4:21: Expected a whole number of at least 1, such as 3, or forever."], found
+
+
 def test_completion_of_a_step_offers_every_step_by_its_title(editor):
     text = MISSION_HEAD + "steps:\n  - wait: 1 s\n  - \n"
     uri = editor.open(REPO / "missions" / "__editor_completion.yaml", text)
