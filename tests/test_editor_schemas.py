@@ -214,7 +214,9 @@ def fields(name: str) -> Iterator[tuple[str, str, Any]]:
 
 
 def has_example(prop: dict) -> bool:
-    if any(k in prop for k in ("examples", "default", "enum", "const")) or YAML_BLOCK in prop.get("markdownDescription", ""):
+    if any(k in prop for k in ("examples", "default", "enum", "const")):
+        return True
+    if YAML_BLOCK in prop.get("markdownDescription", ""):
         return True
     if prop.get("type") in ("object", "array", "boolean") or "properties" in prop:
         return True  # a section (its fields have examples), a list, true/false
@@ -256,7 +258,7 @@ def test_every_example_fits_its_own_schema(name):
 
 SCHEMA_LINE = re.compile(r"^# yaml-language-server: \$schema=(\S+)$", re.M)
 SHIPPED = sorted(p for folder in ("missions", "robots", "worlds") for p in (REPO / folder).glob("*.yaml"))
-SCHEMA_OF_FOLDER = {"missions": "mission", "robots": "robot", "worlds": "world", "docs": "mission"}
+SCHEMA_OF_FOLDER = {"missions": "mission", "robots": "robot", "worlds": "world"}
 
 
 def test_every_shipped_file_names_its_schema_on_its_first_line():
@@ -329,7 +331,8 @@ def test_a_unit_mistake_says_what_the_editor_expects(editor):
 
 
 def test_a_count_that_is_not_one_says_whole_number_or_forever(editor):
-    text = MISSION_HEAD + "steps:\n  - repeat: {times: three, steps: [stop]}\n  - repeat: {times: forever, steps: [stop]}\n"
+    text = MISSION_HEAD + ("steps:\n  - repeat: {times: three, steps: [stop]}\n"
+                           "  - repeat: {times: forever, steps: [stop]}\n")
     found = messages(editor.diagnostics(editor.open(REPO / "missions" / "__editor_count.yaml", text)))
     assert found == ["4:21: Expected a whole number of at least 1, such as 3, or forever."], found
 
@@ -363,7 +366,8 @@ def test_hover_shows_a_steps_title_and_a_fields_own_title_description_and_exampl
     profile = REPO / "robots" / "sim.yaml"
     uri = editor.open(profile)
     editor.diagnostics(uri)
-    line = next(i for i, text in enumerate(profile.read_text(encoding="utf-8").splitlines()) if "max_speed_mps:" in text)
+    lines = profile.read_text(encoding="utf-8").splitlines()
+    line = next(i for i, text in enumerate(lines) if "max_speed_mps:" in text)
     knob = editor.hover(uri, line, 4)
     assert "#### Max speed (m/s)" in knob and "Every command is clamped to it" in knob, knob
 
