@@ -153,6 +153,28 @@ def test_a_profile_knob_named_with_its_unit_takes_a_value_with_a_unit_in_the_sch
     assert robot["properties"]["limits"]["properties"]["max_speed_mps"]["$ref"] == "#/$defs/metres_per_second"
 
 
+def test_beastbts_own_errors_for_a_knob_with_a_unit_say_what_to_write(tmp_path):
+    """The knob's schema now takes text too (for editors); beastbt still says a number, and how to write one."""
+    from beastbt.core.errors import InvalidInput
+    from beastbt.robot.profile import load_profile
+    text = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8") + "watchdog: {timeout_s: yes}\n"
+    (tmp_path / "p.yaml").write_text(text, encoding="utf-8")
+    with pytest.raises(InvalidInput) as caught:
+        load_profile(tmp_path / "p.yaml")
+    said = caught.value.format()
+    assert "error: expected a number in 'timeout_s', got true/false" in said, said
+    assert "hint: write a number of seconds, or a duration such as '2 s' (units: s, ms, min, h)" in said, said
+
+
+def test_beastbts_own_error_for_an_acceleration_names_what_it_expects(write_mission):
+    from beastbt.core.errors import InvalidInput
+    from beastbt.mission.model import load_mission
+    with pytest.raises(InvalidInput) as caught:
+        load_mission(write_mission("mission: m\nlimits: {acceleration: 2 m/s}\nsteps: [stop]\n"))
+    said = caught.value.format()
+    assert "error: 'acceleration': expected an acceleration such as '0.5 m/s2' (units: m/s2), got '2 m/s'" in said
+
+
 # -- what an editor shows: a title, a description and an example for every step and field ----------------------
 
 EDITED = [name for name in SCHEMAS if name != "summary.schema.json"]  # the summary is written by beastbt, not by people
