@@ -32,10 +32,20 @@ def _value_words(node: dict) -> str:
     if "enum" in node:
         return " | ".join(map(str, node["enum"]))
     if "x-unit-kind" in node:
-        return f"a {node['x-unit-kind'].replace('_', ' ')} (e.g. {node.get('examples', [''])[0] if node.get('examples') else ''})".replace(" (e.g. )", "")
+        kind = node["x-unit-kind"].replace("_", " ")
+        return f"{'an' if kind[0] in 'aeiou' else 'a'} {kind}"
     kind = node.get("type")
     return {"object": "settings", "array": "a list", "string": "text", "integer": "a whole number",
             "number": "a number", "boolean": "true or false"}.get(kind if isinstance(kind, str) else "", "a value")
+
+
+def _described(node: dict) -> str:
+    """': its description, e.g. its first example' (or less, when the schema states less)."""
+    text = node.get("description") or ""
+    examples = node.get("examples") or []
+    if examples and not isinstance(examples[0], (dict, list)) and str(examples[0]) not in text:
+        text = f"{text.rstrip('.')}; e.g. {examples[0]}" if text else f"e.g. {examples[0]}"
+    return f": {text}" if text else ""
 
 
 def steps_and_help() -> dict[str, tuple[str, list[dict], dict]]:
@@ -76,18 +86,16 @@ def explain_step(keyword: str) -> Optional[str]:
         label = f"form {i}" if len(forms) > 1 else "takes"
         props = form.get("properties") or {}
         if not props:
-            lines.append(f"  {label}: {_value_words(form)}" + (f": {form['description']}" if form.get("description") else ""))
+            lines.append(f"  {label}: {_value_words(form)}{_described(form)}")
             continue
         required = set(form.get("required") or [])
         lines.append(f"  {label}:" + (f" {form['description']}" if form.get("description") else ""))
         for name, sub in props.items():
             sub = _resolve(sub, defs)
             need = "required" if name in required else "optional"
-            text = sub.get("description") or ""
-            lines.append(f"    {name} ({need}, {_value_words(sub)}){': ' + text if text else ''}")
+            lines.append(f"    {name} ({need}, {_value_words(sub)}){_described(sub)}")
     for name, sub in beside.items():
-        text = sub.get("description") or ""
-        lines.append(f"  with {name}: ({_value_words(sub)}){': ' + text if text else ''}")
+        lines.append(f"  with {name}: ({_value_words(sub)}){_described(sub)}")
     lines.append("  more: docs/mission-language.md")
     return "\n".join(lines)
 
