@@ -208,6 +208,7 @@ def test_a_gamepad_drives_through_the_browser_with_the_same_deadman(browser, run
     page.evaluate("window.__pad.buttons[4] = {pressed: true, value: 1}")  # LB: the deadman
     run.wait_state(lambda s: s["teleop"] and s["speed_mps"] > 0.05, 5)
     playwright_api.expect(page.locator("#gamepad-info")).to_contain_text("driving")
+    time.sleep(1.0)
     page.evaluate("window.__pad.buttons[4] = {pressed: false, value: 0}")
     stopped = run.wait_state(lambda s: not s["teleop"] and s["speed_mps"] == 0.0, 3)
     assert stopped["pose"]["x"] - start["x"] > 0.05

@@ -102,7 +102,11 @@ def test_guards_halt_the_running_step(tmp_path):
     frame = frame_of("line_track.yaml")
     places = {"gate": place(frame, 2.5, 2.5), "a": place(frame, 1.0, 0.0), "b": place(frame, 3.0, 0.0),
               "c": place(frame, 3.0, 2.0)}
-    text = (f"mission: guards\nworld: {REPO / 'worlds' / 'line_track.yaml'}\nplaces: {json.dumps(places)}\n"
+    # ``near`` needs a position on Earth: the line track, laid out under the open sky.
+    outdoors = tmp_path / "line_track_outdoors.yaml"
+    outdoors.write_text("".join(line for line in (REPO / "worlds" / "line_track.yaml").read_text().splitlines(True)
+                                if not line.startswith("gps:")), encoding="utf-8")
+    text = (f"mission: guards\nworld: {outdoors}\nplaces: {json.dumps(places)}\n"
             "steps:\n" + textwrap.indent(GUARDS, "  "))
     summary = check(tmp_path, text, "90 s")
     guards = [e["text"] for e in summary["events"] if e["kind"] == "guard"]

@@ -71,7 +71,8 @@ def test_sample_world_floor_validates_against_the_schema(world: dict) -> None:
     bad = dict(world["floor"], backgrund={"colour": 3})
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.Draft202012Validator(schema).validate(bad)
-    assert set(world) == {"world", "description", "datum", "start", "floor"}
+    assert set(world) == {"world", "description", "datum", "gps", "start", "floor"}
+    assert world["gps"] == {"sky": "none"}  # an indoor track: the receiver gets no fix
 
 
 # --- truth geometry -------------------------------------------------------------------

@@ -621,7 +621,8 @@ def plot_position_error(d: RunData, out: Path) -> Optional[str]:
         if label in errors:
             times, errs = errors[label]
             rms = math.sqrt(sum(e * e for e in errs) / len(errs))
-            ax.plot(times, errs, label=f"{label} (RMS {rms:.2f} m)", **styles[label])
+            size = f"{rms:.2f} m" if rms >= 0.1 else f"{rms * 1000:.0f} mm"  # indoors, odometry errs by millimetres
+            ax.plot(times, errs, label=f"{label} (RMS {size})", **styles[label])
     _mark_failsafes(ax, d)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("distance to the truth (m)")

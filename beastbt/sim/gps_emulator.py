@@ -85,6 +85,8 @@ class GpsNoiseModel:
     """Horizontal dilution of precision reported, unitless."""
     sats: int
     """Satellites reported in use."""
+    sky: str
+    """``open``: fixes as the noise model says; ``none``: indoors, sentences but never a fix."""
     fix_quality: int
     """GGA fix quality reported: 1 GPS, 2 DGPS/SBAS."""
     speed_sigma_mps: float
@@ -136,6 +138,8 @@ class GpsNoiseModel:
                 raise ValueError(f"dropout window [{start}, {end}] must end after it starts")
         if isinstance(self.sats, bool) or not isinstance(self.sats, int) or not 0 <= self.sats <= 99:
             raise ValueError(f"sats must be an integer 0..99, got {self.sats!r}")
+        if self.sky not in ("open", "none"):
+            raise ValueError(f"sky must be open or none, got {self.sky!r}")
         if self.fix_quality not in (1, 2, 4, 5, 6, 9):
             raise ValueError(f"fix_quality must be one of 1, 2, 4, 5, 6, 9, got {self.fix_quality!r}")
         decimals = self.coord_decimals
@@ -215,7 +219,9 @@ class SimGps:
         self._injected.append((float(start_s), float(start_s) + float(duration_s), float(east_m), float(north_m)))
 
     def has_fix_at(self, t_s: float) -> bool:
-        """Whether the receiver has a fix at simulated time ``t_s`` (cold start and dropouts)."""
+        """Whether the receiver has a fix at simulated time ``t_s`` (the sky, cold start and dropouts)."""
+        if self.model.sky == "none":
+            return False
         # Boundaries are widened by _EPS_S so that a clock summed from float ticks (4.9999999...)
         # lands on the side of the boundary it means.
         if self.model.cold_start_s > 0:
