@@ -25,6 +25,10 @@ from beastbt.live.console_video import ConsoleVideo, VideoConfig
 from beastbt.live.endpoint import parse_endpoint
 
 
+YIELD_EVERY_S = 0.01
+"""A simulation at full speed naps 0.2 ms this often (wall s), so that the console answers within milliseconds."""
+
+
 def install_console(prepared: Any) -> ConsoleServer:
     """Start the console for ``prepared``'s run: its hooks, reactor and closer; print its address."""
     spec = prepared.options.console
@@ -61,6 +65,7 @@ def install_console(prepared: Any) -> ConsoleServer:
 
     run.hooks.insert(0, console_tick)  # before the tree: a pause or an answer counts in the tick that follows it
     run.reactors.append(controls)
+    run.yield_every_s = YIELD_EVERY_S
 
     def close() -> None:
         controls.close()
