@@ -6,8 +6,8 @@
    follows ``WS /api/ws`` and ``WS /api/video`` as the page does). Wall seconds
    per tick from each run's summary; runs alternate, the median of each is
    compared, as wall time and as the loop thread's own CPU time (what the
-   console adds to the loop itself, while its encoder and server work on
-   another core). The runs are made in this process, through the same
+   console adds to the loop itself; its server and encoder are a process of
+   their own, on the other core). The runs are made in this process, through the same
    ``prepare`` and ``execute`` as the command line. Goal (issue 13): <= 5 %
    more per tick.
 2. **API latency** while the mission runs at full speed, in runs of their
@@ -108,7 +108,7 @@ def run_once(mission: Path, folder: Path, console: bool, poll: bool = False) -> 
         viewer = subprocess.Popen([sys.executable, "-c", VIEWER, server.url.rstrip("/")] + (["poll"] if poll else []),
                                   stdout=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 20
-        while server.video.viewers < 1 and time.monotonic() < deadline:  # the viewer is watching before the start
+        while server.viewers < 1 and time.monotonic() < deadline:  # the viewer is watching before the start
             time.sleep(0.02)
     cpu0, wall0 = time.thread_time(), time.perf_counter()
     summary = execute(prepared, out=io.StringIO())
@@ -147,7 +147,7 @@ def tick_cost(repeats: int, passes: int) -> None:
         print(f"1. per tick at full speed ({ticks} ticks, {repeats} runs each, median):")
         print(f"   without console {b:7.1f} us   runs: {', '.join(f'{x:.1f}' for x in base)}")
         print(f"   console+viewer  {c:7.1f} us   runs: {', '.join(f'{x:.1f}' for x in with_console)}")
-        print(f"   ratio {c / b:.3f}  (wall time per tick: on 2 cores the encoder, the server and the viewer share them)")
+        print(f"   ratio {c / b:.3f}  (wall time per tick: the console's process and the viewer share the cores)")
         bc, cc = statistics.median(base_cpu), statistics.median(console_cpu)
         print(f"   the loop thread's own CPU per tick: without {bc:.1f} us, with console+viewer {cc:.1f} us, "
               f"ratio {cc / bc:.3f}  (goal <= 1.05)")

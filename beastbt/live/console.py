@@ -5,32 +5,288 @@ the robot is, what the mission is doing, progress, and a way to take over
 (pause, resume, abort, e-stop, a joystick, answers to the mission's
 questions). What is where:
 
-* :mod:`beastbt.live.console_state`: the state object and the map's layers;
+* :mod:`beastbt.live.console_state`: the state object and the map's layers (built here, on the tick thread);
 * :mod:`beastbt.live.console_control`: the controls, carried out on the tick thread;
-* :mod:`beastbt.live.console_video`: the video, held to a bit budget per viewer;
-* :mod:`beastbt.live.console_server`: the aiohttp server and the HTTP/WebSocket contract;
+* :mod:`beastbt.live.console_process`: the console's own process, with the web server
+  (:mod:`beastbt.live.console_server`) and the video encoder (:mod:`beastbt.live.console_video`);
 * ``console_page/``: the page, its script and style (shipped in the package, no CDN).
+
+:class:`ConsoleLink` is the run's end of the pipes to that process. The tick
+thread writes itself, a few times a second (a state; while someone watches, a
+camera frame through shared memory or the viewer camera's pose), to a
+non-blocking pipe: what the process has not read yet waits in a buffer, and
+while it does, new states are dropped rather than ever making the loop wait.
+(A thread of ours that wakes up to send would cost the loop more: measured in
+``benchmarks/console.py``.) A reader thread, asleep until the process writes,
+takes the controls: the e-stop and its reset are carried out at once (they are
+safe from any thread), the others are queued for the tick thread, and every
+answer goes back.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import errno
+import os
+import pickle
+import select
+import struct
+import secrets
+import subprocess
+import sys
+import threading
 import time
-from typing import Any
+from multiprocessing.connection import Connection
+from typing import Any, Optional
 
 from beastbt.core.errors import InvalidInput, Position, Problem
-from beastbt.live.console_control import ConsoleControls
-from beastbt.live.console_server import ConsoleServer
-from beastbt.live.console_state import ConsoleState
-from beastbt.live.console_video import ConsoleVideo, VideoConfig
-from beastbt.live.endpoint import parse_endpoint
+from beastbt.live.console_control import ConsoleControls, Refused
+from beastbt.live.console_state import ConsoleState, map_layers
+from beastbt.live.console_video import VideoConfig
+from beastbt.live.endpoint import is_loopback, parse_endpoint
+
+MAP_PERIOD_S = 1.0
+"""The map's layers and trail are sent to the console's process this often (wall s)."""
+START_TIMEOUT_S = 30.0
+"""How long the console's process may take to listen (s): it imports aiohttp and OpenCV."""
+PENDING_MAX_BYTES = 1 << 20
+"""While this much is still waiting for the console's process, the tick thread sends nothing new (bytes)."""
+FRAME_SLOTS = 3
+"""Shared-memory buffers camera frames rotate through (the process copies a frame out long before its turn)."""
 
 
-YIELD_EVERY_S = 0.01
-"""A simulation at full speed naps 0.2 ms this often (wall s), so that the console answers within milliseconds."""
+class ConsoleLink:
+    """The run's end of the console's process (see the module docstring)."""
+
+    def __init__(self, run: Any, world: Any, state: ConsoleState, controls: ConsoleControls, host: str,
+                 port: int, video: VideoConfig) -> None:
+        self.run = run
+        self.world = world
+        self.state = state
+        self.controls = controls
+        self.host = host
+        self.port = port
+        self.token = secrets.token_urlsafe(18) if not is_loopback(host) else ""
+        self.video = video
+        self.viewers = 0
+        self.url = ""
+        self.dropped = 0
+        self._write_lock = threading.Lock()
+        self._pending = b""
+        """Bytes written but not yet taken by the pipe (it is non-blocking)."""
+        self._deferred: list[bytes] = []
+        """Answers that could not be written at once (another thread was writing): they go with the next write."""
+        self._fd = -1
+        self._closed = threading.Event()
+        self._proc: Optional[subprocess.Popen] = None
+        self._inbox: Optional[Connection] = None
+        self._outbox: Optional[Connection] = None
+        self._threads: list[threading.Thread] = []
+        self._segments: list[Any] = []
+        self._slot = 0
+        self._last_map_wall = -1e9
+        self._last_video_wall = -1e9
+        self._fed_seq = 0
+        self._closing = False
+
+    # -- life ------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start the console's process and wait until it listens; OSError (with errno) when it cannot."""
+        to_child_r, to_child_w = os.pipe()
+        from_child_r, from_child_w = os.pipe()
+        self._proc = subprocess.Popen([sys.executable, "-m", "beastbt.live.console_process", str(to_child_r),
+                                       str(from_child_w)], pass_fds=(to_child_r, from_child_w), close_fds=True,
+                                      stdin=subprocess.DEVNULL)
+        os.close(to_child_r)
+        os.close(from_child_w)
+        self._outbox = Connection(to_child_w, readable=False)
+        self._inbox = Connection(from_child_r, writable=False)
+        io = self.run.io
+        pipeline = io.camera
+        config = {"host": self.host, "port": self.port, "token": self.token or None,
+                  "video": dataclasses.asdict(self.video), "camera": pipeline is not None,
+                  "geometry": pipeline.geometry if pipeline is not None else None,
+                  "viewer_camera": io.viewer_camera,
+                  "state": self.state.latest().state, "map": self._map()}  # served from the first request on
+        self._outbox.send(("config", config))
+        if not self._inbox.poll(START_TIMEOUT_S):
+            self._proc.kill()
+            raise OSError(errno.ETIMEDOUT, "the console's process did not start")
+        answer = self._inbox.recv()
+        if answer[0] == "error":
+            self._proc.wait(5)
+            raise OSError(answer[1], answer[2])
+        _, self.port, self.url = answer
+        self._fd = to_child_w
+        os.set_blocking(self._fd, False)
+        thread = threading.Thread(target=self._read_loop, name="beastbt-console-read", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def close(self) -> None:
+        """Send the final state, tell the process to end, wait for it (a few seconds at most)."""
+        if self._proc is None or self._closed.is_set():
+            return
+        self.controls.close()
+        self._last_map_wall = -1e9  # the final state goes with the final map
+        self._closing = True
+        self.state.publish()
+        self._send(("close",), block=True)
+        self._closed.set()
+        try:
+            self._proc.wait(5.0)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+        for thread in self._threads:
+            thread.join(2.0)
+        for connection in (self._inbox, self._outbox):
+            if connection is not None:
+                connection.close()
+        for segment in self._segments:
+            segment.close()
+            segment.unlink()
+
+    # -- the tick thread -------------------------------------------------------------
+    def _send(self, message: tuple, block: bool = False, keep: bool = False) -> bool:
+        """Write one message to the process; False when it was dropped (the process is behind, or gone).
+
+        The tick thread never blocks: it skips while another thread writes or
+        while earlier bytes still wait. ``keep`` (an answer to a control) is
+        never dropped: it goes with the next write when it cannot go now.
+        ``block`` (the reader thread's answers, the final words) waits until
+        the pipe has taken everything.
+        """
+        if self._fd < 0:
+            return False
+        payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        framed = struct.pack("!i", len(payload)) + payload  # multiprocessing's framing, for Connection.recv
+        if not block and (len(self._pending) > PENDING_MAX_BYTES or not self._write_lock.acquire(blocking=False)):
+            if keep:
+                self._deferred.append(framed)
+            else:
+                self.dropped += 1
+            return False
+        if block:
+            self._write_lock.acquire()
+        try:
+            deferred, self._deferred = self._deferred, []
+            data = self._pending + b"".join(deferred) + framed
+            data = self._write_some(data)
+            while block and data:
+                select.select([], [self._fd], [], 1.0)
+                data = self._write_some(data)
+            self._pending = data
+            return True
+        except OSError:
+            self._fd = -1  # the process has gone: the console is over, the run goes on
+            return False
+        finally:
+            self._write_lock.release()
+
+    def _write_some(self, data: bytes) -> bytes:
+        try:
+            written = os.write(self._fd, data)
+        except BlockingIOError:
+            written = 0
+        return data[written:]
+
+    def on_publish(self, seq: int, state: dict) -> None:
+        """A new state (the tick thread): for the process, and now and then the map with it."""
+        block = self._closing  # the final state and map always go
+        self._send(("state", seq, state), block)
+        wall = time.monotonic()
+        if wall - self._last_map_wall >= MAP_PERIOD_S:
+            self._last_map_wall = wall
+            self._send(("map", self._map()), block)
+
+    def _map(self) -> dict:
+        layers = map_layers(self.run, self.world, self.state.frame)
+        layers["trail"] = list(self.state.trail)
+        return layers
+
+    def feed_video(self, run: Any) -> None:
+        """While someone watches (the tick thread): the newest camera frame, or the viewer camera's pose."""
+        wall = time.monotonic()
+        if wall - self._last_video_wall < 1.0 / self.video.fps:
+            return
+        pipeline = run.io.camera
+        if pipeline is None:
+            return
+        if pipeline.enabled:
+            latest = pipeline.latest
+            if latest is None or latest[0].seq == self._fed_seq:
+                return
+            frame, detection = latest
+            self._fed_seq = frame.seq
+            self._last_video_wall = wall
+            self._send(self._frame_message(frame.image, frame.seq, detection, pipeline.lookahead_m))
+        elif run.io.viewer_camera is not None and run.io.sim is not None:
+            t = run.io.sim.truth
+            self._last_video_wall = wall
+            self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)))
+
+    # -- the sender and the reader ---------------------------------------------------
+    def _frame_message(self, image: Any, seq: int, detection: Any, lookahead_m: float) -> tuple:
+        """Copy a frame into the next shared-memory slot (the tick thread) and say where it is."""
+        import numpy as np
+        from multiprocessing import shared_memory
+        if not self._segments or self._segments[0].size < image.nbytes:
+            for segment in self._segments:
+                segment.close()
+                segment.unlink()
+            self._segments = [shared_memory.SharedMemory(create=True, size=image.nbytes) for _ in range(FRAME_SLOTS)]
+        segment = self._segments[self._slot]
+        self._slot = (self._slot + 1) % FRAME_SLOTS
+        np.ndarray(image.shape, np.uint8, buffer=segment.buf[:image.nbytes])[...] = image
+        return ("frame", segment.name, image.shape, seq, time.time(), detection, lookahead_m)
+
+    def _read_loop(self) -> None:
+        from beastbt.run.safety import request_estop, reset_estop
+        inbox = self._inbox
+        assert inbox is not None
+        run = self.run
+        while True:
+            try:
+                message = inbox.recv()
+            except (EOFError, OSError):
+                return
+            kind = message[0]
+            if kind == "viewers":
+                self.viewers = int(message[1])
+            elif kind == "control":
+                _, request, name, body = message
+                if name == "estop":  # at once, from this thread: the latch is safe from any thread
+                    first = request_estop(run, "operator console")
+                    run.io.wakeup.set()
+                    self._reply(request, True, {"estop": True, "newly_latched": first})
+                elif name == "estop_reset":
+                    if run.status is not None:
+                        self._reply(request, False, (409, "the run has ended"))
+                    elif not run.mux.estop_latched:
+                        self._reply(request, False, (409, "the e-stop is not latched"))
+                    else:
+                        reset_estop(run, "operator console")
+                        self._reply(request, True, {"estop": False})
+                else:
+                    future = self.controls.submit(name, body)
+                    future.add_done_callback(lambda f, request=request: self._answered(request, f))
+
+    def _answered(self, request: int, future: Any) -> None:
+        # Called where the control was carried out: the tick thread, which must not block on the pipe.
+        error = future.exception()
+        if error is None:
+            self._reply(request, True, future.result(), block=False)
+        elif isinstance(error, Refused):
+            self._reply(request, False, (error.status, str(error)), block=False)
+        else:
+            self._reply(request, False, (400, str(error)), block=False)
+
+    def _reply(self, request: int, ok: bool, payload: Any, block: bool = True) -> None:
+        self._send(("result", request, ok, payload), block=block, keep=True)
 
 
-def install_console(prepared: Any) -> ConsoleServer:
-    """Start the console for ``prepared``'s run: its hooks, reactor and closer; print its address."""
+def install_console(prepared: Any) -> ConsoleLink:
+    """Start the console for ``prepared``'s run: its process, its tick hook and reactor; print its address."""
     spec = prepared.options.console
     try:
         host, port = spec if isinstance(spec, tuple) else parse_endpoint(spec, "--console")
@@ -40,49 +296,34 @@ def install_console(prepared: Any) -> ConsoleServer:
     wall = time.monotonic  # the console paces itself for people, in wall time; the run's clock is untouched
     state = ConsoleState(run, prepared.world, wall)
     controls = ConsoleControls(run, wall)
-    video = ConsoleVideo(VideoConfig(), wall, time.time, lambda: _caption(state))
-    server = ConsoleServer(state, controls, video, run, prepared.world, host, port)
+    link = ConsoleLink(run, prepared.world, state, controls, host, port, VideoConfig())
+    state.on_publish = link.on_publish
     try:
-        server.start()
+        link.start()
     except OSError as exc:
-        import errno
         hint = (f"this computer has no address {host}: use 127.0.0.1 (this computer only), 0.0.0.0 (every "
                 f"network) or one of its own addresses" if exc.errno == errno.EADDRNOTAVAIL
                 else "pick another port, or 0 for any free one")
         raise InvalidInput([Problem("--console", Position(), f"cannot listen on {host}:{port}: {exc.strerror or exc}",
                                     hint)]) from None
-    video.start()
-    pending, apply_pending, feed = controls.pending, controls.apply_pending, video.feed
+    pending, apply_pending, feed = controls.pending, controls.apply_pending, link.feed_video
 
     def console_tick(run: Any, now_s: float) -> None:
-        # One hook for the three, each with its cheap test first: most ticks have nothing queued and
-        # nobody new to show, and the console must cost the loop next to nothing (benchmarks/console.py).
+        # One hook, each part with its cheap test first: most ticks have nothing queued and nobody
+        # watching the video, and the console must cost the loop next to nothing (benchmarks/console.py).
         if controls.stick_held or not pending.empty():
             apply_pending(now_s)
         state(run, now_s)
-        if video.viewers > 0:
-            feed(run, now_s)
+        if link.viewers > 0:
+            feed(run)
 
     run.hooks.insert(0, console_tick)  # before the tree: a pause or an answer counts in the tick that follows it
     run.reactors.append(controls)
-    run.yield_every_s = YIELD_EVERY_S
-
-    def close() -> None:
-        controls.close()
-        state.publish()  # the final state, for the viewers' last message
-        server.close()
-        video.close()
-
-    prepared.closers.append(close)
-    run.ctx.services.plugins["console"] = server
-    print(f"operator console: {server.url}", flush=True)
-    run.events.add("console", f"operator console on {server.url.split('?')[0]}")
-    return server
+    prepared.closers.append(link.close)
+    run.ctx.services.plugins["console"] = link
+    print(f"operator console: {link.url}", flush=True)
+    run.events.add("console", f"operator console on {link.url.split('?')[0]}")
+    return link
 
 
-def _caption(state: ConsoleState) -> list[str]:
-    s = state.latest().state
-    return [f"{s['mission']}  {s['status']}  t {s['time_s']:.1f} s", f"step: {s['step']}"]
-
-
-__all__ = ["install_console"]
+__all__ = ["install_console", "ConsoleLink"]

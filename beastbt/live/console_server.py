@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import asyncio
 import hmac
-import ipaddress
 import json
 import secrets
 import socket
@@ -37,8 +36,8 @@ from typing import Any, Awaitable, Callable, Optional
 
 from aiohttp import WSMsgType, web
 
-from beastbt.live.console_control import ConsoleControls, Refused, check_teleop_body
-from beastbt.live.console_state import ConsoleState, map_layers
+from beastbt.live.console_control import Refused, check_teleop_body
+from beastbt.live.endpoint import is_loopback
 from beastbt.live.console_video import BudgetGuard, ConsoleVideo
 
 PUSH_PERIOD_S = 0.1
@@ -48,16 +47,6 @@ CONTROL_TIMEOUT_S = 2.0
 TOKEN_COOKIE = "beastbt_console_token"
 PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
-
-
-def is_loopback(host: str) -> bool:
-    """True for 127.0.0.0/8, ::1 and ``localhost``."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 def _page(name: str) -> bytes:
@@ -71,13 +60,14 @@ def _error(status: int, message: str) -> web.Response:
 class ConsoleServer:
     """The console of one run, served on ``host:port`` until :meth:`close` (see the module docstring)."""
 
-    def __init__(self, state: ConsoleState, controls: ConsoleControls, video: ConsoleVideo, run: Any,
-                 world: Any, host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None) -> None:
+    def __init__(self, state: Any, controls: Any, video: ConsoleVideo, map_source: Callable[[], dict],
+                 host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None) -> None:
         self.state = state
+        """Gives the last state: ``latest()`` -> an object with ``seq`` and ``state``."""
         self.controls = controls
+        """Takes the controls: ``submit(name, body)`` -> a Future of the result (raises Refused)."""
         self.video = video
-        self.run = run
-        self.world = world
+        self.map_source = map_source
         self.host = host
         self.requested_port = port
         self.needs_token = not is_loopback(host)
@@ -232,9 +222,7 @@ class ConsoleServer:
         return web.Response(text=self._state_json(), content_type="application/json")
 
     async def _get_map(self, request: web.Request) -> web.Response:
-        layers = map_layers(self.run, self.world, self.state.frame)
-        layers["trail"] = list(self.state.trail)
-        return web.json_response(layers)
+        return web.json_response(self.map_source())
 
     async def _ws_state(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=10.0)
@@ -316,26 +304,22 @@ class ConsoleServer:
             elif name == "answer":
                 if not isinstance(body.get("id"), str) or not isinstance(body.get("choice"), str):
                     raise Refused(400, "expected {\"id\": QUESTION_ID, \"choice\": \"yes\" or \"no\"}")
-            future = self.controls.submit(name, body)
-            try:
-                outcome = await asyncio.wait_for(asyncio.wrap_future(future), CONTROL_TIMEOUT_S)
-            except asyncio.TimeoutError:
-                return _error(503, f"the run did not take '{name}' within {CONTROL_TIMEOUT_S:g} s")
-            return web.json_response({"ok": True, **outcome})
+            return await self._answer(name, body)
         return handle
 
     async def _estop(self, request: web.Request) -> web.Response:
-        from beastbt.run.safety import request_estop
-        first = request_estop(self.run, "operator console")
-        self.run.io.wakeup.set()
-        return web.json_response({"ok": True, "estop": True, "newly_latched": first})
+        return await self._answer("estop", {})
 
     async def _estop_reset(self, request: web.Request) -> web.Response:
-        from beastbt.run.safety import reset_estop
-        if not self.run.mux.estop_latched:
-            raise Refused(409, "the e-stop is not latched")
-        reset_estop(self.run, "operator console")
-        return web.json_response({"ok": True, "estop": False})
+        return await self._answer("estop_reset", {})
+
+    async def _answer(self, name: str, body: dict) -> web.Response:
+        future = self.controls.submit(name, body)
+        try:
+            outcome = await asyncio.wait_for(asyncio.wrap_future(future), CONTROL_TIMEOUT_S)
+        except asyncio.TimeoutError:
+            return _error(503, f"the run did not take '{name}' within {CONTROL_TIMEOUT_S:g} s")
+        return web.json_response({"ok": True, **outcome})
 
 
 __all__ = ["ConsoleServer", "is_loopback", "PUSH_PERIOD_S"]

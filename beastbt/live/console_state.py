@@ -173,6 +173,8 @@ class ConsoleState:
         self.period_s = period_s
         self.battery_cells = battery_cells
         self.frame = MapFrame(run, world)
+        self.on_publish: Optional[Callable[[int, dict], None]] = None
+        """Called with each new state (seq, state) on the thread that built it (the console's link)."""
         self.trail: list[list[float]] = []
         self._cond = threading.Condition()
         self._published = Published(0, self.build())
@@ -196,6 +198,9 @@ class ConsoleState:
         with self._cond:
             self._published = Published(self._published.seq + 1, state)
             self._cond.notify_all()
+            seq = self._published.seq
+        if self.on_publish is not None:
+            self.on_publish(seq, state)
 
     def _extend_trail(self) -> None:
         pose = self.frame.pose()

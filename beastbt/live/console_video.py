@@ -2,12 +2,13 @@
 
 How frames flow, so that nobody waits for anybody:
 
-* the tick side (:meth:`ConsoleVideo.feed`, a tick hook) hands each new
-  camera frame over by reference into a latest-frame slot, and only while
-  someone watches. On the simulator, when the mission itself does not use
-  the camera, the encoder thread renders the simulated camera's view itself
-  (``RobotIO.viewer_camera``, a camera of its own on the same mounting), so
-  that watching costs the loop nothing;
+* it runs in the console's own process (:mod:`beastbt.live.console_process`):
+  the run hands each new camera frame over through shared memory, only while
+  someone watches, into a latest-frame slot (:attr:`ConsoleVideo.raw`). On the
+  simulator, when the mission itself does not use the camera, the run sends
+  only where the robot is, and the encoder renders the view with a camera of
+  its own on the same mounting (:attr:`ConsoleVideo.pull`), so that watching
+  costs the loop nothing;
 * one encoder thread takes the newest frame at most ``fps`` times a second,
   scales it, draws the overlay (the detected line and the step) and encodes
   it once for every viewer. Its JPEG quality follows the bytes each frame
@@ -26,12 +27,11 @@ capture time to show the frame's age.
 
 from __future__ import annotations
 
-import math
 import struct
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Callable, Optional
 
 import cv2
 import numpy as np
@@ -43,8 +43,6 @@ HEADER = struct.Struct("<dII")
 """Frame header: capture wall time (Unix ms, float64), sequence number, JPEG quality."""
 QUALITY_MIN = 20
 QUALITY_MAX = 90
-NO_CAMERA_PERIOD_S = 1.0
-"""Without a camera, a blank captioned frame is sent this often (wall s)."""
 
 
 @dataclass(frozen=True)
@@ -91,9 +89,6 @@ class ConsoleVideo:
         self._closing = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._seq = 0
-        self._fed_seq = 0
-        self._next_request_wall = -math.inf
-        self._blank_wall = -math.inf
         self.pull: Optional[Callable[[], np.ndarray]] = None
         """Renders a frame on demand in the encoder thread (the simulator's viewer camera), when set."""
 
@@ -117,38 +112,6 @@ class ConsoleVideo:
         self.encoded.close()
         if self._thread is not None:
             self._thread.join(2.0)
-
-    # -- the tick thread ---------------------------------------------------------------
-    def feed(self, run: Any, now_s: float) -> None:
-        """A tick hook: hand the newest camera frame over while someone watches (never blocks)."""
-        if self.viewers <= 0:
-            return
-        pipeline = run.io.camera
-        if pipeline is None:
-            wall = self.wall()
-            if wall - self._blank_wall >= NO_CAMERA_PERIOD_S:
-                self._blank_wall = wall
-                self.raw.put((np.full((360, 640, 3), 40, np.uint8), None, None, 0.25, self.epoch()))
-            return
-        if not pipeline.enabled:
-            if self.pull is not None:
-                return
-            viewer = run.io.viewer_camera
-            if viewer is not None:
-                self.pull = viewer  # the encoder renders what it needs, off this thread
-                return
-            wall = self.wall()
-            if wall >= self._next_request_wall:
-                self._next_request_wall = wall + 1.0 / self.config.fps
-                pipeline.request_frame()
-        self.pull = None
-        latest = pipeline.latest
-        if latest is None:
-            return
-        frame, detection = latest
-        if frame.seq != self._fed_seq:
-            self._fed_seq = frame.seq
-            self.raw.put((frame.image, detection, pipeline.geometry, pipeline.lookahead_m, self.epoch()))
 
     # -- the encoder thread ------------------------------------------------------------
     def _encode_loop(self) -> None:

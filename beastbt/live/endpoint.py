@@ -22,6 +22,17 @@ def parse_endpoint(text: str, option: str = "--stream") -> tuple[str, int]:
     return host, number
 
 
+def is_loopback(host: str) -> bool:
+    """True for 127.0.0.0/8, ::1 and ``localhost``: only this computer can reach a server bound there."""
+    import ipaddress
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
 def parse_size(text: str) -> tuple[int, int]:
     """``WIDTHxHEIGHT`` (``640x480``) -> (width, height) in pixels."""
     try:
@@ -31,4 +42,4 @@ def parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
-__all__ = ["parse_endpoint", "parse_size"]
+__all__ = ["parse_endpoint", "parse_size", "is_loopback"]

@@ -21,7 +21,6 @@ pipeline), ``sim_camera`` (the emulator, once built: tests unplug it),
 from __future__ import annotations
 
 import json
-import threading
 from functools import lru_cache
 from typing import Callable, Optional
 
@@ -105,29 +104,14 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     floor_seed = int(sim.rng.integers(2**63))
     camera_rng = np.random.default_rng(sim.rng.integers(2**63))
     floor_holder: list[FloorMap] = []
-    floor_lock = threading.Lock()  # the live viewer's camera may ask for the floor from its own thread
 
     def floor_map() -> FloorMap:
-        with floor_lock:
-            if not floor_holder:
-                try:
-                    floor_holder.append(build_floor(raw_floor if raw_floor is not None else PLAIN_FLOOR, floor_seed))
-                except ValueError as exc:
-                    raise world_problem(world, "floor", exc) from None
-            return floor_holder[0]
-
-    viewer_holder: list[SimCamera] = []
-    viewer_lock = threading.Lock()
-
-    def viewer_frame() -> np.ndarray:
-        # A second camera on the same mounting for a live viewer only, rendered in the viewer's thread from
-        # the robot's latest truth, with a noise generator of its own: watching changes nothing in the run.
-        with viewer_lock:
-            if not viewer_holder:
-                viewer_holder.append(SimCamera(floor_map(), pipeline.geometry, np.random.default_rng(floor_seed + 1),
-                                               effects))
-            t = sim.truth
-            return viewer_holder[0].render(t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)
+        if not floor_holder:
+            try:
+                floor_holder.append(build_floor(raw_floor if raw_floor is not None else PLAIN_FLOOR, floor_seed))
+            except ValueError as exc:
+                raise world_problem(world, "floor", exc) from None
+        return floor_holder[0]
 
     def make_camera() -> Camera:
         sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects)
@@ -145,7 +129,9 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     io.capabilities.add("camera")
     io.camera = pipeline
     io.floor_map = floor_map
-    io.viewer_camera = viewer_frame
+    # What a live viewer's process needs to build a camera of its own on the same mounting and floor.
+    io.viewer_camera = {"floor": raw_floor, "floor_seed": floor_seed, "geometry": pipeline.geometry,
+                        "effects": effects}
     io.closers.append(pipeline.close)
 
 

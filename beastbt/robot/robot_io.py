@@ -92,8 +92,8 @@ class RobotIO:
     floor_map: Optional[Callable[[], "FloorMap"]] = None
     """Builds (once) and returns the simulated floor the camera sees."""
     joystick_script: Optional["ScriptedJoystick"] = None
-    viewer_camera: Optional[Callable[[], Any]] = None
-    """Renders the simulated camera's view now, for a live viewer, from any thread (BGR uint8; its own noise)."""
+    viewer_camera: Optional[dict] = None
+    """How a live viewer's process builds a simulated camera of its own (floor, seed, geometry, effects)."""
 
     def devices(self) -> dict[str, Any]:
         """Every device this robot has, by field name (what a recording lists, and replay stands in for)."""

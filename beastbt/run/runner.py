@@ -131,8 +131,6 @@ class MissionRun:
         """Why the tree is not ticked now (``hold``, ``teleop``...), or None."""
         self.operator_paused = False
         """The operator pressed pause (the console): the tree is not ticked and the robot is stopped until resume."""
-        self.yield_every_s: Optional[float] = None
-        """At full simulated speed, nap this often (wall s) so that the run's server threads are served (console)."""
         self.operator_driving = False
         """The operator drives from the console (its stick's deadman is held)."""
         self.ended_by: Optional[str] = None

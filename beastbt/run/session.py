@@ -122,9 +122,6 @@ def parse_speed(text: str) -> Union[str, float]:
     return factor
 
 
-YIELD_NAP_S = 0.0002
-"""How long a simulation at full speed naps when it yields to the run's server threads (s, wall)."""
-
 REACT_MIN_INTERVAL_S = 0.005
 """Between ticks, input is answered at most this often (s): a stick sweep sends hundreds of events a second,
 and each answer writes to the base (a T:1 line is about 30 bytes at 115200 baud)."""
@@ -170,7 +167,6 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     gc.freeze()
     pacing: Optional[float] = factor
     anchor = wall0
-    next_yield = wall0
     try:
         while run.status is None:
             run.tick()
@@ -190,13 +186,6 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                     delay = anchor + clock.now() / pace - time.perf_counter()
                     if delay > 0:
                         time.sleep(delay)
-                elif run.yield_every_s is not None:
-                    now_wall = time.perf_counter()
-                    if now_wall >= next_yield:
-                        # Flat out, this thread would keep Python's lock from the run's server threads (the
-                        # console) for long stretches: a short nap now and then lets them answer.
-                        next_yield = now_wall + run.yield_every_s
-                        time.sleep(YIELD_NAP_S)
             else:
                 wait_for_tick(run, clock, run.start_s + run.ticks * dt)
             if tty and terminal is not None:

@@ -77,7 +77,6 @@ class CameraPipeline:
         self._thread: Optional[threading.Thread] = None
         self._idle_wait_s = 0.005
         self._stop = threading.Event()
-        self._requested = False
 
     # -- switching on ---------------------------------------------------------------
     @property
@@ -104,14 +103,6 @@ class CameraPipeline:
         if self.threaded:
             self._start_reader()
 
-    def request_frame(self) -> None:
-        """Read one frame at a coming poll even when nothing enabled the pipeline (a live viewer, paced by the viewer).
-
-        The camera is built on first use; the frame is read when the camera
-        has one due, and handed out like any other.
-        """
-        self._requested = True
-
     def reset_detector(self) -> None:
         """Forget where the line was (a new follow_line step starts looking straight ahead)."""
         with self._lock:
@@ -121,13 +112,8 @@ class CameraPipeline:
     def poll(self, now_s: float) -> list:
         """The new frame and its line observation since the last call (``[]`` when none); never raises."""
         if not self.enabled:
-            if not self._requested:
-                return []
-            if self.camera is None:
-                self.camera = self._make_camera()
-            if self._read_one():
-                self._requested = False
-        elif self._thread is None:
+            return []
+        if self._thread is None:
             self._read_one()
         latest = self.latest
         if latest is None or latest[0].seq == self._handed_seq:
