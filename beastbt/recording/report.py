@@ -43,7 +43,9 @@ DPI = 100
 
 
 NOT_PLOTTED = ("/sensors/imu", "/sensors/battery", "/sensors/joystick", "/sensors/camera", "/camera/image",
-               "/pose/fused", "/gps/fix", "/log", "/cmd/servo", "/cmd/mux", "/cmd/teleop", "/devices/state")
+               "/pose/fused", "/gps/fix", "/log", "/cmd/servo", "/cmd/mux", "/cmd/teleop", "/devices/state",
+               # Foxglove's views of what the report reads elsewhere (every tick: decoding them is memory for nothing)
+               "/gps/fused", "/tf", "/odom", "/scene", "/route", "/camera/calibration", "/camera/annotations")
 """Topics the report does not decode (counted all the same): the plots do not use them."""
 
 
