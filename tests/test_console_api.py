@@ -241,3 +241,27 @@ def test_the_console_works_the_same_on_a_real_robots_profile(console, tmp_path):
     assert run.api("/api/abort", {})[0] == 200
     code, out, _ = run.finish()
     assert code == 1 and "aborted by the operator console" in out
+
+
+def test_the_map_has_the_worlds_track_and_the_missions_waypoints_in_plan_metres(tmp_path):
+    from conftest import REPO
+    route = ConsoleRun(REPO / "missions" / "gps_route.yaml", "--speed", "realtime", "--no-record", cwd=tmp_path)
+    try:
+        status, layers = route.api("/api/map")
+        assert status == 200 and layers["datum"] is not None
+        waypoints = {w["name"]: w for w in layers["waypoints"]}
+        assert list(waypoints)[:3] == ["a", "b", "c"]
+        assert waypoints["b"]["tolerance_m"] == 3.0 and waypoints["a"]["tolerance_m"] > 0  # b's own, a the default
+        a, b = waypoints["a"]["xy"], waypoints["b"]["xy"]  # the campus notes: a ~11 m north, b 22 m N and 25 m E
+        assert abs(a[0]) < 2 and 9 < a[1] < 13 and 20 < b[0] < 30 and 18 < b[1] < 26
+    finally:
+        route.kill()
+    line = ConsoleRun(REPO / "missions" / "line_to_intersection.yaml", "--speed", "realtime", "--no-record",
+                      cwd=tmp_path)
+    try:
+        status, layers = line.api("/api/map")
+        assert status == 200 and layers["track"] and layers["start"] == {"x": 0.8, "y": 0.0, "yaw_deg": 0.0}
+        xs = [p[0] for t in layers["track"] for p in t["points"]]
+        assert min(xs) < 0 and max(xs) > 3.9  # the loop, from its round end to its right side
+    finally:
+        line.kill()

@@ -134,7 +134,8 @@ def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
 
 def route_waypoints(run: Any, frame: MapFrame) -> list[dict]:
     """The places the mission drives to, in the order of its steps: ``{name, xy, tolerance_m}``."""
-    from beastbt.behaviours.navigation import GoTo
+    from beastbt.behaviours.navigation import GoTo, NavConfig
+    nav = run.ctx.services.navigation or NavConfig()
     out = []
     for node in run.nodes:
         if isinstance(node, GoTo):
@@ -145,7 +146,7 @@ def route_waypoints(run: Any, frame: MapFrame) -> list[dict]:
             if target is None:
                 continue
             out.append({"name": node.place, "step": node.name, "xy": frame.point(target[0], target[1]),
-                        "tolerance_m": getattr(node, "tolerance_m", None)})
+                        "tolerance_m": node.tolerance_m if node.tolerance_m is not None else nav.default_tolerance_m})
     return out
 
 
