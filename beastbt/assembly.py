@@ -247,10 +247,11 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
 def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World], mode: str,
                  options: Optional[RunOptions] = None) -> list:
     """The mission's warnings (its places against the world's datum) and those of running it on this robot."""
-    from beastbt.mission.warnings import by_position, mission_warnings, robot_warnings
+    from beastbt.mission.warnings import by_position, mission_warnings, robot_warnings, world_warnings
     warnings = list(mission.warnings)
     if world is not None and world.doc is not None:
         warnings = mission_warnings(mission, (world.frame.lat0_deg, world.frame.lon0_deg))
+        warnings += world_warnings(mission, world)
     if mode == REPLAY:
         return warnings
     has_battery = "battery" in base_part(profile, simulated=mode == SIM).fills

@@ -43,7 +43,7 @@ def validate_file(path: str) -> list[Problem]:
 def mission_with_world(mission) -> list[Problem]:  # type: ignore[no-untyped-def]
     """The mission's warnings, with its world file checked and its places checked against the world's datum."""
     from beastbt.mission.mission_world import load_mission_world
-    from beastbt.mission.warnings import mission_warnings
+    from beastbt.mission.warnings import by_position, mission_warnings, world_warnings
     if mission.world is None:
         return list(mission.warnings)
     try:
@@ -51,4 +51,4 @@ def mission_with_world(mission) -> list[Problem]:  # type: ignore[no-untyped-def
     except InvalidInput as exc:
         return exc.problems
     frame = world.frame
-    return mission_warnings(mission, (frame.lat0_deg, frame.lon0_deg))
+    return by_position(mission_warnings(mission, (frame.lat0_deg, frame.lon0_deg)) + world_warnings(mission, world))

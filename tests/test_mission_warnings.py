@@ -94,3 +94,20 @@ def test_on_failure_hold_with_nothing_that_could_clear_it(tmp_path):
     with_pad = beastbt("run", str(path), "--no-record", "--joystick", str(REPO / "missions" / "joystick" /
                                                                           "teleop_demo.yaml"))
     assert "nothing can clear the hold" not in with_pad.stderr
+
+
+@pytest.mark.parametrize("world, warned", [("corridor.yaml", True), ("campus.yaml", False)])
+def test_gps_navigation_in_an_indoor_world_is_warned_at_the_step(tmp_path, world, warned):
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"mission: nav\nworld: {REPO / 'worlds' / world}\n"
+                       "places: {door: {lat: 40.41681, lon: -3.70379}}\n"
+                       "steps:\n  - drive: {distance: 1 m}\n  - go_to: door\n  - return_home\n", encoding="utf-8")
+    out = beastbt("validate", str(mission))
+    assert out.returncode == 0
+    lines = [line for line in (out.stdout + out.stderr).splitlines() if "is indoors" in line]
+    if not warned:
+        assert lines == []
+        return
+    assert [line.split(": warning:")[0] for line in lines] == [f"{mission}:6:12", f"{mission}:7:5"]
+    assert "go_to cannot arrive" in lines[0] and "gps: {sky: none}" in lines[0]
+    assert beastbt("validate", "--strict", str(mission)).returncode == 2

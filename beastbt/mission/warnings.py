@@ -3,7 +3,8 @@
 From the mission alone (:func:`mission_warnings`): text cut by a ``#``, a
 mission without steps, a step faster than the mission's own speed limit,
 places far from each other or from the world (latitude and longitude
-swapped?). Against the robot it runs on (:func:`robot_warnings`): a step
+swapped?). Against its world (:func:`world_warnings`): GPS navigation
+indoors. Against the robot it runs on (:func:`robot_warnings`): a step
 faster than the robot's limit, a ``battery_low`` failsafe on a robot that
 does not report its battery.
 """
@@ -96,6 +97,21 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
     return by_position(out)
 
 
+def world_warnings(mission: Any, world: Any) -> list[Problem]:
+    """What cannot work in the mission's world: GPS navigation indoors (a world whose ``gps`` says ``sky: none``)."""
+    if world is None or (world.section("gps") or {}).get("sky") != "none":
+        return []
+    out = []
+    for step in _every_step(mission):
+        if isinstance(step, (st.GoToPlace, st.GoToPoint, st.Route, st.ReturnHome)):
+            out.append(warning(mission.doc.problem(step.path + (step.KEYWORD,),
+                                                   f"world '{world.name}' is indoors (gps: {{sky: none}}): the robot "
+                                                   f"never gets a GPS fix there, so this {step.KEYWORD} cannot arrive",
+                                                   "indoors, drive by distance and turns or follow a line; or run the "
+                                                   "mission in a world under the open sky")))
+    return out
+
+
 def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
                    has_joystick: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
@@ -119,4 +135,4 @@ def by_position(problems: list[Problem]) -> list[Problem]:
     return sorted(problems, key=lambda p: (p.file, p.position))
 
 
-__all__ = ["mission_warnings", "robot_warnings", "all_steps", "FAR_PLACE_M"]
+__all__ = ["mission_warnings", "robot_warnings", "world_warnings", "all_steps", "FAR_PLACE_M"]
