@@ -111,3 +111,18 @@ def test_gps_navigation_in_an_indoor_world_is_warned_at_the_step(tmp_path, world
     assert [line.split(": warning:")[0] for line in lines] == [f"{mission}:6:12", f"{mission}:7:5"]
     assert "go_to cannot arrive" in lines[0] and "gps: {sky: none}" in lines[0]
     assert beastbt("validate", "--strict", str(mission)).returncode == 2
+
+
+def test_conditions_and_failsafes_that_need_a_fix_are_warned_indoors(tmp_path):
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"mission: nav\nworld: {REPO / 'worlds' / 'corridor.yaml'}\n"
+                       "places: {door: {lat: 40.41681, lon: -3.70379}}\n"
+                       "failsafes:\n  gps_lost: {after: 5 s, then: stop}\n"
+                       "steps:\n  - until: {near: door, within: 2 m}\n    steps:\n      - drive: {distance: 3 m}\n"
+                       "  - wait_until: {not: {near: door, within: 1 m}}\n  - wait: 1 s\n", encoding="utf-8")
+    out = beastbt("validate", str(mission))
+    lines = [line for line in (out.stdout + out.stderr).splitlines() if "is indoors" in line]
+    assert out.returncode == 0
+    assert [line.split(": warning:")[0] for line in lines] == [f"{mission}:5:3", f"{mission}:7:12", f"{mission}:10:17"]
+    assert "gps_lost failsafe watches a fix that never comes" in lines[0]
+    assert all("reads a position that is never known" in line for line in lines[1:])

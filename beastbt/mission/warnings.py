@@ -97,18 +97,40 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
     return by_position(out)
 
 
+def _needs_a_fix(condition: Any) -> bool:
+    """True when a condition reads the position on Earth (``near``, ``inside``/``outside`` a fence)."""
+    if isinstance(condition, (st.Near, st.InFence)):
+        return True
+    inner = getattr(condition, "conditions", None) or ((condition.condition,) if isinstance(condition, st.Not) else ())
+    return any(_needs_a_fix(c) for c in inner)
+
+
 def world_warnings(mission: Any, world: Any) -> list[Problem]:
-    """What cannot work in the mission's world: GPS navigation indoors (a world whose ``gps`` says ``sky: none``)."""
+    """What cannot work in the mission's world: what needs a GPS fix indoors (a world whose ``gps`` says ``sky: none``).
+
+    GPS navigation steps, conditions on the position on Earth (``near``, a
+    fence) and the failsafes that watch the fix or a fence.
+    """
     if world is None or (world.section("gps") or {}).get("sky") != "none":
         return []
+    doc = mission.doc
+    indoors = f"world '{world.name}' is indoors (gps: {{sky: none}}): the robot never gets a GPS fix there"
+    hint = ("indoors, drive by distance and turns or follow a line; or run the mission in a world under the open "
+            "sky")
     out = []
     for step in _every_step(mission):
         if isinstance(step, (st.GoToPlace, st.GoToPoint, st.Route, st.ReturnHome)):
-            out.append(warning(mission.doc.problem(step.path + (step.KEYWORD,),
-                                                   f"world '{world.name}' is indoors (gps: {{sky: none}}): the robot "
-                                                   f"never gets a GPS fix there, so this {step.KEYWORD} cannot arrive",
-                                                   "indoors, drive by distance and turns or follow a line; or run the "
-                                                   "mission in a world under the open sky")))
+            out.append(warning(doc.problem(step.path + (step.KEYWORD,),
+                                           f"{indoors}, so this {step.KEYWORD} cannot arrive", hint)))
+        elif _needs_a_fix(getattr(step, "condition", None)):
+            out.append(warning(doc.problem(step.path + (step.KEYWORD,),
+                                           f"{indoors}, so this condition reads a position that is never known", hint)))
+    for failsafe in mission.failsafes:
+        if failsafe.kind in ("gps_lost", "geofence", "keepout"):
+            what = ("a fix that never comes" if failsafe.kind == "gps_lost"
+                    else "a position on Earth that is never known")
+            out.append(warning(doc.problem(failsafe.path, f"{indoors}: this {failsafe.kind} failsafe watches {what}",
+                                           hint, key=True)))
     return out
 
 
