@@ -81,19 +81,12 @@ def _answer(text: str) -> tuple[str, str]:
     return qid.strip(), choice
 
 
-def _endpoint(text: str) -> tuple[str, int]:
-    from beastbt.live.endpoint import parse_endpoint
-    return parse_endpoint(text)
-
-
-def _foxglove_endpoint(text: str) -> tuple[str, int]:
-    from beastbt.live.endpoint import parse_endpoint
-    return parse_endpoint(text, "--foxglove")
-
-
-def _console_endpoint(text: str) -> tuple[str, int]:
-    from beastbt.live.endpoint import parse_endpoint
-    return parse_endpoint(text, "--console")
+def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
+    """``[HOST:]PORT`` of ``option`` -> (host, port); errors name the option."""
+    def parse(text: str) -> tuple[str, int]:
+        from beastbt.live.endpoint import parse_endpoint
+        return parse_endpoint(text, option)
+    return parse
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -120,14 +113,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
-    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_console_endpoint),
+    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
                         "127.0.0.1; off loopback the page needs the token printed at start")
-    p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint),
+    p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint("--stream")),
                    help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
                         "HOST defaults to 127.0.0.1")
-    p.add_argument("--foxglove", metavar="[HOST:]PORT", type=_checked(_foxglove_endpoint),
+    p.add_argument("--foxglove", metavar="[HOST:]PORT", type=_checked(_endpoint("--foxglove")),
                    help="serve the run live to Foxglove (open connection: Foxglove WebSocket, ws://HOST:PORT) with "
                         "the recording's channels; 127.0.0.1 unless a host is given, e.g. 0.0.0.0:8765")
     p.add_argument("--stream-size", metavar="WxH", type=_checked(_size), help="size of the streamed frames (default 640x480)")

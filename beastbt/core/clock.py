@@ -8,6 +8,7 @@ advances in lockstep, so runs are deterministic and faster than real time.
 
 from __future__ import annotations
 
+import datetime as _dt
 import time
 from typing import Protocol
 
@@ -59,3 +60,8 @@ class WallClock:
         delay = t_s - self.now()
         if delay > 0:
             time.sleep(delay)
+
+
+def utc_now() -> _dt.datetime:
+    """The calendar date and time now, UTC: for names people read (run folders), never for timing."""
+    return _dt.datetime.now(_dt.timezone.utc)

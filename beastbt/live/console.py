@@ -41,7 +41,7 @@ from typing import Any, Optional
 
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.live.console_control import ConsoleControls, Refused
-from beastbt.live.console_state import ConsoleState, map_layers
+from beastbt.live.console_state import ConsoleState
 from beastbt.live.console_video import VideoConfig
 from beastbt.live.endpoint import is_loopback, parse_endpoint
 
@@ -58,10 +58,9 @@ FRAME_SLOTS = 3
 class ConsoleLink:
     """The run's end of the console's process (see the module docstring)."""
 
-    def __init__(self, run: Any, world: Any, state: ConsoleState, controls: ConsoleControls, host: str,
-                 port: int, video: VideoConfig) -> None:
+    def __init__(self, run: Any, state: ConsoleState, controls: ConsoleControls, host: str, port: int,
+                 video: VideoConfig) -> None:
         self.run = run
-        self.world = world
         self.state = state
         self.controls = controls
         self.host = host
@@ -77,14 +76,14 @@ class ConsoleLink:
         self._deferred: list[bytes] = []
         """Answers that could not be written at once (another thread was writing): they go with the next write."""
         self._fd = -1
-        self._closed = threading.Event()
         self._proc: Optional[subprocess.Popen] = None
         self._inbox: Optional[Connection] = None
         self._outbox: Optional[Connection] = None
-        self._threads: list[threading.Thread] = []
+        self._reader: Optional[threading.Thread] = None
         self._segments: list[Any] = []
         self._slot = 0
         self._last_map_wall = -1e9
+        self._sent_map_version = -1
         self._last_video_wall = -1e9
         self._fed_seq = 0
         self._closing = False
@@ -119,26 +118,24 @@ class ConsoleLink:
         _, self.port, self.url = answer
         self._fd = to_child_w
         os.set_blocking(self._fd, False)
-        thread = threading.Thread(target=self._read_loop, name="beastbt-console-read", daemon=True)
-        thread.start()
-        self._threads.append(thread)
+        self._reader = threading.Thread(target=self._read_loop, name="beastbt-console-read", daemon=True)
+        self._reader.start()
 
     def close(self) -> None:
         """Send the final state, tell the process to end, wait for it (a few seconds at most)."""
-        if self._proc is None or self._closed.is_set():
+        if self._proc is None or self._closing:
             return
         self.controls.close()
         self._last_map_wall = -1e9  # the final state goes with the final map
         self._closing = True
         self.state.publish()
         self._send(("close",), block=True)
-        self._closed.set()
         try:
             self._proc.wait(5.0)
         except subprocess.TimeoutExpired:
             self._proc.kill()
-        for thread in self._threads:
-            thread.join(2.0)
+        if self._reader is not None:
+            self._reader.join(2.0)
         for connection in (self._inbox, self._outbox):
             if connection is not None:
                 connection.close()
@@ -191,18 +188,21 @@ class ConsoleLink:
         return data[written:]
 
     def on_publish(self, seq: int, state: dict) -> None:
-        """A new state (the tick thread): for the process, and now and then the map with it."""
+        """A new state (the tick thread): for the process, with the map now and then, and before a page asks.
+
+        The map goes first when its layers changed (``map_version``), so that
+        the page, which fetches the map when it sees a new version, gets the new one.
+        """
         block = self._closing  # the final state and map always go
-        self._send(("state", seq, state), block)
         wall = time.monotonic()
-        if wall - self._last_map_wall >= MAP_PERIOD_S:
+        if wall - self._last_map_wall >= MAP_PERIOD_S or state["map_version"] != self._sent_map_version:
             self._last_map_wall = wall
+            self._sent_map_version = state["map_version"]
             self._send(("map", self._map()), block)
+        self._send(("state", seq, state), block)
 
     def _map(self) -> dict:
-        layers = map_layers(self.run, self.world, self.state.frame)
-        layers["trail"] = list(self.state.trail)
-        return layers
+        return {**self.state.layers(), "trail": list(self.state.trail)}
 
     def feed_video(self, run: Any) -> None:
         """While someone watches (the tick thread): the newest camera frame, or the viewer camera's pose."""
@@ -296,7 +296,7 @@ def install_console(prepared: Any) -> ConsoleLink:
     wall = time.monotonic  # the console paces itself for people, in wall time; the run's clock is untouched
     state = ConsoleState(run, prepared.world, wall)
     controls = ConsoleControls(run, wall)
-    link = ConsoleLink(run, prepared.world, state, controls, host, port, VideoConfig())
+    link = ConsoleLink(run, state, controls, host, port, VideoConfig())
     state.on_publish = link.on_publish
     try:
         link.start()

@@ -15,7 +15,6 @@ else the odometry frame. The pose in the state is in that plan too.
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
@@ -159,7 +158,7 @@ class Published:
 
 
 class ConsoleState:
-    """Builds the console's state on the tick thread and hands it to the server (see the module docstring).
+    """Builds the console's state on the tick thread and hands it to ``on_publish`` (the console's link).
 
     ``wall`` is a monotonic wall clock in seconds (the hand-over rate is for
     people, not for the simulation); ``period_s`` the least time between
@@ -177,7 +176,11 @@ class ConsoleState:
         self.on_publish: Optional[Callable[[int, dict], None]] = None
         """Called with each new state (seq, state) on the thread that built it (the console's link)."""
         self.trail: list[list[float]] = []
-        self._cond = threading.Condition()
+        self.map_version = 0
+        """Changes when the map's fixed layers change (the datum became known, the home was set)."""
+        self._map_key: Optional[tuple] = None
+        self._layers: dict = {}
+        self._layers_key: Optional[tuple] = None
         self._published = Published(0, self.build())
         self._last_wall = -math.inf
         self._ticks = 0
@@ -196,12 +199,9 @@ class ConsoleState:
     def publish(self) -> None:
         """Build the state now and hand it over (the tick thread; also for the final state)."""
         state = self.build()
-        with self._cond:
-            self._published = Published(self._published.seq + 1, state)
-            self._cond.notify_all()
-            seq = self._published.seq
+        self._published = Published(self._published.seq + 1, state)
         if self.on_publish is not None:
-            self.on_publish(seq, state)
+            self.on_publish(self._published.seq, state)
 
     def _extend_trail(self) -> None:
         pose = self.frame.pose()
@@ -264,7 +264,7 @@ class ConsoleState:
             "mux_source": run.mux.source,
             "paused_by": "operator" if run.operator_paused else run.paused_by,
             "trail_len": len(self.trail),
-            "map_version": 1 if self.frame.geo is None else 2,
+            "map_version": self._current_map_version(),
         }
         last = getattr(self, "_published", None)
         reset = run.root.status == py_trees.common.Status.INVALID
@@ -278,18 +278,27 @@ class ConsoleState:
                                                                last.state["step"])
         return state
 
-    # -- the server's side -------------------------------------------------------------
-    def latest(self) -> Published:
-        """The last state handed over (any thread)."""
-        with self._cond:
-            return self._published
+    def _current_map_version(self) -> int:
+        key = self._layers_key_now()
+        if key != self._map_key:
+            self._map_key = key
+            self.map_version += 1
+        return self.map_version
 
-    def wait_newer(self, seq: int, timeout_s: float) -> Published:
-        """The first state handed over after ``seq``, or the last one after ``timeout_s`` seconds (any thread)."""
-        with self._cond:
-            if self._published.seq <= seq:
-                self._cond.wait(timeout_s)
-            return self._published
+    def latest(self) -> Published:
+        """The last state handed over."""
+        return self._published
+
+    def _layers_key_now(self) -> tuple:
+        geo = self.frame.geo
+        return (None if geo is None else (geo.lat0_deg, geo.lon0_deg), self.run.home)
+
+    def layers(self) -> dict:
+        """The map's fixed layers (:func:`map_layers`), worked out again only when :attr:`map_version` changes."""
+        key = self._layers_key_now()
+        if key != self._layers_key:
+            self._layers, self._layers_key = map_layers(self.run, self.world, self.frame), key
+        return self._layers
 
 
 def _accuracy_m(fix: GpsFix) -> float:

@@ -33,11 +33,9 @@ import threading
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-import cv2
 import numpy as np
 
-from beastbt.live.video_stream import LatestSlot
-from beastbt.vision.overlay import describe, draw_caption, draw_detection
+from beastbt.live.video_stream import LatestSlot, compose_frame, encode_jpeg
 
 HEADER = struct.Struct("<dII")
 """Frame header: capture wall time (Unix ms, float64), sequence number, JPEG quality."""
@@ -156,24 +154,10 @@ class ConsoleVideo:
         """Scale, draw the overlay and JPEG-encode one frame; then steer the quality toward the budget."""
         image, detection, geometry, lookahead_m, captured = raw
         cfg = self.config
-        h, w = image.shape[:2]
-        size = (cfg.width_px, cfg.height_px)
-        if size != (w, h):
-            out = cv2.resize(image, size, interpolation=cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR)
-        else:
-            out = image.copy()
-        if cfg.overlay:
-            if geometry is not None:
-                draw_detection(out, detection, geometry, lookahead_m)
-            lines = self.caption()
-            if geometry is not None:
-                lines.append(describe(detection))
-            draw_caption(out, lines)
+        out = compose_frame(image, (cfg.width_px, cfg.height_px), self.caption() if cfg.overlay else None,
+                            detection, geometry, lookahead_m)
         quality = self.quality
-        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, quality])
-        if not ok:
-            raise ValueError("cv2.imencode failed")
-        jpeg = buf.tobytes()
+        jpeg = encode_jpeg(out, quality)
         self._steer(len(jpeg))
         self.frames_encoded += 1
         self.bytes_encoded += len(jpeg)

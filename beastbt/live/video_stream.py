@@ -106,6 +106,33 @@ class StreamConfig:
         return dataclass_from_dict(cls, d, "stream")
 
 
+def compose_frame(image: np.ndarray, size: tuple[int, int], caption: Optional[list[str]],
+                  detection: Optional[LineDetection], geometry: Optional[CameraGeometry],
+                  lookahead_m: float) -> np.ndarray:
+    """A camera frame scaled to ``size`` (width, height px) with the overlay: the detected line (when the camera
+    has a detector) and the ``caption`` lines; no overlay when ``caption`` is None. ``image`` is not modified."""
+    h, w = image.shape[:2]
+    if size != (w, h):
+        out = cv2.resize(image, size, interpolation=cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR)
+    else:
+        out = image.copy() if caption is not None else image
+    if caption is not None:
+        lines = list(caption)
+        if geometry is not None:
+            draw_detection(out, detection, geometry, lookahead_m)
+            lines.append(describe(detection))
+        draw_caption(out, lines)
+    return out
+
+
+def encode_jpeg(image: np.ndarray, quality: int) -> bytes:
+    """``image`` as JPEG at ``quality`` (1-100)."""
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError("cv2.imencode failed")
+    return buf.tobytes()
+
+
 class LatestSlot:
     """The newest item and its sequence number, with a condition to wait for a newer one (thread-safe)."""
 
@@ -323,27 +350,15 @@ class VideoStreamServer:
     def encode(self, raw: _Raw) -> bytes:
         """Scale, draw the overlay and JPEG-encode one frame (the encoder thread; /snapshot.jpg)."""
         cfg = self.config
-        image = raw.image
-        h, w = image.shape[:2]
-        size = (cfg.width_px, cfg.height_px) if cfg.width_px else (w, h)
-        if size != (w, h):
-            interp = cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR
-            out = cv2.resize(image, size, interpolation=interp)
-        else:
-            out = image.copy() if cfg.overlay else image
+        h, w = raw.image.shape[:2]
+        caption = None
         if cfg.overlay:
-            if raw.geometry is not None:
-                draw_detection(out, raw.detection, raw.geometry, raw.lookahead_m)
             st = self.status()
             caption = [f"{st.get('mission', '')}  {st.get('status', '')}  t {st.get('time_s', 0.0):.1f} s",
                        f"step: {st.get('step', '-')}"]
-            if raw.geometry is not None:
-                caption.append(describe(raw.detection))
-            draw_caption(out, caption)
-        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(cfg.jpeg_quality)])
-        if not ok:
-            raise ValueError("cv2.imencode failed")
-        return buf.tobytes()
+        out = compose_frame(raw.image, (cfg.width_px, cfg.height_px) if cfg.width_px else (w, h), caption,
+                            raw.detection, raw.geometry, raw.lookahead_m)
+        return encode_jpeg(out, cfg.jpeg_quality)
 
     # -- the handlers' side ----------------------------------------------------------------------
     def _add_client(self, c: ClientStats) -> None:
@@ -532,5 +547,6 @@ def _feeder(run: Any, server: VideoStreamServer, pipeline: Any) -> Callable[[Any
     return feed
 
 
-__all__ = ["VideoStreamServer", "StreamConfig", "LatestSlot", "ClientStats", "parse_endpoint", "parse_size",
+__all__ = ["VideoStreamServer", "StreamConfig", "LatestSlot", "ClientStats", "compose_frame", "encode_jpeg",
+           "parse_endpoint", "parse_size",
            "install_stream", "config_from_options", "BOUNDARY"]

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+from beastbt.core.clock import utc_now
+
 
 
 def save_jpeg(folder: Path, name: str, frame: Any) -> str:
@@ -53,9 +55,13 @@ class RunFolder:
     finishers: list[Callable[[dict], None]] = field(default_factory=list)
 
     @classmethod
-    def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None) -> "RunFolder":
-        """Make ``runs_dir/<UTC time>_[<file>_]<mission>/`` (a suffix keeps two runs in one second apart)."""
-        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None,
+               calendar: Callable[[], _dt.datetime] = utc_now) -> "RunFolder":
+        """Make ``runs_dir/<UTC time>_[<file>_]<mission>/`` (a suffix keeps two runs in one second apart).
+
+        ``calendar`` gives the date and time in the name (UTC).
+        """
+        stamp = calendar().strftime("%Y%m%dT%H%M%SZ")
         safe = _safe(mission)
         stem = _safe(Path(mission_file).stem) if mission_file else safe
         base = Path(runs_dir) / (f"{stamp}_{safe}" if stem == safe else f"{stamp}_{stem}_{safe}")

@@ -13,13 +13,12 @@ import json
 import signal
 import sys
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, TextIO, Union
 
 from beastbt.mission.model import Mission
-from beastbt.core.clock import Clock, SimClock
+from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
 from beastbt.run.run_folder import RunFolder
@@ -147,8 +146,14 @@ def wait_for_tick(run: Any, clock: Any, deadline_s: float) -> None:
         run.react(now)
 
 
-def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
-    """Run the loop until the mission ends (or max time, or Ctrl-C); return the summary."""
+def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = None) -> dict:
+    """Run the loop until the mission ends (or max time, or Ctrl-C); return the summary.
+
+    ``wall`` is the wall clock (s) that paces a simulation at ``--speed realtime``
+    or a factor, throttles the status line and times the run (``wall_time_s``);
+    a new :class:`WallClock` when not given.
+    """
+    wall = wall if wall is not None else WallClock()
     run, clock, opts = p.run, p.clock, p.options
     dt = 1.0 / p.mission.rate_hz
     simulated = isinstance(clock, SimClock)
@@ -156,7 +161,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
     factor = None if opts.speed == "max" else (1.0 if opts.speed == "realtime" else float(opts.speed))
     say_listener = _console_listener(out, opts.status_line)
     p.events.listeners.append(say_listener)
-    wall0 = time.perf_counter()
+    wall0 = wall.now()
     last_status_wall = 0.0
     tty = opts.status_line
     restore_sigterm = _sigterm_as_interrupt()
@@ -181,17 +186,15 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
                 # the robot waits for a person, not the other way round (and max time is not raced to).
                 pace = 1.0 if factor is None and (run.operator_paused or run.operator_driving) else factor
                 if pace != pacing:
-                    pacing, anchor = pace, time.perf_counter() - clock.now() / pace if pace else 0.0
+                    pacing, anchor = pace, wall.now() - clock.now() / pace if pace else 0.0
                 if pace is not None:
-                    delay = anchor + clock.now() / pace - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
+                    wall.sleep_until(anchor + clock.now() / pace)
             else:
                 wait_for_tick(run, clock, run.start_s + run.ticks * dt)
             if tty and terminal is not None:
                 terminal.poll()
             if tty:
-                now_wall = time.perf_counter()
+                now_wall = wall.now()
                 if now_wall - last_status_wall > 0.1:
                     last_status_wall = now_wall
                     out.write(status_line(run))
@@ -216,9 +219,9 @@ def execute(p: Prepared, out: TextIO = sys.stdout) -> dict:
         run.io.close()
         if tty:
             out.write(CLEAR_LINE)
-    wall = time.perf_counter() - wall0
+    wall_time_s = wall.now() - wall0
     world_name = p.world.name if p.world is not None else None
-    summary = build_summary(run, opts.seed, wall, world_name, p.profile.name)
+    summary = build_summary(run, opts.seed, wall_time_s, world_name, p.profile.name)
     if opts.summary_path:
         Path(opts.summary_path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     if p.folder is not None:
