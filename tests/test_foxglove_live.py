@@ -166,7 +166,7 @@ def test_the_sdk_log_limiter_caps_lines_over_all_clients_and_makes_text_safe_for
     lines: list[str] = []
     limiter = SdkLogLimiter(write=lines.append, clock=lambda: 0.0, window_s=10.0, per_client=2, total=6,
                             timer=False)
-    limiter_records(limiter, ["Invalid message from 127.0.0.1:1: unknown variant `\x1b[2J" + "x" * 10_000 + "`"])
+    limiter_records(limiter, ["Invalid message from 127.0.0.1:1: unknown variant `\x1b[2J" + "x" * 5_000_000 + "`"])
     limiter_records(limiter, [f"Invalid message from 127.0.0.1:{1000 + i}: expected value" for i in range(500)])
     assert len(lines) == 6 and "\\x1b[2Jxxx" in lines[0]  # the escape shown as text, not obeyed
     limiter.close()

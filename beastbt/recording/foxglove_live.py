@@ -70,6 +70,9 @@ class SdkLogLimiter(logging.Handler):
     :meth:`close` (tests).
     """
 
+    MAX_TEXT_CHARS = 1000
+    """The start of a record's text that is looked at and kept (characters)."""
+
     MAX_GROUPS = 1000
     """Distinct (client, kind) groups counted per window; more are counted together (bounds memory)."""
 
@@ -97,6 +100,9 @@ class SdkLogLimiter(logging.Handler):
             text = record.getMessage()
         except Exception:  # a record the SDK formatted badly: say that much, not a traceback
             text = f"{record.msg!r}"
+        # A client's text can be echoed in the record (an unknown op's name, up to the SDK's 16 MB message
+        # limit): keep only its start, so neither the regular expressions nor the counts grow with it.
+        text = text[:self.MAX_TEXT_CHARS]
         match = _CLIENT.search(text)
         client = match.group() if match else ""
         kind = _NUMBER.sub("N", _QUOTED.sub("`...`", text.replace(client, "CLIENT") if client else text))[:120]
