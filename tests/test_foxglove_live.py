@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import socket
 import struct
 import subprocess
@@ -20,6 +21,7 @@ import time
 import jsonschema
 import pytest
 
+from beastbt.recording.foxglove_live import SdkLogLimiter
 from beastbt.recording.reader import read_recording
 from beastbt.recording.schemas import CHANNELS, schema_bytes
 from conftest import REPO
@@ -126,3 +128,123 @@ def test_the_option_takes_host_and_port():
     bad = subprocess.run([sys.executable, "-m", "beastbt", "run", str(REPO / "missions" / "patrol.yaml"),
                           "--foxglove", "localhost:notaport"], capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "--foxglove takes [HOST:]PORT" in bad.stderr
+
+
+# -- hostile clients: the run's terminal is not flooded, the run goes on ------------------------------------
+
+
+def limiter_records(limiter, texts):
+    for text in texts:
+        limiter.handle(logging.LogRecord("foxglove.websocket.connected_client", logging.ERROR, __file__, 1,
+                                         text, None, None))
+
+
+def test_the_sdk_log_limiter_shows_the_first_of_a_kind_and_counts_the_rest():
+    lines: list[str] = []
+    now = [0.0]
+    limiter = SdkLogLimiter(write=lines.append, clock=lambda: now[0], window_s=10.0, per_client=2, total=6,
+                            timer=False)
+    unknown = [f"Client 127.0.0.1:5000 attempted to subscribe to unknown channel: {100000 + i}" for i in range(5000)]
+    limiter_records(limiter, unknown)
+    assert lines == ["beastbt: foxglove: Client 127.0.0.1:5000 attempted to subscribe to unknown channel: 100000"]
+    # A second kind from the same client is shown; a third is over the client's two lines.
+    limiter_records(limiter, ["Invalid message from 127.0.0.1:5000: expected value at line 1 column 1",
+                              "Error receiving from client 127.0.0.1:5000: Message too long"])
+    assert len(lines) == 2 and "expected value" in lines[1]
+    # The window ends: the next record says what was held back, in one line, then is shown itself.
+    now[0] = 10.5
+    limiter_records(limiter, unknown[:1])
+    assert len(lines) == 4
+    assert "5,000 more messages" in lines[2] and "4,999 from 127.0.0.1:5000" in lines[2], lines[2]
+    assert "unknown channel: 104999" in lines[2] and "Message too long" in lines[2]
+    assert lines[3].endswith("unknown channel: 100000")
+    limiter.close()  # nothing more held back: nothing more said
+    assert len(lines) == 4
+
+
+def test_the_sdk_log_limiter_caps_lines_over_all_clients_and_makes_text_safe_for_a_terminal():
+    lines: list[str] = []
+    limiter = SdkLogLimiter(write=lines.append, clock=lambda: 0.0, window_s=10.0, per_client=2, total=6,
+                            timer=False)
+    limiter_records(limiter, ["Invalid message from 127.0.0.1:1: unknown variant `\x1b[2J" + "x" * 5_000_000 + "`"])
+    limiter_records(limiter, [f"Invalid message from 127.0.0.1:{1000 + i}: expected value" for i in range(500)])
+    assert len(lines) == 6 and "\\x1b[2Jxxx" in lines[0]  # the escape shown as text, not obeyed
+    limiter.close()
+    assert len(lines) == 7 and "495 more" in lines[6] and "from 495 client(s) in all" in lines[6], lines[6]
+    assert all("\x1b" not in line and "\n" not in line and len(line) < 1000 for line in lines)
+
+
+def test_the_sdk_log_limiter_says_the_summary_on_its_own_when_the_window_ends():
+    lines: list[str] = []
+    limiter = SdkLogLimiter(write=lines.append, window_s=0.2)
+    limiter_records(limiter, [f"Client 127.0.0.1:5 attempted to subscribe to unknown channel: {i}" for i in range(50)])
+    deadline = time.monotonic() + 5.0
+    while len(lines) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert len(lines) == 2 and "49 more messages" in lines[1]
+    limiter.close()
+    assert len(lines) == 2
+
+
+async def hostile_then_good_client(port: int) -> int:
+    """Flood the server with faults from a few clients, then count the /cmd/gate messages a good client gets."""
+    async def connect():
+        deadline = time.monotonic() + 30.0
+        while True:
+            try:
+                return await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"],
+                                                max_size=None)
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                await asyncio.sleep(0.1)
+
+    bad = await connect()
+    await bad.send(json.dumps({"op": "subscribe",
+                               "subscriptions": [{"id": i, "channelId": 100_000 + i} for i in range(5000)]}))
+    for i in range(300):
+        await bad.send("{not json" + str(i))
+        await bad.send(json.dumps({"op": f"frob\x1b[2J{i}"}))
+    others = [await connect() for _ in range(20)]
+    for other in others:
+        await other.send(json.dumps({"op": "unsubscribe", "subscriptionIds": list(range(100))}))
+        await other.send("[]")
+    for ws in [bad, *others]:
+        await ws.close()
+    async with await connect() as good:
+        channels: dict = {}
+        while not channels:
+            op = json.loads(await asyncio.wait_for(good.recv(), 10.0))
+            if op["op"] == "advertise":
+                channels = {c["topic"]: c for c in op["channels"]}
+        await good.send(json.dumps({"op": "subscribe",
+                                    "subscriptions": [{"id": 7, "channelId": channels["/cmd/gate"]["id"]}]}))
+        count = 0
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end:
+            try:
+                frame = await asyncio.wait_for(good.recv(), 0.5)
+            except asyncio.TimeoutError:
+                continue
+            count += isinstance(frame, bytes) and frame[0] == 1
+        return count
+
+
+def test_hostile_clients_do_not_flood_the_terminal_and_the_run_goes_on(tmp_path):
+    port = free_port()
+    record = tmp_path / "live.mcap"
+    run = subprocess.Popen([sys.executable, "-m", "beastbt", "run", str(REPO / "missions" / "patrol.yaml"),
+                            "--speed", "realtime", "--max-time", "7 s", "--no-record", "--record", str(record),
+                            "--foxglove", str(port)], cwd=tmp_path, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        gate_messages = asyncio.run(hostile_then_good_client(port))
+    finally:
+        out, err = run.communicate(timeout=60)
+    assert run.returncode == 1, err  # stopped by --max-time, as without the clients
+    assert gate_messages > 20  # the server still serves (20 Hz for 2 s)
+    said = [line for line in err.splitlines() if line.startswith("beastbt: foxglove:")]
+    assert len(err.splitlines()) <= 8 and len(said) <= 7, err
+    assert "\x1b" not in err
+    assert any("5," in line and "more messages" in line for line in said), err  # the rest counted, said once
+    assert read_recording(record).complete

@@ -7,6 +7,8 @@ the way it talks to pyserial on the robot.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from functools import reduce
 from pathlib import Path
 
@@ -237,6 +239,55 @@ def test_position_sentences_can_be_limited_to_gga():
 
 
 # --- covariance ----------------------------------------------------------------------------------
+
+def test_an_epoch_without_its_gga_carries_nothing_from_an_earlier_one(rig):
+    """The live path: what the estimator gets for an RMC whose GGA was lost has unknown sats, HDOP and quality."""
+    from beastbt.estimation.gps_epochs import EpochFilter
+
+    clock, port, events, gps = rig
+    epochs = EpochFilter()
+    gsa = nmea("GPGSA,A,3,20,16,09,03,05,06,07,08,10,11,,,1.60,0.98,1.30")
+    send(port, GGA, gsa, RMC)  # 20:26:40: a whole epoch (DGPS, 10 satellites, HDOP 0.98)
+    (whole,) = epochs(gps.poll())
+    assert (whole.sentence, whole.quality, whole.sats, whole.hdop) == ("RMC", 2, 10, 0.98)
+    clock.advance(1.0)
+    # 20:26:41: the GGA (and its GSA) lost on the wire; the RMC alone, mode letter A (autonomous GPS).
+    send(port, nmea("GPRMC,202641.000,A,4404.1310,N,12118.8510,W,0.03,225.97,130415,,,A"))
+    (alone,) = epochs(gps.poll())
+    assert alone.time_utc == "2015-04-13T20:26:41.000Z"
+    assert (alone.quality, alone.sats, alone.hdop, alone.alt_msl) == (1, None, None, None)
+    # The EKF gates and weighs it with the HDOP assumed when unknown (2.0) and GPS's base error, not DGPS's 0.98.
+    assert alone.covariance_enu == gps.covariance(1, None)
+    assert alone.covariance_enu[0][0] == pytest.approx((2.0 * 4.0) ** 2)
+    assert gps.latest_fix is alone
+    clock.advance(1.0)
+    send(port, nmea("GPGGA,202642.000,4404.1306,N,12118.8515,W,1,07,1.40,1127.7,M,-19.6,M,,"))
+    fixes = gps.poll()
+    assert (fixes[-1].sats, fixes[-1].hdop) == (7, 1.4)  # the next epoch's own
+
+
+def test_the_same_epoch_written_with_other_decimals_is_one_epoch(rig):
+    clock, port, events, gps = rig
+    gps.feed_line(nmea("GPGGA,202640.00,4404.1306,N,12118.8515,W,2,10,0.98,1127.7,M,-19.6,M,,"), 0.0)
+    rmc = gps.feed_line(RMC, 0.0)  # 202640.000
+    assert (rmc.sats, rmc.hdop, rmc.quality, rmc.alt_msl) == (10, 0.98, 2, 1127.7)
+
+
+def test_gps_decode_prints_null_sats_and_hdop_for_an_rmc_alone(tmp_path):
+    log = tmp_path / "lost_gga.log"
+    log.write_text("\n".join([
+        "# an MTK epoch, then one whose GGA and GSA were lost",
+        GGA, nmea("GPGSA,A,3,20,16,09,03,05,06,07,08,10,11,,,1.60,0.98,1.30"), RMC,
+        nmea("GPRMC,202641.000,A,4404.1310,N,12118.8510,W,0.03,225.97,130415,,,D"),
+    ]) + "\n")
+    out = subprocess.run([sys.executable, "-m", "beastbt", "gps", "decode", str(log)], capture_output=True,
+                         text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    records = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [(r["sentence"], r["sats"], r["hdop"]) for r in records] == [
+        ("GGA", 10, 0.98), ("RMC", 10, 0.98), ("RMC", None, None)]
+    assert records[2]["quality"] == 2  # its own mode letter D
+
 
 @pytest.mark.parametrize("quality,base", [(1, 4.0), (2, 0.1), (4, 0.02), (5, 4.0), (9, 3.0), (6, 10.0), (3, 10.0)])
 def test_covariance_is_hdop_times_base_error(quality, base):

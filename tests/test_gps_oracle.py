@@ -307,3 +307,62 @@ def test_fuzzy_cases_exact():
             assert math.isclose(r["track_deg"], float(f[8]))
     times = [r["time"] for r in records if r["time"]]
     assert "2020-03-18T13:28:20.600Z" in times and "2020-03-18T13:28:29.900Z" in times
+
+
+def epochs_with_gga_fix(name: str) -> set[str]:
+    """Times of day (hh:mm:ss.sss, as in the records) of the epochs whose GGA claims a fix."""
+    out = set()
+    for s in fix_sentences_in_log(name):
+        if s[3:6] == "GGA":
+            t = s.split(",")[1]
+            out.add(f"{t[0:2]}:{t[2:4]}:{t[4:6]}.{(t[7:] + '000')[:3]}Z")
+    return out
+
+
+@pytest.mark.parametrize("name", CAPTURES)
+def test_an_epoch_without_its_gga_has_no_sats_or_hdop_as_in_gpsd(name):
+    """An RMC whose epoch had no GGA carries sats and HDOP unknown, never another epoch's (gpsd: no DOP error)."""
+    records, _ = decode(name)
+    tpvs, _ = read_chk(name)
+    with_gga = epochs_with_gga_fix(name)
+    alone = [d for d in records if d["sentence"] == "RMC" and d["time"] is not None and tod(d["time"]) not in with_gga]
+    for d in alone:
+        assert d["sats"] is None and d["hdop"] is None and d["alt_msl"] is None, (name, d)
+        for g in candidates(d, tpvs):
+            if consistent(d, g):
+                # gpsd has no HDOP for it either: no error estimate, and a 2D fix (no altitude).
+                assert "eph" not in g and "epx" not in g and g["mode"] == 2, (name, g)
+    if name == "mtk-3329.log":  # the log starts with the RMC of an epoch whose GGA came before it
+        assert [d["time"] for d in alone] == ["2011-02-21T10:21:27.000Z"]
+    # An RMC after its epoch's GGA (MTK's order) has the GGA's; one before it (u-blox: RMC first) has none yet.
+    gga_seen: set[str] = set()
+    after_gga = []
+    for s in fix_sentences_in_log(name):
+        if s[3:6] == "GGA":
+            gga_seen.add(s.split(",")[1])
+        elif s[3:6] == "RMC":
+            after_gga.append(s.split(",")[1] in gga_seen)
+    rmc = [d for d in records if d["sentence"] == "RMC"]
+    for d, after in zip(rmc, after_gga, strict=True):
+        assert (d["hdop"] is not None and d["sats"] is not None) == after, (name, d)
+
+
+def test_a_lost_gga_mid_capture_leaves_its_epoch_without_sats_and_hdop(tmp_path):
+    """mt3339 with one GGA taken out: that epoch's RMC says sats and HDOP unknown, not the previous epoch's."""
+    lines = (DATA / "mt3339.log").read_bytes().split(b"\n")
+    ggas = [i for i, raw in enumerate(lines) if raw.startswith(b"$GPGGA") and _says_fix(raw.decode().strip())]
+    cut = ggas[len(ggas) // 2]
+    lost_tod = lines[cut].decode().split(",")[1]
+    cut_log = tmp_path / "cut.log"
+    cut_log.write_bytes(b"\n".join(lines[:cut] + lines[cut + 1:]))
+    out, err = io.StringIO(), io.StringIO()
+    assert decode_file(str(cut_log), out, err) == 0
+    records = [json.loads(line) for line in out.getvalue().splitlines()]
+    lost = f"{lost_tod[0:2]}:{lost_tod[2:4]}:{lost_tod[4:6]}.{(lost_tod[7:] + '000')[:3]}Z"
+    (rmc,) = [d for d in records if d["sentence"] == "RMC" and tod(d["time"]) == lost]
+    before = [d for d in records if d["sentence"] == "GGA" and d["time"] is not None and tod(d["time"]) < lost]
+    assert before and before[-1]["sats"] is not None  # an earlier epoch had them: they are not carried over
+    assert rmc["sats"] is None and rmc["hdop"] is None and rmc["alt_msl"] is None
+    # The next epoch has its GGA again, and its values.
+    after = [d for d in records if d["sentence"] == "GGA" and d["time"] is not None and tod(d["time"]) > lost]
+    assert after and after[0]["sats"] is not None and after[0]["hdop"] is not None

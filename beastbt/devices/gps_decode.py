@@ -21,7 +21,9 @@ def fix_to_record(fix: GpsFix) -> dict[str, Any]:
 
     ``time`` ISO 8601 UTC (null while the date is unknown), ``lat``/``lon``
     decimal degrees, ``alt_msl`` metres (GGA only), ``speed_mps`` and
-    ``track_deg`` (degrees clockwise from true north; RMC only).
+    ``track_deg`` (degrees clockwise from true north; RMC only). ``sats``
+    and ``hdop`` are those of the fix's own epoch: null for an RMC whose
+    epoch had no GGA (or none yet), never an earlier epoch's.
     """
     return {
         "sentence": fix.sentence,

@@ -334,12 +334,22 @@ class GpsStats:
 
 @dataclass
 class _EpochData:
-    """What the receiver said so far about one measurement epoch (one time of day)."""
+    """What the receiver said so far about one measurement epoch (one time of day).
 
-    tod: Optional[str] = None
+    Quality, satellites and HDOP live here, not in the driver: a fix carries
+    only what its own epoch said. An epoch whose GGA was lost (an RMC alone)
+    has them unknown (None; the quality then from RMC's mode letter), never
+    those of an earlier epoch's GGA, which could be minutes old (gpsd, too,
+    reports such an epoch without DOPs or an error estimate).
+    """
+
+    tod: Optional[tuple[int, int, Decimal]] = None
     alt_msl: Optional[float] = None
     speed_mps: Optional[float] = None
     track_deg: Optional[float] = None
+    gga_quality: Optional[int] = None
+    sats: Optional[int] = None
+    hdop: Optional[float] = None
 
 
 class _RejectEvents:
@@ -410,9 +420,6 @@ class NmeaGps:
         self._date: Optional[_dt.date] = None
         self._date_tod_s = 0.0
         self._epoch = _EpochData()
-        self._last_gga_quality: Optional[int] = None
-        self._hdop: Optional[float] = None
-        self._sats: Optional[int] = None
         self._pending: dict[str, float] = {}
         self._configure_requested = False
         self._positions = frozenset(s.upper() for s in self.config.position_sentences)
@@ -662,8 +669,17 @@ class NmeaGps:
 
     # --- time and epochs ----------------------------------------------------------------------
     def _start_epoch(self, tod: str) -> None:
-        if tod and tod != self._epoch.tod:
-            self._epoch = _EpochData(tod=tod)
+        """A sentence with time of day ``tod`` (``''``: none): a new epoch when the time differs."""
+        if not tod:
+            return
+        key = parse_time_of_day(tod)  # "102127.000" and "102127.00" are the same epoch
+        if key == self._epoch.tod:
+            return
+        if self._epoch.tod is None:
+            # DOPs a GSA gave before any timed sentence (the driver's first epoch) belong to this one.
+            self._epoch = _EpochData(tod=key, hdop=self._epoch.hdop)
+        else:
+            self._epoch = _EpochData(tod=key)
 
     def _utc(self, tod: str) -> Optional[str]:
         """ISO time for a time of day, using the tracked date (None while the date is unknown)."""
@@ -699,18 +715,17 @@ class NmeaGps:
         hdop = _number(_field(data, 7))
         alt = _number(_field(data, 8))
         self._start_epoch(tod)
-        self._last_gga_quality = quality
+        self._epoch.gga_quality = quality
         if quality == 0:
             return self._no_fix("GGA", stamp_s)
         if sats is not None:
-            self._sats = sats
+            self._epoch.sats = sats
         if hdop is not None:
-            self._hdop = hdop
+            self._epoch.hdop = hdop
         lat = parse_coordinate(_field(data, 1), _field(data, 2), is_latitude=True)
         lon = parse_coordinate(_field(data, 3), _field(data, 4), is_latitude=False)
         self._epoch.alt_msl = alt
-        return self._fix("GGA", stamp_s, lat, lon, tod, quality, alt_msl=alt, sats=sats,
-                         hdop=hdop if hdop is not None else self._hdop)
+        return self._fix("GGA", stamp_s, lat, lon, tod, quality, alt_msl=alt)
 
     def _on_rmc(self, data: list[str], stamp_s: float) -> Optional[GpsFix]:
         tod, status = _field(data, 0), _field(data, 1).upper()
@@ -753,7 +768,8 @@ class NmeaGps:
         fix_type = _field(data, 1)
         hdop = _number(_field(data, 15))
         if fix_type in ("2", "3") and hdop is not None:
-            self._hdop = hdop
+            # GSA has no time: it belongs to the epoch in progress (after that epoch's GGA on MTK and u-blox).
+            self._epoch.hdop = hdop
 
     def _on_vtg(self, data: list[str], stamp_s: float) -> None:
         mode = _field(data, 8).upper()
@@ -779,9 +795,9 @@ class NmeaGps:
 
     # --- fixes --------------------------------------------------------------------------------
     def _carried_quality(self, mode: str) -> int:
-        # RMC/GLL carry no quality: the latest GGA's, else what the mode letter implies, else GPS.
-        if self._last_gga_quality:
-            return self._last_gga_quality
+        # RMC/GLL carry no quality: their epoch's GGA's, else what the mode letter implies, else GPS.
+        if self._epoch.gga_quality:
+            return self._epoch.gga_quality
         return _RMC_MODE_QUALITY.get(mode, 1)
 
     def covariance(self, quality: int, hdop: Optional[float]) -> tuple[tuple[float, float, float], ...]:
@@ -799,12 +815,10 @@ class NmeaGps:
         return ((var_h, 0.0, 0.0), (0.0, var_h, 0.0), (0.0, 0.0, var_v))
 
     def _fix(self, sentence: str, stamp_s: float, lat: float, lon: float, tod: str, quality: int, *,
-             alt_msl: Optional[float] = None, sats: Optional[int] = None, hdop: Optional[float] = None,
-             speed_mps: Optional[float] = None, track_deg: Optional[float] = None) -> Optional[GpsFix]:
-        if sats is None:
-            sats = self._sats
-        if hdop is None:
-            hdop = self._hdop
+             alt_msl: Optional[float] = None, speed_mps: Optional[float] = None,
+             track_deg: Optional[float] = None) -> Optional[GpsFix]:
+        # Satellites and HDOP of this fix's own epoch only (None when the epoch gave none).
+        sats, hdop = self._epoch.sats, self._epoch.hdop
         fix = GpsFix(
             stamp_s=stamp_s, lat=lat, lon=lon, alt_msl=alt_msl, quality=quality, sats=sats, hdop=hdop,
             speed_mps=speed_mps, track_deg=track_deg, time_utc=self._utc(tod), sentence=sentence,
