@@ -338,3 +338,15 @@ def test_the_stream_server_refuses_other_hosts_and_pages_and_sends_no_referrer()
         assert get("/snapshot.jpg", Origin=f"http://127.0.0.1:{server.port}")[0] == 200
     finally:
         server.close()
+
+
+def test_a_link_from_another_page_may_open_the_console_but_not_act(standing):
+    run = standing
+    status, _, page = request(run, "GET", "/", None, {"Sec-Fetch-Site": "cross-site", "Sec-Fetch-Mode": "navigate"})
+    assert status == 200 and "E-STOP" in page  # a navigation: the other page cannot read what it opened
+    upgrade = {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Version": "13",
+               "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ==", "Sec-Fetch-Site": "cross-site"}
+    assert request(run, "GET", "/api/ws", None, upgrade)[0] == 403
+    assert request(run, "GET", "/api/ws", None, {**upgrade, "Sec-Fetch-Site": "same-origin"})[0] == 101
+    assert post(run, "/api/pause", {}, Sec_Fetch_Site="same-site")[0] == 403
+    untouched(run)

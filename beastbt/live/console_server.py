@@ -245,7 +245,9 @@ class ConsoleServer:
             return _error(403, f"a request from the page '{origin[:80]}' is refused: only the console's own page "
                                f"(or a client with the token) may use it")
         site = request.headers.get("Sec-Fetch-Site", "")
-        if site in ("cross-site", "same-site"):
+        acts = request.method not in ("GET", "HEAD") or request.headers.get("Upgrade", "").lower() == "websocket"
+        # a plain GET from another page (a link to the console, a bookmark page) may load it: it cannot read it
+        if acts and site in ("cross-site", "same-site"):
             return _error(403, f"a request from another page ({site}) is refused: only the console's own page "
                                f"(or a client with the token) may use it")
         if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type != "application/json":
