@@ -101,7 +101,7 @@ def host_allowed(header: Optional[str], bound_host: str) -> bool:
 
 def host_on_network(header: Optional[str]) -> bool:
     """For a server bound off loopback without a token (``--stream 0.0.0.0:PORT``): ``Host`` is an IP address,
-    ``localhost`` or this computer's own name (``beastbot``, ``beastbot.local``, its FQDN).
+    ``localhost`` or this computer's own name (``beastbot``, ``beastbot.local``).
 
     A rebinding page shows its own DNS name, which is none of these. No ``Host`` at all is accepted, as by
     :func:`host_allowed`.
@@ -116,9 +116,8 @@ def host_on_network(header: Optional[str]) -> bool:
         return True
     except ValueError:
         pass
-    own = {socket.gethostname().lower()}
-    own |= {n + ".local" for n in own} | {socket.getfqdn().lower()}
-    return name in LOOPBACK_NAMES or name in own
+    own = socket.gethostname().lower()  # no DNS lookup here (getfqdn could wait seconds on a robot offline)
+    return name in LOOPBACK_NAMES or name in (own, own.split(".")[0], own.split(".")[0] + ".local")
 
 
 def same_origin(origin: Optional[str], host_header: Optional[str]) -> bool:
