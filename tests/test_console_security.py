@@ -104,7 +104,8 @@ def console(tmp_path: Path):
 def test_the_host_and_origin_checks_accept_this_computer_and_nothing_else():
     for header in ("localhost", "localhost:8080", "LOCALHOST:1", "127.0.0.1:8080", "[::1]:8080", "[::1]", None):
         assert host_allowed(header, "127.0.0.1"), header
-    assert host_allowed("127.0.0.2:80", "127.0.0.2") and not host_allowed("127.0.0.2:80", "127.0.0.1")
+    assert host_allowed("127.0.0.2:80", "127.0.0.2") and host_allowed("127.0.0.2:80", "127.0.0.1")
+    assert host_allowed("robot.lan:80", "robot.lan") and not host_allowed("robot.lan:80", "127.0.0.1")
     for header in ("evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io:80", "",
                    "127.0.0.1:99999", "user@127.0.0.1", "127.0.0.1/x", "[::1"):
         assert not host_allowed(header, "127.0.0.1"), header

@@ -86,7 +86,8 @@ def host_name(header: Optional[str]) -> Optional[str]:
 def host_allowed(header: Optional[str], bound_host: str) -> bool:
     """Whether a ``Host`` header names this server bound on loopback at ``bound_host`` (any port: a tunnel's differs).
 
-    Accepted: ``localhost``, ``127.0.0.1``, ``[::1]`` and the bound address itself. Any other name is a page
+    Accepted: ``localhost``, ``127.0.0.1``, ``[::1]`` (any loopback address written out) and the bound address
+    itself. Any other name is a page
     that reached us through DNS rebinding (or a misdirected request). No ``Host`` at all (``None``: an
     HTTP/1.0 client) is accepted: every browser sends one, so it is never a page.
     """
@@ -96,7 +97,15 @@ def host_allowed(header: Optional[str], bound_host: str) -> bool:
     if name is None:
         return False
     bound = bound_host.strip("[]").lower()
-    return name in LOOPBACK_NAMES or name == bound
+    return name in LOOPBACK_NAMES or name == bound or _loopback_literal(name)
+
+
+def _loopback_literal(name: str) -> bool:
+    """An IP address in 127.0.0.0/8 or ::1 written out (no DNS name: nothing to rebind)."""
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
 
 
 def host_on_network(header: Optional[str]) -> bool:
