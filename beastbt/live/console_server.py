@@ -231,8 +231,10 @@ class ConsoleServer:
         """The answer to a request the console must not serve (see the module docstring), or None."""
         host = request.headers.get("Host")
         if not self.needs_token and not host_allowed(host, self.host):
-            shown = (host or "")[:80]
-            return _error(403, f"this console answers to localhost, 127.0.0.1 or [::1] only, not Host '{shown}': "
+            shown, bound = (host or "")[:80], ("" if self.host in ("127.0.0.1", "localhost", "::1") else
+                                               f", {self.host}")
+            return _error(403, f"this console answers to localhost, 127.0.0.1 or [::1]{bound} only, not Host "
+                               f"'{shown}': "
                                f"a page that reaches it under another name (DNS rebinding) may not use it; behind "
                                f"a proxy or a tunnel with another name, run with --console-token always")
         if self.needs_token and not self._has_token(request):
