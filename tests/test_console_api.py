@@ -126,7 +126,7 @@ def test_abort_ends_the_run_as_aborted_with_a_summary_and_a_recording(console, t
     async def abort_and_watch() -> dict:
         async with aiohttp.ClientSession() as session:
             async with session.ws_connect(run.base + "/api/ws") as ws:
-                async with session.post(run.base + "/api/abort") as r:
+                async with session.post(run.base + "/api/abort", json={}) as r:
                     assert r.status == 200 and (await r.json())["status"] == "aborted"
                 last = None
                 async for msg in ws:
@@ -188,7 +188,7 @@ def test_a_stalled_viewer_slows_neither_the_mission_nor_another_viewer(console):
     run = console(WAIT, "--speed", "realtime")
     stalled = socket.create_connection(("127.0.0.1", run.port))
     stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    stalled.sendall(b"GET /api/video HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+    stalled.sendall(b"GET /api/video HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
                     b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
     try:
         async def watch(seconds: float) -> tuple[int, int]:

@@ -24,13 +24,17 @@ if os.environ.get("BEASTBT_REQUIRE_BROWSER"):  # CI installs both: there a missi
 else:
     playwright_api = pytest.importorskip("playwright.sync_api")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (.ci/run installs Debian's)")
+REBOUND = "MAP evil.test 127.0.0.1"
+"""Chromium's resolver rule for the rebinding test: the name evil.test is 127.0.0.1."""
 
 
 
 @pytest.fixture(scope="module")
 def browser():
     with playwright_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        # evil.test resolves to this computer: a DNS-rebinding page, without a DNS server (still loopback only)
+        b = pw.chromium.launch(executable_path=CHROMIUM, args=[*CHROMIUM_ARGS, f"--host-resolver-rules={REBOUND}"],
+                               headless=True)
         yield b
         b.close()
 
@@ -228,3 +232,149 @@ def test_a_tree_of_hundreds_of_nodes_scrolls_and_keeps_the_running_step_in_view(
     assert in_view is True
     page.get_by_role("button", name="fold done").click()
     shots(page, "tree_220")
+
+
+EVIL_PAGE = """<!doctype html><html><body><h1>cat pictures</h1>
+<iframe name="sink" style="display:none"></iframe>
+<form id="form" method="POST" target="sink" enctype="text/plain" action="__CONSOLE__/api/estop">
+  <input name='{"x":"' value='"}'></form>
+<script>
+const CONSOLE = "__CONSOLE__";
+const stick = JSON.stringify({linear: 1.0, angular: 0.0, deadman: true});
+window.results = {read: [], answered: 0, ws: [], done: false};
+async function attempt(what, promise) {
+  try { const r = await promise; window.results.answered++;
+        if (r.type !== "opaque") window.results.read.push(what + ": " + r.status + " " + (await r.text()).slice(0, 80));
+  } catch (e) { /* refused by the browser or the console: nothing read */ }
+}
+async function attack() {
+  for (let i = 0; i < 10; i++) {  // a stick held for 1 s, every way a page can send one
+    await Promise.all([
+      attempt("text/plain teleop", fetch(CONSOLE + "/api/teleop", {method: "POST", mode: "no-cors", body: stick,
+                                                                 headers: {"Content-Type": "text/plain"}})),
+      attempt("no-cors json teleop", fetch(CONSOLE + "/api/teleop", {method: "POST", mode: "no-cors", body: stick,
+                                                                   headers: {"Content-Type": "application/json"}})),
+      attempt("cors json teleop", fetch(CONSOLE + "/api/teleop", {method: "POST", mode: "cors", body: stick,
+                                                                headers: {"Content-Type": "application/json"}})),
+      attempt("credentials teleop", fetch(CONSOLE + "/api/teleop", {method: "POST", mode: "no-cors", body: stick,
+                                                                  credentials: "include"})),
+    ]);
+    await new Promise((ok) => setTimeout(ok, 100));
+  }
+  for (const path of ["/api/pause", "/api/abort", "/api/estop"]) {
+    await attempt("text/plain " + path, fetch(CONSOLE + path, {method: "POST", mode: "no-cors", body: "{}"}));
+    await attempt("cors json " + path, fetch(CONSOLE + path, {method: "POST", body: "{}",
+                                                             headers: {"Content-Type": "application/json"}}));
+    navigator.sendBeacon(CONSOLE + path, new Blob(["{}"], {type: "text/plain"}));
+  }
+  await attempt("read state", fetch(CONSOLE + "/api/state"));
+  await attempt("read map", fetch(CONSOLE + "/api/map", {credentials: "include"}));
+  document.getElementById("form").submit();
+  for (const path of ["/api/ws", "/api/video"]) {
+    await new Promise((done) => {
+      const ws = new WebSocket(CONSOLE.replace("http", "ws") + path);
+      ws.onmessage = (ev) => window.results.ws.push(path + ": " + String(ev.data).slice(0, 80));
+      ws.onerror = ws.onclose = () => done();
+      setTimeout(done, 3000);
+    });
+  }
+  window.results.done = true;
+}
+attack();
+</script></body></html>"""
+"""A page on another origin that tries every way a page can reach the console: simple and preflighted POSTs,
+a beacon, a text/plain form, reads of the state and the map, both WebSockets."""
+
+
+class EvilSite:
+    """A second web server on loopback (another port: another origin) serving :data:`EVIL_PAGE` against a console."""
+
+    def __init__(self, console_origin: str) -> None:
+        import http.server
+        import threading
+        page = EVIL_PAGE.replace("__CONSOLE__", console_origin).encode()
+
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def do_GET(self) -> None:  # noqa: N802 - the stdlib's name
+                self.send_response(200)
+                self.send_header("Content-Type", "text/html; charset=utf-8")
+                self.send_header("Content-Length", str(len(page)))
+                self.end_headers()
+                self.wfile.write(page)
+
+            def log_message(self, *args) -> None:
+                pass
+
+        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.port = self.httpd.server_address[1]
+        threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
+
+    def close(self) -> None:
+        """Stop serving."""
+        self.httpd.shutdown()
+        self.httpd.server_close()
+
+
+def test_a_page_on_another_origin_can_neither_command_nor_read_and_the_own_page_still_estops(browser, run_console):
+    run = run_console(WAIT, "--speed", "realtime")
+    start = run.wait_state(lambda s: s["pose"] is not None, 10)
+    evil_sites = [EvilSite(f"http://127.0.0.1:{run.port}"), EvilSite(f"http://localhost:{run.port}")]
+    try:
+        # 127.0.0.1:P2 -> 127.0.0.1:P is same-site (the cookie would go), cross-origin; localhost:P2 -> localhost:P
+        # too; localhost:P2 -> 127.0.0.1:P is cross-site
+        pages = []
+        for site, name in ((evil_sites[0], "127.0.0.1"), (evil_sites[0], "localhost"), (evil_sites[1], "localhost")):
+            page = browser.new_page()
+            page.goto(f"http://{name}:{site.port}/")
+            pages.append(page)
+        for page in pages:
+            page.wait_for_function("window.results && window.results.done", timeout=30000)
+            results = page.evaluate("window.results")
+            assert results["read"] == [] and results["ws"] == [], results
+        assert run.proc.poll() is None, "the run ended: a page on another origin aborted or e-stopped it"
+        state = run.state()
+        assert state["status"] == "running" and state["estop"] is False and not state["teleop"]
+        assert state["speed_mps"] == 0.0 and state["pose"] == start["pose"]  # never moved, never paused
+        # a rebinding page: its own origin, the console's address under its name
+        rebound = browser.new_page()
+        response = rebound.goto(f"http://evil.test:{run.port}/api/state")
+        assert response.status == 403 and "console_wait" not in rebound.content()
+        assert "rebinding" in rebound.content()
+        # the console's own page, in the same browser: the space bar is the e-stop, and it takes effect at once
+        own = browser.new_page()
+        own.goto(run.url)
+        playwright_api.expect(own.get_by_test_id("status")).to_have_text("running", timeout=10000)
+        own.keyboard.press("Space")
+        playwright_api.expect(own.get_by_test_id("status")).to_have_text("aborted", timeout=5000)
+        code, out, _ = run.finish()
+        assert code == 1 and "emergency stop" in out
+    finally:
+        for site in evil_sites:
+            site.close()
+
+
+def test_with_the_token_the_address_loses_it_and_the_page_keeps_control_after_a_reload(browser, run_console):
+    run = run_console(WAIT, "--speed", "realtime", "--console-token", "always")
+    assert "?token=" in run.url
+    context = browser.new_context()
+    page = context.new_page()
+    page.goto(run.url)
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("running", timeout=10000)
+    assert "token" not in page.url and page.evaluate("location.href") == run.base + "/"
+    assert page.evaluate("document.cookie") == ""  # HttpOnly: no script reads it
+    cookie = next(c for c in context.cookies() if c["name"] == "beastbt_console_token")
+    assert cookie["httpOnly"] and cookie["sameSite"] == "Strict" and cookie["path"] == "/"
+    page.reload()
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("running", timeout=10000)
+    page.get_by_test_id("pause").click()
+    playwright_api.expect(page.get_by_test_id("status")).to_have_text("paused", timeout=5000)
+    fresh = context.new_page()  # a new tab: only the cookie, with the page's own Origin
+    fresh.goto(run.base + "/")
+    playwright_api.expect(fresh.get_by_test_id("status")).to_have_text("paused", timeout=10000)
+    fresh.get_by_test_id("resume").click()
+    playwright_api.expect(fresh.get_by_test_id("status")).to_have_text("running", timeout=5000)
+    fresh.get_by_test_id("estop").click()
+    playwright_api.expect(fresh.get_by_test_id("status")).to_have_text("aborted", timeout=5000)
+    code, _, _ = run.finish()
+    assert code == 1
+    context.close()

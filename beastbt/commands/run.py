@@ -117,6 +117,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
                         "127.0.0.1; off loopback the page needs the token printed at start")
+    p.add_argument("--console-token", choices=("auto", "always"), default="auto",
+                   help="auto (default): the console needs its token off loopback only; always: on loopback too, "
+                        "for a console reached through a reverse proxy or an SSH tunnel (docs/console.md)")
     p.add_argument("--stream", metavar="[HOST:]PORT", type=_checked(_endpoint("--stream")),
                    help="serve the camera live as MJPEG over HTTP (page at http://HOST:PORT/, stream /stream.mjpg); "
                         "HOST defaults to 127.0.0.1")
@@ -149,10 +152,15 @@ def command(args: argparse.Namespace) -> int:
                       summary_path=args.summary, record_path=args.record, runs_dir=args.runs_dir,
                       record=not args.no_record, status_line=sys.stdout.isatty(), simulate=args.sim,
                       joystick_script=args.joystick, stream=args.stream, console=args.console,
+                      console_token=args.console_token,
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
                       answers=dict(args.answer))
+    if opts.console_token != "auto" and opts.console is None:
+        print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
+              f"--console [HOST:]PORT", file=sys.stderr)
+        return EXIT_INVALID
     if opts.joystick_script is not None and not opts.simulated:
         print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
               f"--robot {args.robot} is a real robot; add --sim to run its profile on the simulator, or drop "

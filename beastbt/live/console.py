@@ -59,13 +59,15 @@ class ConsoleLink:
     """The run's end of the console's process (see the module docstring)."""
 
     def __init__(self, run: Any, state: ConsoleState, controls: ConsoleControls, host: str, port: int,
-                 video: VideoConfig) -> None:
+                 video: VideoConfig, token_always: bool = False) -> None:
         self.run = run
         self.state = state
         self.controls = controls
         self.host = host
         self.port = port
-        self.token = secrets.token_urlsafe(18) if not is_loopback(host) else ""
+        self.require_token = token_always or not is_loopback(host)
+        """Every request needs the token: off loopback, or with ``--console-token always`` (a proxy, a tunnel)."""
+        self.token = secrets.token_urlsafe(18) if self.require_token else ""
         self.video = video
         self.viewers = 0
         self.url = ""
@@ -103,6 +105,7 @@ class ConsoleLink:
         io = self.run.io
         pipeline = io.camera
         config = {"host": self.host, "port": self.port, "token": self.token or None,
+                  "require_token": self.require_token,
                   "video": dataclasses.asdict(self.video), "camera": pipeline is not None,
                   "geometry": pipeline.geometry if pipeline is not None else None,
                   "viewer_camera": io.viewer_camera,
@@ -296,7 +299,8 @@ def install_console(prepared: Any) -> ConsoleLink:
     wall = time.monotonic  # the console paces itself for people, in wall time; the run's clock is untouched
     state = ConsoleState(run, prepared.world, wall)
     controls = ConsoleControls(run, wall)
-    link = ConsoleLink(run, state, controls, host, port, VideoConfig())
+    link = ConsoleLink(run, state, controls, host, port, VideoConfig(),
+                       token_always=getattr(prepared.options, "console_token", "auto") == "always")
     state.on_publish = link.on_publish
     try:
         link.start()

@@ -25,6 +25,7 @@ is zero within ``stick_timeout_s`` plus a tick, well within 0.5 s.
 
 from __future__ import annotations
 
+import json
 import math
 import queue
 from concurrent.futures import Future
@@ -182,6 +183,67 @@ class ConsoleControls:
                                         buttons={BUTTON_ENABLE: deadman})
 
 
+CONTROL_MAX_BYTES = 4096
+"""The largest body a control may have (bytes): the biggest, an answer or a stick message, is under 200."""
+INT_MAX_DIGITS = 18
+"""A whole number in a control's body has at most this many digits (no control means a larger one)."""
+
+
+def describe(value: Any, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for an error message (never fails, even on a 10,000-digit int)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10 ** limit:
+        return f"a {len(str(abs(value))) if abs(value).bit_length() < 14000 else 'many'}-digit number"
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def _bounded_int(text: str) -> int:
+    digits = len(text.lstrip("-"))
+    if digits > INT_MAX_DIGITS:
+        raise Refused(400, f"a whole number of {digits} digits: no control takes a number that large")
+    return int(text)
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise Refused(400, f"the number {text[:40]}{'...' if len(text) > 40 else ''} is too large "
+                           f"(it is not a finite number)")
+    return value
+
+
+def _no_constant(text: str) -> Any:
+    raise Refused(400, f"{text} is not a number a control can take (JSON has no NaN or Infinity)")
+
+
+def parse_control_body(raw: bytes) -> dict:
+    """The JSON object a control sends (an empty body is ``{}``); :class:`Refused` (400) with the reason otherwise.
+
+    Strict where Python's ``json`` is lenient: no ``NaN``/``Infinity``, no number beyond a float's range
+    (``1e400``), no whole number of more than :data:`INT_MAX_DIGITS` digits, no nesting that would
+    exhaust the interpreter's stack.
+    """
+    if len(raw) > CONTROL_MAX_BYTES:
+        raise Refused(413, f"the body has {len(raw)} bytes: a control is a small JSON object "
+                           f"(at most {CONTROL_MAX_BYTES} bytes)")
+    if not raw.strip():
+        return {}
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise Refused(400, "the body is not UTF-8 text: a control is a JSON object") from None
+    try:
+        body = json.loads(text, parse_int=_bounded_int, parse_float=_finite_float, parse_constant=_no_constant)
+    except (json.JSONDecodeError, ValueError) as exc:
+        where = f" (line {exc.lineno}, column {exc.colno}: {exc.msg})" if isinstance(exc, json.JSONDecodeError) else ""
+        raise Refused(400, f"the body is not JSON{where}") from None
+    except RecursionError:
+        raise Refused(400, "the body is nested too deeply: a control is a flat JSON object") from None
+    if not isinstance(body, dict):
+        raise Refused(400, f"expected a JSON object, not {type(body).__name__ if body is not None else 'null'}")
+    return body
+
+
 def check_teleop_body(body: Any) -> dict:
     """The body of ``POST /api/teleop``: ``{linear, angular}`` numbers in [-1, 1] and ``deadman`` true/false."""
     if not isinstance(body, dict):
@@ -189,16 +251,27 @@ def check_teleop_body(body: Any) -> dict:
     out = {}
     for key in ("linear", "angular"):
         value = body.get(key, 0.0)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise Refused(400, f"'{key}' must be a number from -1 to 1 (stick deflection), not {value!r}")
-        if abs(value) > 1.0:
-            raise Refused(400, f"'{key}' must be from -1 to 1 (stick deflection), not {value}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise Refused(400, f"'{key}' must be a number from -1 to 1 (stick deflection), not {describe(value)}")
+        # compared before any conversion: a huge int must not overflow float() (no OverflowError, ever)
+        if (isinstance(value, float) and not math.isfinite(value)) or not -1 <= value <= 1:
+            raise Refused(400, f"'{key}' must be from -1 to 1 (stick deflection), not {describe(value)}")
         out[key] = float(value)
     deadman = body.get("deadman")
     if not isinstance(deadman, bool):
-        raise Refused(400, f"'deadman' must be true (held) or false, not {deadman!r}")
+        raise Refused(400, f"'deadman' must be true (held) or false, not {describe(deadman)}")
     out["deadman"] = deadman
     return out
 
 
-__all__ = ["ConsoleControls", "Command", "Refused", "check_teleop_body", "STICK_TIMEOUT_S"]
+def check_answer_body(body: Any) -> dict:
+    """The body of ``POST /api/answer``: ``{id, choice}``, two short strings (the question's id, yes or no)."""
+    if not isinstance(body, dict) or not isinstance(body.get("id"), str) or not isinstance(body.get("choice"), str):
+        raise Refused(400, "expected {\"id\": QUESTION_ID, \"choice\": \"yes\" or \"no\"}")
+    if len(body["id"]) > 200 or len(body["choice"]) > 40:
+        raise Refused(400, "the question's id or the choice is too long to be one")
+    return {"id": body["id"], "choice": body["choice"]}
+
+
+__all__ = ["ConsoleControls", "Command", "Refused", "check_teleop_body", "check_answer_body", "parse_control_body",
+           "describe", "STICK_TIMEOUT_S", "CONTROL_MAX_BYTES"]

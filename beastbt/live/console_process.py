@@ -138,7 +138,8 @@ def serve(inbox: Connection, outbox: Connection) -> int:
         return [f"{s['mission']}  {s['status']}  t {s['time_s']:.1f} s", f"step: {s['step']}"]
 
     video = ConsoleVideo(VideoConfig(**config["video"]), time.monotonic, time.time, caption)
-    server = ConsoleServer(state, controls, video, state.map, config["host"], config["port"], config["token"])
+    server = ConsoleServer(state, controls, video, state.map, config["host"], config["port"], config["token"],
+                           require_token=config.get("require_token"))
     try:
         server.start()
     except OSError as exc:

@@ -12,9 +12,33 @@ The contract (tests and other tools rely on it):
   ``/api/estop/reset``, ``/api/answer`` (``{id, choice}``), ``/api/teleop``
   (``{linear, angular, deadman}``). Each answers ``{ok: true, ...}``, or a 4xx
   with ``{error}`` when it cannot be done (409: not now, 400: a bad request).
-* Off loopback every request needs the run's token (printed once at start):
-  ``?token=``, an ``Authorization: Bearer`` header, or the cookie the page
-  gets. Without it: 401. A server bound to loopback needs none.
+* Off loopback (or with ``--console-token always``) every request needs the
+  run's token (printed once at start): ``?token=``, an ``Authorization:
+  Bearer`` header, or the cookie the page gets. Without it: 401. A server
+  bound to loopback needs none by default.
+
+What a page on another site, open in the same browser, cannot do (the checks
+of :meth:`ConsoleServer._guard`, in order; see docs/console.md, Security):
+
+1. ``Host``: a console bound to loopback without a token answers only to
+   ``localhost``, ``127.0.0.1``, ``[::1]`` or its bound address (any port);
+   anything else (a DNS-rebinding page) gets 403. With a token any name is
+   served: a rebinding page does not have the token.
+2. ``Origin``: a request that a browser marks as coming from another page
+   (``Origin`` not ``http://`` + its ``Host``, or ``Sec-Fetch-Site:
+   cross-site``/``same-site``) gets 403, the WebSocket upgrades included,
+   unless it carries the token itself (``?token=`` or ``Bearer``; the cookie
+   does not count: it goes with same-site requests from other ports).
+3. A control (every POST) without the token itself must be ``Content-Type:
+   application/json``: a form or ``text/plain`` POST (what a page can send
+   without asking the server first) gets 403. A client with no ``Origin``
+   (curl, a script) is not a browser and is accepted on loopback.
+4. A control's body is at most 4 kB of strict JSON (:func:`parse_control_body`):
+   anything else is a 4xx with ``{error}``, never a 500.
+
+Every answer carries ``Referrer-Policy: no-referrer``, ``nosniff``, no
+framing (``X-Frame-Options: DENY``, CSP ``frame-ancestors 'none'``) and the
+API ``Cache-Control: no-store``.
 
 Nothing a request does can end the run by accident: every handler's error
 becomes a JSON answer, and the run's state is only touched on the tick thread
@@ -36,8 +60,9 @@ from typing import Any, Awaitable, Callable, Optional
 
 from aiohttp import WSMsgType, web
 
-from beastbt.live.console_control import Refused, check_teleop_body
-from beastbt.live.endpoint import is_loopback
+from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
+                                          parse_control_body)
+from beastbt.live.endpoint import SECURITY_HEADERS, host_allowed, is_loopback, same_origin
 from beastbt.live.console_video import BudgetGuard, ConsoleVideo
 
 PUSH_PERIOD_S = 0.1
@@ -45,6 +70,13 @@ PUSH_PERIOD_S = 0.1
 CONTROL_TIMEOUT_S = 2.0
 """How long a control waits for the tick thread before the answer is 503 (s)."""
 TOKEN_COOKIE = "beastbt_console_token"
+CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self' 'unsafe-eval'; img-src 'self' data: blob:; "
+                           "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
+                           "frame-ancestors 'none'")
+"""The page loads only its own files and talks only to its own server; no other page may frame it (the e-stop
+and the stick cannot be clickjacked). No inline script runs; the page itself never evaluates a string, and
+'unsafe-eval' is left to browser automation (Playwright's ``wait_for_function`` in the tests and benchmarks)."""
+WS_PATHS = ("/api/ws", "/api/video")
 PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
 
@@ -61,7 +93,8 @@ class ConsoleServer:
     """The console of one run, served on ``host:port`` until :meth:`close` (see the module docstring)."""
 
     def __init__(self, state: Any, controls: Any, video: ConsoleVideo, map_source: Callable[[], dict],
-                 host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None) -> None:
+                 host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None,
+                 require_token: Optional[bool] = None) -> None:
         self.state = state
         """Gives the last state: ``latest()`` -> an object with ``seq`` and ``state``."""
         self.controls = controls
@@ -70,7 +103,8 @@ class ConsoleServer:
         self.map_source = map_source
         self.host = host
         self.requested_port = port
-        self.needs_token = not is_loopback(host)
+        self.needs_token = not is_loopback(host) if require_token is None else bool(require_token)
+        """Every request needs the token: off loopback always, on loopback with ``--console-token always``."""
         self.token = token or secrets.token_urlsafe(18)
         self.port = port
         self._loop: Optional[asyncio.AbstractEventLoop] = None
@@ -112,7 +146,8 @@ class ConsoleServer:
 
     async def _bind(self) -> None:
         self._ending = asyncio.Event()
-        app = web.Application(middlewares=[self._guard], client_max_size=64 * 1024)
+        app = web.Application(middlewares=[self._guard], client_max_size=CONTROL_MAX_BYTES)
+        app.on_response_prepare.append(self._headers)
         app.router.add_get("/", self._index)
         app.router.add_get("/index.html", self._index)
         app.router.add_get("/static/{name}", self._static)
@@ -167,14 +202,14 @@ class ConsoleServer:
         if self._runner is not None:
             await self._runner.cleanup()
 
-    # -- the guard: token, errors as JSON ---------------------------------------------------
+    # -- the guard: host, token, origin, content type; errors as JSON ------------------------------
     @web.middleware
     async def _guard(self, request: web.Request, handler: Callable[[web.Request], Awaitable[web.StreamResponse]]
                      ) -> web.StreamResponse:
         self.requests += 1
-        if self.needs_token and not self._has_token(request):
-            return _error(401, "this console needs its token: open the address printed when the run started "
-                               "(it ends in ?token=...)")
+        refusal = self._refusal(request)
+        if refusal is not None:
+            return refusal
         try:
             response = await handler(request)
         except web.HTTPException as exc:
@@ -186,17 +221,63 @@ class ConsoleServer:
         except asyncio.CancelledError:
             raise
         except Exception as exc:  # noqa: BLE001 - never a traceback, never the run
-            return _error(500, f"the console could not answer: {exc!r}")
-        if self.needs_token and request.query.get("token") and request.path in ("/", "/index.html"):
-            response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict")
+            return _error(500, f"the console could not answer: {type(exc).__name__}")
+        if self.needs_token and self._explicit_token(request) and request.path in ("/", "/index.html"):
+            # the page takes the token out of its address at once; from then on this cookie carries it
+            response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict", path="/")
         return response
 
-    def _has_token(self, request: web.Request) -> bool:
-        given = [request.query.get("token", ""), request.cookies.get(TOKEN_COOKIE, "")]
+    def _refusal(self, request: web.Request) -> Optional[web.Response]:
+        """The answer to a request the console must not serve (see the module docstring), or None."""
+        host = request.headers.get("Host")
+        if not self.needs_token and not host_allowed(host, self.host):
+            shown, bound = (host or "")[:80], ("" if self.host in ("127.0.0.1", "localhost", "::1") else
+                                               f", {self.host}")
+            return _error(403, f"this console answers to localhost, 127.0.0.1 or [::1]{bound} only, not Host "
+                               f"'{shown}': "
+                               f"a page that reaches it under another name (DNS rebinding) may not use it; behind "
+                               f"a proxy or a tunnel with another name, run with --console-token always")
+        if self.needs_token and not self._has_token(request):
+            return _error(401, "this console needs its token: open the address printed when the run started "
+                               "(it ends in ?token=...)")
+        if self._explicit_token(request):
+            return None  # no other page has the token: whatever sent it is the operator's
+        origin = request.headers.get("Origin")
+        if origin is not None and not same_origin(origin, host):
+            return _error(403, f"a request from the page '{origin[:80]}' is refused: only the console's own page "
+                               f"(or a client with the token) may use it")
+        site = request.headers.get("Sec-Fetch-Site", "")
+        acts = request.method not in ("GET", "HEAD") or request.headers.get("Upgrade", "").lower() == "websocket"
+        # a plain GET from another page (a link to the console, a bookmark page) may load it: it cannot read it
+        if acts and site in ("cross-site", "same-site"):
+            return _error(403, f"a request from another page ({site}) is refused: only the console's own page "
+                               f"(or a client with the token) may use it")
+        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type != "application/json":
+            return _error(403, f"a control needs Content-Type: application/json (this one is "
+                               f"'{request.content_type[:60]}'), as the console's page sends, or the token: a "
+                               f"page on another site can send a form or text/plain, never JSON without asking")
+        return None
+
+    def _explicit_token(self, request: web.Request) -> bool:
+        """The token sent in the request itself (``?token=``, ``Authorization: Bearer``), not by the cookie jar."""
+        given = [request.query.get("token", "")]
         auth = request.headers.get("Authorization", "")
         if auth.startswith("Bearer "):
             given.append(auth[7:].strip())
         return any(g and hmac.compare_digest(g.encode(), self.token.encode()) for g in given)
+
+    def _has_token(self, request: web.Request) -> bool:
+        cookie = request.cookies.get(TOKEN_COOKIE, "")
+        return self._explicit_token(request) or bool(cookie) and hmac.compare_digest(cookie.encode(),
+                                                                                      self.token.encode())
+
+    async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
+        """Every answer, the refusals and the WebSocket upgrades included: see :data:`SECURITY_HEADERS`."""
+        for name, value in SECURITY_HEADERS.items():
+            response.headers.setdefault(name, value)
+        response.headers.setdefault("Content-Security-Policy", CONTENT_SECURITY_POLICY)
+        if request.path.startswith("/api/"):
+            response.headers["Cache-Control"] = "no-store"
 
     # -- the page ------------------------------------------------------------------------
     async def _index(self, request: web.Request) -> web.Response:
@@ -286,15 +367,12 @@ class ConsoleServer:
 
     # -- controls ------------------------------------------------------------------------
     async def _body(self, request: web.Request) -> dict:
-        if not request.can_read_body:
-            return {}
         try:
-            body = await request.json()
-        except (json.JSONDecodeError, UnicodeDecodeError, ValueError):
-            raise Refused(400, "the body is not JSON") from None
-        if not isinstance(body, dict):
-            raise Refused(400, "expected a JSON object")
-        return body
+            raw = await request.read()
+        except web.HTTPRequestEntityTooLarge:
+            raise Refused(413, f"the body is over {CONTROL_MAX_BYTES} bytes: a control is a small JSON object") \
+                from None
+        return parse_control_body(raw)
 
     def _control(self, name: str) -> Callable[[web.Request], Awaitable[web.Response]]:
         async def handle(request: web.Request) -> web.Response:
@@ -302,8 +380,7 @@ class ConsoleServer:
             if name == "teleop":
                 body = check_teleop_body(body)
             elif name == "answer":
-                if not isinstance(body.get("id"), str) or not isinstance(body.get("choice"), str):
-                    raise Refused(400, "expected {\"id\": QUESTION_ID, \"choice\": \"yes\" or \"no\"}")
+                body = check_answer_body(body)
             return await self._answer(name, body)
         return handle
 

@@ -46,7 +46,8 @@ import cv2
 import numpy as np
 
 from beastbt.core.schema_defaults import schema_defaults
-from beastbt.live.endpoint import parse_endpoint, parse_size
+from beastbt.live.endpoint import (SECURITY_HEADERS, host_allowed, host_on_network, is_loopback, parse_endpoint,
+                                   parse_size, same_origin)
 from beastbt.core.config import dataclass_from_dict
 from beastbt.vision.camera_model import CameraGeometry
 from beastbt.vision.line_detector import LineDetection
@@ -415,6 +416,31 @@ class _Handler(BaseHTTPRequestHandler):
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - the stdlib's signature
         pass  # one line per request would drown the run's console
 
+    def end_headers(self) -> None:
+        """Every answer carries :data:`~beastbt.live.endpoint.SECURITY_HEADERS` (no referrer, no framing)."""
+        for name, value in SECURITY_HEADERS.items():
+            self.send_header(name, value)
+        self.send_header("Content-Security-Policy", "frame-ancestors 'none'")  # the page's script is inline
+        super().end_headers()
+
+    def _refusal(self) -> Optional[str]:
+        """Why this request is refused (403), or None: a ``Host`` that is not this server (DNS rebinding), or
+        ``Origin`` of another page.
+
+        Bound to loopback, ``Host`` must be ``localhost``, ``127.0.0.1``, ``[::1]`` or the bound address;
+        bound to a network, an IP address or this computer's own name (a rebinding page shows its DNS name).
+        """
+        host = self.headers.get("Host")
+        bound = self.server_stream.config.host
+        ok = host_allowed(host, bound) if is_loopback(bound) else host_on_network(host)
+        if not ok:
+            return (f"this server answers to localhost, 127.0.0.1, [::1] or this computer's address, not Host "
+                    f"'{(host or '')[:80]}' (a page that reached it under another name may not use it)")
+        origin = self.headers.get("Origin")
+        if origin is not None and not same_origin(origin, host):
+            return f"a request from the page '{origin[:80]}' is refused: only this server's own page may use it"
+        return None
+
     def _send(self, code: int, ctype: str, body: bytes) -> None:
         self.send_response(code)
         self.send_header("Content-Type", ctype)
@@ -427,7 +453,10 @@ class _Handler(BaseHTTPRequestHandler):
         stream = self.server_stream
         path = urlsplit(self.path).path
         try:
-            if path in ("/", "/index.html"):
+            refusal = self._refusal()
+            if refusal is not None:
+                self._send(403, "text/plain; charset=utf-8", (refusal + "\n").encode())
+            elif path in ("/", "/index.html"):
                 self._send(200, "text/html; charset=utf-8", PAGE.encode())
             elif path == "/status.json":
                 self._send(200, "application/json", json.dumps(stream.status()).encode())

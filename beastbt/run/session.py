@@ -56,6 +56,8 @@ class RunOptions:
     """Serve the camera live as MJPEG on ``[HOST:]PORT`` (``--stream``)."""
     console: Optional[Union[str, tuple[str, int]]] = None
     """Serve the operator console on ``[HOST:]PORT`` (``--console``): live state, map, tree, video and controls."""
+    console_token: str = "auto"
+    """``auto``: the console needs its token off loopback only; ``always``: on loopback too (``--console-token``)."""
     answers: Optional[Mapping[str, str]] = None
     """Answers to the mission's questions given before the run (``--answer ID=yes``): question id -> yes/no."""
     foxglove: Optional[Union[str, tuple[str, int]]] = None

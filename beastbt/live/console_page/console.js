@@ -2,9 +2,25 @@
 // Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG frames), POST /api/<control>.
 "use strict";
 
-const token = new URLSearchParams(location.search).get("token");
+// The token (a console off loopback, or --console-token always) comes once in the address. The server has set
+// its cookie with this page; the token leaves the address bar at once (no history entry, no bookmark, no copy
+// and paste that gives it away) and stays with this tab only, to be sent in the requests themselves.
+const TOKEN_KEY = "beastbt_console_token";
+const token = (() => {
+  const params = new URLSearchParams(location.search);
+  const given = params.get("token");
+  if (given) {
+    try { sessionStorage.setItem(TOKEN_KEY, given); } catch (e) { /* storage off: the cookie carries it */ }
+    params.delete("token");
+    const rest = params.toString();
+    history.replaceState(null, "", location.pathname + (rest ? "?" + rest : "") + location.hash);
+    return given;
+  }
+  try { return sessionStorage.getItem(TOKEN_KEY); } catch (e) { return null; }
+})();
 const withToken = (path) => token ? path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token) : path;
 const wsUrl = (path) => (location.protocol === "https:" ? "wss://" : "ws://") + location.host + withToken(path);
+const authHeaders = () => token ? {"Authorization": "Bearer " + token} : {};
 const $ = (id) => document.getElementById(id);
 const ENDED = new Set(["succeeded", "failed", "aborted"]);
 
@@ -17,8 +33,10 @@ let mapDirty = true;
 // ---- controls -------------------------------------------------------------------------------
 async function post(path, body) {
   try {
-    const r = await fetch(withToken("/api/" + path), {method: "POST", headers: {"Content-Type": "application/json"},
-                                                      body: JSON.stringify(body || {})});
+    // Always JSON, same origin: what the server asks of a control (a page on another site can send neither).
+    const r = await fetch("/api/" + path, {method: "POST", body: JSON.stringify(body || {}),
+                                          headers: {"Content-Type": "application/json", ...authHeaders()},
+                                          credentials: "same-origin", cache: "no-store"});
     const answer = await r.json().catch(() => ({}));
     if (!r.ok) notice(answer.error || ("HTTP " + r.status));
     return answer;
@@ -188,7 +206,7 @@ function buildTree(nodes, ids) {
 // ---- map -----------------------------------------------------------------------------------------
 async function loadMap() {
   try {
-    const r = await fetch(withToken("/api/map"));
+    const r = await fetch("/api/map", {headers: authHeaders(), cache: "no-store"});
     if (!r.ok) return;
     mapLayers = await r.json();
     if (mapLayers.trail && mapLayers.trail.length > trail.length) trail = mapLayers.trail.slice();
