@@ -64,6 +64,8 @@ def list_runs(runs_dir: str) -> list[RunEntry]:
                 summary = {"status": "unreadable"}
         mission = summary.get("mission") or _mission_from_name(folder.name)
         status = summary.get("status") or "unfinished"
+        if summary.get("recovered"):
+            status = f"cut short ({status}, recovered)"  # rebuilt by ``beastbt recover`` from the recording
         out.append(RunEntry(folder, mission, status, summary.get("sim_time_s"), summary.get("distance_m"),
                             mcap.stat().st_size if mcap.exists() else None,
                             (summary.get("recording") or {}).get("dropped")))
