@@ -23,27 +23,40 @@ from beastbt.recording.reader import read_recording
 from beastbt.recording.recorder import low_space_warnings
 from beastbt.recording.writer import RunFileWriter
 from beastbt.run.run_folder import RunFolder
-from recording_support import PATROL, REPO
+from recording_support import CAMERA_MISSION, PATROL, REPO, record_run
 
 SMALL_DISK_BYTES = 2 << 20
 
 
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 2 MB file system (tmpfs) mounted on a folder for this test; skipped where mounting is not allowed."""
-    mount_point = tmp_path / "small_disk"
+def _mounted(mount_point: Path, options: str):
+    """Mount a tmpfs with ``options`` on ``mount_point`` for the test (skip where mounting is not allowed)."""
     mount_point.mkdir()
     if not sys.platform.startswith("linux"):
         pytest.skip("mounting a small tmpfs needs Linux; the fault-injection tests cover the writer")
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={SMALL_DISK_BYTES}", "tmpfs", str(mount_point)],
-                          capture_output=True, text=True)
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(mount_point)],
+                              capture_output=True, text=True)
+    except OSError as exc:
+        pytest.skip(f"no mount command here ({exc}); the fault-injection tests cover the writer")
     if done.returncode != 0:
-        pytest.skip(f"cannot mount a 2 MB tmpfs here (needs root: {done.stderr.strip() or done.returncode}); "
+        pytest.skip(f"cannot mount a small tmpfs here (needs root: {done.stderr.strip() or done.returncode}); "
                     f"the fault-injection tests cover the writer")
     try:
         yield mount_point
     finally:
         subprocess.run(["umount", "-l", str(mount_point)], check=False)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 2 MB file system (tmpfs) mounted on a folder for this test."""
+    yield from _mounted(tmp_path / "small_disk", f"size={SMALL_DISK_BYTES}")
+
+
+@pytest.fixture
+def no_inodes_disk(tmp_path):
+    """A file system with room for 2 more files or folders (tmpfs, nr_inodes): no run folder can be made."""
+    yield from _mounted(tmp_path / "no_inodes", f"size={SMALL_DISK_BYTES},nr_inodes=4")
 
 
 def _fill(folder: Path) -> None:
@@ -201,3 +214,30 @@ def test_a_run_folder_on_a_full_disk_says_what_it_could_not_write(small_disk):
     problems = folder.finish(summary)
     assert any("summary.json: the disk is full" in p for p in problems)
     assert (folder.path / "summary.json").read_bytes() == b""  # empty, never half a document
+
+
+def test_a_run_whose_folder_cannot_be_made_does_not_start_and_says_what_to_do(no_inodes_disk, tmp_path):
+    runs = no_inodes_disk / "runs"
+    runs.mkdir()
+    for name in ("a", "b", "c"):  # use up the inodes that are left
+        try:
+            (no_inodes_disk / name).touch()
+        except OSError:
+            break
+    done = _run_cli("run", str(PATROL), "--runs-dir", str(runs), cwd=tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "cannot make the run folder" in done.stderr and "--no-record" in done.stderr
+    assert "mission corridor_patrol" not in done.stdout  # nothing ran
+
+
+def test_a_snapshot_on_a_full_disk_is_an_event_and_the_mission_succeeds(small_disk):
+    runs = small_disk / "runs"
+    runs.mkdir()
+    mission = small_disk.parent / "camera.yaml"
+    mission.write_text(CAMERA_MISSION.replace("WORLD", str(REPO / "worlds" / "line_track.yaml")), encoding="utf-8")
+    _fill(small_disk)
+    _, summary = record_run(mission, runs, seed=4)
+    assert summary["status"] == "success"
+    snapshots = [e["text"] for e in summary["events"] if e["kind"] == "snapshot"]
+    assert len(snapshots) == 1 and snapshots[0].startswith("tape: not saved (")
+    assert not list(runs.glob("*/tape*.jpg"))

@@ -812,6 +812,9 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                         writer.finish({"beastbt.summary": {"json": summary_json}} if summary_json else None)
                     except Exception as exc:
                         state["error"] = state["error"] or f"finishing the file: {exc!r}"
+                    for text in writer.notices:  # the end did not fit on the disk: the run still says it
+                        reply({"notice": text})
+                    writer.notices.clear()
                 final = counts()
                 reply(final)
                 return 0 if final["error"] is None else 1

@@ -55,6 +55,10 @@ def _safe(name: str) -> str:
     return re.sub(r"[^\w-]", "_", name)
 
 
+class RunFolderUnavailable(Exception):
+    """The run folder cannot be made (a full disk, no permission): the run does not start; says what to do."""
+
+
 @dataclass
 class RunFolder:
     """Where one run's files go. Writers that record more (MCAP) add themselves to ``finishers``."""
@@ -78,7 +82,11 @@ class RunFolder:
         while path.exists():
             n += 1
             path = Path(f"{base}-{n}")
-        path.mkdir(parents=True)
+        try:
+            path.mkdir(parents=True)
+        except OSError as exc:
+            raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
+                                       f"space, give --runs-dir on another disk, or run with --no-record") from None
         return cls(path)
 
     def save_snapshot(self, name: str, frame: Any) -> str:
