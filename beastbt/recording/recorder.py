@@ -15,10 +15,15 @@ records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
   the recorder is installed) does all of that on another core, under its
   own interpreter lock, so recording does not slow the loop even when the
   simulator runs flat out. Its chunks close every ``chunk_interval_s`` of
-  recorded clock time, so a run killed hard leaves a file that reads up to
-  its last complete chunk (:func:`beastbt.recording.reader.read_recording`);
-  when only the run's process dies, the writer sees the pipe end and closes
-  the file properly;
+  recorded clock time, each followed by a valid end, so a run killed hard
+  leaves a valid MCAP file that reads up to its last complete chunk (with
+  ``mcap``'s readers and :func:`beastbt.recording.reader.read_recording`;
+  ``beastbt recover`` for a torn one); when only the run's process dies, the
+  writer sees the pipe end and closes the file properly;
+* what the writer says unasked (a file it stopped writing: a full disk) is
+  looked for between ticks (:meth:`McapRecorder.poll_notices`) and becomes a
+  ``recording`` event at once; the free space where the recording goes is
+  checked at the start (``min_free_mb``);
 * the queue is bounded: the pipe (up to 1 MiB) and at most
   ``queue_max_items`` items waiting for it. When it is full: on a simulated
   clock the loop waits for the writer (nothing is lost, the simulation just

@@ -206,6 +206,10 @@ def _rebuild_summary(path: Path, folder: Path, result: Recovery) -> Optional[Pat
     """summary.json (and events.log) of a run folder from its recording; None when they cannot be written."""
     from beastbt.run.run_folder import events_log_text, save_text
     rec = read_recording(path, topics=["/events", "/cmd/gate", "/truth", "/estimate/odom"])
+    if rec.summary is None and not rec.info:
+        result.notes.append(f"{path} holds nothing of the run (it was cut before its first record): no summary "
+                            f"to rebuild")
+        return None
     summary = rec.summary or recorded_summary(rec, result)
     problem = save_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
     if problem is not None:

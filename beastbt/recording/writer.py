@@ -300,6 +300,11 @@ class _RecordStream:
         return bool(self._files)
 
     @property
+    def paths(self) -> list[Path]:
+        """The files still written."""
+        return [f.path for f in self._files]
+
+    @property
     def pending_bytes(self) -> int:
         """Bytes written by the ``mcap`` writer and not yet flushed to the files."""
         return len(self._buffer)
@@ -507,8 +512,9 @@ class RunFileWriter:
             self.messages = self._flushed_messages
         for path, exc in failures:
             where = describe_write_error(path, exc)
+            still = [str(p) for p in getattr(self._stream, "paths", [])]
             text = (f"stopped: {where}; {path.name} keeps its {self._flushed_messages} messages up to its last "
-                    f"chunk; the mission goes on")
+                    f"chunk; " + (f"still recording to {', '.join(still)}; " if still else "") + "the mission goes on")
             self.error = self.error or text
             self.notices.append(text)
 
