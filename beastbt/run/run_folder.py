@@ -65,6 +65,8 @@ class RunFolder:
 
     path: Path
     finishers: list[Callable[[dict], None]] = field(default_factory=list)
+    summary_written: bool = False
+    """``summary.json`` was written whole by :meth:`finish`."""
 
     @classmethod
     def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None,
@@ -106,6 +108,8 @@ class RunFolder:
             problem = save_text(self.path / name, text)
             if problem is not None:
                 problems.append(problem)
+            elif name == "summary.json":
+                self.summary_written = True
         for fin in self.finishers:
             try:
                 fin(summary)

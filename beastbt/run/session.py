@@ -239,9 +239,8 @@ def keep_summary(p: Prepared, summary: dict, out: TextIO) -> None:
         problems += [problem] if problem else []
     if p.folder is not None:
         wanted += 1
-        folder_problems = p.folder.finish(summary)
-        saved += not any("summary.json" in text for text in folder_problems)
-        problems += folder_problems
+        problems += p.folder.finish(summary)
+        saved += p.folder.summary_written
     for problem in problems:
         print(f"beastbt: {problem}", file=sys.stderr, flush=True)
     if p.folder is not None:
