@@ -101,7 +101,8 @@ def test_a_disk_that_fills_during_the_run_stops_the_recording_with_an_event_and_
     assert re.search(r"\] recording: only [12]\.\d MB free at .*min_free_mb: 50 MB", out)
     stopped = [line for line in out.splitlines() if "recording: stopped: disk full at" in line]
     assert len(stopped) == 1 and "the mission goes on" in stopped[0]
-    assert out.index(stopped[0]) < out.index("mission_end: success")
+    # At full speed the writer may lag the loop by the whole patrol: told by the end of the run at the latest.
+    assert out.index(stopped[0]) < out.index("run recorded in")
 
     summary = json.loads(summary_path.read_text(encoding="utf-8"))
     assert summary["status"] == "success"
