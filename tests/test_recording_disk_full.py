@@ -124,18 +124,22 @@ def test_a_disk_full_from_the_start_prints_the_summary_and_runs_says_why_there_i
     runs = small_disk / "runs"
     runs.mkdir()
     _fill(small_disk)
-    done = _run_cli("run", str(PATROL), "--runs-dir", str(runs), cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
+    # In real time, as on the robot: the first chunk (1 s) does not fit, and the run says so within a second.
+    done = _run_cli("run", str(PATROL), "--runs-dir", str(runs), "--speed", "realtime", "--max-time", "3 s",
+                    cwd=tmp_path)
+    assert done.returncode == 1, done.stderr  # the mission's status: stopped at max time
     assert "Traceback" not in done.stderr + done.stdout
-    assert "recording: stopped: disk full at" in done.stdout
+    [told] = re.findall(r"\[\s*([0-9.]+) s\] recording: stopped: disk full at", done.stdout)
+    assert 1.0 <= float(told) <= 2.5
     assert "summary.json: the disk is full" in done.stderr
     # Written nowhere: the summary is on the terminal, whole.
     head = "the run summary (written nowhere else):\n"
     assert head in done.stdout
     text = done.stdout.split(head, 1)[1]
     summary, _ = json.JSONDecoder().raw_decode(text)
-    assert summary["status"] == "success" and summary["mission"] == "corridor_patrol"
-    assert summary["ticks"] > 3000
+    assert summary["status"] == "stopped" and summary["mission"] == "corridor_patrol"
+    assert 60 <= summary["ticks"] <= 61 and summary["recording"]["messages"] == 0
+    assert [e for e in summary["events"] if e["kind"] == "recording" and "disk full" in e["text"]]
 
     listed = _run_cli("runs", "--runs-dir", str(runs), cwd=tmp_path)
     assert listed.returncode == 0
