@@ -335,13 +335,6 @@ class _RecordStream:
             f.close(truncate_at=f.end)
         self._files = []
 
-    def abandon(self) -> None:
-        """Close every file as it is (each valid up to its last flush), writing nothing more."""
-        for f in self._files:
-            f.close()
-        self._files = []
-        self._buffer = bytearray()
-
     def _commit(self, tail: bytes) -> None:
         if not self._files:
             self._buffer = bytearray()
@@ -510,13 +503,15 @@ class RunFileWriter:
             # What the failed flush held is not in any file: count it as dropped, from now on everything is.
             self.dropped += self.messages - self._flushed_messages
             self.messages = self._flushed_messages
+        still = [str(p) for p in getattr(self._stream, "paths", [])]
         for path, exc in failures:
-            where = describe_write_error(path, exc)
-            still = [str(p) for p in getattr(self._stream, "paths", [])]
-            text = (f"stopped: {where}; {path.name} keeps its {self._flushed_messages} messages up to its last "
-                    f"chunk; " + (f"still recording to {', '.join(still)}; " if still else "") + "the mission goes on")
+            text = (f"stopped: {describe_write_error(path, exc)}; {path.name} keeps its {self._flushed_messages} "
+                    f"messages up to its last chunk; " + (f"still recording to {', '.join(still)}; " if still else "")
+                    + "the mission goes on")
             self.error = self.error or text
             self.notices.append(text)
+        if self._stream.writing:
+            self._flushed_messages = self.messages  # the files still written took this flush
 
     def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
         cid = self._channels.get(topic)
@@ -766,6 +761,13 @@ CUT_REASON = "the run's process ended without finishing its recording (killed, o
 """The ``reason`` of metadata ``beastbt.cut``."""
 
 
+def _send_notices(writer: RunFileWriter, reply: Callable[[dict], None]) -> None:
+    """Send the writer's notices, unasked: the run reads them between ticks and makes each an event."""
+    for text in writer.notices:
+        reply({"notice": text})
+    writer.notices.clear()
+
+
 def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
     """The writer process's loop: items from ``read`` (``b''`` at the end), answers through ``reply``.
 
@@ -807,9 +809,7 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                         writer.flush()
                     except Exception as exc:
                         state["error"] = state["error"] or f"flushing: {exc!r}"
-                    for text in writer.notices:
-                        reply({"notice": text})
-                    writer.notices.clear()
+                    _send_notices(writer, reply)
                 reply(counts())
             elif tag == "finish":
                 summary_json = item[1]
@@ -818,9 +818,7 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                         writer.finish({"beastbt.summary": {"json": summary_json}} if summary_json else None)
                     except Exception as exc:
                         state["error"] = state["error"] or f"finishing the file: {exc!r}"
-                    for text in writer.notices:  # the end did not fit on the disk: the run still says it
-                        reply({"notice": text})
-                    writer.notices.clear()
+                    _send_notices(writer, reply)  # the end did not fit on the disk: the run still says it
                 final = counts()
                 reply(final)
                 return 0 if final["error"] is None else 1
@@ -829,10 +827,7 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
             else:
                 state["dropped"] += message_count(item, images)
             if writer is not None and writer.notices:
-                # Unasked: the run reads these between ticks and makes each an event (terminal, console).
-                for text in writer.notices:
-                    reply({"notice": text})
-                writer.notices.clear()
+                _send_notices(writer, reply)
     except Exception as exc:  # a corrupt stream: keep what was written
         state["error"] = state["error"] or f"reading the run's items: {exc!r}"
     if writer is not None:
