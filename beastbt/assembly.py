@@ -43,7 +43,7 @@ from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
 from beastbt.robot.profile import RobotProfile, load_profile
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.run_folder import RunFolder, temporary_snapshots
+from beastbt.run.run_folder import RunFolder, RunFolderUnavailable, temporary_snapshots
 from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared, RunOptions
 from beastbt.sim.world import World, empty_world, load_world
@@ -220,7 +220,11 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         prepared = Prepared(mission, profile, world, run, options, events, clock,
                             warnings=run_warnings(mission, profile, world, mode, options))
         if options.record:
-            prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
+            try:
+                prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
+            except RunFolderUnavailable:
+                prepared.abandon()  # nothing moved: close what was opened, then say why
+                raise
             run.ctx.services.save_snapshot = prepared.folder.save_snapshot
         elif run.ctx.services.save_snapshot is None:
             run.ctx.services.save_snapshot = temporary_snapshots(mission.name)

@@ -33,6 +33,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "report": ("beastbt.commands.report", "summarise a recorded run and draw its plots (report.html)"),
     "replay": ("beastbt.commands.replay", "feed a recorded run back through the estimator and the tree; show differences"),
     "runs": ("beastbt.commands.runs", "list the recorded runs with their outcome, one line each"),
+    "recover": ("beastbt.commands.recover", "rewrite a recording cut short (power cut, full disk) as a whole MCAP "
+                                            "file, the cut one kept as .cut; rebuild a missing summary"),
     "route": ("beastbt.commands.route", "route tools: 'route from-run RUN' writes the path a recorded run drove "
                                         "as a GPX route (teach and repeat)"),
     "joystick": ("beastbt.commands.joystick", "gamepad tools: 'joystick test' shows its input live, the preset it "

@@ -431,7 +431,8 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     if run.status is not None and recorded_status is not None and run.status != recorded_status:
         diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))
     if not rec.complete:
-        result.notes.append(f"the recording was cut short ({rec.stopped_because}); replayed what it holds")
+        result.notes.append(f"the recording was cut short ({rec.stopped_because}); replayed what it holds "
+                            f"(`beastbt recover RUN` rewrites it as a whole MCAP file for other tools)")
     if rec.messages.get("/sensors/camera") and not rec.messages.get("/camera/image"):
         result.notes.append("camera frames were recorded without pixels: vision in the tree sees grey images")
     return result

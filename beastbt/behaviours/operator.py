@@ -21,8 +21,9 @@ class Say(BeastBehaviour):
 class Snapshot(BeastBehaviour):
     """Save the newest camera frame as ``<name>.jpg`` in the run's folder.
 
-    Succeeds when saved (or when the run is not recorded, after noting it);
-    fails when there is no fresh camera frame.
+    Succeeds when saved (or, after noting it, when the run is not recorded or
+    the file cannot be written: a full disk does not stop the mission); fails
+    when there is no fresh camera frame.
     """
 
     READS = ("camera_frame",)
@@ -39,7 +40,11 @@ class Snapshot(BeastBehaviour):
         if save is None:
             self.ctx.events.add("snapshot", f"{self.label}: not saved (the run is not recorded)")
             return Status.SUCCESS
-        path = save(self.label, frame)
+        try:
+            path = save(self.label, frame)
+        except OSError as exc:
+            self.ctx.events.add("snapshot", f"{self.label}: not saved ({exc.strerror or exc})")
+            return Status.SUCCESS
         self.ctx.events.add("snapshot", f"{self.label}: saved {path}")
         return Status.SUCCESS
 

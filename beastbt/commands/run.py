@@ -169,6 +169,7 @@ def command(args: argparse.Namespace) -> int:
     from beastbt.assembly import prepare
     from beastbt.core.errors import InvalidInput
     from beastbt.robot.hardware import DeviceUnavailable
+    from beastbt.run.run_folder import RunFolderUnavailable
     from beastbt.run.session import execute
     from beastbt.run.summary import human_summary
     try:
@@ -176,7 +177,7 @@ def command(args: argparse.Namespace) -> int:
     except InvalidInput as exc:
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
-    except DeviceUnavailable as exc:
+    except (DeviceUnavailable, RunFolderUnavailable) as exc:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     for problem in prepared.warnings:

@@ -45,6 +45,9 @@ class RecordingConfig:
     compression: str
     # How long the end of a run waits for the writer to drain its queue before giving up (wall seconds).
     drain_timeout_s: float
+    # Less free space than this where the recording goes, at the start of a run, is warned about (megabytes,
+    # 10^6 bytes); 0 never warns. Should the disk fill, the recording stops (with an event), the mission goes on.
+    min_free_mb: float
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.image_rate_hz) and self.image_rate_hz >= 0):
@@ -65,6 +68,8 @@ class RecordingConfig:
             raise ValueError(f"chunk_max_bytes must be at least 1024, got {self.chunk_max_bytes}")
         if self.compression not in ("auto", "zstd", "lz4", "none"):
             raise ValueError(f"compression must be auto, zstd, lz4 or none, not '{self.compression}'")
+        if not (math.isfinite(self.min_free_mb) and self.min_free_mb >= 0):
+            raise ValueError(f"min_free_mb must be zero or positive, got {self.min_free_mb}")
         if not self.drain_timeout_s > 0:
             raise ValueError(f"drain_timeout_s must be positive, got {self.drain_timeout_s}")
 

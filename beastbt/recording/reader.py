@@ -5,7 +5,8 @@ library's :class:`~mcap.stream_reader.StreamReader` (it needs no summary
 section or footer), decompresses each chunk and checks its CRC, and stops at
 the first record that is cut short: a run killed mid-write still yields every
 message of its complete chunks. ``Recording.complete`` says whether the file
-ended properly.
+ended properly (with its summary section: a file the writer left after a
+chunk ends with a footer too, but without one).
 """
 
 from __future__ import annotations
@@ -76,6 +77,10 @@ class Recording:
     def message_count(self) -> int:
         """How many messages the file holds (as far as it could be read), decoded or not."""
         return sum(self.counts.values())
+
+
+CUT_AT_CHUNK = "the recording ends at its last complete chunk (the run was cut short)"
+"""``Recording.stopped_because`` of a file that ends with the valid end written after each chunk."""
 
 
 def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = None, keep_order: bool = False,
@@ -152,7 +157,11 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
             elif isinstance(rec, Attachment):
                 out.attachments[rec.name] = bytes(rec.data)
             elif isinstance(rec, Footer):
-                out.complete = True
+                # A run's recording ends with its summary section; a footer without one is the valid end the
+                # writer keeps after each chunk while it records: the run was cut there.
+                out.complete = rec.summary_start != 0
+                if not out.complete:
+                    out.stopped_because = CUT_AT_CHUNK
                 break
     return out
 

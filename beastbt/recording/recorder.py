@@ -15,10 +15,15 @@ records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
   the recorder is installed) does all of that on another core, under its
   own interpreter lock, so recording does not slow the loop even when the
   simulator runs flat out. Its chunks close every ``chunk_interval_s`` of
-  recorded clock time, so a run killed hard leaves a file that reads up to
-  its last complete chunk (:func:`beastbt.recording.reader.read_recording`);
-  when only the run's process dies, the writer sees the pipe end and closes
-  the file properly;
+  recorded clock time, each followed by a valid end, so a run killed hard
+  leaves a valid MCAP file that reads up to its last complete chunk (with
+  ``mcap``'s readers and :func:`beastbt.recording.reader.read_recording`;
+  ``beastbt recover`` for a torn one); when only the run's process dies, the
+  writer sees the pipe end and closes the file properly;
+* what the writer says unasked (a file it stopped writing: a full disk) is
+  looked for between ticks (:meth:`McapRecorder.poll_notices`) and becomes a
+  ``recording`` event at once; the free space where the recording goes is
+  checked at the start (``min_free_mb``);
 * the queue is bounded: the pipe (up to 1 MiB) and at most
   ``queue_max_items`` items waiting for it. When it is full: on a simulated
   clock the loop waits for the writer (nothing is lost, the simulation just
@@ -40,6 +45,7 @@ import datetime as _dt
 import json
 import os
 import select
+import shutil
 import subprocess
 import sys
 import time
@@ -73,6 +79,20 @@ PIPE_BYTES = 1 << 20
 _WRITER_START = ("import sys; root = sys.argv[1]; root in sys.path or sys.path.insert(0, root); "
                  "from beastbt.recording.writer import main; main()")
 """How the writer process starts: this very beastbt (a checkout on ``sys.path`` too), its ``main()``."""
+
+
+def low_space_warnings(paths: list[Path], min_free_mb: float) -> list[str]:
+    """A warning for each folder of ``paths`` with less than ``min_free_mb`` megabytes (10^6 bytes) free."""
+    out = []
+    for folder in dict.fromkeys(Path(p).resolve().parent for p in paths):
+        try:
+            free_mb = shutil.disk_usage(folder).free / 1e6
+        except OSError:
+            continue  # not there yet (the writer makes it) or not ours to look at: the writer will say
+        if free_mb < min_free_mb:
+            out.append(f"only {free_mb:.1f} MB free at {folder} (recording min_free_mb: {min_free_mb:g} MB): "
+                       f"when the disk fills, the recording stops and the mission goes on")
+    return out
 
 
 def _grow_pipe(fd: int) -> None:
@@ -135,6 +155,8 @@ class McapRecorder:
         """Write end of the writer's doorbell: rung when the run waits for an answer (see the writer's
         ``_polling_reader``)."""
         self._reply_buffer = b""
+        self._last_poll_s = float("-inf")
+        """Clock time (s) the writer's notices were last looked for."""
         self._gone = False
         """The writer process cannot take more (it never started, died, or was given up on)."""
         self._started = False
@@ -208,6 +230,7 @@ class McapRecorder:
             finally:
                 os.close(bell_r)
             fd = self._proc.stdin.fileno()
+            os.set_blocking(self._proc.stdout.fileno(), False)  # notices are looked for between ticks
             _grow_pipe(fd)
             os.set_blocking(fd, False)  # the loop never waits on the pipe unless told to (block_when_full)
             os.set_blocking(bell_w, False)
@@ -242,6 +265,8 @@ class McapRecorder:
         self._pending.appendleft((self._encoder.encode([opening]), ()))
         self._send_batch()
         self._pump(block=False)
+        for text in low_space_warnings(self.paths, self.config.min_free_mb):
+            self._tell(text, error=False)  # now, at the first tick: the terminal and the console show the run's events
         return self
 
     def _snapshot_run(self, run: Any) -> None:
@@ -307,9 +332,12 @@ class McapRecorder:
 
     # -- the tick side (cheap: a pickle, and now and then a write into the pipe) ---------------
     def on_tick(self, rec: Any) -> None:
-        """``run.recorders`` callable: queue what this tick did."""
+        """``run.recorders`` callable: queue what this tick did (and look for the writer's notices)."""
         if not self._started:
             self.start(rec.now_s)
+        if rec.now_s - self._last_poll_s >= self.config.send_interval_s:
+            self._last_poll_s = rec.now_s
+            self.poll_notices()
         for key, attr, device in self._watched:
             value = getattr(device, attr)
             if self._flags.get((key, attr), _UNSET) != value:
@@ -443,24 +471,65 @@ class McapRecorder:
             if deadline is not None and time.monotonic() > deadline:
                 return False
 
+    def _next_line(self) -> Optional[dict]:
+        """The next whole line from the writer, decoded; notices (``{"notice": text}``) are told, not returned."""
+        while b"\n" in self._reply_buffer:
+            line, self._reply_buffer = self._reply_buffer.split(b"\n", 1)
+            answer = json.loads(line)
+            if "notice" in answer:
+                self._tell(str(answer["notice"]))
+                continue
+            return answer
+        return None
+
+    def _read_writer(self) -> bool:
+        """Add what the writer said so far to the buffer, without waiting; False when it is gone."""
+        try:
+            chunk = os.read(self._proc.stdout.fileno(), 65536)
+        except BlockingIOError:
+            return True
+        except (OSError, ValueError):
+            return False
+        self._reply_buffer += chunk
+        return bool(chunk)
+
+    def poll_notices(self) -> None:
+        """Tell the run what the writer said unasked (a file it stopped writing: a full disk); never waits."""
+        if self._proc is None or self._proc.stdout is None or self._proc.stdout.closed:
+            return
+        self._read_writer()
+        if self._reply_buffer:
+            leftover = self._next_line()
+            if leftover is not None:  # not expected unasked: keep it for the next answer
+                self._reply_buffer = (json.dumps(leftover) + "\n").encode() + self._reply_buffer
+
+    def _tell(self, text: str, error: bool = True) -> None:
+        """A notice becomes an event of the run (terminal, console, summary) and, when an ``error``, the error."""
+        if error:
+            self.error = self.error or text
+        events = getattr(self.run, "events", None)
+        if events is not None:
+            events.add("recording", text)
+        else:
+            print(f"beastbt: {text}", file=sys.stderr, flush=True)
+
     def _take_reply(self, deadline: float) -> None:
         """Read the writer's next answer (a JSON line: messages, dropped, error, cpu_s) into the counts."""
         self._ring()
         out = self._proc.stdout.fileno()
-        while b"\n" not in self._reply_buffer:
+        while True:
+            answer = self._next_line()
+            if answer is not None:
+                break
             left = deadline - time.monotonic()
             if left <= 0 or not select.select([out], [], [], min(left, 0.5))[0]:
                 if left <= 0:
                     self._give_up("the writer did not drain its queue in time")
                     return
                 continue
-            chunk = os.read(out, 4096)
-            if not chunk:
+            if not self._read_writer():
                 self._give_up("the writer process ended early")
                 return
-            self._reply_buffer += chunk
-        line, self._reply_buffer = self._reply_buffer.split(b"\n", 1)
-        answer = json.loads(line)
         self.messages = int(answer["messages"])
         self._dropped_writer_side = int(answer["dropped"])
         self.writer_cpu_s = float(answer["cpu_s"])

@@ -414,7 +414,8 @@ def summary_text(d: RunData) -> str:
         lines.append("  failsafes: none")
     r = s.get("recording") or {}
     dropped = r.get("dropped")
-    state = "complete" if rec.complete else f"cut short ({rec.stopped_because})"
+    state = "complete" if rec.complete else (f"cut short ({rec.stopped_because}; `beastbt recover RUN` rewrites it "
+                                             f"as a whole MCAP file for other tools)")
     lines.append(f"  recording: {rec.message_count()} messages, "
                  + (f"{dropped} dropped" if dropped is not None else "dropped unknown (no summary)")
                  + f", file {state}")

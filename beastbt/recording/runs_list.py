@@ -3,7 +3,8 @@
 Each line: the run folder's name, the mission, the outcome, the mission time,
 the distance, and the recording's size and dropped messages. The outcome
 comes from ``summary.json``; a run without one did not finish (killed, or
-still running), and its line says so.
+still running), and its line says so; an empty one is a run that ended on a
+full disk (``beastbt recover RUN`` rebuilds a summary from the recording).
 """
 
 from __future__ import annotations
@@ -12,6 +13,10 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
+
+
+NO_SUMMARY = "no summary (disk full?)"
+"""The status of a run whose ``summary.json`` is empty: it ended, but the summary could not be written."""
 
 
 @dataclass
@@ -52,11 +57,15 @@ def list_runs(runs_dir: str) -> list[RunEntry]:
         summary: dict = {}
         if summary_path.exists():
             try:
-                summary = json.loads(summary_path.read_text(encoding="utf-8"))
+                text = summary_path.read_text(encoding="utf-8")
+                # Empty: the run ended but its summary could not be written (a full disk): see its events.
+                summary = json.loads(text) if text.strip() else {"status": NO_SUMMARY}
             except (OSError, ValueError):
                 summary = {"status": "unreadable"}
         mission = summary.get("mission") or _mission_from_name(folder.name)
         status = summary.get("status") or "unfinished"
+        if summary.get("recovered"):
+            status = f"cut short ({status}, recovered)"  # rebuilt by ``beastbt recover`` from the recording
         out.append(RunEntry(folder, mission, status, summary.get("sim_time_s"), summary.get("distance_m"),
                             mcap.stat().st_size if mcap.exists() else None,
                             (summary.get("recording") or {}).get("dropped")))

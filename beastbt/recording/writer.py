@@ -7,8 +7,15 @@ standard input. Everything that costs CPU happens here, on another core and
 under another interpreter lock than the tick loop's: the readings become
 JSON messages on the channels of :mod:`beastbt.recording.schemas`,
 camera frames become JPEGs, and the ``mcap`` library writes compressed
-chunks, one closed every ``chunk_interval_s`` of recorded clock time, so a
-run killed hard leaves a file that reads up to its last complete chunk.
+chunks, one closed every ``chunk_interval_s`` of recorded clock time. Each
+closed chunk goes to the file in one write, followed by a valid end (a
+DataEnd record, a footer with no summary section, the magic) that the next
+one overwrites: a run killed hard (a power cut, SIGKILL of everything) leaves
+a valid MCAP file, read by ``mcap``'s own readers up to its last complete
+chunk (``beastbt recover`` rebuilds one whose last write was torn). A file
+that cannot be written (a full disk) is set back to its last valid end and
+left; the run is told at once (a ``{"notice": text}`` line on standard
+output) and goes on: the messages still go to Foxglove live.
 
 Control items on the same pipe: ``("open", paths, config, info,
 attachments)`` first; ``("stop",)`` asks for the counts so far (one JSON line
@@ -24,10 +31,12 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import errno
 import json
 import math
 import os
 import select
+import shutil
 import signal
 import sys
 import time
@@ -181,30 +190,173 @@ def log_level(kind: str) -> int:
     return 3 if ("lost" in kind or "error" in kind) else 2
 
 
-class _TeeFile:
-    """Writes the same bytes to several files; ``tell()`` of the first (the MCAP writer records offsets)."""
+COMMIT_MAX_BYTES = 8 << 20
+"""The writer's bytes held for the next flush beyond this (bytes) are flushed at once (closing the chunk)."""
+
+DISK_FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+"""Write errors that mean the disk (or the user's quota, or the file system's largest file) is full."""
+
+
+def _valid_end() -> bytes:
+    """What ends the file between chunks: a DataEnd record, a Footer that says "no summary section", the magic.
+
+    MCAP's readers then stop cleanly: the linear reader at the footer, the
+    seeking reader (``mcap.reader.make_reader``) finds a footer at the end
+    and, with no summary to seek by, reads the records from the start.
+    """
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import DataEnd, Footer
+    from mcap.writer import MCAP0_MAGIC
+    builder = RecordBuilder()
+    DataEnd(data_section_crc=0).write(builder)  # 0: no CRC of the data section (the writer keeps none)
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(builder)
+    return builder.end() + MCAP0_MAGIC
+
+
+def describe_write_error(path: Path, exc: OSError) -> str:
+    """Why writing ``path`` failed, for a person: a full disk with the space left (MB), or the OS's words."""
+    if exc.errno in DISK_FULL_ERRNOS:
+        try:
+            free_mb = shutil.disk_usage(path.parent).free / 1e6
+            return f"disk full at {path} ({free_mb:.1f} MB free)"
+        except OSError:
+            return f"disk full at {path}"
+    return f"cannot write {path} ({exc.strerror or exc!r})"
+
+
+class _McapFile:
+    """One file the recording goes to, kept a valid MCAP file after every commit (see :class:`_RecordStream`)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.fd: Optional[int] = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self.end = 0
+        """Bytes of records written and kept (before the valid end written after them)."""
+        self.tail = b""
+        """What follows them in the file now (the valid end, or nothing)."""
+
+    def commit(self, data: bytes) -> None:
+        """Write ``data`` (whole records, then an end) at :attr:`end` in one call; raises OSError when it fails."""
+        self._write_at(data, self.end)
+
+    def rollback(self) -> None:
+        """After a failed commit: cut what it wrote and put the valid end back (it fits where it was)."""
+        try:
+            os.ftruncate(self.fd, self.end)
+            self._write_at(self.tail, self.end)
+        except OSError:
+            pass  # the file stays as it is: ``beastbt recover`` rebuilds what it can
+
+    def _write_at(self, data: bytes, offset: int) -> None:
+        view = memoryview(data)
+        while view:
+            # One pwrite normally; a short write (a disk filling up) goes round again and then raises.
+            n = os.pwrite(self.fd, view, offset)
+            view = view[n:]
+            offset += n
+
+    def close(self, truncate_at: Optional[int] = None) -> None:
+        """Close the file (cut to ``truncate_at`` bytes first when given)."""
+        if self.fd is None:
+            return
+        try:
+            if truncate_at is not None:
+                os.ftruncate(self.fd, truncate_at)
+        except OSError:
+            pass
+        finally:
+            os.close(self.fd)
+            self.fd = None
+
+
+class _RecordStream:
+    """The output of the ``mcap`` writer: the same bytes to several files, each a valid MCAP file at every flush.
+
+    The writer's bytes wait here until :meth:`flush` (the writer's
+    ``flush()`` at every closed chunk). A flush writes them with the valid end
+    (:func:`_valid_end`) after them, in one write per file, where the last
+    valid end was: a run killed hard (a power cut, the OOM killer) leaves a
+    file that MCAP's own readers read to its last flushed chunk.
+    ``close()`` writes the writer's real end (summary section, footer).
+
+    A file that cannot be written (a full disk) is set back to its last
+    valid state and written no more; the others go on. Its failure is in
+    :attr:`failures` until taken (:meth:`take_failures`). ``tell()`` is the
+    offset the ``mcap`` writer indexes by: the same in every file.
+    """
 
     def __init__(self, paths: list[Path]) -> None:
-        self._files = []
-        for p in paths:
-            p.parent.mkdir(parents=True, exist_ok=True)
-            self._files.append(open(p, "wb"))
+        self._files = [_McapFile(p) for p in paths]
+        self._buffer = bytearray()
+        self._end = 0
+        self._tail = _valid_end()
+        self.failures: list[tuple[Path, OSError]] = []
+        """Files that failed and were given up on, with their error, not yet taken."""
+
+    @property
+    def writing(self) -> bool:
+        """Some file still takes the recording."""
+        return bool(self._files)
+
+    @property
+    def paths(self) -> list[Path]:
+        """The files still written."""
+        return [f.path for f in self._files]
+
+    @property
+    def pending_bytes(self) -> int:
+        """Bytes written by the ``mcap`` writer and not yet flushed to the files."""
+        return len(self._buffer)
 
     def write(self, data: bytes) -> int:
-        for f in self._files:
-            f.write(data)
+        """Take bytes from the ``mcap`` writer (whole records, or the magic); kept until :meth:`flush`."""
+        if self._files:
+            self._buffer += data
         return len(data)
 
     def tell(self) -> int:
-        return self._files[0].tell()
+        """The offset of the next byte written, as the ``mcap`` writer indexes records."""
+        return self._end + len(self._buffer)
 
     def flush(self) -> None:
-        for f in self._files:
-            f.flush()
+        """Write what was taken, then the valid end, to every file still written."""
+        self._commit(self._tail)
+
+    def take_failures(self) -> list[tuple[Path, OSError]]:
+        """The files given up on since the last call, with their error."""
+        out, self.failures = self.failures, []
+        return out
 
     def close(self) -> None:
+        """Write the rest (the ``mcap`` writer's summary and footer: no valid end of ours after them); close."""
+        self._commit(b"")
         for f in self._files:
-            f.close()
+            f.close(truncate_at=f.end)
+        self._files = []
+
+    def _commit(self, tail: bytes) -> None:
+        if not self._files:
+            self._buffer = bytearray()
+            return
+        if not self._buffer and all(f.tail == tail for f in self._files):
+            return  # nothing new: the files already end validly
+        data = bytes(self._buffer) + tail
+        kept = []
+        for f in self._files:
+            try:
+                f.commit(data)
+            except OSError as exc:
+                f.rollback()
+                f.close()
+                self.failures.append((f.path, exc))
+                continue
+            kept.append(f)
+        self._files = kept
+        self._end += len(self._buffer)
+        for f in kept:
+            f.end, f.tail = self._end, tail
+        self._buffer = bytearray()
 
 
 # -- the recorder -----------------------------------------------------------------------------
@@ -245,6 +397,14 @@ class _NoFile:
     def close(self) -> None:
         """Nothing to close."""
 
+    writing = True
+    """Served live: every message counts as written."""
+    pending_bytes = 0
+
+    def take_failures(self) -> list:
+        """Nothing written, nothing failed."""
+        return []
+
 
 class RunFileWriter:
     """Writes the items of one run into MCAP file(s) (the same bytes to each path), and to Foxglove live.
@@ -264,6 +424,11 @@ class RunFileWriter:
         self.messages = 0
         self.dropped = 0
         self.error: Optional[str] = None
+        self.notices: list[str] = []
+        """What the run must be told at once (a file that stopped being written: a full disk), not yet sent."""
+        self._flushed_messages = 0
+        """Messages in the files as of their last flush (what a failed flush leaves in them)."""
+        self._images = config.image_rate_hz > 0
         self._channels: dict[str, int] = {}
         self._schema_ids: dict[str, int] = {}
         self._last_flush_s: Optional[float] = None
@@ -284,7 +449,7 @@ class RunFileWriter:
         self._servo_rad: dict[str, float] = {}
         """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
         self._live = live
-        self._stream: Any = _TeeFile([Path(p) for p in paths]) if paths else _NoFile()
+        self._stream: Any = _RecordStream([Path(p) for p in paths]) if paths else _NoFile()
         w: Any = (Writer(self._stream, chunk_size=config.chunk_max_bytes,
                          compression=compression_type(config.compression)) if paths else _NoFile())
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")
@@ -299,16 +464,21 @@ class RunFileWriter:
 
     def write(self, item: tuple) -> None:
         """Write one item (a tick, an event, a device flag, a snapshot, a servo command); errors are counted."""
+        if not self._stream.writing and self._live is None:
+            self.dropped += message_count(item, self._images)  # nowhere to go: not even encoded
+            return
         try:
             self._write_item(item)
         except Exception as exc:
             self.error = self.error or f"writing {item[0]}: {exc!r}"
             self.dropped += 1
+        if self._stream.pending_bytes > COMMIT_MAX_BYTES:
+            self.flush()  # many images between two chunk intervals: write them now rather than hold them
 
     def flush(self) -> None:
-        """Close the current chunk and hand everything to the OS."""
+        """Close the current chunk and hand everything to the OS (each file then ends validly)."""
         self._writer.flush()
-        self._stream.flush()
+        self._check_files()
 
     def finish(self, metadata: Optional[dict[str, dict[str, str]]] = None) -> None:
         """Add ``metadata`` records (name -> strings), write the MCAP summary section and footer, close."""
@@ -318,8 +488,30 @@ class RunFileWriter:
             self._writer.finish()
         finally:
             self._stream.close()
+            self._check_files()
             if self._live is not None:
                 self._live.close()
+
+    def _check_files(self) -> None:
+        """After a flush: a file that could not be written is given up on; say so (a notice for the run)."""
+        failures = self._stream.take_failures()
+        if not failures:
+            if self._stream.writing:
+                self._flushed_messages = self.messages
+            return
+        if not self._stream.writing:
+            # What the failed flush held is not in any file: count it as dropped, from now on everything is.
+            self.dropped += self.messages - self._flushed_messages
+            self.messages = self._flushed_messages
+        still = [str(p) for p in getattr(self._stream, "paths", [])]
+        for path, exc in failures:
+            text = (f"stopped: {describe_write_error(path, exc)}; {path.name} keeps its {self._flushed_messages} "
+                    f"messages up to its last chunk; " + (f"still recording to {', '.join(still)}; " if still else "")
+                    + "the mission goes on")
+            self.error = self.error or text
+            self.notices.append(text)
+        if self._stream.writing:
+            self._flushed_messages = self.messages  # the files still written took this flush
 
     def _channel(self, topic: str, schema: Optional[dict] = None) -> int:
         cid = self._channels.get(topic)
@@ -344,7 +536,10 @@ class RunFileWriter:
         cid = self._channels.get(topic)
         if cid is None:
             cid = self._channel(topic)
-        self.messages += 1
+        if self._stream.writing:
+            self.messages += 1
+        else:
+            self.dropped += 1  # served live only: no file takes it any more
         data = encode_json(obj)
         self._writer.add_message(channel_id=cid, log_time=t_ns, data=data, publish_time=t_ns, sequence=self.messages)
         if self._live is not None:
@@ -466,7 +661,7 @@ class RunFileWriter:
             self._last_flush_s = now_s
         elif now_s - last >= self.config.chunk_interval_s - 1e-9:
             # Close the chunk and hand it to the OS: a hard kill now loses at most one interval.
-            self._writer.flush()
+            self.flush()
             self._last_flush_s = now_s
 
     def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
@@ -566,6 +761,13 @@ CUT_REASON = "the run's process ended without finishing its recording (killed, o
 """The ``reason`` of metadata ``beastbt.cut``."""
 
 
+def _send_notices(writer: RunFileWriter, reply: Callable[[dict], None]) -> None:
+    """Send the writer's notices, unasked: the run reads them between ticks and makes each an event."""
+    for text in writer.notices:
+        reply({"notice": text})
+    writer.notices.clear()
+
+
 def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
     """The writer process's loop: items from ``read`` (``b''`` at the end), answers through ``reply``.
 
@@ -607,6 +809,7 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                         writer.flush()
                     except Exception as exc:
                         state["error"] = state["error"] or f"flushing: {exc!r}"
+                    _send_notices(writer, reply)
                 reply(counts())
             elif tag == "finish":
                 summary_json = item[1]
@@ -615,6 +818,7 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                         writer.finish({"beastbt.summary": {"json": summary_json}} if summary_json else None)
                     except Exception as exc:
                         state["error"] = state["error"] or f"finishing the file: {exc!r}"
+                    _send_notices(writer, reply)  # the end did not fit on the disk: the run still says it
                 final = counts()
                 reply(final)
                 return 0 if final["error"] is None else 1
@@ -622,6 +826,8 @@ def serve(read: Callable[[int], bytes], reply: Callable[[dict], None]) -> int:
                 writer.write(item)
             else:
                 state["dropped"] += message_count(item, images)
+            if writer is not None and writer.notices:
+                _send_notices(writer, reply)
     except Exception as exc:  # a corrupt stream: keep what was written
         state["error"] = state["error"] or f"reading the run's items: {exc!r}"
     if writer is not None:

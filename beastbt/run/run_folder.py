@@ -8,8 +8,11 @@ found by either.
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import json
+import os
 import re
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional
@@ -26,7 +29,12 @@ def save_jpeg(folder: Path, name: str, frame: Any) -> str:
         n += 1
         target = folder / f"{name}-{n}.jpg"
     import cv2  # only a run that takes snapshots needs OpenCV here
-    cv2.imwrite(str(target), frame.image)
+    if not cv2.imwrite(str(target), frame.image):
+        try:
+            target.unlink()  # a partial JPEG (a full disk) is no snapshot
+        except OSError:
+            pass
+        raise OSError(errno.EIO, f"could not write {target} (a full disk?)")
     return str(target)
 
 
@@ -47,12 +55,18 @@ def _safe(name: str) -> str:
     return re.sub(r"[^\w-]", "_", name)
 
 
+class RunFolderUnavailable(Exception):
+    """The run folder cannot be made (a full disk, no permission): the run does not start; says what to do."""
+
+
 @dataclass
 class RunFolder:
     """Where one run's files go. Writers that record more (MCAP) add themselves to ``finishers``."""
 
     path: Path
     finishers: list[Callable[[dict], None]] = field(default_factory=list)
+    summary_written: bool = False
+    """``summary.json`` was written whole by :meth:`finish`."""
 
     @classmethod
     def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None,
@@ -70,18 +84,59 @@ class RunFolder:
         while path.exists():
             n += 1
             path = Path(f"{base}-{n}")
-        path.mkdir(parents=True)
+        try:
+            path.mkdir(parents=True)
+        except OSError as exc:
+            raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
+                                       f"space, give --runs-dir on another disk, or run with --no-record") from None
         return cls(path)
 
     def save_snapshot(self, name: str, frame: Any) -> str:
         """Save a :class:`~beastbt.blackboard.types.CameraFrame` as ``<name>.jpg``; return its path."""
         return save_jpeg(self.path, name, frame)
 
-    def finish(self, summary: dict) -> None:
-        """Write ``summary.json`` and ``events.log``, then let the other writers finish."""
-        (self.path / "summary.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-        with open(self.path / "events.log", "w", encoding="utf-8") as f:
-            for e in summary["events"]:
-                f.write(f"{e['time_s']:10.3f}  {e['kind']:<14} {e['text']}\n")
+    def finish(self, summary: dict) -> list[str]:
+        """Write ``summary.json`` and ``events.log``, then let the other writers finish.
+
+        Returns what could not be written (a full disk), one sentence each; the
+        rest is written all the same. A ``summary.json`` that could not be
+        written is left empty (``beastbt runs``: no summary), never half written.
+        """
+        problems = []
+        for name, text in (("summary.json", json.dumps(summary, indent=2) + "\n"),
+                           ("events.log", events_log_text(summary["events"]))):
+            problem = save_text(self.path / name, text)
+            if problem is not None:
+                problems.append(problem)
+            elif name == "summary.json":
+                self.summary_written = True
         for fin in self.finishers:
-            fin(summary)
+            try:
+                fin(summary)
+            except Exception as exc:  # noqa: BLE001 - the summary is kept whatever a writer does
+                problems.append(f"could not finish the recording in {self.path}: {exc!r}")
+        return problems
+
+
+def events_log_text(events: list[dict]) -> str:
+    """``events.log``: one line per event of the summary (time s, kind, text)."""
+    return "".join(f"{e['time_s']:10.3f}  {e['kind']:<14} {e['text']}\n" for e in events)
+
+
+def save_text(path: Path, text: str) -> Optional[str]:
+    """Write ``text`` to ``path`` (UTF-8); None when done, else why not (a full disk: the file is left empty)."""
+    try:
+        Path(path).write_text(text, encoding="utf-8")
+        return None
+    except OSError as exc:
+        try:
+            os.truncate(path, 0)  # not half a JSON document: empty says "not written" plainly
+        except OSError:
+            pass
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+            try:
+                free = f" ({shutil.disk_usage(Path(path).parent).free / 1e6:.1f} MB free)"
+            except OSError:
+                free = ""
+            return f"could not write {path}: the disk is full{free}"
+        return f"could not write {path}: {exc.strerror or exc!r}"

@@ -21,7 +21,7 @@ from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
-from beastbt.run.run_folder import RunFolder
+from beastbt.run.run_folder import RunFolder, save_text
 from beastbt.run.runner import MissionRun
 from beastbt.run.summary import build_summary
 from beastbt.sim.world import World
@@ -224,18 +224,37 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     wall_time_s = wall.now() - wall0
     world_name = p.world.name if p.world is not None else None
     summary = build_summary(run, opts.seed, wall_time_s, world_name, p.profile.name)
-    if opts.summary_path:
-        Path(opts.summary_path).write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
-    if p.folder is not None:
-        p.folder.finish(summary)
-        summary_dir = str(p.folder.path)
-        out.write(f"run recorded in {summary_dir}\n")
+    keep_summary(p, summary, out)
     return summary
+
+
+def keep_summary(p: Prepared, summary: dict, out: TextIO) -> None:
+    """Write the summary to ``--summary`` and the run folder; what cannot be written (a full disk) is said on
+    standard error, and a summary written nowhere is printed on ``out`` as JSON, so that it is never lost."""
+    opts = p.options
+    wanted = saved = 0
+    problems = []
+    if opts.summary_path:
+        wanted += 1
+        problem = save_text(Path(opts.summary_path), json.dumps(summary, indent=2) + "\n")
+        saved += problem is None
+        problems += [problem] if problem else []
+    if p.folder is not None:
+        wanted += 1
+        problems += p.folder.finish(summary)
+        saved += p.folder.summary_written
+    for problem in problems:
+        print(f"beastbt: {problem}", file=sys.stderr, flush=True)
+    if p.folder is not None:
+        out.write(f"run recorded in {p.folder.path}\n")
+    if wanted and not saved:
+        out.write("the run summary (written nowhere else):\n" + json.dumps(summary, indent=2) + "\n")
 
 
 CONSOLE_EVENTS = frozenset({"mission_end", "failsafe", "estop", "step_failed", "device_error", "on_failure", "ask",
                             "answer", "guard",
-                            "snapshot", "bus_servo_error", "base_speed_clamped", "camera_backend", "joystick_preset"})
+                            "snapshot", "bus_servo_error", "base_speed_clamped", "camera_backend", "joystick_preset",
+                            "recording"})
 """Events printed on the terminal as they happen (all of them are in the summary and the recording)."""
 
 
