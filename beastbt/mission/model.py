@@ -124,6 +124,10 @@ def steps_of(values: list, path: PathKey, extra: Collection[str] = ()) -> list[R
     return [step_of(v, path + (i,), extra) for i, v in enumerate(values)]
 
 
+MAX_ACCEL_MPS2 = 50.0
+"""Largest acceleration limit a mission may write, m/s2 (about five times what gravity gives)."""
+
+
 def _accel(value: Union[str, float]) -> float:
     if isinstance(value, (int, float)):
         return float(value)
@@ -156,8 +160,14 @@ class _SemanticChecker:
         for key, kind in (("speed", "speed"), ("turn_rate", "turn_rate")):
             if key in (d.get("limits") or {}):
                 self.positive(("limits", key), kind)
-        if "acceleration" in (d.get("limits") or {}) and _accel(d["limits"]["acceleration"]) <= 0:
-            self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
+        if "acceleration" in (d.get("limits") or {}):
+            accel = _accel(d["limits"]["acceleration"])
+            if accel <= 0:
+                self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
+            elif not accel <= MAX_ACCEL_MPS2:  # also NaN and inf ('1e400 m/s2')
+                self.error(("limits", "acceleration"), f"'acceleration': expected an acceleration of at most "
+                           f"{MAX_ACCEL_MPS2:g} m/s2, got {d['limits']['acceleration']!r}",
+                           "a small robot accelerates at about 0.5 m/s2")
         for name, task in self.tasks.items():
             if isinstance(task, dict):
                 self.walk_steps(task.get("steps") or [], ("tasks", name, "steps"))
