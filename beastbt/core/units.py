@@ -133,6 +133,8 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
         raise UnitError(f"expected {_describe(k)}, got '{value}'")
     number, unit = float(m.group(1)), m.group(2)
     if unit is None:
+        if not math.isfinite(number) and k.bare_allowed:  # '1e400': say what was written, not 'inf'
+            raise UnitError(f"expected {_describe(k)}, a finite number, got '{value.strip()}'")
         return parse_quantity(number, kind)
     if unit in k.factors:
         text = value.strip()
