@@ -37,7 +37,7 @@ ALIAS_ALLOWANCE = 10_000
 may hold at most twice the values written in it plus this many. Like the bounds of Go's yaml.v3 and SnakeYAML,
 this keeps anchors for reuse (``<<: *slow``) and refuses an alias bomb before it is expanded."""
 
-MAX_NUMBER = 1e15
+MAX_NUMBER = 10 ** 15
 """Largest magnitude of any number in a file. No quantity a robot file describes comes near it (1e15 m is a hundred
 times the distance to the Sun), and every whole number below it is exact as a float. Each field's own range, in the
 schemas and the unit kinds, is much tighter."""
@@ -163,8 +163,8 @@ class _Builder:
         if node.tag == _INT_TAG and len(node.value.lstrip("+-").replace("_", "")) > 40:
             # Not even converted: Python refuses to read an int of more than 4300 digits (and is slow below that).
             self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
-                                         f"{label}the number {_short(node.value)} is far too large: numbers in a "
-                                         f"file are at most {MAX_NUMBER:g} in size", _NUMBER_HINT))
+                                         f"{label}the number {_short(node.value)} is far too large{_range_of(path)}",
+                                         _NUMBER_HINT))
             return None
         try:
             value = self.constructor.construct_object(node, deep=True)
@@ -180,19 +180,30 @@ class _Builder:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             if isinstance(value, float) and not math.isfinite(value):
                 self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
-                                             f"{label}'{_short(node.value)}' is not a finite number ({value})",
+                                             f"{label}'{_short(node.value)}' is not a finite number{_range_of(path)}",
                                              _NUMBER_HINT))
                 return None
             if abs(value) > MAX_NUMBER:
                 self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
-                                             f"{label}the number {_short(node.value)} is far too large: numbers in a "
-                                             f"file are at most {MAX_NUMBER:g} in size", _NUMBER_HINT))
+                                             f"{label}the number {_short(node.value)} is far too large"
+                                             f"{_range_of(path)}", _NUMBER_HINT))
                 return None
         return value
 
 
 _NUMBER_HINT = ("every number must be finite and within the range its field can mean (.nan, .inf and numbers "
                 "beyond 1e15 mean nothing to a robot); write the value you mean, e.g. 'wait: 2 s', 'lat: 40.4168'")
+
+
+def _range_of(path: PathKey) -> str:
+    """``: 'lat' is a number from -90 to 90`` when the schemas say what the field's range is, else the rule for any
+    number in a file."""
+    from beastbt.core.schema_check import field_range  # late: schema_check reads files through this module
+    key = next((part for part in reversed(path) if isinstance(part, str)), None)
+    words = field_range(key) if key is not None else None
+    if words:
+        return f": '{key}' is {words}"
+    return ": any number in a file is finite and at most 1e15 in size"
 
 
 def _label(path: PathKey) -> str:
@@ -329,6 +340,19 @@ def _reader_problem(file: str, text: str, exc: yaml.reader.ReaderError) -> Probl
                    "delete it (a control character or a NUL pasted by mistake?); a YAML file is printable text")
 
 
+def _undecodable(file: str, exc: UnicodeDecodeError) -> Problem:
+    """Bytes that are not UTF-8, at the line and column of the first of them."""
+    data = exc.object if isinstance(exc.object, (bytes, bytearray)) else b""
+    start = max(0, min(exc.start, len(data)))
+    line = data.count(b"\n", 0, start) + 1
+    line_start = data.rfind(b"\n", 0, start) + 1
+    column = len(data[line_start:start].decode("utf-8", errors="replace")) + 1
+    binary = data[:start].count(b"\0") > 0 or start == 0
+    return Problem(file, Position(line, column),
+                   "this is not a text file" if binary else f"byte 0x{data[start]:02x} here is not UTF-8 text",
+                   "it must be a YAML text file (UTF-8); save it again as UTF-8 (a Latin-1 letter pasted in?)")
+
+
 def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
     if isinstance(exc, yaml.reader.ReaderError):
         return _reader_problem(file, text, exc)
@@ -388,9 +412,8 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
         except IsADirectoryError:
             raise InvalidInput([Problem(name, Position(1, 1), "this is a folder, not a file",
                                         "give the path of a YAML file in it")])
-        except UnicodeDecodeError:
-            raise InvalidInput([Problem(name, Position(1, 1), "this is not a text file",
-                                        "it must be a YAML text file (UTF-8)")])
+        except UnicodeDecodeError as exc:
+            raise InvalidInput([_undecodable(name, exc)]) from None
         except OSError as exc:
             raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {plain_reason(exc)}",
                                         "check the path and the file's permissions")])
