@@ -129,6 +129,11 @@ def _knob_in_range(validator: Any, unit: Any, instance: Any, schema: dict) -> It
                                          f"{unit} either way ({KINDS[kind].max_said})")
 
 
+def _num(value: Any) -> str:
+    """A schema bound as a person writes it (1000000, not 1e+06)."""
+    return str(int(value)) if isinstance(value, (int, float)) and float(value).is_integer() else f"{value:g}"
+
+
 _Validator = jsonschema.validators.extend(jsonschema.Draft202012Validator,
                                           {"x-unit-kind": _unit_in_range, "x-unit-max": _unit_max,
                                            "x-knob-unit": _knob_in_range})
@@ -390,74 +395,6 @@ class _Explainer:
             return self.problems(by_branch.get(keyed[present[0]], [])) or [
                 self.at(path, f"invalid '{present[0]}' {label}", self.describe(branches[keyed[present[0]]]))]
         return [self.at(path, f"expected a {label}, got {_type_of(inst)}", f"the {label}s are: {listing}")]
-
-
-def _range_words(node: dict, defs: dict) -> Optional[str]:
-    """What range a schema property allows, in words ("a number from -90 to 90"); "" for a number without one; None
-    for a property that is no number (text, a mapping)."""
-    ref = str(node.get("$ref", ""))
-    if ref.startswith("#/$defs/") and ref.rsplit("/", 1)[-1] not in KINDS and isinstance(defs.get(ref[8:]), dict):
-        node = {**defs[ref[8:]], **{k: v for k, v in node.items() if k != "$ref"}}
-    if "anyOf" in node and "type" not in node:
-        said = [w for w in (_range_words(b, defs) if isinstance(b, dict) else None for b in node["anyOf"]) if w]
-        constants = [f"'{b['const']}'" for b in node["anyOf"] if isinstance(b, dict) and "const" in b]
-        return " or ".join(said + constants) if said else None
-    low = node.get("minimum", node.get("exclusiveMinimum"))
-    high = node.get("maximum", node.get("exclusiveMaximum"))
-    whole = "a whole number" if node.get("type") == "integer" else "a number"
-    if low is not None and high is not None:
-        return f"{whole} from {_num(low)} to {_num(high)}"
-    if "x-unit-max" in node:
-        return f"an angle from -{node['x-unit-max']} to {node['x-unit-max']}"
-    kind = node.get("x-unit-kind") or (ref.rsplit("/", 1)[-1] if ref.startswith("#/$defs/") else None)
-    if kind in KINDS:
-        return f"a {kind.replace('_', ' ')} (e.g. '{KINDS[kind].example}') of at most {KINDS[kind].max_said}"
-    types = node.get("type")
-    types = types if isinstance(types, list) else [types]
-    if "number" not in types and "integer" not in types:
-        return None
-    if low is not None:
-        return f"{whole} of at least {_num(low)}"
-    if high is not None:
-        return f"{whole} of at most {_num(high)}"
-    return ""
-
-
-def _num(value: Any) -> str:
-    """A schema bound as a person writes it (1000000, not 1e+06)."""
-    return str(int(value)) if isinstance(value, (int, float)) and float(value).is_integer() else f"{value:g}"
-
-
-@lru_cache(maxsize=None)
-def _field_ranges() -> dict[str, frozenset[str]]:
-    """Every numeric property name of the input schemas, with the ranges its occurrences allow ("" for none)."""
-    out: dict[str, set[str]] = {}
-
-    def walk(node: Any, defs: dict) -> None:
-        if isinstance(node, dict):
-            props = node.get("properties")
-            if isinstance(props, dict):
-                for key, sub in props.items():
-                    words = _range_words(sub, defs) if isinstance(sub, dict) else None
-                    if words is not None:
-                        out.setdefault(key, set()).add(words)
-            for value in node.values():
-                walk(value, defs)
-        elif isinstance(node, list):
-            for value in node:
-                walk(value, defs)
-
-    for name, schema in _schema_texts().items():
-        if name != "summary.schema.json":  # what a run writes, not what a user does
-            walk(schema, schema.get("$defs") or {})
-    return {k: frozenset(v) for k, v in out.items()}
-
-
-def field_range(key: str) -> Optional[str]:
-    """The range a field named ``key`` allows wherever the schemas use it (``lat`` -> "a number from -90 to 90"),
-    or None when they say none or do not agree; used to word a refused number (``lat: .nan``)."""
-    words = _field_ranges().get(key, frozenset())
-    return next(iter(words)) if len(words) == 1 and "" not in words else None
 
 
 def schema_problems(doc: SourceDoc, schema_name: str, what: str, schema: Optional[dict] = None) -> list[Problem]:

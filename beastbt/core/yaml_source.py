@@ -198,7 +198,7 @@ _NUMBER_HINT = ("every number must be finite and within the range its field can 
 def _range_of(path: PathKey) -> str:
     """``: 'lat' is a number from -90 to 90`` when the schemas say what the field's range is, else the rule for any
     number in a file."""
-    from beastbt.core.schema_check import field_range  # late: schema_check reads files through this module
+    from beastbt.core.field_ranges import field_range  # late: only a refused number needs the schemas
     key = next((part for part in reversed(path) if isinstance(part, str)), None)
     words = field_range(key) if key is not None else None
     if words:
