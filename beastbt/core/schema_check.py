@@ -298,9 +298,8 @@ class _Explainer:
             said = (expected or f"Expected a valid {kind.replace('_', ' ')}").split(";")[0].rstrip(".")
             message = f"{said[0].lower()}{said[1:]}, got {_type_of(value)}"
         label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
-        if ranged:  # out of the kind's range: say what the kind is, its range included
-            return self.at(path, f"{label}{message}", schema_comment)
-        return self.at(path, f"{label}{message}")
+        # The hint says what the kind is, its range included (the definition's comment).
+        return self.at(path, f"{label}{message}", schema_comment)
 
     def unknown_keys(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
         inst = err.instance
