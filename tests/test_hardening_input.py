@@ -247,6 +247,8 @@ READER_ERRORS = [
     ("unclosed quote", lambda line: line.replace("2 s", '"2 s'), 13),
     ("bad !!int", lambda line: line.replace("2 s", "!!int 2 s"), 13),
     ("bad date", lambda line: line.replace("2 s", "2024-13-45"), 13),
+    ("bad !!bool", lambda line: line.replace("2 s", "!!bool maybe"), 13),
+    ("bad !!timestamp", lambda line: line.replace("2 s", "!!timestamp x"), 13),
     ("an anchor without a name", lambda line: line.replace("2 s", "&"), None),
 ]
 """(what is wrong, how line 9 of patrol.yaml is changed, the column of the error when it is exact)."""

@@ -170,11 +170,12 @@ class _Builder:
             value = self.constructor.construct_object(node, deep=True)
         except yaml.YAMLError:
             raise
-        except (ValueError, TypeError, OverflowError) as exc:
-            # An explicit tag whose text it cannot read (!!int 2 s, !!float x, a date 2024-13-45).
+        except (ValueError, TypeError, OverflowError, KeyError, AttributeError) as exc:
+            # An explicit tag whose text it cannot read (!!int 2 s, !!bool maybe, !!timestamp x, a date 2024-13-45).
             tag = node.tag.rsplit(":", 1)[-1]
             self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
-                                         f"{label}'{_short(node.value)}' cannot be read as {tag}: {exc}",
+                                         f"{label}'{_short(node.value)}' cannot be read as {tag}"
+                                         + (f": {exc}" if isinstance(exc, (ValueError, OverflowError)) else ""),
                                          "remove the '!!' tag, or put the text in quotes if it is text"))
             return None
         if isinstance(value, (int, float)) and not isinstance(value, bool):
