@@ -300,11 +300,21 @@ def _alias_bomb(file: str, root: yaml.Node, uses: list[tuple[str, yaml.Mark, yam
                    f"nesting aliases of aliases")
 
 
+class _TooDeep(Exception):
+    """PyYAML's composer ran out of Python's recursion at ``mark`` (lists and mappings nested hundreds deep)."""
+
+    def __init__(self, mark: yaml.Mark) -> None:
+        super().__init__("nested too deeply")
+        self.mark = mark
+
+
 def _compose(text: str) -> tuple[Optional[yaml.Node], list[tuple[str, yaml.Mark, yaml.Node]]]:
     """The document's node graph and its alias uses (``yaml.compose`` with :class:`_CountingLoader`)."""
     loader = _CountingLoader(text)
     try:
         return loader.get_single_node(), loader.alias_uses
+    except RecursionError:
+        raise _TooDeep(loader.get_mark()) from None
     except (ValueError, OverflowError) as exc:
         # The scanner's own slips (chr() of an escape beyond Unicode, '\U0011FFFF'): where the reader stopped.
         what = ("an escape that is no Unicode character (the largest is \\U0010FFFF)" if "chr()" in str(exc)
@@ -423,8 +433,8 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
         node, alias_uses = _compose(text)
     except yaml.YAMLError as exc:
         raise InvalidInput([_syntax_problem(name, text, exc)])
-    except RecursionError:
-        raise InvalidInput([Problem(name, Position(1, 1), "nested too deeply for a YAML reader",
+    except _TooDeep as exc:
+        raise InvalidInput([Problem(name, _pos(exc.mark), "nested too deeply for a YAML reader",
                                     f"keep lists and mappings within {MAX_NESTING} levels; move inner steps "
                                     f"into a task under 'tasks:' and run it with 'do: <task>'")]) from None
     if node is None:
