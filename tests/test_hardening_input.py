@@ -111,6 +111,37 @@ def test_run_refuses_a_bomb_in_any_of_its_files_before_anything_moves(tmp_path, 
     assert rss_mb < MAX_RSS_MB + 100, f"peak RSS {rss_mb:.0f} MB"  # run imports the simulator first
 
 
+def task_calls(levels: int, width: int) -> str:
+    """Tasks that each run the one before ``width`` times, ``levels`` deep: ``width ** levels`` waits once the
+    compiler copies each task in where ``do:`` runs it (no alias at all)."""
+    text = "mission: calls\ntasks:\n  t0:\n" + "    - wait: 1 s\n" * width
+    for i in range(1, levels):
+        text += f"  t{i}:\n" + f"    - do: t{i - 1}\n" * width
+    return text + f"steps:\n  - wait: 1 s\n  - do: t{levels - 1}\n"
+
+
+@pytest.mark.parametrize("text, says", [
+    (task_calls(6, 10), "more than 50,000 values in its tree"),
+    (task_calls(1000, 1), "nests more than 100 levels"),
+])
+def test_tasks_that_would_compile_to_a_huge_or_too_deep_tree_are_refused_at_their_call(tmp_path, text, says):
+    path = tmp_path / "m.yaml"
+    path.write_text(text)
+    line = text.splitlines().index(text.splitlines()[-1]) + 1
+    for command in ("validate", "run"):
+        status, out, err, rss_mb = beastbt_own_rss(command, str(path), cwd=tmp_path)
+        assert status == 2 and "Traceback" not in err, out + err
+        assert f"{path}:{line}:9: error: with its tasks copied in wherever 'do:' runs them" in err and says in err
+        assert rss_mb < MAX_RSS_MB + 100, f"peak RSS {rss_mb:.0f} MB"
+
+
+def test_tasks_calling_tasks_within_the_bounds_still_run(tmp_path):
+    path = tmp_path / "m.yaml"
+    path.write_text(task_calls(4, 5))  # 625 waits of 1 s
+    status, out, err, _ = beastbt_own_rss("run", str(path), "--no-record", "--max-time", "3 s", cwd=tmp_path)
+    assert status == 1 and "max time 3 s reached" in out, out + err
+
+
 def test_an_alias_inside_its_own_anchor_is_refused(tmp_path):
     path = tmp_path / "m.yaml"
     path.write_text("mission: loop\nsteps:\n  - wait: 1 s\nx: &a\n  - y: *a\n")
