@@ -1,4 +1,4 @@
-"""What hostile input files cost ``beastbt validate``: alias bombs and huge numbers, against Python start-up with PyYAML.
+"""What hostile input files cost ``beastbt validate``: alias bombs and huge numbers, against starting Python + PyYAML.
 
 Each file is checked by a fresh ``python -m beastbt validate FILE`` process;
 the script prints its median wall time and its peak RSS (from ``os.wait4``),
@@ -47,6 +47,8 @@ FILES = {
     "billion laughs, 10 levels (mission)": "mission: b\nsteps:\n  - wait: 1 s\n" + laughs(10),
     "6-level bomb (mission)": "mission: b\nsteps:\n  - wait: 1 s\n" + laughs(6),
     "10^6 waits through anchors": million_waits(),
+    "10^6 waits through tasks calling tasks": "mission: calls\ntasks:\n  t0:\n" + "    - wait: 1 s\n" * 10
+    + "".join(f"  t{i}:\n" + f"    - do: t{i - 1}\n" * 10 for i in range(1, 6)) + "steps:\n  - do: t5\n",
     "billion laughs (world)": "world: b\n" + laughs(9),
     "billion laughs (robot profile)": "robot: b\n" + laughs(9),
     "billion laughs (joystick script)": "- {at: 1 s, press: enable}\n" + "".join(
@@ -100,7 +102,7 @@ def main() -> None:
         exits = sorted({r[2] for r in runs})
         bomb = not name.startswith(("good", "9,900"))
         verdict = ("  ok" if wall < 1.0 and rss < 100 and exits == [2] else "  MISSED") if bomb else ""
-        print(f"validate {name:40s} {wall * 1000:7.1f} ms = {wall / base_s:4.1f}x  {rss:6.1f} MB = "
+        print(f"validate {name:42s} {wall * 1000:7.1f} ms = {wall / base_s:4.1f}x  {rss:6.1f} MB = "
               f"{rss / base_mb:4.1f}x  exit {','.join(map(str, exits))}{verdict}")
 
 

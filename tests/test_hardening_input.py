@@ -154,7 +154,8 @@ def test_legitimate_anchors_and_merge_keys_still_work(tmp_path):
     many = "".join(f"  - drive: {{<<: *slow, distance: {i % 3 + 1} m}}\n" for i in range(200))
     mission = tmp_path / "m.yaml"
     mission.write_text("mission: anchors\ntasks:\n  look: &look\n    - look: {pan: -45 deg}\n"
-                       "    - look: {pan: 45 deg}\n  look_again: *look\nsteps:\n  - drive: &slow {distance: 1 m, speed: 0.1 m/s}\n"
+                       "    - look: {pan: 45 deg}\n  look_again: *look\n"
+                       "steps:\n  - drive: &slow {distance: 1 m, speed: 0.1 m/s}\n"
                        f"{many}  - do: look_again\n")
     world = tmp_path / "w.yaml"
     world.write_text("world: walls\nwalls:\n" + "".join(f"  - &w{i} [0, {i}, 10, {i}]\n" for i in range(50))

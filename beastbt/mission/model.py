@@ -396,7 +396,8 @@ class _SemanticChecker:
         def callee(key: Any, val: Any) -> Optional[str]:
             if key == "do" and isinstance(val, str):
                 return val
-            return val.get("task") if key == "do" and isinstance(val, dict) and isinstance(val.get("task"), str) else None
+            task = val.get("task") if key == "do" and isinstance(val, dict) else None
+            return task if isinstance(task, str) else None
 
         depth: dict[str, int] = {}
         size: dict[str, int] = {}
