@@ -21,7 +21,7 @@ from conftest import REPO
 
 ADDRESS_SPACE_LIMIT = 1 << 30
 """The bombs' children run under this RLIMIT_AS: an expanding bomb would die of MemoryError (a traceback) here."""
-MAX_RSS_MB = 150
+MAX_RSS_MB = 100
 
 
 def beastbt(*args: str, cwd: Path) -> tuple[int, str, str]:
@@ -108,7 +108,7 @@ def test_run_refuses_a_bomb_in_any_of_its_files_before_anything_moves(tmp_path, 
     assert status == 2, out + err
     assert "Traceback" not in err and f"{path}:" in err and "aliases expand this file" in err
     assert "mission_end" not in out
-    assert rss_mb < MAX_RSS_MB + 100, f"peak RSS {rss_mb:.0f} MB"  # run imports the simulator first
+    assert rss_mb < MAX_RSS_MB, f"peak RSS {rss_mb:.0f} MB"
 
 
 def task_calls(levels: int, width: int) -> str:
@@ -132,7 +132,7 @@ def test_tasks_that_would_compile_to_a_huge_or_too_deep_tree_are_refused_at_thei
         status, out, err, rss_mb = beastbt_own_rss(command, str(path), cwd=tmp_path)
         assert status == 2 and "Traceback" not in err, out + err
         assert f"{path}:{line}:9: error: with its tasks copied in wherever 'do:' runs them" in err and says in err
-        assert rss_mb < MAX_RSS_MB + 100, f"peak RSS {rss_mb:.0f} MB"
+        assert rss_mb < MAX_RSS_MB, f"peak RSS {rss_mb:.0f} MB"
 
 
 def test_tasks_calling_tasks_within_the_bounds_still_run(tmp_path):
