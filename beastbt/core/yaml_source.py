@@ -295,9 +295,8 @@ def _alias_bomb(file: str, root: yaml.Node, uses: list[tuple[str, yaml.Mark, yam
     return Problem(file, _pos(where[1]),
                    f"aliases expand this file to {amount} values ({written:,} written): more than a file may hold "
                    f"(an alias bomb?)",
-                   f"aliases may add at most as many values as the file writes plus {ALIAS_ALLOWANCE:,}; write the "
-                   f"repeated part once (a task under 'tasks:' run with 'do:', or 'repeat: {{times: N}}') instead of "
-                   f"nesting aliases of aliases")
+                   f"aliases may add at most as many values as the file writes plus {ALIAS_ALLOWANCE:,}: do not nest "
+                   f"aliases of aliases (in a mission, run repeated steps with 'repeat: {{times: N}}' or a task)")
 
 
 class _TooDeep(Exception):
