@@ -31,20 +31,30 @@ def beastbt(*args: str, cwd: Path) -> tuple[int, str, str]:
     return done.returncode, done.stdout, done.stderr
 
 
-def beastbt_own_rss(*args: str, cwd: Path) -> tuple[int, str, str, float]:
-    """Like :func:`beastbt`, under an address-space limit of :data:`ADDRESS_SPACE_LIMIT`, with the peak RSS of this
-    very child in MB (from ``os.wait4``)."""
-    def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE_LIMIT, ADDRESS_SPACE_LIMIT))
+_MEASURE = """
+import os, resource, sys
+limit, rss_file, args = int(sys.argv[1]), sys.argv[2], sys.argv[3:]
+pid = os.fork()
+if pid == 0:
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    os.execv(sys.executable, [sys.executable, "-m", "beastbt", *args])
+_, status, usage = os.wait4(pid, 0)
+with open(rss_file, "w") as f:
+    f.write(str(usage.ru_maxrss))
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+"""Runs beastbt from a small fresh Python: a child forked from pytest itself would count pytest's pages in its peak
+RSS (Linux keeps the high-water mark across exec), so the measuring parent must be small."""
 
-    env = dict(os.environ, PYTHONPATH=str(REPO), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    out_path, err_path = cwd / "child.out", cwd / "child.err"
-    with open(out_path, "w") as out_file, open(err_path, "w") as err_file:
-        pid = subprocess.Popen([sys.executable, "-m", "beastbt", *args], stdout=out_file, stderr=err_file,
-                               cwd=cwd, env=env, preexec_fn=limit).pid
-        _, status, usage = os.wait4(pid, 0)
-    return (os.waitstatus_to_exitcode(status), out_path.read_text(), err_path.read_text(),
-            usage.ru_maxrss / 1024.0)
+
+def beastbt_own_rss(*args: str, cwd: Path) -> tuple[int, str, str, float]:
+    """Like :func:`beastbt`, under an address-space limit of :data:`ADDRESS_SPACE_LIMIT`, with the peak RSS of the
+    beastbt process in MB (from ``os.wait4`` in a small parent)."""
+    rss_file = cwd / "child.rss"
+    done = subprocess.run([sys.executable, "-c", _MEASURE, str(ADDRESS_SPACE_LIMIT), str(rss_file), *args],
+                          capture_output=True, text=True, timeout=120, cwd=cwd,
+                          env=dict(os.environ, PYTHONPATH=str(REPO), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"))
+    return done.returncode, done.stdout, done.stderr, int(rss_file.read_text()) / 1024.0
 
 
 def laughs(levels: int, width: int = 10, indent: str = "") -> str:
