@@ -34,8 +34,9 @@ deeper documents are refused with a position instead of exhausting Python's recu
 
 ALIAS_ALLOWANCE = 10_000
 """Values that aliases (``*name``) may add to a file beyond as many as it writes: with every alias expanded, a file
-may hold at most twice the values written in it plus this many. Like the bounds of Go's yaml.v3 and SnakeYAML,
-this keeps anchors for reuse (``<<: *slow``) and refuses an alias bomb before it is expanded."""
+may hold at most twice the values written in it plus this many. Like Go's yaml.v3 (which bounds aliases relative to
+the document) and SnakeYAML (which counts them), this keeps anchors for reuse (``<<: *slow``) and refuses an alias
+bomb before it is expanded."""
 
 MAX_NUMBER = 10 ** 15
 """Largest magnitude of any number in a file. No quantity a robot file describes comes near it (1e15 m is a hundred
