@@ -11,7 +11,9 @@ probably not meant) come with the errors; ``--strict`` counts them as errors.
 
 from __future__ import annotations
 
-from beastbt.core.errors import InvalidInput, Problem
+from pathlib import Path
+
+from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.yaml_source import load_yaml
 
 
@@ -37,7 +39,19 @@ def validate_file(path: str) -> list[Problem]:
             return mission_with_world(mission)
     except InvalidInput as exc:
         return exc.problems
+    except Exception as exc:  # noqa: BLE001 - a slip of ours must not end in a traceback for a user's file
+        return [internal_error(path, exc)]
     return []
+
+
+def internal_error(path: str, exc: BaseException) -> Problem:
+    """A problem saying that checking ``path`` failed inside beastbt (a bug), in place of a traceback."""
+    import traceback
+    frame = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    where = f" at {Path(frame.filename).name}:{frame.lineno}" if frame is not None else ""
+    return Problem(path, Position(1, 1),
+                   f"internal error while checking this file: {type(exc).__name__}: {str(exc)[:200]}{where}",
+                   "this is a bug in beastbt, not necessarily in the file: please report it with the file attached")
 
 
 def mission_with_world(mission) -> list[Problem]:  # type: ignore[no-untyped-def]

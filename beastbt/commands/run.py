@@ -166,8 +166,21 @@ def command(args: argparse.Namespace) -> int:
               f"--robot {args.robot} is a real robot; add --sim to run its profile on the simulator, or drop "
               f"--joystick to drive with the real gamepad", file=sys.stderr)
         return EXIT_INVALID
-    from beastbt.assembly import prepare
     from beastbt.core.errors import InvalidInput
+    if isinstance(opts.joystick_script, str):
+        # The script's YAML (alias bound, numbers) is read before the robot is assembled, so that a hostile script
+        # is refused at the cost of reading it, not after the simulator, OpenCV and the parts are imported.
+        from pathlib import Path
+
+        from beastbt.sim.joystick_script import script_doc
+        try:
+            script_doc(Path(opts.joystick_script).read_text(encoding="utf-8"), opts.joystick_script)
+        except InvalidInput as exc:
+            print(exc.format(), file=sys.stderr)
+            return EXIT_INVALID
+        except (OSError, UnicodeDecodeError):
+            pass  # said with its reason when the script is loaded with the robot
+    from beastbt.assembly import prepare
     from beastbt.robot.hardware import DeviceUnavailable
     from beastbt.run.run_folder import RunFolderUnavailable
     from beastbt.run.session import execute

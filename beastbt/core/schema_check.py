@@ -11,6 +11,8 @@ the ``anyOf`` of steps and conditions it picks the branch the author meant
 from __future__ import annotations
 
 import json
+import math
+import re
 from functools import lru_cache
 from typing import Any, Iterable, Optional
 
@@ -20,7 +22,7 @@ from referencing.jsonschema import DRAFT202012
 
 from beastbt.core.errors import Position, Problem, did_you_mean
 from beastbt.core.resources import data_dir
-from beastbt.core.units import UnitError, parse_quantity
+from beastbt.core.units import KINDS, UNIT_TO_KIND, UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
 
 _TYPE_WORDS = {
@@ -68,16 +70,86 @@ _BASE_URI = "https://beastbt.dev/schemas/"
 
 @lru_cache(maxsize=None)
 def _registry() -> Registry:
-    resources_ = [(_BASE_URI + key, Resource.from_contents(doc, default_specification=DRAFT202012))
+    # Without their "$schema": jsonschema would validate a referenced part with the plain Draft 2020-12 class that
+    # names, not with the extended one (the range keywords below); every schema here is 2020-12.
+    resources_ = [(_BASE_URI + key, Resource.from_contents(_without_dialect(doc), default_specification=DRAFT202012))
                   for key, doc in _schema_texts().items()]
     return Registry().with_resources(resources_)
 
 
+def _unit_in_range(validator: Any, kind: Any, instance: Any, schema: dict) -> Iterable[jsonschema.ValidationError]:
+    """The ``x-unit-kind`` keyword: a value of the right form ('3 m', or a bare number where one is allowed) must also
+    be finite and within what its kind can mean (``1e400 m``, ``1e308 deg`` and ``.nan`` are refused here)."""
+    if kind not in KINDS or isinstance(instance, bool):
+        return
+    types = schema.get("type")
+    types = types if isinstance(types, list) else [types]
+    if isinstance(instance, (int, float)):
+        if "number" not in types and "integer" not in types:
+            return  # the type check says what is wrong
+    elif not (isinstance(instance, str) and re.search(schema.get("pattern", ""), instance)):
+        return  # not of the form: the pattern check says it
+    try:
+        parse_quantity(instance, kind)
+    except UnitError as exc:
+        yield jsonschema.ValidationError(str(exc))
+
+
+def _unit_max(validator: Any, most: Any, instance: Any, schema: dict) -> Iterable[jsonschema.ValidationError]:
+    """The ``x-unit-max`` keyword (``"360 deg"``): a field's own bound, tighter than its kind's, either way."""
+    kind = UNIT_TO_KIND.get(str(most).split()[-1])
+    if kind is None or isinstance(instance, bool) or not isinstance(instance, (str, int, float)):
+        return
+    try:
+        value, bound = parse_quantity(instance, kind), parse_quantity(most, kind)
+    except UnitError:
+        return  # the form or the kind's range is reported by x-unit-kind
+    if abs(value) > bound:
+        yield jsonschema.ValidationError(f"expected {kind.replace('_', ' ')} from -{most} to {most}, got '{instance}'")
+
+
+KNOB_UNITS: dict[str, tuple[str, float]] = {
+    "metres": ("distance", 1.0), "seconds": ("duration", 1.0), "milliseconds": ("duration", 0.001),
+    "hertz": ("frequency", 1.0), "metres per second": ("speed", 1.0), "degrees": ("angle", math.pi / 180.0),
+    "radians": ("angle", 1.0), "degrees per second": ("turn_rate", math.pi / 180.0),
+    "radians per second": ("turn_rate", 1.0), "volts": ("voltage", 1.0),
+}
+"""A profile or world knob's unit (``x-knob-unit``) -> (its kind, factor from the knob's unit to SI)."""
+
+
+def _knob_in_range(validator: Any, unit: Any, instance: Any, schema: dict) -> Iterable[jsonschema.ValidationError]:
+    """The ``x-knob-unit`` keyword: a knob's bare number (or a text already converted to one) must be finite and
+    within what its kind can mean (a ``timeout_s`` of at most a week, a ``track_width_m`` of at most 1000 km)."""
+    if unit not in KNOB_UNITS or isinstance(instance, bool) or not isinstance(instance, (int, float)):
+        return
+    kind, factor = KNOB_UNITS[unit]
+    most = KINDS[kind].max_si / factor
+    if not math.isfinite(float(instance)) or abs(instance) > most:
+        yield jsonschema.ValidationError(f"{instance:g} {unit} is out of range: at most {_num(round(most, 6))} "
+                                         f"{unit} either way ({KINDS[kind].max_said})")
+
+
+def _num(value: Any) -> str:
+    """A schema bound as a person writes it (1000000, not 1e+06)."""
+    return str(int(value)) if isinstance(value, (int, float)) and float(value).is_integer() else f"{value:g}"
+
+
+_Validator = jsonschema.validators.extend(jsonschema.Draft202012Validator,
+                                          {"x-unit-kind": _unit_in_range, "x-unit-max": _unit_max,
+                                           "x-knob-unit": _knob_in_range})
+
+
 def validator_of(schema: dict, name: str) -> jsonschema.Draft202012Validator:
-    """A validator for ``schema`` (the schema ``name``, possibly extended); relative ``$ref`` resolve."""
-    schema = dict(schema)
+    """A validator for ``schema`` (the schema ``name``, possibly extended); relative ``$ref`` resolve. It also checks
+    that values with units are finite and within their kind's range (``x-unit-kind``)."""
+    schema = _without_dialect(schema)
     schema.setdefault("$id", _BASE_URI + name)
-    return jsonschema.Draft202012Validator(schema, registry=_registry())
+    return _Validator(schema, registry=_registry())
+
+
+def _without_dialect(schema: dict) -> dict:
+    """A copy of ``schema`` without its ``$schema`` key (see :func:`_registry`)."""
+    return {k: v for k, v in schema.items() if k != "$schema"}
 
 
 @lru_cache(maxsize=None)
@@ -134,8 +206,16 @@ class _Explainer:
         path = tuple(err.absolute_path)
         schema = err.schema if isinstance(err.schema, dict) else {}
         v = err.validator
-        if "x-unit-kind" in schema and v in ("anyOf", "oneOf", "type", "pattern"):
-            return [self.unit_problem(path, err.instance, schema["x-unit-kind"], schema.get("patternErrorMessage"))]
+        if "x-unit-kind" in schema and v in ("anyOf", "oneOf", "type", "pattern", "x-unit-kind"):
+            return [self.unit_problem(path, err.instance, schema["x-unit-kind"], schema.get("patternErrorMessage"),
+                                      ranged=v == "x-unit-kind", schema_comment=schema.get("$comment"))]
+        if v == "x-knob-unit":
+            said = str(schema.get("patternErrorMessage", "")).removeprefix("Expected ").rstrip(".")
+            return [self.at(path, f"{_where(path).replace(' in ', '', 1)}: {err.message}".lstrip(": "),
+                            f"write {said}" if said else None)]
+        if v == "x-unit-max":
+            label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
+            return [self.at(path, f"{label}{err.message}", self.describe(schema))]
         if "x-knob-unit" in schema and v == "type":
             # a profile or world knob named with its unit (timeout_s), whose texts ('500 ms') were read before this
             said = str(schema.get("patternErrorMessage", "")).removeprefix("Expected ").rstrip(".")
@@ -207,7 +287,8 @@ class _Explainer:
             return "add 'steps:' followed by the list of what the robot does"
         return props.get("description") if isinstance(props, dict) else None
 
-    def unit_problem(self, path: tuple, value: Any, kind: str, expected: Optional[str] = None) -> Problem:
+    def unit_problem(self, path: tuple, value: Any, kind: str, expected: Optional[str] = None, ranged: bool = False,
+                     schema_comment: Optional[str] = None) -> Problem:
         try:
             parse_quantity(value, kind)
             message = f"{_type_of(value)} is not a valid {kind.replace('_', ' ')}"
@@ -217,7 +298,8 @@ class _Explainer:
             said = (expected or f"Expected a valid {kind.replace('_', ' ')}").split(";")[0].rstrip(".")
             message = f"{said[0].lower()}{said[1:]}, got {_type_of(value)}"
         label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
-        return self.at(path, f"{label}{message}")
+        # The hint says what the kind is, its range included (the definition's comment).
+        return self.at(path, f"{label}{message}", schema_comment)
 
     def unknown_keys(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
         inst = err.instance

@@ -5,6 +5,11 @@ volts, fraction 0-1). A bare number is accepted only where the language says
 so (distances, durations, speeds, frequencies, voltages, fractions); angles and
 turn rates must carry their unit. Errors are :class:`UnitError` with a message
 that names the kind that was expected.
+
+Every value must be finite and, whatever its field, within the magnitude its
+kind can mean (:attr:`UnitKind.max_si`: at most 1000 km, a week, 50 m/s, ten
+full turns...); a field's own range (a latitude, a pan) is checked where the
+field is. So no ``inf``, ``nan`` or ``1e308 deg`` ever reaches a behaviour.
 """
 
 from __future__ import annotations
@@ -27,30 +32,47 @@ class UnitKind:
     factors: dict
     bare_allowed: bool
     example: str
+    max_si: float = math.inf
+    """Largest magnitude (in the SI unit) a value of this kind can mean anywhere in beastbt."""
+    max_said: str = ""
+    """:attr:`max_si` as an author would write it, for messages."""
 
 
 KINDS: dict[str, UnitKind] = {
-    "distance": UnitKind("distance", "m", {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0}, True, "3 m"),
+    "distance": UnitKind("distance", "m", {"m": 1.0, "cm": 0.01, "mm": 0.001, "km": 1000.0}, True, "3 m",
+                         1e6, "1000 km"),
     "duration": UnitKind(
-        "duration", "s", {"s": 1.0, "ms": 0.001, "min": 60.0, "h": 3600.0}, True, "2 s"
+        "duration", "s", {"s": 1.0, "ms": 0.001, "min": 60.0, "h": 3600.0}, True, "2 s", 7 * 24 * 3600.0,
+        "a week (168 h)"
     ),
     "speed": UnitKind(
-        "speed", "m/s", {"m/s": 1.0, "cm/s": 0.01, "mm/s": 0.001, "km/h": 1.0 / 3.6}, True, "0.2 m/s"
+        "speed", "m/s", {"m/s": 1.0, "cm/s": 0.01, "mm/s": 0.001, "km/h": 1.0 / 3.6}, True, "0.2 m/s",
+        50.0, "50 m/s (180 km/h)"
     ),
-    "angle": UnitKind("angle", "rad", {"deg": math.pi / 180.0, "°": math.pi / 180.0, "rad": 1.0}, False, "90 deg"),
+    "angle": UnitKind("angle", "rad", {"deg": math.pi / 180.0, "°": math.pi / 180.0, "rad": 1.0}, False, "90 deg",
+                      math.radians(3600.0), "3600 deg (ten full turns)"),
     "turn_rate": UnitKind(
-        "turn_rate", "rad/s", {"deg/s": math.pi / 180.0, "rad/s": 1.0}, False, "45 deg/s"
+        "turn_rate", "rad/s", {"deg/s": math.pi / 180.0, "rad/s": 1.0}, False, "45 deg/s", math.radians(3600.0),
+        "3600 deg/s"
     ),
-    "frequency": UnitKind("frequency", "Hz", {"Hz": 1.0, "hz": 1.0, "kHz": 1000.0}, True, "20 Hz"),
-    "voltage": UnitKind("voltage", "V", {"V": 1.0, "mV": 0.001}, True, "11.1 V"),
-    "fraction": UnitKind("fraction", "", {"%": 0.01}, True, "20 %"),
-    "pulse": UnitKind("pulse", "s", {"ms": 0.001, "us": 1e-6, "µs": 1e-6, "s": 1.0}, False, "1.5 ms"),
+    "frequency": UnitKind("frequency", "Hz", {"Hz": 1.0, "hz": 1.0, "kHz": 1000.0}, True, "20 Hz", 1e9,
+                          "1000000 kHz (1 GHz)"),
+    "voltage": UnitKind("voltage", "V", {"V": 1.0, "mV": 0.001}, True, "11.1 V", 1000.0, "1000 V"),
+    "fraction": UnitKind("fraction", "", {"%": 0.01}, True, "20 %", 10.0, "1000 %"),
+    "pulse": UnitKind("pulse", "s", {"ms": 0.001, "us": 1e-6, "µs": 1e-6, "s": 1.0}, False, "1.5 ms", 1.0, "1 s"),
 }
+"""The kinds of quantity, with the units each accepts and the largest magnitude it can mean (documented in
+docs/mission-language.md, 'Limits', and in the schemas' unit definitions)."""
+
+MAX_COUNT = 1_000_000
+"""Most times a ``repeat``, ``retry`` or ``route`` may run (``forever`` is the word for without end)."""
 
 _UNIT_TO_KIND: dict[str, str] = {}
 for _kind in KINDS.values():
     for _unit in _kind.factors:
         _UNIT_TO_KIND.setdefault(_unit, _kind.name)
+UNIT_TO_KIND = _UNIT_TO_KIND
+"""Each unit's kind (``"deg"`` -> ``"angle"``; a unit two kinds share, such as ``ms``, goes to the first)."""
 
 
 UNIT_SYNONYMS: dict[str, str] = {
@@ -95,11 +117,12 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
         raise UnitError(f"expected {_describe(k)}, got {value!r}")
     if isinstance(value, (int, float)):
         if not k.bare_allowed:
-            raise UnitError(f"{kind.replace('_', ' ')} needs a unit: write '{value} {k.example.split()[1]}', not a bare number")
-        v = float(value)
-        if kind == "fraction" and not 0.0 <= v <= 1.0:
-            raise UnitError(f"a bare fraction must be between 0 and 1 (or write a percentage like '20 %'), got {value}")
-        return v
+            raise UnitError(f"{kind.replace('_', ' ')} needs a unit: write '{_number_text(value)} "
+                            f"{k.example.split()[1]}', not a bare number")
+        if kind == "fraction" and not 0.0 <= value <= 1.0:  # compared before float(): NaN and huge ints fail here
+            raise UnitError(f"a bare fraction must be between 0 and 1 (or write a percentage like '20 %'), "
+                            f"got {_number_text(value)}")
+        return _within(value, 1.0, k, _number_text(value))
     if not isinstance(value, str):
         raise UnitError(f"expected {_describe(k)}, got {type(value).__name__}")
     m = _VALUE.match(value)
@@ -110,9 +133,13 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
         raise UnitError(f"expected {_describe(k)}, got '{value}'")
     number, unit = float(m.group(1)), m.group(2)
     if unit is None:
+        if not math.isfinite(number) and k.bare_allowed:  # '1e400': say what was written, not 'inf'
+            raise UnitError(f"expected {_describe(k)}, a finite number, got '{value.strip()}'")
         return parse_quantity(number, kind)
     if unit in k.factors:
-        return number * k.factors[unit]
+        text = value.strip()
+        return _within(number, k.factors[unit], k, f"'{text}'" if len(text) <= 24 else
+                       f"'{text[:10]}...{text[-8:]}' ({len(m.group(1))} characters of number)")
     other = _UNIT_TO_KIND.get(unit)
     if other is not None:
         raise UnitError(f"expected {_describe(k)}, got '{value}', which is a {other.replace('_', ' ')}")
@@ -126,6 +153,27 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
     raise UnitError(f"unknown unit '{unit}' in '{value}': expected {_describe(k)}")
 
 
+def _number_text(value: Union[int, float]) -> str:
+    """A number as a message shows it (a huge whole number by its size, not its 400 digits)."""
+    if isinstance(value, int) and abs(value) >= 10 ** 16:
+        digits = len(str(abs(value))) if abs(value) < 10 ** 4000 else "4000-plus"  # str() refuses beyond 4300
+        return f"{'minus ' if value < 0 else ''}a {digits}-digit number"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _within(number: Union[int, float], factor: float, k: UnitKind, written: str) -> float:
+    """``number`` times ``factor`` (SI), if finite and within what ``k`` can mean; else a :class:`UnitError`."""
+    try:
+        si = float(number) * factor
+    except OverflowError:  # an int beyond what a float holds
+        si = math.inf
+    if not math.isfinite(si) and not isinstance(number, int):
+        raise UnitError(f"expected {_describe(k)}, a finite number, got {written}")
+    if abs(si) > k.max_si:
+        raise UnitError(f"expected {_describe(k)} of at most {k.max_said} in size, got {written}")
+    return si
+
+
 def parse_duration(value: Union[str, int, float]) -> float:
     """Read a duration (``2 s``, ``500 ms``, ``5 min``) and return seconds."""
     return parse_quantity(value, "duration")
@@ -137,6 +185,8 @@ def parse_count(value: Union[str, int]) -> int:
         return -1
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
         raise UnitError(f"expected a whole number of at least 1 or 'forever', got {value!r}")
+    if value > MAX_COUNT:
+        raise UnitError(f"expected a whole number from 1 to {MAX_COUNT:,} or 'forever', got {_number_text(value)}")
     return value
 
 

@@ -6,6 +6,11 @@ keys and list indices, as jsonschema reports them) to its line and column, so
 that any later check can point at the exact place in the file. Tabs used for
 indentation, duplicate keys, an empty file and a top level that is not a
 mapping are reported here, with a hint.
+
+What no file may do is refused here too, before anything walks the document:
+aliases that expand it beyond a bound (a "billion laughs" file: PyYAML shares
+an alias's node, so the blow-up would come when the tree is walked), numbers
+that are not finite or are absurdly large, and values a YAML tag cannot read.
 """
 
 from __future__ import annotations
@@ -13,6 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional, Union
+
+import math
 
 import yaml
 
@@ -23,6 +30,21 @@ PathKey = tuple[Union[str, int], ...]
 MAX_NESTING = 100
 """Most lists and mappings one inside another in a file (a step nested in a step takes about three):
 deeper documents are refused with a position instead of exhausting Python's recursion."""
+
+
+ALIAS_ALLOWANCE = 10_000
+"""Values that aliases (``*name``) may add to a file beyond as many as it writes: with every alias expanded, a file
+may hold at most twice the values written in it plus this many. Like Go's yaml.v3 (which bounds aliases relative to
+the document) and SnakeYAML (which counts them), this keeps anchors for reuse (``<<: *slow``) and refuses an alias
+bomb before it is expanded."""
+
+MAX_NUMBER = 10 ** 15
+"""Largest magnitude of any number in a file. No quantity a robot file describes comes near it (1e15 m is a hundred
+times the distance to the Sun), and every whole number below it is exact as a float. Each field's own range, in the
+schemas and the unit kinds, is much tighter."""
+
+_INT_TAG = "tag:yaml.org,2002:int"
+_FLOAT_TAG = "tag:yaml.org,2002:float"
 
 
 @dataclass
@@ -119,7 +141,7 @@ class _Builder:
             return out
         if isinstance(node, yaml.SequenceNode):
             return [self.build(child, path + (i,)) for i, child in enumerate(node.value)]
-        value = self.constructor.construct_object(node, deep=True)
+        value = self.scalar(node, path)
         if isinstance(value, str) and node.style is None and self.lines:
             end = node.end_mark
             rest = self.lines[end.line][end.column:] if end.line < len(self.lines) else ""
@@ -132,8 +154,174 @@ class _Builder:
             self.problems.append(Problem(self.doc.file, _pos(node.start_mark), "a mapping key must be a plain word",
                                          "write keys as simple names like 'speed:'"))
             return f"<complex key at line {node.start_mark.line + 1}>"
-        key = self.constructor.construct_object(node)
-        return key if isinstance(key, str) else str(key)
+        key = self.scalar(node, ())
+        return key if isinstance(key, str) else node.value if key is None else str(key)
+
+    def scalar(self, node: yaml.ScalarNode, path: PathKey) -> Any:
+        """The value of a scalar node; None, with a problem, for one no file may hold (a non-finite or huge number,
+        or a text its tag cannot read)."""
+        label = _label(path)
+        if node.tag == _INT_TAG and len(node.value.lstrip("+-").replace("_", "")) > 40:
+            # Not even converted: Python refuses to read an int of more than 4300 digits (and is slow below that).
+            self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
+                                         f"{label}the number {_short(node.value)} is far too large{_range_of(path)}",
+                                         _NUMBER_HINT))
+            return None
+        try:
+            value = self.constructor.construct_object(node, deep=True)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, TypeError, OverflowError, KeyError, AttributeError) as exc:
+            # An explicit tag whose text it cannot read (!!int 2 s, !!bool maybe, !!timestamp x, a date 2024-13-45).
+            tag = node.tag.rsplit(":", 1)[-1]
+            self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
+                                         f"{label}'{_short(node.value)}' cannot be read as {tag}"
+                                         + (f": {exc}" if isinstance(exc, (ValueError, OverflowError)) else ""),
+                                         "remove the '!!' tag, or put the text in quotes if it is text"))
+            return None
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if isinstance(value, float) and not math.isfinite(value):
+                self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
+                                             f"{label}'{_short(node.value)}' is not a finite number{_range_of(path)}",
+                                             _NUMBER_HINT))
+                return None
+            if abs(value) > MAX_NUMBER:
+                self.problems.append(Problem(self.doc.file, _pos(node.start_mark),
+                                             f"{label}the number {_short(node.value)} is far too large"
+                                             f"{_range_of(path)}", _NUMBER_HINT))
+                return None
+        return value
+
+
+_NUMBER_HINT = ("every number must be finite and within the range its field can mean (.nan, .inf and numbers "
+                "beyond 1e15 mean nothing to a robot); write the value you mean, e.g. 'wait: 2 s', 'lat: 40.4168'")
+
+
+def _range_of(path: PathKey) -> str:
+    """``: 'lat' is a number from -90 to 90`` when the schemas say what the field's range is, else the rule for any
+    number in a file."""
+    from beastbt.core.field_ranges import field_range  # late: only a refused number needs the schemas
+    key = next((part for part in reversed(path) if isinstance(part, str)), None)
+    words = field_range(key) if key is not None else None
+    if words:
+        return f": '{key}' is {words}"
+    return ": any number in a file is finite and at most 1e15 in size"
+
+
+def _label(path: PathKey) -> str:
+    """``'name': `` for the innermost key of ``path`` (how messages name the field), or nothing at the top."""
+    for part in reversed(path):
+        if isinstance(part, str):
+            return f"'{part}': "
+    return ""
+
+
+def _short(text: str) -> str:
+    """A scalar's text as a message quotes it: a long one cut, with its length."""
+    text = text.strip()
+    return text if len(text) <= 24 else f"{text[:12]}...{text[-4:]} ({len(text)} characters)"
+
+
+class _CountingLoader(yaml.SafeLoader):
+    """PyYAML's safe composer, remembering each alias's use (where it is written) and refusing an alias inside the
+    anchor it refers to (``&a [*a]``, which would repeat forever)."""
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self.alias_uses: list[tuple[str, yaml.Mark, yaml.Node]] = []
+        self._open: set[str] = set()
+
+    def compose_node(self, parent: Any, index: Any) -> yaml.Node:  # noqa: D102 (PyYAML's hook)
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            if event.anchor in self._open:
+                raise yaml.composer.ComposerError(
+                    None, None, f"the alias *{event.anchor} is inside the anchor &{event.anchor} it refers to",
+                    event.start_mark)
+            node = super().compose_node(parent, index)
+            self.alias_uses.append((event.anchor, event.start_mark, node))
+            return node
+        anchor = self.peek_event().anchor
+        if anchor is None:
+            return super().compose_node(parent, index)
+        self._open.add(anchor)
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._open.discard(anchor)
+
+
+def _expanded_sizes(root: yaml.Node, cap: int) -> dict[int, int]:
+    """How many values each node of the composed graph stands for with every alias expanded (each capped at
+    ``cap``), by node id; computed once per distinct node, without expanding anything."""
+    sizes: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        if id(node) in sizes:
+            continue
+        if isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        else:
+            sizes[id(node)] = 1
+            continue
+        if children_done:
+            sizes[id(node)] = min(cap, 1 + sum(sizes[id(c)] for c in children))
+        else:
+            stack.append((node, True))
+            stack.extend((c, False) for c in children if id(c) not in sizes)
+    return sizes
+
+
+def _alias_bomb(file: str, root: yaml.Node, uses: list[tuple[str, yaml.Mark, yaml.Node]]) -> Optional[Problem]:
+    """A problem at the alias that takes the file beyond :data:`ALIAS_ALLOWANCE`, or None when it stays within."""
+    if not uses:
+        return None
+    cap = 10 ** 12
+    sizes = _expanded_sizes(root, cap)
+    written = len(sizes)
+    if sizes[id(root)] <= 2 * written + ALIAS_ALLOWANCE:
+        return None
+    # Point at the alias where the values added, in the order they are written, first pass the bound.
+    added, where = 0, max(uses, key=lambda u: sizes[id(u[2])])
+    for use in uses:
+        added += sizes[id(use[2])]
+        if added > ALIAS_ALLOWANCE + written:
+            where = use
+            break
+    total = sizes[id(root)]
+    amount = "more than a trillion" if total >= cap else f"{total:,}"
+    return Problem(file, _pos(where[1]),
+                   f"aliases expand this file to {amount} values ({written:,} written): more than a file may hold "
+                   f"(an alias bomb?)",
+                   f"aliases may add at most as many values as the file writes plus {ALIAS_ALLOWANCE:,}: do not nest "
+                   f"aliases of aliases (in a mission, run repeated steps with 'repeat: {{times: N}}' or a task)")
+
+
+class _TooDeep(Exception):
+    """PyYAML's composer ran out of Python's recursion at ``mark`` (lists and mappings nested hundreds deep)."""
+
+    def __init__(self, mark: yaml.Mark) -> None:
+        super().__init__("nested too deeply")
+        self.mark = mark
+
+
+def _compose(text: str) -> tuple[Optional[yaml.Node], list[tuple[str, yaml.Mark, yaml.Node]]]:
+    """The document's node graph and its alias uses (``yaml.compose`` with :class:`_CountingLoader`)."""
+    loader = _CountingLoader(text)
+    try:
+        return loader.get_single_node(), loader.alias_uses
+    except RecursionError:
+        raise _TooDeep(loader.get_mark()) from None
+    except (ValueError, OverflowError) as exc:
+        # The scanner's own slips (chr() of an escape beyond Unicode, '\U0011FFFF'): where the reader stopped.
+        what = ("an escape that is no Unicode character (the largest is \\U0010FFFF)" if "chr()" in str(exc)
+                else f"a value YAML cannot read ({exc})")
+        raise yaml.scanner.ScannerError(None, None, what, loader.get_mark()) from None
+    finally:
+        loader.dispose()
 
 
 def _missing_colon(lines: list[str], error_line: int) -> Optional[tuple[tuple[int, int], str]]:
@@ -152,7 +340,33 @@ def _missing_colon(lines: list[str], error_line: int) -> Optional[tuple[tuple[in
     return None
 
 
+def _reader_problem(file: str, text: str, exc: yaml.reader.ReaderError) -> Problem:
+    """A character YAML does not allow (a control character, a NUL), at its line and column."""
+    index = exc.position if isinstance(exc.position, int) and 0 <= exc.position <= len(text) else 0
+    line = text.count("\n", 0, index) + 1
+    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    char = exc.character
+    code = f"#x{char:04x}" if isinstance(char, int) else repr(char)
+    return Problem(file, Position(line, column), f"character {code} is not allowed in a YAML file ({exc.reason})",
+                   "delete it (a control character or a NUL pasted by mistake?); a YAML file is printable text")
+
+
+def _undecodable(file: str, exc: UnicodeDecodeError) -> Problem:
+    """Bytes that are not UTF-8, at the line and column of the first of them."""
+    data = exc.object if isinstance(exc.object, (bytes, bytearray)) else b""
+    start = max(0, min(exc.start, len(data)))
+    line = data.count(b"\n", 0, start) + 1
+    line_start = data.rfind(b"\n", 0, start) + 1
+    column = len(data[line_start:start].decode("utf-8", errors="replace")) + 1
+    binary = data[:start].count(b"\0") > 0 or start == 0
+    return Problem(file, Position(line, column),
+                   "this is not a text file" if binary else f"byte 0x{data[start]:02x} here is not UTF-8 text",
+                   "it must be a YAML text file (UTF-8); save it again as UTF-8 (a Latin-1 letter pasted in?)")
+
+
 def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
+    if isinstance(exc, yaml.reader.ReaderError):
+        return _reader_problem(file, text, exc)
     mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
     pos = _pos(mark) if mark is not None else Position(1, 1)
     problem = getattr(exc, "problem", None) or str(exc)
@@ -164,6 +378,9 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
                        "YAML indentation must use spaces; replace the tab with spaces (2 per level is usual)")
     context = getattr(exc, "context", None)
     context_mark = getattr(exc, "context_mark", None)
+    if str(problem).startswith("the alias *"):
+        return Problem(file, pos, f"{problem}: it would repeat forever",
+                       "an alias may only refer to an anchor that is complete before it; copy the part instead")
     if context == "while scanning a quoted scalar" and context_mark is not None:
         quote = lines[context_mark.line][context_mark.column] if context_mark.line < len(lines) else '"'
         return Problem(file, _pos(context_mark), f"this {quote} opens a text that is never closed",
@@ -206,24 +423,26 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
         except IsADirectoryError:
             raise InvalidInput([Problem(name, Position(1, 1), "this is a folder, not a file",
                                         "give the path of a YAML file in it")])
-        except UnicodeDecodeError:
-            raise InvalidInput([Problem(name, Position(1, 1), "this is not a text file",
-                                        "it must be a YAML text file (UTF-8)")])
+        except UnicodeDecodeError as exc:
+            raise InvalidInput([_undecodable(name, exc)]) from None
         except OSError as exc:
             raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {plain_reason(exc)}",
                                         "check the path and the file's permissions")])
     doc = SourceDoc(file=name, data=None)
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        node, alias_uses = _compose(text)
     except yaml.YAMLError as exc:
         raise InvalidInput([_syntax_problem(name, text, exc)])
-    except RecursionError:
-        raise InvalidInput([Problem(name, Position(1, 1), "nested too deeply for a YAML reader",
+    except _TooDeep as exc:
+        raise InvalidInput([Problem(name, _pos(exc.mark), "nested too deeply for a YAML reader",
                                     f"keep lists and mappings within {MAX_NESTING} levels; move inner steps "
                                     f"into a task under 'tasks:' and run it with 'do: <task>'")]) from None
     if node is None:
         raise InvalidInput([Problem(name, Position(1, 1), "the file is empty",
                                     "a mission needs at least 'mission: <name>' and 'steps:'")])
+    bomb = _alias_bomb(name, node, alias_uses)
+    if bomb is not None:
+        raise InvalidInput([bomb])
     builder = _Builder(doc, text)
     try:
         doc.data = builder.build(node, ())

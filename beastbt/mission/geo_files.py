@@ -198,6 +198,11 @@ def read_points(path: Path, want: str) -> GeoPoints:
         raise GeoFileError(f"{path} does not exist (paths are relative to the mission file)") from None
     except OSError as exc:
         raise GeoFileError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except GeoFileError:
+        raise
+    except (ValueError, OverflowError, TypeError, KeyError, IndexError, AttributeError) as exc:
+        # A coordinate that is no number, a 400-digit one (float() overflows), a 5000-digit one (int() refuses).
+        raise GeoFileError(f"cannot read the points of {path.name}: {str(exc)[:200]}") from None
     if want == "polygon" and len(got.points) > 3 and got.points[0][1:] == got.points[-1][1:]:
         got.points.pop()  # a closed ring repeats its first corner
     if not got.points:

@@ -23,7 +23,7 @@ from beastbt.core.schema_defaults import schema_default
 from beastbt.mission import steps as st
 from beastbt.mission.external_steps import ExternalStep, load_external_steps, step_keywords_in, with_external_steps
 from beastbt.core.units import parse_count, parse_quantity
-from beastbt.core.yaml_source import PathKey, SourceDoc, load_yaml
+from beastbt.core.yaml_source import MAX_NESTING, PathKey, SourceDoc, load_yaml
 
 HOME = "home"
 """The reserved place name for where the mission started (its first good GPS fix)."""
@@ -124,6 +124,14 @@ def steps_of(values: list, path: PathKey, extra: Collection[str] = ()) -> list[R
     return [step_of(v, path + (i,), extra) for i, v in enumerate(values)]
 
 
+MAX_INLINED_VALUES = 50_000
+"""Most values (steps, their keys and settings) a mission's tree may have once every ``do:`` is replaced by its task:
+about 10,000 steps, far beyond any mission written by hand, compiled in well under a second."""
+
+MAX_ACCEL_MPS2 = 50.0
+"""Largest acceleration limit a mission may write, m/s2 (about five times what gravity gives)."""
+
+
 def _accel(value: Union[str, float]) -> float:
     if isinstance(value, (int, float)):
         return float(value)
@@ -156,15 +164,22 @@ class _SemanticChecker:
         for key, kind in (("speed", "speed"), ("turn_rate", "turn_rate")):
             if key in (d.get("limits") or {}):
                 self.positive(("limits", key), kind)
-        if "acceleration" in (d.get("limits") or {}) and _accel(d["limits"]["acceleration"]) <= 0:
-            self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
+        if "acceleration" in (d.get("limits") or {}):
+            accel = _accel(d["limits"]["acceleration"])
+            if accel <= 0:
+                self.error(("limits", "acceleration"), "acceleration limit must be greater than zero")
+            elif not accel <= MAX_ACCEL_MPS2:  # also NaN and inf ('1e400 m/s2')
+                self.error(("limits", "acceleration"), f"'acceleration': expected an acceleration of at most "
+                           f"{MAX_ACCEL_MPS2:g} m/s2, got {d['limits']['acceleration']!r}",
+                           "a small robot accelerates at about 0.5 m/s2")
         for name, task in self.tasks.items():
             if isinstance(task, dict):
                 self.walk_steps(task.get("steps") or [], ("tasks", name, "steps"))
             else:
                 self.walk_steps(task, ("tasks", name))
         self.walk_steps(d.get("steps") or [], ("steps",))
-        self.check_recursion()
+        if not self.check_recursion():
+            self.check_inlined_size()
         for kind, spec in (d.get("failsafes") or {}).items():
             path = ("failsafes", kind)
             for k in spec:
@@ -370,7 +385,76 @@ class _SemanticChecker:
         visit(steps, path)
         return out
 
-    def check_recursion(self) -> None:
+    def check_inlined_size(self) -> None:
+        """Refuse a mission whose tree, with every ``do:`` replaced by its task (as the compiler builds it), would be
+        too deep for Python (tasks calling tasks a thousand deep) or too big: more than :data:`MAX_INLINED_VALUES`
+        values (tasks that call tasks ten times, six deep, are 10^6 steps). Called once there is no recursion."""
+        def body(name: str) -> Any:
+            task = self.tasks.get(name)
+            return task.get("steps") if isinstance(task, dict) else task
+
+        def callee(key: Any, val: Any) -> Optional[str]:
+            if key == "do" and isinstance(val, str):
+                return val
+            task = val.get("task") if key == "do" and isinstance(val, dict) else None
+            return task if isinstance(task, str) else None
+
+        depth: dict[str, int] = {}
+        size: dict[str, int] = {}
+
+        def measure(node: Any) -> tuple[int, int]:
+            """(levels of lists and mappings, values) of ``node`` with its calls inlined; recursion bounded by the
+            file's own nesting (MAX_NESTING), the tasks' by the tables above."""
+            if isinstance(node, list):
+                parts = [measure(item) for item in node]
+                return 1 + max((d for d, _ in parts), default=0), min(MAX_INLINED_VALUES + 1, sum(n for _, n in parts))
+            if not isinstance(node, dict):
+                return 0, 1
+            deepest, total = 0, 1
+            for key, val in node.items():
+                name = callee(key, val)
+                d, n = (depth.get(name, 0), size.get(name, 0)) if name is not None else measure(val)
+                deepest, total = max(deepest, d), min(MAX_INLINED_VALUES + 1, total + n)
+            return 1 + deepest, total
+
+        # Each task after the tasks it calls (no recursion here, checked before), without Python's recursion.
+        calls = {name: [c for c, _ in self.task_calls(body(name), ())] for name in self.tasks}
+        done: set[str] = set()
+        for start in self.tasks:
+            stack = [(start, False)]
+            while stack:
+                name, ready = stack.pop()
+                if name in done or name not in self.tasks:
+                    continue
+                if ready:
+                    depth[name], size[name] = measure(body(name))
+                    done.add(name)
+                else:
+                    stack.append((name, True))
+                    stack.extend((c, False) for c in calls[name] if c not in done)
+        steps = self.data.get("steps")
+        total = 0
+        for i, step in enumerate(steps if isinstance(steps, list) else []):
+            d, n = measure(step)
+            total += n
+            if d + 2 > MAX_NESTING or total > MAX_INLINED_VALUES:
+                # At the call that copies in the most (the deepest, for a depth).
+                called = self.task_calls(step, ("steps", i))
+                key = (lambda c: depth.get(c[0], 0)) if d + 2 > MAX_NESTING else (lambda c: size.get(c[0], 0))
+                where = max(called, key=key)[1] if called else ("steps", i)
+                if d + 2 > MAX_NESTING:
+                    self.error(where, f"with its tasks copied in wherever 'do:' runs them, this step nests more than "
+                                      f"{MAX_NESTING} levels of lists and mappings (tasks calling tasks too deep)",
+                               "call tasks from fewer levels of other tasks: write the steps of a short task out "
+                               "where it is called")
+                else:
+                    self.error(where, f"with its tasks copied in wherever 'do:' runs them, this mission would have "
+                                      f"more than {MAX_INLINED_VALUES:,} values in its tree (a task bomb?)",
+                               "each 'do:' copies the task into the tree: to run steps many times use "
+                               "'repeat: {times: N}', not tasks that call tasks many times over")
+                return
+
+    def check_recursion(self) -> bool:
         calls = {name: self.task_calls(steps.get("steps") or [] if isinstance(steps, dict) else steps, ("tasks", name))
                  for name, steps in self.tasks.items()}
         reported: set[str] = set()
@@ -388,6 +472,7 @@ class _SemanticChecker:
                     elif callee in calls and callee not in seen:
                         seen.add(callee)
                         stack.append((callee, chain + [callee]))
+        return bool(reported)
 
 
 # -- from what the author wrote to typed steps -------------------------------------------------------------

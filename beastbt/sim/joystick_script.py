@@ -25,10 +25,9 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Optional, Union
+from typing import TYPE_CHECKING, Any, Callable, Optional, Union
 
 import numpy as np
-import yaml
 
 from beastbt.devices.joystick import (
     AXIS_ANGULAR,
@@ -41,11 +40,14 @@ from beastbt.devices.joystick import (
     JoystickMapping,
 )
 
+if TYPE_CHECKING:
+    from beastbt.core.yaml_source import SourceDoc
+
 _DURATION = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*(ms|s|sec|min|h)?\s*$")
 _DURATION_UNITS = {None: 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
 
 
-def _parse_duration_text(text: str) -> float:
+def _parse_duration_text(text: Union[str, int, float]) -> float:
     """Seconds from ``"2 s"``, ``"500 ms"``, ``"1 min"``; the shared unit parser when present."""
     try:
         from beastbt.core.units import parse_duration  # type: ignore[attr-defined]
@@ -56,7 +58,7 @@ def _parse_duration_text(text: str) -> float:
             return float(parse_duration(text))
         except Exception as exc:  # noqa: BLE001 - any failure of the shared parser is a bad value here
             raise ValueError(str(exc)) from None
-    m = _DURATION.match(text)
+    m = _DURATION.match(str(text))
     if not m:
         raise ValueError(f"'{text}' is not a duration (write e.g. '2 s' or '500 ms')")
     return float(m.group(1)) * _DURATION_UNITS[m.group(2)]
@@ -67,7 +69,8 @@ def parse_time_s(value: Any) -> float:
     if isinstance(value, bool):
         raise ValueError(f"expected a duration, got {value!r}")
     if isinstance(value, (int, float)):
-        seconds = float(value)
+        # Through the shared parser too: a bare number is seconds, and it bounds it (finite, at most a week).
+        seconds = _parse_duration_text(value)  # type: ignore[arg-type]
     elif isinstance(value, str):
         seconds = _parse_duration_text(value)
     else:
@@ -90,6 +93,19 @@ class ScriptEvent:
 
 _ACTION_KEYS = ("press", "release", "unplug", "replug")
 _STICK_KEYS = (AXIS_LINEAR, AXIS_ANGULAR)
+
+
+def script_doc(text: str, source: str) -> "SourceDoc":
+    """A joystick script's YAML read with positions (an empty text is an empty script); raise
+    :class:`~beastbt.core.errors.InvalidInput` for what the YAML loader refuses (syntax, alias bombs, numbers)."""
+    from beastbt.core.errors import InvalidInput
+    from beastbt.core.yaml_source import SourceDoc, load_yaml
+    try:
+        return load_yaml(source, text=text, display_name=source, require_mapping=False)
+    except InvalidInput as exc:
+        if [p.message for p in exc.problems] == ["the file is empty"]:
+            return SourceDoc(file=source, data=[])
+        raise
 
 
 class _Handle:
@@ -151,23 +167,30 @@ class ScriptedJoystick:
     # --- loading and validation ---------------------------------------------------------
     @classmethod
     def from_yaml(cls, text: str, mapping: Optional[JoystickMapping] = None, *, source: str = "<joystick script>", **kwargs: Any) -> "ScriptedJoystick":
-        """Build from YAML text; errors name ``source:line:column`` and the event index."""
+        """Build from YAML text; errors name ``source:line:column`` and the event index.
+
+        The text is read by the project's YAML loader (:func:`script_doc`), with its bounds on aliases and numbers.
+        """
+        from beastbt.core.errors import InvalidInput
         try:
-            root = yaml.compose(text)
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark is not None else source
-            raise ValueError(f"{where}: error: invalid YAML in joystick script: {getattr(exc, 'problem', exc)}") from None
-        if data is None:
-            data = []
+            doc = script_doc(text, source)
+        except InvalidInput as exc:
+            raise ValueError("\n".join(f"{p.file}:{p.position.line}:{p.position.column}: error: {p.message}"
+                                       for p in exc.problems)) from None
+        return cls.from_doc(doc, mapping, **kwargs)
+
+    @classmethod
+    def from_doc(cls, doc: "SourceDoc", mapping: Optional[JoystickMapping] = None, **kwargs: Any) -> "ScriptedJoystick":
+        """Build from a script read by :func:`script_doc` (its events positioned at their lines)."""
+        data = doc.data if doc.data is not None else []
+        if not isinstance(data, list):
+            at = doc.position(())
+            raise ValueError(f"{doc.file}:{at.line}:{at.column}: error: a joystick script is a list of events")
         positions: list[Optional[tuple[int, int]]] = []
-        if isinstance(root, yaml.SequenceNode):
-            positions = [(n.start_mark.line + 1, n.start_mark.column + 1) for n in root.value]
-        elif root is not None:
-            where = f"{source}:{root.start_mark.line + 1}:{root.start_mark.column + 1}"
-            raise ValueError(f"{where}: error: a joystick script is a list of events")
-        return cls(data, mapping, source=source, positions=positions, **kwargs)
+        for i in range(len(data)):
+            at = doc.position((i,))
+            positions.append((at.line, at.column))
+        return cls(data, mapping, source=doc.file, positions=positions, **kwargs)
 
     @classmethod
     def from_file(cls, path: Union[str, Path], mapping: Optional[JoystickMapping] = None, **kwargs: Any) -> "ScriptedJoystick":
@@ -212,7 +235,8 @@ class ScriptedJoystick:
                 values: dict[str, float] = {}
                 for k in sticks:
                     v = ev[k]
-                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1.0 <= float(v) <= 1.0:
+                    # Compared before float(): a huge int would overflow it, and NaN fails every comparison.
+                    if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1 <= v <= 1:
                         bad(f"{k} must be a number from -1 to 1, got {v!r}")
                         break
                     values[k] = float(v)
