@@ -140,6 +140,34 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_SUCCESS
+    except Exception as exc:  # noqa: BLE001 - the last resort: a clear answer, the details kept in a file
+        return _internal_error(name, exc)
+
+
+def _internal_error(command: str, exc: BaseException) -> int:
+    """Say that beastbt itself failed, in one line and a hint, and keep the traceback in a file; returns 1.
+
+    The robot is already stopped by then (a run's end, whatever ends it, sends a stop, and the base's own
+    heartbeat stops it if nothing does). ``BEASTBT_TRACEBACK=1`` prints the traceback as well.
+    """
+    import tempfile
+    import traceback
+
+    text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    where = ""
+    try:
+        fd, path = tempfile.mkstemp(prefix=f"beastbt-{command}-crash-", suffix=".txt")
+        with os.fdopen(fd, "w", encoding="utf-8") as out:
+            out.write(text)
+        where = f"; the details are in {path}"
+    except OSError:
+        pass
+    if os.environ.get("BEASTBT_TRACEBACK") == "1":
+        print(text, file=sys.stderr, end="")
+    message = str(exc).splitlines()[0][:300] if str(exc) else ""
+    print(f"{PROG}: internal error in '{command}': {type(exc).__name__}: {message}{where}", file=sys.stderr)
+    print("    hint: this is a fault of beastbt, not of your files: please report it with that file", file=sys.stderr)
+    return EXIT_FAILURE
 
 
 if __name__ == "__main__":

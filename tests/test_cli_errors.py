@@ -186,3 +186,25 @@ def test_output_that_is_not_a_terminal_has_no_carriage_returns(tmp_path):
 def test_wrong_files_are_named_in_words(tmp_path, args, says):
     done = beastbt(*args, cwd=tmp_path)
     assert done.returncode == 2 and says in done.stderr and "Errno" not in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_fault_of_beastbt_itself_is_one_clear_line_and_a_file_not_a_traceback(monkeypatch, tmp_path, capsys):
+    """An unexpected exception in a command: exit 1, the command and the fault named, the traceback in a file."""
+    import beastbt.commands.runs as runs_command
+    from beastbt import cli
+
+    def broken(args):
+        raise RuntimeError("something beastbt did not foresee")
+
+    monkeypatch.setattr(runs_command, "command", broken)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.delenv("BEASTBT_TRACEBACK", raising=False)
+    import tempfile
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    assert cli.main(["runs", "--runs-dir", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "internal error in 'runs': RuntimeError: something beastbt did not foresee" in err
+    kept = list(tmp_path.glob("beastbt-runs-crash-*.txt"))
+    assert len(kept) == 1 and str(kept[0]) in err
+    assert "Traceback" in kept[0].read_text() and "broken" in kept[0].read_text()
