@@ -191,7 +191,10 @@ def video_at_browser(seconds: float, mission: str) -> None:
                                          "--disable-background-networking", "--disable-component-update"])
             page = browser.new_page(viewport={"width": 1400, "height": 1000})
             page.goto(url)
-            page.wait_for_function("window.beastbtVideoStats && window.beastbtVideoStats.frames > 5", timeout=30000)
+            deadline = time.monotonic() + 30  # polled: the console's CSP forbids wait_for_function's eval
+            while not page.evaluate("window.beastbtVideoStats && window.beastbtVideoStats.frames > 5"):
+                assert time.monotonic() < deadline, "no video in the page after 30 s"
+                page.wait_for_timeout(100)
             t0 = time.monotonic()
             first = page.evaluate("({f: window.beastbtVideoStats.frames, b: window.beastbtVideoStats.bytes})")
             page.wait_for_timeout(seconds * 1000)

@@ -111,3 +111,19 @@ class ConsoleRun:
                 self.proc.communicate(timeout=20)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
+
+
+def wait_for_page(page: Any, expression: str, timeout_s: float = 20.0) -> Any:
+    """Poll a JavaScript expression on a page until it is truthy; return its value (raises after ``timeout_s``).
+
+    Playwright's ``wait_for_function`` compiles its predicate with ``new Function``, which the console's
+    Content-Security-Policy forbids (no 'unsafe-eval'); ``evaluate`` goes through the DevTools protocol instead.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = page.evaluate(expression)
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"still false after {timeout_s} s: {expression}")
+        page.wait_for_timeout(100)

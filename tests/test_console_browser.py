@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from console_support import ASK, CHROMIUM, CHROMIUM_ARGS, SHORT, WAIT, ConsoleRun
+from console_support import ASK, CHROMIUM, CHROMIUM_ARGS, SHORT, WAIT, ConsoleRun, wait_for_page
 from conftest import REPO
 
 if os.environ.get("BEASTBT_REQUIRE_BROWSER"):  # CI installs both: there a missing one is a failure, not a skip
@@ -91,7 +91,7 @@ def test_the_page_follows_the_mission_step_and_tree(browser, run_console, shots)
     assert tree.locator(".node.on-path").count() >= 2  # the running branch, root to leaf
     playwright_api.expect(page.get_by_test_id("progress")).to_contain_text("/42 steps")
     assert page.get_by_test_id("battery").inner_text().startswith("battery ")
-    page.wait_for_function("window.beastbtVideoStats && window.beastbtVideoStats.frames > 2", timeout=20000)
+    wait_for_page(page, "window.beastbtVideoStats && window.beastbtVideoStats.frames > 2", timeout_s=20)
     shots(page, "patrol")
 
 
@@ -224,7 +224,7 @@ def test_a_tree_of_hundreds_of_nodes_scrolls_and_keeps_the_running_step_in_view(
     page = open_page(browser, run)
     tree = page.get_by_test_id("tree")
     playwright_api.expect(tree.locator("[data-node-id]")).to_have_count(221)
-    page.wait_for_function("document.querySelectorAll('#tree .node.success').length > 30", timeout=30000)
+    wait_for_page(page, "document.querySelectorAll('#tree .node.success').length > 30", timeout_s=30)
     assert tree.evaluate("t => t.scrollHeight > t.clientHeight")  # it scrolls, not the page
     in_view = tree.evaluate("""t => { const r = t.querySelector('.node.running:not([data-node-id="0"])');
         if (!r) return null; const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();

@@ -226,7 +226,8 @@ def test_every_answer_carries_no_referrer_no_framing_and_the_api_is_not_cached(s
         status, got, _ = request(run, method, path, body, headers)
         assert got.get("referrer-policy") == "no-referrer", (path, status)
         assert got.get("x-content-type-options") == "nosniff" and got.get("x-frame-options") == "DENY"
-        assert "frame-ancestors 'none'" in got.get("content-security-policy", "")
+        csp = got.get("content-security-policy", "")
+        assert "frame-ancestors 'none'" in csp and "script-src 'self';" in csp and "unsafe" not in csp
         if path.startswith("/api/"):
             assert got.get("cache-control") == "no-store", path
     assert "set-cookie" not in request(run, "GET", "/?token=x")[1]  # no token on loopback: no cookie to set

@@ -70,12 +70,11 @@ PUSH_PERIOD_S = 0.1
 CONTROL_TIMEOUT_S = 2.0
 """How long a control waits for the tick thread before the answer is 503 (s)."""
 TOKEN_COOKIE = "beastbt_console_token"
-CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self' 'unsafe-eval'; img-src 'self' data: blob:; "
+CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; img-src 'self' data: blob:; "
                            "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
                            "frame-ancestors 'none'")
 """The page loads only its own files and talks only to its own server; no other page may frame it (the e-stop
-and the stick cannot be clickjacked). No inline script runs; the page itself never evaluates a string, and
-'unsafe-eval' is left to browser automation (Playwright's ``wait_for_function`` in the tests and benchmarks)."""
+and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code."""
 WS_PATHS = ("/api/ws", "/api/video")
 PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
