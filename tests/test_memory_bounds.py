@@ -170,3 +170,21 @@ def test_line_metrics_stay_exact_until_their_bound_then_read_the_p95_off_a_histo
     assert s["line_error_p95_resolution_m"] == line_metrics.HISTOGRAM_BIN_M
     assert s["line_within_5cm_frac"] == round(float((errors <= 0.05).mean()), 4)  # running totals stay exact
     assert s["line_error_max_m"] == round(float(errors.max()), 4)
+
+
+def test_a_route_that_loops_forever_keeps_its_first_and_last_visits_in_the_summary(monkeypatch):
+    from types import SimpleNamespace
+
+    from beastbt.behaviours import navigation
+    from beastbt.parts.nav_summary import contribute
+    monkeypatch.setattr(navigation, "VISITS_KEPT", 4)
+    log = navigation.VisitLog()
+    for i in range(10):
+        visit = log.start(f"p{i}", 40.4168, -3.7038, 2.0)
+        visit.reached, visit.time_s, visit.estimated_error_m = True, float(i), 0.5
+        log.end(visit)
+    run = SimpleNamespace(ctx=SimpleNamespace(services=SimpleNamespace(nav_visits=log, nav_truth=None)))
+    summary: dict = {}
+    contribute(run, summary)
+    assert [w["name"] for w in summary["waypoints"]] == ["p0", "p1", "p8", "p9"]
+    assert summary["waypoints_dropped"] == 6
