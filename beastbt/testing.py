@@ -53,6 +53,11 @@ class MissionHarness:
         self.dt_s = 1.0 / prepared.mission.rate_hz
         self.records: list[TickRecord] = []
         self.run.recorders.append(self.records.append)
+        esp32 = self.run.io.esp32
+        # The emulated base keeps only its latest commands (a long run must not grow); a test sees them all.
+        self._wire: list[dict] = list(esp32.commands) if esp32 is not None else []
+        if esp32 is not None:
+            esp32.command_listeners.append(self._wire.append)
         self._reader = py_trees.blackboard.Client(name="harness")
         for key in catalogue.KEYS:
             catalogue.register(self._reader, key)
@@ -157,7 +162,7 @@ class MissionHarness:
     @property
     def wire(self) -> list[dict]:
         """Every JSON command the emulated Waveshare base received, in order."""
-        return self.run.io.esp32.commands
+        return self._wire
 
     @property
     def truth(self) -> Any:

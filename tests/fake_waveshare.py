@@ -62,7 +62,8 @@ class FakeWaveshare:
     def _run(self) -> None:
         start = time.monotonic()
         sim_s = 0.0
-        seen = 0
+        arrived: list[dict] = []  # every command the firmware took, through its listener (its own log is bounded)
+        self.esp32.command_listeners.append(arrived.append)
         last_targets = (0.0, 0.0)
         while not self._stop.is_set():
             ready, _, _ = select.select([self.master], [], [], PHYSICS_DT_S / 2)
@@ -75,9 +76,8 @@ class FakeWaveshare:
                     except OSError:
                         data = b""
                     self.esp32.port.write(data)
-                    for command in self.esp32.commands[seen:]:
-                        self.received.append((now, command))
-                    seen = len(self.esp32.commands)
+                    self.received.extend((now, command) for command in arrived)
+                    arrived.clear()
                 while sim_s + PHYSICS_DT_S <= now - start:
                     sim_s += PHYSICS_DT_S
                     self.drive.step(PHYSICS_DT_S)

@@ -23,6 +23,7 @@ from typing import Callable, Optional
 
 import py_trees
 
+from beastbt.core.bounded import HeadTail
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
@@ -109,11 +110,17 @@ class Visit:
     tolerance_m: Optional[float] = None
 
 
+VISITS_KEPT = 1000
+"""Place visits a run keeps (the summary's ``waypoints``): the first and the last half of this many; a
+``route`` that loops ``forever`` visits places for as long as the robot runs."""
+
+
 class VisitLog:
-    """Every place visit of a run, in order (the summary's ``waypoints``)."""
+    """The place visits of a run, in order (the summary's ``waypoints``): the first and the last
+    ``VISITS_KEPT / 2``, and a count of those in between (``visits.dropped``)."""
 
     def __init__(self) -> None:
-        self.visits: list[Visit] = []
+        self.visits: HeadTail[Visit] = HeadTail(VISITS_KEPT // 2, VISITS_KEPT - VISITS_KEPT // 2)
         self.listeners: list[Callable[[Visit], None]] = []
         """Called with a visit when it ends (the simulator's truth metrics listen here)."""
 

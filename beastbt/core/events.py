@@ -5,7 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
+from beastbt.core.bounded import HeadTail
 from beastbt.core.clock import Clock
+
+EVENTS_KEPT = 10000
+"""Events a run keeps in memory (and in its summary): the first half and the last half of this many; the
+others are counted (``dropped``). The recording has every one."""
 
 
 @dataclass
@@ -23,22 +28,32 @@ class Event:
 
 @dataclass
 class EventLog:
-    """Collects events stamped with the run's clock and passes each to listeners (console, recorder)."""
+    """Collects events stamped with the run's clock and passes each to listeners (console, recorder).
+
+    ``events`` keeps the first and the last ``max_events / 2`` events (how the
+    run began, and how it is going or how it ended); those in between are
+    counted in ``dropped``. Every listener sees every event.
+    """
 
     clock: Clock
     t0_s: float = 0.0
-    events: list[Event] = field(default_factory=list)
     listeners: list[Callable[[Event], None]] = field(default_factory=list)
-    max_events: int = 10000
-    dropped: int = 0
+    max_events: int = EVENTS_KEPT
+    events: HeadTail[Event] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        head = self.max_events // 2
+        self.events = HeadTail(head, self.max_events - head)
+
+    @property
+    def dropped(self) -> int:
+        """Events let go between the first and the last kept."""
+        return self.events.dropped
 
     def add(self, kind: str, text: str) -> Event:
-        """Record an event now; beyond ``max_events`` events are counted, not kept."""
+        """Record an event now; beyond ``max_events`` events the oldest of the latest half is counted and let go."""
         ev = Event(self.clock.now() - self.t0_s, kind, text)
-        if len(self.events) < self.max_events:
-            self.events.append(ev)
-        else:
-            self.dropped += 1
+        self.events.append(ev)
         for listener in self.listeners:
             listener(ev)
         return ev

@@ -1,6 +1,7 @@
 """What a navigation run adds to the summary: the places visited and, in the simulator, how good the pose was.
 
-- ``waypoints``: one entry per place visit of go_to, route and return_home:
+- ``waypoints``: one entry per place visit of go_to, route and return_home
+  (on a long run the first and the last 500, with ``waypoints_dropped``):
   ``{name, lat, lon, reached, arrival_error_m, time_s, tolerance_m}``. The
   arrival error is the true distance (m) from the simulated robot to the
   place when the step succeeded (the truth converted to WGS84 through the
@@ -22,7 +23,8 @@ simulated world leaks into the filter.
 from __future__ import annotations
 
 import math
-from typing import Any, Optional
+from collections import deque
+from typing import Any, Deque, Optional
 
 from beastbt.behaviours.navigation import Visit, visit_log
 from beastbt.blackboard.types import GpsFix
@@ -30,6 +32,11 @@ from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import distance_m
 from beastbt.run.runner import TickRecord
 from beastbt.run.session import Prepared
+
+
+ERRORS_KEPT = 12000
+"""Per-tick fused errors :attr:`NavTruth.errors` keeps: the latest 10 minutes at 20 Hz (the metrics themselves
+are running sums over the whole run)."""
 
 
 class NavTruth:
@@ -48,8 +55,9 @@ class NavTruth:
         self.gps_sq_m2 = 0.0
         self.gps_n = 0
         self._last_gps_time: Optional[str] = None
-        self.errors: list[tuple[float, float]] = []
-        """(clock s, fused error m) per tick with a valid position, for benchmarks and tests."""
+        self.errors: Deque[tuple[float, float]] = deque(maxlen=ERRORS_KEPT)
+        """(clock s, fused error m) per tick with a valid position, the latest :data:`ERRORS_KEPT`, for benchmarks
+        and tests."""
 
     def __call__(self, rec: TickRecord) -> None:
         truth = rec.truth
@@ -133,6 +141,8 @@ def contribute(run: Any, summary: dict) -> None:
                 "tolerance_m": round(v.tolerance_m, 3) if v.tolerance_m is not None else None,
             })
         summary["waypoints"] = out
+        if log.visits.dropped:  # a long route keeps its first and its last visits
+            summary["waypoints_dropped"] = log.visits.dropped
     tracker = run.ctx.services.nav_truth
     if tracker is not None and run.estimator is not None and "truth" in summary:
         summary["truth"].update(tracker.metrics())

@@ -37,6 +37,9 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
     esp32 = run.io.esp32
     if esp32 is not None:
         summary["servos"] = {name: list(v) for name, v in esp32.gimbal.visits.items()}
+        dropped = {name: v.dropped for name, v in esp32.gimbal.visits.items() if getattr(v, "dropped", 0)}
+        if dropped:  # a long run keeps the first and the last settled angles of each servo
+            summary["servos_dropped"] = dropped
     if sim is not None:
         t = sim.truth
         summary["truth"] = {

@@ -11,6 +11,12 @@ from __future__ import annotations
 import errno
 from typing import Optional, Sequence
 
+from beastbt.core.bounded import trim_front
+
+WRITES_KEPT = 4096
+"""A device's ``writes`` keeps at least its last this many writes (at most twice as many): a PWM base is
+written at every tick, for as long as the run lasts."""
+
 
 class RegisterDevice:
     """A device on the emulated bus: a register map with auto-incrementing block access.
@@ -22,7 +28,8 @@ class RegisterDevice:
     def __init__(self) -> None:
         self.registers = bytearray(256)
         self.writes: list[tuple[int, int]] = []
-        """Every (register, value) written, in order: lets tests pin the exact bytes."""
+        """The (register, value) pairs written, in order (lets tests pin the exact bytes): all of them until
+        2 * :data:`WRITES_KEPT`, then the latest."""
 
     def on_write(self, register: int, value: int) -> None:
         """Called after each byte is stored; default does nothing."""
@@ -40,6 +47,7 @@ class RegisterDevice:
         register &= 0xFF
         value &= 0xFF
         self.writes.append((register, value))
+        trim_front(self.writes, WRITES_KEPT)
         self.registers[register] = value
         self.on_write(register, value)
 

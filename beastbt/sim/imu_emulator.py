@@ -28,7 +28,8 @@ import numpy as np
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices import mpu9250 as hw
 from beastbt.core.config import dataclass_from_dict
-from beastbt.sim.i2c_bus import RegisterDevice, SimI2CBus
+from beastbt.core.bounded import trim_front
+from beastbt.sim.i2c_bus import WRITES_KEPT, RegisterDevice, SimI2CBus
 from beastbt.sim.truth import RobotTruth
 
 GYRO_DLPF_BANDWIDTH_HZ = (250.0, 184.0, 92.0, 41.0, 20.0, 10.0, 5.0, 3600.0)
@@ -198,6 +199,7 @@ class SimMpu9250(RegisterDevice):
         register &= 0xFF
         if register in _MPU_READ_ONLY:
             self.writes.append((register, value & 0xFF))
+            trim_front(self.writes, WRITES_KEPT)
             return
         super().write(register, value)
 
@@ -274,6 +276,7 @@ class SimAk8963(RegisterDevice):
         register &= 0xFF
         value &= 0xFF
         self.writes.append((register, value))
+        trim_front(self.writes, WRITES_KEPT)
         if register == hw.AK_REG_CNTL1:
             new_mode = value & 0x0F
             if self.mode != hw.AK_MODE_POWER_DOWN and new_mode != hw.AK_MODE_POWER_DOWN:

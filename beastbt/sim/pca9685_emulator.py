@@ -29,7 +29,8 @@ from beastbt.devices.pca9685 import (
     PRESCALE_MIN,
     frequency_for,
 )
-from beastbt.sim.i2c_bus import RegisterDevice
+from beastbt.core.bounded import trim_front
+from beastbt.sim.i2c_bus import WRITES_KEPT, RegisterDevice
 
 # Power-on register values (datasheet table 4 and 7.3): asleep with ALLCALL,
 # totem-pole outputs, 200 Hz prescale, every channel fully off.
@@ -74,6 +75,7 @@ class SimPca9685(RegisterDevice):
         register &= 0xFF
         value &= 0xFF
         self.writes.append((register, value))
+        trim_front(self.writes, WRITES_KEPT)
         if register == MODE1:
             self._write_mode1(value)
         elif register == PRESCALE:

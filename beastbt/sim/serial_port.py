@@ -3,7 +3,7 @@
 The emulated device (a GPS, the Waveshare base controller...) pushes the bytes
 it would send with :meth:`SimSerialPort.feed`; the driver reads them with
 ``read``/``in_waiting`` exactly as from pyserial. What the driver writes is
-handed to the device's ``on_write`` callback and kept in ``written`` for tests.
+handed to the device's ``on_write`` callback; its latest bytes are kept in ``written`` for tests.
 A port can be made to vanish (``unplug``) to exercise the drivers' reopen logic.
 """
 
@@ -12,6 +12,12 @@ from __future__ import annotations
 from typing import Callable, Optional
 
 import serial
+
+from beastbt.core.bounded import trim_front
+
+WRITTEN_KEPT_BYTES = 64 * 1024
+"""``written`` keeps at least the last this many bytes (at most twice as many): a run on the simulator writes
+to the base at every tick, for as long as it runs."""
 
 
 class SimSerialPort:
@@ -23,7 +29,10 @@ class SimSerialPort:
         self.is_open = True
         self._rx = bytearray()
         self.written = bytearray()
-        """Every byte the driver wrote, in order."""
+        """The bytes the driver wrote, in order: all of them until :data:`WRITTEN_KEPT_BYTES` * 2, then the
+        latest (at least :data:`WRITTEN_KEPT_BYTES`)."""
+        self.written_total = 0
+        """How many bytes the driver wrote in all."""
         self.on_write = on_write
         self.unplugged = False
 
@@ -73,6 +82,8 @@ class SimSerialPort:
         """Send bytes to the emulated device."""
         self._check()
         self.written += data
+        self.written_total += len(data)
+        trim_front(self.written, WRITTEN_KEPT_BYTES)
         if self.on_write is not None:
             self.on_write(bytes(data))
         return len(data)

@@ -31,10 +31,12 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Optional
+from collections import deque
+from typing import Callable, Deque, Optional
 
 import numpy as np
 
+from beastbt.core.bounded import HeadTail
 from beastbt.devices.waveshare_base import ACCEL_LSB_PER_G, GYRO_LSB_PER_DPS, STANDARD_GRAVITY
 from beastbt.sim.dynamics import DiffDriveSim
 from beastbt.sim.serial_port import SimSerialPort
@@ -54,6 +56,12 @@ BOOT = {"ros": {"main": 2, "feedback": True, "interval_s": 0.05, "echo": False},
 """Each firmware's state at boot (ugv_config.h): mainType, baseFeedbackFlow, feedbackFlowExtraDelay, uartCmdEcho."""
 OPEN_LOOP_PWM_PER_MPS = 512.0
 """general firmware, main type other than 3: ``leftCtrl(L * 512)``, open-loop PWM (of 255) per m/s asked."""
+COMMANDS_KEPT = 2000
+"""``commands`` keeps the last this many commands: about 100 s of a run at 20 Hz (a run on the simulator
+writes to the base at every tick, for as long as it runs). :attr:`SimWaveshareBase.command_listeners` see
+every one."""
+VISITS_KEPT = 500
+"""The gimbal's settled angles kept per servo: the first and the last this many (the summary's ``servos``)."""
 GIMBAL_SERVO_IDS = (2, 1)
 """``GIMBAL_PAN_ID``, ``GIMBAL_TILT_ID`` (ugv_config.h)."""
 
@@ -75,8 +83,10 @@ class GimbalState:
     target_tilt_deg: float = 0.0
     torque_on: bool = True
     """False once torque was released (T:0 on ros, T:210 cmd 0): the servos go limp and ignore positions."""
-    visits: dict = field(default_factory=lambda: {"pan": [], "tilt": []})
-    """Angles each servo settled at, in beastbt's convention (pan positive left), in order."""
+    visits: dict = field(default_factory=lambda: {"pan": HeadTail(VISITS_KEPT, VISITS_KEPT),
+                                                  "tilt": HeadTail(VISITS_KEPT, VISITS_KEPT)})
+    """Angles each servo settled at, in beastbt's convention (pan positive left), in order: a
+    :class:`~beastbt.core.bounded.HeadTail` per servo, the first and the last :data:`VISITS_KEPT`."""
 
 
 class SimWaveshareBase:
@@ -113,8 +123,12 @@ class SimWaveshareBase:
         self.battery_drain_v_per_s = battery_drain_v_per_s
         self.gyro_noise_dps = imu_gyro_noise_dps
         self.accel_noise_g = imu_accel_noise_g
-        self.commands: list[dict] = []
-        """Every command object received, in order (tests pin protocols with it)."""
+        self.commands: Deque[dict] = deque(maxlen=COMMANDS_KEPT)
+        """The latest :data:`COMMANDS_KEPT` command objects received, in order (tests pin protocols with it)."""
+        self.commands_total = 0
+        """How many command objects were received in all."""
+        self.command_listeners: list[Callable[[dict], None]] = []
+        """Called with every command object received, in order (for a complete log, as the test harness keeps)."""
         self.estops = 0
         """``T:0`` commands obeyed (ros firmware only)."""
         self.heartbeat_stops = 0
@@ -169,6 +183,9 @@ class SimWaveshareBase:
 
     def _command(self, obj: dict) -> None:
         self.commands.append(obj)
+        self.commands_total += 1
+        for listener in self.command_listeners:
+            listener(obj)
         t = obj.get("T")
         ros = self.firmware == "ros"
         if t == 1:
