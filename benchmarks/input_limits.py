@@ -24,21 +24,9 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 BASELINE = [sys.executable, "-c", "import yaml"]
+sys.path.insert(0, str(REPO / "tests"))
+from hostile_yaml import laughs, million_waits  # noqa: E402 - the bombs the tests refuse
 
-
-def laughs(levels: int, width: int = 10) -> str:
-    """``levels`` anchors, each a list of ``width`` aliases of the one before (10^levels values expanded)."""
-    lines = ["l0: &l0 [" + ", ".join(['"lol"'] * width) + "]"]
-    lines += [f"l{i}: &l{i} [" + ", ".join([f"*l{i - 1}"] * width) + "]" for i in range(1, levels)]
-    return "\n".join(lines) + "\n"
-
-
-def million_waits() -> str:
-    """A mission whose steps are 10^6 waits once its aliases are expanded."""
-    text = "mission: waits\ntasks:\n  t0: &t0\n" + "".join("    - wait: 1 s\n" for _ in range(10))
-    for i in range(1, 6):
-        text += f"  t{i}: &t{i}\n" + "".join(f"    - sequence: *t{i - 1}\n" for _ in range(10))
-    return text + "steps:\n  - sequence: *t5\n"
 
 
 FILES = {

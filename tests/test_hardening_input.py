@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO
+from hostile_yaml import laughs, million_waits
 
 ADDRESS_SPACE_LIMIT = 1 << 30
 """The bombs' children run under this RLIMIT_AS: an expanding bomb would die of MemoryError (a traceback) here."""
@@ -55,22 +56,6 @@ def beastbt_own_rss(*args: str, cwd: Path) -> tuple[int, str, str, float]:
                           capture_output=True, text=True, timeout=120, cwd=cwd,
                           env=dict(os.environ, PYTHONPATH=str(REPO), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1"))
     return done.returncode, done.stdout, done.stderr, int(rss_file.read_text()) / 1024.0
-
-
-def laughs(levels: int, width: int = 10, indent: str = "") -> str:
-    """A 'billion laughs' block: ``levels`` anchors, each a list of ``width`` aliases of the one before."""
-    lines = [f"{indent}l0: &l0 [" + ", ".join(['"lol"'] * width) + "]"]
-    for i in range(1, levels):
-        lines.append(f"{indent}l{i}: &l{i} [" + ", ".join([f"*l{i - 1}"] * width) + "]")
-    return "\n".join(lines) + "\n"
-
-
-def million_waits() -> str:
-    """A mission whose steps, with the aliases expanded, are 10^6 waits, written in 60 lines."""
-    text = "mission: waits\ntasks:\n  t0: &t0\n" + "".join("    - wait: 1 s\n" for _ in range(10))
-    for i in range(1, 6):
-        text += f"  t{i}: &t{i}\n" + "".join(f"    - sequence: *t{i - 1}\n" for _ in range(10))
-    return text + "steps:\n  - sequence: *t5\n"
 
 
 BOMBS = {
