@@ -36,6 +36,9 @@ LIDAR_MODELS: dict[str, dict[str, Any]] = {
 """Each model's port speed, the ranges it measures (metres, datasheets: LD19 0.02-12 m, A1 0.15-12 m) and the
 rotation rate below which its motor counts as spinning up (Hz)."""
 
+STARTUP_GRACE_S = 3.0
+"""No "silent" event before the first scan within this long of start (an A1 takes 1-2 s to spin up), s."""
+
 MAX_READ_BYTES = 65536
 """Most bytes taken from the port in one poll (230400 baud is 23 kB/s: a 20 Hz poll sees ~1.2 kB)."""
 
@@ -477,6 +480,8 @@ class SerialLidar:
             self._silent_reported = False
 
     def _check_silence(self, now_s: float) -> None:
+        if self._latest is None and self._port is not None and now_s - self._started_s < STARTUP_GRACE_S:
+            return  # the first scan takes a spin-up and a revolution: stale, but not worth an event yet
         if not self._silent_reported and self.is_stale(now_s):
             spinning = " (the motor is not at speed)" if self.stats.spinup_packets and self.stats.scans == 0 else ""
             self._events("lidar_silent", f"{self.label}: no scan for {self.silent_for_s(now_s):.1f} s{spinning}")
