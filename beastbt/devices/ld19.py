@@ -146,7 +146,8 @@ class Ld19Lidar(SerialLidar):
             self._speeds.clear()
             if not self._spinning_up_reported:
                 self._events("lidar_spinning_up", f"{self.label}: the head turns at {speed / 360.0:.1f} Hz, below "
-                                                  f"{self.config.spinning_below_hz:g} Hz: no scans until it is at speed")
+                                                  f"{self.config.spinning_below_hz:g} Hz: no scans until it is "
+                                                  f"at speed")
                 self._spinning_up_reported = True
             return None
         self._spinning_up_reported = False

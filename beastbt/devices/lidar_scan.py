@@ -102,7 +102,8 @@ class LidarConfig:
                     raise ValueError("mounting must be a mapping {x_m, y_m, z_m, yaw_deg}")
                 bad = sorted(set(value) - {"x_m", "y_m", "z_m", "yaw_deg"})
                 if bad:
-                    raise ValueError(f"unknown mounting key(s): {', '.join(map(str, bad))} (known: x_m, y_m, z_m, yaw_deg)")
+                    raise ValueError(f"unknown mounting key(s): {', '.join(map(str, bad))} "
+                                     f"(known: x_m, y_m, z_m, yaw_deg)")
                 for key, number in value.items():
                     _require_number(f"mounting.{key}", number)
                 value = LidarMounting(**value)
