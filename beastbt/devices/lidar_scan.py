@@ -44,19 +44,20 @@ MAX_READ_BYTES = 65536
 
 
 @dataclass(frozen=True)
+@schema_defaults("parts/lidar.schema.json#/properties/mounting")
 class LidarMounting:
     """Where the LiDAR sits on the robot (base_link: x forward, y left, z up), metres, and its yaw, degrees."""
 
-    x_m: float = 0.0
-    y_m: float = 0.0
-    z_m: float = 0.0
-    yaw_deg: float = 0.0
+    x_m: float
+    y_m: float
+    z_m: float
+    yaw_deg: float
     """Its 0 degree mark, counterclockwise from the robot's forward."""
 
 
 @dataclass
 @schema_defaults("parts/lidar.schema.json", required=("type",),
-                 convert={"mounting": lambda d: LidarMounting(**d)})
+                 computed={"mounting": "a nested config with its own schema (LidarMounting)"})
 class LidarConfig:
     """Settings of a 2D LiDAR driver (the ``lidar`` section of a robot profile); see the schema for each knob."""
 
@@ -66,7 +67,7 @@ class LidarConfig:
     """Serial device of the LiDAR."""
     baud: Optional[int]
     """Baud rate; None = the model's."""
-    mounting: LidarMounting
+    mounting: LidarMounting = field(default_factory=LidarMounting)
     """Where it sits on the robot."""
     range_m: Optional[tuple[float, float]]
     """[min, max] kept, metres; None = the model's."""
