@@ -217,3 +217,47 @@ def test_pty_modem_lines_cannot_be_observed():
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_a_head_turning_below_the_minimum_rate_gives_no_scans():
+    clock = SimClock()
+    port = MemorySerial()
+    driver = RplidarA1(port, clock, config=LidarConfig.from_dict({"type": "rplidar_a1", "min_rate_hz": 2.0}))
+    answer_sequence(port, driver, clock)
+    scans = []
+    for rev in range(4):
+        for k in range(360):
+            port.feed(scan_sample(k == 0, 40, k * 1.0, 2000.0))
+            if k % 36 == 35:
+                clock.advance(0.1)  # one revolution a second: 1 Hz, below 2 Hz
+                scans += driver.poll()
+    assert scans == [] and driver.stats.spinup_packets >= 360 * 2
+
+
+def test_a_port_that_fails_is_reopened():
+    events: list = []
+    clock = SimClock()
+    first, second = MemorySerial(), MemorySerial()
+    opened = []
+
+    def reopen():
+        opened.append(clock.now())
+        return second
+
+    driver = RplidarA1(first, clock, lambda k, t: events.append(k), open_port=reopen,
+                       config=LidarConfig.from_dict({"type": "rplidar_a1", "reopen_interval_s": 1.0}))
+    driver.poll()
+
+    def broken(size: int = 1) -> bytes:
+        raise OSError("device reports readiness to read but returned no data")
+    first.feed(b"x")
+    first.read = broken  # type: ignore[method-assign]
+    driver.poll()
+    assert not driver.port_open and "lidar_port_lost" in events and driver.is_stale(clock.now())
+    clock.advance(0.5)
+    driver.poll()
+    assert opened == []  # not before reopen_interval_s
+    clock.advance(0.6)
+    driver.poll()
+    assert opened and driver.port_open and "lidar_port_reopened" in events
+    assert second.dtr_changes == [False] and bytes(second.written[:2]) == bytes((0xA5, STOP))  # started again
