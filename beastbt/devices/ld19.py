@@ -151,14 +151,28 @@ class Ld19Lidar(SerialLidar):
                 self._spinning_up_reported = True
             return None
         self._spinning_up_reported = False
+        degs = packet_angles_deg(start_cdeg, end_cdeg)
+        distances = fields[4:4 + 2 * POINTS_PER_PACKET:2]
+        intensities = fields[5:5 + 2 * POINTS_PER_PACKET:2]
+        # Where a new revolution starts in this packet: the angle falls back by more than half a turn
+        # (at most once per packet: 12 points span a few degrees).
+        assembler = self._assembler
+        prev = assembler.last_deg
+        cut = -1
+        for i, deg in enumerate(degs):
+            if deg + 180.0 < prev:  # False while prev is NaN (nothing seen yet)
+                cut = i
+                break
+            prev = deg
         scan = None
-        for i, deg in enumerate(packet_angles_deg(start_cdeg, end_cdeg)):
-            if self._assembler.starts_revolution(deg):
-                rate = sum(self._speeds) / len(self._speeds) / 360.0 if self._speeds else speed / 360.0
-                taken = self._assembler.take(now_s, rate)
-                self._speeds.clear()
-                scan = taken if taken is not None else scan
-            self._assembler.append(deg, fields[4 + 2 * i], fields[5 + 2 * i])
+        if cut >= 0:
+            assembler.extend(degs[:cut], distances[:cut], intensities[:cut])
+            rate = sum(self._speeds) / len(self._speeds) / 360.0 if self._speeds else speed / 360.0
+            scan = assembler.take(now_s, rate)
+            self._speeds.clear()
+            assembler.extend(degs[cut:], distances[cut:], intensities[cut:])
+        else:
+            assembler.extend(degs, distances, intensities)
         self._speeds.append(speed)
         return scan
 

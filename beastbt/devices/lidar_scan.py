@@ -278,6 +278,19 @@ class RevolutionAssembler:
         self._last_deg = deg_cw
         return bool(new_revolution)
 
+    @property
+    def last_deg(self) -> float:
+        """The angle of the latest point seen (clockwise degrees; NaN after a reset)."""
+        return self._last_deg
+
+    def extend(self, degs_cw: Sequence[float], distances_mm: Sequence[float], intensities: Sequence[float]) -> None:
+        """Store points of one revolution at once (the caller split them at the revolution's start)."""
+        if degs_cw:
+            self._deg.extend(degs_cw)
+            self._mm.extend(distances_mm)
+            self._intensity.extend(intensities)
+            self._last_deg = degs_cw[-1]
+
     def append(self, deg_cw: float, distance_mm: float, intensity: float) -> None:
         """Store a point in the revolution in progress."""
         self._deg.append(deg_cw)
