@@ -377,6 +377,9 @@ class SerialLidar:
         self._lost_reported = port is None
         self._next_open_s = -math.inf
         self._opened = False
+        self._last_read_s = self._started_s
+        self._read_from = 0
+        self._read_span = (self._started_s, self._started_s)
 
     # --- public state -------------------------------------------------------------------------
     @property
@@ -477,8 +480,13 @@ class SerialLidar:
                 data = b""
             if data:
                 self.stats.bytes_read += len(data)
+                # Where this read's bytes start in the buffer and the span they arrived over (for drivers that
+                # time samples within a read: a stream arrives evenly between two reads).
+                self._read_from = len(self._rx)
+                self._read_span = (self._last_read_s, now_s)
                 self._rx += data
                 scans = self._decode(now_s)
+            self._last_read_s = now_s
         self._on_poll(now_s)
         for scan in scans:
             self._emit(scan)
@@ -501,6 +509,15 @@ class SerialLidar:
             spinning = " (the motor is not at speed)" if self.stats.spinup_packets and self.stats.scans == 0 else ""
             self._events("lidar_silent", f"{self.label}: no scan for {self.silent_for_s(now_s):.1f} s{spinning}")
             self._silent_reported = True
+
+    def _arrival_s(self, end: int) -> float:
+        """When the byte before ``end`` (an index in ``self._rx`` during :meth:`_decode`) arrived, estimated
+        by spreading the latest read's bytes evenly over the time since the read before."""
+        first, (t0, t1) = self._read_from, self._read_span
+        n = len(self._rx) - first
+        if n <= 0 or end <= first:
+            return t0
+        return t0 + (t1 - t0) * min(1.0, (end - first) / n)
 
     def _count(self, reason: str, n: int = 1) -> None:
         self.stats.reasons[reason] = self.stats.reasons.get(reason, 0) + n

@@ -328,7 +328,7 @@ class RplidarA1(SerialLidar):
             self._last_deg = deg
             mm = (b3 | (b4 << 8)) / 4.0 if quality > 0 else 0.0
             if new_rev:
-                scan = self._revolution(now_s)
+                scan = self._revolution(now_s, self._arrival_s(pos))
                 if scan is not None:
                     scans.append(scan)
                 self._synced = True
@@ -339,9 +339,11 @@ class RplidarA1(SerialLidar):
         del buf[:pos]
         return scans
 
-    def _revolution(self, now_s: float) -> Optional[LaserScan]:
+    def _revolution(self, now_s: float, mark_s: float) -> Optional[LaserScan]:
         # An S bit closes the revolution in progress (the first one is partial and dropped by the assembler).
-        self._rev_starts.append(now_s)
+        # The rate comes from when the marks arrived (estimated within a read), not when they were read: a
+        # late poll does not make a revolution look slow.
+        self._rev_starts.append(mark_s)
         starts = self._rev_starts
         rate = (len(starts) - 1) / (starts[-1] - starts[0]) if len(starts) > 1 and starts[-1] > starts[0] else 0.0
         scan = self._assembler.take(now_s, rate)
