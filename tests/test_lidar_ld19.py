@@ -185,3 +185,12 @@ def test_range_limits_and_ignored_sectors_are_masked():
     kept = ~near & (true < 2.19) & np.isfinite(true)
     assert kept.sum() > 100 and np.all(np.isfinite(scan.ranges_m[kept]))
     assert math.isclose(np.nanmax(scan.ranges_m), 2.2, abs_tol=0.01)
+
+
+def test_a_packet_across_zero_spreads_its_points_through_360():
+    from beastbt.devices.ld19 import packet_angles_deg
+    angles = packet_angles_deg(35890, 100)  # 358.9 to 1.0 degrees: 2.1 degrees in 11 steps
+    assert angles[0] == 358.9 and abs(angles[-1] - 1.0) < 1e-9
+    steps = np.diff(np.unwrap(np.radians(angles)))
+    assert np.allclose(np.degrees(steps), 2.1 / 11)
+    assert all(0.0 <= a < 360.0 for a in angles)
