@@ -7,7 +7,9 @@ on), the IMU only has ``WHO_AM_I`` read, the camera one frame grabbed.
 
 The checks, in order: the serial ports (present, and no UART used twice),
 the base (it answers, and with which firmware), the GPS (NMEA at the set
-baud, fix and satellites), the IMU (``WHO_AM_I``), the camera (one frame),
+baud, fix and satellites), the LiDAR (packets, CRC failures, scan rate and
+points per scan; an RPLIDAR's health, model and firmware), the IMU
+(``WHO_AM_I``), the camera (one frame),
 the joystick (present, its name), a CAN interface (up, at the profile's
 bitrate), and on a Raspberry Pi the UART set-up (``enable_uart=1``, no login
 console on it).
@@ -30,6 +32,12 @@ BASE_WAIT_S = 2.0
 """How long to wait for the base's first T:1001 feedback line, s."""
 GPS_WAIT_S = 3.0
 """How long to listen to the GPS (it talks at 1 Hz by default), s."""
+LIDAR_WAIT_S = 4.0
+"""How long to listen to the LiDAR: an RPLIDAR A1 takes 1-2 s to spin up, then a few revolutions, s."""
+LIDAR_SCANS = 5
+"""Revolutions to see before the LiDAR's figures are reported."""
+LIDAR_CRC_WARN = 0.01
+"""A share of bad packets above this is a noisy line (WARN)."""
 SERIAL_HINT = ("enable the serial port (raspi-config: interface options, serial port: login shell no, hardware yes) "
                "and add your user to the 'dialout' group")
 WHO_AM_I_REGISTER = 0x75
@@ -80,6 +88,9 @@ def serial_ports(profile: RobotProfile) -> list[tuple[str, str]]:
     gps = profile.section("gps")
     if gps is not None:
         ports.append(("gps", str(gps.get("port", "/dev/serial0"))))
+    lidar = profile.section("lidar")
+    if lidar is not None:
+        ports.append(("lidar", str(lidar.get("port", "/dev/ttyUSB0"))))
     return ports
 
 
@@ -203,6 +214,95 @@ def check_gps(ctx: DoctorContext) -> Iterator[Finding]:
                       "give it open sky; a cold start takes a minute or more")
         return
     yield Finding(OK, "gps", f"talks NMEA at {baud} baud: fix quality {fix}, {sats} satellites")
+
+
+# -- the LiDAR -----------------------------------------------------------------------------------
+
+def check_lidar(ctx: DoctorContext) -> Iterator[Finding]:
+    """The LiDAR on its port: packets, CRC failures, scan rate, points per scan; an RPLIDAR's health and info.
+
+    An RPLIDAR A1's motor turns while it is checked (DTR) and is stopped after.
+    """
+    if ctx.profile.section("lidar") is None:
+        return
+    from beastbt.devices.ld19 import Ld19Lidar
+    from beastbt.devices.lidar_scan import LidarConfig
+    from beastbt.devices.rplidar import RplidarA1
+    from beastbt.robot.profile import section_config
+    config: LidarConfig = section_config(ctx.profile, "lidar", LidarConfig)
+    port = _open_serial(config.port, config.port_baud)
+    if isinstance(port, str):
+        yield Finding(FAIL, "lidar", f"cannot open {config.port}: {port}",
+                      "check the LiDAR's USB cable (ls /dev/ttyUSB* /dev/serial/by-id/) and that your user is "
+                      "in the 'dialout' group")
+        return
+    driver_cls = RplidarA1 if config.type == "rplidar_a1" else Ld19Lidar
+    driver = driver_cls(port, ctx.clock, lambda kind, text: None, config=config)
+    scans = 0
+    try:
+        end = ctx.clock.now() + LIDAR_WAIT_S
+        while ctx.clock.now() < end and scans < LIDAR_SCANS:
+            scans += len(driver.poll())
+            if isinstance(driver, RplidarA1) and driver.state == "failed":
+                break
+            ctx.clock.sleep_until(ctx.clock.now() + 0.01)
+    finally:
+        driver.close()
+    yield from _lidar_findings(driver, config, scans)
+
+
+def _lidar_findings(driver: Any, config: Any, scans: int) -> Iterator[Finding]:
+    from beastbt.devices.rplidar import RplidarA1
+    stats, name, baud = driver.stats, config.model["name"], config.port_baud
+    where = f"{config.port} at {baud} baud"
+    if isinstance(driver, RplidarA1):
+        if driver.health is None:
+            what = "bytes but no answer it understands" if stats.bytes_read else "no answer"
+            yield Finding(FAIL, "lidar", f"{what} to GET_HEALTH on {where} in {LIDAR_WAIT_S:g} s",
+                          "check that lidar.type is the LiDAR fitted, the USB adapter's cable and its power, and "
+                          "the baud (the A1 talks at 115200)")
+            return
+        info = driver.info
+        about = (f"{info.model_name}, firmware {info.firmware}, hardware {info.hardware}, serial {info.serial_hex}"
+                 if info is not None else "no GET_INFO answer")
+        if driver.health.status == 2:
+            after = " even after a reset" if driver.state == "failed" else ""
+            yield Finding(FAIL, "lidar", f"{name} ({about}) reports health {driver.health.text}{after}",
+                          "power-cycle it; if the error stays, the unit needs Slamtec's support")
+            return
+        level = WARN if driver.health.status == 1 else OK
+        yield Finding(level, "lidar", f"{name} on {config.port}: {about}; health {driver.health.text}",
+                      "watch it: the A1 reports a warning before it stops in protection")
+    if stats.packets == 0:
+        if stats.bytes_read == 0:
+            yield Finding(FAIL, "lidar", f"nothing on {where} in {LIDAR_WAIT_S:g} s",
+                          "check the LiDAR's power and cable (an LD19 streams as soon as it has power; "
+                          "an RPLIDAR needs its motor supply)")
+        else:
+            yield Finding(FAIL, "lidar", f"{stats.bytes_read} bytes on {where} but no {name} packets",
+                          f"check lidar.type (this is not a {name}?) and lidar.baud")
+        return
+    bad = stats.crc_failures / max(1, stats.packets + stats.crc_failures)
+    figures = (f"{stats.packets} {'packets' if config.type == 'ld19' else 'samples'}, {stats.crc_failures} "
+               f"{'CRC' if config.type == 'ld19' else 'check-bit'} failures")
+    if scans == 0:
+        yield Finding(FAIL, "lidar", f"{figures} on {config.port} but no whole revolution in {LIDAR_WAIT_S:g} s "
+                                     f"({stats.spinup_packets} dropped while the motor was not at speed)",
+                      "the motor does not reach speed: check its supply (5 V, enough current from the USB port or "
+                      "adapter)" + (" and that DTR reaches the adapter" if config.type == "rplidar_a1" else ""))
+        return
+    scan = driver.latest_scan
+    returns = scan.valid_count if scan is not None else 0
+    text = (f"{figures}; {stats.scan_rate_hz:.1f} Hz, {stats.points_per_scan} points per scan "
+            f"({returns} with a return in range)")
+    if bad > LIDAR_CRC_WARN:
+        yield Finding(WARN, "lidar", f"{text}: {bad:.1%} bad", "a noisy line: use a shorter or shielded cable, "
+                                                               "check the ground and the baud")
+    elif returns == 0:
+        yield Finding(WARN, "lidar", f"{text}: no point in range", "take the cover off the window, or check "
+                                                                  "lidar.range_m and lidar.ignore_deg")
+    else:
+        yield Finding(OK, "lidar", f"{name}: {text}")
 
 
 # -- the IMU -------------------------------------------------------------------------------------
@@ -360,8 +460,8 @@ def _active_lines(path: Path) -> set[str]:
     return lines
 
 
-CHECKS: tuple[Check, ...] = (check_pi_uart, check_serial_ports, check_base, check_gps, check_imu, check_camera,
-                             check_joystick, check_can)
+CHECKS: tuple[Check, ...] = (check_pi_uart, check_serial_ports, check_base, check_gps, check_lidar, check_imu,
+                             check_camera, check_joystick, check_can)
 """Every check, in the order the report prints them."""
 
 
@@ -374,7 +474,7 @@ def diagnose(profile: RobotProfile, clock: Optional[WallClock] = None, root: Pat
         for finding in check(ctx):
             if check is check_serial_ports and finding.level == FAIL:
                 ports_failed.add(finding.device)
-            if check in (check_base, check_gps) and finding.device in ports_failed:
+            if check in (check_base, check_gps, check_lidar) and finding.device in ports_failed:
                 continue  # the port itself already failed: say it once
             findings.append(finding)
     return findings
