@@ -20,7 +20,7 @@ that radius: a wall becomes a capsule, a cylinder or a person a larger circle.
 
 Most physics steps need no geometry at all: after an exact clearance at some
 place and time, the clearance anywhere else is at least that minus the distance
-moved minus how far the fastest person could have walked since. Only when that
+moved minus the farthest any person has walked since. Only when that
 bound could matter (a move as long as it, a possible new minimum, a contact
 episode to close) is the exact value computed.
 """
@@ -82,7 +82,7 @@ class ContactWorld:
         self.person_xy = np.array([p.path[0] for p in self.persons], dtype=float).reshape(-1, 2)
         """Where each person is now (m, world frame)."""
         self._person_r = np.array([p.radius_m for p in self.persons], dtype=float) + self.radius_m
-        self._person_speed = max((p.speed_mps for p in self.persons), default=0.0)
+        self._persons_moved_m = 0.0  # the most any person can have come closer since the last exact look, m
         self.collisions = 0
         """Distinct contact episodes so far."""
         self.min_clearance_m: Optional[float] = None
@@ -90,7 +90,7 @@ class ContactWorld:
         self.in_contact = False
         """True from a contact until the footprint is CLEAR_AFTER_M clear again."""
         self.empty = not (len(self.wall_segments) or boxes or cyl or self.persons)
-        self._ref: Optional[tuple[float, float, float, float]] = None  # (x, y, t_s, exact clearance) of the last look
+        self._ref: Optional[tuple[float, float, float]] = None  # (x, y, exact clearance) of the last look
 
     # -- geometry -----------------------------------------------------------------
     def clearance(self, x: float, y: float) -> float:
@@ -115,18 +115,17 @@ class ContactWorld:
             best = min(best, float(d.min()) + self.radius_m)
         return best - self.radius_m
 
-    def free_fraction(self, x0: float, y0: float, x1: float, y1: float, t_s: float) -> float:
+    def free_fraction(self, x0: float, y0: float, x1: float, y1: float) -> float:
         """The fraction (0 to 1) of the straight move from (x0, y0) to (x1, y1) (m) the footprint makes before contact.
 
-        1.0 means the whole move is free. ``t_s`` is the simulated time of the move's end (s), for the bound that
-        spares the geometry when everything is far.
+        1.0 means the whole move is free. The persons stand where they are for it (they walk before the robot moves).
         """
         step = math.hypot(x1 - x0, y1 - y0)
         if step == 0.0 or self.empty:
             return 1.0
-        if self._bound(x0, y0, t_s) > step:
+        if self._bound(x0, y0) > step:
             return 1.0
-        gap = self._look(x0, y0, t_s)
+        gap = self._look(x0, y0)
         if gap > step:
             return 1.0
         p0 = np.array((x0, y0))
@@ -148,6 +147,7 @@ class ContactWorld:
         A person held up by the robot walks on from where it stopped, at its own speed (it does not run to catch up
         with its timetable).
         """
+        farthest = 0.0
         for i, person in enumerate(self.persons):
             walking_s = min(dt_s, t_s - person.start_s)
             if walking_s <= 0.0 or person.speed_mps <= 0.0:
@@ -156,31 +156,26 @@ class ContactWorld:
             if not person.loop and walked >= person.length_m:
                 continue  # standing at its end for good
             target = walked + person.speed_mps * walking_s
-            qx, qy = self.person_xy[i]
+            qx, qy = float(self.person_xy[i, 0]), float(self.person_xy[i, 1])
             nx, ny = person.point_at(target)
-            d = np.array((nx - qx, ny - qy))
-            s = 1.0
-            if d @ d > 0.0:
-                s = float(_sweep_circles(np.array((qx, qy)), d, np.array([[robot_x, robot_y]]),
-                                         np.array([person.radius_m + self.radius_m]))[0])
-            if s >= 1.0:
-                self.person_walked_m[i] = target
-                self.person_xy[i] = (nx, ny)
-            else:  # it stops at the robot, as far along as it got
-                self.person_walked_m[i] = walked + s * (target - walked)
-                self.person_xy[i] = (qx + s * d[0], qy + s * d[1])
+            s = _sweep_circle(qx, qy, nx - qx, ny - qy, robot_x, robot_y, person.radius_m + self.radius_m)
+            s = min(s, 1.0)  # below 1: it stops at the robot, as far along as it got
+            self.person_walked_m[i] = walked + s * (target - walked)
+            self.person_xy[i, 0], self.person_xy[i, 1] = qx + s * (nx - qx), qy + s * (ny - qy)
+            farthest = max(farthest, s * math.hypot(nx - qx, ny - qy))
+        self._persons_moved_m += farthest  # the bound: no person came closer than this since the last look
 
     # -- truth --------------------------------------------------------------------
-    def observe(self, x: float, y: float, t_s: float) -> None:
-        """Update ``collisions``, ``in_contact`` and ``min_clearance_m`` with the robot at (x, y) (m) at ``t_s`` (s)."""
+    def observe(self, x: float, y: float) -> None:
+        """Update ``collisions``, ``in_contact`` and ``min_clearance_m`` with the robot now at (x, y) (m)."""
         if self.empty:
             return
-        bound = self._bound(x, y, t_s)
+        bound = self._bound(x, y)
         least = self.min_clearance_m
         if (least is not None and bound >= least and bound > CONTACT_M
                 and not (self.in_contact and bound <= CLEAR_AFTER_M)):
             return  # nothing new can be learnt here: no new minimum, no contact, no episode to close
-        gap = self._look(x, y, t_s)
+        gap = self._look(x, y)
         if least is None or gap < least:
             self.min_clearance_m = gap
         if gap <= CONTACT_M:
@@ -190,18 +185,20 @@ class ContactWorld:
         elif gap > CLEAR_AFTER_M:
             self.in_contact = False
 
-    def _look(self, x: float, y: float, t_s: float) -> float:
+    def _look(self, x: float, y: float) -> float:
         """The exact clearance at (x, y) now, remembered as the reference of the bound."""
         gap = self.clearance(x, y)
-        self._ref = (x, y, t_s, gap)
+        self._ref = (x, y, gap)
+        self._persons_moved_m = 0.0
         return gap
 
-    def _bound(self, x: float, y: float, t_s: float) -> float:
-        """A lower bound of the clearance at (x, y) at ``t_s`` from the last exact look (m; -inf without one)."""
+    def _bound(self, x: float, y: float) -> float:
+        """A lower bound of the clearance at (x, y) now from the last exact look (m; -inf without one): the
+        clearance then, less how far the robot is from there and how far the persons have walked since."""
         if self._ref is None:
             return -_INF
-        rx, ry, rt, gap = self._ref
-        return gap - math.hypot(x - rx, y - ry) - self._person_speed * max(0.0, t_s - rt)
+        rx, ry, gap = self._ref
+        return gap - math.hypot(x - rx, y - ry) - self._persons_moved_m
 
 
 def _segment(w: object) -> tuple[float, float, float, float]:
@@ -210,6 +207,23 @@ def _segment(w: object) -> tuple[float, float, float, float]:
         return float(w.x1), float(w.y1), float(w.x2), float(w.y2)  # type: ignore[attr-defined]
     x1, y1, x2, y2 = w  # type: ignore[misc]
     return float(x1), float(y1), float(x2), float(y2)
+
+
+def _sweep_circle(x0: float, y0: float, dx: float, dy: float, cx: float, cy: float, radius: float) -> float:
+    """:func:`_sweep_circles` for one circle, in plain floats (a person's step against the robot, every step)."""
+    a = dx * dx + dy * dy
+    if a == 0.0:
+        return _INF
+    fx, fy = x0 - cx, y0 - cy
+    b = 2.0 * (fx * dx + fy * dy)
+    c = fx * fx + fy * fy - radius * radius
+    if c <= 0.0:
+        return 0.0 if b < 0.0 else _INF
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0 or b >= 0.0:
+        return _INF
+    s = (-b - math.sqrt(disc)) / (2.0 * a)
+    return max(s, 0.0) if s <= 1.0 else _INF
 
 
 def _sweep_circles(p0: np.ndarray, d: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:

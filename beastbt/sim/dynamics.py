@@ -130,7 +130,7 @@ class DiffDriveSim:
             t.left_mps = t.right_mps = t.v_mps = t.w_rps = 0.0
             t.t_s += dt
             if contact is not None:
-                contact.observe(t.x, t.y, t.t_s)
+                contact.observe(t.x, t.y)
             return
         sl = 1.0 - m.slip_bias + m.slip_sigma * self.rng.standard_normal()
         sr = 1.0 - m.slip_bias + m.slip_sigma * self.rng.standard_normal()
@@ -138,7 +138,7 @@ class DiffDriveSim:
         w = (vr * sr - vl * sl) / m.track_width_m
         mid = t.yaw + 0.5 * w * dt
         nx, ny = t.x + v * dt * math.cos(mid), t.y + v * dt * math.sin(mid)
-        free = 1.0 if contact is None else contact.free_fraction(t.x, t.y, nx, ny, t.t_s + dt)
+        free = 1.0 if contact is None else contact.free_fraction(t.x, t.y, nx, ny)
         if free < 1.0:
             # Pushing into something: the robot goes as far as contact and the forward drive stalls there (its
             # encoders stop counting it); the turning part goes on, the tracks skidding on the spot.
@@ -153,7 +153,7 @@ class DiffDriveSim:
             t.v_mps, t.w_rps = 0.0, w
             self.path_length_m += free * abs(v) * dt
             t.t_s += dt
-            contact.observe(t.x, t.y, t.t_s)  # type: ignore[union-attr]  # free < 1 only with contact
+            contact.observe(t.x, t.y)  # type: ignore[union-attr]  # free < 1 only with contact
             return
         self.blocked = False
         t.x, t.y = nx, ny
@@ -166,4 +166,4 @@ class DiffDriveSim:
         self.max_speed_mps = max(self.max_speed_mps, abs(v))
         t.t_s += dt
         if contact is not None:
-            contact.observe(t.x, t.y, t.t_s)
+            contact.observe(t.x, t.y)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Union
 
 from beastbt.core.schema_defaults import schema_default
@@ -67,12 +68,12 @@ class Person:
     start_s: float = 0.0
     loop: bool = False
 
-    @property
+    @cached_property
     def legs_m(self) -> tuple[float, ...]:
         """Length of each leg of the path, m."""
         return tuple(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(self.path, self.path[1:]))
 
-    @property
+    @cached_property
     def length_m(self) -> float:
         """Length of the path, m."""
         return sum(self.legs_m)
