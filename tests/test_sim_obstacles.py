@@ -260,3 +260,39 @@ def test_an_empty_world_has_no_clearance_and_no_collisions():
     assert h.run_to_end(30) == "success"
     truth = h.summary()["truth"]
     assert truth["collisions"] == 0 and truth["min_clearance_m"] is None
+
+
+# -- what people see ----------------------------------------------------------------
+def test_the_scene_draws_boxes_cylinders_and_persons_and_validates_against_foxglove():
+    import json
+
+    import jsonschema
+
+    from beastbt.live.console_state import MapFrame, map_layers
+    from beastbt.mission.model import load_mission
+    from beastbt.recording.config import FramesConfig
+    from beastbt.recording.scene import SceneView, scene_description
+
+    world = load_world(ROOT / "worlds" / "corridor_person.yaml")
+    world.obstacles += [BoxObstacle(4.0, 0.5, 0.4, 0.6, 0.3), CylinderObstacle(6.0, -0.3, 0.15)]
+    mission = load_mission(ROOT / "missions" / "patrol.yaml")
+    view = SceneView(json.loads(json.dumps(scene_description(mission, world, RADIUS_M))), FramesConfig())
+    message = view.scene_message(5)
+    schema = json.loads((ROOT / "tests" / "data" / "foxglove" / "SceneUpdate.json").read_text(encoding="utf-8"))
+    jsonschema.validate(json.loads(json.dumps(message)), schema)
+    drawn = {e["id"]: e for e in message["entities"]}["obstacles"]
+    start = world.start_x, world.start_y  # map sits at the robot's start until a fused position says otherwise
+    (box,) = drawn["cubes"]
+    assert box["pose"]["position"]["x"] == pytest.approx(4.0 - start[0], abs=1e-3)
+    assert (box["size"]["x"], box["size"]["y"]) == (0.4, 0.6)
+    person, post = drawn["cylinders"]
+    assert person["pose"]["position"]["x"] == pytest.approx(9.5 - start[0], abs=1e-3)  # where it sets off
+    assert post["size"]["x"] == pytest.approx(0.3) and len(drawn["lines"]) == 1         # the person's path
+
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - wait: 1 s\n", world=str(ROOT / "worlds" / "campus_obstacles.yaml"))
+    world = h.prepared.world
+    layers = map_layers(h.run, world, MapFrame(h.run, world))  # the console's map
+    assert [o["shape"] for o in layers["obstacles"]] == [
+        "box" if isinstance(o, BoxObstacle) else "cylinder" for o in world.obstacles]
+    assert layers["obstacles"][0]["corners"][0] == pytest.approx(list(world.obstacles[0].corners()[0]), abs=1e-3)
+    assert layers["obstacles"][1]["xy"] == [world.obstacles[1].x, world.obstacles[1].y]

@@ -140,4 +140,15 @@ def obstacle_of(d: dict) -> Obstacle:
     raise ValueError(f"unknown obstacle shape {shape!r}")
 
 
-__all__ = ["BoxObstacle", "CylinderObstacle", "Person", "Obstacle", "obstacle_of", "CLOSED_PATH_TOLERANCE_M"]
+def obstacle_outline(o: Obstacle) -> dict:
+    """What a map draws of an obstacle (m, world frame): a box's ``corners``, a cylinder's ``xy`` and ``radius_m``,
+    a person's ``path`` and ``radius_m`` (where it walks; it is drawn at the path's start)."""
+    if isinstance(o, BoxObstacle):
+        return {"shape": "box", "corners": [[round(x, 3), round(y, 3)] for x, y in o.corners()]}
+    if isinstance(o, CylinderObstacle):
+        return {"shape": "cylinder", "xy": [o.x, o.y], "radius_m": o.radius_m}
+    return {"shape": "person", "path": [list(p) for p in o.path], "radius_m": o.radius_m}
+
+
+__all__ = ["BoxObstacle", "CylinderObstacle", "Person", "Obstacle", "obstacle_of", "obstacle_outline",
+           "CLOSED_PATH_TOLERANCE_M"]
