@@ -296,3 +296,11 @@ def test_the_scene_draws_boxes_cylinders_and_persons_and_validates_against_foxgl
         "box" if isinstance(o, BoxObstacle) else "cylinder" for o in world.obstacles]
     assert layers["obstacles"][0]["corners"][0] == pytest.approx(list(world.obstacles[0].corners()[0]), abs=1e-3)
     assert layers["obstacles"][1]["xy"] == [world.obstacles[1].x, world.obstacles[1].y]
+
+
+def test_the_worlds_doc_example_is_a_valid_world(tmp_path):
+    import re
+    doc = (ROOT / "docs" / "worlds.md").read_text(encoding="utf-8")
+    (block,) = [b for b in re.findall(r"```yaml\n(.*?)```", doc, re.S) if "world.schema.json" in b]
+    world = load_world(write_world(tmp_path, block))
+    assert [type(o).__name__ for o in world.obstacles] == ["BoxObstacle", "CylinderObstacle", "Person"]
