@@ -5,7 +5,9 @@ Prints, per physics step (the robot driving, slip noise on, as in a run):
 2. the corridor (4 walls), the campus with its 9 obstacles, the corridor with
    a pacing person, and a crowded yard (40 walls, 100 boxes, 100 posts,
    10 persons), each as a ratio to the baseline;
-3. the exact geometry on its own, for comparison: one ``clearance`` and one
+3. the exact clearance in plain floats against NumPy among 4 to 64 things
+   (which sets ``SMALL_WORLD``), and the exact geometry on its own, for
+   comparison: one ``clearance`` and one
    swept test (``free_fraction`` forced) in the crowded yard, which is what a
    step would cost if the lower bound never spared it;
 4. the patrol's real-time factor on worlds/corridor.yaml against the same run
@@ -97,6 +99,14 @@ def exact_us(walls: list, obstacles: list, calls: int) -> tuple[float, float]:
     return clear, sweep
 
 
+def timed(clearance, calls: int) -> float:
+    """Mean wall time of one call of a clearance function, microseconds."""
+    t0 = time.perf_counter()
+    for i in range(calls):
+        clearance(0.001 * i, 0.0)
+    return (time.perf_counter() - t0) / calls * 1e6
+
+
 def patrol_rtf(world: str) -> float:
     """Sim seconds per wall second of the patrol in ``world`` (loading excluded)."""
     p = prepare(str(REPO / "missions" / "patrol.yaml"), RunOptions(seed=1, record=False, world=world))
@@ -126,6 +136,10 @@ def main() -> None:
     }.items():
         cost = per_step_us(list(walls), list(obstacles), steps, start)
         print(f"physics step, {name + ':':38s} {cost:7.2f} us  = {cost / base:5.2f}x")
+    for n in (4, 8, 16, 32, 64):  # where plain floats stop beating NumPy (SMALL_WORLD in beastbt/sim/contact.py)
+        world = ContactWorld(yard[0][:n // 2], [o for o in yard[1] if not isinstance(o, Person)][:n - n // 2], 0.15)
+        plain, vector = (min(timed(f, 2000) for _ in range(3)) for f in (world._clearance_small, world._clearance_numpy))
+        print(f"exact clearance among {n:2d} things: plain floats {plain:5.1f} us, NumPy {vector:5.1f} us")
     clear, sweep = exact_us(*yard, 3000)
     print(f"exact geometry in the crowded yard: clearance {clear:6.1f} us, swept test {sweep:6.1f} us "
           f"(= {clear / base:.1f}x and {sweep / base:.1f}x a plain step)")

@@ -304,3 +304,46 @@ def test_the_worlds_doc_example_is_a_valid_world(tmp_path):
     (block,) = [b for b in re.findall(r"```yaml\n(.*?)```", doc, re.S) if "world.schema.json" in b]
     world = load_world(write_world(tmp_path, block))
     assert [type(o).__name__ for o in world.obstacles] == ["BoxObstacle", "CylinderObstacle", "Person"]
+
+
+@pytest.mark.parametrize("count", [3, 60])  # a small world (plain floats) and a large one (NumPy)
+def test_clearance_agrees_with_the_hand_geometry_in_small_and_large_worlds(count):
+    rng = np.random.default_rng(count)
+    walls = [Wall(*map(float, rng.uniform(-10, 10, 4))) for _ in range(count)]
+    things = [BoxObstacle(*map(float, rng.uniform(-10, 10, 2)), *map(float, rng.uniform(0.1, 2, 2)),
+                          float(rng.uniform(-3, 3))) for _ in range(count)]
+    things += [CylinderObstacle(*map(float, rng.uniform(-10, 10, 2)), float(rng.uniform(0.05, 1))) for _ in range(count)]
+    world = ContactWorld(walls, things, RADIUS_M)
+    assert world._small == (count < 5)
+    for x, y in rng.uniform(-11, 11, (200, 2)):
+        want = min(gap_to(x, y, t) for t in walls + things)
+        assert world.clearance(x, y) == pytest.approx(want, abs=1e-9)
+
+
+@pytest.mark.parametrize("count", [3, 12])  # plain floats (9 things) and NumPy (36)
+def test_the_swept_test_stops_where_a_fine_walk_along_the_move_first_touches(count):
+    rng = np.random.default_rng(100 + count)
+    walls = [Wall(*map(float, rng.uniform(-6, 6, 4))) for _ in range(count)]
+    things = [BoxObstacle(*map(float, rng.uniform(-6, 6, 2)), *map(float, rng.uniform(0.1, 1, 2)),
+                          float(rng.uniform(-3, 3))) for _ in range(count)]
+    things += [CylinderObstacle(*map(float, rng.uniform(-6, 6, 2)), float(rng.uniform(0.05, 0.5))) for _ in range(count)]
+    world = ContactWorld(walls, things, RADIUS_M)
+    met = 0
+    for _ in range(100):
+        x0, y0 = rng.uniform(-7, 7, 2)
+        if min(gap_to(x0, y0, t) for t in walls + things) <= 0.0:
+            continue  # starts touching or inside: not this test's case
+        x1, y1 = x0 + rng.uniform(-4, 4), y0 + rng.uniform(-4, 4)
+        world._ref = None
+        s = world.free_fraction(x0, y0, x1, y1)
+        fine = np.linspace(0.0, 1.0, 2001)
+        reach = math.hypot(x1 - x0, y1 - y0)
+        near = [t for t in walls + things if gap_to(x0, y0, t) <= reach]  # the rest is out of the move's reach
+        gaps = [min((gap_to(x0 + f * (x1 - x0), y0 + f * (y1 - y0), t) for t in near), default=math.inf) for f in fine]
+        inside = [f for f, g in zip(fine, gaps) if g < -1e-9]
+        if inside:
+            met += 1
+            assert inside[0] - 1 / 2000 <= s <= inside[0]
+        else:
+            assert s == 1.0 or min(gaps) < 1e-3  # free, or it grazes something within the walk's resolution
+    assert met >= 10  # the moves did meet things

@@ -41,6 +41,10 @@ CLEAR_AFTER_M: float = 0.02
 """A contact episode ends when the footprint is more than this clear of everything, m (so a robot that
 rocks against a wall counts one collision, not one per physics step)."""
 
+SMALL_WORLD: int = 32
+"""Up to this many walls and obstacles, :meth:`ContactWorld.clearance` and the swept test run in plain floats
+(measured quicker than NumPy's cost per call up to about this many; benchmarks/sim_contact.py)."""
+
 _INF = math.inf
 
 
@@ -90,11 +94,46 @@ class ContactWorld:
         self.in_contact = False
         """True from a contact until the footprint is CLEAR_AFTER_M clear again."""
         self.empty = not (len(self.wall_segments) or boxes or cyl or self.persons)
+        self._walls_py = [(float(a[0]), float(a[1]), float(d[0]), float(d[1]), float(l2))
+                          for a, d, l2 in zip(self._wall_a, self._wall_d, self._wall_l2)]
+        self._cyl_py = [(o.x, o.y, o.radius_m) for o in cyl]
+        self._box_py = [(b.x, b.y, math.cos(b.yaw), math.sin(b.yaw), 0.5 * b.length_m, 0.5 * b.width_m) for b in boxes]
+        self._circ_py = [(float(c[0]), float(c[1]), float(r)) for c, r in zip(self._circ_c, self._circ_r)]
+        self._seg_py = [(float(a[0]), float(a[1]), float(u[0]), float(u[1]), float(n))
+                        for a, u, n in zip(self._seg_a, self._seg_u, self._seg_len)]
+        self._small = len(self.wall_segments) + len(boxes) + len(cyl) + len(self.persons) <= SMALL_WORLD
         self._ref: Optional[tuple[float, float, float]] = None  # (x, y, exact clearance) of the last look
 
     # -- geometry -----------------------------------------------------------------
     def clearance(self, x: float, y: float) -> float:
-        """Gap between the footprint at (x, y) and the nearest wall or obstacle now, m (negative inside; inf if none)."""
+        """Gap between the footprint at (x, y) and the nearest wall or obstacle now, m (negative inside; inf if none).
+
+        Vectorised over every wall, box, cylinder and person; a small world (a corridor's walls, a few obstacles)
+        is quicker in plain floats, where NumPy's cost per call would outweigh the work.
+        """
+        if self._small:
+            return self._clearance_small(x, y)
+        return self._clearance_numpy(x, y)
+
+    def _clearance_small(self, x: float, y: float) -> float:
+        """:meth:`clearance` in plain floats, one thing at a time."""
+        best = _INF
+        for ax, ay, dx, dy, l2 in self._walls_py:
+            rx, ry = x - ax, y - ay
+            t = min(1.0, max(0.0, (rx * dx + ry * dy) / l2))
+            best = min(best, math.hypot(rx - t * dx, ry - t * dy))
+        for cx, cy, r in self._cyl_py:
+            best = min(best, math.hypot(x - cx, y - cy) - r)
+        for cx, cy, c, s, hx, hy in self._box_py:
+            rx, ry = x - cx, y - cy
+            lx, ly = abs(rx * c + ry * s) - hx, abs(-rx * s + ry * c) - hy
+            best = min(best, math.hypot(max(lx, 0.0), max(ly, 0.0)) + min(max(lx, ly), 0.0))
+        for (px, py), person in zip(self.person_xy.tolist(), self.persons):
+            best = min(best, math.hypot(x - px, y - py) - person.radius_m)
+        return best - self.radius_m
+
+    def _clearance_numpy(self, x: float, y: float) -> float:
+        """:meth:`clearance` vectorised over each kind of thing."""
         best = _INF
         if len(self._wall_a):
             rel = np.array((x, y)) - self._wall_a
@@ -128,6 +167,33 @@ class ContactWorld:
         gap = self._look(x0, y0)
         if gap > step:
             return 1.0
+        s = self._sweep_small(x0, y0, x1 - x0, y1 - y0) if self._small else self._sweep_numpy(x0, y0, x1, y1)
+        return 1.0 if s > 1.0 else max(0.0, s)
+
+    def _sweep_small(self, x0: float, y0: float, dx: float, dy: float) -> float:
+        """The swept test in plain floats: the first fraction of the move at which anything is met (inf: none)."""
+        s = _INF
+        for cx, cy, r in self._circ_py:
+            s = min(s, _sweep_circle(x0, y0, dx, dy, cx, cy, r))
+        for (px, py), r in zip(self.person_xy.tolist(), self._person_r.tolist()):
+            s = min(s, _sweep_circle(x0, y0, dx, dy, px, py, r))
+        radius = self.radius_m
+        for ax, ay, ux, uy, length in self._seg_py:
+            rx, ry = x0 - ax, y0 - ay
+            along, across = rx * ux + ry * uy, ux * ry - uy * rx
+            d_along, d_across = ux * dx + uy * dy, ux * dy - uy * dx
+            if abs(across) <= radius and 0.0 <= along <= length:  # already touching its straight part
+                if across * d_across < 0.0:
+                    return 0.0
+                continue
+            if abs(across) > radius and across * d_across < 0.0:
+                t = (abs(across) - radius) / abs(d_across)
+                if t <= 1.0 and 0.0 <= along + t * d_along <= length:
+                    s = min(s, t)
+        return s
+
+    def _sweep_numpy(self, x0: float, y0: float, x1: float, y1: float) -> float:
+        """The swept test vectorised over every segment and circle (inf: nothing met)."""
         p0 = np.array((x0, y0))
         d = np.array((x1 - x0, y1 - y0))
         s = _INF
@@ -137,7 +203,7 @@ class ContactWorld:
             s = min(s, float(_sweep_slabs(p0, d, self._seg_a, self._seg_u, self._seg_len, self.radius_m).min()))
         if len(self.persons):
             s = min(s, float(_sweep_circles(p0, d, self.person_xy, self._person_r).min()))
-        return 1.0 if s > 1.0 else max(0.0, s)
+        return s
 
     # -- persons ------------------------------------------------------------------
     def advance_persons(self, t_s: float, dt_s: float, robot_x: float, robot_y: float) -> None:
