@@ -104,15 +104,19 @@ class MapFrame:
 
 
 def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
-    """The map's fixed layers: walls, line track, start, places, the mission's waypoints and fences (plan metres)."""
+    """The map's fixed layers: walls, obstacles, line track, start, places, the mission's waypoints and fences (plan
+    metres)."""
     from beastbt.sim.floor import floor_lines
+    from beastbt.sim.obstacles import obstacle_outline
     mission = run.mission
-    out: dict = {"datum": None, "walls": [], "track": [], "start": None, "places": [], "waypoints": [], "fences": []}
+    out: dict = {"datum": None, "walls": [], "obstacles": [], "track": [], "start": None, "places": [], "waypoints": [],
+                 "fences": []}
     geo = frame.geo
     if geo is not None:
         out["datum"] = {"lat": geo.lat0_deg, "lon": geo.lon0_deg}
     if world is not None:
         out["walls"] = [[w.x1, w.y1, w.x2, w.y2] for w in world.walls]
+        out["obstacles"] = [obstacle_outline(o) for o in world.obstacles]
         floor = world.section("floor")
         try:
             out["track"] = [{"points": [[round(float(x), 3), round(float(y), 3)] for x, y in line.points],

@@ -4,7 +4,7 @@ Two halves, like the rest of the recording:
 
 * :func:`scene_description` runs once, on the run's side, when the recorder
   is installed: it gathers the mission's places, waypoints, route and fences
-  (WGS84 degrees), the world's datum, start, walls and line track (world
+  (WGS84 degrees), the world's datum, start, walls, obstacles and line track (world
   metres) and the robot's footprint into a plain dict that goes down the
   pipe as one ``("scene", now_s, description)`` item;
 * :class:`SceneView` runs in the writer process and turns it into messages:
@@ -44,11 +44,15 @@ _ROUTE = color(0.1, 0.45, 0.95, 0.6)
 _KEEP_IN = color(0.1, 0.75, 0.2, 0.9)
 _KEEP_OUT = color(0.9, 0.15, 0.1, 0.9)
 _FOOTPRINT = color(1.0, 0.85, 0.0, 0.9)
+_OBSTACLE = color(0.6, 0.45, 0.3, 0.9)
+_PERSON = color(0.75, 0.55, 0.95, 0.8)
 _TEXT = color(1.0, 1.0, 1.0)
 
 WALL_HEIGHT_M = 0.4
 WALL_THICKNESS_M = 0.05
 """How walls are drawn (the simulator's walls are segments without height or thickness), metres."""
+OBSTACLE_HEIGHT_M = 0.5
+"""How tall boxes and cylinders are drawn (the simulator's obstacles are 2D footprints), metres."""
 
 
 # -- the run's side: once, at install ----------------------------------------------------------------
@@ -95,8 +99,17 @@ def scene_description(mission: Any, world: Any, footprint_radius_m: Optional[flo
         out["world"] = {"name": world.name, "datum": [world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m],
                         "start": [world.start_x, world.start_y, world.start_yaw],
                         "walls": [[w.x1, w.y1, w.x2, w.y2] for w in world.walls],
+                        "obstacles": [_obstacle_data(o) for o in world.obstacles],
                         "lines": _world_lines(world)}
     return out
+
+
+def _obstacle_data(o: Any) -> dict:
+    """An obstacle of the world as plain data: its shape and its fields (world metres, yaw in radians)."""
+    import dataclasses
+    from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle
+    shape = "box" if isinstance(o, BoxObstacle) else "cylinder" if isinstance(o, CylinderObstacle) else "person"
+    return {"shape": shape, **{k: ([list(p) for p in v] if k == "path" else v) for k, v in dataclasses.asdict(o).items()}}
 
 
 def _world_lines(world: Any) -> list[dict]:
@@ -126,6 +139,12 @@ def _entity(t_ns: int, frame_id: str, entity_id: str, frame_locked: bool = False
 
 def _pose(x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> dict:
     return {"position": vector3(x, y, z), "orientation": quaternion(yaw_rad=yaw)}
+
+
+def _cylinder(x: float, y: float, radius_m: float, height_m: float, rgba: dict) -> dict:
+    """A ``foxglove.CylinderPrimitive`` standing on the floor at (x, y), metres."""
+    return {"pose": _pose(x, y, 0.5 * height_m), "size": vector3(2 * radius_m, 2 * radius_m, height_m),
+            "bottom_scale": 1.0, "top_scale": 1.0, "color": rgba}
 
 
 def _line(points: list[tuple[float, float]], color: dict, thickness_m: float, loop: bool = False,
@@ -244,6 +263,24 @@ class SceneView:
                               "color": _WALL})
             if cubes:
                 entities.append(_entity(t_ns, frames.map, "walls", cubes=cubes))
+            # Obstacles: boxes and cylinders as they stand; a person as its path and where it sets off (the scene is
+            # drawn once, so it does not follow the person as it walks).
+            boxes, posts, paths = [], [], []
+            for o in world.get("obstacles", []):
+                if o["shape"] == "box":
+                    x, y = world_xy(o["x"], o["y"])
+                    boxes.append({"pose": _pose(x, y, 0.5 * OBSTACLE_HEIGHT_M, o["yaw"]),
+                                  "size": vector3(o["length_m"], o["width_m"], OBSTACLE_HEIGHT_M), "color": _OBSTACLE})
+                elif o["shape"] == "cylinder":
+                    x, y = world_xy(o["x"], o["y"])
+                    posts.append(_cylinder(x, y, o["radius_m"], OBSTACLE_HEIGHT_M, _OBSTACLE))
+                else:
+                    x, y = world_xy(*o["path"][0])
+                    posts.append(_cylinder(x, y, o["radius_m"], 1.7, _PERSON))
+                    if len(o["path"]) > 1:
+                        paths.append(_line([world_xy(px, py) for px, py in o["path"]], _PERSON, 0.03))
+            if boxes or posts:
+                entities.append(_entity(t_ns, frames.map, "obstacles", cubes=boxes, cylinders=posts, lines=paths))
             lines = [_line([world_xy(x, y) for x, y in ln["points"]], _TAPE, ln["width_m"], loop=ln["closed"])
                      for ln in world["lines"]]
             if lines:
@@ -276,4 +313,4 @@ class SceneView:
         return {"deletions": [], "entities": entities}
 
 
-__all__ = ["scene_description", "SceneView", "REDRAW_M", "WALL_HEIGHT_M", "WALL_THICKNESS_M"]
+__all__ = ["scene_description", "SceneView", "REDRAW_M", "WALL_HEIGHT_M", "WALL_THICKNESS_M", "OBSTACLE_HEIGHT_M"]

@@ -47,6 +47,10 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
             "distance_m": round(distance, 4),
             "blocked": bool(sim.drive.blocked),
         }
+        contact = sim.drive.contact  # None in a world with nothing to touch: no contact, no clearance
+        least = contact.min_clearance_m if contact is not None else None
+        summary["truth"]["collisions"] = contact.collisions if contact is not None else 0
+        summary["truth"]["min_clearance_m"] = None if least is None else round(least, 4) + 0.0  # + 0.0: no -0.0
     for contribute in run.summary_contributors:  # the parts' fields (waypoints, truth metrics, recording...)
         contribute(run, summary)
     return summary

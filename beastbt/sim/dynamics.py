@@ -1,20 +1,29 @@
-"""Differential-drive dynamics of the simulated robot: motor response, limits, slip, walls.
+"""Differential-drive dynamics of the simulated robot: motor response, limits, slip, contact.
 
 Each wheel (or track) follows its speed target through a first-order lag
 limited in acceleration and speed. The body moves by the wheel speeds each
 scaled by a random slip; the encoders count the unslipped wheel travel, so the
-odometry drifts the way a real one does. A wall stalls the motors: the robot
-stops and the encoders stop counting, so "blocked" is visible to odometry.
+odometry drifts the way a real one does.
+
+Contact (:mod:`beastbt.sim.contact`): the footprint cannot pass through a wall
+or an obstacle, whatever the speed or the time step (a swept test). A move that
+would push into something ends at contact and the forward drive stalls there:
+the tracks stop and their encoders stop counting the blocked part, so "blocked"
+is visible to odometry. Turning on the spot still works (the tracks skid), and
+moving along or away from what it touches is free. The persons of the world
+walk first in each step; one that reaches the robot stops at contact.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Optional
 
-if TYPE_CHECKING:  # only for an annotation: validating a world (which needs Wall) does not load NumPy
+if TYPE_CHECKING:  # only for annotations: validating a world (which needs Wall) does not load NumPy
     import numpy as np
+
+    from beastbt.sim.contact import ContactWorld
 
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
@@ -33,7 +42,7 @@ class DriveModel:
     ``motor_time_constant_s``: first-order lag of the motor speed loop, s.
     ``slip_sigma``: standard deviation of the per-step fractional slip of each side (0.02 = 2 %).
     ``slip_bias``: mean fraction of wheel travel lost to slip (0.01 = 1 %).
-    ``footprint_radius_m``: radius of the circle that collides with walls, m.
+    ``footprint_radius_m``: radius of the circle that collides with walls and obstacles, m.
     """
 
     track_width_m: float = 0.17
@@ -69,7 +78,10 @@ class Wall:
 
 @dataclass
 class DiffDriveSim:
-    """Integrates the true state of a differential-drive robot."""
+    """Integrates the true state of a differential-drive robot.
+
+    ``contact`` is the world it can touch; left out, one is made of ``walls`` (none without walls).
+    """
 
     model: DriveModel
     truth: RobotTruth
@@ -80,6 +92,12 @@ class DiffDriveSim:
     path_length_m: float = 0.0
     max_speed_mps: float = 0.0
     blocked: bool = False
+    contact: Optional[ContactWorld] = None
+
+    def __post_init__(self) -> None:
+        if self.contact is None and self.walls:
+            from beastbt.sim.contact import ContactWorld  # NumPy only where something can be touched
+            self.contact = ContactWorld(self.walls, [], self.model.footprint_radius_m)
 
     def set_wheel_targets(self, left_mps: float, right_mps: float) -> None:
         """Set the speed each side's motor controller aims for (clamped to the top speed)."""
@@ -103,11 +121,16 @@ class DiffDriveSim:
         """Advance the true state by ``dt`` seconds."""
         t = self.truth
         m = self.model
+        contact = self.contact
+        if contact is not None and contact.persons:
+            contact.advance_persons(t.t_s + dt, dt, t.x, t.y)  # the persons walk first; the robot then meets them
         vl = self._side(t.left_mps, self.target_left_mps, dt)
         vr = self._side(t.right_mps, self.target_right_mps, dt)
         if vl == 0.0 and vr == 0.0:
             t.left_mps = t.right_mps = t.v_mps = t.w_rps = 0.0
             t.t_s += dt
+            if contact is not None:
+                contact.observe(t.x, t.y)
             return
         sl = 1.0 - m.slip_bias + m.slip_sigma * self.rng.standard_normal()
         sr = 1.0 - m.slip_bias + m.slip_sigma * self.rng.standard_normal()
@@ -115,15 +138,22 @@ class DiffDriveSim:
         w = (vr * sr - vl * sl) / m.track_width_m
         mid = t.yaw + 0.5 * w * dt
         nx, ny = t.x + v * dt * math.cos(mid), t.y + v * dt * math.sin(mid)
-        r = m.footprint_radius_m
-        if self.walls and any(wall.distance_to(nx, ny) < r and wall.distance_to(nx, ny) < wall.distance_to(t.x, t.y)
-                              for wall in self.walls):
-            # Pushing into a wall: the tracks stall, nothing moves, the encoders stop.
+        free = 1.0 if contact is None else contact.free_fraction(t.x, t.y, nx, ny)
+        if free < 1.0:
+            # Pushing into something: the robot goes as far as contact and the forward drive stalls there (its
+            # encoders stop counting it); the turning part goes on, the tracks skidding on the spot.
             self.blocked = True
-            t.left_mps = t.right_mps = t.v_mps = 0.0
-            t.w_rps = w
+            forward, turning = 0.5 * (vl + vr), 0.5 * (vr - vl)
+            t.x += free * (nx - t.x)
+            t.y += free * (ny - t.y)
             t.yaw = (t.yaw + w * dt + math.pi) % (2 * math.pi) - math.pi
+            t.left_m += (free * forward - turning) * dt
+            t.right_m += (free * forward + turning) * dt
+            t.left_mps, t.right_mps = -turning, turning
+            t.v_mps, t.w_rps = 0.0, w
+            self.path_length_m += free * abs(v) * dt
             t.t_s += dt
+            contact.observe(t.x, t.y)  # type: ignore[union-attr]  # free < 1 only with contact
             return
         self.blocked = False
         t.x, t.y = nx, ny
@@ -135,3 +165,5 @@ class DiffDriveSim:
         self.path_length_m += abs(v) * dt
         self.max_speed_mps = max(self.max_speed_mps, abs(v))
         t.t_s += dt
+        if contact is not None:
+            contact.observe(t.x, t.y)

@@ -16,6 +16,7 @@ import numpy as np
 
 from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_defaults import schema_default
+from beastbt.sim.contact import ContactWorld
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.world import World
@@ -85,7 +86,9 @@ def build_simulator(profile: "RobotProfile", world: World, seed: int) -> Simulat
         sim_cfg.setdefault("footprint_radius_m", geometry["footprint_radius_m"])
     model = DriveModel.from_dict(sim_cfg)
     truth = RobotTruth(x=world.start_x, y=world.start_y, yaw=world.start_yaw, battery_v=world.battery_start_v)
-    drive = DiffDriveSim(model, truth, np.random.default_rng(rng.integers(2**63)), walls=list(world.walls))
+    contact = ContactWorld(world.walls, world.obstacles, model.footprint_radius_m) if world.walls or world.obstacles else None
+    drive = DiffDriveSim(model, truth, np.random.default_rng(rng.integers(2**63)), walls=list(world.walls),
+                         contact=contact)
     return Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
 
 

@@ -1,4 +1,4 @@
-"""Simulated worlds: where the world is on Earth, where the robot starts, walls and sensor models.
+"""Simulated worlds: where the world is on Earth, where the robot starts, walls, obstacles and sensor models.
 
 A world is a YAML file checked against ``schemas/world.schema.json``. The
 default world (when neither the mission nor the command line names one) is an
@@ -19,6 +19,7 @@ from beastbt.core.schema_check import schema_problems
 from beastbt.core.schema_defaults import schema_default
 from beastbt.core.yaml_source import SourceDoc, load_yaml
 from beastbt.sim.dynamics import Wall
+from beastbt.sim.obstacles import Obstacle, obstacle_of
 
 
 @dataclass
@@ -33,6 +34,8 @@ class World:
     start_y: float
     start_yaw: float
     walls: list[Wall]
+    obstacles: list[Obstacle]
+    """Boxes, cylinders and walking persons (``beastbt.sim.obstacles``), in the world's order."""
     battery_start_v: float
     battery_drain_v_per_s: float
     data: dict
@@ -75,6 +78,7 @@ def world_of(d: dict, doc: Optional[SourceDoc] = None) -> World:
         start_y=float(start.get("y", _world_default("start", "y"))),
         start_yaw=math.radians(float(start.get("yaw_deg", _world_default("start", "yaw_deg")))),
         walls=[Wall(*map(float, w)) for w in d.get("walls") or []],
+        obstacles=[obstacle_of(o) for o in d.get("obstacles") or []],
         battery_start_v=float(battery.get("start_v", _world_default("battery", "start_v"))),
         battery_drain_v_per_s=float(battery.get("drain_v_per_s", _world_default("battery", "drain_v_per_s"))),
         data=d,

@@ -219,6 +219,7 @@ function mapBounds() {
   const add = (p) => { if (p) { xs.push(p[0]); ys.push(p[1]); } };
   if (mapLayers) {
     for (const w of mapLayers.walls) { add([w[0], w[1]]); add([w[2], w[3]]); }
+    for (const o of mapLayers.obstacles || []) (o.corners || o.path || [o.xy]).forEach(add);
     for (const t of mapLayers.track) t.points.forEach(add);
     for (const p of mapLayers.places) add(p.xy);
     for (const w of mapLayers.waypoints) add(w.xy);
@@ -255,6 +256,17 @@ function drawMap() {
   if (mapLayers) {
     g.strokeStyle = "#9aa0a6"; g.lineWidth = 3;
     for (const w of mapLayers.walls) poly([[w[0], w[1]], [w[2], w[3]]]);
+    // obstacles: boxes and posts filled grey; a person's path dotted, the person (a ring) where it sets off
+    g.fillStyle = "#9aa0a655"; g.lineWidth = 2;
+    const ring = (xy, r) => { const [x, y] = px(xy[0], xy[1]); g.beginPath(); g.arc(x, y, Math.max(2, r * scale), 0, 2 * Math.PI); };
+    for (const o of mapLayers.obstacles || []) {
+      if (o.shape === "box") { g.strokeStyle = "#9aa0a6"; poly(o.corners, true); g.fill(); }
+      else if (o.shape === "cylinder") { g.strokeStyle = "#9aa0a6"; ring(o.xy, o.radius_m); g.fill(); g.stroke(); }
+      else if (o.shape === "person") {
+        g.strokeStyle = "#c58af9"; g.setLineDash([2, 4]); poly(o.path); g.setLineDash([]);
+        ring(o.path[0], o.radius_m); g.stroke();
+      }
+    }
     g.strokeStyle = "#e0e0e0"; g.lineWidth = Math.max(1.5, 0.02 * scale);
     for (const t of mapLayers.track) poly(t.points, t.closed);
     for (const f of mapLayers.fences) {

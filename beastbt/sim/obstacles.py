@@ -1,0 +1,154 @@
+"""Obstacles of a simulated world: fixed boxes and cylinders, and persons who walk a path.
+
+A world's ``obstacles:`` list (``schemas/world.schema.json``) becomes these
+plain records; positions are metres in the world's local east-north-up frame,
+yaw radians counter-clockwise from east. This module has no NumPy, so checking
+a world stays light; the contact geometry that uses these records is in
+:mod:`beastbt.sim.contact`.
+
+A person stands at its path's first point until ``start_s``, then walks the
+path at ``speed_mps``. With ``loop: false`` it stands at the end for good. With
+``loop: true`` it walks for ever: around again when the path is closed (its
+last point is its first), else back and forth along it. Where it is depends on
+how far it has walked (:meth:`Person.point_at`), not on the clock alone, because
+a person who meets the robot stops there and walks on later (see
+:class:`beastbt.sim.contact.ContactWorld`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, Union
+
+from beastbt.core.schema_defaults import schema_default
+
+CLOSED_PATH_TOLERANCE_M: float = 1e-6
+"""A path whose last point is within this of its first is closed (a person with ``loop: true`` walks around it), m."""
+
+
+@dataclass(frozen=True)
+class BoxObstacle:
+    """A fixed box: centre ``x``, ``y`` (m), ``length_m`` along its own x, ``width_m`` along its y, ``yaw`` (rad)."""
+
+    x: float
+    y: float
+    length_m: float
+    width_m: float
+    yaw: float = 0.0
+
+    def corners(self) -> list[tuple[float, float]]:
+        """The four corners in the world frame (m), counter-clockwise."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        hx, hy = 0.5 * self.length_m, 0.5 * self.width_m
+        return [(self.x + c * px - s * py, self.y + s * px + c * py)
+                for px, py in ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))]
+
+
+@dataclass(frozen=True)
+class CylinderObstacle:
+    """A fixed upright cylinder (a post, a tree): centre ``x``, ``y`` and ``radius_m`` (m)."""
+
+    x: float
+    y: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class Person:
+    """A person seen from above as a circle of ``radius_m`` (m) who walks ``path`` (m) at ``speed_mps`` (m/s).
+
+    It sets off at ``start_s`` (s of simulated time); ``loop`` as the module docstring says.
+    """
+
+    radius_m: float
+    speed_mps: float
+    path: tuple[tuple[float, float], ...]
+    start_s: float = 0.0
+    loop: bool = False
+
+    @cached_property
+    def legs_m(self) -> tuple[float, ...]:
+        """Length of each leg of the path, m."""
+        return tuple(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(self.path, self.path[1:]))
+
+    @cached_property
+    def length_m(self) -> float:
+        """Length of the path, m."""
+        return sum(self.legs_m)
+
+    @property
+    def closed(self) -> bool:
+        """True when the path ends where it starts (and has somewhere to go)."""
+        return (len(self.path) > 2 and self.length_m > 0
+                and math.hypot(self.path[-1][0] - self.path[0][0], self.path[-1][1] - self.path[0][1])
+                <= CLOSED_PATH_TOLERANCE_M)
+
+    def walked_by(self, t_s: float) -> float:
+        """How far the person has walked at ``t_s`` if nothing stopped it, m."""
+        return max(0.0, t_s - self.start_s) * self.speed_mps
+
+    def point_at(self, walked_m: float) -> tuple[float, float]:
+        """Where the person is after walking ``walked_m`` metres from the path's start (m, world frame)."""
+        length = self.length_m
+        if length <= 0.0 or walked_m <= 0.0:
+            return self.path[0]
+        if walked_m >= length:
+            if not self.loop:
+                return self.path[-1]
+            if self.closed:
+                walked_m = math.fmod(walked_m, length)
+            else:  # back and forth: odd laps walk the path backwards
+                lap, along = divmod(walked_m, length)
+                walked_m = along if int(lap) % 2 == 0 else length - along
+        for (ax, ay), (bx, by), leg in zip(self.path, self.path[1:], self.legs_m):
+            if walked_m <= leg and leg > 0:
+                f = walked_m / leg
+                return ax + f * (bx - ax), ay + f * (by - ay)
+            walked_m -= leg
+        return self.path[-1]
+
+    def position_at(self, t_s: float) -> tuple[float, float]:
+        """Where the person is at ``t_s`` (s) if nothing stopped it on the way (m, world frame)."""
+        return self.point_at(self.walked_by(t_s))
+
+
+Obstacle = Union[BoxObstacle, CylinderObstacle, Person]
+"""Any obstacle of a world."""
+
+
+def _default(shape: str, name: str) -> Any:
+    """The world schema's default for field ``name`` of a ``shape`` obstacle."""
+    return schema_default(f"world.schema.json#/$defs/{shape}_obstacle", name)
+
+
+def obstacle_of(d: dict) -> Obstacle:
+    """The obstacle of one checked ``obstacles:`` item (numbers already in the field's units: m, m/s, s, deg)."""
+    shape = d["shape"]
+    if shape == "box":
+        length, width = (float(v) for v in d["size_m"])
+        return BoxObstacle(float(d["x"]), float(d["y"]), length, width, math.radians(float(d.get("yaw_deg", _default("box", "yaw_deg")))))
+    if shape == "cylinder":
+        return CylinderObstacle(float(d["x"]), float(d["y"]), float(d["radius_m"]))
+    if shape == "person":
+        return Person(radius_m=float(d.get("radius_m", _default("person", "radius_m"))),
+                      speed_mps=float(d.get("speed_mps", _default("person", "speed_mps"))),
+                      path=tuple((float(p[0]), float(p[1])) for p in d["path"]),
+                      start_s=float(d.get("start_s", _default("person", "start_s"))),
+                      loop=bool(d.get("loop", _default("person", "loop"))))
+    raise ValueError(f"unknown obstacle shape {shape!r}")
+
+
+def obstacle_outline(o: Obstacle) -> dict:
+    """What a map draws of an obstacle (m, world frame): a box's ``corners``, a cylinder's ``xy`` and ``radius_m``,
+    a person's ``path`` and ``radius_m`` (where it walks; it is drawn at the path's start)."""
+    if isinstance(o, BoxObstacle):
+        return {"shape": "box", "corners": [[round(x, 3), round(y, 3)] for x, y in o.corners()]}
+    if isinstance(o, CylinderObstacle):
+        return {"shape": "cylinder", "xy": [o.x, o.y], "radius_m": o.radius_m}
+    return {"shape": "person", "path": [list(p) for p in o.path], "radius_m": o.radius_m}
+
+
+__all__ = ["BoxObstacle", "CylinderObstacle", "Person", "Obstacle", "obstacle_of", "obstacle_outline",
+           "CLOSED_PATH_TOLERANCE_M"]
