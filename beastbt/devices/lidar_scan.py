@@ -26,6 +26,7 @@ import serial
 
 from beastbt.core.clock import Clock
 from beastbt.core.config import require_number as _require_number
+from beastbt.blackboard.types import LaserScan
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 
@@ -161,45 +162,6 @@ class LidarConfig:
     def spinning_below_hz(self) -> float:
         """The rotation rate below which the motor counts as spinning up, Hz."""
         return float(self.min_rate_hz if self.min_rate_hz is not None else self.model["min_rate_hz"])
-
-
-@dataclass(frozen=True)
-class LaserScan:
-    """One revolution of a 2D LiDAR, in the LiDAR's own frame.
-
-    ``angles_rad`` counterclockwise from the LiDAR's 0 degree mark, in
-    [-pi, pi), in the order measured; ``ranges_m`` metres, NaN for no return
-    (no echo, out of range or masked); ``intensities`` the model's raw
-    reflectivity (LD19 0-255; RPLIDAR quality 0-63). ``stamp_s`` is the clock
-    time at which the revolution's last bytes were read, ``scan_time_s`` the
-    time the revolution took (1 / ``scan_rate_hz``).
-    """
-
-    stamp_s: float
-    angles_rad: np.ndarray
-    ranges_m: np.ndarray
-    intensities: np.ndarray
-    scan_rate_hz: float
-    model: str
-
-    @property
-    def scan_time_s(self) -> float:
-        """Duration of the revolution, seconds."""
-        return 1.0 / self.scan_rate_hz if self.scan_rate_hz > 0 else math.nan
-
-    @property
-    def valid_count(self) -> int:
-        """Number of points with a return (finite range)."""
-        return int(np.count_nonzero(np.isfinite(self.ranges_m)))
-
-    def __len__(self) -> int:
-        return int(self.angles_rad.shape[0])
-
-    def points_xy(self) -> np.ndarray:
-        """The returns as (n, 2) x, y in metres in the LiDAR's frame (no-return points left out)."""
-        ok = np.isfinite(self.ranges_m)
-        r, a = self.ranges_m[ok], self.angles_rad[ok]
-        return np.column_stack((r * np.cos(a), r * np.sin(a)))
 
 
 @dataclass

@@ -650,6 +650,9 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         from beastbt.vision.line_detector import LineDetectorConfig
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
         info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
+    if profile.section("lidar") is not None:
+        from beastbt.devices.lidar_scan import LidarConfig
+        info["lidar_mounting"] = json.dumps(dataclasses.asdict(section_config(profile, "lidar", LidarConfig).mounting))
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:

@@ -19,7 +19,7 @@ from beastbt.actuation.mux import CommandMux
 from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
 from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
@@ -35,7 +35,7 @@ Status = py_trees.common.Status
 
 SENSOR_KEYS = ("now_s", "mission_start_s", "odometry", "pose_odom", "pose", "gps_fix", "imu", "battery", "line",
                "camera_frame", "joystick", "home", "cmd_mission", "servo_requests", "servo_angles", "teleop_active",
-               "estop", "mux_source")
+               "estop", "mux_source", "scan")
 
 
 @dataclass
@@ -246,7 +246,8 @@ class MissionRun:
         bb.pose = pose
         latest = self.latest
         for key, t in (("odometry", WheelOdometry), ("gps_fix", GpsFix), ("imu", ImuSample), ("battery", BatteryState),
-                       ("line", LineObservation), ("camera_frame", CameraFrame), ("joystick", JoystickState)):
+                       ("line", LineObservation), ("camera_frame", CameraFrame), ("joystick", JoystickState),
+                       ("scan", LaserScan)):
             if t in latest:
                 setattr(bb, key, latest[t])
         if gps and self.home is None:
