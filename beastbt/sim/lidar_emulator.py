@@ -9,8 +9,8 @@ What a LiDAR sees is cast by :class:`RayCaster` from the LiDAR's pose
 walls and box sides as segments, cylinders and persons as circles, persons
 where they are at the time of the cast (:attr:`ContactWorld.person_xy`, so a
 person stopped by the robot is seen stopped). All of it is vectorised
-(rays x segments, rays x circles). Rays are cast in chunks (:data:`CHUNK_S` of
-points at once, with the pose at the chunk's start) and the chunk's bytes are
+(rays x segments, rays x circles). Rays are cast in chunks (half a revolution's
+points at once, :data:`CHUNKS_PER_REVOLUTION`, with the pose at the chunk's start) and the chunk's bytes are
 fed to the port as their points' times come, so the driver reads them at the
 model's byte rate and a revolution's points span the revolution's time.
 
@@ -41,8 +41,9 @@ import numpy as np
 from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle, Person
 from beastbt.sim.serial_port import SimSerialPort
 
-CHUNK_S = 0.05
-"""Points cast at once (s of the model's sampling): half an LD19 revolution; the pose is the chunk's start's."""
+CHUNKS_PER_REVOLUTION = 2
+"""Casts per revolution: each casts half a turn's points at once, with the poses at that half's start (the robot
+moves at most a few centimetres in it: 0.35 m/s x 0.09 s for the A1); more casts cost more NumPy calls."""
 
 NO_HIT = np.inf
 
@@ -162,8 +163,12 @@ class LidarEmulator:
         """Index of the next point to measure since the head started; point k is at k / points_per_s."""
         self.t0_s = 0.0
         """When point 0 was measured (sim s)."""
-        self._pending: list[tuple[float, bytes]] = []
+        self._pending: list[list[Any]] = []
+        """Cast chunks not yet all sent: [item times (s), bytes, bytes per item, items sent]."""
         self.casts = 0
+        """Chunks cast so far."""
+        self.chunk_s = 1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION)
+        """The sampling time one cast covers, s."""
 
     def on_write(self, data: bytes) -> None:
         """What the driver writes (the LD19 listens to nothing)."""
@@ -191,19 +196,25 @@ class LidarEmulator:
         r[~finite | drop | (r < lo) | (r > hi)] = 0.0
         return deg_cw, np.round(r * 1000.0)
 
-    def queue(self, t_s: float, data: bytes) -> None:
-        """Send ``data`` once the sim clock reaches ``t_s``."""
-        self._pending.append((t_s, data))
+    def queue(self, times_s: np.ndarray, data: bytes) -> None:
+        """Send ``data``, made of ``len(times_s)`` equal items, each once the sim clock reaches its time (s)."""
+        self._pending.append([times_s, data, len(data) // len(times_s), 0])
 
     def flush(self, now_s: float) -> None:
-        """Feed the port every queued chunk whose time has come."""
+        """Feed the port every queued item whose time has come."""
         pending = self._pending
-        n = 0
-        while n < len(pending) and pending[n][0] <= now_s + 1e-9:
-            n += 1
-        if n:
-            self.port.feed(b"".join(d for _, d in pending[:n]))
-            del pending[:n]
+        out = []
+        while pending:
+            times, data, size, sent = pending[0]
+            due = int(np.searchsorted(times, now_s + 1e-9, side="right"))
+            if due > sent:
+                out.append(data[sent * size:due * size])
+                pending[0][3] = due
+            if due < len(times):
+                break
+            pending.pop(0)
+        if out:
+            self.port.feed(b"".join(out))
 
 
 # -- LD19 ---------------------------------------------------------------------------------------------------
@@ -228,12 +239,25 @@ def _crc_table() -> np.ndarray:
 _CRC_TABLE = _crc_table()
 
 
+def _position_tables(n: int) -> np.ndarray:
+    # LDRobot's CRC-8 starts at 0 with no final XOR, so it is linear over GF(2): the CRC of a packet is the XOR
+    # of the CRCs of each of its bytes alone at its place. A byte v at the last place gives TABLE[v]; each zero
+    # byte after it applies TABLE once more. One (n, 256) table then turns a packet's CRC into one look-up per
+    # byte and a reduction, for all packets at once.
+    out = np.zeros((n, 256), dtype=np.uint8)
+    out[n - 1] = _CRC_TABLE
+    for pos in range(n - 2, -1, -1):
+        out[pos] = _CRC_TABLE[out[pos + 1]]
+    return out
+
+
+_CRC_AT = _position_tables(46)
+
+
 def ld19_crc8(packets: np.ndarray) -> np.ndarray:
     """LDRobot's CRC-8 (poly 0x4D, init 0) of each row of ``packets`` ((n, 46) uint8), for all rows at once."""
-    crc = np.zeros(packets.shape[0], dtype=np.uint8)
-    for col in packets.T:
-        crc = _CRC_TABLE[crc ^ col]
-    return crc
+    table = _CRC_AT if packets.shape[1] == _CRC_AT.shape[0] else _position_tables(packets.shape[1])
+    return np.bitwise_xor.reduce(table[np.arange(packets.shape[1]), packets], axis=1)
 
 
 class SimLd19(LidarEmulator):
@@ -243,7 +267,8 @@ class SimLd19(LidarEmulator):
                  rng: np.random.Generator, model: LidarModel = LD19_MODEL) -> None:
         super().__init__(model, caster, truth, contact, mounting, rng)
         self.packet_s = LD19_POINTS / model.points_per_s
-        self.chunk_packets = max(1, int(round(CHUNK_S / self.packet_s)))
+        self.chunk_packets = max(1, int(round(1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION * self.packet_s))))
+        self.chunk_s = self.chunk_packets * self.packet_s
 
     def packets(self, first_packet: int, count: int) -> bytes:
         """``count`` packets from packet index ``first_packet``, cast now."""
@@ -272,9 +297,7 @@ class SimLd19(LidarEmulator):
             if start_s > now_s + 1e-9:
                 break
             n = self.chunk_packets
-            data = self.packets(first, n)
-            for i in range(n):
-                self.queue(self.t0_s + (first + i + 1) * self.packet_s, data[47 * i:47 * (i + 1)])
+            self.queue(self.t0_s + (np.arange(first, first + n) + 1) * self.packet_s, self.packets(first, n))
             self.next_point += n * LD19_POINTS
         self.flush(now_s)
 
@@ -331,7 +354,8 @@ class SimRplidarA1(LidarEmulator):
         self._rx = bytearray()
         self._scan_from_s = 0.0
         self._reset_until_s = 0.0
-        self.chunk_points = max(1, int(round(CHUNK_S * model.points_per_s)))
+        self.chunk_points = max(1, int(round(model.points_per_s / (model.rate_hz * CHUNKS_PER_REVOLUTION))))
+        self.chunk_s = self.chunk_points / model.points_per_s
 
     def motor(self, on: bool) -> None:
         """The adapter's DTR changed: the motor starts (spinning up) or stops."""
@@ -361,7 +385,7 @@ class SimRplidarA1(LidarEmulator):
             self._stop()
             self.state = "resetting"
             self._reset_until_s = self.now_s + 0.5
-            self.queue(self._reset_until_s, A1_BANNER)
+            self.queue(np.array([self._reset_until_s]), A1_BANNER)
         elif cmd == 0x52:  # GET_HEALTH
             status, code = self.health
             self.port.feed(a1_descriptor(3, 0, 0x06) + bytes((status, code & 0xFF, code >> 8)))
@@ -416,9 +440,7 @@ class SimRplidarA1(LidarEmulator):
                 point_s = 1.0 / self.model.points_per_s
                 while self.next_point * point_s <= now_s + 1e-9:
                     first, n = self.next_point, self.chunk_points
-                    data = self.samples(first, n)
-                    for i in range(n):
-                        self.queue((first + i + 1) * point_s, data[5 * i:5 * (i + 1)])
+                    self.queue((np.arange(first, first + n) + 1) * point_s, self.samples(first, n))
                     self.next_point += n
             else:
                 self._pending.clear()
@@ -434,4 +456,4 @@ def make_emulator(kind: str, caster: RayCaster, truth: Any, contact: Any, mounti
 
 
 __all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "SimRplidarA1", "A1Port", "make_emulator",
-           "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNK_S"]
+           "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
