@@ -21,7 +21,7 @@ from mcap.reader import make_reader
 from beastbt.blackboard.types import LaserScan
 from beastbt.core.clock import SimClock
 from beastbt.core.events import EventLog
-from beastbt.devices.lidar_scan import LidarConfig
+from beastbt.devices.lidar_scan import LidarConfig, LidarMounting, base_points_xy
 from beastbt.parts.lidar import lidar_driver
 from beastbt.robot.profile import load_profile
 from beastbt.sim.dynamics import Wall
@@ -129,6 +129,17 @@ def test_ranges_in_the_corridor_match_the_geometry(kind, pose, mounting):
         want = rectangle_range(ox, oy, oyaw + scan.angles_rad[i])
         if np.isfinite(scan.ranges_m[i]):
             assert scan.ranges_m[i] == pytest.approx(want, abs=5 * sigma(model, want) + 0.002)
+
+
+def test_base_points_put_the_returns_where_the_walls_are_around_the_robot():
+    truth = RobotTruth(x=4.0, y=0.3, yaw=math.radians(30.0))
+    mounting = LidarMounting(x_m=0.1, y_m=0.05, z_m=0.1, yaw_deg=90.0)
+    scan = Rig("ld19", CORRIDOR, truth=truth, mounting=(0.1, 0.05, 90.0)).run(0.5)[-1]
+    xy = base_points_xy(scan, mounting)
+    c, s = math.cos(truth.yaw), math.sin(truth.yaw)
+    wx, wy = truth.x + c * xy[:, 0] - s * xy[:, 1], truth.y + s * xy[:, 0] + c * xy[:, 1]  # base_link -> world
+    to_wall = np.minimum.reduce([np.abs(wy - 1.0), np.abs(wy + 1.0), np.abs(wx), np.abs(wx - 10.0)])
+    assert len(xy) == scan.valid_count and np.percentile(to_wall, 99) < 0.08
 
 
 @pytest.mark.parametrize("kind", ["ld19", "rplidar_a1"])

@@ -188,6 +188,15 @@ class LidarStats:
     """Other counted conditions by name."""
 
 
+def base_points_xy(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
+    """The returns of ``scan`` as (n, 2) x, y in metres in base_link (x forward, y left), through ``mounting``
+    (no-return points left out): what a costmap or a collision monitor works in."""
+    xy = scan.points_xy()
+    yaw = math.radians(mounting.yaw_deg)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.column_stack((mounting.x_m + c * xy[:, 0] - s * xy[:, 1], mounting.y_m + s * xy[:, 0] + c * xy[:, 1]))
+
+
 def ccw_rad_from_cw_deg(deg_cw: np.ndarray) -> np.ndarray:
     """Vendor angles (degrees clockwise, 0-360) to REP 103 radians counterclockwise in [-pi, pi)."""
     rad = -np.radians(deg_cw)
@@ -506,4 +515,4 @@ class SerialLidar:
 
 
 __all__ = ["LaserScan", "LidarConfig", "LidarMounting", "LidarStats", "LIDAR_MODELS", "RevolutionAssembler",
-           "SerialLidar", "BadDataEvents", "ccw_rad_from_cw_deg", "sector_mask"]
+           "SerialLidar", "BadDataEvents", "base_points_xy", "ccw_rad_from_cw_deg", "sector_mask"]
