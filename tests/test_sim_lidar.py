@@ -255,6 +255,13 @@ def test_the_a1_answers_only_what_it_is_asked_and_scans_only_between_scan_and_st
     n = port.in_waiting
     assert n % 5 == 0 and n / 5 == pytest.approx((1.5 - 0.8) * A1_MODEL.points_per_s, rel=0.1)
     port.read(n)
+    port.dtr = True  # the motor stops: no samples...
+    t = step(1.0, t)
+    assert port.in_waiting == 0
+    port.dtr = False  # ...until it is at speed again, and then no backlog of the time it stood still
+    t = step(1.0, t)
+    assert port.in_waiting / 5 == pytest.approx((1.0 - 0.8) * A1_MODEL.points_per_s, rel=0.1)
+    port.read(port.in_waiting)
     port.write(bytes((0xA5, 0x25)))  # STOP: silence
     t = step(0.5, t)
     assert port.in_waiting == 0

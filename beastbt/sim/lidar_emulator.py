@@ -442,8 +442,9 @@ class SimRplidarA1(LidarEmulator):
                     first, n = self.next_point, self.chunk_points
                     self.queue((np.arange(first, first + n) + 1) * point_s, self.samples(first, n))
                     self.next_point += n
-            else:
+            else:  # the motor stopped: nothing more, and sampling starts afresh once it is back at speed
                 self._pending.clear()
+                self.next_point = -1
         self.flush(now_s)
 
 
