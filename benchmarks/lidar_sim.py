@@ -14,7 +14,8 @@ Prints:
    robots/sim.yaml without its LiDAR, with it asleep (nothing reads the scan:
    the default for an unrecorded patrol), and with it awake (kept awake as a
    reader of ``scan`` such as the collision monitor would keep it: polled,
-   decoded and emulated every tick). Goal of issue 20: at least 100x.
+   decoded and emulated every tick); and recorded, without the LiDAR and with
+   it (each revolution on /scan). Goal of issue 20: at least 100x.
 
 Each figure is the median of several measurements (this machine is shared).
 
@@ -96,7 +97,7 @@ def emulator_cost(kind: str, world_name: str, seconds: float) -> tuple[float, in
     return spent / revolutions * 1e3, int(round(revolutions)), bare * 1e3, physics / steps / device.model.rate_hz / dt * 1e3
 
 
-def rtf(robot: str, seeds: int, lidar_awake: bool) -> list[float]:
+def rtf(robot: str, seeds: int, lidar_awake: bool, runs_dir: str = "") -> list[float]:
     """Sim seconds per wall second of whole patrol runs on ``robot`` (loading excluded)."""
     out = []
     saved = LidarPart.sleep
@@ -104,9 +105,10 @@ def rtf(robot: str, seeds: int, lidar_awake: bool) -> list[float]:
         if lidar_awake:
             LidarPart.sleep = Part.sleep  # type: ignore[method-assign]  # as if something read the scan
         for seed in range(1, seeds + 1):
-            p = prepare(PATROL, RunOptions(robot=robot, seed=seed, record=False, simulate=True))
+            p = prepare(PATROL, RunOptions(robot=robot, seed=seed, record=bool(runs_dir), runs_dir=runs_dir or "runs",
+                                           simulate=True))
             awake = "lidar" in p.run.io.sensors
-            assert awake == lidar_awake or robot != "sim", "the LiDAR is not in the state asked for"
+            assert awake == (lidar_awake or bool(runs_dir)) or robot != "sim", "the LiDAR is not as asked"
             t0 = time.perf_counter()
             with open("/dev/null", "w") as devnull:
                 s = execute(p, devnull)
@@ -136,14 +138,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         bare_robot = Path(tmp) / "sim_no_lidar.yaml"
         bare_robot.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-        rows = [("no LiDAR in the profile", str(bare_robot), False), ("LiDAR asleep (default)", "sim", False),
-                ("LiDAR awake (read every tick)", "sim", True)]
+        runs = str(Path(tmp) / "runs")
+        rows = [("no LiDAR in the profile", str(bare_robot), False, ""), ("LiDAR asleep (default)", "sim", False, ""),
+                ("LiDAR awake (read every tick)", "sim", True, ""),
+                ("recorded, no LiDAR in the profile", str(bare_robot), False, runs),
+                ("recorded, LiDAR on /scan", "sim", False, runs)]
         results = {}
-        for label, robot, awake in rows:
-            results[label] = statistics.median(rtf(robot, args.seeds, awake))
+        for label, robot, awake, record in rows:
+            results[label] = statistics.median(rtf(robot, args.seeds, awake, record))
     base = results[rows[0][0]]
     for label, value in results.items():
-        print(f"   {label:32s} {value:7.0f}x real time  ({value / base:4.2f} of the profile without LiDAR)"
+        print(f"   {label:34s} {value:7.0f}x real time  ({value / base:4.2f} of the profile without LiDAR)"
               f"   goal >= 100x: {'OK' if value >= 100 else 'MISSED'}")
 
 

@@ -254,13 +254,15 @@ def laser_scan(t_ns: int, scan: Any) -> dict:
     unwrapped in the order measured: a head turning clockwise gives an end
     below the start), exact for the even steps of the LD19 and close for
     the A1's. No return (NaN, which JSON cannot carry) is written as range 0.
+    Ranges are kept to 0.1 mm, intensities as the models' integers (LD19 0-255, A1 quality 0-63): about 5 kB
+    per LD19 revolution before compression.
     """
     angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
     ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
     n = len(angles)
     return {"timestamp": fox_time(t_ns), "frame_id": LIDAR_FRAME, "pose": planar_pose(0.0, 0.0, 0.0),
             "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
-            "ranges": np.round(ranges, 4).tolist(), "intensities": np.asarray(scan.intensities, dtype=float).tolist()}
+            "ranges": np.round(ranges, 4).tolist(), "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist()}
 
 
 # -- camera ------------------------------------------------------------------------------------------
