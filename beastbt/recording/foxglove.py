@@ -246,7 +246,7 @@ def odometry(t_ns: int, frames: FramesConfig, odom: FusedPose) -> dict:
             "pose_covariance": cov, "velocity_covariance": [0.0] * 36}
 
 
-def laser_scan(t_ns: int, scan: Any) -> dict:
+def laser_scan(t_ns: int, scan: Any, source: Optional[str] = None) -> dict:
     """A :class:`~beastbt.blackboard.types.LaserScan` as a ``foxglove.LaserScan`` in the :data:`LIDAR_FRAME`.
 
     Foxglove spaces the points evenly from ``start_angle`` to ``end_angle``:
@@ -254,15 +254,31 @@ def laser_scan(t_ns: int, scan: Any) -> dict:
     unwrapped in the order measured: a head turning clockwise gives an end
     below the start), exact for the even steps of the LD19 and close for
     the A1's. No return (NaN, which JSON cannot carry) is written as range 0.
-    Ranges are kept to 0.1 mm, intensities as the models' integers (LD19 0-255, A1 quality 0-63): about 5 kB
-    per LD19 revolution before compression.
+    Ranges are kept to 0.01 mm, intensities as the models' integers (LD19 0-255, A1 quality 0-63): about 6 kB
+    per LD19 revolution before compression. Besides Foxglove's fields (the schema allows more, Foxglove
+    ignores them) it carries what a replay needs to rebuild the reading (:func:`scan_of`): ``stamp_s``,
+    ``scan_rate_hz``, ``model`` and ``source`` (the sensor that gave it).
     """
     angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
     ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
     n = len(angles)
     return {"timestamp": fox_time(t_ns), "frame_id": LIDAR_FRAME, "pose": planar_pose(0.0, 0.0, 0.0),
             "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
-            "ranges": np.round(ranges, 4).tolist(), "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist()}
+            "ranges": np.round(ranges, 5).tolist(),
+            "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist(),
+            "stamp_s": float(scan.stamp_s), "scan_rate_hz": float(scan.scan_rate_hz), "model": str(scan.model),
+            "source": source}
+
+
+def scan_of(m: dict) -> Any:
+    """The :class:`~beastbt.blackboard.types.LaserScan` of a ``/scan`` message (:func:`laser_scan`): the angles
+    spaced evenly from start to end (as Foxglove draws them), range 0 as no return (NaN)."""
+    from beastbt.blackboard.types import LaserScan
+    ranges = np.asarray(m["ranges"], dtype=float)
+    ranges[ranges <= 0.0] = np.nan
+    angles = (np.linspace(m["start_angle"], m["end_angle"], len(ranges)) + math.pi) % (2.0 * math.pi) - math.pi
+    return LaserScan(float(m["stamp_s"]), angles, ranges, np.asarray(m["intensities"], dtype=float),
+                     float(m["scan_rate_hz"]), str(m["model"]))
 
 
 # -- camera ------------------------------------------------------------------------------------------
@@ -355,4 +371,4 @@ def camera_mount(mounting: Any) -> Optional[CameraMount]:
 
 __all__ = ["fox_time", "quaternion", "color", "vector3", "planar_pose", "pose_in_frame", "merge_fixes", "EpochFixes",
            "location_fix", "fused_location_fix", "camera_calibration", "line_annotations", "map_to_odom", "CameraMount", "frame_transforms", "odometry",
-           "camera_mount", "OPTICAL_FROM_LINK", "LIDAR_FRAME", "laser_scan"]
+           "camera_mount", "OPTICAL_FROM_LINK", "LIDAR_FRAME", "laser_scan", "scan_of"]

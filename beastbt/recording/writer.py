@@ -607,7 +607,7 @@ class RunFileWriter:
                 if r.__class__ is GpsFix:
                     fixes.append(r)
             elif r.__class__ is LaserScan:
-                emit("/scan", t, fx.laser_scan(t, r))  # the revolution itself goes only there (no /sensors copy)
+                emit("/scan", t, fx.laser_scan(t, r, source))  # the revolution goes only there (no /sensors copy)
             elif r.__class__ is Frame:
                 emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
                                             "height": r.height, "image_recorded": r.image is not None,
