@@ -355,3 +355,14 @@ def test_a_replay_gets_back_the_recorded_scans(tmp_path):
         assert np.nanmax(np.abs(got.ranges_m - want.ranges_m)) < 1e-5
         assert np.max(np.abs(np.angle(np.exp(1j * (got.angles_rad - want.angles_rad))))) < 1e-6
         assert np.array_equal(got.intensities, want.intensities)
+
+
+def test_the_lidar_has_its_own_random_stream_and_shifts_no_other_emulators_draws():
+    world = load_world(REPO / "worlds" / "corridor.yaml")
+    a, b, c = (build_simulator(load_profile("sim"), world, seed=s) for s in (9, 9, 10))
+    before = a.rng.bit_generator.state
+    first = a.stream_rng("lidar").random(5)
+    assert a.rng.bit_generator.state == before  # the generator the other emulators draw from did not move
+    assert np.array_equal(first, b.stream_rng("lidar").random(5))  # the same for a seed
+    assert not np.array_equal(first, c.stream_rng("lidar").random(5))
+    assert not np.array_equal(first, b.stream_rng("other").random(5))
