@@ -94,7 +94,8 @@ def emulator_cost(kind: str, world_name: str, seconds: float) -> tuple[float, in
         tt[(uu < 0) | (uu > 1) | (tt <= 0)] = np.inf
         tt.min(axis=1)
     bare = (time.perf_counter() - b0) / reps
-    return spent / revolutions * 1e3, int(round(revolutions)), bare * 1e3, physics / steps / device.model.rate_hz / dt * 1e3
+    physics_per_revolution = physics / steps / (device.model.rate_hz * dt)
+    return spent / revolutions * 1e3, int(round(revolutions)), bare * 1e3, physics_per_revolution * 1e3
 
 
 def rtf(robot: str, seeds: int, lidar_awake: bool, runs_dir: str = "") -> list[float]:
