@@ -9,7 +9,6 @@ from typing import Optional
 
 import numpy as np
 import pytest
-import shapely
 import yaml
 
 from beastbt.actuation.collision_monitor import (APPROACH, NONE, SILENT, SLOW, STOP, CollisionMonitor,
@@ -236,12 +235,16 @@ def test_disabled_passes_everything():
     assert m.limit(cmd(0.3), 10.0) == cmd(0.3) and events == []
 
 
-def test_the_point_in_polygon_test_agrees_with_shapely():
-    rng = np.random.default_rng(3)
-    pts = rng.uniform(-1.0, 1.0, (2000, 2))
-    concave = np.array([[0.8, 0.6], [-0.5, 0.7], [0.1, 0.1], [-0.6, -0.7], [0.9, -0.4]])
-    expected = shapely.contains_xy(shapely.Polygon(concave), pts[:, 0], pts[:, 1])
-    assert np.array_equal(inside_polygon(pts, concave), expected)
+def test_a_concave_zone_holds_only_what_is_inside_it():
+    # A U open to the front: a point in the notch is outside the zone, one in an arm is inside.
+    u_zone = [[0.6, 0.3], [0.0, 0.3], [0.0, -0.3], [0.6, -0.3], [0.6, -0.2], [0.1, -0.2], [0.1, 0.2], [0.6, 0.2]]
+    notch = [(0.35, 0.0), (0.36, 0.01), (0.37, -0.01)]
+    arm = [(0.35, 0.25), (0.36, 0.26), (0.37, 0.24)]
+    for points, held in ((notch, False), (arm, True)):
+        m, _, _ = monitor(points_scan(points), stop={"polygon_m": u_zone}, slow={"enabled": False},
+                          approach={"enabled": False})
+        assert (m.limit(cmd(0.2), 0.0).linear_mps == 0.0) is held
+    assert list(inside_polygon(np.array(notch + arm), np.array(u_zone))) == [False] * 3 + [True] * 3
 
 
 # -- the profile --------------------------------------------------------------------------

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Callable, Optional
 
 import numpy as np
+import shapely
 
 from beastbt.blackboard.types import VelocityCommand
 from beastbt.core.schema_defaults import schema_defaults
@@ -176,22 +177,16 @@ def default_zones(footprint_radius_m: float, max_speed_mps: float) -> tuple[np.n
     return stop, slow
 
 
-def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Boolean mask of the (n, 2) ``points`` inside ``polygon`` ((k, 2) corners, any winding): even-odd rule.
+def inside_polygon(points: np.ndarray, polygon: Any) -> np.ndarray:
+    """Boolean mask of the (n, 2) ``points`` inside ``polygon`` ((k, 2) corners or a shapely polygon).
 
-    A loop over the polygon's few edges, vectorised over the points (a scan's
-    ~450); checked against shapely's ``contains_xy`` in the tests and the benchmark.
+    shapely's vectorised ``contains_xy`` on a prepared polygon (a zone is
+    prepared once): about 3x quicker than a numpy even-odd test on a scan's
+    ~450 points (benchmarks/collision_monitor.py). A point on the border is outside.
     """
-    x, y = points[:, 0], points[:, 1]
-    inside = np.zeros(len(points), dtype=bool)
-    xj, yj = polygon[-1]
-    for xi, yi in polygon:
-        crosses = (yi > y) != (yj > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_cross = (xj - xi) * (y - yi) / (yj - yi) + xi
-        inside ^= crosses & (x < x_cross)
-        xj, yj = xi, yi
-    return inside
+    if not isinstance(polygon, shapely.Polygon):
+        polygon = shapely.Polygon(polygon)
+    return np.asarray(shapely.contains_xy(polygon, points[:, 0], points[:, 1]), dtype=bool)
 
 
 def scan_to_base(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
@@ -235,6 +230,10 @@ class CollisionMonitor:
         stop, slow = default_zones(footprint_radius_m, max_speed_mps)
         self.stop_polygon = np.array(config.stop.polygon_m, dtype=float) if config.stop.polygon_m else stop
         self.slow_polygon = np.array(config.slow.polygon_m, dtype=float) if config.slow.polygon_m else slow
+        self._stop_shape = shapely.Polygon(self.stop_polygon)
+        self._slow_shape = shapely.Polygon(self.slow_polygon)
+        shapely.prepare(self._stop_shape)
+        shapely.prepare(self._slow_shape)
         self.action = NONE
         self.ratio = 1.0
         self.reason = ""
@@ -254,9 +253,9 @@ class CollisionMonitor:
         if self._view is None or self._view.scan is not scan:
             pts = scan_to_base(scan, self.mounting)
             self._view = _ScanView(scan, pts,
-                                   inside_polygon(pts, self.stop_polygon) if self.config.stop.enabled else
+                                   inside_polygon(pts, self._stop_shape) if self.config.stop.enabled else
                                    np.zeros(len(pts), bool),
-                                   inside_polygon(pts, self.slow_polygon) if self.config.slow.enabled else
+                                   inside_polygon(pts, self._slow_shape) if self.config.slow.enabled else
                                    np.zeros(len(pts), bool),
                                    np.hypot(pts[:, 0], pts[:, 1]))
         return self._view
