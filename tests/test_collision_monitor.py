@@ -169,6 +169,7 @@ def test_no_scan_yet_holds_motion_but_says_nothing_while_standing_still():
     assert m.limit(cmd(0.2), 0.05).linear_mps == 0.0 and len(events) == 1
     feed.scan = wall_scan(3.0, stamp_s=0.1)
     assert m.limit(cmd(0.2), 0.12) == cmd(0.2)
+    assert len(events) == 2 and "first LiDAR scan" in events[-1][1]
 
 
 # -- driving away --------------------------------------------------------------------------

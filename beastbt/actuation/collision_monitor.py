@@ -376,10 +376,12 @@ class CollisionMonitor:
                                              f"until scans return")
 
     def _back(self, now_s: float) -> None:
+        first = not self._had_scan
         self._had_scan = True
         if self._silent_reported:
             self._silent_reported = False
-            self.events("collision_monitor", "collision monitor: LiDAR scans are back: the robot may move")
+            self.events("collision_monitor", "collision monitor: " + ("first LiDAR scan" if first else
+                                                                      "LiDAR scans are back") + ": the robot may move")
 
     def zones(self) -> dict[str, Any]:
         """The zones in base_link: polygons as lists of [x, y] metres, the footprint radius and approach time."""
