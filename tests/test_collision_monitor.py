@@ -340,21 +340,17 @@ def test_the_mission_is_stopped_before_the_wall_through_the_run(tmp_path):
 
 
 def test_teleop_is_limited_too(tmp_path):
-    h = MissionHarness.from_yaml(WAIT, robot=str(lidar_profile(tmp_path)))
+    # The operator's gamepad (a joystick script through the real driver and the teleop part) pushes full ahead.
+    script = [{"at": "0.2 s", "press": "enable"}, {"at": "0.2 s", "linear": 1.0},
+              {"at": "8 s", "linear": -0.6}, {"at": "10 s", "release": "enable"}]
+    h = MissionHarness.from_yaml(WAIT, robot=str(lidar_profile(tmp_path)), joystick=script)
     fake_lidar(h)
-
-    def operator(run, now):
-        run.mux.submit("teleop", VelocityCommand(0.35, 0.0, now, "teleop"), now)
-
-    h.run.hooks.append(operator)
-    h.tick_until(lambda h: h.now_s >= 10.0)
-    assert h.records[-1].mux_source == "teleop"
-    assert WALL_X - h.truth.x > 0.15 and abs(h.truth.v_mps) < 0.01
-    assert any("teleop's command" in t for t in monitor_events(h))
-    # Backing away is let through at once.
-    h.run.hooks[-1] = lambda run, now: run.mux.submit("teleop", VelocityCommand(-0.2, 0.0, now, "teleop"), now)
+    h.tick_until(lambda h: h.now_s >= 7.9)
+    assert h.records[-1].mux_source == "teleop" and h.records[-1].cmd_mux.linear_mps > 0.2
+    assert WALL_X - h.truth.x > 0.15 and abs(h.truth.v_mps) < 0.01 and h.records[-1].cmd_gate.linear_mps == 0.0
+    assert any(t.startswith("collision monitor: stop (teleop's command)") for t in monitor_events(h))
     x = h.truth.x
-    h.tick(20)
+    h.tick_until(lambda h: h.now_s >= 9.5)   # the stick pulled back: backing away is let through at once
     assert h.truth.x < x - 0.1
 
 
