@@ -142,4 +142,5 @@ def guard_collisions(profile: RobotProfile, events: EventLog,
                             lidar.mounting, events.add)
 
 
-__all__ = ["guard_actuators", "guard_collisions", "watchdog_of", "request_estop", "reset_estop", "THREAD", "PHYSICS", "TICK"]
+__all__ = ["guard_actuators", "guard_collisions", "watchdog_of", "request_estop", "reset_estop", "THREAD", "PHYSICS",
+           "TICK"]
