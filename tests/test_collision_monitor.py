@@ -94,9 +94,18 @@ def test_a_wall_in_the_slow_zone_scales_the_command_by_the_ratio():
 def test_default_zones_grow_with_the_footprint_and_the_top_speed():
     stop, slow = default_zones(0.15, 0.5)
     assert stop[:, 0].max() == pytest.approx(0.15 + 0.05 + 0.05) and stop[:, 0].min() == pytest.approx(-0.25)
-    assert slow[:, 0].max() == pytest.approx(0.25 + 0.5) and slow[:, 1].max() == pytest.approx(0.30)
+    assert stop[:, 1].max() == pytest.approx(0.18)
+    assert slow[:, 0].max() == pytest.approx(0.25 + 0.5) and slow[:, 1].max() == pytest.approx(0.23)
     bigger_stop, bigger_slow = default_zones(0.3, 1.0)
     assert bigger_stop[:, 0].max() > stop[:, 0].max() and bigger_slow[:, 0].max() > slow[:, 0].max()
+    assert bigger_stop[:, 1].max() > stop[:, 1].max()
+
+
+def test_driving_along_a_wall_beside_the_footprint_is_not_stopped():
+    # A wall parallel to the robot, 0.2 m to its left (0.05 m from the footprint): a corridor, a doorway's jamb.
+    m, _, _ = monitor(wall_scan(0.2, bearing_deg=90.0, half_width_m=2.0), slow={"enabled": False})
+    assert m.limit(cmd(0.3), 0.0) == cmd(0.3)
+    assert m.limit(cmd(0.3, 1.0), 0.05).linear_mps < 0.3 and m.action == APPROACH   # turning into it is not
 
 
 def test_the_profile_zones_replace_the_defaults():

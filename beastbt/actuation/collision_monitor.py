@@ -58,9 +58,12 @@ EPISODE_GAP_S = 1.0
 """An episode of limiting ends after this long without any limit (then the same action is an event again), s."""
 
 STOP_MARGIN_M = 0.05
-"""Default stop zone: the footprint plus this, plus :data:`STOP_MARGIN_TIME_S` at the top speed, metres."""
+"""Default stop zone: ahead and behind, the footprint plus this, plus :data:`STOP_MARGIN_TIME_S` at the top speed, m."""
 STOP_MARGIN_TIME_S = 0.1
 """Default stop zone: how far the robot goes at the top speed in this long (a scan period), s."""
+STOP_SIDE_MARGIN_M = 0.03
+"""Default stop zone: to each side, the footprint plus this, metres (narrow, so that driving along a wall or
+through a doorway is not stopped: the approach check sees what a turn would hit)."""
 SLOW_AHEAD_TIME_S = 1.0
 """Default slow zone: the stop zone stretched forward by the top speed times this, s."""
 SLOW_WIDEN_M = 0.05
@@ -165,14 +168,15 @@ def _polygon(name: str, value: Any) -> list:
 def default_zones(footprint_radius_m: float, max_speed_mps: float) -> tuple[np.ndarray, np.ndarray]:
     """The default stop and slow polygons (base_link, metres) for a footprint radius and a top speed.
 
-    Stop: a square round the footprint, half-side radius + 0.05 m + 0.1 s at
-    the top speed. Slow: that square stretched forward by 1 s at the top
-    speed and widened by 0.05 m each side.
+    Stop: a box round the footprint, reaching radius + 0.05 m + 0.1 s at the
+    top speed ahead and behind, and radius + 0.03 m to each side. Slow: that
+    box stretched forward by 1 s at the top speed and widened by 0.05 m each side.
     """
     h = footprint_radius_m + STOP_MARGIN_M + STOP_MARGIN_TIME_S * max_speed_mps
-    stop = np.array([[h, h], [-h, h], [-h, -h], [h, -h]])
+    side = footprint_radius_m + STOP_SIDE_MARGIN_M
+    stop = np.array([[h, side], [-h, side], [-h, -side], [h, -side]])
     ahead = h + SLOW_AHEAD_TIME_S * max_speed_mps
-    w = h + SLOW_WIDEN_M
+    w = side + SLOW_WIDEN_M
     slow = np.array([[ahead, w], [-h, w], [-h, -w], [ahead, -w]])
     return stop, slow
 
