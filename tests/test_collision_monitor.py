@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 from typing import Optional
 
+import jsonschema
 import numpy as np
 import pytest
 import yaml
@@ -15,6 +16,7 @@ from beastbt.actuation.collision_monitor import (APPROACH, NONE, SILENT, SLOW, S
                                                  CollisionMonitorConfig, default_zones, inside_polygon)
 from beastbt.blackboard.types import VelocityCommand
 from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_check import load_schema
 from beastbt.devices.lidar_scan import LaserScan, LidarMounting
 from beastbt.robot.profile import load_profile
 from beastbt.testing import MissionHarness
@@ -346,6 +348,11 @@ def test_the_mission_is_stopped_before_the_wall_through_the_run(tmp_path):
     texts = monitor_events(h)
     assert any("mission's command" in t for t in texts)
     assert len(texts) == len(set(texts)) and len(texts) <= 3  # once per action, not every tick
+    summary = h.summary()
+    jsonschema.validate(summary, load_schema("summary.schema.json"))
+    fields = summary["collision_monitor"]
+    assert fields["episodes"]["stop"] == 1 and fields["limited_ticks"]["stop"] > 20
+    assert fields["zones"]["footprint_radius_m"] == pytest.approx(0.15) and len(fields["zones"]["stop"]) == 4
 
 
 def test_teleop_is_limited_too(tmp_path):

@@ -247,6 +247,10 @@ class CollisionMonitor:
         self._last_limit_s = -math.inf
         self._silent_reported = False
         self._had_scan = False
+        self.limited_ticks: dict[str, int] = {}
+        """Action -> how many calls of :meth:`limit` it cut a command (for the summary)."""
+        self.episodes: dict[str, int] = {}
+        """Action -> how many events (episodes) it had."""
 
     # -- the scan ---------------------------------------------------------------
     def _current(self, now_s: float) -> Optional[_ScanView]:
@@ -358,9 +362,11 @@ class CollisionMonitor:
             self._reported.clear()
         self._last_limit_s = now_s
         self.limited_source = cmd.source
+        self.limited_ticks[action] = self.limited_ticks.get(action, 0) + 1
         if action in self._reported or action == SILENT:
             return
         self._reported.add(action)
+        self.episodes[action] = self.episodes.get(action, 0) + 1
         what = {STOP: "stop", SLOW: f"slow to {ratio:.0%}", APPROACH: f"approach at {ratio:.0%}"}[action]
         self.events("collision_monitor", f"collision monitor: {what} ({cmd.source}'s command): {why}")
 
@@ -376,6 +382,7 @@ class CollisionMonitor:
         # Before the first scan (a motor spinning up) say so only when it holds a motion back.
         if not self._silent_reported and (self._had_scan or moving):
             self._silent_reported = True
+            self.episodes[SILENT] = self.episodes.get(SILENT, 0) + 1
             self.events("collision_monitor", f"collision monitor: LiDAR silent, {why}: the robot is held "
                                              f"until scans return")
 
@@ -395,6 +402,10 @@ class CollisionMonitor:
                 "slow_ratio": cfg.slow.ratio, "footprint_radius_m": self.footprint_radius_m,
                 "approach_time_s": cfg.approach.time_s if cfg.approach.enabled else None,
                 "min_points": cfg.min_points, "source_timeout_s": cfg.source_timeout_s}
+
+    def summary(self) -> dict[str, Any]:
+        """For the run summary: the zones, and per action the episodes (events) and the ticks it cut a command."""
+        return {"zones": self.zones(), "episodes": dict(self.episodes), "limited_ticks": dict(self.limited_ticks)}
 
     def status(self) -> dict[str, Any]:
         """What the last :meth:`limit` did: action (none/slow/approach/stop/silent), ratio, why, whose command."""

@@ -124,6 +124,8 @@ class MissionRun:
         """Called by :meth:`react` between ticks when a device wakes the loop (teleop's joystick)."""
         self.recorders: list[Callable[[TickRecord], None]] = []
         self.summary_contributors: list[SummaryContributor] = []
+        if self.collision_monitor is not None:
+            self.summary_contributors.append(_collision_summary)
         self.recorder: Optional[Any] = None
         """The run's recorder (``beastbt.recording.recorder.McapRecorder``), when it records."""
         self.status: Optional[str] = None
@@ -503,6 +505,12 @@ class MissionRun:
         if p is None:
             return "pose ?"
         return f"x {p.x:6.2f} y {p.y:6.2f} yaw {math.degrees(p.yaw):6.1f} deg  {p.speed_mps:4.2f} m/s"
+
+
+def _collision_summary(run: MissionRun, summary: dict) -> None:
+    """The collision monitor's fields in the run summary (``collision_monitor``)."""
+    if run.collision_monitor is not None:
+        summary["collision_monitor"] = run.collision_monitor.summary()
 
 
 __all__ = ["MissionRun", "TickRecord", "TickHook", "SummaryContributor"]
