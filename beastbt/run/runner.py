@@ -3,7 +3,7 @@
 Each tick: read the clock, advance the simulator (if any), poll every device,
 update the estimators, write the blackboard, check e-stop, teleop and
 failsafes, tick the tree once, pass the commands through the mux, the
-safety gate and the collision monitor (robots with a LiDAR) to the base and
+collision monitor (robots with a LiDAR) and the safety gate to the base and
 the servos, and record what happened.
 """
 
@@ -114,7 +114,7 @@ class MissionRun:
             max_angular_accel_rps2=profile.max_angular_accel_rps2, command_timeout_s=profile.command_timeout_s))
         self.watchdog, self.watchdog_checked_by = guard_actuators(io, clock, profile, events)
         self.collision_monitor = guard_collisions(profile, events, self.latest_scan)
-        """The collision monitor (profiles with ``lidar:``), applied to every command after the mux and the gate."""
+        """The collision monitor (profiles with ``lidar:``), applied to every command between the mux and the gate."""
         self._no_scan_source_said = False
         self.odom = OdometryEstimator(profile.track_width_m)
         self.estimator: Optional[Estimator] = estimator

@@ -23,7 +23,7 @@ thread); the joystick's buttons and the console call them too.
 :func:`guard_collisions` builds the run's collision monitor
 (:mod:`beastbt.actuation.collision_monitor`) when the profile has ``lidar:``
 (and ``collision_monitor: {enabled: false}`` does not turn it off). The run
-applies it to every command after the mux and the gate, whoever sent it; it
+applies it to every command between the mux and the gate, whoever sent it; it
 reads the newest ``LaserScan`` the run polled from ``io.sensors['lidar']``
 through one callable, ``latest_scan()``.
 """
