@@ -356,7 +356,7 @@ def test_a_count_that_is_not_one_says_whole_number_or_forever(editor):
     text = MISSION_HEAD + ("steps:\n  - repeat: {times: three, steps: [stop]}\n"
                            "  - repeat: {times: forever, steps: [stop]}\n")
     found = messages(editor.diagnostics(editor.open(REPO / "missions" / "__editor_count.yaml", text)))
-    assert found == ["4:21: Expected a whole number of at least 1, such as 3, or forever."], found
+    assert found == ["4:21: Expected a whole number from 1 to 1000000, such as 3, or forever."], found
 
 
 def test_completion_of_a_step_offers_every_step_by_its_title(editor):

@@ -2,8 +2,9 @@
 
 Each tick: read the clock, advance the simulator (if any), poll every device,
 update the estimators, write the blackboard, check e-stop, teleop and
-failsafes, tick the tree once, pass the commands through the mux and the
-safety gate to the base and the servos, and record what happened.
+failsafes, tick the tree once, pass the commands through the mux, the
+collision monitor (robots with a LiDAR) and the safety gate to the base and
+the servos, and record what happened.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from beastbt.core.events import EventLog
 from beastbt.run.failsafes import FailsafeMonitor, Situation, failsafe_reads
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
-from beastbt.run.safety import TICK, guard_actuators
+from beastbt.run.safety import TICK, guard_actuators, guard_collisions
 from beastbt.run.tree_ids import TreeNode, tree_layout
 
 Status = py_trees.common.Status
@@ -112,6 +113,9 @@ class MissionRun:
             max_accel_mps2=tightest(mission.accel_limit_mps2, profile.max_accel_mps2),
             max_angular_accel_rps2=profile.max_angular_accel_rps2, command_timeout_s=profile.command_timeout_s))
         self.watchdog, self.watchdog_checked_by = guard_actuators(io, clock, profile, events)
+        self.collision_monitor = guard_collisions(profile, events, self.latest_scan)
+        """The collision monitor (profiles with ``lidar:``), applied to every command between the mux and the gate."""
+        self._no_scan_source_said = False
         self.odom = OdometryEstimator(profile.track_width_m)
         self.estimator: Optional[Estimator] = estimator
         self.failsafes = FailsafeMonitor(mission)
@@ -120,6 +124,8 @@ class MissionRun:
         """Called by :meth:`react` between ticks when a device wakes the loop (teleop's joystick)."""
         self.recorders: list[Callable[[TickRecord], None]] = []
         self.summary_contributors: list[SummaryContributor] = []
+        if self.collision_monitor is not None:
+            self.summary_contributors.append(_collision_summary)
         self.recorder: Optional[Any] = None
         """The run's recorder (``beastbt.recording.recorder.McapRecorder``), when it records."""
         self.status: Optional[str] = None
@@ -151,7 +157,45 @@ class MissionRun:
         for node in self.nodes:
             for client in node.blackboards:
                 keys.update(key.lstrip("/") for key in client.read)
+        if self.collision_monitor is not None:
+            keys.add("lidar")  # the collision monitor reads every scan, whatever the tree does
         return frozenset(keys)
+
+    def latest_scan(self) -> Optional[Any]:
+        """The newest ``LaserScan`` polled from ``io.sensors['lidar']`` in this run (None before the first)."""
+        from beastbt.devices.lidar_scan import LaserScan  # imported once, by robots with a LiDAR only
+        return self.latest.get(LaserScan)
+
+    def limit_collisions(self, muxed: VelocityCommand, now: float) -> VelocityCommand:
+        """The mux's command through the collision monitor and the safety gate: what may be sent at ``now``.
+
+        The monitor limits the mux's command (so its ratios never compound
+        with the gate's ramp), the gate clamps and ramps that; where the
+        monitor cut the command, the gate's output is cut to it at once
+        (Nav2's monitor also acts after the velocity smoother: a stop is not
+        ramped down) and becomes the gate's last output, so motion resumes
+        from what was really sent.
+        """
+        monitor = self.collision_monitor
+        if monitor is None:
+            return self.gate.filter(muxed, now)
+        if "lidar" not in self.io.sensors:
+            # A simulator without a LiDAR emulator, or a replay without scans: nothing to monitor with.
+            if not self._no_scan_source_said:
+                self._no_scan_source_said = True
+                self.events.add("collision_monitor", "collision monitor: off: this run has no LiDAR readings "
+                                                     "(io.sensors['lidar'])")
+            return self.gate.filter(muxed, now)
+        limited = monitor.limit(muxed, now)
+        out = self.gate.filter(limited, now)
+        if limited is muxed:
+            return out
+        v_max, w_max = abs(limited.linear_mps), abs(limited.angular_rps)
+        # (+ 0.0 turns a -0.0 into 0.0: a stop is a plain zero on the wire.)
+        out = VelocityCommand(max(-v_max, min(v_max, out.linear_mps)) + 0.0,
+                              max(-w_max, min(w_max, out.angular_rps)) + 0.0, out.stamp_s, out.source)
+        self.gate.out = out
+        return out
 
     # -- the tick -------------------------------------------------------------
     def tick(self) -> Optional[str]:
@@ -198,7 +242,7 @@ class MissionRun:
             return
         for reactor in self.reactors:
             reactor(self, now)
-        out = self.gate.filter(self.mux.select(now), now)
+        out = self.limit_collisions(self.mux.select(now), now)
         self._send_velocity(out, now)
 
     def _send_velocity(self, out: VelocityCommand, now: float) -> None:
@@ -318,7 +362,7 @@ class MissionRun:
     def actuate(self, now: float, readings: list, cmd_mission: Optional[VelocityCommand]) -> None:
         """Mux, gate, and send the velocity and any new servo requests; then record."""
         muxed = self.mux.select(now)
-        out = self.gate.filter(muxed, now)
+        out = self.limit_collisions(muxed, now)
         if self.status is not None:
             # The run has ended: the last thing sent is a stop, not a ramp down.
             out = VelocityCommand(0.0, 0.0, now, "end")
@@ -462,6 +506,12 @@ class MissionRun:
         if p is None:
             return "pose ?"
         return f"x {p.x:6.2f} y {p.y:6.2f} yaw {math.degrees(p.yaw):6.1f} deg  {p.speed_mps:4.2f} m/s"
+
+
+def _collision_summary(run: MissionRun, summary: dict) -> None:
+    """The collision monitor's fields in the run summary (``collision_monitor``)."""
+    if run.collision_monitor is not None:
+        summary["collision_monitor"] = run.collision_monitor.summary()
 
 
 __all__ = ["MissionRun", "TickRecord", "TickHook", "SummaryContributor"]

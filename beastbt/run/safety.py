@@ -19,21 +19,29 @@ How the watchdog is checked depends on what drives time:
 
 :func:`request_estop` and :func:`reset_estop` are the e-stop's API (any
 thread); the joystick's buttons and the console call them too.
+
+:func:`guard_collisions` builds the run's collision monitor
+(:mod:`beastbt.actuation.collision_monitor`) when the profile has ``lidar:``
+(and ``collision_monitor: {enabled: false}`` does not turn it off). The run
+applies it to every command between the mux and the gate, whoever sent it; it
+reads the newest ``LaserScan`` the run polled from ``io.sensors['lidar']``
+through one callable, ``latest_scan()``.
 """
 
 from __future__ import annotations
 
 import atexit
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING, Any, Callable, Optional
 
 from beastbt.actuation.watchdog import AdapterWatchdog, LockedServos
 from beastbt.core.clock import Clock, WallClock
 from beastbt.core.events import EventLog
 from beastbt.robot.actuator_profile import watchdog_config
-from beastbt.robot.profile import RobotProfile
+from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 
 if TYPE_CHECKING:
+    from beastbt.actuation.collision_monitor import CollisionMonitor
     from beastbt.run.runner import MissionRun
 
 THREAD = "thread"
@@ -111,4 +119,28 @@ def reset_estop(run: "MissionRun", reason: str = "API request") -> bool:
     return True
 
 
-__all__ = ["guard_actuators", "watchdog_of", "request_estop", "reset_estop", "THREAD", "PHYSICS", "TICK"]
+def guard_collisions(profile: RobotProfile, events: EventLog,
+                     latest_scan: Callable[[], Optional[Any]]) -> Optional["CollisionMonitor"]:
+    """The collision monitor for ``profile`` reading ``latest_scan()``; None without ``lidar:`` or when disabled.
+
+    Raises :class:`~beastbt.core.errors.InvalidInput` at the section's line
+    for a bad ``collision_monitor:`` (before anything moves). Imported only
+    for a robot with a LiDAR, so the others pay nothing.
+    """
+    if profile.section("lidar") is None:
+        return None
+    from beastbt.actuation.collision_monitor import CollisionMonitor, CollisionMonitorConfig, footprint_radius
+    from beastbt.devices.lidar_scan import LidarConfig
+
+    config: CollisionMonitorConfig = section_config(profile, "collision_monitor", CollisionMonitorConfig)
+    if not config.enabled:
+        events.add("collision_monitor", "collision monitor: off (collision_monitor: {enabled: false}): "
+                                        "nothing limits commands near obstacles")
+        return None
+    lidar: LidarConfig = section_config(profile, "lidar", LidarConfig)
+    return CollisionMonitor(config, latest_scan, footprint_radius(profile.data), profile.max_speed_mps,
+                            lidar.mounting, events.add)
+
+
+__all__ = ["guard_actuators", "guard_collisions", "watchdog_of", "request_estop", "reset_estop", "THREAD", "PHYSICS",
+           "TICK"]

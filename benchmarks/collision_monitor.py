@@ -1,0 +1,151 @@
+"""What the collision monitor costs per 10 Hz LD19 scan, with the decoding, against point-in-polygon baselines.
+
+Builds in memory the bytes of an LD19 at 10 Hz (4500 points/s, ~450 points
+per revolution) in a small room whose front wall is 0.45 m ahead (inside the
+default slow zone of the simulator's robot, so every check has points to look at), decodes them with
+the real driver through an in-memory port in 10 ms reads, and times per scan:
+
+* decode: the driver's ``poll`` for one revolution;
+* monitor, new scan: :meth:`CollisionMonitor.limit` on a forward command when
+  the scan is new (points to base_link, both zones, the approach simulation);
+* monitor, same scan: ``limit`` on the next tick (20 Hz ticks, 10 Hz scans:
+  the zones are kept, only the command's checks run);
+
+and, as baselines measured in the same run on the same points, shapely's
+``contains_xy`` and matplotlib's ``Path.contains_points`` for the same two
+polygons (what the zone tests would cost through those libraries).
+Goal of issue 20: decode + monitor (+ the costmap, not measured here) at
+most 0.5 ms per 10 Hz scan.
+
+Run: python benchmarks/collision_monitor.py [--revolutions 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))
+
+import numpy as np  # noqa: E402
+
+from beastbt.actuation.collision_monitor import CollisionMonitor, CollisionMonitorConfig, scan_to_base  # noqa: E402
+from beastbt.blackboard.types import VelocityCommand  # noqa: E402
+from beastbt.core.clock import SimClock  # noqa: E402
+from beastbt.devices.ld19 import Ld19Lidar  # noqa: E402
+from beastbt.devices.lidar_scan import LidarConfig, LidarMounting  # noqa: E402
+from fake_ld19 import SyntheticRoom, ld19_packet  # noqa: E402
+
+from lidar_decode import Port  # noqa: E402  (benchmarks/ is on the path as the script's own folder)
+
+
+def even_odd(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """A numpy point-in-polygon (even-odd rule, vectorised over the points): a baseline."""
+    x, y = points[:, 0], points[:, 1]
+    inside = np.zeros(len(points), dtype=bool)
+    xj, yj = polygon[-1]
+    for xi, yi in polygon:
+        crosses = (yi > y) != (yj > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_cross = (xj - xi) * (y - yi) / (yj - yi) + xi
+        inside ^= crosses & (x < x_cross)
+        xj, yj = xi, yi
+    return inside
+
+
+def room_stream(revolutions: int, room: SyntheticRoom) -> bytes:
+    """LD19 bytes of ``revolutions`` turns at 10 Hz in ``room``."""
+    import math
+    out = bytearray()
+    step = 3600.0 / 4500.0
+    angle = 0.0
+    for i in range(int(revolutions * 4500 / 10 / 12)):
+        points = []
+        for k in range(12):
+            r = room.range_m(-math.radians((angle + k * step) % 360.0))
+            points.append((int(round(r * 1000)) if r < 12.0 else 0, 200))
+        out += ld19_packet(3600, int(round(angle * 100)) % 36000, points,
+                           int(round((angle + 11 * step) * 100)) % 36000, (i * 3) % 30000)
+        angle = (angle + 12 * step) % 360.0
+    return bytes(out)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--revolutions", type=int, default=300)
+    args = parser.parse_args()
+    import matplotlib.path
+    import shapely
+
+    room = SyntheticRoom(front_m=0.45, back_m=1.5, left_m=0.8, right_m=0.8, pillars=[(0.4, 0.45, 0.05)])
+    wire = room_stream(args.revolutions, room)
+    clock, port = SimClock(), Port()
+    driver = Ld19Lidar(port, clock, config=LidarConfig.from_dict({"type": "ld19"}))
+    latest: dict = {}
+    mounting = LidarMounting(x_m=0.05, y_m=0.0, z_m=0.1, yaw_deg=0.0)
+    mon = CollisionMonitor(CollisionMonitorConfig(), lambda: latest.get("scan"), 0.15, 0.35, mounting)
+    chunk = 230400 // 10 // 100
+    decode, fresh, cached, zones_shapely, zones_mpl, zones_ours = [], [], [], [], [], []
+    stop_poly, slow_poly = mon.stop_polygon, mon.slow_polygon
+    s_stop, s_slow = shapely.Polygon(stop_poly), shapely.Polygon(slow_poly)
+    shapely.prepare(s_stop)
+    shapely.prepare(s_slow)
+    m_stop, m_slow = matplotlib.path.Path(stop_poly), matplotlib.path.Path(slow_poly)
+    pending = 0.0
+    actions: dict[str, int] = {}
+    for i in range(0, len(wire), chunk):
+        port.rx += wire[i:i + chunk]
+        clock.advance(0.01)
+        t0 = time.perf_counter()
+        scans = driver.poll()
+        pending += time.perf_counter() - t0
+        if not scans:
+            continue
+        decode.append(pending)
+        pending = 0.0
+        scan = scans[-1]
+        latest["scan"] = scan
+        now = clock.now()
+        command = VelocityCommand(0.3, 0.2, now, "mission")
+        t0 = time.perf_counter()
+        mon.limit(command, now)
+        fresh.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        mon.limit(command, now + 0.05)
+        cached.append(time.perf_counter() - t0)
+        actions[mon.action] = actions.get(mon.action, 0) + 1
+        pts = scan_to_base(scan, mounting)
+        t0 = time.perf_counter()
+        even_odd(pts, stop_poly), even_odd(pts, slow_poly)
+        zones_ours.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        shapely.contains_xy(s_stop, pts[:, 0], pts[:, 1]), shapely.contains_xy(s_slow, pts[:, 0], pts[:, 1])
+        zones_shapely.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        m_stop.contains_points(pts), m_slow.contains_points(pts)
+        zones_mpl.append(time.perf_counter() - t0)
+        assert np.array_equal(even_odd(pts, slow_poly), shapely.contains_xy(s_slow, pts[:, 0], pts[:, 1]))
+
+    def us(xs: list) -> float:
+        return statistics.median(xs[5:] or xs) * 1e6
+
+    total = us(decode) + us(fresh) + us(cached)
+    print(f"LD19 at 10 Hz: {len(decode)} scans of {driver.stats.points_per_scan} points; actions {actions}")
+    print(f"  decode              {us(decode):7.0f} us per scan (median)")
+    print(f"  monitor, new scan   {us(fresh):7.0f} us (points to base_link, 2 zones, approach)")
+    print(f"  monitor, same scan  {us(cached):7.0f} us (the second 20 Hz tick of a 10 Hz scan)")
+    print(f"  decode + monitor    {total:7.0f} us per 10 Hz scan = {total * 10 / 1e4:.2f} % of a core "
+          f"(goal <= 500 us: {'met' if total <= 500 else 'NOT met'})")
+    print(f"  the 2 zone tests on the same points: shapely.contains_xy (what the monitor uses) "
+          f"{us(zones_shapely):5.0f} us; baselines: numpy even-odd {us(zones_ours):5.0f} us (ratio "
+          f"{us(zones_ours) / us(zones_shapely):.1f}), matplotlib contains_points {us(zones_mpl):5.0f} us "
+          f"(ratio {us(zones_mpl) / us(zones_shapely):.1f})")
+
+
+if __name__ == "__main__":
+    main()
