@@ -46,8 +46,8 @@ def lidar_awake(h: MissionHarness) -> bool:
 def test_a_mission_that_only_drives_leaves_gps_imu_and_ekf_asleep():
     h = harness(PATROL_LIKE)
     assert awake(h) == {"gps": False, "imu": False, "ekf": False}
-    assert not lidar_awake(h)
-    assert any(e.kind == "asleep" and e.text.endswith("gps, imu, lidar, navigation") for e in h.events)
+    assert lidar_awake(h)  # the collision monitor below the tree reads every scan, whatever the mission does
+    assert any(e.kind == "asleep" and e.text.endswith("gps, imu, navigation") for e in h.events)
     assert h.run_to_end() == "success"
     assert h.blackboard("gps_fix") is None  # (the base's own IMU still reports: the base is always awake)
     assert h.blackboard("pose").position_valid is False

@@ -158,7 +158,7 @@ class MissionRun:
             for client in node.blackboards:
                 keys.update(key.lstrip("/") for key in client.read)
         if self.collision_monitor is not None:
-            keys.add("lidar")  # the collision monitor reads every scan, whatever the tree does
+            keys.update(("lidar", "scan"))  # the collision monitor reads every scan, whatever the tree does
         return frozenset(keys)
 
     def latest_scan(self) -> Optional[Any]:
