@@ -391,8 +391,9 @@ class McapRecorder:
         if self._gone:
             self._count_dropped(item)
             return
-        if self._pending_items + len(self._batch_items) >= self._max:
-            if self.block_when_full and self._started:
+        if self._pending_items + len(self._batch_items) >= self._max and (self._started or not self.block_when_full):
+            # (Before the writer starts, in the simulator, the few set-up items wait in the batch: none is lost.)
+            if self.block_when_full:
                 # Simulated time does not run away: wait for the writer, lose nothing.
                 self._send_batch()
                 self._pump(block=True, keep=self._max - 1)
