@@ -95,7 +95,7 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("servos", "beastbt.parts.servo_board:ServoBoardPart", _has("servos"), "pwm_servos"),
     PartEntry("gps", "beastbt.parts.gps:GpsPart", _has("gps"), "gps"),
     PartEntry("imu", "beastbt.parts.imu:ImuPart", _has("imu"), "imu"),
-    PartEntry("lidar", "beastbt.parts.lidar:LidarPart", _has("lidar"), "lidar", real_only=True),
+    PartEntry("lidar", "beastbt.parts.lidar:LidarPart", _has("lidar"), "lidar"),
     PartEntry("camera", "beastbt.parts.camera:CameraPart", _has("camera"), "camera"),
     PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
@@ -262,10 +262,6 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
     has_battery = "battery" in base_part(profile, simulated=mode == SIM).fills
     has_joystick = profile.section("joystick") is not None or (options is not None and
                                                                options.joystick_script is not None)
-    if mode == SIM and profile.section("lidar") is not None and profile.doc is not None:
-        from beastbt.core.errors import warning
-        from beastbt.parts.lidar import NOT_SIMULATED_HINT, NOT_SIMULATED_WARNING
-        warnings.append(warning(profile.doc.problem(("lidar",), NOT_SIMULATED_WARNING, NOT_SIMULATED_HINT, key=True)))
     return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery,
                                                  has_joystick))
 

@@ -208,6 +208,10 @@ def recorded_ticks(rec: Recording) -> list[RecordedTick]:
     last_image: Optional[np.ndarray] = None
     blank: dict[tuple[int, int], np.ndarray] = {}
     for topic, t, m in rec.order:
+        if topic == "/scan" and "stamp_s" in m:  # LiDAR revolutions are recorded there only
+            from beastbt.recording.foxglove import scan_of
+            by_time.setdefault(t, []).append((m.get("source"), scan_of(m)))
+            continue
         if not topic.startswith("/sensors/"):
             continue
         build = READING_BUILDERS.get(topic)

@@ -15,7 +15,8 @@ def mission(steps: str, extra: str = "") -> MissionHarness:
 
 def test_drive_distance_covers_it_and_stops():
     h = mission("  - drive: {distance: 1.5 m, speed: 0.2 m/s}\n")
-    h.tick()
+    for _ in range(20):  # the collision monitor holds motion until the LiDAR's first scans (1 s at most)
+        h.tick()
     assert h.status_of("drive 1.5 m at 0.2 m/s") == "RUNNING"
     assert h.last_sent.linear_mps > 0
     assert h.run_to_end(30) == "success"

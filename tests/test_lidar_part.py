@@ -1,4 +1,4 @@
-"""The ``lidar:`` profile section and its part: opened on the robot, announced as not simulated on --sim."""
+"""The ``lidar:`` profile section and its part: opened on the robot, emulated on --sim (asleep when unread)."""
 
 from __future__ import annotations
 
@@ -32,17 +32,26 @@ def profile_with(tmp_path: Path, base: str, **lidar) -> Path:
     return path
 
 
-def test_a_sim_profile_with_a_lidar_runs_and_says_it_is_not_simulated(tmp_path):
-    robot = profile_with(tmp_path, "sim", type="ld19", port="/dev/ttyUSB0")
+def test_a_sim_profile_with_a_lidar_runs_and_the_unread_lidar_sleeps(tmp_path):
+    robot = profile_with(tmp_path, "sim", type="rplidar_a1", port="/dev/ttyUSB0")
+    data = yaml.safe_load(robot.read_text(encoding="utf-8"))
+    data["collision_monitor"] = {"enabled": False}  # else the monitor reads every scan
+    robot.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     h = MissionHarness.from_yaml(MISSION, robot=str(robot))
     assert h.run_to_end(timeout_s=60) == "success"
-    notes = [e for e in h.events if "lidar_not_simulated" in str(e)]
-    assert len(notes) == 1 and "no LiDAR emulator yet" in str(notes[0])
+    notes = [e for e in h.events if "asleep" in str(e)]
+    assert len(notes) == 1 and "lidar" in str(notes[0])
+    from beastbt.sim.lidar_emulator import LidarEmulator
+    io = h.prepared.run.io
+    assert "lidar" not in io.sensors  # neither polled...
+    assert not [u for u in io.sim.emulators if isinstance(getattr(u, "__self__", None), LidarEmulator)]  # ...nor cast
 
 
 def test_a_profile_without_a_lidar_gets_no_lidar_part():
-    assert "lidar" not in [p.name for p in parts_for(load_profile("sim"), RunOptions())]
     assert "lidar" not in [p.name for p in parts_for(load_profile("ugv_beast"), RunOptions())]
+    data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    assert data["lidar"]["type"] == "ld19"  # the simulator carries Waveshare's kit LiDAR
+    assert "lidar" in [p.name for p in parts_for(load_profile("sim"), RunOptions())]
 
 
 def test_a_profile_with_a_lidar_gets_the_part(tmp_path):
@@ -92,17 +101,14 @@ def test_a_bad_lidar_section_is_a_positioned_error(tmp_path, lidar, words):
     assert "robot.yaml:" in text and words in text
 
 
-def test_the_sim_run_warns_before_it_starts_with_the_lidar_line(tmp_path):
+def test_the_sim_run_no_longer_warns_that_the_lidar_is_not_simulated(tmp_path):
     from beastbt.assembly import prepare
     mission = tmp_path / "m.yaml"
     mission.write_text(MISSION, encoding="utf-8")
     robot = profile_with(tmp_path, "sim", type="rplidar_a1")
     p = prepare(str(mission), RunOptions(robot=str(robot), simulate=True, record=False))
-    [warned] = [w.format() for w in p.warnings if "LiDAR" in w.format()]
-    line = next(i for i, text in enumerate(robot.read_text().splitlines(), 1) if text.startswith("lidar:"))
-    assert f"robot.yaml:{line}:1: warning" in warned and "no LiDAR emulator yet" in warned
-    plain = prepare(str(mission), RunOptions(robot="sim", simulate=True, record=False))
-    assert not [w for w in plain.warnings if "LiDAR" in w.format()]
+    assert not [w for w in p.warnings if "LiDAR" in w.format() or "lidar" in w.format()]
+    p.abandon()
 
 
 def test_the_knobs_take_units(tmp_path):

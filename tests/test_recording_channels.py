@@ -21,7 +21,7 @@ import pytest
 from mcap.reader import make_reader
 
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.cli import main
 from beastbt.core.events import Event
 from beastbt.recording.recorder import McapRecorder, RecordingConfig, contribute_summary
@@ -226,6 +226,10 @@ def _synthetic_ticks(n: int, dt: float = 0.05) -> list[TickRecord]:
             readings.append(GpsFix(t, 40.0, -3.0, 650.0, 1, 8, 0.9, 0.1, 90.0, "120000.00"))
         if k % 1 == 0:  # a frame every tick (20 fps)
             readings.append(CameraFrame(t, image, k + 1))
+        if k % 2 == 0:  # a LiDAR revolution at 10 Hz, clockwise as the LD19 turns, with a few no-returns (NaN)
+            angles = (-np.radians(np.arange(450) * 0.8) + np.pi) % (2 * np.pi) - np.pi
+            ranges = np.where(np.arange(450) % 50 == 0, np.nan, 2.0)
+            readings.append(LaserScan(t, angles, ranges, np.full(450, 200.0), 10.0, "ld19"))
         pose = FusedPose(t, 0.1 * t, 0.0, 0.0, lat=40.0, lon=-3.0)
         cmd = VelocityCommand(0.1, 0.0, t, "teleop")
         out.append(TickRecord(k, t, readings, pose, pose, None, cmd, cmd, "teleop",

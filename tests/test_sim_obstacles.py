@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from beastbt.core.errors import InvalidInput
 from beastbt.sim.contact import CLEAR_AFTER_M, ContactWorld
@@ -216,12 +217,21 @@ def run_checking_every_tick(h: MissionHarness, things: list, timeout_s: float) -
     return least
 
 
-def test_a_20_m_drive_in_the_10_m_corridor_stops_at_the_end_wall_with_one_collision():
+def robot_without_lidar(tmp_path: Path) -> str:
+    """robots/sim.yaml without its LiDAR, so no collision monitor: what contact itself does."""
+    data = yaml.safe_load((ROOT / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    data.pop("lidar", None)
+    path = tmp_path / "robot_without_lidar.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return str(path)
+
+
+def test_a_20_m_drive_in_the_10_m_corridor_stops_at_the_end_wall_with_one_collision(tmp_path):
     world = load_world(ROOT / "worlds" / "corridor.yaml")
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - drive: {distance: 20 m, stuck_after: 2 s}\n",
-                                 world=str(ROOT / "worlds" / "corridor.yaml"))
+                                 world=str(ROOT / "worlds" / "corridor.yaml"), robot=robot_without_lidar(tmp_path))
     least = run_checking_every_tick(h, list(world.walls), 120.0)
-    assert h.result == "failure"  # blocked: without a collision monitor (next), it touches the wall
+    assert h.result == "failure"  # blocked: without a collision monitor it touches the wall
     assert h.truth.x == pytest.approx(10.0 - RADIUS_M, abs=1e-6) and h.truth.v_mps == 0.0
     truth = h.summary()["truth"]
     assert truth["collisions"] == 1 and truth["min_clearance_m"] == 0.0 and truth["blocked"]
@@ -246,7 +256,7 @@ steps:
   - turn: {angle: 90 deg}
   - drive: {distance: 5 m, speed: 0.3 m/s, stuck_after: 1 s}   # east, into the post
 on_failure: stop
-""", world=str(tmp_path / "w.yaml"), base_dir=tmp_path)
+""", world=str(tmp_path / "w.yaml"), base_dir=tmp_path, robot=robot_without_lidar(tmp_path))
     least = run_checking_every_tick(h, list(world.walls) + [o for o in world.obstacles if not isinstance(o, Person)],
                                     90.0)
     truth = h.summary()["truth"]
@@ -347,3 +357,15 @@ def test_the_swept_test_stops_where_a_fine_walk_along_the_move_first_touches(cou
         else:
             assert s == 1.0 or min(gaps) < 1e-3  # free, or it grazes something within the walk's resolution
     assert met >= 10  # the moves did meet things
+
+
+def test_with_the_default_lidar_the_20_m_drive_in_the_corridor_stops_before_the_wall_without_touching():
+    """The issue's scenario on robots/sim.yaml (LD19 and the collision monitor): stopped short, no contact."""
+    world = load_world(ROOT / "worlds" / "corridor.yaml")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - drive: {distance: 20 m, speed: 0.3 m/s, stuck_after: 2 s}\n",
+                                 world=str(ROOT / "worlds" / "corridor.yaml"))
+    least = run_checking_every_tick(h, list(world.walls), 120.0)
+    truth = h.summary()["truth"]
+    assert truth["collisions"] == 0 and truth["min_clearance_m"] > 0.02 and least > 0.02
+    assert h.truth.x > 9.0 and abs(h.truth.v_mps) < 1e-6  # it drove the corridor's length, then stopped short
+    assert any(e.kind == "collision_monitor" and "stop" in e.text for e in h.events)

@@ -36,9 +36,17 @@ def awake(h: MissionHarness) -> dict[str, bool]:
             "ekf": h.run.estimator is not None}
 
 
+def lidar_awake(h: MissionHarness) -> bool:
+    """True when the LiDAR (robots/sim.yaml's LD19) is polled and ray-cast on every tick of ``h``'s run."""
+    io = h.run.io
+    return "lidar" in io.sensors and any(type(getattr(e, "__self__", None)).__name__ == "SimLd19"
+                                         for e in io.sim.emulators)
+
+
 def test_a_mission_that_only_drives_leaves_gps_imu_and_ekf_asleep():
     h = harness(PATROL_LIKE)
     assert awake(h) == {"gps": False, "imu": False, "ekf": False}
+    assert lidar_awake(h)  # the collision monitor below the tree reads every scan, whatever the mission does
     assert any(e.kind == "asleep" and e.text.endswith("gps, imu, navigation") for e in h.events)
     assert h.run_to_end() == "success"
     assert h.blackboard("gps_fix") is None  # (the base's own IMU still reports: the base is always awake)
@@ -48,6 +56,7 @@ def test_a_mission_that_only_drives_leaves_gps_imu_and_ekf_asleep():
 def test_a_recorded_run_keeps_them_awake(tmp_path):
     h = harness(PATROL_LIKE, record_path=str(tmp_path / "run.mcap"))
     assert awake(h) == {"gps": True, "imu": True, "ekf": True}
+    assert lidar_awake(h)  # /scan is recorded
     h.run_to_end()
     close(h)
 

@@ -14,7 +14,7 @@ from typing import Any, Optional
 import py_trees
 
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LineObservation, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, VelocityCommand, WheelOdometry)
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,8 @@ KEYS: dict[str, KeySpec] = {k.name: k for k in (
     KeySpec("battery", BatteryState, "V", "-", "Latest battery voltage."),
     KeySpec("line", LineObservation, "m, rad", "body", "Latest line detection from the camera."),
     KeySpec("camera_frame", CameraFrame, "px", "camera", "Latest camera frame."),
+    KeySpec("scan", LaserScan, "m, rad", "lidar (profile lidar.mounting on base_link)",
+            "Latest LiDAR revolution: angles CCW, ranges (NaN = no return), stamp_s when read."),
     KeySpec("joystick", JoystickState, "-", "-", "Latest joystick state (named axes -1..1 and buttons)."),
     KeySpec("home", tuple, "deg", "WGS84", "(lat, lon) where the mission started: the first good fix."),
     KeySpec("cmd_mission", VelocityCommand, "m/s, rad/s", "body", "What the mission asks the base to do this tick."),

@@ -8,6 +8,7 @@ at which it was measured (or received, when the device gives no better time).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Optional, Union
 
@@ -190,3 +191,43 @@ class CameraFrame:
 
 Feedback = Union[WheelOdometry, ImuSample, BatteryState]
 """What a drive base reports on the wire it is commanded over (wheel odometry, its IMU, the battery)."""
+
+
+@dataclass(frozen=True)
+class LaserScan:
+    """One revolution of a 2D LiDAR, in the LiDAR's own frame (``lidar``: the profile's ``lidar.mounting`` on
+    base_link). Given by the drivers in :mod:`beastbt.devices.lidar_scan` (which re-exports it).
+
+    ``angles_rad`` counterclockwise from the LiDAR's 0 degree mark, in
+    [-pi, pi), in the order measured; ``ranges_m`` metres, NaN for no return
+    (no echo, out of range or masked); ``intensities`` the model's raw
+    reflectivity (LD19 0-255; RPLIDAR quality 0-63). ``stamp_s`` is the clock
+    time at which the revolution's last bytes were read, ``scan_time_s`` the
+    time the revolution took (1 / ``scan_rate_hz``).
+    """
+
+    stamp_s: float
+    angles_rad: np.ndarray
+    ranges_m: np.ndarray
+    intensities: np.ndarray
+    scan_rate_hz: float
+    model: str
+
+    @property
+    def scan_time_s(self) -> float:
+        """Duration of the revolution, seconds."""
+        return 1.0 / self.scan_rate_hz if self.scan_rate_hz > 0 else math.nan
+
+    @property
+    def valid_count(self) -> int:
+        """Number of points with a return (finite range)."""
+        return int(np.count_nonzero(np.isfinite(self.ranges_m)))
+
+    def __len__(self) -> int:
+        return int(self.angles_rad.shape[0])
+
+    def points_xy(self) -> np.ndarray:
+        """The returns as (n, 2) x, y in metres in the LiDAR's frame (no-return points left out)."""
+        ok = np.isfinite(self.ranges_m)
+        r, a = self.ranges_m[ok], self.angles_rad[ok]
+        return np.column_stack((r * np.cos(a), r * np.sin(a)))

@@ -26,6 +26,7 @@ import serial
 
 from beastbt.core.clock import Clock
 from beastbt.core.config import require_number as _require_number
+from beastbt.blackboard.types import LaserScan
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 
@@ -163,45 +164,6 @@ class LidarConfig:
         return float(self.min_rate_hz if self.min_rate_hz is not None else self.model["min_rate_hz"])
 
 
-@dataclass(frozen=True)
-class LaserScan:
-    """One revolution of a 2D LiDAR, in the LiDAR's own frame.
-
-    ``angles_rad`` counterclockwise from the LiDAR's 0 degree mark, in
-    [-pi, pi), in the order measured; ``ranges_m`` metres, NaN for no return
-    (no echo, out of range or masked); ``intensities`` the model's raw
-    reflectivity (LD19 0-255; RPLIDAR quality 0-63). ``stamp_s`` is the clock
-    time at which the revolution's last bytes were read, ``scan_time_s`` the
-    time the revolution took (1 / ``scan_rate_hz``).
-    """
-
-    stamp_s: float
-    angles_rad: np.ndarray
-    ranges_m: np.ndarray
-    intensities: np.ndarray
-    scan_rate_hz: float
-    model: str
-
-    @property
-    def scan_time_s(self) -> float:
-        """Duration of the revolution, seconds."""
-        return 1.0 / self.scan_rate_hz if self.scan_rate_hz > 0 else math.nan
-
-    @property
-    def valid_count(self) -> int:
-        """Number of points with a return (finite range)."""
-        return int(np.count_nonzero(np.isfinite(self.ranges_m)))
-
-    def __len__(self) -> int:
-        return int(self.angles_rad.shape[0])
-
-    def points_xy(self) -> np.ndarray:
-        """The returns as (n, 2) x, y in metres in the LiDAR's frame (no-return points left out)."""
-        ok = np.isfinite(self.ranges_m)
-        r, a = self.ranges_m[ok], self.angles_rad[ok]
-        return np.column_stack((r * np.cos(a), r * np.sin(a)))
-
-
 @dataclass
 class LidarStats:
     """What a LiDAR driver has seen since it started (counts, and the latest rate)."""
@@ -224,6 +186,15 @@ class LidarStats:
     port_errors: int = 0
     reasons: dict[str, int] = field(default_factory=dict)
     """Other counted conditions by name."""
+
+
+def base_points_xy(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
+    """The returns of ``scan`` as (n, 2) x, y in metres in base_link (x forward, y left), through ``mounting``
+    (no-return points left out): what a costmap or a collision monitor works in."""
+    xy = scan.points_xy()
+    yaw = math.radians(mounting.yaw_deg)
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.column_stack((mounting.x_m + c * xy[:, 0] - s * xy[:, 1], mounting.y_m + s * xy[:, 0] + c * xy[:, 1]))
 
 
 def ccw_rad_from_cw_deg(deg_cw: np.ndarray) -> np.ndarray:
@@ -544,4 +515,4 @@ class SerialLidar:
 
 
 __all__ = ["LaserScan", "LidarConfig", "LidarMounting", "LidarStats", "LIDAR_MODELS", "RevolutionAssembler",
-           "SerialLidar", "BadDataEvents", "ccw_rad_from_cw_deg", "sector_mask"]
+           "SerialLidar", "BadDataEvents", "base_points_xy", "ccw_rad_from_cw_deg", "sector_mask"]

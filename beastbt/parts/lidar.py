@@ -6,31 +6,41 @@ start stops the run before anything moves with a
 Faults once running (unplugged, garbage, a motor that stalls, silence) are
 the driver's business: counted, reported as events, the scan goes stale, the
 port is reopened. Each revolution is one :class:`~beastbt.devices.lidar_scan.LaserScan`
-reading from ``io.sensors['lidar']``; nothing on the blackboard reads it yet.
+reading from ``io.sensors['lidar']``; the run keeps the latest as the
+blackboard key ``scan`` (and ``run.latest[LaserScan]``).
 
-The simulator has no LiDAR emulator yet: a profile with ``lidar:`` runs on
-``--sim`` without it, and an event says so once.
+On the simulator an emulated LD19 or RPLIDAR A1 (:mod:`beastbt.sim.lidar_emulator`)
+ray-casts the world and writes the model's bytes into an emulated serial port
+read by the same driver: the same ``io.sensors['lidar']`` poll as on the robot.
+
+Nothing reads the scan unless the run does (a step, a condition, the
+collision monitor, a recording): otherwise the part sleeps, neither polling
+the driver nor emulating the LiDAR (:meth:`LidarPart.sleep`).
 """
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.devices.lidar_scan import LaserScan, LidarConfig, SerialLidar
 from beastbt.robot.hardware import open_serial
-from beastbt.robot.part import REAL, SIM, Build, Part
+from beastbt.robot.part import REAL, SIM, Build, Part, sleep_device
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
+from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # the simulator is imported only on --sim
+    from beastbt.sim.lidar_emulator import LidarEmulator
+    from beastbt.sim.robot import Emulator, Simulator
+
+LIDAR_RNG_STREAM = "lidar"
+"""The name of the LiDAR emulator's random stream (:meth:`Simulator.stream_rng`): its own, so fitting a LiDAR
+shifts no other emulator's noise."""
 
 LIDAR_HINT = ("check the LiDAR's USB cable and power (ls /dev/ttyUSB* /dev/serial/by-id/), that lidar.port names it, "
               "and that your user is in the 'dialout' group; beastbt doctor checks it")
-NOT_SIMULATED = ("LiDAR: the simulator has no LiDAR emulator yet: the profile's lidar ({type}) is left out of "
-                 "this run (no scans)")
-NOT_SIMULATED_WARNING = "lidar: the simulator has no LiDAR emulator yet: this run has no scans"
-"""The run warning for a profile with ``lidar:`` on ``--sim`` (printed before the run starts)."""
-NOT_SIMULATED_HINT = "the LiDAR is used on the robot; on the simulator it is left out (an emulator is to come)"
 
 
 def lidar_driver(config: LidarConfig, port: Any, clock: Clock, events: EventLog,
@@ -68,6 +78,39 @@ def attach_real_lidar(profile: RobotProfile, io: RobotIO, clock: Clock, events: 
     return driver
 
 
+def attach_sim_lidar(sim: "Simulator", profile: RobotProfile, io: RobotIO,
+                     events: EventLog) -> tuple[Optional["Emulator"], Optional[SerialLidar], Optional["LidarEmulator"]]:
+    """An emulated LD19 or RPLIDAR A1 on an emulated serial port, read by the real driver (``io.sensors['lidar']``).
+
+    Only when the profile has a ``lidar:`` section. Returns the emulator's
+    update (one of ``sim.emulators``), the driver and the emulator, or Nones.
+    """
+    if profile.section("lidar") is None:
+        return None, None, None
+    from beastbt.sim.lidar_emulator import RayCaster, make_emulator
+
+    config: LidarConfig = section_config(profile, "lidar", LidarConfig)
+    m = config.mounting
+    caster = RayCaster(sim.world.walls, sim.world.obstacles)
+    device = make_emulator(config.type, caster, sim.truth, sim.drive.contact, (m.x_m, m.y_m, m.yaw_deg),
+                           sim.stream_rng(LIDAR_RNG_STREAM))
+    sim.emulators.append(device.update)
+
+    def reopen() -> Any:
+        device.port.open()
+        return device.port
+
+    driver = lidar_driver(config, device.port, events.clock, events, reopen)
+
+    def poll(now_s: float) -> list[LaserScan]:
+        return driver.poll()
+
+    io.sensors["lidar"] = poll
+    io.capabilities.add("lidar")
+    io.closers.append(driver.close)
+    return device.update, driver, device
+
+
 class LidarPart(Part):
     """``lidar:``: one ``LaserScan`` per revolution of the LD19 or RPLIDAR A1 (``io.sensors['lidar']``)."""
 
@@ -75,17 +118,27 @@ class LidarPart(Part):
     section = "lidar"
     schema = "parts/lidar.schema.json"
     opens = "serial port (LD19 / RPLIDAR A1)"
+    fills = ("scan",)
     driver: Optional[SerialLidar] = None
-    """The driver on the robot (None on the simulator and in a replay)."""
+    """The driver (on the robot or the simulator; None in a replay)."""
+    emulator: Optional["Emulator"] = None
+    """The emulator's update on the simulator (removed when the part sleeps)."""
+    device: Optional["LidarEmulator"] = None
+    """The emulated LiDAR on the simulator."""
 
     def attach(self, build: Build) -> None:
-        """Open the LiDAR on the robot; on the simulator say once that it is not simulated yet."""
+        """Open the LiDAR on the robot, or the emulated one on the simulator."""
         assert build.io is not None
         if build.mode == REAL:
             self.driver = attach_real_lidar(build.profile, build.io, build.clock, build.events)
-        elif build.mode == SIM and build.profile.section("lidar") is not None:
-            config: LidarConfig = section_config(build.profile, "lidar", LidarConfig)
-            build.events.add("lidar_not_simulated", NOT_SIMULATED.format(type=config.type))
+        elif build.mode == SIM:
+            assert build.sim is not None
+            self.emulator, self.driver, self.device = attach_sim_lidar(build.sim, build.profile, build.io,
+                                                                       build.events)
+
+    def sleep(self, prepared: Prepared) -> None:
+        """Nothing reads the scans: neither poll the driver nor ray-cast the world."""
+        sleep_device(prepared, "lidar", self.emulator)
 
 
-__all__ = ["LidarPart", "attach_real_lidar", "lidar_driver", "LIDAR_HINT", "NOT_SIMULATED_WARNING"]
+__all__ = ["LidarPart", "attach_real_lidar", "attach_sim_lidar", "lidar_driver", "LIDAR_HINT", "LIDAR_RNG_STREAM"]

@@ -26,7 +26,7 @@ class RecordingPart(Part):
 
     name = "recording"
     schema = "parts/recording.schema.json"
-    reads = ("odometry", "imu", "gps_fix", "pose", "battery", "joystick")
+    reads = ("odometry", "imu", "gps_fix", "pose", "battery", "joystick", "scan")
 
     def install(self, prepared: Prepared) -> None:
         """Attach the recorder (it adds ``recording`` to the summary itself), with the live server if asked."""

@@ -11,7 +11,9 @@ Frames follow REP-105: ``map`` (the estimator's local east-north-up frame,
 metres) -> ``odom`` (dead reckoning, continuous) -> ``base_link`` (x forward,
 y left, z up, on the floor under the robot centre) -> ``camera_link`` (the
 camera on its gimbal) -> ``camera_optical`` (z forward, x right, y down). The
-names come from the robot profile's ``frames:`` (:class:`FramesConfig`).
+names come from the robot profile's ``frames:`` (:class:`FramesConfig`). A
+LiDAR adds ``base_link`` -> ``lidar`` (:data:`LIDAR_FRAME`, the profile's
+``lidar.mounting``), the frame of ``/scan``.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ import dataclasses
 import math
 from typing import Any, Optional, Sequence
 
+import numpy as np
+
 from beastbt.blackboard.types import FusedPose, GpsFix
 from beastbt.recording.config import FramesConfig
 
@@ -27,6 +31,10 @@ _IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 
 OPTICAL_FROM_LINK = {"x": -0.5, "y": 0.5, "z": -0.5, "w": 0.5}
 """Rotation of the optical frame (z forward, x right, y down) in camera_link (x forward, y left, z up)."""
+
+
+LIDAR_FRAME = "lidar"
+"""The LiDAR's frame: x at its 0 degree mark, z up; placed on base_link by the profile's ``lidar.mounting``."""
 
 
 def fox_time(t_ns: int) -> dict:
@@ -171,7 +179,8 @@ class CameraMount:
 
 
 def frame_transforms(t_ns: int, frames: FramesConfig, pose: Optional[FusedPose], odom: Optional[FusedPose],
-                     mount: Optional[CameraMount], pan_rad: float, tilt_rad: float) -> dict:
+                     mount: Optional[CameraMount], pan_rad: float, tilt_rad: float,
+                     lidar: Optional[dict] = None) -> dict:
     """A tick's ``foxglove.FrameTransforms``: map -> odom -> base_link -> camera_link -> camera_optical, and
     base_link -> gps.
 
@@ -179,7 +188,8 @@ def frame_transforms(t_ns: int, frames: FramesConfig, pose: Optional[FusedPose],
     (odom); without it map -> odom is the identity and base_link hangs from
     odom at the fused pose. ``pan_rad`` (left positive) and ``tilt_rad`` (up
     positive): the gimbal's last commanded angles. Without a camera
-    (``mount`` None) the tree ends at base_link.
+    (``mount`` None) the tree ends at base_link. ``lidar``: the profile's
+    ``lidar.mounting`` (``x_m``, ``y_m``, ``z_m``, ``yaw_deg``), which adds base_link -> lidar.
     """
     out = []
     body = odom if odom is not None else pose
@@ -194,6 +204,10 @@ def frame_transforms(t_ns: int, frames: FramesConfig, pose: Optional[FusedPose],
         # The GPS antenna, taken at the robot centre (the profile does not say where it sits): its fixes
         # then have a place in the tree.
         out.append(_transform(t_ns, frames.base_link, frames.gps, vector3(0.0, 0.0, 0.0), dict(_IDENTITY)))
+        if lidar is not None:
+            out.append(_transform(t_ns, frames.base_link, LIDAR_FRAME,
+                                  vector3(float(lidar["x_m"]), float(lidar["y_m"]), float(lidar["z_m"])),
+                                  quaternion(yaw_rad=math.radians(float(lidar["yaw_deg"])))))
         if mount is not None:
             # Pitch down is a positive rotation about y (x tips towards -z); tilting up lowers it.
             pitch = math.radians(mount.pitch_deg) - tilt_rad
@@ -230,6 +244,41 @@ def odometry(t_ns: int, frames: FramesConfig, odom: FusedPose) -> dict:
             "linear_velocity": vector3(odom.speed_mps, 0.0, 0.0),
             "angular_velocity": vector3(0.0, 0.0, odom.yaw_rate_rps),
             "pose_covariance": cov, "velocity_covariance": [0.0] * 36}
+
+
+def laser_scan(t_ns: int, scan: Any, source: Optional[str] = None) -> dict:
+    """A :class:`~beastbt.blackboard.types.LaserScan` as a ``foxglove.LaserScan`` in the :data:`LIDAR_FRAME`.
+
+    Foxglove spaces the points evenly from ``start_angle`` to ``end_angle``:
+    these are the first and last measured angles (radians counterclockwise,
+    unwrapped in the order measured: a head turning clockwise gives an end
+    below the start), exact for the even steps of the LD19 and close for
+    the A1's. No return (NaN, which JSON cannot carry) is written as range 0.
+    Ranges are kept to 0.01 mm, intensities as the models' integers (LD19 0-255, A1 quality 0-63): about 6 kB
+    per LD19 revolution before compression. Besides Foxglove's fields (the schema allows more, Foxglove
+    ignores them) it carries what a replay needs to rebuild the reading (:func:`scan_of`): ``stamp_s``,
+    ``scan_rate_hz``, ``model`` and ``source`` (the sensor that gave it).
+    """
+    angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
+    ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
+    n = len(angles)
+    return {"timestamp": fox_time(t_ns), "frame_id": LIDAR_FRAME, "pose": planar_pose(0.0, 0.0, 0.0),
+            "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
+            "ranges": np.round(ranges, 5).tolist(),
+            "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist(),
+            "stamp_s": float(scan.stamp_s), "scan_rate_hz": float(scan.scan_rate_hz), "model": str(scan.model),
+            "source": source}
+
+
+def scan_of(m: dict) -> Any:
+    """The :class:`~beastbt.blackboard.types.LaserScan` of a ``/scan`` message (:func:`laser_scan`): the angles
+    spaced evenly from start to end (as Foxglove draws them), range 0 as no return (NaN)."""
+    from beastbt.blackboard.types import LaserScan
+    ranges = np.asarray(m["ranges"], dtype=float)
+    ranges[ranges <= 0.0] = np.nan
+    angles = (np.linspace(m["start_angle"], m["end_angle"], len(ranges)) + math.pi) % (2.0 * math.pi) - math.pi
+    return LaserScan(float(m["stamp_s"]), angles, ranges, np.asarray(m["intensities"], dtype=float),
+                     float(m["scan_rate_hz"]), str(m["model"]))
 
 
 # -- camera ------------------------------------------------------------------------------------------
@@ -322,4 +371,4 @@ def camera_mount(mounting: Any) -> Optional[CameraMount]:
 
 __all__ = ["fox_time", "quaternion", "color", "vector3", "planar_pose", "pose_in_frame", "merge_fixes", "EpochFixes",
            "location_fix", "fused_location_fix", "camera_calibration", "line_annotations", "map_to_odom", "CameraMount", "frame_transforms", "odometry",
-           "camera_mount", "OPTICAL_FROM_LINK"]
+           "camera_mount", "OPTICAL_FROM_LINK", "LIDAR_FRAME", "laser_scan", "scan_of"]

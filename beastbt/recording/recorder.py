@@ -391,8 +391,9 @@ class McapRecorder:
         if self._gone:
             self._count_dropped(item)
             return
-        if self._pending_items + len(self._batch_items) >= self._max:
-            if self.block_when_full and self._started:
+        if self._pending_items + len(self._batch_items) >= self._max and (self._started or not self.block_when_full):
+            # (Before the writer starts, in the simulator, the few set-up items wait in the batch: none is lost.)
+            if self.block_when_full:
                 # Simulated time does not run away: wait for the writer, lose nothing.
                 self._send_batch()
                 self._pump(block=True, keep=self._max - 1)
@@ -650,6 +651,9 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         from beastbt.vision.line_detector import LineDetectorConfig
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
         info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
+    if profile.section("lidar") is not None:
+        from beastbt.devices.lidar_scan import LidarConfig
+        info["lidar_mounting"] = json.dumps(dataclasses.asdict(section_config(profile, "lidar", LidarConfig).mounting))
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
     if world is not None:

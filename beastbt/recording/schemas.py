@@ -2,7 +2,7 @@
 
 Every channel carries JSON messages (MCAP message encoding ``json``) described
 by a JSON Schema (schema encoding ``jsonschema``). Where Foxglove has a
-well-known schema (``foxglove.LocationFix``, ``foxglove.FrameTransforms``,
+well-known schema (``foxglove.LaserScan``, ``foxglove.LocationFix``, ``foxglove.FrameTransforms``,
 ``foxglove.PoseInFrame``, ``foxglove.CompressedImage``, ``foxglove.Log``...)
 the channel declares Foxglove's own schema (shipped in ``foxglove_schemas/``)
 under that name, so a run opens in Foxglove with a map, a 3D view, the images
@@ -84,6 +84,7 @@ FOXGLOVE_SCENE_UPDATE = foxglove_schema("SceneUpdate")
 FOXGLOVE_GEOJSON = foxglove_schema("GeoJSON")
 FOXGLOVE_CAMERA_CALIBRATION = foxglove_schema("CameraCalibration")
 FOXGLOVE_IMAGE_ANNOTATIONS = foxglove_schema("ImageAnnotations")
+FOXGLOVE_LASER_SCAN = foxglove_schema("LaserScan")
 
 # -- beastbt schemas (exact dataclass fields) ------------------------------------------
 
@@ -186,6 +187,7 @@ CHANNELS: dict[str, dict] = {
     "/camera/image": FOXGLOVE_COMPRESSED_IMAGE,
     "/camera/calibration": FOXGLOVE_CAMERA_CALIBRATION,  # with every image, its size (pinhole, no distortion)
     "/camera/annotations": FOXGLOVE_IMAGE_ANNOTATIONS,  # the detected line, its look-ahead point, a junction
+    "/scan": FOXGLOVE_LASER_SCAN,  # each LiDAR revolution, in the lidar frame (0 = no return)
     "/log": FOXGLOVE_LOG,
     # estimates
     "/estimate/fused": FUSED_POSE,

@@ -45,8 +45,8 @@ from typing import Any, Callable, NoReturn, Optional
 
 import numpy as np
 
-from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LineObservation,
-                                      VelocityCommand, WheelOdometry)
+from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LaserScan,
+                                      LineObservation, VelocityCommand, WheelOdometry)
 from beastbt.recording import foxglove as fx
 from beastbt.recording import schemas as rs
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
@@ -439,6 +439,8 @@ class RunFileWriter:
         self._mounting = mounting
         """The profile's camera mounting (metres, degrees): the camera's geometry for calibration and annotations."""
         self._lookahead_m = float(info.get("line_lookahead_m") or 0.0)
+        self._lidar: Optional[dict] = json.loads(info["lidar_mounting"]) if info.get("lidar_mounting") else None
+        """The profile's LiDAR mounting on base_link (metres, degrees): base_link -> lidar on /tf."""
         self._geometries: dict[tuple[int, int], Any] = {}
         self._epochs = fx.EpochFixes()
         self._gps_altitude_m = 0.0
@@ -604,6 +606,8 @@ class RunFileWriter:
                 emit(conv[0], t, d)
                 if r.__class__ is GpsFix:
                     fixes.append(r)
+            elif r.__class__ is LaserScan:
+                emit("/scan", t, fx.laser_scan(t, r, source))  # the revolution goes only there (no /sensors copy)
             elif r.__class__ is Frame:
                 emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
                                             "height": r.height, "image_recorded": r.image is not None,
@@ -643,7 +647,7 @@ class RunFileWriter:
         if pose is not None or pose_odom is not None:
             servo = self._servo_rad
             emit("/tf", t, fx.frame_transforms(t, frames, pose, pose_odom, self._mount, servo.get("pan", 0.0),
-                                               servo.get("tilt", 0.0)))
+                                               servo.get("tilt", 0.0), self._lidar))
         if cmd_mission is not None:
             emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
         if mux_source == "teleop":

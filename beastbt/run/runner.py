@@ -20,7 +20,7 @@ from beastbt.actuation.mux import CommandMux
 from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
 from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
@@ -36,7 +36,7 @@ Status = py_trees.common.Status
 
 SENSOR_KEYS = ("now_s", "mission_start_s", "odometry", "pose_odom", "pose", "gps_fix", "imu", "battery", "line",
                "camera_frame", "joystick", "home", "cmd_mission", "servo_requests", "servo_angles", "teleop_active",
-               "estop", "mux_source")
+               "estop", "mux_source", "scan")
 
 
 @dataclass
@@ -158,7 +158,7 @@ class MissionRun:
             for client in node.blackboards:
                 keys.update(key.lstrip("/") for key in client.read)
         if self.collision_monitor is not None:
-            keys.add("lidar")  # the collision monitor reads every scan, whatever the tree does
+            keys.update(("lidar", "scan"))  # the collision monitor reads every scan, whatever the tree does
         return frozenset(keys)
 
     def latest_scan(self) -> Optional[Any]:
@@ -290,7 +290,8 @@ class MissionRun:
         bb.pose = pose
         latest = self.latest
         for key, t in (("odometry", WheelOdometry), ("gps_fix", GpsFix), ("imu", ImuSample), ("battery", BatteryState),
-                       ("line", LineObservation), ("camera_frame", CameraFrame), ("joystick", JoystickState)):
+                       ("line", LineObservation), ("camera_frame", CameraFrame), ("joystick", JoystickState),
+                       ("scan", LaserScan)):
             if t in latest:
                 setattr(bb, key, latest[t])
         if gps and self.home is None:

@@ -9,6 +9,7 @@ robot.
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable
 
@@ -57,6 +58,16 @@ class Simulator:
     def child_rng(self) -> np.random.Generator:
         """A generator of its own for one emulator, drawn from the simulator's (deterministic per seed and order)."""
         return np.random.default_rng(self.rng.integers(2**63))
+
+    def stream_rng(self, name: str) -> np.random.Generator:
+        """A generator of its own for ``name``, derived from the seed without drawing from the simulator's.
+
+        For an emulator added after the others were in place (the LiDAR): the
+        others' draws do not shift when it is fitted, and its own depend only on the seed and ``name``.
+        """
+        key = zlib.crc32(name.encode("utf-8"))
+        entropy = self.rng.bit_generator.seed_seq.entropy  # type: ignore[attr-defined]
+        return np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(key,)))
 
     def world_model(self, section: str, model_cls: Any) -> Any:
         """``model_cls.from_dict`` of the world's ``section``; a bad value is a positioned InvalidInput."""

@@ -1,0 +1,460 @@
+"""Emulated 2D LiDARs: an LDRobot LD19 and a Slamtec RPLIDAR A1 that ray-cast the simulated world.
+
+Each emulator writes its model's bytes into a :class:`~beastbt.sim.serial_port.SimSerialPort`
+that the real driver (:mod:`beastbt.devices.ld19`, :mod:`beastbt.devices.rplidar`)
+reads, as the Waveshare and GPS emulators do: one code path from the bytes on.
+
+What a LiDAR sees is cast by :class:`RayCaster` from the LiDAR's pose
+(the robot's true pose composed with the profile's ``lidar.mounting``):
+walls and box sides as segments, cylinders and persons as circles, persons
+where they are at the time of the cast (:attr:`ContactWorld.person_xy`, so a
+person stopped by the robot is seen stopped). All of it is vectorised
+(rays x segments, rays x circles). Rays are cast in chunks (half a revolution's
+points at once, :data:`CHUNKS_PER_REVOLUTION`, with the pose at the chunk's start) and the chunk's bytes are
+fed to the port as their points' times come, so the driver reads them at the
+model's byte rate and a revolution's points span the revolution's time.
+
+Noise, per point: a Gaussian range error (:attr:`LidarModel.range_sigma_m`
+plus a part proportional to range), a dropout probability (no return), and
+no return beyond the model's range. Draws come from the emulator's own
+generator (see :meth:`beastbt.sim.robot.Simulator.stream_rng`), so adding a
+LiDAR shifts no other emulator's noise. Time is the simulator's only.
+
+Protocols, as the vendors document them (and as the drivers' docstrings cite):
+
+* LD19: one-way stream of 47-byte packets ``0x54 0x2C speed start 12x(dist, intensity) end timestamp crc8``,
+  angles clockwise in 0.01 degree, CRC-8 poly 0x4D; ~4500 points/s at 10 Hz (0.8 degree steps).
+* RPLIDAR A1: requests ``0xA5 cmd``; GET_HEALTH / GET_INFO answer a descriptor (``0xA5 0x5A``, length | mode << 30,
+  type) and a body; SCAN answers a descriptor (length 5, mode 1, type 0x81) then 5-byte samples until STOP or
+  RESET (which reboots and prints a banner). The motor spins while DTR is low; samples only come at speed.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from dataclasses import dataclass
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle, Person
+from beastbt.sim.serial_port import SimSerialPort
+
+CHUNKS_PER_REVOLUTION = 2
+"""Casts per revolution: each casts half a turn's points at once, with the poses at that half's start (the robot
+moves at most a few centimetres in it: 0.35 m/s x 0.09 s for the A1); more casts cost more NumPy calls."""
+
+NO_HIT = np.inf
+
+
+@dataclass(frozen=True)
+class LidarModel:
+    """What an emulated LiDAR measures and how fast: rate (Hz), points per second, range (m) and noise."""
+
+    rate_hz: float
+    points_per_s: float
+    range_m: tuple[float, float]
+    range_sigma_m: float
+    """Constant part of the range noise's standard deviation, m."""
+    range_sigma_ratio: float
+    """Part of the range noise's standard deviation proportional to the range (dimensionless)."""
+    dropout: float
+    """Probability that a point inside the range has no return."""
+    intensity: int
+    """The intensity (LD19, 0-255) or quality (A1, 0-63) of a return."""
+
+    @property
+    def step_deg(self) -> float:
+        """Angle between consecutive points, degrees."""
+        return 360.0 * self.rate_hz / self.points_per_s
+
+
+LD19_MODEL = LidarModel(rate_hz=10.0, points_per_s=4500.0, range_m=(0.02, 12.0), range_sigma_m=0.01,
+                        range_sigma_ratio=0.005, dropout=0.01, intensity=200)
+"""LD19 datasheet: 10 Hz, 4500 points/s (0.8 degree), 0.02-12 m, about +-10 mm at short range, worse far."""
+A1_MODEL = LidarModel(rate_hz=5.5, points_per_s=2000.0, range_m=(0.15, 12.0), range_sigma_m=0.01,
+                      range_sigma_ratio=0.01, dropout=0.02, intensity=47)
+"""RPLIDAR A1M8 datasheet: 5.5 Hz, 2000 samples/s (~1 degree), 0.15-12 m, 1 % of the range (2 % below 3 m)."""
+MODELS = {"ld19": LD19_MODEL, "rplidar_a1": A1_MODEL}
+
+
+class RayCaster:
+    """Distances from a point along many directions to the nearest wall or obstacle of a world (m).
+
+    Built once per world: walls and box sides become one (m, 4) segment
+    array, cylinders a circle array; persons are circles whose centres are
+    passed at each cast (where they are then).
+    """
+
+    def __init__(self, walls: Sequence[Any], obstacles: Sequence[Any]) -> None:
+        segs: list[tuple[float, float, float, float]] = [(w.x1, w.y1, w.x2, w.y2) for w in walls]
+        circles: list[tuple[float, float, float]] = []
+        radii: list[float] = []
+        for o in obstacles:
+            if isinstance(o, BoxObstacle):
+                c = o.corners()
+                segs += [(*c[i], *c[(i + 1) % 4]) for i in range(4)]
+            elif isinstance(o, CylinderObstacle):
+                circles.append((o.x, o.y, o.radius_m))
+            elif isinstance(o, Person):
+                radii.append(o.radius_m)
+        s = np.array(segs, dtype=float).reshape(-1, 4)
+        self._p = s[:, :2]
+        self._e = s[:, 2:] - s[:, :2]
+        c = np.array(circles, dtype=float).reshape(-1, 3)
+        self._circ_c = c[:, :2]
+        self._circ_r = c[:, 2]
+        self.person_r = np.array(radii, dtype=float)
+        """Each person's radius, in the world's order of persons (m)."""
+
+    def cast(self, ox: float, oy: float, angles: np.ndarray, person_xy: Optional[np.ndarray] = None) -> np.ndarray:
+        """Distance from (``ox``, ``oy``) along each world angle (rad, CCW from east) to the first thing hit; inf
+        where nothing is."""
+        dx, dy = np.cos(angles), np.sin(angles)
+        best = np.full(angles.shape, NO_HIT)
+        if len(self._p):
+            ex, ey = self._e[:, 0], self._e[:, 1]
+            wx, wy = self._p[:, 0] - ox, self._p[:, 1] - oy
+            # Ray o + t d meets segment p + u e where t = (w x e) / (d x e), u = (w x d) / (d x e).
+            denom = np.outer(dx, ey) - np.outer(dy, ex)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inv = 1.0 / denom
+                t = (wx * ey - wy * ex) * inv
+                u = (np.outer(dy, wx) - np.outer(dx, wy)) * inv
+            t[~((u >= 0.0) & (u <= 1.0) & (t > 0.0))] = NO_HIT
+            best = np.minimum(best, t.min(axis=1))
+        centres, radii = self._circ_c, self._circ_r
+        if person_xy is not None and len(person_xy):
+            centres = np.vstack((centres, person_xy))
+            radii = np.concatenate((radii, self.person_r))
+        if len(centres):
+            wx, wy = centres[:, 0] - ox, centres[:, 1] - oy
+            b = np.outer(dx, wx) + np.outer(dy, wy)  # distance along the ray to the closest approach
+            disc = b * b - (wx * wx + wy * wy - radii * radii)
+            with np.errstate(invalid="ignore"):
+                root = np.sqrt(disc)
+            near = b - root
+            t = np.where(near > 0.0, near, b + root)  # from inside a circle: its far side
+            t[~((disc >= 0.0) & (t > 0.0))] = NO_HIT
+            best = np.minimum(best, t.min(axis=1))
+        return best
+
+
+class LidarEmulator:
+    """What both models share: the world, the mounting, the noise and the chunked casting on the sim clock.
+
+    ``truth`` is the robot's true pose (:class:`~beastbt.sim.truth.RobotTruth`), ``contact`` the world's
+    :class:`~beastbt.sim.contact.ContactWorld` (for the persons' positions; None without obstacles), ``mounting``
+    the profile's (x_m, y_m, yaw_deg) on base_link.
+    """
+
+    def __init__(self, model: LidarModel, caster: RayCaster, truth: Any, contact: Any,
+                 mounting: tuple[float, float, float], rng: np.random.Generator) -> None:
+        self.model = model
+        self.caster = caster
+        self.truth = truth
+        self.contact = contact
+        self.mount_x, self.mount_y = float(mounting[0]), float(mounting[1])
+        self.mount_yaw = math.radians(float(mounting[2]))
+        self.rng = rng
+        self.port = SimSerialPort("sim-lidar", on_write=self.on_write)
+        self.next_point = 0
+        """Index of the next point to measure since the head started; point k is at k / points_per_s."""
+        self.t0_s = 0.0
+        """When point 0 was measured (sim s)."""
+        self._pending: list[list[Any]] = []
+        """Cast chunks not yet all sent: [item times (s), bytes, bytes per item, items sent]."""
+        self.casts = 0
+        """Chunks cast so far."""
+        self.chunk_s = 1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION)
+        """The sampling time one cast covers, s."""
+
+    def on_write(self, data: bytes) -> None:
+        """What the driver writes (the LD19 listens to nothing)."""
+
+    def measure(self, first: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``count`` points from index ``first``: device angles (degrees clockwise, 0-360) and distances in mm
+        (0 = no return), cast now from the LiDAR's true pose."""
+        m = self.model
+        k = np.arange(first, first + count, dtype=float)
+        deg_cw = (k * m.step_deg) % 360.0
+        t = self.truth
+        c, s = math.cos(t.yaw), math.sin(t.yaw)
+        ox = t.x + c * self.mount_x - s * self.mount_y
+        oy = t.y + s * self.mount_x + c * self.mount_y
+        angles = t.yaw + self.mount_yaw - np.radians(deg_cw)
+        persons = self.contact.person_xy if self.contact is not None and len(self.caster.person_r) else None
+        r = self.caster.cast(ox, oy, angles, persons)
+        self.casts += 1
+        lo, hi = m.range_m
+        noise = self.rng.standard_normal(count)
+        drop = self.rng.random(count) < m.dropout
+        finite = np.isfinite(r)
+        r = np.where(finite, r, 0.0)
+        r = r + noise * (m.range_sigma_m + m.range_sigma_ratio * r)
+        r[~finite | drop | (r < lo) | (r > hi)] = 0.0
+        return deg_cw, np.round(r * 1000.0)
+
+    def queue(self, times_s: np.ndarray, data: bytes) -> None:
+        """Send ``data``, made of ``len(times_s)`` equal items, each once the sim clock reaches its time (s)."""
+        self._pending.append([times_s, data, len(data) // len(times_s), 0])
+
+    def flush(self, now_s: float) -> None:
+        """Feed the port every queued item whose time has come."""
+        pending = self._pending
+        out = []
+        while pending:
+            times, data, size, sent = pending[0]
+            due = int(np.searchsorted(times, now_s + 1e-9, side="right"))
+            if due > sent:
+                out.append(data[sent * size:due * size])
+                pending[0][3] = due
+            if due < len(times):
+                break
+            pending.pop(0)
+        if out:
+            self.port.feed(b"".join(out))
+
+
+# -- LD19 ---------------------------------------------------------------------------------------------------
+
+LD19_POINTS = 12
+_LD19_DTYPE = np.dtype([("header", "u1"), ("verlen", "u1"), ("speed", "<u2"), ("start", "<u2"),
+                        ("points", [("mm", "<u2"), ("intensity", "u1")], (LD19_POINTS,)),
+                        ("end", "<u2"), ("stamp", "<u2"), ("crc", "u1")])
+assert _LD19_DTYPE.itemsize == 47
+
+
+def _crc_table() -> np.ndarray:
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x4D) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+        table.append(crc)
+    return np.array(table, dtype=np.uint8)
+
+
+_CRC_TABLE = _crc_table()
+
+
+def _position_tables(n: int) -> np.ndarray:
+    # LDRobot's CRC-8 starts at 0 with no final XOR, so it is linear over GF(2): the CRC of a packet is the XOR
+    # of the CRCs of each of its bytes alone at its place. A byte v at the last place gives TABLE[v]; each zero
+    # byte after it applies TABLE once more. One (n, 256) table then turns a packet's CRC into one look-up per
+    # byte and a reduction, for all packets at once.
+    out = np.zeros((n, 256), dtype=np.uint8)
+    out[n - 1] = _CRC_TABLE
+    for pos in range(n - 2, -1, -1):
+        out[pos] = _CRC_TABLE[out[pos + 1]]
+    return out
+
+
+_CRC_AT = _position_tables(46)
+
+
+def ld19_crc8(packets: np.ndarray) -> np.ndarray:
+    """LDRobot's CRC-8 (poly 0x4D, init 0) of each row of ``packets`` ((n, 46) uint8), for all rows at once."""
+    table = _CRC_AT if packets.shape[1] == _CRC_AT.shape[0] else _position_tables(packets.shape[1])
+    return np.bitwise_xor.reduce(table[np.arange(packets.shape[1]), packets], axis=1)
+
+
+class SimLd19(LidarEmulator):
+    """An LD19 that starts turning at power-up (t = 0) and streams packets for as long as the run lasts."""
+
+    def __init__(self, caster: RayCaster, truth: Any, contact: Any, mounting: tuple[float, float, float],
+                 rng: np.random.Generator, model: LidarModel = LD19_MODEL) -> None:
+        super().__init__(model, caster, truth, contact, mounting, rng)
+        self.packet_s = LD19_POINTS / model.points_per_s
+        self.chunk_packets = max(1, int(round(1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION * self.packet_s))))
+        self.chunk_s = self.chunk_packets * self.packet_s
+
+    def packets(self, first_packet: int, count: int) -> bytes:
+        """``count`` packets from packet index ``first_packet``, cast now."""
+        m = self.model
+        deg, mm = self.measure(first_packet * LD19_POINTS, count * LD19_POINTS)
+        deg = deg.reshape(count, LD19_POINTS)
+        mm = mm.reshape(count, LD19_POINTS)
+        out = np.zeros(count, dtype=_LD19_DTYPE)
+        out["header"], out["verlen"] = 0x54, 0x2C
+        out["speed"] = int(round(m.rate_hz * 360.0))
+        out["start"] = np.round(deg[:, 0] * 100.0).astype(np.int64) % 36000
+        out["end"] = np.round(deg[:, -1] * 100.0).astype(np.int64) % 36000
+        out["points"]["mm"] = mm.astype(np.uint16)
+        out["points"]["intensity"] = np.where(mm > 0, m.intensity, 0).astype(np.uint8)
+        times = self.t0_s + (np.arange(first_packet, first_packet + count) + 1) * self.packet_s
+        out["stamp"] = np.round(times * 1000.0).astype(np.int64) % 30000
+        raw = out.view(np.uint8).reshape(count, 47)
+        raw[:, 46] = ld19_crc8(raw[:, :46])
+        return raw.tobytes()
+
+    def update(self, now_s: float, dt_s: float) -> None:
+        """Cast and queue the packets due by the end of the next chunk, and feed those due by ``now_s``."""
+        while True:
+            first = self.next_point // LD19_POINTS
+            start_s = self.t0_s + first * self.packet_s
+            if start_s > now_s + 1e-9:
+                break
+            n = self.chunk_packets
+            self.queue(self.t0_s + (np.arange(first, first + n) + 1) * self.packet_s, self.packets(first, n))
+            self.next_point += n * LD19_POINTS
+        self.flush(now_s)
+
+
+# -- RPLIDAR A1 ---------------------------------------------------------------------------------------------
+
+A1_INFO = bytes((0x18, 29, 1, 7)) + bytes(range(0x10, 0x20))
+"""GET_INFO body: model 0x18 (A1M8), firmware minor 29, major 1 (1.29), hardware 7, a 16-byte serial number."""
+A1_BANNER = b"RP LIDAR System.\r\nFirmware Ver 1.29 - rc9, HW Ver 7\r\nModel: 18\r\n"
+A1_SPINUP_S = 0.8
+"""From DTR low to the motor at speed, s (the A1 takes about a second)."""
+
+
+def a1_descriptor(length: int, mode: int, answer_type: int) -> bytes:
+    """An answer descriptor: 0xA5 0x5A, length (30 bits) | mode << 30 as u32 LE, and the type byte."""
+    return bytes((0xA5, 0x5A)) + struct.pack("<I", (length & 0x3FFFFFFF) | (mode << 30)) + bytes((answer_type,))
+
+
+class A1Port(SimSerialPort):
+    """The A1's USB adapter: a serial port whose DTR line drives the motor (low = spin)."""
+
+    def __init__(self, device: "SimRplidarA1") -> None:
+        super().__init__("sim-rplidar", on_write=device.on_write)
+        self._device = device
+        self._dtr = True
+
+    @property
+    def dtr(self) -> bool:
+        """The DTR line (True = set = motor stopped)."""
+        return self._dtr
+
+    @dtr.setter
+    def dtr(self, value: bool) -> None:
+        self._dtr = bool(value)
+        self._device.motor(not self._dtr)
+
+
+class SimRplidarA1(LidarEmulator):
+    """An RPLIDAR A1: idle until asked; answers STOP, RESET, GET_INFO, GET_HEALTH and SCAN as the protocol says.
+
+    :attr:`state` is ``idle``, ``scanning`` or ``resetting``; :attr:`requests` lists the commands received.
+    """
+
+    def __init__(self, caster: RayCaster, truth: Any, contact: Any, mounting: tuple[float, float, float],
+                 rng: np.random.Generator, model: LidarModel = A1_MODEL, health: tuple[int, int] = (0, 0)) -> None:
+        super().__init__(model, caster, truth, contact, mounting, rng)
+        self.port = A1Port(self)
+        self.state = "idle"
+        self.health = health
+        self.requests: list[int] = []
+        self.motor_since_s: Optional[float] = None
+        """When the motor was switched on (sim s), None while it is off."""
+        self.now_s = 0.0
+        self._rx = bytearray()
+        self._scan_from_s = 0.0
+        self._reset_until_s = 0.0
+        self.chunk_points = max(1, int(round(model.points_per_s / (model.rate_hz * CHUNKS_PER_REVOLUTION))))
+        self.chunk_s = self.chunk_points / model.points_per_s
+
+    def motor(self, on: bool) -> None:
+        """The adapter's DTR changed: the motor starts (spinning up) or stops."""
+        if on and self.motor_since_s is None:
+            self.motor_since_s = self.now_s
+        elif not on:
+            self.motor_since_s = None
+
+    def on_write(self, data: bytes) -> None:
+        """Requests from the driver: ``0xA5 <cmd>``; anything else is skipped, as the device does."""
+        self._rx += data
+        while len(self._rx) >= 2:
+            if self._rx[0] != 0xA5:
+                del self._rx[0]
+                continue
+            cmd = self._rx[1]
+            del self._rx[:2]
+            self.requests.append(cmd)
+            self._command(cmd)
+
+    def _command(self, cmd: int) -> None:
+        if self.state == "resetting":
+            return  # rebooting: deaf
+        if cmd == 0x25:  # STOP: no answer
+            self._stop()
+        elif cmd == 0x40:  # RESET: reboot, then the banner
+            self._stop()
+            self.state = "resetting"
+            self._reset_until_s = self.now_s + 0.5
+            self.queue(np.array([self._reset_until_s]), A1_BANNER)
+        elif cmd == 0x52:  # GET_HEALTH
+            status, code = self.health
+            self.port.feed(a1_descriptor(3, 0, 0x06) + bytes((status, code & 0xFF, code >> 8)))
+        elif cmd == 0x50:  # GET_INFO
+            self.port.feed(a1_descriptor(20, 0, 0x04) + A1_INFO)
+        elif cmd == 0x20:  # SCAN
+            self._stop()
+            self.port.feed(a1_descriptor(5, 1, 0x81))
+            self.state = "scanning"
+            self._scan_from_s = self.now_s
+            self.next_point = -1  # set at the first chunk: the head's angle where sampling starts
+
+    def _stop(self) -> None:
+        self.state = "idle"
+        self._pending.clear()
+
+    def at_speed_s(self) -> Optional[float]:
+        """When the motor is (or will be) at speed, sim s; None while it is off."""
+        return None if self.motor_since_s is None else self.motor_since_s + A1_SPINUP_S
+
+    def samples(self, first: int, count: int) -> bytes:
+        """``count`` 5-byte scan samples from point index ``first``, cast now (S set where a revolution starts)."""
+        m = self.model
+        deg, mm = self.measure(first, count)
+        k = np.arange(first, first + count)
+        per_rev = m.points_per_s / m.rate_hz
+        new_rev = np.floor(k / per_rev) != np.floor((k - 1) / per_rev)
+        quality = np.where(mm > 0, m.intensity, 0)
+        s = new_rev.astype(np.int64)
+        out = np.empty((count, 5), dtype=np.uint8)
+        out[:, 0] = (quality << 2) | ((1 - s) << 1) | s
+        q6 = np.round(deg * 64.0).astype(np.int64) & 0x7FFF
+        out[:, 1] = ((q6 & 0x7F) << 1) | 1
+        out[:, 2] = q6 >> 7
+        q2 = np.clip(mm * 4.0, 0, 0xFFFF).astype(np.int64)
+        out[:, 3] = q2 & 0xFF
+        out[:, 4] = q2 >> 8
+        return out.tobytes()
+
+    def update(self, now_s: float, dt_s: float) -> None:
+        """Finish a reset, stream the samples due by ``now_s`` while scanning at speed."""
+        self.now_s = now_s
+        if self.state == "resetting" and now_s >= self._reset_until_s:
+            self.state = "idle"
+        if self.state == "scanning":
+            ready = self.at_speed_s()
+            if ready is not None:
+                start = max(ready, self._scan_from_s)
+                if self.next_point < 0:
+                    self.t0_s = 0.0
+                    self.next_point = int(math.ceil(start * self.model.points_per_s))
+                point_s = 1.0 / self.model.points_per_s
+                while self.next_point * point_s <= now_s + 1e-9:
+                    first, n = self.next_point, self.chunk_points
+                    self.queue((np.arange(first, first + n) + 1) * point_s, self.samples(first, n))
+                    self.next_point += n
+            else:  # the motor stopped: nothing more, and sampling starts afresh once it is back at speed
+                self._pending.clear()
+                self.next_point = -1
+        self.flush(now_s)
+
+
+def make_emulator(kind: str, caster: RayCaster, truth: Any, contact: Any, mounting: tuple[float, float, float],
+                  rng: np.random.Generator) -> LidarEmulator:
+    """The emulator of LiDAR ``kind`` (``ld19`` or ``rplidar_a1``)."""
+    if kind == "rplidar_a1":
+        return SimRplidarA1(caster, truth, contact, mounting, rng)
+    return SimLd19(caster, truth, contact, mounting, rng)
+
+
+__all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "SimRplidarA1", "A1Port", "make_emulator",
+           "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
