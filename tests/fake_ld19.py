@@ -14,12 +14,11 @@ clock on purpose (test support).
 from __future__ import annotations
 
 import math
-import os
 import struct
-import threading
 import time
-import tty
 from dataclasses import dataclass, field
+
+from pty_device import RoomLidar
 
 STEP_S = 0.005
 
@@ -78,21 +77,17 @@ def ld19_packet(speed_dps: int, start_cdeg: int, points: list[tuple[int, int]], 
     return body + bytes([crc if good_crc else crc ^ 0x5A])
 
 
-class FakeLd19:
+class FakeLd19(RoomLidar):
     """An LD19 streaming a synthetic room on a pty; use as a context manager, open ``port`` at 230400."""
+
+    thread_name = "fake-ld19"
 
     def __init__(self, rate_hz: float = 10.0, points_per_s: float = 4500.0, room: SyntheticRoom | None = None,
                  max_range_m: float = 12.0) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.master)
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.port = os.ttyname(self.slave)
-        self.room = room if room is not None else SyntheticRoom()
+        super().__init__(room if room is not None else SyntheticRoom(), max_range_m)
         self.rate_hz = rate_hz
         """Rotation rate of the head, Hz (also what the speed field says)."""
         self.points_per_s = points_per_s
-        self.max_range_m = max_range_m
         self.silent = False
         """While True nothing is sent (an unplugged or dead device)."""
         self.bad_crc_next = 0
@@ -101,37 +96,7 @@ class FakeLd19:
         """The next this-many packets go out in two writes, 30 ms apart."""
         self.packets_sent = 0
         self.bad_crc_sent = 0
-        self._garbage = bytearray()
         self._phase_deg = 0.0
-        self._stop = threading.Event()
-        self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._run, name="fake-ld19", daemon=True)
-
-    def __enter__(self) -> "FakeLd19":
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        os.close(self.master)
-        os.close(self.slave)
-
-    def inject(self, garbage: bytes) -> None:
-        """Send ``garbage`` before the next packet."""
-        with self._lock:
-            self._garbage += garbage
-
-    def truth_m(self, ccw_rad: float) -> float:
-        """The true range in direction ``ccw_rad`` (NaN beyond the maximum range)."""
-        r = self.room.range_m(ccw_rad)
-        return r if r <= self.max_range_m else math.nan
-
-    def _write(self, data: bytes) -> None:
-        try:
-            os.write(self.master, data)
-        except (BlockingIOError, OSError):
-            pass  # nobody reads: a real UART overruns the same way
 
     def _packet(self, stamp_ms: int) -> bytes:
         speed = int(round(self.rate_hz * 360.0))

@@ -20,11 +20,10 @@ from __future__ import annotations
 import math
 import os
 import struct
-import threading
 import time
-import tty
 
 from fake_ld19 import SyntheticRoom
+from pty_device import RoomLidar
 
 STEP_S = 0.005
 BANNER = b"RP LIDAR System.\r\nFirmware Ver 1.29 - rc9, HW Ver 7\r\nModel: 18\r\n"
@@ -47,24 +46,20 @@ def scan_sample(new_revolution: bool, quality: int, angle_deg: float, distance_m
     return bytes((b0, b1, b2)) + struct.pack("<H", distance_q2)
 
 
-class FakeRplidar:
+class FakeRplidar(RoomLidar):
     """An RPLIDAR A1 on a pty; use as a context manager and open ``port`` at 115200 baud."""
+
+    thread_name = "fake-rplidar"
 
     def __init__(self, rate_hz: float = 5.5, samples_per_s: float = 2000.0, room: SyntheticRoom | None = None,
                  spinup_s: float = 0.0, health: tuple[int, int] = (0, 0), max_range_m: float = 12.0) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.master)
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.port = os.ttyname(self.slave)
-        self.room = room if room is not None else SyntheticRoom()
+        super().__init__(room if room is not None else SyntheticRoom(), max_range_m)
         self.rate_hz = rate_hz
         self.samples_per_s = samples_per_s
         self.spinup_s = spinup_s
         """Seconds from motor on to full speed; quality-0 samples without S bit meanwhile."""
         self.health = health
         """(status, error code) GET_HEALTH answers; a RESET clears an error (status 2) once."""
-        self.max_range_m = max_range_m
         self.motor_on = True
         """Stands for DTR low (see the module docstring)."""
         self.silent = False
@@ -75,40 +70,10 @@ class FakeRplidar:
         """Every command byte received, in order."""
         self.scanning = False
         self.serial_number = bytes(range(0x10, 0x20))
-        self._garbage = bytearray()
         self._motor_since: float | None = None
         self._phase_deg = 0.0
         self._last_angle: float | None = None
         self._rx = bytearray()
-        self._stop = threading.Event()
-        self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._run, name="fake-rplidar", daemon=True)
-
-    def __enter__(self) -> "FakeRplidar":
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        os.close(self.master)
-        os.close(self.slave)
-
-    def inject(self, garbage: bytes) -> None:
-        """Send ``garbage`` with the next samples."""
-        with self._lock:
-            self._garbage += garbage
-
-    def truth_m(self, ccw_rad: float) -> float:
-        """The true range in direction ``ccw_rad`` (NaN beyond the maximum range)."""
-        r = self.room.range_m(ccw_rad)
-        return r if r <= self.max_range_m else math.nan
-
-    def _write(self, data: bytes) -> None:
-        try:
-            os.write(self.master, data)
-        except (BlockingIOError, OSError):
-            pass
 
     def _handle(self, out: bytearray) -> None:
         while len(self._rx) >= 2:

@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import os
 import select
-import threading
 import time
-import tty
 from typing import Optional
 
 import numpy as np
@@ -24,18 +22,18 @@ import numpy as np
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.waveshare_emulator import SimWaveshareBase
+from pty_device import PtyDevice
 
 PHYSICS_DT_S = 0.01
 
 
-class FakeWaveshare:
+class FakeWaveshare(PtyDevice):
     """The emulated sub-controller of ``firmware`` (``ros`` or ``general``) on a pty; use as a context manager."""
 
+    thread_name = "fake-waveshare"
+
     def __init__(self, firmware: str = "ros", gimbal_present: bool = True) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.master)
-        tty.setraw(self.slave)
-        self.port = os.ttyname(self.slave)
+        super().__init__()
         model = DriveModel(track_width_m=0.17, max_wheel_speed_mps=0.5, max_wheel_accel_mps2=1.5,
                            motor_time_constant_s=0.08, slip_sigma=0.0, slip_bias=0.0, footprint_radius_m=0.15)
         self.drive = DiffDriveSim(model, RobotTruth(), np.random.default_rng(0))
@@ -45,19 +43,6 @@ class FakeWaveshare:
         """(monotonic s, command) for every command the firmware parsed."""
         self.targets: list[tuple[float, float, float]] = []
         """(monotonic s, left, right) whenever the firmware's wheel targets changed."""
-        self._stop = threading.Event()
-        self._lock = threading.Lock()
-        self._thread = threading.Thread(target=self._run, name="fake-waveshare", daemon=True)
-
-    def __enter__(self) -> "FakeWaveshare":
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        os.close(self.master)
-        os.close(self.slave)
 
     def _run(self) -> None:
         start = time.monotonic()
