@@ -29,6 +29,7 @@ from beastbt.core.config import require_number as _require_number
 from beastbt.blackboard.types import LaserScan
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
+from beastbt.devices.reopening_port import PortReopener
 
 LIDAR_MODELS: dict[str, dict[str, Any]] = {
     "ld19": {"name": "LDRobot LD19", "baud": 230400, "range_m": (0.02, 12.0), "min_rate_hz": 5.0},
@@ -336,7 +337,6 @@ class SerialLidar:
         self._port = port
         self._clock = clock
         self._events = events
-        self._open_port = open_port
         self.stats = LidarStats()
         """Counts of bytes, packets, failures and scans; the latest rate and points per scan."""
         self._rx = bytearray()
@@ -345,8 +345,8 @@ class SerialLidar:
         self._latest: Optional[LaserScan] = None
         self._started_s = clock.now()
         self._silent_reported = False
-        self._lost_reported = port is None
-        self._next_open_s = -math.inf
+        self._reopener = PortReopener(events, "lidar", self.label, self.config.port, open_port,
+                                      self.config.reopen_interval_s, lost_reported=port is None)
         self._opened = False
         self._last_read_s = self._started_s
         self._read_from = 0
@@ -375,43 +375,17 @@ class SerialLidar:
     # --- the port -----------------------------------------------------------------------------
     def _lose_port(self, now_s: float, exc: BaseException) -> None:
         port, self._port = self._port, None
-        if port is not None:
-            try:
-                port.close()
-            except Exception:  # noqa: BLE001 - a vanished device may fail to close; it is gone anyway
-                pass
         self._rx.clear()
         self._assembler.reset()
         self.stats.port_errors += 1
-        self._next_open_s = now_s + self.config.reopen_interval_s
-        how = (f"retrying every {self.config.reopen_interval_s:g} s" if self._open_port is not None
-               else "no way to reopen it was given")
-        self._events("lidar_port_lost", f"{self.label}: serial port {self.config.port} failed ({exc}); "
-                                        f"scans stop; {how}")
-        self._lost_reported = True
+        self._reopener.lost(now_s, port, exc, "scans stop")
 
     def _try_open(self, now_s: float) -> bool:
-        if self._open_port is None:
-            if not self._lost_reported:
-                self._events("lidar_port_lost", f"{self.label}: no serial port for {self.config.port}")
-                self._lost_reported = True
-            return False
-        if now_s < self._next_open_s:
-            return False
-        try:
-            port = self._open_port()
-        except (serial.SerialException, OSError) as exc:
-            self._next_open_s = now_s + self.config.reopen_interval_s
-            if not self._lost_reported:
-                self._events("lidar_port_lost", f"{self.label}: cannot open {self.config.port} ({exc}); "
-                                                f"retrying every {self.config.reopen_interval_s:g} s")
-                self._lost_reported = True
+        port = self._reopener.reopen(now_s)
+        if port is None:
             return False
         self._port = port
         self._rx.clear()
-        if self._lost_reported:
-            self._events("lidar_port_reopened", f"{self.label}: serial port {self.config.port} is back")
-        self._lost_reported = False
         self._opened = False
         return True
 

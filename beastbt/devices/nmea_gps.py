@@ -21,7 +21,6 @@ without blocking; :meth:`NmeaGps.poll` watches for the ``$PMTK001`` answers.
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import re
 from dataclasses import dataclass, field, fields
 from decimal import ROUND_DOWN, Decimal, InvalidOperation
@@ -34,6 +33,7 @@ from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import GpsFix
 from beastbt.core.config import require_number as _require_number
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
+from beastbt.devices.reopening_port import PortReopener
 from beastbt.core.clock import Clock
 
 KNOTS_TO_MPS = 1852.0 / 3600.0
@@ -404,16 +404,14 @@ class NmeaGps:
         self._port = port
         self._clock = clock
         self._events = events
-        self._open_port = open_port
         self.config = config if config is not None else GpsConfig()
         self.config.validate()
         self.stats = GpsStats()
         """Counts of sentences read, used, ignored and rejected (by reason)."""
         self._rejects = _RejectEvents(events, self.config.bad_data_event_interval_s)
         self._rx = bytearray()
-        self._next_open_s = -math.inf
         self._port_lost = port is None
-        self._lost_reported = False
+        self._reopener = PortReopener(events, "gps", "GPS", self.config.port, open_port, self.config.reopen_interval_s)
         self._latest_fix: Optional[GpsFix] = None
         self._no_fix_reported = False  # receiver said "no fix" after our latest fix
         self._have_fix_state: Optional[bool] = None  # for fix acquired/lost events
@@ -504,42 +502,17 @@ class NmeaGps:
     # --- the port ---------------------------------------------------------------------------
     def _lose_port(self, now_s: float, exc: BaseException) -> None:
         port, self._port = self._port, None
-        if port is not None:
-            try:
-                port.close()
-            except Exception:  # noqa: BLE001 - a vanished device may fail to close; it is gone anyway
-                pass
         self._rx.clear()
         self._pending.clear()  # answers cannot come; configure() is repeated on reopen
         self._port_lost = True
-        self._next_open_s = now_s + self.config.reopen_interval_s
-        how = (f"retrying every {self.config.reopen_interval_s:g} s" if self._open_port is not None
-               else "no way to reopen it was given")
-        self._events("gps_port_lost", f"GPS: serial port {self.config.port} failed ({exc}); position goes stale; {how}")
-        self._lost_reported = True
+        self._reopener.lost(now_s, port, exc, "position goes stale")
 
     def _try_open(self, now_s: float) -> bool:
-        if self._open_port is None:
-            if not self._lost_reported:
-                self._events("gps_port_lost", f"GPS: no serial port for {self.config.port} and no way to open one")
-                self._lost_reported = True
-            return False
-        if now_s < self._next_open_s:
-            return False
-        try:
-            port = self._open_port()
-        except (serial.SerialException, OSError) as exc:
-            self._next_open_s = now_s + self.config.reopen_interval_s
-            if not self._lost_reported:
-                self._events("gps_port_lost", f"GPS: cannot open serial port {self.config.port} ({exc}); "
-                                              f"retrying every {self.config.reopen_interval_s:g} s")
-                self._lost_reported = True
+        port = self._reopener.reopen(now_s)
+        if port is None:
             return False
         self._port = port
         self._rx.clear()
-        if self._lost_reported:
-            self._events("gps_port_reopened", f"GPS: serial port {self.config.port} is back")
-        self._lost_reported = False
         if self._configure_requested:
             self._send_config(now_s)
         return self._port is not None
