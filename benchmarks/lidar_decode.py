@@ -23,35 +23,13 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))
 
 from beastbt.core.clock import SimClock  # noqa: E402
 from beastbt.devices.ld19 import Ld19Lidar, crc8  # noqa: E402
 from beastbt.devices.lidar_scan import LidarConfig  # noqa: E402
 from beastbt.devices.rplidar import RplidarA1  # noqa: E402
-
-
-class Port:
-    """An in-memory port: reads give what was fed."""
-
-    is_open = True
-
-    def __init__(self) -> None:
-        self.rx = bytearray()
-
-    @property
-    def in_waiting(self) -> int:
-        return len(self.rx)
-
-    def read(self, size: int = 1) -> bytes:
-        out = bytes(self.rx[:size])
-        del self.rx[:size]
-        return out
-
-    def write(self, data: bytes) -> int:
-        return len(data)
-
-    def close(self) -> None:
-        pass
+from lidar_support import MemorySerial as Port  # noqa: E402 - the tests' in-memory port
 
 
 def ld19_stream(revolutions: int) -> bytes:

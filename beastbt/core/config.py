@@ -95,6 +95,20 @@ def dataclass_from_dict(cls: type[T], data: Any, what: str) -> T:
         raise ValueError(text if text.startswith(what) else f"{what}: {text}") from None
 
 
+def check_config_keys(data: Any, cls: type, what: str) -> None:
+    """Refuse a non-mapping or keys that are not fields of the dataclass ``cls``; ``what`` names the config.
+
+    Raises ``ValueError`` ("{what} config must be a mapping ..." or "unknown {what} config key(s): ...").
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"{what} config must be a mapping, got {type(data).__name__}")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} config key(s): {', '.join(map(str, unknown))} "
+                         f"(known: {', '.join(sorted(known))})")
+
+
 def require_number(name: str, value: Any, *, minimum: Optional[float] = None, positive: bool = False) -> float:
     """``value`` as a float, or a ValueError naming ``name`` when it is not a finite number in range."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):

@@ -18,13 +18,14 @@ the injected clock only.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 import serial
 
 from beastbt.core.clock import Clock
+from beastbt.core.config import check_config_keys
 from beastbt.core.config import require_number as _require_number
 from beastbt.blackboard.types import LaserScan
 from beastbt.core.schema_defaults import schema_defaults
@@ -89,13 +90,7 @@ class LidarConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "LidarConfig":
         """Build a config from a profile dict; unknown keys or bad values raise ``ValueError``."""
-        if not isinstance(d, dict):
-            raise ValueError(f"lidar config must be a mapping, got {type(d).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown lidar config key(s): {', '.join(map(str, unknown))} "
-                             f"(known: {', '.join(sorted(known))})")
+        check_config_keys(d, cls, "lidar")
         if "type" not in d:
             raise ValueError(f"lidar needs a type: one of {', '.join(LIDAR_MODELS)}")
         cfg = cls(type=d["type"])

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import re
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from decimal import ROUND_DOWN, Decimal, InvalidOperation
 from typing import Any, Callable, Optional
 
@@ -31,6 +31,7 @@ import serial
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import GpsFix
+from beastbt.core.config import check_config_keys
 from beastbt.core.config import require_number as _require_number
 from beastbt.devices.interfaces import EventSink, SerialLike, ignore_events
 from beastbt.devices.reopening_port import PortReopener
@@ -151,13 +152,7 @@ class GpsConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "GpsConfig":
         """Build a config from a profile dict; unknown keys or bad values raise ``ValueError``."""
-        if not isinstance(d, dict):
-            raise ValueError(f"gps config must be a mapping, got {type(d).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
-            raise ValueError(f"unknown gps config key(s): {', '.join(map(str, unknown))} "
-                             f"(known: {', '.join(sorted(known))})")
+        check_config_keys(d, cls, "gps")
         kw: dict[str, Any] = dict(d)
         cfg = cls()
         if "base_error_m" in kw:
