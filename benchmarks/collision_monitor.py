@@ -34,7 +34,8 @@ sys.path.insert(0, str(REPO / "tests"))
 
 import numpy as np  # noqa: E402
 
-from beastbt.actuation.collision_monitor import CollisionMonitor, CollisionMonitorConfig, scan_to_base  # noqa: E402
+from beastbt.actuation.collision_monitor import CollisionMonitor, CollisionMonitorConfig  # noqa: E402
+from beastbt.devices.lidar_scan import base_points_xy  # noqa: E402
 from beastbt.blackboard.types import VelocityCommand  # noqa: E402
 from beastbt.core.clock import SimClock  # noqa: E402
 from beastbt.devices.ld19 import Ld19Lidar  # noqa: E402
@@ -119,7 +120,7 @@ def main() -> None:
         mon.limit(command, now + 0.05)
         cached.append(time.perf_counter() - t0)
         actions[mon.action] = actions.get(mon.action, 0) + 1
-        pts = scan_to_base(scan, mounting)
+        pts = base_points_xy(scan, mounting)
         t0 = time.perf_counter()
         even_odd(pts, stop_poly), even_odd(pts, slow_poly)
         zones_ours.append(time.perf_counter() - t0)

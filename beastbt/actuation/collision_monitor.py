@@ -46,7 +46,7 @@ import shapely
 from beastbt.blackboard.types import VelocityCommand
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.devices.interfaces import EventSink, ignore_events
-from beastbt.devices.lidar_scan import LaserScan, LidarMounting
+from beastbt.devices.lidar_scan import LaserScan, LidarMounting, base_points_xy
 
 SCHEMA = "parts/collision_monitor.schema.json"
 
@@ -193,14 +193,6 @@ def inside_polygon(points: np.ndarray, polygon: Any) -> np.ndarray:
     return np.asarray(shapely.contains_xy(polygon, points[:, 0], points[:, 1]), dtype=bool)
 
 
-def scan_to_base(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
-    """The scan's returns as (n, 2) x, y in base_link, metres (no-return points left out)."""
-    ok = np.isfinite(scan.ranges_m)
-    r = scan.ranges_m[ok]
-    a = scan.angles_rad[ok] + math.radians(mounting.yaw_deg)
-    return np.column_stack((mounting.x_m + r * np.cos(a), mounting.y_m + r * np.sin(a)))
-
-
 @dataclass
 class _ScanView:
     """What the monitor keeps of one scan: its points in base_link and which fall in each zone."""
@@ -259,7 +251,7 @@ class CollisionMonitor:
         if scan is None or now_s - scan.stamp_s > self.config.source_timeout_s:
             return None
         if self._view is None or self._view.scan is not scan:
-            pts = scan_to_base(scan, self.mounting)
+            pts = base_points_xy(scan, self.mounting)
             self._view = _ScanView(scan, pts,
                                    inside_polygon(pts, self._stop_shape) if self.config.stop.enabled else
                                    np.zeros(len(pts), bool),
@@ -354,12 +346,10 @@ class CollisionMonitor:
     # -- state and events -----------------------------------------------------------
     def _set(self, action: str, ratio: float, why: str, cmd: VelocityCommand, now_s: float) -> None:
         self.action, self.ratio, self.reason = action, ratio, why
-        if action == NONE:
-            if now_s - self._last_limit_s > EPISODE_GAP_S:
-                self._reported.clear()
-            return
         if now_s - self._last_limit_s > EPISODE_GAP_S:
             self._reported.clear()
+        if action == NONE:
+            return
         self._last_limit_s = now_s
         self.limited_source = cmd.source
         self.limited_ticks[action] = self.limited_ticks.get(action, 0) + 1
@@ -422,5 +412,5 @@ def footprint_radius(profile_data: dict) -> float:
 
 
 __all__ = ["CollisionMonitor", "CollisionMonitorConfig", "StopZone", "SlowZone", "ApproachZone", "default_zones",
-           "inside_polygon", "scan_to_base", "footprint_radius", "ACTIONS", "NONE", "SLOW", "APPROACH", "STOP",
+           "inside_polygon", "footprint_radius", "ACTIONS", "NONE", "SLOW", "APPROACH", "STOP",
            "SILENT", "EPISODE_GAP_S"]

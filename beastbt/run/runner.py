@@ -163,7 +163,6 @@ class MissionRun:
 
     def latest_scan(self) -> Optional[Any]:
         """The newest ``LaserScan`` polled from ``io.sensors['lidar']`` in this run (None before the first)."""
-        from beastbt.devices.lidar_scan import LaserScan  # imported once, by robots with a LiDAR only
         return self.latest.get(LaserScan)
 
     def limit_collisions(self, muxed: VelocityCommand, now: float) -> VelocityCommand:
