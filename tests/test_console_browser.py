@@ -132,7 +132,10 @@ def test_the_on_page_joystick_drives_while_pressed_and_stops_on_release(browser,
     moved = abs(stopped["pose"]["x"] - start["x"]) + abs(stopped["pose"]["y"] - start["y"])
     assert moved > 0.1
     time.sleep(0.5)
-    assert run.state()["pose"] == stopped["pose"]  # released: it stays stopped
+    later = run.state()["pose"]
+    # Released, it stays stopped. The odometry's speed reads 0.000 (rounded) while the last
+    # fraction of a millimetre of the ramp-down still lands, so allow a few millimetres.
+    assert abs(later["x"] - stopped["pose"]["x"]) + abs(later["y"] - stopped["pose"]["y"]) < 0.005
 
 
 def test_the_estop_button_stops_the_robot_and_ends_the_run(browser, run_console, shots):
