@@ -14,7 +14,8 @@ from typing import Any, Optional
 import py_trees
 
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LaserScan, LineObservation, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, LocalCostmap, LocalPlan, VelocityCommand,
+                                      WheelOdometry)
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,10 @@ KEYS: dict[str, KeySpec] = {k.name: k for k in (
     KeySpec("camera_frame", CameraFrame, "px", "camera", "Latest camera frame."),
     KeySpec("scan", LaserScan, "m, rad", "lidar (profile lidar.mounting on base_link)",
             "Latest LiDAR revolution: angles CCW, ranges (NaN = no return), stamp_s when read."),
+    KeySpec("costmap", LocalCostmap, "m, Nav2 cost 0-255", "odom",
+            "Rolling local costmap around the robot: scan points inflated by the footprint, decaying."),
+    KeySpec("local_plan", LocalPlan, "m, m/s, rad/s", "odom",
+            "The local planner's chosen command and the path it would drive (go_to, route, return_home)."),
     KeySpec("joystick", JoystickState, "-", "-", "Latest joystick state (named axes -1..1 and buttons)."),
     KeySpec("home", tuple, "deg", "WGS84", "(lat, lon) where the mission started: the first good fix."),
     KeySpec("cmd_mission", VelocityCommand, "m/s, rad/s", "body", "What the mission asks the base to do this tick."),

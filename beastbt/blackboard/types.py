@@ -231,3 +231,59 @@ class LaserScan:
         ok = np.isfinite(self.ranges_m)
         r, a = self.ranges_m[ok], self.angles_rad[ok]
         return np.column_stack((r * np.cos(a), r * np.sin(a)))
+
+
+COST_FREE = 0
+"""A local costmap cell nothing is near (Nav2's FREE_SPACE)."""
+COST_INSCRIBED = 253
+"""A cell where the robot's footprint, centred there, would touch an obstacle (Nav2's INSCRIBED_INFLATED_OBSTACLE)."""
+COST_LETHAL = 254
+"""A cell with an obstacle in it (Nav2's LETHAL_OBSTACLE)."""
+COST_UNKNOWN = 255
+"""A cell nothing has been seen in or through (Nav2's NO_INFORMATION)."""
+
+
+@dataclass(frozen=True)
+class LocalCostmap:
+    """The rolling local costmap around the robot, in the ``odom`` frame (Nav2's local costmap).
+
+    ``cost`` is a (rows, cols) uint8 array, row 0 the southernmost: cell
+    (row, col) covers x in [``origin_x_m`` + col * ``resolution_m``, + one
+    cell) and likewise y with rows, metres in ``odom``. Costs follow Nav2:
+    :data:`COST_FREE` 0, 1-252 inflated (the closer to an obstacle the
+    higher), :data:`COST_INSCRIBED` 253, :data:`COST_LETHAL` 254,
+    :data:`COST_UNKNOWN` 255. ``stamp_s`` is the stamp of the newest scan in it.
+    """
+
+    stamp_s: float
+    origin_x_m: float
+    origin_y_m: float
+    resolution_m: float
+    cost: np.ndarray
+
+    @property
+    def width_m(self) -> float:
+        """Extent along x (m)."""
+        return float(self.cost.shape[1] * self.resolution_m)
+
+    @property
+    def height_m(self) -> float:
+        """Extent along y (m)."""
+        return float(self.cost.shape[0] * self.resolution_m)
+
+
+@dataclass(frozen=True)
+class LocalPlan:
+    """What the local planner chose this tick, in the ``odom`` frame.
+
+    ``points_xy`` is an (n, 2) array of metres: the path the chosen command
+    would drive over the planner's horizon, starting at the robot.
+    ``linear_mps`` and ``angular_rps`` are the command it chose; ``blocked``
+    is true when no admissible command gets closer to the goal.
+    """
+
+    stamp_s: float
+    points_xy: np.ndarray
+    linear_mps: float = 0.0
+    angular_rps: float = 0.0
+    blocked: bool = False
