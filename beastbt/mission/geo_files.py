@@ -223,6 +223,11 @@ def _name(text: str, fallback: str) -> str:
     return cleaned
 
 
+UNREADABLE_ROUTE = "unreadable_route_file"
+"""The place a route whose file cannot be read stands for: the file's own error says what is wrong, so the mission's
+check passes over this name instead of adding an "unknown place" error."""
+
+
 def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # type: ignore[name-defined]  # noqa: F821
     """Read ``places: {file}`` and every ``route: {file}`` of a mission document into plain places (in ``doc.data``).
 
@@ -269,7 +274,7 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
         relative = route.pop("file")
         got = load(path_key + ("file",), relative, "route")
         if got is None:
-            route["places"] = ["unreadable_route"]
+            route["places"] = [UNREADABLE_ROUTE]
             continue
         stem = _name(Path(relative).stem, "route")
         names = []
@@ -283,4 +288,4 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     return errors, warnings
 
 
-__all__ = ["read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]
+__all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]

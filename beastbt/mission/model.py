@@ -231,7 +231,8 @@ class _SemanticChecker:
         return node
 
     def place_ref(self, path: PathKey, name: str) -> None:
-        if name not in self.places:
+        from beastbt.mission.geo_files import UNREADABLE_ROUTE
+        if name not in self.places and name != UNREADABLE_ROUTE:
             known = sorted(self.places - {HOME})
             self.error(path, f"unknown place '{name}'{did_you_mean(name, self.places)}",
                        f"places are defined under 'places:' ({', '.join(known) or 'none yet'}); 'home' is where the mission started")
