@@ -86,6 +86,24 @@ def plain_reason(exc: BaseException) -> str:
     return _re.sub(r"\[Errno \d+\]\s*", "", text).strip() or type(exc).__name__
 
 
+def value_in_words(value: object) -> str:
+    """What a YAML value is, for people: "nothing (an empty value)", "a list", "a mapping", "true"...
+
+    Errors never show Python's type names (NoneType, dict): a mission's author writes YAML, not Python.
+    """
+    if value is None:
+        return "nothing (an empty value)"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict):
+        return "a mapping (key: value pairs)"
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    if isinstance(value, (int, float)):
+        return f"the number {value!r}"
+    return repr(value)
+
+
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:
     """The valid word closest to a misspelt ``word``, or None when nothing is close."""
     matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

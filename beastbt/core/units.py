@@ -19,6 +19,8 @@ import re
 from dataclasses import dataclass
 from typing import Union
 
+from beastbt.core.errors import value_in_words
+
 _NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
 _VALUE = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z%/°][A-Za-z%/°0-9]*)?\s*$")
 
@@ -124,7 +126,7 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
                             f"got {_number_text(value)}")
         return _within(value, 1.0, k, _number_text(value))
     if not isinstance(value, str):
-        raise UnitError(f"expected {_describe(k)}, got {type(value).__name__}")
+        raise UnitError(f"expected {_describe(k)}, got {value_in_words(value)}")
     m = _VALUE.match(value)
     if not m:
         if _DECIMAL_COMMA.match(value):

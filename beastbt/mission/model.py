@@ -643,9 +643,10 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
     schema = with_external_steps(load_schema("mission.schema.json"), external) if external else None
     taken = {(p.file, p.position) for p in param_problems}  # a bad $name: said once, not again by the schema
+    said = {(p.file, p.position) for p in (doc.problem(path, "") for path in params.said_at_declaration)}
     problems = param_problems + [p for p in schema_problems(doc, "mission.schema.json", "mission", schema)
-                                 if (p.file, p.position) not in taken]
-    problems += _SemanticChecker(doc).run_guarded()
+                                 if (p.file, p.position) not in taken | said]
+    problems += [p for p in _SemanticChecker(doc).run_guarded() if (p.file, p.position) not in said]
     if problems:
         raise InvalidInput(problems)
     mission = _build(doc, Path(path), external)
