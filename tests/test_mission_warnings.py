@@ -8,7 +8,9 @@ import sys
 
 import pytest
 
+from beastbt.core.errors import InvalidInput
 from beastbt.core.units import UnitError, parse_quantity
+from beastbt.mission.model import load_mission
 from beastbt.testing import MissionHarness
 from conftest import REPO
 
@@ -67,6 +69,24 @@ def test_unit_mistakes_get_a_did_you_mean(text, says):
     with pytest.raises(UnitError) as info:
         parse_quantity(text, kind)
     assert (says or "did you mean '2 s'?") in str(info.value)
+
+
+@pytest.mark.parametrize("place, step, where, says, fix", [
+    ("{lat: 40.4169, lon: -3.7038}", "drive: {distance: 0,5 m}", "5:23", "'distance: 0,5 m' has a decimal comma",
+     "write 'distance: 0.5 m'"),
+    ("{lat: 40,4169, lon: -3.7038}", "go_to: a", "3:12", "'lat: 40,4169' has a decimal comma", "write 'lat: 40.4169'"),
+    ('{lat: "40,4169", lon: -3.7038}', "go_to: a", "3:12", "'40,4169' in 'lat' has a decimal comma",
+     "write 40.4169"),
+])
+def test_a_decimal_comma_in_flow_style_or_in_quotes_is_said_as_one(tmp_path, place, step, where, says, fix):
+    path = tmp_path / "m.yaml"
+    path.write_text(f"mission: dc\nplaces:\n  a: {place}\nsteps:\n  - {step}\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(path)
+    text = info.value.format()
+    assert len(info.value.problems) == 1, text
+    assert f"m.yaml:{where}: error: {says}" in text and fix in text
+    assert "unknown key" not in text and "is zero" not in text
 
 
 def test_a_target_thousands_of_km_away_is_refused_at_run_time():

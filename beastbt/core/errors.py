@@ -87,21 +87,21 @@ def plain_reason(exc: BaseException) -> str:
 
 
 def value_in_words(value: object) -> str:
-    """What a YAML value is, for people: "nothing (an empty value)", "a list", "a mapping", "true"...
+    """What a YAML value is, for people: "nothing (an empty value)", "a list", "a mapping", "true/false"...
 
     Errors never show Python's type names (NoneType, dict): a mission's author writes YAML, not Python.
     """
-    if value is None:
-        return "nothing (an empty value)"
     if isinstance(value, bool):
-        return "true" if value else "false"
+        return "true/false"
     if isinstance(value, dict):
-        return "a mapping (key: value pairs)"
+        return "a mapping"
     if isinstance(value, (list, tuple)):
         return "a list"
     if isinstance(value, (int, float)):
-        return f"the number {value!r}"
-    return repr(value)
+        return f"the number {value}"
+    if value is None:
+        return "nothing (an empty value)"
+    return f"'{value}'"
 
 
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:

@@ -20,29 +20,15 @@ import jsonschema
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from beastbt.core.errors import Position, Problem, did_you_mean
+from beastbt.core.errors import Position, Problem, did_you_mean, value_in_words
 from beastbt.core.resources import data_dir
-from beastbt.core.units import KINDS, UNIT_TO_KIND, UnitError, parse_quantity
+from beastbt.core.units import DECIMAL_COMMA, KINDS, UNIT_TO_KIND, UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
 
 _TYPE_WORDS = {
     "object": "a mapping (key: value)", "array": "a list", "string": "text", "number": "a number",
     "integer": "a whole number", "boolean": "true or false", "null": "nothing",
 }
-
-
-def _type_of(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true/false"
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, (int, float)):
-        return f"the number {value}"
-    if value is None:
-        return "nothing"
-    return f"'{value}'"
 
 
 @lru_cache(maxsize=None)
@@ -219,7 +205,7 @@ class _Explainer:
         if "x-knob-unit" in schema and v == "type":
             # a profile or world knob named with its unit (timeout_s), whose texts ('500 ms') were read before this
             said = str(schema.get("patternErrorMessage", "")).removeprefix("Expected ").rstrip(".")
-            return [self.at(path, f"expected a number{_where(path)}, got {_type_of(err.instance)}",
+            return [self.at(path, f"expected a number{_where(path)}, got {value_in_words(err.instance)}",
                             f"write {said}" if said else None)]
         if v in ("anyOf", "oneOf"):
             return self.explain_alternatives(err, path, schema)
@@ -242,7 +228,11 @@ class _Explainer:
                 return [self.at(path, f"'{path[-1]}' is a whole number or 'forever', got '{err.instance}'",
                                 f"write '{path[-1]}: forever' to repeat without end, or a number such as "
                                 f"'{path[-1]}: 3'")]
-            return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", hint)]
+            if isinstance(err.instance, str) and "number" in words and DECIMAL_COMMA.match(err.instance):
+                fixed = err.instance.strip().replace(",", ".", 1)
+                return [self.at(path, f"'{err.instance}'{_where(path)} has a decimal comma",
+                                f"write {fixed} (a point, not a comma), without quotes")]
+            return [self.at(path, f"expected {words}{_where(path)}, got {value_in_words(err.instance)}", hint)]
         if v in ("enum", "const") and path and path[-1] == "until" and isinstance(err.instance, dict):
             choices = schema.get("enum", [schema.get("const")])
             amount = next(iter(err.instance), "")
@@ -255,12 +245,12 @@ class _Explainer:
         if v in ("enum", "const"):
             choices = schema.get("enum", [schema.get("const")])
             word = err.instance if isinstance(err.instance, str) else None
-            msg = f"{_type_of(err.instance)} is not allowed{_where(path)}: expected one of {', '.join(map(str, choices))}"
+            msg = f"{value_in_words(err.instance)} is not allowed{_where(path)}: expected one of {', '.join(map(str, choices))}"
             if word:
                 msg += did_you_mean(word, [str(c) for c in choices])
             return [self.at(path, msg)]
         if v == "pattern":
-            return [self.at(path, f"{_type_of(err.instance)} is not a valid name{_where(path)}",
+            return [self.at(path, f"{value_in_words(err.instance)} is not a valid name{_where(path)}",
                             "names use letters (of any alphabet), digits, _ and -, and start with a letter")]
         if v == "propertyNames":
             return [self.at(path + (err.instance,), f"'{err.instance}' is not a valid name{_where(path)}",
@@ -291,12 +281,12 @@ class _Explainer:
                      schema_comment: Optional[str] = None) -> Problem:
         try:
             parse_quantity(value, kind)
-            message = f"{_type_of(value)} is not a valid {kind.replace('_', ' ')}"
+            message = f"{value_in_words(value)} is not a valid {kind.replace('_', ' ')}"
         except UnitError as exc:
             message = str(exc)
         except KeyError:  # a kind the unit parser does not read (acceleration): the schema's own words
             said = (expected or f"Expected a valid {kind.replace('_', ' ')}").split(";")[0].rstrip(".")
-            message = f"{said[0].lower()}{said[1:]}, got {_type_of(value)}"
+            message = f"{said[0].lower()}{said[1:]}, got {value_in_words(value)}"
         label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
         # The hint says what the kind is, its range included (the definition's comment).
         return self.at(path, f"{label}{message}", schema_comment)
@@ -332,7 +322,7 @@ class _Explainer:
         if chosen is not None and chosen in by_branch:
             return self.problems(by_branch[chosen])
         alts = "; or ".join(filter(None, (self.describe(b) or "" for b in branches)))
-        return [self.at(path, f"{_type_of(inst)} does not fit{_where(path)}", alts or self.describe(schema))]
+        return [self.at(path, f"{value_in_words(inst)} does not fit{_where(path)}", alts or self.describe(schema))]
 
     @staticmethod
     def pick_branch(inst: Any, branches: list, by_branch: dict) -> Optional[int]:
@@ -393,7 +383,7 @@ class _Explainer:
                                 "start each step with its own '- '", key=True)]
             return self.problems(by_branch.get(keyed[present[0]], [])) or [
                 self.at(path, f"invalid '{present[0]}' {label}", self.describe(branches[keyed[present[0]]]))]
-        return [self.at(path, f"expected a {label}, got {_type_of(inst)}", f"the {label}s are: {listing}")]
+        return [self.at(path, f"expected a {label}, got {value_in_words(inst)}", f"the {label}s are: {listing}")]
 
 
 def schema_problems(doc: SourceDoc, schema_name: str, what: str, schema: Optional[dict] = None) -> list[Problem]:

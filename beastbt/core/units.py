@@ -93,7 +93,8 @@ UNIT_SYNONYMS: dict[str, str] = {
     "percent": "%", "pct": "%",
 }
 """Units authors write for the ones the language knows: a did-you-mean, never accepted silently."""
-_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+")
+DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+")
+"""A text that starts like a number written with a decimal comma (``0,5 m``, ``40,4169``)."""
 
 
 class UnitError(ValueError):
@@ -129,7 +130,7 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
         raise UnitError(f"expected {_describe(k)}, got {value_in_words(value)}")
     m = _VALUE.match(value)
     if not m:
-        if _DECIMAL_COMMA.match(value):
+        if DECIMAL_COMMA.match(value):
             fixed = value.replace(",", ".", 1)
             raise UnitError(f"'{value}' has a decimal comma: write '{fixed.strip()}' (a point, not a comma)")
         raise UnitError(f"expected {_describe(k)}, got '{value}'")
