@@ -146,7 +146,13 @@ def test_sigterm_to_a_simulated_run_gives_its_summary_and_a_readable_recording(t
     proc = subprocess.Popen([sys.executable, "-m", "beastbt", "run", PATROL, "--speed", "realtime", "--runs-dir",
                              str(tmp_path / "runs")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    time.sleep(3.0)
+    # Signal once the run is under way (its folder exists, then a second of ticking), not after a fixed time that a
+    # loaded machine may spend still importing.
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "runs").is_dir() or not any((tmp_path / "runs").iterdir()):
+        assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
+        time.sleep(0.1)
+    time.sleep(1.5)
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 1 and "Traceback" not in err

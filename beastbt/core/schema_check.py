@@ -10,6 +10,7 @@ the ``anyOf`` of steps and conditions it picks the branch the author meant
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -174,9 +175,13 @@ def _where(path: tuple) -> str:
 
 
 class _Explainer:
-    def __init__(self, doc: SourceDoc, what: str) -> None:
+    def __init__(self, doc: SourceDoc, what: str,
+                 validator: Optional[jsonschema.Draft202012Validator] = None) -> None:
         self.doc = doc
         self.what = what
+        self.validator = validator
+        self.reindented: dict[tuple, Problem] = {}
+        """Mappings whose unknown keys are a matter of indentation: path -> the one problem that says so."""
 
     def problems(self, errors: Iterable[jsonschema.ValidationError]) -> list[Problem]:
         out: list[Problem] = []
@@ -304,10 +309,72 @@ class _Explainer:
         where = _where(path)
         if required and isinstance(path[-1:], tuple) and path and isinstance(path[-1], int):
             where = f" in the '{required[0]}' step"
+        if extras and isinstance(inst, dict):
+            indent = self.indentation(path, inst, extras)
+            if indent is not None:
+                self.reindented[path] = indent
+                return [indent]
         for key in extras:
             msg = f"unknown key '{key}'{where}{did_you_mean(key, allowed)}"
             out.append(self.at(path + (key,), msg, f"allowed here: {', '.join(allowed)}", key=True))
         return out
+
+    # -- keys at the wrong indentation -----------------------------------------------------------------------
+    def _fits_with(self, path: tuple, changed: Any, subtree: tuple) -> bool:
+        """True when the document with ``changed`` at ``path`` has no problem left at or under ``subtree``."""
+        if self.validator is None:
+            return False
+        data = copy.deepcopy(self.doc.data)
+        if path:
+            node = data
+            for part in path[:-1]:
+                node = node[part]
+            node[path[-1]] = changed
+        else:
+            data = changed
+        n = len(subtree)
+        return not any(tuple(e.absolute_path)[:n] == subtree for e in self.validator.iter_errors(data))
+
+    def indentation(self, path: tuple, inst: dict, extras: list) -> Optional[Problem]:
+        """A problem saying "indent it" when the unknown ``extras`` of the mapping at ``path`` would be right one
+        level deeper (under one of their siblings) or one level shallower (beside the mapping's own key)."""
+        keys = ", ".join(f"'{k}'" for k in extras)
+        them = "it" if len(extras) == 1 else "them"
+        first = self.doc.position(path + (extras[0],), key=True)
+        for owner, value in inst.items():
+            if owner in extras or not (isinstance(value, dict) or value is None):
+                continue
+            moved = {k: v for k, v in inst.items() if k not in extras}
+            moved[owner] = {**(value or {}), **{k: inst[k] for k in extras}}
+            if self._fits_with(path, moved, path):
+                inner = [self.doc.position(path + (owner, k), key=True) for k in (value or {})]
+                owner_at = self.doc.position(path + (owner,), key=True)
+                column = inner[0].column if inner else owner_at.column + 2
+                spaces = column - first.column
+                how = (f"{spaces} more space{'s' if spaces != 1 else ''}, to line up with "
+                       f"'{next(iter(value))}:' on line {inner[0].line}" if inner and spaces > 0
+                       else "further than it, e.g. 2 more spaces")
+                return self.at(path + (extras[0],), f"{keys} belong{'s' if len(extras) == 1 else ''} under "
+                                                    f"'{owner}:' (line {owner_at.line}): indent {them} {how}",
+                               "in YAML the indentation says what belongs to what", key=True)
+        if len(path) >= 2 and isinstance(path[-1], str):
+            parent_path = path[:-1]
+            parent = self.doc.data
+            for part in parent_path:
+                parent = parent[part]
+            if isinstance(parent, dict) and not any(k in parent for k in extras):
+                here = dict(parent)
+                here[path[-1]] = {k: v for k, v in inst.items() if k not in extras}
+                here.update({k: inst[k] for k in extras})
+                if self._fits_with(parent_path, here, parent_path):
+                    beside = self.doc.position(path, key=True)
+                    spaces = first.column - beside.column
+                    how = f"{spaces} fewer space{'s' if spaces != 1 else ''}, " if spaces > 0 else ""
+                    return self.at(path + (extras[0],), f"{keys} belong{'s' if len(extras) == 1 else ''} beside "
+                                                        f"'{path[-1]}:', not under it: indent {them} {how}to line "
+                                                        f"up with '{path[-1]}:' on line {beside.line}",
+                                   "in YAML the indentation says what belongs to what", key=True)
+        return None
 
     def explain_alternatives(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
         branches = schema.get(err.validator, [])
@@ -389,4 +456,16 @@ class _Explainer:
 def schema_problems(doc: SourceDoc, schema_name: str, what: str, schema: Optional[dict] = None) -> list[Problem]:
     """Validate ``doc`` against ``schema_name`` (or ``schema``, an extension of it); every problem, explained."""
     validator = validator_for(schema_name) if schema is None else validator_of(schema, schema_name)
-    return _Explainer(doc, what).problems(validator.iter_errors(doc.data))
+    explainer = _Explainer(doc, what, validator)
+    problems = explainer.problems(validator.iter_errors(doc.data))
+    if not explainer.reindented:
+        return problems
+    # A key at the wrong indentation upsets its mapping in several ways (a step without its steps, a keyword
+    # with nothing under it): once "indent it" is said, the rest about that mapping is noise.
+    inside: set = set()
+    for path in explainer.reindented:
+        n = len(path)
+        inside |= {(doc.file, pos) for p, pos in doc.positions.items() if p[:n] == path}
+        inside |= {(doc.file, pos) for p, pos in doc.key_positions.items() if p[:n] == path}
+    said = set(map(id, explainer.reindented.values()))
+    return [p for p in problems if id(p) in said or (p.file, p.position) not in inside]
