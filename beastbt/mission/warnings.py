@@ -12,9 +12,11 @@ does not report its battery.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, Iterator, Optional
 
 from beastbt.core.errors import Problem, warning
+from beastbt.core.schema_defaults import schema_default
 from beastbt.core.units import format_quantity
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, distance_m
 from beastbt.mission import steps as st
@@ -60,6 +62,47 @@ def _speed_warnings(mission: Any, limit_mps: Optional[float], whose: str) -> lis
     return out
 
 
+def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float, float]]) -> Optional[tuple[str, str]]:
+    """(message, hint) when ``place`` is far from where the mission happens, judged on its own; else None.
+
+    Where the mission happens is its world's datum, or (no world) the
+    simulator's default world. A place far from it that swapping its lat and
+    lon would bring near is said to be swapped; one far from a real world's
+    datum, or from every one of two or more other places, is said to be far.
+    Comparing places pairwise would blame the right place and the swapped one
+    alike: with one of two swapped, each is far from the other.
+    """
+    datum = world_datum
+    reference = "the world's datum"
+    if datum is None:
+        default = schema_default("world.schema.json#/properties", "datum")
+        datum = (float(default["lat"]), float(default["lon"]))
+        reference = "the simulator's default world (the mission names no world)"
+    def looks_swapped(p: Any) -> bool:
+        return (distance_m(p.lat, p.lon, *datum) > FAR_PLACE_M and abs(p.lon) <= 90.0
+                and distance_m(p.lon, p.lat, *datum) <= FAR_PLACE_M)
+
+    d = distance_m(place.lat, place.lon, *datum)
+    swapped = (distance_m(place.lon, place.lat, *datum) if abs(place.lon) <= 90.0 else math.inf)
+    hint = (f"lat is north-south (-90..90), lon east-west: check lat: {place.lat:.6f}, lon: {place.lon:.6f}")
+    if looks_swapped(place):
+        return (f"place '{place.name}' is {d / 1000:.0f} km from {reference}, and {swapped / 1000:.1f} km from it with "
+                f"lat and lon swapped: are they swapped?", f"write lat: {place.lon:.6f}, lon: {place.lat:.6f}")
+    if d > FAR_PLACE_M and world_datum is not None:
+        return f"place '{place.name}' is {d / 1000:.0f} km from {reference}: is it typed right?", hint
+    others = [(distance_m(place.lat, place.lon, o.lat, o.lon), o.name) for o in places if o is not place]
+    if len(others) >= 2 and all(far > FAR_PLACE_M for far, _ in others):
+        nearest, name = min(others)
+        return (f"place '{place.name}' is {nearest / 1000:.0f} km from the nearest other place ('{name}'), and "
+                f"farther from all the others: are its lat and lon swapped?", hint)
+    if len(places) == 2 and place is places[1] and others[0][0] > FAR_PLACE_M and not looks_swapped(places[0]):
+        # Two places far apart, neither swapped by the look of it: which one is wrong cannot be told, so say it
+        # once, at the second, without blaming it.
+        return (f"place '{place.name}' is {others[0][0] / 1000:.0f} km from '{others[0][1]}', the only other place: "
+                f"is one of them typed wrong (lat and lon swapped, a digit off)?", hint)
+    return None
+
+
 def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = None) -> list[Problem]:
     """What looks wrong in the mission itself; ``world_datum`` (lat, lon) is where its world is, if known."""
     doc = mission.doc
@@ -75,17 +118,10 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
                                        "add what the robot should do under 'steps:'")))
     out += _speed_warnings(mission, mission.speed_limit_mps, "the mission's limit")
     places = list(mission.places.values())
-    for i, place in enumerate(places):
-        far = [(other.name, distance_m(place.lat, place.lon, other.lat, other.lon)) for other in places[:i]]
-        if world_datum is not None:
-            far.append(("the world's datum", distance_m(place.lat, place.lon, *world_datum)))
-        far = [(name, d) for name, d in far if d > FAR_PLACE_M]
-        if far:
-            name, d = far[0]
-            out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {d / 1000:.0f} km from "
-                                                                   f"{name}: are its lat and lon swapped?",
-                                           f"lat is north-south (-90..90), lon east-west: check lat: "
-                                           f"{place.lat:.6f}, lon: {place.lon:.6f}")))
+    for place in places:
+        said = _place_far_away(place, places, world_datum)
+        if said is not None:
+            out.append(warning(doc.problem(("places", place.name), said[0], said[1])))
     for fence in getattr(mission, "fences", {}).values():
         for place in places:
             inside = fence.contains(place.lat, place.lon)
