@@ -214,3 +214,22 @@ def test_a_fault_of_beastbt_itself_is_one_clear_line_and_a_file_not_a_traceback(
     kept = list(tmp_path.glob("beastbt-runs-crash-*.txt"))
     assert len(kept) == 1 and str(kept[0]) in err
     assert "Traceback" in kept[0].read_text() and "broken" in kept[0].read_text()
+
+
+def test_messages_read_as_sentences_an_option_has_no_line_and_a_file_has_no_a_route(tmp_path):
+    import socket
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = beastbt("run", PATROL, "--console", str(port), "--no-record")
+    assert done.returncode == 2
+    assert f"beastbt: --console: error: cannot listen on 127.0.0.1:{port}" in done.stderr and ":1:1:" not in done.stderr
+    (tmp_path / "wptonly.gpx").write_text("<gpx><wpt lat='40.4' lon='-3.7'><name>a</name></wpt></gpx>\n")
+    (tmp_path / "m.yaml").write_text("mission: t\nsteps:\n  - route: {file: wptonly.gpx}\n")
+    said = beastbt("validate", str(tmp_path / "m.yaml")).stderr
+    assert "wptonly.gpx has no route (GPX rte/trk" in said and "no a " not in said
+    (tmp_path / "robot.yaml").write_text("robot: x\nbogus: 1\n")
+    layout = beastbt("foxglove-layout", "--robot", str(tmp_path / "robot.yaml"))
+    assert layout.returncode == 2 and "robot.yaml:2:1: error: unknown key 'bogus'" in layout.stderr
+    assert "foxglove-layout: error:" not in layout.stderr  # said once, positioned, not wrapped in a second 'error:'

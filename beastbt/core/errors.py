@@ -33,8 +33,13 @@ class Problem:
     """``error`` (nothing runs) or ``warning`` (it runs, unless ``--strict``)."""
 
     def format(self) -> str:
-        """Render as ``FILE:LINE:COLUMN: error: message`` (or ``warning:``) plus an indented hint line."""
-        text = f"{self.file}:{self.position.line}:{self.position.column}: {self.severity}: {self.message}"
+        """Render as ``FILE:LINE:COLUMN: error: message`` (or ``warning:``) plus an indented hint line; a problem with a
+        command-line option (its ``file`` is the option, ``--console``) as ``beastbt: --console: error: message``."""
+        if self.file.startswith("--"):
+            # A command-line option has no lines: 'beastbt run: --console: error: ...', not '--console:1:1:'.
+            text = f"beastbt: {self.file}: {self.severity}: {self.message}"
+        else:
+            text = f"{self.file}:{self.position.line}:{self.position.column}: {self.severity}: {self.message}"
         if self.hint:
             text += f"\n    hint: {self.hint}"
         return text

@@ -206,9 +206,9 @@ def read_points(path: Path, want: str) -> GeoPoints:
     if want == "polygon" and len(got.points) > 3 and got.points[0][1:] == got.points[-1][1:]:
         got.points.pop()  # a closed ring repeats its first corner
     if not got.points:
-        what = {"polygon": "a polygon (KML Polygon, GeoJSON Polygon)",
+        what = {"polygon": "polygon (KML Polygon, GeoJSON Polygon)",
                 "places": "named points (GPX wpt, KML Placemark Point, GeoJSON Point with a name)"}.get(
-            want, "a route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)")
+            want, "route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)")
         raise GeoFileError(f"{path.name} has no {what}")
     return got
 
