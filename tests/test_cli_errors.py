@@ -182,6 +182,22 @@ def test_output_that_is_not_a_terminal_has_no_carriage_returns(tmp_path):
     done = beastbt("run", PATROL, "--no-record", cwd=tmp_path)
     assert done.returncode == 0 and "\r" not in done.stdout and "\x1b" not in done.stdout
     assert done.stdout.startswith("[  176.0 s] mission_end: success")
+    # The end is said once: the headline carries its reason, at the same time as the event printed live.
+    assert done.stdout.count("mission_end") == 1
+    assert "mission corridor_patrol: SUCCESS (all steps done)\n  time 176.0 s" in done.stdout
+
+
+def test_a_failed_run_says_its_end_once_with_the_failure_recapped(tmp_path):
+    (tmp_path / "m.yaml").write_text("mission: blocked\nworld: corridor.yaml\nsteps:\n  - drive: {distance: 20 m}\n")
+    done = beastbt("run", str(tmp_path / "m.yaml"), "--no-record", "--robot", str(REPO / "robots" / "ugv_beast.yaml"),
+                   "--sim", "--world", str(REPO / "worlds" / "corridor.yaml"), cwd=tmp_path)
+    assert done.returncode == 1
+    assert done.stdout.count("mission_end") == 1, done.stdout
+    live = next(line for line in done.stdout.splitlines() if "mission_end" in line)
+    headline = next(line for line in done.stdout.splitlines() if line.startswith("mission blocked: FAILURE ("))
+    when = float(live.split("]")[0].strip("[ s"))
+    assert f"  time {when:.1f} s" in done.stdout and live.split("failure: ")[1] in headline
+    assert done.stdout.count("step_failed") == 2  # live, and recapped under the headline
 
 
 @pytest.mark.parametrize("args, says", [
