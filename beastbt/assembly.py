@@ -222,7 +222,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
                             warnings=run_warnings(mission, profile, world, mode, options))
         if options.record:
             try:
-                prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
+                prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
             except RunFolderUnavailable:
                 prepared.abandon()  # nothing moved: close what was opened, then say why
                 raise

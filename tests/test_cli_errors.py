@@ -80,13 +80,23 @@ def test_yaml_merge_keys_work(tmp_path):
     assert done.returncode == 2 and "duplicate key 'distance'" in done.stderr
 
 
-def test_a_mission_named_with_accents_runs_and_its_folder_names_file_and_mission(tmp_path):
+def test_a_mission_named_with_accents_runs_and_its_folder_is_time_and_mission_as_the_readme_says(tmp_path):
+    import re
     path = tmp_path / "tour.yaml"
     path.write_text("mission: café_straße\nsteps:\n  - wait: 1 s\n")
     done = beastbt("run", str(path), "--runs-dir", str(tmp_path / "runs"))
     assert done.returncode == 0, done.stderr
     [folder] = (tmp_path / "runs").iterdir()
-    assert folder.name.endswith("_tour_café_straße")
+    assert re.fullmatch(r"\d{8}T\d{6}Z_café_straße", folder.name), folder.name
+    assert "runs/<UTC time>_<mission>/" in (REPO / "README.md").read_text(encoding="utf-8")
+    long = "a_mission_whose_name_goes_on_and_on_" * 4
+    path.write_text(f"mission: {long}\nsteps:\n  - wait: 1 s\n")
+    assert beastbt("run", str(path), "--runs-dir", str(tmp_path / "runs")).returncode == 0
+    listed = beastbt("runs", "--runs-dir", str(tmp_path / "runs")).stdout.splitlines()
+    assert listed[0].split() == ["RUN", "MISSION", "OUTCOME", "TIME", "DISTANCE", "RECORDING"]
+    outcome = listed[0].index("OUTCOME")
+    assert all(line[outcome:].startswith("success") for line in listed[1:]), listed  # columns line up
+    assert all(len(line) < 160 for line in listed)
 
 
 def test_joystick_script_on_a_real_robot_says_why_before_opening_anything(tmp_path):
