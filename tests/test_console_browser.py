@@ -102,6 +102,9 @@ def test_pause_stops_the_robot_and_the_mission_clock_then_resume(browser, run_co
     page.get_by_test_id("pause").click()
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("paused")
     paused = run.wait_state(lambda s: s["speed_mps"] == 0.0, 5)
+    # both: that it is paused, and the step it is paused in
+    assert paused["last_step"] not in (None, "-", "(paused)")
+    playwright_api.expect(page.get_by_test_id("step")).to_have_text(f"{paused['last_step']} (paused)")
     time.sleep(1.0)
     later = run.state()
     assert later["status"] == "paused" and later["speed_mps"] == 0.0
@@ -124,7 +127,7 @@ def test_the_on_page_joystick_drives_while_pressed_and_stops_on_release(browser,
     page.mouse.down()
     page.mouse.move(cx, cy - pad["height"] * 0.4, steps=5)  # stick forward
     driving = run.wait_state(lambda s: s["teleop"] and s["speed_mps"] > 0.05, 5)
-    assert driving["step"] == "(teleop)"  # the operator took over: the mission waits
+    assert driving["step"] == "wait 60 s (teleop)"  # the operator took over: the mission waits at its step
     time.sleep(1.0)
     shots(page, "joystick")
     page.mouse.up()
@@ -170,12 +173,27 @@ def test_a_question_is_answered_on_the_page(browser, run_console, shots):
 
 
 def test_the_page_shows_the_final_status_after_the_end(browser, run_console, shots):
-    run = run_console(SHORT, "--speed", "realtime")
+    run = run_console(SHORT.replace("wait: 1 s", "wait: 4 s"), "--speed", "realtime")
     page = open_page(browser, run)
+    wait_for_page(page, "window.beastbtVideoStats.frames > 0", timeout_s=10)  # a frame, captioned "running"
     code, _, _ = run.finish()
     assert code == 0
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=5000)
     playwright_api.expect(page.get_by_test_id("pause")).to_be_disabled()
+    # the outcome and the last step, not the last step as if it still ran; the video says it ended
+    playwright_api.expect(page.locator("#bar .step")).to_have_text("ended: succeeded · last step: wait 4 s")
+    ended = page.get_by_test_id("video").get_attribute("data-ended")
+    assert ended is not None and ended.startswith("ended: succeeded at t ") and ended.endswith("last step: wait 4 s")
+    dark, bright, below = page.get_by_test_id("video").evaluate("""c => {
+        const g = c.getContext('2d'), band = Math.round(c.height / 16 * 3), px = (y, h) => {
+            const d = g.getImageData(0, y, c.width, h).data, out = [];
+            for (let i = 0; i < d.length; i += 4) out.push((d[i] + d[i + 1] + d[i + 2]) / 3);
+            return out; };
+        const top = px(0, band), under = px(band + 10, 10);
+        return [top.filter(v => v < 40).length / top.length, top.filter(v => v > 150).length,
+                under.reduce((a, v) => a + v, 0) / under.length]; }""")
+    assert dark > 0.7 and bright > 100  # over the last frame: a dark band, with the words on it
+    assert below > 60  # and under it the camera's last frame (grey floor), not an empty canvas
     shots(page, "final")
 
 

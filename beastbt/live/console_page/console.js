@@ -82,7 +82,10 @@ function render(s) {
   const st = $("status");
   st.textContent = s.estop && !ENDED.has(s.status) ? "e-stop" : s.status;
   st.className = "status " + s.status;
-  $("step").textContent = s.step;
+  // Ended: the outcome, and the step it ended in; paused, the state's step says so and names the step (both).
+  const over = ENDED.has(s.status);
+  $("step-label").textContent = over ? "" : "step:";
+  $("step").textContent = over && s.ended_at ? `${s.step} · last step: ${s.ended_at}` : s.step;
   const p = s.progress || {};
   const frac = p.total ? Math.min(1, p.done / p.total) : 0;
   $("progress-fill").style.width = (ENDED.has(s.status) && s.status === "succeeded" ? 100 : frac * 100) + "%";
@@ -114,6 +117,7 @@ function render(s) {
   renderTree(s.tree);
   renderEvents(s.events || []);
   mapDirty = true;
+  if (over) endVideo(s);
 }
 
 let eventsKey = "";
@@ -339,6 +343,7 @@ function connectVideo() {
       if (c.width !== bitmap.width) { c.width = bitmap.width; c.height = bitmap.height; }
       c.getContext("2d").drawImage(bitmap, 0, 0);
       bitmap.close();
+      if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
       const age = Date.now() - capturedMs;
       videoStats.ages.push(age);
       if (videoStats.ages.length > 500) videoStats.ages.shift();
@@ -348,6 +353,21 @@ function connectVideo() {
     busy = false;
   };
   ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
+}
+
+// At the end no frame comes any more: the last one (captioned "running") gets a band that says the run ended.
+function endVideo(s) {
+  const c = $("video"), g = c.getContext("2d");
+  const lines = [`ended: ${s.status} at t ${s.time_s.toFixed(1)} s`, `last step: ${s.ended_at || "-"}`];
+  const text = lines.join(" · ");
+  const size = Math.max(14, Math.round(c.height / 16));
+  g.fillStyle = "#000000d0"; g.fillRect(0, 0, c.width, size * 3.2);
+  g.fillStyle = s.status === "succeeded" ? "#4caf50" : "#e5534b"; g.font = `bold ${size}px sans-serif`;
+  g.fillText(lines[0], size * 0.5, size * 1.25);
+  g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
+  g.fillText(lines[1], size * 0.5, size * 2.6);
+  c.dataset.ended = text;  // what the band says, for the tests
+  $("video-info").textContent = "the run has ended";
 }
 
 // ---- driving: the on-page joystick and the browser's gamepad ---------------------------------------
