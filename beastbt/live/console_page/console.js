@@ -166,9 +166,19 @@ function renderTree(nodes) {
   if (deepest && deepest.id !== renderTree.lastTip) {
     renderTree.lastTip = deepest.id;
     const row = treeRows.get(deepest.id);
-    if (row) row.div.scrollIntoView({block: "nearest"});
+    if (row) followInTree(row.div);
   }
   $("tree-info").textContent = `${nodes.length} nodes`;
+}
+
+// Scroll the tree panel, and only it, to show a row: scrollIntoView would scroll the page too (on a phone the
+// question went under the header, on a desktop the panel titles). The row is kept in the part of the panel that is
+// on the screen (the whole panel when little of it is), a third of the way down: the steps done above, the next below.
+function followInTree(div) {
+  const t = $("tree"), row = div.getBoundingClientRect(), box = t.getBoundingClientRect();
+  let top = Math.max(box.top, $("top").getBoundingClientRect().bottom), bottom = Math.min(box.bottom, innerHeight);
+  if (bottom - top < 3 * row.height) { top = box.top; bottom = box.bottom; }
+  if (row.top < top || row.bottom > bottom) t.scrollTop += row.top - (top + (bottom - top) / 3);
 }
 
 function buildTree(nodes, ids) {
