@@ -371,7 +371,7 @@ function endVideo(s) {
   const lines = [`ended: ${s.status} at t ${s.time_s.toFixed(1)} s`, `last step: ${s.ended_at || "-"}`];
   const text = lines.join(" · ");
   const size = Math.max(14, Math.round(c.height / 16));
-  g.fillStyle = "#000000d0"; g.fillRect(0, 0, c.width, size * 3.2);
+  g.fillStyle = "#101214"; g.fillRect(0, 0, c.width, Math.max(size * 3.2, c.height * 0.2));  // over the caption
   g.fillStyle = s.status === "succeeded" ? "#4caf50" : "#e5534b"; g.font = `bold ${size}px sans-serif`;
   g.fillText(lines[0], size * 0.5, size * 1.25);
   g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
