@@ -256,8 +256,9 @@ def box(page, selector: str) -> dict:
 
 def text_lines(page, selector: str) -> int:
     """How many lines the element's text is laid out on (its line boxes)."""
-    return page.locator(selector).evaluate("e => { const r = document.createRange(); r.selectNodeContents(e); "
-                                           "return new Set(Array.from(r.getClientRects()).map(q => Math.round(q.top))).size; }")
+    return page.locator(selector).evaluate(
+        "e => { const r = document.createRange(); r.selectNodeContents(e); "
+        "return new Set(Array.from(r.getClientRects()).map(q => Math.round(q.top))).size; }")
 
 
 def open_watched(browser, run: ConsoleRun, device: dict):
@@ -297,6 +298,11 @@ def test_on_a_phone_and_a_desktop_the_question_header_and_pad_stay_in_sight_and_
         assert pad["y"] >= asked["bottom"] and pad["bottom"] <= 844, pad  # on the first screen, no scrolling
         assert phone.evaluate("document.documentElement.scrollWidth") <= 390  # nothing wider than the phone
         shots(phone, "phone_question", full_page=False)
+        phone.evaluate("window.scrollTo(0, 700)")  # the operator scrolls down to the map: the question stays
+        scrolled = box(phone, "#question")
+        assert phone.evaluate("window.scrollY") > 300 and 0 <= scrolled["y"] and scrolled["bottom"] <= 844, scrolled
+        assert scrolled["y"] >= box(phone, "#bar")["bottom"] - 0.5
+        phone.evaluate("window.scrollTo(0, 0); window.__maxScrollY = 0")
         phone.get_by_test_id("answer-yes").tap()
         playwright_api.expect(question).to_be_hidden(timeout=5000)
         # the tree advances (a new running row every 200 ms): it follows in its own panel, the pages never move
@@ -308,7 +314,8 @@ def test_on_a_phone_and_a_desktop_the_question_header_and_pad_stay_in_sight_and_
             # the leaf (the deepest running row, the last in the document) is in the panel's sight, and on a desktop
             # (where the panel starts on the first screen) on the screen too
             in_view = tree.evaluate("""t => { const all = t.querySelectorAll('.node.running'), r = all[all.length - 1];
-                if (!r || all.length < 3) return null; const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
+                if (!r || all.length < 3) return null;
+                const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
                 return a.top >= b.top - 1 && a.bottom <= b.bottom + 1 ? a.bottom : -1; }""")
             assert 0 < in_view <= bottom, in_view
             assert page.evaluate("[window.scrollY, window.__maxScrollY]") == [0, 0]
