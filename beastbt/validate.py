@@ -2,7 +2,7 @@
 
 A file is checked as a mission, a robot profile or a world according to its
 first key (``mission:``, ``robot:``, ``world:``), and a file whose top level
-is a list of ``{at: ...}`` events as a joystick script (``--joystick FILE``); anything else is
+is a list (of ``{at: ...}`` events) as a joystick script (``--joystick FILE``); anything else is
 checked as a mission, whose errors then say what a mission needs. A
 mission's world file is checked with it: its problems are reported in the
 world file, and at the mission's ``world:`` line. Warnings (valid, but
@@ -24,7 +24,7 @@ def validate_file(path: str) -> list[Problem]:
     from beastbt.sim.world import load_world
     try:
         doc = load_yaml(path, require_mapping=False)
-        if isinstance(doc.data, list) and doc.data and all(isinstance(e, dict) and "at" in e for e in doc.data):
+        if isinstance(doc.data, list):  # only a joystick script is a list of events at its top level
             from beastbt.devices.joystick import JoystickMapping
             from beastbt.parts.sim_joystick import load_joystick_script
             load_joystick_script(path, JoystickMapping())

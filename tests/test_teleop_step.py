@@ -170,7 +170,7 @@ def test_bad_joystick_script_is_invalid_input(tmp_path, capsys):
     code = cli.main(["run", str(REPO / "missions" / "teleop.yaml"), "--joystick", str(bad), "--no-record"])
     err = capsys.readouterr().err
     assert code == 2
-    assert f"{bad}:2:3: error:" in err and "presss" in err
+    assert f"{bad}:2:13: error:" in err and "presss" in err and "did you mean 'press'?" in err
 
 
 def test_a_hold_failsafe_is_restored_after_the_operator_lets_go(tmp_path):
