@@ -266,7 +266,7 @@ def test_script_errors_name_line_column_and_event():
     text = str(exc.value)
     # Each error points at the value at fault (events counted from 1, as people count them), with a hint.
     assert "demo.yaml:2:8: error: joystick script event 2: at:" in text
-    assert "demo.yaml:3:19: error: joystick script event 3: press: no button 'jump'" in text
+    assert "demo.yaml:3:20: error: joystick script event 3: press: no button 'jump'" in text
     assert "demo.yaml:4:3: error: joystick script event 4: needs exactly one" in text
     assert "demo.yaml:5:21: error: joystick script event 5: linear must be a number from -1 to 1" in text
     assert "hint: the buttons, by role: enable" in text and "hint: 1 is the stick pushed all the way" in text
