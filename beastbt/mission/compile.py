@@ -95,7 +95,7 @@ class Compiler:
             return builder(self, s)
         except ConditionUnavailable as exc:
             # A step whose condition this robot cannot check fails at once, saying why (as a step it cannot do).
-            return NotAvailable(f"{kind.replace('_', ' ')} {exc.text}", self.ctx, exc.why)
+            return NotAvailable(f"{kind.replace('_', ' ')} ({exc.text}: not on this robot)", self.ctx, exc.why)
 
     def place(self, name: str) -> tuple[Optional[float], Optional[float], Optional[float]]:
         """(lat, lon, tolerance_m) of a named place; ``home`` is (None, None, None) until known."""
