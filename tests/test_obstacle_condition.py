@@ -402,3 +402,30 @@ steps:
 """, world=CORRIDOR)
     assert h.run_to_end(60) == "success"
     assert [e.text for e in h.events if e.kind == "say"] == ["clear ahead", "wall ahead"]
+
+
+def test_a_lidar_that_falls_silent_stops_nothing_blind_the_guard_waits_and_the_drive_fails_as_blocked():
+    """The LiDAR goes silent 3 s into the v3 drive: the condition is unknown (said once), the collision monitor
+    holds the robot, and the drive fails as blocked after its 5 s without progress; the until never fired."""
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - until: {obstacle_within: 0.6 m}\n    steps:\n"
+                                 "      - drive: {distance: 10 m}\n", world=CORRIDOR)
+    h.tick_until(lambda h: h.now_s >= 3.0)
+    sim = h.run.io.sim
+    sim.emulators.remove(next(e for e in sim.emulators if type(e.__self__).__name__ == "SimLd19"))
+    x = h.truth.x
+    assert h.run_to_end(30) == "failure"
+    said = [e for e in h.events if e.kind == "obstacle_within"]
+    assert len(said) == 1 and 3.25 < said[0].time_s <= 3.45 and "do not hold (nor does their 'not')" in said[0].text
+    assert not any(e.kind == "guard" for e in h.events)
+    end = [e.text for e in h.events if e.kind == "mission_end"][0]
+    assert "drive 10 m: blocked: no progress for 5 s" in end
+    assert h.truth.x - x < 0.15  # held within a few scan periods of the silence
+
+
+def test_the_docs_obstacle_example_runs_on_the_simulator():
+    doc = (REPO / "docs" / "mission-language.md").read_text(encoding="utf-8")
+    text = re.search(r"```yaml\n(mission: up_to_the_wall\n.*?)```", doc, re.S).group(1)
+    h = MissionHarness.from_yaml(text, base_dir=REPO / "docs")
+    assert h.run_to_end(120) == "success"
+    assert [e.text for e in h.events if e.kind == "say"] == ["wall ahead, turning round"]
+    assert h.summary()["truth"]["collisions"] == 0 and h.truth.x < 7.0  # turned round and drove 3 m back west
