@@ -144,7 +144,8 @@ def test_sector_ends_with_units_and_a_sector_to_the_left():
 
 
 def test_the_long_way_round_and_all_around():
-    b = Bench(["{obstacle_within: 0.5 m, sector_deg: [30, -30]}", "{obstacle_within: 0.5 m, sector_deg: [-180, 180]}"])
+    b = Bench(["{obstacle_within: 0.5 m, sector_deg: [30, -30]}",
+               "{obstacle_within: 0.5 m, sector_deg: [-180, 180]}"])
     b.show(scan_of([(0.0, gap_range(0.3))], spread_deg=0.2))  # straight ahead: outside [30, -30]
     assert not b.holds(0) and b.holds(1)
     b.show(scan_of([(100.0, gap_range(0.3))], spread_deg=0.2))
@@ -172,7 +173,8 @@ def test_the_lidar_mounting_is_respected():
 
 def test_a_stale_scan_never_holds_nor_does_its_not_said_once_then_back():
     b = Bench(["{obstacle_within: 0.5 m}", "{not: {obstacle_within: 0.5 m}}",
-               "{any: [{obstacle_within: 0.5 m}, {elapsed: 1 h}]}", "{all: [{obstacle_within: 0.5 m}, {elapsed: 1 h}]}"])
+               "{any: [{obstacle_within: 0.5 m}, {elapsed: 1 h}]}",
+               "{all: [{obstacle_within: 0.5 m}, {elapsed: 1 h}]}"])
     b.show(scan_of([(0.0, gap_range(2.0))], stamp_s=0.0))  # nothing near
     b.clock.advance(0.3)
     assert [b.answer(i) for i in range(4)] == [False, True, False, False]  # 0.3 s old still counts

@@ -138,12 +138,20 @@ class ObstacleTest:
         self.watch = watch
         self.nearest: Optional[tuple[float, float]] = None
         self.count = 0
+        self._judged: Optional[tuple[_ScanView, bool]] = None  # the last scan judged and its answer
 
     def __call__(self, reader: Any) -> Optional[bool]:
         view = self.watch.view(reader.get("scan"))
         if view is None:
-            self.nearest, self.count = None, 0
+            self.nearest, self.count, self._judged = None, 0, None
             return None
+        if self._judged is not None and self._judged[0] is view:
+            return self._judged[1]  # a 20 Hz tree sees each 10 Hz scan twice: judged once
+        answer = self._judge(view)
+        self._judged = (view, answer)
+        return answer
+
+    def _judge(self, view: _ScanView) -> bool:
         mask = view.gaps_m <= self.gap_m
         if self.sector is not None:
             start, width = self.sector
