@@ -191,6 +191,23 @@ def test_a_stale_scan_never_holds_nor_does_its_not_said_once_then_back():
     assert len(b.said()) == 2 and "scans are back" in b.said()[1]
 
 
+@pytest.mark.parametrize("a, b, nota, both, either", [
+    (True, True, False, True, True), (True, False, False, False, True), (False, False, True, False, False),
+    (True, None, False, None, True), (False, None, True, False, None), (None, None, None, None, None),
+    (np.bool_(True), None, False, None, True), (np.bool_(False), np.bool_(True), True, False, True),
+])
+def test_not_all_and_any_of_unknown_answers(a, b, nota, both, either):
+    """Kleene's three-valued logic: unknown (None) stays unknown unless the known part decides; a numpy bool
+    counts as its bool; only True holds."""
+    from beastbt.behaviours.conditions import Condition, all_of, any_of, not_of
+    ta, tb = (lambda r: a), (lambda r: b)
+    for test, expected in ((not_of(ta), nota), (all_of([ta, tb]), both), (any_of([ta, tb]), either),
+                           (all_of([tb, ta]), both), (any_of([tb, ta]), either)):
+        answer = test(None)
+        assert (answer is None) == (expected is None) and (answer is None or bool(answer) == expected)
+        assert Condition("c", test, None).holds() is (expected is True)  # type: ignore[arg-type]
+
+
 def test_the_collision_monitors_source_timeout_is_the_age_limit():
     b = Bench(["{obstacle_within: 0.5 m}"], ObstacleSensing(max_age_s=1.0))
     b.show(scan_of([(0.0, gap_range(0.2))], stamp_s=0.0))

@@ -64,7 +64,8 @@ class Condition:
 
     def holds(self) -> bool:
         """True when the condition holds now (unknown does not hold)."""
-        return self.test(self.reader) is True
+        answer = self.test(self.reader)
+        return answer is not None and bool(answer)  # bool(): a numpy bool from a reading counts as well
 
     def details(self) -> str:
         """What made it hold at the last test, or ''."""
