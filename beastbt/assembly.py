@@ -263,7 +263,7 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
     has_joystick = profile.section("joystick") is not None or (options is not None and
                                                                options.joystick_script is not None)
     return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery,
-                                                 has_joystick))
+                                                 has_joystick, has_lidar=profile.section("lidar") is not None))
 
 
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:

@@ -121,6 +121,9 @@ class RunServices:
     ``return_home: {along: path}`` needs it."""
     questions: Optional[Any] = None
     """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
+    obstacle_sensing: Optional[Any] = None
+    """Where the LiDAR sits, the footprint and the scan rules for ``obstacle_within``
+    (:class:`~beastbt.behaviours.obstacle_within.ObstacleSensing`); set by the LiDAR part."""
     plugins: dict[str, Any] = field(default_factory=dict)
     """What parts from other packages offer their steps, by the part's name (see docs/extending.md)."""
 

@@ -266,6 +266,11 @@ class _Explainer:
         if v == "minItems" and isinstance(err.instance, list) and err.instance:
             return [self.at(path, f"{_where(path).strip().replace('in ', '', 1) or 'this'} needs at least "
                                   f"{err.validator_value} items, has {len(err.instance)}", self.describe(schema))]
+        if v == "maxItems" and isinstance(err.instance, list):
+            what = _where(path).strip().replace('in ', '', 1) or 'this'
+            most = err.validator_value
+            takes = f"exactly {most}" if schema.get("minItems") == most else f"at most {most}"
+            return [self.at(path, f"{what} takes {takes} items, has {len(err.instance)}", self.describe(schema))]
         if v in ("minItems", "minProperties"):
             return [self.at(path, f"{_where(path).strip() or 'this'} is empty".replace("in ", "", 1), self.describe(schema))]
         return [self.at(path, err.message, self.describe(schema))]

@@ -19,6 +19,7 @@ from beastbt.core.errors import Problem, warning
 from beastbt.core.schema_defaults import schema_default
 from beastbt.core.units import format_quantity
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, distance_m
+from beastbt.behaviours.conditions import sector_width_rad
 from beastbt.mission import steps as st
 
 FAR_PLACE_M = TYPO_DISTANCE_M
@@ -130,15 +131,59 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
                 out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {where} fence "
                                                                        f"'{fence.name}': going there crosses it",
                                                "move the place, or the fence")))
+    out += _sector_warnings(mission)
     return by_position(out)
+
+
+def _inner(condition: Any) -> tuple:
+    """The conditions inside ``not``, ``all`` and ``any``."""
+    return getattr(condition, "conditions", None) or ((condition.condition,) if isinstance(condition, st.Not) else ())
 
 
 def _needs_a_fix(condition: Any) -> bool:
     """True when a condition reads the position on Earth (``near``, ``inside``/``outside`` a fence)."""
     if isinstance(condition, (st.Near, st.InFence)):
         return True
-    inner = getattr(condition, "conditions", None) or ((condition.condition,) if isinstance(condition, st.Not) else ())
-    return any(_needs_a_fix(c) for c in inner)
+    return any(_needs_a_fix(c) for c in _inner(condition))
+
+
+def _needs_a_lidar(condition: Any) -> bool:
+    """True when a condition reads the LiDAR (``obstacle_within``)."""
+    if isinstance(condition, st.ObstacleWithin):
+        return True
+    return any(_needs_a_lidar(c) for c in _inner(condition))
+
+
+def _sectors(condition: Any, path: tuple) -> Iterator[tuple[st.ObstacleWithin, tuple]]:
+    """Every ``obstacle_within`` with a sector in ``condition`` (written at ``path``), with where it is written."""
+    if isinstance(condition, st.ObstacleWithin):
+        if condition.sector_rad is not None:
+            yield condition, path + ("sector_deg",)
+    elif isinstance(condition, st.Not):
+        yield from _sectors(condition.condition, path + ("not",))
+    elif isinstance(condition, (st.AllOf, st.AnyOf)):
+        key = "all" if isinstance(condition, st.AllOf) else "any"
+        for i, c in enumerate(condition.conditions):
+            yield from _sectors(c, path + (key, i))
+
+
+def _sector_warnings(mission: Any) -> list[Problem]:
+    """A sector written from left to right the long way round (``[30, -30]``: everything but the 60 deg ahead)."""
+    out = []
+    for step in _every_step(mission):
+        condition = getattr(step, "condition", None)
+        if condition is None:
+            continue
+        for c, path in _sectors(condition, step.path + (step.KEYWORD,)):
+            start, end = (math.degrees(a) for a in c.sector_rad)
+            width = math.degrees(sector_width_rad(*c.sector_rad))
+            if end < start and width > 180.0:
+                out.append(warning(mission.doc.problem(
+                    path, f"sector_deg [{start:g}, {end:g}] runs counterclockwise from {start:g} deg to {end:g} deg: "
+                          f"the {width:g} degrees round the back, all but the {360 - width:g} degrees between them",
+                    f"for the {360 - width:g} degrees between them write [{end:g}, {start:g}] (0 is straight ahead, "
+                    f"positive to the left)")))
+    return out
 
 
 def world_warnings(mission: Any, world: Any) -> list[Problem]:
@@ -171,9 +216,18 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
 
 
 def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
-                   has_joystick: bool = True) -> list[Problem]:
+                   has_joystick: bool = True, has_lidar: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
     out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    if not has_lidar:
+        for step in _every_step(mission):
+            if _needs_a_lidar(getattr(step, "condition", None)):
+                out.append(warning(mission.doc.problem(
+                    step.path + (step.KEYWORD,), f"robot '{robot}' has no LiDAR (no lidar: section): this "
+                                                 f"obstacle_within cannot be checked, so this {step.KEYWORD} step "
+                                                 f"fails at once", "run it on a robot with a lidar: section "
+                                                                   "(robots/sim.yaml has an LD19), or remove the "
+                                                                   "condition")))
     if mission.on_failure == "hold" and not has_joystick and "on_failure" in (mission.doc.data or {}):
         out.append(warning(mission.doc.problem(("on_failure",), f"on_failure: hold on robot '{robot}', which has no "
                                                                 f"joystick: nothing can clear the hold, the robot "
