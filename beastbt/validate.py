@@ -17,6 +17,10 @@ from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.yaml_source import load_yaml
 
 
+FILE_KEYS = frozenset({"mission", "steps", "robot", "world"})
+"""First keys of the files that are mappings: a top-level list holding them is not a joystick script."""
+
+
 def validate_file(path: str) -> list[Problem]:
     """Every problem in the file at ``path``, errors and warnings (an empty list when it is clean)."""
     from beastbt.mission.model import load_mission
@@ -24,7 +28,9 @@ def validate_file(path: str) -> list[Problem]:
     from beastbt.sim.world import load_world
     try:
         doc = load_yaml(path, require_mapping=False)
-        if isinstance(doc.data, list):  # only a joystick script is a list of events at its top level
+        if isinstance(doc.data, list) and not any(isinstance(e, dict) and set(e) & FILE_KEYS for e in doc.data):
+            # Only a joystick script is a list of events at its top level; a list of a mission's keys is a
+            # mission written with a '-' too many, and its error says so.
             from beastbt.devices.joystick import JoystickMapping
             from beastbt.parts.sim_joystick import load_joystick_script
             load_joystick_script(path, JoystickMapping())
