@@ -216,9 +216,19 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
 
 
 def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
-                   has_joystick: bool = True, has_lidar: bool = True) -> list[Problem]:
+                   has_joystick: bool = True, has_lidar: bool = True, has_odometry: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
     out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    if not has_odometry:
+        for step in _every_step(mission):
+            if isinstance(step, (st.DriveDistance, st.TurnBy)):
+                what = "how far it drove" if isinstance(step, st.DriveDistance) else "how far it turned"
+                out.append(warning(mission.doc.problem(
+                    step.path + (step.KEYWORD,), f"robot '{robot}' has no odometry (its base reports no wheel "
+                                                 f"travel): this {step.KEYWORD} cannot measure {what}, and fails "
+                                                 f"as if blocked",
+                    "drive for a time instead (drive: {time: 4 s, speed: 0.15 m/s}), or give the base wheel "
+                    "encoders")))
     if not has_lidar:
         for step in _every_step(mission):
             if _needs_a_lidar(getattr(step, "condition", None)):
