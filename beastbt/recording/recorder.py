@@ -58,6 +58,7 @@ import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.obstacle_views import ObstacleSampler
 from beastbt.recording.scene import scene_description
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
@@ -169,6 +170,8 @@ class McapRecorder:
         self._tags: list[tuple[str, int]] = []
         """(device poll, readings it returned) in the order the loop polled this tick: who sent what."""
         self._base_tagged = False
+        self._views: Optional[ObstacleSampler] = None
+        """What the obstacle views draw (costmap, local plan, zones, persons), sampled each tick once ``run`` is known."""
 
     def tag_sources(self, io: Any) -> None:
         """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.
@@ -365,6 +368,13 @@ class McapRecorder:
                                     image if keep else None)
         self._put(("tick", rec.tick, rec.now_s, readings, rec.pose_odom, rec.pose, rec.cmd_mission, rec.cmd_mux,
                    rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._take_tags()), rec.now_s)
+        views = self._views
+        if views is None and self.run is not None:
+            views = self._views = ObstacleSampler(self.run)
+        if views is not None:
+            changed = views.sample(rec.now_s)
+            if changed is not None:
+                self._put(("views", rec.now_s, changed), rec.now_s)
 
     def on_event(self, ev: Any) -> None:
         """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
