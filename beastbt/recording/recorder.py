@@ -662,7 +662,9 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
         info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
     if profile.section("lidar") is not None:
+        from beastbt.actuation.collision_monitor import footprint_radius
         from beastbt.devices.lidar_scan import LidarConfig
+        info["footprint_radius_m"] = repr(footprint_radius(profile.data))  # the report's clearance from the scans
         info["lidar_mounting"] = json.dumps(dataclasses.asdict(section_config(profile, "lidar", LidarConfig).mounting))
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
@@ -670,6 +672,8 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         info["world_start"] = json.dumps([world.start_x, world.start_y, world.start_yaw])
         info["world_datum"] = json.dumps([world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m])
         info["world_walls"] = json.dumps([list(_wall_tuple(w)) for w in world.walls])
+        from beastbt.sim.obstacles import obstacle_outline
+        info["world_obstacles"] = json.dumps([obstacle_outline(o) for o in world.obstacles])
     attachments: list[tuple[str, str, bytes]] = []
     for name, path, data in (("mission.yaml", mission.file, mission.doc.data),
                              ("robot.yaml", profile.file, profile.data),
