@@ -171,3 +171,49 @@ def test_the_person_is_drawn_where_it_walks_and_contact_truth_is_sampled(person_
     assert hit["in_contact"] and hit["clearance_m"] < 1e-3  # sampled at the contact itself, not up to 0.2 s later
     zones = [m["entities"][0] for _, _, m in rows["/collision_monitor/zones"]]
     assert zones[0]["frame_id"] == "base_link" and len(zones[0]["lines"]) == 2
+
+
+
+def test_a_standing_person_is_redrawn_with_the_scene_when_map_is_anchored_on_earth(tmp_path):
+    from beastbt.blackboard.types import FusedPose, VelocityCommand
+    from beastbt.mission.model import load_mission
+    from beastbt.recording.config import RecordingConfig
+    from beastbt.recording.scene import scene_description
+    from beastbt.recording.writer import RunFileWriter
+    from beastbt.sim.world import load_world
+    world = load_world(REPO / "worlds" / "campus_obstacles.yaml")  # its first bench stands at (0.3, 6.0)
+    description = scene_description(load_mission(REPO / "missions" / "gps_route.yaml"), world, 0.15)
+    writer = RunFileWriter([tmp_path / "w.mcap"], RecordingConfig(), {"mission": "w"}, [])
+    writer.write(("scene", 0.0, description))
+    # A person standing 2 m east of the bench (sampled once: it does not move, so it is not sent again).
+    writer.write(("views", 0.1, {"contact": {"t_s": 0.1, "clearance_m": 1.0, "collisions": 0, "in_contact": False,
+                                             "persons": [[2.3, 6.0, 0.25]], "moved": True}}))
+    # The EKF anchors map 3 m east of the datum: the robot at map (0, 0) is at world (3, 0).
+    lat, lon, _ = world.frame.to_geodetic(3.0, 0.0, 0.0)
+    pose = FusedPose(0.2, 0.0, 0.0, 0.0, lat=lat, lon=lon)
+    stop = VelocityCommand()
+    writer.write(("tick", 1, 0.2, [], pose, pose, None, stop, stop, "mission", [], None, (False, ())))
+    writer.finish()
+    assert writer.error is None
+    scenes, persons = [], []
+    with open(tmp_path / "w.mcap", "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if channel.topic == "/scene":
+                scenes.append(json.loads(message.data))
+            elif channel.topic == "/sim/persons":
+                persons.append(json.loads(message.data))
+    assert len(scenes) == 2 and len(persons) == 2  # drawn at the start, and again when the EKF anchored map
+
+    def bench(scene: dict) -> tuple[float, float]:
+        (obstacles,) = [e for e in scene["entities"] if e["id"] == "obstacles"]
+        p = obstacles["cubes"][0]["pose"]["position"]
+        return p["x"], p["y"]
+
+    def person(update: dict) -> tuple[float, float]:
+        p = update["entities"][0]["cylinders"][0]["pose"]["position"]
+        return p["x"], p["y"]
+
+    for scene, update in zip(scenes, persons):
+        (bx, by), (px, py) = bench(scene), person(update)
+        assert (px - bx, py - by) == pytest.approx((2.0, 0.0), abs=0.01)  # where the world has it, beside the bench
+    assert bench(scenes[1]) == pytest.approx((0.3 - 3.0, 6.0), abs=0.05)  # map moved 3 m east

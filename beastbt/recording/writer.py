@@ -449,6 +449,8 @@ class RunFileWriter:
         """Altitude (m) and vertical variance (m^2) of the latest GPS fix: the planar EKF's /gps/fused uses them."""
         self._scene: Optional[SceneView] = None
         """What the run happens in (a ``scene`` item): /route once, /scene at the start and when map moves."""
+        self._persons: list = []
+        """The simulator's persons as last sampled ([x, y, radius], world metres): redrawn with /scene."""
         self._latched_views: dict[str, bytes] = {}
         """The last message of each obstacle view sent only on change (the zones): a client that subscribes late
         gets it again, live only."""
@@ -650,6 +652,8 @@ class RunFileWriter:
             scene = self._scene
             if scene is not None and scene.on_pose(pose.x, pose.y, pose.lat, pose.lon, pose.position_valid):
                 emit("/scene", t, scene.scene_message(t))  # the map frame found its place on Earth: redraw
+                if self._persons:  # and the persons with it, where they stand (they are sent only as they move)
+                    emit("/sim/persons", t, ov.persons_update(t, frames.map, self._persons, scene.world_point))
         if pose_odom is not None:
             emit("/estimate/odom", t, pose_dict(pose_odom))
             emit("/odom", t, fx.odometry(t, frames, pose_odom))
@@ -693,6 +697,7 @@ class RunFileWriter:
         if contact is not None:
             self._emit("/sim/contact", t, ov.contact_message(contact))
             scene = self._scene
+            self._persons = contact["persons"]
             if contact["moved"] and contact["persons"] and scene is not None:
                 self._emit("/sim/persons", t, ov.persons_update(t, frames.map, contact["persons"], scene.world_point))
 
