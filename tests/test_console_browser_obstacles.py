@@ -61,7 +61,8 @@ def test_the_map_draws_the_scan_the_zones_the_walking_person_and_a_local_plan(tm
             page.wait_for_timeout(300)  # the socket has closed: no state will replace the one handed below
             page.evaluate("""() => { const s = JSON.parse(JSON.stringify(state));
                 const p = s.pose; const yaw = p.yaw_deg * Math.PI / 180;
-                s.obstacles.plan = [0, 1, 2, 3].map((k) => [p.x + 0.3 * k * Math.cos(yaw), p.y + 0.3 * k * Math.sin(yaw) + 0.05 * k * k]);
+                s.obstacles.plan = [0, 1, 2, 3].map((k) => [p.x + 0.3 * k * Math.cos(yaw),
+                                                            p.y + 0.3 * k * Math.sin(yaw) + 0.05 * k * k]);
                 s.obstacles.zones.action = "stop"; render(s); }""")
             planned = wait_for_page(page, f"(d => d.planPoints === '4' && d)({DATASET})")
             assert planned["zoneActive"] == "stop"

@@ -1,4 +1,5 @@
-"""What people see of obstacles in Foxglove: /costmap, /local_plan, /collision_monitor/zones, /sim/persons, /sim/contact.
+"""What people see of obstacles in Foxglove: /costmap, /local_plan, /collision_monitor/zones, /sim/persons and
+/sim/contact.
 
 The local planner is another part's work: here a hand-made planner (a tick
 hook) writes a :class:`LocalCostmap` and a :class:`LocalPlan` on the

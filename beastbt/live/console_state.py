@@ -108,8 +108,9 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
             out["scan"] = _to_plan(pts[::step], px, py, pyaw)
         monitor = run.collision_monitor
         if monitor is not None:
-            out["zones"] = {"stop": _to_plan(monitor.stop_polygon, px, py, pyaw) if monitor.config.stop.enabled else None,
-                            "slow": _to_plan(monitor.slow_polygon, px, py, pyaw) if monitor.config.slow.enabled else None,
+            cfg = monitor.config
+            out["zones"] = {"stop": _to_plan(monitor.stop_polygon, px, py, pyaw) if cfg.stop.enabled else None,
+                            "slow": _to_plan(monitor.slow_polygon, px, py, pyaw) if cfg.slow.enabled else None,
                             "action": monitor.action}
         plan = fresh(catalogue.get(board_client, "local_plan"), now_s)
         if plan is not None and len(plan.points_xy) >= 2:
@@ -391,4 +392,5 @@ def _accuracy_m(fix: GpsFix) -> float:
     return (fix.hdop or 1.0) * GPS_UERE_M
 
 
-__all__ = ["ConsoleState", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent", "STATUS_NAMES"]
+__all__ = ["ConsoleState", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
+           "STATUS_NAMES", "MAX_SCAN_POINTS"]

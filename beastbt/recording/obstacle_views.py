@@ -125,7 +125,8 @@ class ObstacleSampler:
             self._plan, self._plan_s = plan, now_s
             out["plan"] = plan
         monitor = self.run.collision_monitor
-        if monitor is not None and monitor.action != self._zones_action and now_s - self._zones_s >= VIEW_PERIOD_S - 1e-9:
+        if (monitor is not None and monitor.action != self._zones_action
+                and now_s - self._zones_s >= VIEW_PERIOD_S - 1e-9):
             self._zones_action, self._zones_s = monitor.action, now_s
             out["zones"] = {"zones": monitor.zones(), "action": monitor.action, "reason": monitor.reason}
         contact = self._contact

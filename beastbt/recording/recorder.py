@@ -171,7 +171,7 @@ class McapRecorder:
         """(device poll, readings it returned) in the order the loop polled this tick: who sent what."""
         self._base_tagged = False
         self._views: Optional[ObstacleSampler] = None
-        """What the obstacle views draw (costmap, local plan, zones, persons), sampled each tick once ``run`` is known."""
+        """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
 
     def tag_sources(self, io: Any) -> None:
         """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.
