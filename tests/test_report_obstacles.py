@@ -73,3 +73,21 @@ def test_boxes_and_posts_are_drawn_where_the_world_has_them(tmp_path):
     assert len(boxes) == len(corners) and all(np.allclose(a, b) for a, b in zip(boxes, corners))
     assert plot_path(d, tmp_path / "path.png") is None
     assert_real_plot(tmp_path / "path.png", MAP_SIZE_IN, DPI)
+
+
+def test_on_a_real_robot_the_lidar_alone_gives_the_clearance(person, tmp_path):
+    folder, _ = person
+    d = RunData.load(str(folder))
+    radius = float(d.rec.info["footprint_radius_m"])
+    t_scan, scan = d.scan_clearance()
+    # A robot's recording: no simulator truth; an older one without the radius in its metadata.
+    d.rec.messages.pop("/sim/contact", None)
+    d.rec.messages.pop("/truth", None)
+    del d.rec.info["footprint_radius_m"]
+    assert d.true_clearance() == ([], []) and d.collisions() == []
+    assert d.footprint_radius_m() == pytest.approx(radius)  # from the recorded profile (robot.yaml)
+    assert d.scan_clearance() == (t_scan, pytest.approx(scan))
+    assert plot_clearance(d, tmp_path / "clearance.png") is None
+    assert_real_plot(tmp_path / "clearance.png", FIG_SIZE_IN, DPI)
+    d.rec.messages.pop("/scan", None)
+    assert "no clearance recorded" in plot_clearance(d, tmp_path / "none.png")

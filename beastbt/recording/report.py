@@ -266,9 +266,9 @@ class RunData:
         from beastbt.recording.foxglove import scan_of
         try:
             mounting = LidarMounting(**json.loads(raw))
-            radius = float(self.rec.info.get("footprint_radius_m") or 0.0)
         except (TypeError, ValueError):
             return [], []
+        radius = self.footprint_radius_m()
         times, gaps = [], []
         for t, m in zip(self.times("/scan"), scans):
             pts = base_points_xy(scan_of(m), mounting)
@@ -276,6 +276,27 @@ class RunData:
                 times.append(t)
                 gaps.append(float(np.hypot(pts[:, 0], pts[:, 1]).min()) - radius)
         return times, gaps
+
+    def footprint_radius_m(self) -> float:
+        """The robot's footprint radius (m): the metadata's, else the recorded profile's (``robot.yaml``), else the
+        collision monitor's default."""
+        from beastbt.actuation.collision_monitor import DEFAULT_FOOTPRINT_RADIUS_M, footprint_radius
+        raw = self.rec.info.get("footprint_radius_m")
+        try:
+            if raw:
+                return float(raw)
+        except ValueError:
+            pass
+        text = self.rec.text("robot.yaml")
+        if text is not None:
+            import yaml
+            try:
+                doc = yaml.safe_load(text)
+            except yaml.YAMLError:
+                doc = None
+            if isinstance(doc, dict):
+                return footprint_radius(doc)
+        return DEFAULT_FOOTPRINT_RADIUS_M
 
     def to_world(self, p: dict) -> tuple[float, float]:
         """A recorded pose's position in the report's frame (the world's, in the simulator).
