@@ -38,7 +38,7 @@ steps:
 DATASET = "Object.assign({}, document.getElementById('map').dataset)"
 
 
-def test_the_map_draws_the_scan_the_zones_the_walking_person_and_a_local_plan(tmp_path: Path):
+def test_the_map_draws_the_scan_the_zones_the_walking_person_and_a_local_plan_and_costmap(tmp_path: Path):
     folder = Path(os.environ.get("BEASTBT_SCREENSHOTS") or tmp_path)
     folder.mkdir(parents=True, exist_ok=True)
     mission = tmp_path / "mission.yaml"
@@ -51,7 +51,7 @@ def test_the_map_draws_the_scan_the_zones_the_walking_person_and_a_local_plan(tm
             page.goto(run.url)
             page.get_by_test_id("status").wait_for()
             drawn = wait_for_page(page, f"(d => +d.scanPoints > 100 && d.persons === '1' && d)({DATASET})")
-            assert drawn["zones"] == "slow,stop" and drawn["planPoints"] == "0"
+            assert drawn["zones"] == "slow,stop" and drawn["planPoints"] == "0" and drawn["costmapCells"] == "0"
             start = float(drawn["personsXy"].split()[0])
             walked = wait_for_page(page, f"(d => parseFloat(d.personsXy) < {start - 1.0} && d)({DATASET})",
                                    timeout_s=15)
@@ -63,9 +63,10 @@ def test_the_map_draws_the_scan_the_zones_the_walking_person_and_a_local_plan(tm
                 const p = s.pose; const yaw = p.yaw_deg * Math.PI / 180;
                 s.obstacles.plan = [0, 1, 2, 3].map((k) => [p.x + 0.3 * k * Math.cos(yaw),
                                                             p.y + 0.3 * k * Math.sin(yaw) + 0.05 * k * k]);
+                s.obstacles.costmap = {resolution_m: 0.05, cells: [[p.x + 1.2, p.y - 0.3], [p.x + 1.25, p.y - 0.3]]};
                 s.obstacles.zones.action = "stop"; render(s); }""")
             planned = wait_for_page(page, f"(d => d.planPoints === '4' && d)({DATASET})")
-            assert planned["zoneActive"] == "stop"
+            assert planned["zoneActive"] == "stop" and planned["costmapCells"] == "2"
             page.screenshot(path=str(folder / "console_obstacles_plan.png"), full_page=True)
             browser.close()
     finally:

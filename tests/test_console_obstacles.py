@@ -20,8 +20,8 @@ import shapely
 
 from beastbt.assembly import prepare
 from beastbt.blackboard import catalogue
-from beastbt.blackboard.types import LocalPlan
-from beastbt.live.console_state import MAX_SCAN_POINTS, ConsoleState, MapFrame, obstacle_layers
+from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, COST_UNKNOWN, LocalCostmap, LocalPlan
+from beastbt.live.console_state import MAX_COSTMAP_CELLS, MAX_SCAN_POINTS, ConsoleState, MapFrame, obstacle_layers
 from beastbt.recording.obstacle_views import STALE_S, board_reader, sim_contact
 from beastbt.run.session import RunOptions, execute
 from conftest import REPO
@@ -42,7 +42,7 @@ def looks(tmp_path_factory):
     p = prepare(str(tmp_path_factory.mktemp("m") / "m.yaml"),
                 RunOptions(seed=3, runs_dir=str(tmp_path_factory.mktemp("runs")), record=False,
                            world=str(REPO / "worlds" / "corridor_person.yaml")), mission_text=MISSION)
-    board = catalogue.writer("fake_planner", ("local_plan",))
+    board = catalogue.writer("fake_planner", ("local_plan", "costmap"))
     reader = board_reader()
     seen: list = []
     todo = list(LOOK_AT_S)
@@ -54,6 +54,18 @@ def looks(tmp_path_factory):
         if now_s <= 10.0:
             ahead = [[odo.x + k * 0.25 * math.cos(odo.yaw), odo.y + k * 0.25 * math.sin(odo.yaw)] for k in range(5)]
             board.local_plan = LocalPlan(now_s, np.array(ahead), 0.2, 0.0, blocked=now_s > 8.0)
+            # A 4 m costmap round the robot (5 cm cells): one lethal cell 1 m ahead of it, an inscribed ring of
+            # cells round that, an unknown corner (not drawn), and a wall of lethal cells too many to send all.
+            cost = np.zeros((80, 80), dtype=np.uint8)
+            ox, oy = odo.x - 2.0, odo.y - 2.0
+            col = int((odo.x + math.cos(odo.yaw) - ox) / 0.05)
+            row = int((odo.y + math.sin(odo.yaw) - oy) / 0.05)
+            cost[row - 1:row + 2, col - 1:col + 2] = COST_INSCRIBED
+            cost[row, col] = COST_LETHAL
+            cost[:10, :10] = COST_UNKNOWN
+            if now_s > 8.0:
+                cost[70:, :] = COST_LETHAL
+            board.costmap = LocalCostmap(now_s, ox, oy, 0.05, cost)
         if todo and now_s >= todo[0] - 1e-9:
             todo.pop(0)
             frame = MapFrame(run, p.world)
@@ -100,6 +112,16 @@ def test_the_plan_goes_from_odom_onto_the_map_through_the_robots_pose(looks):
     assert t_late - 10.0 > STALE_S and late["plan"] is None  # the planner stopped: the plan goes away
 
 
+def test_the_costmap_s_occupied_cells_are_drawn_where_odom_puts_them(looks):
+    (first, (x, y, yaw), _, _), (middle, _, _, _), (late, _, _, _) = looks[0]
+    cells = np.array(first["costmap"]["cells"])
+    assert len(cells) == 9 and first["costmap"]["resolution_m"] == 0.05  # lethal and inscribed; never unknown
+    centre = cells.mean(axis=0)
+    assert centre == pytest.approx([x + math.cos(yaw), y + math.sin(yaw)], abs=0.05)  # 1 m ahead of the robot
+    assert len(middle["costmap"]["cells"]) <= MAX_COSTMAP_CELLS < 10 * 80  # the wall is thinned, not all sent
+    assert late["costmap"] is None  # stale: taken off
+
+
 def test_the_person_is_drawn_where_the_simulator_has_it(looks):
     xs = []
     for layers, _, persons, _ in looks[0]:
@@ -112,4 +134,4 @@ def test_the_person_is_drawn_where_the_simulator_has_it(looks):
 def test_the_state_carries_the_layers_in_a_few_kilobytes(looks):
     _, state = looks
     size = len(json.dumps(state["obstacles"]))
-    assert state["obstacles"]["scan"] and size < 6000, size
+    assert state["obstacles"]["scan"] and size < 8000, size

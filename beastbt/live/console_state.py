@@ -21,7 +21,7 @@ from typing import Any, Callable, Optional
 import py_trees
 
 from beastbt.blackboard import catalogue
-from beastbt.blackboard.types import BatteryState, GpsFix
+from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, BatteryState, GpsFix
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.run.progress import progress_of
 
@@ -57,6 +57,8 @@ def board(run: Any, key: str) -> Any:
 
 MAX_SCAN_POINTS = 240
 """The scan on the map keeps at most this many of a revolution's points (every k-th): the state stays a few kB."""
+MAX_COSTMAP_CELLS = 300
+"""The costmap on the map keeps at most this many of its occupied cells (every k-th)."""
 SCAN_SHOWN_S = 1.0
 """A scan older than this is not drawn (the LiDAR went silent), s."""
 
@@ -85,6 +87,17 @@ def _to_plan(points: Any, x: float, y: float, yaw: float) -> list:
     return np.round(out, 2).tolist()
 
 
+def _costmap_cells(costmap: Any, odom_on_plan: tuple[float, float, float]) -> dict:
+    """The centres of a costmap's lethal and inscribed cells on the plan (see :func:`obstacle_layers`)."""
+    import numpy as np
+    rows, cols = np.nonzero((costmap.cost >= COST_INSCRIBED) & (costmap.cost <= COST_LETHAL))
+    step = max(1, -(-len(rows) // MAX_COSTMAP_CELLS))
+    res = float(costmap.resolution_m)
+    centres = np.column_stack((costmap.origin_x_m + (cols[::step] + 0.5) * res,
+                               costmap.origin_y_m + (rows[::step] + 0.5) * res))
+    return {"cells": _to_plan(centres, *odom_on_plan), "resolution_m": res}
+
+
 def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float,
                     pose: Optional[tuple[float, float, float]]) -> dict:
     """What the map draws of obstacles now, on the plan (metres, rounded to cm): each key None when there is none.
@@ -92,11 +105,12 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
     ``scan``: the latest LiDAR revolution's returns (at most :data:`MAX_SCAN_POINTS`);
     ``zones``: the collision monitor's stop and slow polygons round the robot and its ``action``;
     ``plan``: the local planner's path (``local_plan``, odom frame, put on the plan through the robot's pose in
-    both); ``blocked``: the planner finds no way; ``persons``: the simulator's persons where they are,
-    ``[x, y, radius]``.
+    both); ``blocked``: the planner finds no way; ``costmap``: ``{cells, resolution_m}``, the centres of the
+    local costmap's cells an obstacle is in or the footprint would touch (Nav2's lethal and inscribed, at most
+    :data:`MAX_COSTMAP_CELLS`); ``persons``: the simulator's persons where they are, ``[x, y, radius]``.
     """
     from beastbt.recording.obstacle_views import fresh, sim_contact
-    out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "persons": None}
+    out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "costmap": None, "persons": None}
     if pose is not None:
         px, py, pyaw = pose
         scan = run.latest_scan()
@@ -112,14 +126,18 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
             out["zones"] = {"stop": _to_plan(monitor.stop_polygon, px, py, pyaw) if cfg.stop.enabled else None,
                             "slow": _to_plan(monitor.slow_polygon, px, py, pyaw) if cfg.slow.enabled else None,
                             "action": monitor.action}
+        # odom -> plan: the robot's pose on the plan after the inverse of its pose in odom.
+        odo = run.odom
+        yaw = pyaw - odo.yaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        odom_on_plan = (px - (c * odo.x - s * odo.y), py - (s * odo.x + c * odo.y), yaw)
         plan = fresh(catalogue.get(board_client, "local_plan"), now_s)
         if plan is not None and len(plan.points_xy) >= 2:
-            # odom -> plan: the robot's pose on the plan after the inverse of its pose in odom.
-            odo = run.odom
-            yaw = pyaw - odo.yaw
-            c, s = math.cos(yaw), math.sin(yaw)
-            out["plan"] = _to_plan(plan.points_xy, px - (c * odo.x - s * odo.y), py - (s * odo.x + c * odo.y), yaw)
+            out["plan"] = _to_plan(plan.points_xy, *odom_on_plan)
             out["blocked"] = bool(plan.blocked)
+        costmap = fresh(catalogue.get(board_client, "costmap"), now_s)
+        if costmap is not None:
+            out["costmap"] = _costmap_cells(costmap, odom_on_plan)
     contact = sim_contact(run)
     if contact is not None and contact.persons:
         # The simulator's world is the plan (MapFrame): the persons are drawn where they stand.
@@ -393,4 +411,4 @@ def _accuracy_m(fix: GpsFix) -> float:
 
 
 __all__ = ["ConsoleState", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
-           "STATUS_NAMES", "MAX_SCAN_POINTS"]
+           "STATUS_NAMES", "MAX_SCAN_POINTS", "MAX_COSTMAP_CELLS"]

@@ -320,13 +320,19 @@ function drawMap() {
   $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
 }
 
-// What the robot sees and plans (the state's "obstacles", plan metres): the collision monitor's zones round the
-// robot (the acting one bold and filled), the local planner's path, the LiDAR's returns, the persons where they
-// are. What was drawn is counted on the canvas's data attributes (the tests read them).
+// What the robot sees and plans (the state's "obstacles", plan metres): the local costmap's occupied cells, the
+// collision monitor's zones round the robot (the acting one bold and filled), the local planner's path, the
+// LiDAR's returns, the persons where they are. What was drawn is counted on the canvas's data attributes (the tests read them).
 const ZONE_COLOURS = {slow: "#ff9f1a", stop: "#e5534b"};
 const ZONE_ACTIVE = {stop: new Set(["stop", "silent"]), slow: new Set(["slow", "approach"])};
 function drawObstacles(g, ob, poly, ring, px, canvas) {
-  const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0};
+  const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0, costmap: 0};
+  if (ob && ob.costmap) {  // the cells an obstacle is in or the footprint would touch: where the planner will not go
+    g.fillStyle = "#d04ae8bb";
+    const side = Math.max(3, ob.costmap.resolution_m * (px(1, 0)[0] - px(0, 0)[0]));
+    for (const p of ob.costmap.cells) { const [x, y] = px(p[0], p[1]); g.fillRect(x - side / 2, y - side / 2, side, side); }
+    drawn.costmap = ob.costmap.cells.length;
+  }
   if (ob && ob.zones) {
     for (const name of ["slow", "stop"]) {
       const z = ob.zones[name];
@@ -357,6 +363,7 @@ function drawObstacles(g, ob, poly, ring, px, canvas) {
   canvas.dataset.planPoints = drawn.plan;
   canvas.dataset.scanPoints = drawn.scan;
   canvas.dataset.persons = drawn.persons;
+  canvas.dataset.costmapCells = drawn.costmap;
   canvas.dataset.personsXy = ob && ob.persons ? ob.persons.map((p) => p[0].toFixed(2) + " " + p[1].toFixed(2)).join(",") : "";
 }
 
