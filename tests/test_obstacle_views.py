@@ -65,6 +65,9 @@ def test_the_costmap_is_a_uint8_grid_whose_rows_go_north_from_its_origin():
     assert data.shape == (20, 30) and data[2, 5] == COST_LETHAL and data[0, 5] == 0 and (data[19] == 100).all()
     empty = ov.costmap_grid(6_000_000_000, "odom", None)
     assert not errors("Grid", empty) and empty["column_count"] == 0 and empty["data"] == ""
+    # Foxglove's 3D panel counts rows as len(data) / row_stride and refuses a grid where that is not a whole number.
+    assert empty["row_stride"] > 0 and len(base64.b64decode(empty["data"])) % empty["row_stride"] == 0
+    assert len(data.tobytes()) % msg["row_stride"] == 0
 
 
 def test_the_plan_is_a_line_in_odom_red_when_blocked_and_goes_away_when_absent():

@@ -153,11 +153,13 @@ def costmap_grid(t_ns: int, frame_id: str, costmap: Any) -> dict:
     """A :class:`~beastbt.blackboard.types.LocalCostmap` as a ``foxglove.Grid`` of uint8 costs in ``frame_id``
     (odom); None as an empty grid (0 x 0: the costmap is taken off the view).
 
-    Row 0 is the southernmost, as in Foxglove (rows along +y, cells along +x from the grid's pose).
+    Row 0 is the southernmost, as in Foxglove (rows along +y, cells along +x from the grid's pose). The empty
+    grid has a row stride of 1 byte, so that Foxglove counts its rows as 0 / 1 = 0 and takes it as a valid grid
+    of nothing (0 / 0 would be an error on the topic).
     """
     if costmap is None:
         return {"timestamp": fox_time(t_ns), "frame_id": frame_id, "pose": planar_pose(0.0, 0.0, 0.0),
-                "column_count": 0, "cell_size": {"x": 1.0, "y": 1.0}, "row_stride": 0, "cell_stride": 1,
+                "column_count": 0, "cell_size": {"x": 1.0, "y": 1.0}, "row_stride": 1, "cell_stride": 1,
                 "fields": [{"name": "cost", "offset": 0, "type": GRID_UINT8}], "data": ""}
     cost = np.ascontiguousarray(costmap.cost, dtype=np.uint8)
     rows, cols = cost.shape
