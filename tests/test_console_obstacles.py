@@ -135,3 +135,30 @@ def test_the_state_carries_the_layers_in_a_few_kilobytes(looks):
     _, state = looks
     size = len(json.dumps(state["obstacles"]))
     assert state["obstacles"]["scan"] and size < 8000, size
+
+
+def test_on_a_fused_map_the_plan_starts_at_the_fused_pose_and_runs_along_its_heading(tmp_path):
+    # The GPS route navigates by the fused pose: the map is drawn by it, while the plan is in odom (which drifts
+    # away from it): the plan must still start at the robot as drawn and leave along its heading.
+    p = prepare(str(REPO / "missions" / "gps_route.yaml"),
+                RunOptions(seed=1, runs_dir=str(tmp_path), record=False, max_time_s=12.0))
+    board = catalogue.writer("fake_planner", ("local_plan",))
+    reader = board_reader()
+    seen = []
+
+    def hook(run, now_s: float) -> None:
+        odo = run.odom
+        board.local_plan = LocalPlan(now_s, np.array([[odo.x, odo.y], [odo.x + math.cos(odo.yaw),
+                                                                       odo.y + math.sin(odo.yaw)]]))
+        if now_s >= 10.0 and not seen:
+            frame = MapFrame(run, p.world)
+            pose = frame.pose()
+            seen.append((frame.fused, pose, (odo.x, odo.y, odo.yaw), obstacle_layers(run, frame, reader, now_s, pose)))
+
+    p.run.hooks.append(hook)
+    execute(p, io.StringIO())
+    fused, (x, y, yaw), odom, layers = seen[0]
+    assert fused and math.hypot(x - odom[0], y - odom[1]) > 0.05  # the two frames do differ here
+    start, end = layers["plan"]
+    assert start == pytest.approx([x, y], abs=0.02)
+    assert end == pytest.approx([x + math.cos(yaw), y + math.sin(yaw)], abs=0.02)
