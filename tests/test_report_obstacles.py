@@ -91,3 +91,17 @@ def test_on_a_real_robot_the_lidar_alone_gives_the_clearance(person, tmp_path):
     assert_real_plot(tmp_path / "clearance.png", FIG_SIZE_IN, DPI)
     d.rec.messages.pop("/scan", None)
     assert "no clearance recorded" in plot_clearance(d, tmp_path / "none.png")
+
+
+def test_the_summary_says_the_collisions_the_clearance_and_what_the_monitor_did(person):
+    from beastbt.recording.report import obstacles_line, summary_text
+    folder, summary = person
+    text = summary_text(RunData.load(str(folder)))
+    least = summary["truth"]["min_clearance_m"]
+    assert f"  obstacles: 1 collision, least clearance {least:.2f} m (truth); collision monitor: " in text
+    assert obstacles_line({"truth": {"collisions": 0, "min_clearance_m": 0.4},
+                           "collision_monitor": {"episodes": {}}}) == \
+        "  obstacles: 0 collisions, least clearance 0.40 m (truth); collision monitor: never acted"
+    assert obstacles_line({"collision_monitor": {"episodes": {"stop": 2, "slow": 1}}}) == \
+        "  obstacles: collision monitor: slow 1, stop 2"
+    assert obstacles_line({}) is None

@@ -465,6 +465,23 @@ class RunData:
 # -- the terminal summary ---------------------------------------------------------------------
 
 
+def obstacles_line(s: dict) -> Optional[str]:
+    """The summary's obstacle figures in one line: the simulator's collisions and least clearance, and what the
+    collision monitor did (episodes per action); None when the run has neither."""
+    parts = []
+    truth = s.get("truth") or {}
+    if "collisions" in truth:
+        n = truth["collisions"]
+        least = truth.get("min_clearance_m")
+        parts.append(f"{n} collision{'s' if n != 1 else ''}"
+                     + (f", least clearance {least:.2f} m" if least is not None else "") + " (truth)")
+    episodes = (s.get("collision_monitor") or {}).get("episodes") or {}
+    if s.get("collision_monitor") is not None:
+        said = ", ".join(f"{action} {count}" for action, count in sorted(episodes.items()))
+        parts.append("collision monitor: " + (said if said else "never acted"))
+    return "  obstacles: " + "; ".join(parts) if parts else None
+
+
 def summary_text(d: RunData) -> str:
     """A few lines for a person: outcome, duration, distance, waypoints, failsafes, recording."""
     rec, s = d.rec, d.summary or {}
@@ -493,6 +510,9 @@ def summary_text(d: RunData) -> str:
                          + (f" at {wp.time_s:.1f} s" if wp.time_s is not None else ""))
     else:
         lines.append("  waypoints: none")
+    obstacles = obstacles_line(s)
+    if obstacles:
+        lines.append(obstacles)
     failsafes = rec.topic("/failsafes")
     if failsafes:
         lines.append("  failsafes:")
