@@ -22,14 +22,14 @@ import time
 import jsonschema
 import pytest
 
-from beastbt.recording.foxglove_live import SdkLogLimiter
+from beastbt.recording.foxglove_live import LATCHED, SdkLogLimiter
 from beastbt.recording.reader import read_recording
 from beastbt.recording.schemas import CHANNELS, schema_bytes
 from conftest import REPO
 
 websockets = pytest.importorskip("websockets", reason="the live test's client (pip install -e '.[test]')")
 
-SUBSCRIBE = ("/tf", "/cmd/gate", "/scene", "/gps/fix")
+SUBSCRIBE = ("/tf", "/cmd/gate", "/scene", "/gps/fix", "/collision_monitor/zones")
 
 
 def free_port() -> int:
@@ -94,18 +94,19 @@ def test_a_client_sees_every_channel_and_the_messages_of_the_recording(tmp_path)
         c = channels[topic]
         assert (c["encoding"], c["schemaEncoding"], c["schemaName"]) == ("json", "jsonschema", schema["title"])
         assert json.loads(c["schema"]) == json.loads(schema_bytes(schema))
-    # Messages arrive on what was subscribed: every tick's /tf and /cmd/gate, the latched /scene.
+    # Messages arrive on what was subscribed: every tick's /tf and /cmd/gate, the latched /scene and zones (sent
+    # before the client came, and again when it subscribed).
     topics = {topic for topic, _, _ in got}
-    assert {"/tf", "/cmd/gate", "/scene"} <= topics, topics
+    assert {"/tf", "/cmd/gate", "/scene", "/collision_monitor/zones"} <= topics, topics
     assert sum(topic == "/cmd/gate" for topic, _, _ in got) > 20  # 20 Hz for seconds
-    # The same bytes at the same log times as the file (a resent /scene is live only and carries a newer time).
+    # The same bytes at the same log times as the file (a resent latched message is live only, with a newer time).
     recording = read_recording(record)
     offset = recording.log_time_offset_ns
     in_file = {(topic, t + offset, json.dumps(m, sort_keys=True)) for topic in SUBSCRIBE
                for t, m in recording.messages.get(topic, [])}
     for topic, log_time, payload in got:
         assert log_time > 1_577_836_800 * 10**9
-        if topic != "/scene":
+        if topic not in LATCHED:
             assert (topic, log_time, json.dumps(json.loads(payload), sort_keys=True)) in in_file, topic
     tf = next(json.loads(p) for topic, _, p in got if topic == "/tf")
     jsonschema.Draft202012Validator(CHANNELS["/tf"]).validate(tf)

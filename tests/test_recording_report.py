@@ -17,7 +17,7 @@ from beastbt.recording.report import (DPI, FIG_SIZE_IN, MAP_SIZE_IN, WAYPOINT_CO
 from beastbt.recording.runs_list import list_runs
 from recording_support import GPS_ROUTE, PATROL, assert_real_plot, record_run, shared_run
 
-SIZES = {"path": MAP_SIZE_IN, "position_error": FIG_SIZE_IN, "speeds": FIG_SIZE_IN, "line_error": FIG_SIZE_IN,
+SIZES = {"path": MAP_SIZE_IN, "clearance": FIG_SIZE_IN, "position_error": FIG_SIZE_IN, "speeds": FIG_SIZE_IN, "line_error": FIG_SIZE_IN,
          "timeline": FIG_SIZE_IN}
 
 
@@ -39,7 +39,7 @@ def test_report_on_a_patrol_makes_real_plots_and_a_page(runs, capsys):
     assert "failsafes: none" in text and "0 dropped" in text
     report_dir = folder / "report"
     made = {p.stem for p in report_dir.glob("*.png")}
-    assert made == {"path", "position_error", "speeds", "timeline"}  # no line was followed
+    assert made == {"path", "clearance", "position_error", "speeds", "timeline"}  # no line was followed
     for stem in made:
         assert_real_plot(report_dir / f"{stem}.png", SIZES[stem], DPI)
     page = (report_dir / "report.html").read_text(encoding="utf-8")
@@ -166,7 +166,7 @@ def test_report_without_truth_or_positions_leaves_those_plots_out(tmp_path):
     rec.finish(None)
     report = make_report(str(tmp_path / "bare.mcap"))
     assert set(report.plots) == {"speeds", "timeline"}
-    assert set(report.skipped) == {"path", "position_error", "line_error"}
+    assert set(report.skipped) == {"path", "clearance", "position_error", "line_error"}
     assert not (report.folder / "path.png").exists()
 
 

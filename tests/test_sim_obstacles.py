@@ -295,9 +295,9 @@ def test_the_scene_draws_boxes_cylinders_and_persons_and_validates_against_foxgl
     (box,) = drawn["cubes"]
     assert box["pose"]["position"]["x"] == pytest.approx(4.0 - start[0], abs=1e-3)
     assert (box["size"]["x"], box["size"]["y"]) == (0.4, 0.6)
-    person, post = drawn["cylinders"]
-    assert person["pose"]["position"]["x"] == pytest.approx(9.5 - start[0], abs=1e-3)  # where it sets off
+    (post,) = drawn["cylinders"]  # the person is drawn where it walks, on /sim/persons (tests/test_obstacle_views.py)
     assert post["size"]["x"] == pytest.approx(0.3) and len(drawn["lines"]) == 1         # the person's path
+    assert drawn["lines"][0]["points"][0]["x"] == pytest.approx(9.5 - start[0], abs=1e-3)  # from where it sets off
 
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - wait: 1 s\n", world=str(ROOT / "worlds" / "campus_obstacles.yaml"))
     world = h.prepared.world

@@ -20,7 +20,8 @@ from typing import Any, Callable, Optional
 
 import py_trees
 
-from beastbt.blackboard.types import BatteryState, GpsFix
+from beastbt.blackboard import catalogue
+from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, BatteryState, GpsFix
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.run.progress import progress_of
 
@@ -52,6 +53,97 @@ def board(run: Any, key: str) -> Any:
         return getattr(run.bb, key)
     except KeyError:
         return None
+
+
+MAX_SCAN_POINTS = 240
+"""The scan on the map keeps at most this many of a revolution's points (every k-th): the state stays a few kB."""
+MAX_COSTMAP_CELLS = 300
+"""The costmap on the map keeps at most this many of its occupied cells (every k-th)."""
+SCAN_SHOWN_S = 1.0
+"""A scan older than this is not drawn (the LiDAR went silent), s."""
+
+
+def _mounting(run: Any) -> Any:
+    """Where the run's LiDAR sits on base_link (the collision monitor's, else the profile's), or None without one."""
+    monitor = run.collision_monitor
+    if monitor is not None:
+        return monitor.mounting
+    if run.profile.section("lidar") is None:
+        return None
+    from beastbt.robot.profile import section_config
+    from beastbt.devices.lidar_scan import LidarConfig
+    try:
+        return section_config(run.profile, "lidar", LidarConfig).mounting
+    except Exception:  # noqa: BLE001 - the run checked its profile; a drawing must never fail the page
+        return None
+
+
+def _to_plan(points: Any, x: float, y: float, yaw: float) -> list:
+    """(n, 2) points of a frame whose origin is at (x, y, yaw) on the plan, as [[x, y], ...] rounded to cm."""
+    import numpy as np
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    c, s = math.cos(yaw), math.sin(yaw)
+    out = np.column_stack((x + c * pts[:, 0] - s * pts[:, 1], y + s * pts[:, 0] + c * pts[:, 1]))
+    return np.round(out, 2).tolist()
+
+
+def _costmap_cells(costmap: Any, odom_on_plan: tuple[float, float, float]) -> dict:
+    """The centres of a costmap's lethal and inscribed cells on the plan (see :func:`obstacle_layers`)."""
+    import numpy as np
+    rows, cols = np.nonzero((costmap.cost >= COST_INSCRIBED) & (costmap.cost <= COST_LETHAL))
+    step = max(1, -(-len(rows) // MAX_COSTMAP_CELLS))
+    res = float(costmap.resolution_m)
+    centres = np.column_stack((costmap.origin_x_m + (cols[::step] + 0.5) * res,
+                               costmap.origin_y_m + (rows[::step] + 0.5) * res))
+    return {"cells": _to_plan(centres, *odom_on_plan), "resolution_m": res}
+
+
+def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float,
+                    pose: Optional[tuple[float, float, float]]) -> dict:
+    """What the map draws of obstacles now, on the plan (metres, rounded to cm): each key None when there is none.
+
+    ``scan``: the latest LiDAR revolution's returns (at most :data:`MAX_SCAN_POINTS`);
+    ``zones``: the collision monitor's stop and slow polygons round the robot and its ``action``;
+    ``plan``: the local planner's path (``local_plan``, odom frame, put on the plan through the robot's pose in
+    both); ``blocked``: the planner finds no way; ``costmap``: ``{cells, resolution_m}``, the centres of the
+    local costmap's cells an obstacle is in or the footprint would touch (Nav2's lethal and inscribed, at most
+    :data:`MAX_COSTMAP_CELLS`); ``persons``: the simulator's persons where they are, ``[x, y, radius]``.
+    """
+    from beastbt.recording.obstacle_views import fresh, sim_contact
+    out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "costmap": None, "persons": None}
+    if pose is not None:
+        px, py, pyaw = pose
+        scan = run.latest_scan()
+        mounting = _mounting(run) if scan is not None else None
+        if scan is not None and mounting is not None and now_s - scan.stamp_s <= SCAN_SHOWN_S:
+            from beastbt.devices.lidar_scan import base_points_xy
+            pts = base_points_xy(scan, mounting)
+            step = max(1, -(-len(pts) // MAX_SCAN_POINTS))
+            out["scan"] = _to_plan(pts[::step], px, py, pyaw)
+        monitor = run.collision_monitor
+        if monitor is not None:
+            cfg = monitor.config
+            out["zones"] = {"stop": _to_plan(monitor.stop_polygon, px, py, pyaw) if cfg.stop.enabled else None,
+                            "slow": _to_plan(monitor.slow_polygon, px, py, pyaw) if cfg.slow.enabled else None,
+                            "action": monitor.action}
+        # odom -> plan: the robot's pose on the plan after the inverse of its pose in odom.
+        odo = run.odom
+        yaw = pyaw - odo.yaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        odom_on_plan = (px - (c * odo.x - s * odo.y), py - (s * odo.x + c * odo.y), yaw)
+        plan = fresh(catalogue.get(board_client, "local_plan"), now_s)
+        if plan is not None and len(plan.points_xy) >= 2:
+            out["plan"] = _to_plan(plan.points_xy, *odom_on_plan)
+            out["blocked"] = bool(plan.blocked)
+        costmap = fresh(catalogue.get(board_client, "costmap"), now_s)
+        if costmap is not None:
+            out["costmap"] = _costmap_cells(costmap, odom_on_plan)
+    contact = sim_contact(run)
+    if contact is not None and contact.persons:
+        # The simulator's world is the plan (MapFrame): the persons are drawn where they stand.
+        out["persons"] = [[round(float(x), 2), round(float(y), 2), p.radius_m]
+                          for (x, y), p in zip(contact.person_xy.tolist(), contact.persons)]
+    return out
 
 
 def battery_percent(volts: float, cells: Optional[int] = None) -> float:
@@ -185,6 +277,8 @@ class ConsoleState:
         self._map_key: Optional[tuple] = None
         self._layers: dict = {}
         self._layers_key: Optional[tuple] = None
+        from beastbt.recording.obstacle_views import board_reader
+        self._board = board_reader()
         self._published = Published(0, self.build())
         self._last_wall = -math.inf
         self._ticks = 0
@@ -275,6 +369,7 @@ class ConsoleState:
             "paused_by": "operator" if run.operator_paused else run.paused_by,
             "trail_len": len(self.trail),
             "map_version": self._current_map_version(),
+            "obstacles": obstacle_layers(run, self.frame, self._board, run.clock.now(), pose),
         }
         if run.status is not None:
             last = getattr(self, "_published", None)
@@ -328,5 +423,5 @@ def _accuracy_m(fix: GpsFix) -> float:
     return (fix.hdop or 1.0) * GPS_UERE_M
 
 
-__all__ = ["ConsoleState", "MapFrame", "map_layers", "route_waypoints", "battery_percent", "video_caption",
-           "STATUS_NAMES"]
+__all__ = ["ConsoleState", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
+           "video_caption", "STATUS_NAMES", "MAX_SCAN_POINTS", "MAX_COSTMAP_CELLS"]

@@ -58,6 +58,7 @@ import beastbt
 from beastbt.blackboard.types import CameraFrame, ServoCommand
 from beastbt.core.clock import SimClock
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
+from beastbt.recording.obstacle_views import ObstacleSampler
 from beastbt.recording.scene import scene_description
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
@@ -169,6 +170,8 @@ class McapRecorder:
         self._tags: list[tuple[str, int]] = []
         """(device poll, readings it returned) in the order the loop polled this tick: who sent what."""
         self._base_tagged = False
+        self._views: Optional[ObstacleSampler] = None
+        """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
 
     def tag_sources(self, io: Any) -> None:
         """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.
@@ -365,6 +368,13 @@ class McapRecorder:
                                     image if keep else None)
         self._put(("tick", rec.tick, rec.now_s, readings, rec.pose_odom, rec.pose, rec.cmd_mission, rec.cmd_mux,
                    rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._take_tags()), rec.now_s)
+        views = self._views
+        if views is None and self.run is not None:
+            views = self._views = ObstacleSampler(self.run)
+        if views is not None:
+            changed = views.sample(rec.now_s)
+            if changed is not None:
+                self._put(("views", rec.now_s, changed), rec.now_s)
 
     def on_event(self, ev: Any) -> None:
         """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
@@ -652,7 +662,9 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         info["camera_mounting"] = json.dumps(dataclasses.asdict(CameraConfig.from_dict(camera).mounting))
         info["line_lookahead_m"] = repr(section_config(profile, "line_detector", LineDetectorConfig).lookahead_m)
     if profile.section("lidar") is not None:
+        from beastbt.actuation.collision_monitor import footprint_radius
         from beastbt.devices.lidar_scan import LidarConfig
+        info["footprint_radius_m"] = repr(footprint_radius(profile.data))  # the report's clearance from the scans
         info["lidar_mounting"] = json.dumps(dataclasses.asdict(section_config(profile, "lidar", LidarConfig).mounting))
     if run.io.magnetic_declination_deg is not None:
         info["magnetic_declination_deg"] = repr(run.io.magnetic_declination_deg)
@@ -660,6 +672,8 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         info["world_start"] = json.dumps([world.start_x, world.start_y, world.start_yaw])
         info["world_datum"] = json.dumps([world.frame.lat0_deg, world.frame.lon0_deg, world.frame.alt0_m])
         info["world_walls"] = json.dumps([list(_wall_tuple(w)) for w in world.walls])
+        from beastbt.sim.obstacles import obstacle_outline
+        info["world_obstacles"] = json.dumps([obstacle_outline(o) for o in world.obstacles])
     attachments: list[tuple[str, str, bytes]] = []
     for name, path, data in (("mission.yaml", mission.file, mission.doc.data),
                              ("robot.yaml", profile.file, profile.data),

@@ -11,7 +11,11 @@ From a run folder (``runs/<time>_<mission>/``) or an ``.mcap`` file:
   line track and the mission's places: the world's walls and line track,
   ground truth when simulated, the fused estimate, odometry, the raw GPS
   fixes when there were any (light, never setting the scale), the places
-  with their tolerance circles), ``position_error.png`` (fused, odometry
+  with their tolerance circles, the world's obstacles, each person's path
+  and where it walked, the collisions), ``clearance.png`` (the gap between
+  the footprint and the nearest thing over time: the simulator's truth and
+  the LiDAR's nearest return, collisions and the collision monitor's
+  actions marked), ``position_error.png`` (fused, odometry
   and raw GPS against truth), ``speeds.png`` (commanded against actual),
   ``line_error.png`` (when a line was followed), ``timeline.png`` (which
   step ran when, one row per node of the tree: steps that share a name
@@ -45,7 +49,8 @@ DPI = 100
 NOT_PLOTTED = ("/sensors/imu", "/sensors/battery", "/sensors/joystick", "/sensors/camera", "/camera/image",
                "/pose/fused", "/gps/fix", "/log", "/cmd/servo", "/cmd/mux", "/cmd/teleop", "/devices/state",
                # Foxglove's views of what the report reads elsewhere (every tick: decoding them is memory for nothing)
-               "/gps/fused", "/tf", "/odom", "/scene", "/route", "/camera/calibration", "/camera/annotations")
+               "/gps/fused", "/tf", "/odom", "/scene", "/route", "/camera/calibration", "/camera/annotations",
+               "/costmap", "/local_plan", "/collision_monitor/zones", "/sim/persons")
 """Topics the report does not decode (counted all the same): the plots do not use them."""
 
 
@@ -209,6 +214,89 @@ class RunData:
             pts = [(float(x), float(y)) for x, y in line.points]
             out.append(pts + pts[:1] if line.closed else pts)
         return out
+
+    def obstacles(self) -> list[dict]:
+        """The world's obstacles as the maps draw them (world metres): a box's ``corners``, a cylinder's ``xy`` and
+        ``radius_m``, a person's ``path`` and ``radius_m`` (:func:`beastbt.sim.obstacles.obstacle_outline`)."""
+        raw = self.rec.info.get("world_obstacles")
+        try:
+            found = json.loads(raw) if raw else []
+        except ValueError:
+            return []
+        return [o for o in found if isinstance(o, dict) and o.get("shape") in ("box", "cylinder", "person")]
+
+    def person_walks(self) -> list[list[tuple[float, float]]]:
+        """Where each simulated person walked (world metres), from ``/sim/contact``: one polyline per person."""
+        walks: list[list[tuple[float, float]]] = []
+        for m in self.rec.topic("/sim/contact"):
+            for i, p in enumerate(m.get("persons") or []):
+                while len(walks) <= i:
+                    walks.append([])
+                if not walks[i] or walks[i][-1] != (p[0], p[1]):
+                    walks[i].append((p[0], p[1]))
+        return walks
+
+    def collisions(self) -> list[tuple[float, Optional[tuple[float, float]]]]:
+        """(time s, true position m or None) of each new contact in the simulator (``/sim/contact``'s count rising)."""
+        out: list[tuple[float, Optional[tuple[float, float]]]] = []
+        last = 0
+        truth = self.rec.topic("/truth")
+        for t, m in zip(*self.series("/sim/contact")):
+            n = int(m.get("collisions") or 0)
+            if n > last:
+                where = _truth_at(truth, [m["t_s"]])[0] if truth else None
+                out.extend([(t, where)] * (n - last))
+            last = n
+        return out
+
+    def true_clearance(self) -> tuple[list[float], list[float]]:
+        """(times s, gap m) between the footprint and the nearest wall or obstacle, the simulator's truth."""
+        pts = [(t, m["clearance_m"]) for t, m in zip(*self.series("/sim/contact")) if m.get("clearance_m") is not None]
+        return [t for t, _ in pts], [c for _, c in pts]
+
+    def scan_clearance(self) -> tuple[list[float], list[float]]:
+        """(times s, gap m) from each recorded LiDAR scan: its nearest return to the robot's centre (base_link, through
+        the profile's mounting) less the footprint radius: the clearance as the robot measured it."""
+        raw = self.rec.info.get("lidar_mounting")
+        scans = self.rec.topic("/scan")
+        if not raw or not scans:
+            return [], []
+        import numpy as np
+        from beastbt.devices.lidar_scan import LidarMounting, base_points_xy
+        from beastbt.recording.foxglove import scan_of
+        try:
+            mounting = LidarMounting(**json.loads(raw))
+        except (TypeError, ValueError):
+            return [], []
+        radius = self.footprint_radius_m()
+        times, gaps = [], []
+        for t, m in zip(self.times("/scan"), scans):
+            pts = base_points_xy(scan_of(m), mounting)
+            if len(pts):
+                times.append(t)
+                gaps.append(float(np.hypot(pts[:, 0], pts[:, 1]).min()) - radius)
+        return times, gaps
+
+    def footprint_radius_m(self) -> float:
+        """The robot's footprint radius (m): the metadata's, else the recorded profile's (``robot.yaml``), else the
+        collision monitor's default."""
+        from beastbt.actuation.collision_monitor import DEFAULT_FOOTPRINT_RADIUS_M, footprint_radius
+        raw = self.rec.info.get("footprint_radius_m")
+        try:
+            if raw:
+                return float(raw)
+        except ValueError:
+            pass
+        text = self.rec.text("robot.yaml")
+        if text is not None:
+            import yaml
+            try:
+                doc = yaml.safe_load(text)
+            except yaml.YAMLError:
+                doc = None
+            if isinstance(doc, dict):
+                return footprint_radius(doc)
+        return DEFAULT_FOOTPRINT_RADIUS_M
 
     def to_world(self, p: dict) -> tuple[float, float]:
         """A recorded pose's position in the report's frame (the world's, in the simulator).
@@ -377,6 +465,23 @@ class RunData:
 # -- the terminal summary ---------------------------------------------------------------------
 
 
+def obstacles_line(s: dict) -> Optional[str]:
+    """The summary's obstacle figures in one line: the simulator's collisions and least clearance, and what the
+    collision monitor did (episodes per action); None when the run has neither."""
+    parts = []
+    truth = s.get("truth") or {}
+    if "collisions" in truth:
+        n = truth["collisions"]
+        least = truth.get("min_clearance_m")
+        parts.append(f"{n} collision{'s' if n != 1 else ''}"
+                     + (f", least clearance {least:.2f} m" if least is not None else "") + " (truth)")
+    episodes = (s.get("collision_monitor") or {}).get("episodes") or {}
+    if s.get("collision_monitor") is not None:
+        said = ", ".join(f"{action} {count}" for action, count in sorted(episodes.items()))
+        parts.append("collision monitor: " + (said if said else "never acted"))
+    return "  obstacles: " + "; ".join(parts) if parts else None
+
+
 def summary_text(d: RunData) -> str:
     """A few lines for a person: outcome, duration, distance, waypoints, failsafes, recording."""
     rec, s = d.rec, d.summary or {}
@@ -405,6 +510,9 @@ def summary_text(d: RunData) -> str:
                          + (f" at {wp.time_s:.1f} s" if wp.time_s is not None else ""))
     else:
         lines.append("  waypoints: none")
+    obstacles = obstacles_line(s)
+    if obstacles:
+        lines.append(obstacles)
     failsafes = rec.topic("/failsafes")
     if failsafes:
         lines.append("  failsafes:")
@@ -512,6 +620,7 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
     for i, line in enumerate(d.track()):
         ax.plot([p[0] for p in line], [p[1] for p in line], color="0.55", linewidth=4, alpha=0.5,
                 solid_capstyle="round", zorder=1, label="line track" if i == 0 else None)
+    _draw_obstacles(ax, d)
     frame = d.local_frame()
     fixes = d.gps_fixes() if frame is not None else []
     if fixes:
@@ -534,6 +643,10 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
                 linestyle="none", label="start", zorder=7)
         ax.plot(truth[-1]["x"], truth[-1]["y"], marker="s", color="tab:red", markeredgecolor="black", markersize=8,
                 linestyle="none", label="end", zorder=7)
+    hits = [where for _, where in d.collisions() if where is not None]
+    if hits:
+        ax.plot([p[0] for p in hits], [p[1] for p in hits], marker="X", color="red", markeredgecolor="black",
+                markersize=12, linestyle="none", label=f"collision ({len(hits)})", zorder=9)
     _draw_targets(ax, d)
     extent = map_extent(d)
     if extent is not None:
@@ -541,6 +654,42 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
         ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal", adjustable="box")
     return [h.get_label() for h in ax.get_legend_handles_labels()[0]]
+
+
+OBSTACLE_COLOUR = "0.45"
+PERSON_COLOUR = "tab:purple"
+
+
+def _draw_obstacles(ax: Any, d: RunData) -> None:
+    """Boxes and cylinders filled grey; each person's path dotted and where it really walked (``/sim/contact``)."""
+    from matplotlib.patches import Circle, Polygon
+    labelled: set[str] = set()
+
+    def label(name: str) -> Optional[str]:
+        if name in labelled:
+            return None
+        labelled.add(name)
+        return name
+
+    for o in d.obstacles():
+        if o["shape"] == "box":
+            ax.add_patch(Polygon(o["corners"], closed=True, facecolor=OBSTACLE_COLOUR, edgecolor="black",
+                                 alpha=0.6, zorder=2, label=label("obstacles")))
+        elif o["shape"] == "cylinder":
+            ax.add_patch(Circle(tuple(o["xy"]), o["radius_m"], facecolor=OBSTACLE_COLOUR, edgecolor="black",
+                                alpha=0.6, zorder=2, label=label("obstacles")))
+        elif len(o["path"]) > 1:
+            ax.plot([p[0] for p in o["path"]], [p[1] for p in o["path"]], color=PERSON_COLOUR, linestyle=":",
+                    linewidth=1.5, zorder=2, label=label("person's path"))
+    for walk in d.person_walks():
+        if len(walk) > 1:
+            ax.plot([p[0] for p in walk], [p[1] for p in walk], color=PERSON_COLOUR, linewidth=1.2, alpha=0.7,
+                    zorder=2, label=label("person walked"))
+    radii = [o["radius_m"] for o in d.obstacles() if o["shape"] == "person"]
+    for walk, radius in zip(d.person_walks(), radii):
+        if walk:  # the person as big as it is, where the run left it
+            ax.add_patch(Circle(walk[-1], radius, facecolor=PERSON_COLOUR, edgecolor="black", alpha=0.5, zorder=6,
+                                label=label("person at the end")))
 
 
 def _draw_targets(ax: Any, d: RunData) -> None:
@@ -565,6 +714,41 @@ def plot_path(d: RunData, out: Path) -> Optional[str]:
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.set_title(f"{d.title()}: path")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    _save(plt, fig, out)
+    return None
+
+
+def plot_clearance(d: RunData, out: Path) -> Optional[str]:
+    """The gap between the footprint and the nearest thing over time: the simulator's truth, the LiDAR's nearest
+    return (less the footprint radius), the collisions and the collision monitor's actions marked."""
+    t_true, true = d.true_clearance()
+    t_scan, scan = d.scan_clearance()
+    if not true and not scan:
+        return "no clearance recorded (no simulator contact truth, no LiDAR scans)"
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=FIG_SIZE_IN, dpi=DPI)
+    if scan:
+        ax.plot(t_scan, scan, color="tab:red", linewidth=0.8, marker=".", markersize=2, alpha=0.8,
+                label="LiDAR: nearest return less the footprint", zorder=2)
+    if true:
+        least = round(min(true), 2) + 0.0  # + 0.0: a touch reads 0.00, not -0.00
+        ax.plot(t_true, true, color="black", linewidth=1.5, label=f"truth (least {least:.2f} m)", zorder=3)
+    for i, (t, _) in enumerate(d.collisions()):
+        ax.axvline(t, color="red", linewidth=2, label="collision" if i == 0 else None, zorder=4)
+    acted = [t for t, m in zip(*d.series("/events")) if m.get("kind") == "collision_monitor"
+             and any(w in m.get("text", "") for w in (": stop", ": slow", ": approach"))]
+    if acted:
+        ax.plot(acted, [0.0] * len(acted), marker="^", color="tab:orange", markersize=9, linestyle="none",
+                label="collision monitor acted", zorder=5, clip_on=False)
+    ax.axhline(0.0, color="0.3", linewidth=1)
+    _mark_failsafes(ax, d)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("clearance (m)")
+    top = max(true + scan)
+    ax.set_ylim(min(-0.05, min(true + scan)), min(top, 5.0) + 0.1)  # far returns outdoors do not flatten the rest
+    ax.set_title(f"{d.title()}: clearance to the nearest wall or obstacle")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     _save(plt, fig, out)
@@ -819,6 +1003,7 @@ def plot_timeline(d: RunData, out: Path) -> Optional[str]:
 
 PLOTS = (
     ("path", "path on a map", plot_path),
+    ("clearance", "clearance to obstacles over time", plot_clearance),
     ("position_error", "position error over time", plot_position_error),
     ("speeds", "commanded against actual speeds", plot_speeds),
     ("line_error", "line error over time", plot_line_error),

@@ -229,6 +229,15 @@ class SceneView:
         self._origin = (origin[0], origin[1], self._origin[2] if self._origin is not None else 0.0)
         return moved
 
+    def world_point(self, x: float, y: float) -> Optional[tuple[float, float]]:
+        """A point of the simulated world (world metres) in ``map`` as drawn now; None without a world or origin."""
+        world = self.d.get("world")
+        if world is None or self._origin is None:
+            return None
+        lat, lon, _ = self._world_frame.to_geodetic(x, y, 0.0)
+        e, n, _ = LocalFrame(*self._origin).to_enu(lat, lon, None)
+        return e, n
+
     def scene_message(self, t_ns: int) -> dict:
         """The ``foxglove.SceneUpdate`` of everything, drawn with map's origin as known now."""
         frames = self.frames
@@ -263,8 +272,8 @@ class SceneView:
                               "color": _WALL})
             if cubes:
                 entities.append(_entity(t_ns, frames.map, "walls", cubes=cubes))
-            # Obstacles: boxes and cylinders as they stand; a person as its path and where it sets off (the scene is
-            # drawn once, so it does not follow the person as it walks).
+            # Obstacles: boxes and cylinders as they stand; a person as its path (where it is now goes on
+            # /sim/persons: the scene is drawn once, it does not follow the person as it walks).
             boxes, posts, paths = [], [], []
             for o in world.get("obstacles", []):
                 if o["shape"] == "box":
@@ -274,12 +283,9 @@ class SceneView:
                 elif o["shape"] == "cylinder":
                     x, y = world_xy(o["x"], o["y"])
                     posts.append(_cylinder(x, y, o["radius_m"], OBSTACLE_HEIGHT_M, _OBSTACLE))
-                else:
-                    x, y = world_xy(*o["path"][0])
-                    posts.append(_cylinder(x, y, o["radius_m"], 1.7, _PERSON))
-                    if len(o["path"]) > 1:
-                        paths.append(_line([world_xy(px, py) for px, py in o["path"]], _PERSON, 0.03))
-            if boxes or posts:
+                elif len(o["path"]) > 1:
+                    paths.append(_line([world_xy(px, py) for px, py in o["path"]], _PERSON, 0.03))
+            if boxes or posts or paths:
                 entities.append(_entity(t_ns, frames.map, "obstacles", cubes=boxes, cylinders=posts, lines=paths))
             lines = [_line([world_xy(x, y) for x, y in ln["points"]], _TAPE, ln["width_m"], loop=ln["closed"])
                      for ln in world["lines"]]

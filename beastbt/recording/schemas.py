@@ -85,6 +85,7 @@ FOXGLOVE_GEOJSON = foxglove_schema("GeoJSON")
 FOXGLOVE_CAMERA_CALIBRATION = foxglove_schema("CameraCalibration")
 FOXGLOVE_IMAGE_ANNOTATIONS = foxglove_schema("ImageAnnotations")
 FOXGLOVE_LASER_SCAN = foxglove_schema("LaserScan")
+FOXGLOVE_GRID = foxglove_schema("Grid")
 
 # -- beastbt schemas (exact dataclass fields) ------------------------------------------
 
@@ -161,6 +162,18 @@ TRUTH = _obj("beastbt.Truth", "The simulated robot's true state (world ENU metre
     "t_s": _NUM, "x": _NUM, "y": _NUM, "yaw": _NUM, "v_mps": _NUM, "w_rps": _NUM, "left_m": _NUM,
     "right_m": _NUM, "pan_rad": _NUM, "tilt_rad": _NUM, "battery_v": _NUM})
 
+SIM_CONTACT = _obj("beastbt.SimContact",
+                   "The simulator's contact truth, sampled (5 Hz, and at each new contact): world ENU metres.", {
+                       "t_s": {"type": "number", "description": "Simulated time, s."},
+                       "clearance_m": {"type": ["number", "null"],
+                                       "description": "Gap between the footprint and the nearest wall or obstacle now, "
+                                                      "m (negative inside; null: nothing to touch)."},
+                       "collisions": {"type": "integer", "minimum": 0,
+                                      "description": "Distinct contacts so far (the summary's truth.collisions)."},
+                       "in_contact": {"type": "boolean"},
+                       "persons": {"type": "array", "description": "Each person where it is now: [x, y, radius], m.",
+                                   "items": {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}}})
+
 GENERIC_READING = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "beastbt.Reading",
                    "description": "A reading type this version of the recorder has no schema for (its fields).",
                    "type": "object", "required": ["stamp_s"]}
@@ -188,6 +201,10 @@ CHANNELS: dict[str, dict] = {
     "/camera/calibration": FOXGLOVE_CAMERA_CALIBRATION,  # with every image, its size (pinhole, no distortion)
     "/camera/annotations": FOXGLOVE_IMAGE_ANNOTATIONS,  # the detected line, its look-ahead point, a junction
     "/scan": FOXGLOVE_LASER_SCAN,  # each LiDAR revolution, in the lidar frame (0 = no return)
+    "/costmap": FOXGLOVE_GRID,  # the local costmap (odom frame, uint8 Nav2 costs), at most 2 Hz when it changed
+    "/local_plan": FOXGLOVE_SCENE_UPDATE,  # the local planner's path (odom frame), at most 5 Hz when it changed
+    "/collision_monitor/zones": FOXGLOVE_SCENE_UPDATE,  # stop and slow polygons (base_link), bold when acting
+    "/sim/persons": FOXGLOVE_SCENE_UPDATE,  # the simulator's persons where they are now (map frame), 5 Hz
     "/log": FOXGLOVE_LOG,
     # estimates
     "/estimate/fused": FUSED_POSE,
@@ -204,6 +221,7 @@ CHANNELS: dict[str, dict] = {
     "/events": EVENT,
     "/failsafes": EVENT,
     "/truth": TRUTH,
+    "/sim/contact": SIM_CONTACT,  # truth clearance, collisions and persons (simulator), 5 Hz and at each contact
 }
 """Topic -> JSON Schema. ``/cmd/gate`` is what the base adapter was told to send, one message per tick."""
 

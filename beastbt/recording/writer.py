@@ -52,6 +52,7 @@ from beastbt.recording import schemas as rs
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.foxglove import fox_time
 from beastbt.recording.foxglove_live import LiveServer, start_live
+from beastbt.recording import obstacle_views as ov
 from beastbt.recording.scene import SceneView
 from beastbt.recording.schemas import OFFSET_KEY
 from beastbt.recording.wire import Frame, ItemDecoder, read_frames
@@ -448,6 +449,11 @@ class RunFileWriter:
         """Altitude (m) and vertical variance (m^2) of the latest GPS fix: the planar EKF's /gps/fused uses them."""
         self._scene: Optional[SceneView] = None
         """What the run happens in (a ``scene`` item): /route once, /scene at the start and when map moves."""
+        self._persons: list = []
+        """The simulator's persons as last sampled ([x, y, radius], world metres): redrawn with /scene."""
+        self._latched_views: dict[str, bytes] = {}
+        """The last message of each obstacle view sent only on change (the zones): a client that subscribes late
+        gets it again, live only."""
         self._servo_rad: dict[str, float] = {}
         """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
         self._live = live
@@ -575,6 +581,9 @@ class RunFileWriter:
             self._scene = SceneView(description, self.frames)
             self._emit("/route", t, self._scene.route_message())
             self._emit("/scene", t, self._scene.scene_message(t))
+        elif kind == "views":
+            _, now_s, views = item
+            self._write_views(self._ns(now_s), views)
         elif kind == "servo":
             _, now_s, c = item
             if c.name is not None and c.angle_rad is not None:
@@ -592,6 +601,8 @@ class RunFileWriter:
             # A client subscribed to /scene or /route after they went out: send them again, to it live only.
             self._live.log("/route", encode_json(self._scene.route_message()), t)
             self._live.log("/scene", encode_json(self._scene.scene_message(t)), t)
+            for topic, data in self._latched_views.items():
+                self._live.log(topic, data, t)
         emit = self._emit
         frames = self.frames
         fixes: list[GpsFix] = []
@@ -641,6 +652,8 @@ class RunFileWriter:
             scene = self._scene
             if scene is not None and scene.on_pose(pose.x, pose.y, pose.lat, pose.lon, pose.position_valid):
                 emit("/scene", t, scene.scene_message(t))  # the map frame found its place on Earth: redraw
+                if self._persons:  # and the persons with it, where they stand (they are sent only as they move)
+                    emit("/sim/persons", t, ov.persons_update(t, frames.map, self._persons, scene.world_point))
         if pose_odom is not None:
             emit("/estimate/odom", t, pose_dict(pose_odom))
             emit("/odom", t, fx.odometry(t, frames, pose_odom))
@@ -667,6 +680,26 @@ class RunFileWriter:
             # Close the chunk and hand it to the OS: a hard kill now loses at most one interval.
             self.flush()
             self._last_flush_s = now_s
+
+    def _write_views(self, t: int, views: dict) -> None:
+        """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
+        /local_plan, /collision_monitor/zones, /sim/persons and /sim/contact."""
+        frames = self.frames
+        if "costmap" in views:
+            self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
+        if "plan" in views:
+            self._emit("/local_plan", t, ov.plan_update(t, frames.odom, views["plan"]))
+        if "zones" in views:
+            msg = ov.zones_update(t, frames.base_link, views["zones"])
+            self._emit("/collision_monitor/zones", t, msg)
+            self._latched_views["/collision_monitor/zones"] = encode_json(msg)  # sent once: a late client needs it
+        contact = views.get("contact")
+        if contact is not None:
+            self._emit("/sim/contact", t, ov.contact_message(contact))
+            scene = self._scene
+            self._persons = contact["persons"]
+            if contact["moved"] and contact["persons"] and scene is not None:
+                self._emit("/sim/persons", t, ov.persons_update(t, frames.map, contact["persons"], scene.world_point))
 
     def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
         """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
@@ -740,6 +773,11 @@ def message_count(item: tuple, images: bool) -> int:
         return 1
     if kind == "scene":
         return 2  # /route, /scene
+    if kind == "views":
+        views = item[2]
+        contact = views.get("contact")
+        return (("costmap" in views) + ("plan" in views) + ("zones" in views)
+                + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0
     (_, _tick, _now, readings, pose_odom, pose, cmd_mission, _mux, _gate, mux_source, changed, truth, _src) = item

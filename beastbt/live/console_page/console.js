@@ -267,18 +267,21 @@ function drawMap() {
   for (let x = Math.ceil(b.x0 / step) * step; x <= b.x1; x += step) { const [a] = px(x, 0); g.beginPath(); g.moveTo(a, 0); g.lineTo(a, H); g.stroke(); }
   for (let y = Math.ceil(b.y0 / step) * step; y <= b.y1; y += step) { const [, a] = px(0, y); g.beginPath(); g.moveTo(0, a); g.lineTo(W, a); g.stroke(); }
   const poly = (pts, closed) => { g.beginPath(); pts.forEach((p, i) => { const [x, y] = px(p[0], p[1]); i ? g.lineTo(x, y) : g.moveTo(x, y); }); if (closed) g.closePath(); g.stroke(); };
+  const ring = (xy, r) => { const [x, y] = px(xy[0], xy[1]); g.beginPath(); g.arc(x, y, Math.max(2, r * scale), 0, 2 * Math.PI); };
+  const ob = state && state.obstacles;
+  const walking = !!(ob && ob.persons);  // the persons where they are now come with the state
   if (mapLayers) {
     g.strokeStyle = "#9aa0a6"; g.lineWidth = 3;
     for (const w of mapLayers.walls) poly([[w[0], w[1]], [w[2], w[3]]]);
-    // obstacles: boxes and posts filled grey; a person's path dotted, the person (a ring) where it sets off
+    // obstacles: boxes and posts filled grey; a person's path dotted (and where it sets off, until the state says
+    // where it is)
     g.fillStyle = "#9aa0a655"; g.lineWidth = 2;
-    const ring = (xy, r) => { const [x, y] = px(xy[0], xy[1]); g.beginPath(); g.arc(x, y, Math.max(2, r * scale), 0, 2 * Math.PI); };
     for (const o of mapLayers.obstacles || []) {
       if (o.shape === "box") { g.strokeStyle = "#9aa0a6"; poly(o.corners, true); g.fill(); }
       else if (o.shape === "cylinder") { g.strokeStyle = "#9aa0a6"; ring(o.xy, o.radius_m); g.fill(); g.stroke(); }
       else if (o.shape === "person") {
         g.strokeStyle = "#c58af9"; g.setLineDash([2, 4]); poly(o.path); g.setLineDash([]);
-        ring(o.path[0], o.radius_m); g.stroke();
+        if (!walking) { ring(o.path[0], o.radius_m); g.stroke(); }
       }
     }
     g.strokeStyle = "#e0e0e0"; g.lineWidth = Math.max(1.5, 0.02 * scale);
@@ -308,6 +311,7 @@ function drawMap() {
     }
   }
   if (trail.length > 1) { g.strokeStyle = "#f2c744aa"; g.lineWidth = 2; poly(trail); }
+  drawObstacles(g, ob, poly, ring, px, c);
   if (state && state.gps && state.gps.xy) {
     const [x, y] = px(state.gps.xy[0], state.gps.xy[1]);
     g.fillStyle = "#ff7ab412"; g.strokeStyle = "#ff7ab488"; g.lineWidth = 1;
@@ -328,6 +332,53 @@ function drawMap() {
   const bar = step * scale; g.fillRect(10, H - 14, bar, 3); g.fillText(step + " m", 14 + bar, H - 9);
   g.fillText("N ↑", W - 32, 16);
   $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
+}
+
+// What the robot sees and plans (the state's "obstacles", plan metres): the local costmap's occupied cells, the
+// collision monitor's zones round the robot (the acting one bold and filled), the local planner's path, the
+// LiDAR's returns, the persons where they are. What was drawn is counted on the canvas's data attributes (the tests read them).
+const ZONE_COLOURS = {slow: "#ff9f1a", stop: "#e5534b"};
+const ZONE_ACTIVE = {stop: new Set(["stop", "silent"]), slow: new Set(["slow", "approach"])};
+function drawObstacles(g, ob, poly, ring, px, canvas) {
+  const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0, costmap: 0};
+  if (ob && ob.costmap) {  // the cells an obstacle is in or the footprint would touch: where the planner will not go
+    g.fillStyle = "#d04ae8bb";
+    const side = Math.max(3, ob.costmap.resolution_m * (px(1, 0)[0] - px(0, 0)[0]));
+    for (const p of ob.costmap.cells) { const [x, y] = px(p[0], p[1]); g.fillRect(x - side / 2, y - side / 2, side, side); }
+    drawn.costmap = ob.costmap.cells.length;
+  }
+  if (ob && ob.zones) {
+    for (const name of ["slow", "stop"]) {
+      const z = ob.zones[name];
+      if (!z) continue;
+      const on = ZONE_ACTIVE[name].has(ob.zones.action);
+      g.strokeStyle = ZONE_COLOURS[name]; g.lineWidth = on ? 3 : 1; g.setLineDash(on ? [] : [4, 3]);
+      poly(z, true); g.setLineDash([]);
+      if (on) { g.fillStyle = ZONE_COLOURS[name] + "40"; g.fill(); drawn.active = name; }
+      drawn.zones.push(name);
+    }
+  }
+  if (ob && ob.plan) {
+    g.strokeStyle = ob.blocked ? "#e5534b" : "#3ddc84"; g.lineWidth = 3; poly(ob.plan);
+    drawn.plan = ob.plan.length;
+  }
+  if (ob && ob.scan) {
+    g.fillStyle = "#ff4d4d";
+    for (const p of ob.scan) { const [x, y] = px(p[0], p[1]); g.fillRect(x - 1.5, y - 1.5, 3, 3); }
+    drawn.scan = ob.scan.length;
+  }
+  if (ob && ob.persons) {
+    g.fillStyle = "#c58af988"; g.strokeStyle = "#c58af9"; g.lineWidth = 2;
+    for (const p of ob.persons) { ring(p, p[2]); g.fill(); g.stroke(); }
+    drawn.persons = ob.persons.length;
+  }
+  canvas.dataset.zones = drawn.zones.join(",");
+  canvas.dataset.zoneActive = drawn.active;
+  canvas.dataset.planPoints = drawn.plan;
+  canvas.dataset.scanPoints = drawn.scan;
+  canvas.dataset.persons = drawn.persons;
+  canvas.dataset.costmapCells = drawn.costmap;
+  canvas.dataset.personsXy = ob && ob.persons ? ob.persons.map((p) => p[0].toFixed(2) + " " + p[1].toFixed(2)).join(",") : "";
 }
 
 // ---- video -------------------------------------------------------------------------------------
