@@ -121,6 +121,9 @@ class RunServices:
     ``return_home: {along: path}`` needs it."""
     questions: Optional[Any] = None
     """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
+    collision_hold: Callable[[], Optional[str]] = lambda: None
+    """Why the collision monitor holds the robot back now, naming the nearest obstacle's distance and bearing
+    (:meth:`~beastbt.actuation.collision_monitor.CollisionMonitor.holding`); None when it does not, or without one."""
     plugins: dict[str, Any] = field(default_factory=dict)
     """What parts from other packages offer their steps, by the part's name (see docs/extending.md)."""
 

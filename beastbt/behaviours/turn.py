@@ -7,6 +7,7 @@ from typing import Optional
 
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
+from beastbt.behaviours.drive import held_by
 from beastbt.estimation.estimator import wrap_angle
 
 
@@ -38,7 +39,8 @@ class _TurnInPlace(BeastBehaviour):
             self.progress_at_s = self.now()
         elif self.now() - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"no progress for {self.stuck_after_s:g} s, {math.degrees(err_rad):.1f} deg to go")
+            return self.fail(f"no progress for {self.stuck_after_s:g} s, {math.degrees(err_rad):.1f} deg to go"
+                             + held_by(self.ctx))
         rate = max(p.min_turn_rate_rps, min(self.rate_rps, p.turn_gain * abs(err_rad)))
         self.command(0.0, math.copysign(rate, err_rad))
         self.feedback_message = f"{math.degrees(err_rad):.1f} deg to go"

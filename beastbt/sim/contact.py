@@ -134,6 +134,7 @@ class ContactWorld:
         """How long each person has been held up by the robot so far, s (0 while it walks freely)."""
         self.person_aside_to_m: list[Optional[float]] = [None] * len(self.persons)
         """The offset each person is stepping sideways to (m), or None when it is not stepping aside."""
+        self._look_at_s = [p.patience_s for p in self.persons]  # waited this long, a person looks for a side, s
         self._persons_moved_m = 0.0  # the most any person can have come closer since the last exact look, m
         self.collisions = 0
         """Distinct contact episodes so far."""
@@ -338,10 +339,12 @@ class ContactWorld:
                 if o == aside:  # out of the way: walk on beside the robot (and wait afresh if it is still there)
                     self.person_aside_to_m[i] = None
                     self.person_waited_s[i] = 0.0
+                    self._look_at_s[i] = person.patience_s
                 return self._move(i, walked, x, y, qx, qy)
             # The robot moved into the way of the step: wait, and look for a side again a little later.
             self.person_aside_to_m[i] = None
-            self.person_waited_s[i] = person.patience_s - RETHINK_S
+            self.person_waited_s[i] += dt_s
+            self._look_at_s[i] = self.person_waited_s[i] + RETHINK_S
             return 0.0
         keep = touch + person.keeps_m
         if not person.loop and walked >= person.length_m:  # at its end: back onto it if it can, then stands
@@ -366,6 +369,7 @@ class ContactWorld:
             if s > 1.0:
                 self.person_offset_m[i] = o
                 self.person_waited_s[i] = 0.0
+                self._look_at_s[i] = person.patience_s
                 return self._move(i, w, x, y, qx, qy)
             if n == len(candidates) - 1 and s > 0.0:
                 # Held up: as far as its personal distance allows (it stops keeps_m from the robot).
@@ -386,13 +390,13 @@ class ContactWorld:
         """Person ``i`` is held up by the robot for ``dt_s`` (s): once it has waited its patience it picks a side to
         step around to, or, with no room on either, waits and looks again after :data:`RETHINK_S`. Returns 0 (m)."""
         waited = self.person_waited_s[i] + dt_s
-        if waited >= person.patience_s:
+        self.person_waited_s[i] = waited
+        if waited >= self._look_at_s[i]:
             side = self._side_with_room(i, person, robot_x, robot_y)
             if side is None:
-                waited = person.patience_s - RETHINK_S
+                self._look_at_s[i] = waited + RETHINK_S
             else:
                 self.person_aside_to_m[i] = side
-        self.person_waited_s[i] = waited
         return 0.0
 
     def _may_rejoin(self, person: Person, walked_m: float, offset_m: float, keep_m: float,
