@@ -212,7 +212,8 @@ class ContactWorld:
             off = rel - t[:, None] * self._wall_d
             best = float(np.sqrt(np.einsum("ij,ij->i", off, off).min()))
         if self._n_cyl:
-            d = np.hypot(self._circ_c[:self._n_cyl, 0] - x, self._circ_c[:self._n_cyl, 1] - y) - self._circ_r[:self._n_cyl]
+            n = self._n_cyl
+            d = np.hypot(self._circ_c[:n, 0] - x, self._circ_c[:n, 1] - y) - self._circ_r[:n]
             best = min(best, float(d.min()) + self.radius_m)
         if len(self._box_c):
             rel = np.array((x, y)) - self._box_c
