@@ -331,6 +331,16 @@ class ContactWorld:
         step = person.speed_mps * dt_s
         touch = person.radius_m + self.radius_m
         aside = self.person_aside_to_m[i]
+        if offset == 0.0 and aside is None and (person.loop or walked < person.length_m):
+            # The common case, on its path with the robot out of reach of this step: no more than before persons
+            # gave way (one point of the path, one distance).
+            reach = touch + person.keeps_m + step
+            if (qx - robot_x) ** 2 + (qy - robot_y) ** 2 > reach * reach:
+                ahead = walked + step if person.loop else min(walked + step, person.length_m)
+                x, y = person.point_at(ahead)
+                self.person_waited_s[i] = 0.0
+                self._look_at_s[i] = person.patience_s
+                return self._move(i, ahead, x, y, qx, qy)
         if aside is not None:  # stepping sideways, out of the robot's way
             o = _toward(offset, aside, step)
             x, y = self._person_at(person, walked, o)

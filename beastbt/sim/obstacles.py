@@ -91,12 +91,18 @@ class Person:
         """Length of the path, m."""
         return sum(self.legs_m)
 
-    @property
+    @cached_property
     def closed(self) -> bool:
         """True when the path ends where it starts (and has somewhere to go)."""
         return (len(self.path) > 2 and self.length_m > 0
                 and math.hypot(self.path[-1][0] - self.path[0][0], self.path[-1][1] - self.path[0][1])
                 <= CLOSED_PATH_TOLERANCE_M)
+
+    @cached_property
+    def _legs(self) -> tuple[tuple[float, float, float, float, float, float, float], ...]:
+        """``(ax, ay, dx, dy, length, ux, uy)`` of each leg of some length (m; u the unit vector along it)."""
+        return tuple((a[0], a[1], b[0] - a[0], b[1] - a[1], leg, (b[0] - a[0]) / leg, (b[1] - a[1]) / leg)
+                     for a, b, leg in zip(self.path, self.path[1:], self.legs_m) if leg > 0)
 
     def walked_by(self, t_s: float) -> float:
         """How far the person has walked at ``t_s`` if nothing stopped it, m."""
@@ -112,15 +118,14 @@ class Person:
         leg it is on as the path is written, and ``way`` +1 when it walks that leg forwards, -1 backwards (the
         way back of a back-and-forth loop). A path of one point, or of no length, has the leg (1, 0)."""
         length = self.length_m
-        way = 1.0
         if length <= 0.0:
             return self.path[0][0], self.path[0][1], 1.0, 0.0, 1.0
-        if walked_m <= 0.0:
-            walked_m = 0.0
-        elif walked_m >= length:
+        way = 1.0
+        if walked_m >= length:
             if not self.loop:
-                walked_m = math.inf  # past every leg: the path's last point, exactly
-            elif self.closed:
+                last = self._legs[-1]
+                return self.path[-1][0], self.path[-1][1], last[5], last[6], 1.0  # its last point, exactly
+            if self.closed:
                 walked_m = math.fmod(walked_m, length)
             else:  # back and forth: odd laps walk the path backwards
                 lap, along = divmod(walked_m, length)
@@ -128,16 +133,15 @@ class Person:
                     walked_m = along
                 else:
                     walked_m, way = length - along, -1.0
-        last = None
-        for (ax, ay), (bx, by), leg in zip(self.path, self.path[1:], self.legs_m):
-            if leg > 0:
-                last = (bx, by, (bx - ax) / leg, (by - ay) / leg)
-                if walked_m <= leg:
-                    f = walked_m / leg
-                    return ax + f * (bx - ax), ay + f * (by - ay), last[2], last[3], way
+        elif walked_m < 0.0:
+            walked_m = 0.0
+        for ax, ay, dx, dy, leg, ux, uy in self._legs:
+            if walked_m <= leg:
+                f = walked_m / leg
+                return ax + f * dx, ay + f * dy, ux, uy, way
             walked_m -= leg
-        assert last is not None  # the path has length, so some leg has
-        return last[0], last[1], last[2], last[3], way
+        last = self._legs[-1]  # past the end by a rounding
+        return last[0] + last[2], last[1] + last[3], last[5], last[6], way
 
     def position_at(self, t_s: float) -> tuple[float, float]:
         """Where the person is at ``t_s`` (s) if nothing stopped it on the way (m, world frame)."""
