@@ -83,10 +83,11 @@ def test_the_patrol_survives_the_person_pacing_worlds_corridor_person(seed):
         assert h.now_s <= 1.25 * alone.now_s, (h.now_s, alone.now_s)
 
 
-def test_a_person_crossing_the_robots_path_at_right_angles(tmp_path):
-    """Someone pacing across the corridor, in front of the robot, again and again."""
+@pytest.mark.parametrize("start_s, loop", [(7, "false"), (5, "true")])
+def test_a_person_crossing_the_robots_path_at_right_angles(tmp_path, start_s, loop):
+    """Someone crossing the corridor as the robot comes (once; and pacing across it again and again)."""
     world = corridor_with(tmp_path, "{shape: person, radius_m: 0.25, speed_mps: 0.8, "
-                                    "path: [[2.5, -0.7], [2.5, 0.7]], start_s: 5, loop: true}")
+                                    f"path: [[2.5, -0.7], [2.5, 0.7]], start_s: {start_s}, loop: {loop}}}")
     h = patrol(world, laps=1)
     least = run_checked(h)
     truth = h.summary()["truth"]

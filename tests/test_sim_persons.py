@@ -99,6 +99,22 @@ def test_it_steps_around_on_the_nearer_side_passes_keeps_m_away_and_rejoins_its_
     assert min(beside) < 0.0 < max(beside)  # it walked past the robot, not back the way it came
 
 
+@pytest.mark.parametrize("robot_yaw, passes_x", [(0.0, -1.0), (math.pi, 1.0), (None, 1.0)])
+def test_it_steps_around_behind_where_the_robot_is_going(robot_yaw, passes_x):
+    """A person walking north meets a robot standing on its path. Its right (east) wins a tie, unless the robot
+    faces east (it is going there): then the person passes west, behind it."""
+    north = Person(radius_m=0.25, speed_mps=1.0, path=((0.0, -3.0), (0.0, 3.0)))
+    world = ContactWorld([], [north], RADIUS_M)
+    xs = []
+    for k in range(1, 1201):  # 12 s
+        world.advance_persons(k * DT_S, DT_S, 0.0, 0.0, robot_yaw)
+        xs.append(float(world.person_xy[0][0]))
+        assert person_gap(world, (0.0, 0.0)) >= 0.3 - 1e-9
+    side = max(xs, key=abs)
+    assert side * passes_x > 0 and abs(side) == pytest.approx(0.25 + RADIUS_M + 0.3 + 0.02, abs=1e-9)
+    assert tuple(world.person_xy[0]) == (0.0, 3.0)  # and on to its end
+
+
 def test_it_steps_around_to_the_side_with_room_between_walls_and_fixed_obstacles():
     walls = [Wall(-5.0, -0.6, 5.0, -0.6), Wall(-5.0, 1.3, 5.0, 1.3)]  # room to the north only
     east = Person(radius_m=0.25, speed_mps=1.0, path=((-4.0, 0.0), (4.0, 0.0)))  # its right is south: no room

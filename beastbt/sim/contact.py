@@ -27,14 +27,17 @@ offset (across the leg it is on, as the path is written, so the offset keeps
 its side on the way back of a back-and-forth path). It waits while its next
 step would come within ``keeps_m`` of the footprint; once it has waited
 ``patience_s`` it picks the offset that passes the robot ``keeps_m`` (plus
-:data:`PASS_MARGIN_M`) away on the side that needs the smaller step, the
-person's right on a tie, where the step sideways does not cross in front of
-the robot and the person fits (:data:`ROOM_MARGIN_M` from walls and fixed
-obstacles) all along the step and the pass. It steps sideways there at its
-walking speed, walks on beside the robot, and once the robot is behind it
-drifts back onto its path. Every move is checked against the robot where it
-is now (a swept circle test), so a person never walks into the robot, only a
-robot into a person.
+:data:`PASS_MARGIN_M`) away: on a side not ahead of where the robot faces,
+then the side that needs the smaller step, then the person's right; a side
+counts where the step sideways keeps half its ``keeps_m``
+(:data:`STEP_ASIDE_KEEPS`) from the robot and the person fits
+(:data:`ROOM_MARGIN_M` from walls and fixed obstacles) all along the step and
+the pass. It steps sideways there at its walking speed, walks on beside the
+robot, and once the robot is behind it drifts back onto its path. Every move
+is checked against the robot where it is now (a swept circle test): walking,
+a person's own move never brings it nearer than ``keeps_m``, stepping
+sideways than half of it (a robot that came nearer may only be stepped away
+from), so a person never walks into the robot, only a robot into a person.
 
 Most physics steps need no geometry at all: after an exact clearance at some
 place and time, the clearance anywhere else is at least that minus the distance
@@ -67,9 +70,9 @@ PASS_MARGIN_M: float = 0.02
 """A person passing the robot aims this much wider than its ``keeps_m`` (so walking past is not stopped by the
 robot's own wobble of a few millimetres), m."""
 
-STEP_ASIDE_MARGIN_M: float = 0.05
-"""Stepping sideways, a person keeps at least this from the footprint (not its full ``keeps_m``: it may have to step
-out of the way of a robot that came closer than that), m."""
+STEP_ASIDE_KEEPS: float = 0.5
+"""While it steps sideways a person keeps at least this fraction of its ``keeps_m`` from the footprint (the step out
+from behind a robot it follows starts a little inside its personal distance, as people's do)."""
 
 ROOM_MARGIN_M: float = 0.02
 """Where a person steps around the robot, it keeps at least this from walls and fixed obstacles, m."""
@@ -79,6 +82,10 @@ ROOM_STEP_M: float = 0.1
 
 REJOIN_RATE: float = 0.5
 """Back onto its path, a person drifts sideways at this fraction of its walking speed (a gentle diagonal)."""
+
+AHEAD_COS: float = 0.3
+"""A place is ahead of the robot when the cosine of its bearing from the way the robot faces (or backs) is more than
+this (within about 72 degrees): a person stepping around the robot prefers a side that is not."""
 
 REJOIN_AHEAD_M: float = 1.0
 """A person beside its path drifts back onto it once the robot is behind it, or farther than its personal distance
@@ -135,6 +142,7 @@ class ContactWorld:
         self.person_aside_to_m: list[Optional[float]] = [None] * len(self.persons)
         """The offset each person is stepping sideways to (m), or None when it is not stepping aside."""
         self._look_at_s = [p.patience_s for p in self.persons]  # waited this long, a person looks for a side, s
+        self._robot_way = (0.0, 0.0)  # the unit vector of where the robot is going (it faces, or backs), world frame
         self._persons_moved_m = 0.0  # the most any person can have come closer since the last exact look, m
         self.collisions = 0
         """Distinct contact episodes so far."""
@@ -275,15 +283,22 @@ class ContactWorld:
         return s
 
     # -- persons ------------------------------------------------------------------
-    def advance_persons(self, t_s: float, dt_s: float, robot_x: float, robot_y: float) -> None:
+    def advance_persons(self, t_s: float, dt_s: float, robot_x: float, robot_y: float,
+                        robot_yaw: Optional[float] = None, robot_v_mps: float = 0.0) -> None:
         """Walk every person for the step of ``dt_s`` ending at ``t_s`` (s), around the robot at
-        (``robot_x``, ``robot_y``) (m): as the module docstring says, giving way, or with ``gives_way: false``
-        stopping at contact.
+        (``robot_x``, ``robot_y``) (m) facing ``robot_yaw`` (rad; None: unknown) and driving at ``robot_v_mps``
+        (m/s, negative backwards): as the module docstring says, giving way, or with ``gives_way: false`` stopping
+        at contact.
 
         A person held up by the robot walks on from where it is, at its own speed (it does not run to catch up
         with its timetable).
         """
         farthest = 0.0
+        if robot_yaw is None:
+            self._robot_way = (0.0, 0.0)
+        else:
+            way = -1.0 if robot_v_mps < 0.0 else 1.0
+            self._robot_way = (way * math.cos(robot_yaw), way * math.sin(robot_yaw))
         for i, person in enumerate(self.persons):
             walking_s = min(dt_s, t_s - person.start_s)
             if walking_s <= 0.0 or person.speed_mps <= 0.0:
@@ -344,7 +359,8 @@ class ContactWorld:
         if aside is not None:  # stepping sideways, out of the robot's way
             o = _toward(offset, aside, step)
             x, y = self._person_at(person, walked, o)
-            if (_sweep_circle(qx, qy, x - qx, y - qy, robot_x, robot_y, touch + STEP_ASIDE_MARGIN_M) > 1.0
+            # Most of its personal distance holds here too; a robot that came nearer may only be stepped away from.
+            if (_sweep_circle(qx, qy, x - qx, y - qy, robot_x, robot_y, touch + STEP_ASIDE_KEEPS * person.keeps_m) > 1.0
                     and self._fits(person, x, y, walked)):
                 self.person_offset_m[i] = o
                 if o == aside:  # out of the way: walk on beside the robot (and wait afresh if it is still there)
@@ -423,9 +439,11 @@ class ContactWorld:
     def _side_with_room(self, i: int, person: Person, robot_x: float, robot_y: float) -> Optional[float]:
         """The offset (m) person ``i`` steps to so as to pass the robot at (robot_x, robot_y), or None: no room.
 
-        Of the offsets that pass it ``keeps_m`` + :data:`PASS_MARGIN_M` away on either side, the nearer, the
-        person's right on a tie, among those where the step sideways does not cross in front of the robot and the
-        person fits (:meth:`_fits`) all along the step and the pass.
+        Of the offsets that pass it ``keeps_m`` + :data:`PASS_MARGIN_M` away on either side: one not ahead of the
+        robot (within :data:`AHEAD_COS` of the way it faces, or backs; a robot held by its collision monitor still
+        faces where it is going), then the nearer, then the person's right; among those where the step sideways
+        comes no nearer the robot than :data:`STEP_ASIDE_KEEPS` of ``keeps_m`` (or than it is, when the robot came
+        nearer) and the person fits (:meth:`_fits`) all along the step and the pass.
         """
         walked, offset = self.person_walked_m[i], self.person_offset_m[i]
         bx, by, ux, uy, way = person.place_at(walked)
@@ -438,15 +456,17 @@ class ContactWorld:
         for side in (1.0, -1.0):
             target = lateral + side * pass_m
             tx, ty = self._person_at(person, walked, target)
-            near = min(touch + STEP_ASIDE_MARGIN_M, math.hypot(robot_x - qx, robot_y - qy))
-            if _segment_distance(robot_x, robot_y, qx, qy, tx, ty) < near:
-                continue  # the step sideways would cross in front of the robot (or come closer to one touching it)
+            near = min(touch + STEP_ASIDE_KEEPS * person.keeps_m, math.hypot(robot_x - qx, robot_y - qy))
+            if _segment_distance(robot_x, robot_y, qx, qy, tx, ty) < near - 1e-9:
+                continue  # the step would come too near the robot (or nearer to a robot already that near)
             if not self._room_along(person, walked, offset, target, max(0.0, along) + pass_m):
                 continue
-            rank = (abs(target - offset), 0 if side == -way else 1, target)  # -way: the person's right
+            hx, hy = self._robot_way
+            in_front = (tx - robot_x) * hx + (ty - robot_y) * hy > AHEAD_COS * math.hypot(tx - robot_x, ty - robot_y)
+            rank = (in_front, abs(target - offset), 0 if side == -way else 1, target)  # -way: the person's right
             if best is None or rank < best:
                 best = rank
-        return None if best is None else best[2]
+        return None if best is None else best[-1]
 
     def _room_along(self, person: Person, walked_m: float, offset_m: float, target_m: float, pass_m: float) -> bool:
         """Whether a person fits all along a step sideways from ``offset_m`` to ``target_m`` at ``walked_m`` and on
@@ -579,5 +599,5 @@ def _sweep_slabs(p0: np.ndarray, d: np.ndarray, a: np.ndarray, u: np.ndarray, le
     return np.where(inside, np.where(y0 * dy < 0.0, 0.0, _INF), np.where(hit, s, _INF))
 
 
-__all__ = ["ContactWorld", "CONTACT_M", "CLEAR_AFTER_M", "PASS_MARGIN_M", "STEP_ASIDE_MARGIN_M", "ROOM_MARGIN_M",
-           "ROOM_STEP_M", "REJOIN_RATE", "REJOIN_AHEAD_M", "RETHINK_S"]
+__all__ = ["ContactWorld", "CONTACT_M", "CLEAR_AFTER_M", "PASS_MARGIN_M", "STEP_ASIDE_KEEPS", "ROOM_MARGIN_M",
+           "ROOM_STEP_M", "REJOIN_RATE", "REJOIN_AHEAD_M", "RETHINK_S", "AHEAD_COS"]
