@@ -222,7 +222,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
                             warnings=run_warnings(mission, profile, world, mode, options))
         if options.record:
             try:
-                prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock, mission.file)
+                prepared.folder = RunFolder.create(options.runs_dir, mission.name, clock)
             except RunFolderUnavailable:
                 prepared.abandon()  # nothing moved: close what was opened, then say why
                 raise
@@ -259,11 +259,13 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
         warnings += world_warnings(mission, world)
     if mode == REPLAY:
         return warnings
-    has_battery = "battery" in base_part(profile, simulated=mode == SIM).fills
+    fills = base_part(profile, simulated=mode == SIM).fills
+    has_battery = "battery" in fills
     has_joystick = profile.section("joystick") is not None or (options is not None and
                                                                options.joystick_script is not None)
     return by_position(warnings + robot_warnings(mission, profile.max_speed_mps, profile.name, has_battery,
-                                                 has_joystick))
+                                                 has_joystick, has_lidar=profile.section("lidar") is not None,
+                                                 has_odometry="odometry" in fills))
 
 
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:

@@ -2,7 +2,7 @@
 
 A file is checked as a mission, a robot profile or a world according to its
 first key (``mission:``, ``robot:``, ``world:``), and a file whose top level
-is a list of ``{at: ...}`` events as a joystick script (``--joystick FILE``); anything else is
+is a list (of ``{at: ...}`` events) as a joystick script (``--joystick FILE``); anything else is
 checked as a mission, whose errors then say what a mission needs. A
 mission's world file is checked with it: its problems are reported in the
 world file, and at the mission's ``world:`` line. Warnings (valid, but
@@ -12,19 +12,31 @@ probably not meant) come with the errors; ``--strict`` counts them as errors.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.yaml_source import load_yaml
 
 
-def validate_file(path: str) -> list[Problem]:
-    """Every problem in the file at ``path``, errors and warnings (an empty list when it is clean)."""
+FILE_KEYS = frozenset({"mission", "steps", "robot", "world"})
+"""First keys of the files that are mappings: a top-level list holding them is not a joystick script."""
+
+
+def validate_file(path: str, robot: Optional[str] = None) -> list[Problem]:
+    """Every problem in the file at ``path``, errors and warnings (an empty list when it is clean).
+
+    With ``robot`` (a profile's name or file), a mission is also checked for
+    that robot, as ``beastbt run --robot`` would: its top speed, its devices
+    (battery, joystick, LiDAR, odometry) against what the mission uses.
+    """
     from beastbt.mission.model import load_mission
     from beastbt.robot.profile import load_profile
     from beastbt.sim.world import load_world
     try:
         doc = load_yaml(path, require_mapping=False)
-        if isinstance(doc.data, list) and doc.data and all(isinstance(e, dict) and "at" in e for e in doc.data):
+        if isinstance(doc.data, list) and not any(isinstance(e, dict) and set(e) & FILE_KEYS for e in doc.data):
+            # Only a joystick script is a list of events at its top level; a list of a mission's keys is a
+            # mission written with a '-' too many, and its error says so.
             from beastbt.devices.joystick import JoystickMapping
             from beastbt.parts.sim_joystick import load_joystick_script
             load_joystick_script(path, JoystickMapping())
@@ -36,12 +48,31 @@ def validate_file(path: str) -> list[Problem]:
             load_world(path)
         else:
             mission = load_mission(path)
-            return mission_with_world(mission)
+            found = mission_with_world(mission)
+            if robot is not None and not any(p.severity == "error" for p in found):
+                found = found + for_robot(mission, robot)
+            return found
     except InvalidInput as exc:
         return exc.problems
     except Exception as exc:  # noqa: BLE001 - a slip of ours must not end in a traceback for a user's file
         return [internal_error(path, exc)]
     return []
+
+
+def for_robot(mission, robot: str) -> list[Problem]:  # type: ignore[no-untyped-def]
+    """The warnings of running ``mission`` on ``robot`` (a profile's name or file); its problems if it is invalid."""
+    from beastbt.assembly import run_warnings
+    from beastbt.robot.hardware import DeviceUnavailable
+    from beastbt.robot.part import REAL
+    from beastbt.robot.profile import load_profile
+    try:
+        profile = load_profile(robot)
+        said = {(p.file, p.position, p.message) for p in mission.warnings}
+        return [p for p in run_warnings(mission, profile, None, REAL) if (p.file, p.position, p.message) not in said]
+    except InvalidInput as exc:
+        return exc.problems
+    except DeviceUnavailable as exc:
+        return [Problem(robot, Position(), str(exc))]
 
 
 def internal_error(path: str, exc: BaseException) -> Problem:

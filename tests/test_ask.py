@@ -79,3 +79,20 @@ def test_the_docs_example_runs_by_its_timeout():
     text = re.search(r"```yaml\n(mission: door_check.*?)```", doc, re.S).group(1)
     h = MissionHarness.from_yaml(text)
     assert h.run_to_end(60) == "success" and ("say", "door closed, staying") in asked(h)
+
+
+def test_an_answer_to_no_question_is_refused_and_an_unanswerable_question_says_how_to_answer(tmp_path):
+    path = tmp_path / "door.yaml"
+    path.write_text(DOOR.replace("timeout: 5 s", "timeout: 30 s"))
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    typo = subprocess.run([sys.executable, "-m", "beastbt", "run", str(path), "--no-record", "--answer", "dor=yes"],
+                          capture_output=True, text=True, timeout=60, env=env, stdin=subprocess.DEVNULL)
+    assert typo.returncode == 2
+    assert "no question 'dor'" in typo.stderr and "did you mean 'door'?" in typo.stderr
+    assert "mission" not in typo.stdout  # refused before anything ran
+    # No console, stdin not a terminal, no --answer: the run says at once that nobody can answer, and how.
+    alone = subprocess.run([sys.executable, "-m", "beastbt", "run", str(path), "--no-record"],
+                           capture_output=True, text=True, timeout=60, env=env, stdin=subprocess.DEVNULL)
+    line = next(x for x in alone.stdout.splitlines() if "nobody can answer" in x)
+    assert line.startswith("[    0.") and "--answer door=yes" in line and "--console" in line
+    assert "answer: door: no (by timeout)" in alone.stdout

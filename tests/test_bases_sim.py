@@ -260,7 +260,8 @@ def test_missing_joystick_is_an_event_and_the_teleop_step_says_no_joystick(tmp_p
     run = assemble(mission, profile, RunOptions(record=False), REAL, io=robot, clock=clock, parts=[TeleopPart()]).run
     events = run.events
     assert run.tick() == "failure"
-    assert events.last("step_failed").text.endswith("no joystick")
+    said = events.last("step_failed").text
+    assert "no joystick: plug in the gamepad" in said and "--console" in said and "--joystick" not in said
 
 
 def test_real_mode_runs_the_watchdog_thread_and_ends_with_a_stop(tmp_path, monkeypatch):

@@ -80,13 +80,23 @@ def test_yaml_merge_keys_work(tmp_path):
     assert done.returncode == 2 and "duplicate key 'distance'" in done.stderr
 
 
-def test_a_mission_named_with_accents_runs_and_its_folder_names_file_and_mission(tmp_path):
+def test_a_mission_named_with_accents_runs_and_its_folder_is_time_and_mission_as_the_readme_says(tmp_path):
+    import re
     path = tmp_path / "tour.yaml"
     path.write_text("mission: café_straße\nsteps:\n  - wait: 1 s\n")
     done = beastbt("run", str(path), "--runs-dir", str(tmp_path / "runs"))
     assert done.returncode == 0, done.stderr
     [folder] = (tmp_path / "runs").iterdir()
-    assert folder.name.endswith("_tour_café_straße")
+    assert re.fullmatch(r"\d{8}T\d{6}Z_café_straße", folder.name), folder.name
+    assert "runs/<UTC time>_<mission>/" in (REPO / "README.md").read_text(encoding="utf-8")
+    long = "a_mission_whose_name_goes_on_and_on_" * 4
+    path.write_text(f"mission: {long}\nsteps:\n  - wait: 1 s\n")
+    assert beastbt("run", str(path), "--runs-dir", str(tmp_path / "runs")).returncode == 0
+    listed = beastbt("runs", "--runs-dir", str(tmp_path / "runs")).stdout.splitlines()
+    assert listed[0].split() == ["RUN", "MISSION", "OUTCOME", "TIME", "DISTANCE", "RECORDING"]
+    outcome = listed[0].index("OUTCOME")
+    assert all(line[outcome:].startswith("success") for line in listed[1:]), listed  # columns line up
+    assert all(len(line) < 160 for line in listed)
 
 
 def test_joystick_script_on_a_real_robot_says_why_before_opening_anything(tmp_path):
@@ -146,7 +156,13 @@ def test_sigterm_to_a_simulated_run_gives_its_summary_and_a_readable_recording(t
     proc = subprocess.Popen([sys.executable, "-m", "beastbt", "run", PATROL, "--speed", "realtime", "--runs-dir",
                              str(tmp_path / "runs")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    time.sleep(3.0)
+    # Signal once the run is under way (its folder exists, then a second of ticking), not after a fixed time that a
+    # loaded machine may spend still importing.
+    deadline = time.monotonic() + 60
+    while not (tmp_path / "runs").is_dir() or not any((tmp_path / "runs").iterdir()):
+        assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
+        time.sleep(0.1)
+    time.sleep(1.5)
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 1 and "Traceback" not in err
@@ -176,6 +192,22 @@ def test_output_that_is_not_a_terminal_has_no_carriage_returns(tmp_path):
     done = beastbt("run", PATROL, "--no-record", cwd=tmp_path)
     assert done.returncode == 0 and "\r" not in done.stdout and "\x1b" not in done.stdout
     assert done.stdout.startswith("[  176.0 s] mission_end: success")
+    # The end is said once: the headline carries its reason, at the same time as the event printed live.
+    assert done.stdout.count("mission_end") == 1
+    assert "mission corridor_patrol: SUCCESS (all steps done)\n  time 176.0 s" in done.stdout
+
+
+def test_a_failed_run_says_its_end_once_with_the_failure_recapped(tmp_path):
+    (tmp_path / "m.yaml").write_text("mission: blocked\nworld: corridor.yaml\nsteps:\n  - drive: {distance: 20 m}\n")
+    done = beastbt("run", str(tmp_path / "m.yaml"), "--no-record", "--robot", str(REPO / "robots" / "ugv_beast.yaml"),
+                   "--sim", "--world", str(REPO / "worlds" / "corridor.yaml"), cwd=tmp_path)
+    assert done.returncode == 1
+    assert done.stdout.count("mission_end") == 1, done.stdout
+    live = next(line for line in done.stdout.splitlines() if "mission_end" in line)
+    headline = next(line for line in done.stdout.splitlines() if line.startswith("mission blocked: FAILURE ("))
+    when = float(live.split("]")[0].strip("[ s"))
+    assert f"  time {when:.1f} s" in done.stdout and live.split("failure: ")[1] in headline
+    assert done.stdout.count("step_failed") == 2  # live, and recapped under the headline
 
 
 @pytest.mark.parametrize("args, says", [
@@ -208,3 +240,22 @@ def test_a_fault_of_beastbt_itself_is_one_clear_line_and_a_file_not_a_traceback(
     kept = list(tmp_path.glob("beastbt-runs-crash-*.txt"))
     assert len(kept) == 1 and str(kept[0]) in err
     assert "Traceback" in kept[0].read_text() and "broken" in kept[0].read_text()
+
+
+def test_messages_read_as_sentences_an_option_has_no_line_and_a_file_has_no_a_route(tmp_path):
+    import socket
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = beastbt("run", PATROL, "--console", str(port), "--no-record")
+    assert done.returncode == 2
+    assert f"beastbt: --console: error: cannot listen on 127.0.0.1:{port}" in done.stderr and ":1:1:" not in done.stderr
+    (tmp_path / "wptonly.gpx").write_text("<gpx><wpt lat='40.4' lon='-3.7'><name>a</name></wpt></gpx>\n")
+    (tmp_path / "m.yaml").write_text("mission: t\nsteps:\n  - route: {file: wptonly.gpx}\n")
+    said = beastbt("validate", str(tmp_path / "m.yaml")).stderr
+    assert "wptonly.gpx has no route (GPX rte/trk" in said and "no a " not in said
+    (tmp_path / "robot.yaml").write_text("robot: x\nbogus: 1\n")
+    layout = beastbt("foxglove-layout", "--robot", str(tmp_path / "robot.yaml"))
+    assert layout.returncode == 2 and "robot.yaml:2:1: error: unknown key 'bogus'" in layout.stderr
+    assert "foxglove-layout: error:" not in layout.stderr  # said once, positioned, not wrapped in a second 'error:'

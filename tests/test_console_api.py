@@ -10,6 +10,7 @@ from pathlib import Path
 import aiohttp
 import pytest
 
+from beastbt.live.console_state import video_caption
 from console_support import ASK, SHORT, WAIT, ConsoleRun
 
 
@@ -72,6 +73,12 @@ def test_the_websocket_pushes_5_times_a_second_and_the_final_state_before_closin
     assert len(running) - 1 >= 5 * span * 0.9  # at least 5 a second, every second of the run
     assert max(b - a for a, b in zip(stamps, stamps[1:])) < 0.5
     assert got[-1][1]["status"] == "succeeded"
+    # The end says so, and names the step it ended in (the mission's last), not the step as if still running.
+    final = got[-1][1]
+    assert final["step"] == "ended: succeeded" and final["ended_at"] == final["last_step"] == "wait 1 s"
+    assert video_caption(final) == [f"console_short  ended: succeeded  t {final['time_s']:.1f} s",
+                                    "last step: wait 1 s"]
+    assert {s["step"] for _, s in got if s["status"] == "running"} >= {"wait 1 s"}
     code, _, _ = run.finish()
     assert code == 0
 
@@ -135,6 +142,7 @@ def test_abort_ends_the_run_as_aborted_with_a_summary_and_a_recording(console, t
 
     final = asyncio.run(asyncio.wait_for(abort_and_watch(), 30))
     assert final["status"] == "aborted"
+    assert final["step"] == "ended: aborted" and final["ended_at"] == "wait 60 s"  # the tree was reset: as it was
     code, _, _ = run.finish()
     assert code == 1
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -265,3 +273,15 @@ def test_the_map_has_the_worlds_track_and_the_missions_waypoints_in_plan_metres(
         assert min(xs) < 0 and max(xs) > 3.9  # the loop, from its round end to its right side
     finally:
         line.kill()
+
+
+def test_a_paused_run_shows_the_step_it_is_paused_in_and_that_it_is_paused(console):
+    run = console(WAIT, "--speed", "realtime")
+    running = run.wait_state(lambda s: s["time_s"] > 0.3, 10)
+    assert running["step"] == running["last_step"] == "wait 60 s" and running["ended_at"] is None
+    assert run.api("/api/pause", {})[0] == 200
+    paused = run.wait_state(lambda s: s["status"] == "paused", 5)
+    assert paused["step"] == "wait 60 s (paused)" and paused["last_step"] == "wait 60 s"
+    assert video_caption(paused)[1] == "step: wait 60 s (paused)"
+    assert run.api("/api/resume", {})[0] == 200
+    assert run.wait_state(lambda s: s["status"] == "running", 5)["step"] == "wait 60 s"

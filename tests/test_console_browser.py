@@ -10,6 +10,7 @@ temporary folder.
 from __future__ import annotations
 
 import os
+import textwrap
 import time
 from pathlib import Path
 
@@ -44,9 +45,9 @@ def shots(tmp_path: Path):
     folder = Path(os.environ.get("BEASTBT_SCREENSHOTS") or tmp_path)
     folder.mkdir(parents=True, exist_ok=True)
 
-    def shot(page, name: str) -> Path:
+    def shot(page, name: str, full_page: bool = True) -> Path:
         path = folder / f"console_{name}.png"
-        page.screenshot(path=str(path), full_page=True)
+        page.screenshot(path=str(path), full_page=full_page)
         return path
     return shot
 
@@ -102,6 +103,9 @@ def test_pause_stops_the_robot_and_the_mission_clock_then_resume(browser, run_co
     page.get_by_test_id("pause").click()
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("paused")
     paused = run.wait_state(lambda s: s["speed_mps"] == 0.0, 5)
+    # both: that it is paused, and the step it is paused in
+    assert paused["last_step"] not in (None, "-", "(paused)")
+    playwright_api.expect(page.get_by_test_id("step")).to_have_text(f"{paused['last_step']} (paused)")
     time.sleep(1.0)
     later = run.state()
     assert later["status"] == "paused" and later["speed_mps"] == 0.0
@@ -124,7 +128,7 @@ def test_the_on_page_joystick_drives_while_pressed_and_stops_on_release(browser,
     page.mouse.down()
     page.mouse.move(cx, cy - pad["height"] * 0.4, steps=5)  # stick forward
     driving = run.wait_state(lambda s: s["teleop"] and s["speed_mps"] > 0.05, 5)
-    assert driving["step"] == "(teleop)"  # the operator took over: the mission waits
+    assert driving["step"] == "wait 60 s (teleop)"  # the operator took over: the mission waits at its step
     time.sleep(1.0)
     shots(page, "joystick")
     page.mouse.up()
@@ -170,12 +174,27 @@ def test_a_question_is_answered_on_the_page(browser, run_console, shots):
 
 
 def test_the_page_shows_the_final_status_after_the_end(browser, run_console, shots):
-    run = run_console(SHORT, "--speed", "realtime")
+    run = run_console(SHORT.replace("wait: 1 s", "wait: 4 s"), "--speed", "realtime")
     page = open_page(browser, run)
+    wait_for_page(page, "window.beastbtVideoStats.frames > 0", timeout_s=10)  # a frame, captioned "running"
     code, _, _ = run.finish()
     assert code == 0
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=5000)
     playwright_api.expect(page.get_by_test_id("pause")).to_be_disabled()
+    # the outcome and the last step, not the last step as if it still ran; the video says it ended
+    playwright_api.expect(page.locator("#bar .step")).to_have_text("ended: succeeded · last step: wait 4 s")
+    ended = page.get_by_test_id("video").get_attribute("data-ended")
+    assert ended is not None and ended.startswith("ended: succeeded at t ") and ended.endswith("last step: wait 4 s")
+    dark, bright, below = page.get_by_test_id("video").evaluate("""c => {
+        const g = c.getContext('2d'), band = Math.round(c.height / 16 * 3), px = (y, h) => {
+            const d = g.getImageData(0, y, c.width, h).data, out = [];
+            for (let i = 0; i < d.length; i += 4) out.push((d[i] + d[i + 1] + d[i + 2]) / 3);
+            return out; };
+        const top = px(0, band), under = px(band + 10, 10);
+        return [top.filter(v => v < 40).length / top.length, top.filter(v => v > 150).length,
+                under.reduce((a, v) => a + v, 0) / under.length]; }""")
+    assert dark > 0.7 and bright > 100  # over the last frame: a dark band, with the words on it
+    assert below > 60  # and under it the camera's last frame (grey floor), not an empty canvas
     shots(page, "final")
 
 
@@ -221,20 +240,99 @@ def test_a_gamepad_drives_through_the_browser_with_the_same_deadman(browser, run
     assert stopped["pose"]["x"] - start["x"] > 0.05
 
 
-def test_a_tree_of_hundreds_of_nodes_scrolls_and_keeps_the_running_step_in_view(browser, run_console, shots):
+PHONE = {"viewport": {"width": 390, "height": 844}, "device_scale_factor": 2, "is_mobile": True, "has_touch": True}
+DESKTOP = {"viewport": {"width": 1366, "height": 900}}
+WATCH_SCROLL = "window.__maxScrollY = 0; addEventListener('scroll', () => { " \
+               "window.__maxScrollY = Math.max(window.__maxScrollY, window.scrollY); });"
+"""Records how far the page itself ever scrolled (the page is never scrolled by hand in these tests)."""
+
+
+def box(page, selector: str) -> dict:
+    """The element's bounding box in CSS px of the viewport (x, y, width, height, bottom)."""
+    b = page.locator(selector).first.bounding_box()
+    assert b is not None, f"{selector} is not rendered"
+    return {**b, "bottom": b["y"] + b["height"]}
+
+
+def text_lines(page, selector: str) -> int:
+    """How many lines the element's text is laid out on (its line boxes)."""
+    return page.locator(selector).evaluate(
+        "e => { const r = document.createRange(); r.selectNodeContents(e); "
+        "return new Set(Array.from(r.getClientRects()).map(q => Math.round(q.top))).size; }")
+
+
+def open_watched(browser, run: ConsoleRun, device: dict):
+    """A page of the console in a new context for ``device``, with every failed request and console error kept."""
+    context = browser.new_context(**device)
+    page = context.new_page()
+    problems: list[str] = []
+    page.on("console", lambda m: problems.append(f"console {m.type}: {m.text}") if m.type == "error" else None)
+    page.on("response", lambda r: problems.append(f"{r.status} {r.url}") if r.status >= 400 else None)
+    page.on("requestfailed", lambda r: problems.append(f"failed {r.url}"))
+    page.add_init_script(WATCH_SCROLL)
+    page.goto(run.url)
+    page.get_by_test_id("status").wait_for()
+    return context, page, problems
+
+
+def test_on_a_phone_and_a_desktop_the_question_header_and_pad_stay_in_sight_and_only_the_tree_scrolls(
+        browser, run_console, shots):
     steps = "  - wait: 200 ms\n" * 220
-    run = run_console(f"mission: many_steps\nsteps:\n{steps}", "--speed", "realtime")
-    page = open_page(browser, run)
-    tree = page.get_by_test_id("tree")
-    playwright_api.expect(tree.locator("[data-node-id]")).to_have_count(221)
-    wait_for_page(page, "document.querySelectorAll('#tree .node.success').length > 30", timeout_s=30)
-    assert tree.evaluate("t => t.scrollHeight > t.clientHeight")  # it scrolls, not the page
-    in_view = tree.evaluate("""t => { const r = t.querySelector('.node.running:not([data-node-id="0"])');
-        if (!r) return null; const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
-        return a.top >= b.top - 1 && a.bottom <= b.bottom + 1; }""")
-    assert in_view is True
-    page.get_by_role("button", name="fold done").click()
-    shots(page, "tree_220")
+    run = run_console(f"mission: many_steps\nsteps:\n  - ask: {{id: go, question: \"Start the long walk?\"}}\n"
+                      f"    then:\n{textwrap.indent(steps, '    ')}", "--speed", "realtime")
+    phone_context, phone, phone_problems = open_watched(browser, run, PHONE)
+    desk_context, desk, desk_problems = open_watched(browser, run, DESKTOP)
+    try:
+        question = phone.get_by_test_id("question")
+        playwright_api.expect(question).to_be_visible(timeout=10000)
+        # the phone: a compact header, the question right under it, the buttons on one line, the pad on screen
+        bar, asked = box(phone, "#bar"), box(phone, "#question")
+        assert bar["y"] >= 0 and bar["height"] <= 0.16 * 844, bar  # not a fifth of the screen
+        assert asked["y"] >= bar["bottom"] - 0.5 and asked["bottom"] <= 844, (bar, asked)  # in sight, not under
+        for button in ("#estop", "#estop-reset", "#pause", "#resume", "#abort"):
+            assert text_lines(phone, button) == 1, button
+            assert box(phone, button)["height"] < 3 * 13, button  # one line of 13 px text and its padding
+            assert box(phone, button)["y"] == box(phone, "#estop")["y"], button  # all on one row
+            assert box(phone, button)["x"] + box(phone, button)["width"] <= 390, button
+        pad = box(phone, "#joystick")
+        assert pad["y"] >= asked["bottom"] and pad["bottom"] <= 844, pad  # on the first screen, no scrolling
+        assert phone.evaluate("document.documentElement.scrollWidth") <= 390  # nothing wider than the phone
+        shots(phone, "phone_question", full_page=False)
+        phone.evaluate("window.scrollTo(0, 700)")  # the operator scrolls down to the map: the question stays
+        scrolled = box(phone, "#question")
+        assert phone.evaluate("window.scrollY") > 300 and 0 <= scrolled["y"] and scrolled["bottom"] <= 844, scrolled
+        assert scrolled["y"] >= box(phone, "#bar")["bottom"] - 0.5
+        phone.evaluate("window.scrollTo(0, 0); window.__maxScrollY = 0")
+        phone.get_by_test_id("answer-yes").tap()
+        playwright_api.expect(question).to_be_hidden(timeout=5000)
+        # the tree advances (a new running row every 200 ms): it follows in its own panel, the pages never move
+        for page in (phone, desk):
+            wait_for_page(page, "document.querySelectorAll('#tree .node.success').length > 30", timeout_s=30)
+        for page, bottom in ((phone, 1e9), (desk, 900)):
+            tree = page.get_by_test_id("tree")
+            assert tree.evaluate("t => t.scrollHeight > t.clientHeight && t.scrollTop > 0")  # it scrolled itself
+            # the leaf (the deepest running row, the last in the document) is in the panel's sight, and on a desktop
+            # (where the panel starts on the first screen) on the screen too
+            in_view = tree.evaluate("""t => { const all = t.querySelectorAll('.node.running'), r = all[all.length - 1];
+                if (!r || all.length < 3) return null;
+                const a = r.getBoundingClientRect(), b = t.getBoundingClientRect();
+                return a.top >= b.top - 1 && a.bottom <= b.bottom + 1 ? a.bottom : -1; }""")
+            assert 0 < in_view <= bottom, in_view
+            assert page.evaluate("[window.scrollY, window.__maxScrollY]") == [0, 0]
+        # the desktop: the header covers neither the Camera's nor the Map's title
+        header = box(desk, "#top")
+        for title in (".video-panel h2", ".map-panel h2"):
+            assert box(desk, title)["y"] >= header["bottom"], (title, header)
+        pad = box(desk, "#joystick")
+        assert pad["bottom"] <= 900, pad
+        shots(phone, "phone_tree", full_page=False)
+        shots(desk, "desktop_tree", full_page=False)
+        # the favicon is served: no 404 and no error in either browser console
+        assert phone_problems == [] and desk_problems == [], (phone_problems, desk_problems)
+        desk.get_by_role("button", name="fold done").click()
+    finally:
+        phone_context.close()
+        desk_context.close()
 
 
 EVIL_PAGE = """<!doctype html><html><body><h1>cat pictures</h1>

@@ -219,6 +219,7 @@ def test_websockets_from_another_page_are_refused(standing):
 def test_every_answer_carries_no_referrer_no_framing_and_the_api_is_not_cached(standing):
     run = standing
     for method, path, body, headers in [("GET", "/", None, {}), ("GET", "/static/console.js", None, {}),
+                                        ("GET", "/favicon.ico", None, {}), ("GET", "/static/favicon.svg", None, {}),
                                         ("GET", "/api/state", None, {}), ("GET", "/api/nothing", None, {}),
                                         ("GET", "/api/state", None, {"Host": "evil.example"}),
                                         ("POST", "/api/pause", b"{}", {"Content-Type": "text/plain"}),
@@ -231,6 +232,9 @@ def test_every_answer_carries_no_referrer_no_framing_and_the_api_is_not_cached(s
         if path.startswith("/api/"):
             assert got.get("cache-control") == "no-store", path
     assert "set-cookie" not in request(run, "GET", "/?token=x")[1]  # no token on loopback: no cookie to set
+    for path in ("/favicon.ico", "/static/favicon.svg"):  # the icon: the package's own SVG, never a 404
+        status, got, body = request(run, "GET", path)
+        assert status == 200 and got["content-type"] == "image/svg+xml" and str(body).startswith("<svg "), path
 
 
 # -- malformed numbers and bodies ---------------------------------------------------------------------

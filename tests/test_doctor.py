@@ -81,7 +81,18 @@ def test_missing_devices_each_fail_with_their_fix(tmp_path):
         found = lines(out, device)
         assert len(found) == 1 and found[0].startswith("FAIL") and "Fix:" in found[0], (device, out)
     assert lines(out, "joystick")[0].startswith("WARN")  # teleop needs it; a mission may not
-    assert "failed" in out.splitlines()[-1]
+    assert "failed" in out.splitlines()[-1] and out.splitlines()[-1].endswith(", 1 warning")
+
+
+def test_a_missing_extra_uart_is_told_to_use_its_overlay_not_raspi_config(tmp_path):
+    if Path("/dev/ttyAMA1").exists():
+        pytest.skip("this machine has a /dev/ttyAMA1")
+    profile = profile_file(tmp_path, ("gps",), base={"port": str(tmp_path / "no-serial0")}, gps={"port": "/dev/ttyAMA1"})
+    done = run_doctor(profile)
+    (gps,) = lines(done.stdout, "gps")
+    assert gps.startswith("FAIL") and "dtoverlay=uart3" in gps and "raspi-config" not in gps, gps
+    (base,) = lines(done.stdout, "base")
+    assert "raspi-config" in base and "dtoverlay" not in base  # the primary UART: raspi-config does enable it
 
 
 def test_two_devices_on_one_uart_fail(tmp_path):

@@ -99,3 +99,16 @@ def test_a_missing_file_and_an_unknown_format(tmp_path):
         path.write_text(f"mission: t\nsteps:\n  - route: {{file: {name}}}\n")
         with pytest.raises(InvalidInput, match=says):
             load_mission(path)
+
+
+def test_a_missing_route_file_is_one_error_not_an_unknown_place_too(tmp_path):
+    (tmp_path / "survey.gpx").write_text(
+        "<gpx><wpt lat='40.4169' lon='-3.7038'><name>gate</name></wpt></gpx>\n", encoding="utf-8")
+    path = tmp_path / "m.yaml"
+    path.write_text("mission: t\nplaces: {file: survey.gpx}\nsteps:\n  - route: {file: missing.gpx}\n  - go_to: gate\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(path)
+    problems = info.value.problems
+    assert len(problems) == 1, info.value.format()
+    assert "the route file missing.gpx cannot be read" in problems[0].message
+    assert "unknown place" not in info.value.format() and "gate" not in info.value.format()

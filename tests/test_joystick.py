@@ -264,10 +264,12 @@ def test_script_errors_name_line_column_and_event():
     with pytest.raises(ValueError) as exc:
         ScriptedJoystick.from_yaml(bad, source="demo.yaml")
     text = str(exc.value)
-    assert "demo.yaml:2:3: error: joystick script event 1: at:" in text
-    assert "demo.yaml:3:3: error: joystick script event 2: press: no button 'jump'" in text
-    assert "demo.yaml:4:3: error: joystick script event 3: needs exactly one" in text
-    assert "demo.yaml:5:3: error: joystick script event 4: linear must be a number from -1 to 1" in text
+    # Each error points at the value at fault (events counted from 1, as people count them), with a hint.
+    assert "demo.yaml:2:8: error: joystick script event 2: at:" in text
+    assert "demo.yaml:3:20: error: joystick script event 3: press: no button 'jump'" in text
+    assert "demo.yaml:4:3: error: joystick script event 4: needs exactly one" in text
+    assert "demo.yaml:5:21: error: joystick script event 5: linear must be a number from -1 to 1" in text
+    assert "hint: the buttons, by role: enable" in text and "hint: 1 is the stick pushed all the way" in text
     with pytest.raises(ValueError, match="unknown key"):
         ScriptedJoystick([{"at": 1, "presss": "enable"}])
     with pytest.raises(ValueError, match="no button 'turbo'"):
@@ -327,3 +329,21 @@ def test_mapping_from_dict_and_schema_agree():
         JoystickMapping.from_dict({"deadzone": 0.1})
     with pytest.raises(ValueError, match="own button"):
         JoystickMapping.from_dict({"enable_button": 1})
+
+
+def test_validate_reads_any_top_level_list_as_a_joystick_script_with_positioned_errors(tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import REPO
+    path = tmp_path / "js.yaml"
+    path.write_text("- {at: 1 s, press: enabel}\n- {at: 2 s, linear: 1.5}\n- {ta: 3 s, release: enable}\n")
+    done = subprocess.run([sys.executable, "-m", "beastbt", "validate", str(path)], capture_output=True, text=True,
+                          timeout=60, env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    assert done.returncode == 2
+    err = done.stderr
+    assert "mission:" not in err and "top level must be a mapping" not in err  # not judged as a mission
+    assert f"{path}:1:20: error: joystick script event 1: press: no button 'enabel' in the mapping; did you mean " \
+           f"'enable'?" in err
+    assert f"{path}:2:21: error: joystick script event 2: linear must be a number from -1 to 1" in err
+    assert f"{path}:3:4: error: joystick script event 3: unknown key 'ta'; did you mean 'at'?" in err

@@ -95,3 +95,22 @@ def test_bad_world_is_rejected_before_moving(write_mission, capsys, no_simulator
     assert cli.main(["run", str(mission), "--no-record"]) == 2
     err = capsys.readouterr().err
     assert f"{world}:2:" in err and "unknown key 'yaw'" in err and "yaw_deg" in err
+
+
+@pytest.mark.parametrize("text, where, says", [
+    # steps: written at the level of the step, not under repeat: with its times:
+    ("  - repeat:\n      times: 3\n    steps:\n      - drive: {distance: 1 m}\n", "5:5",
+     "'steps' belongs under 'repeat:' (line 3): indent it 2 more spaces, to line up with 'times:' on line 4"),
+    # nothing indented under repeat: at all
+    ("  - repeat:\n    times: 3\n    steps:\n      - drive: {distance: 1 m}\n", "4:5",
+     "'times', 'steps' belong under 'repeat:' (line 3): indent them further than it"),
+    # then: of an ask written inside the ask's own mapping
+    ("  - ask:\n      id: door\n      question: Open?\n      then:\n        - drive: {distance: 1 m}\n", "6:7",
+     "'then' belongs beside 'ask:', not under it: indent it 2 fewer spaces, to line up with 'ask:' on line 3"),
+])
+def test_a_key_at_the_wrong_indentation_is_told_to_indent_once(write_mission, capsys, text, where, says):
+    path = write_mission("mission: p\nsteps:\n" + text)
+    assert cli.main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f":{where}: error: {says}" in err
+    assert err.count("error:") == 1, err  # no "unknown key", no "needs 'steps:'" besides

@@ -8,7 +8,9 @@ import sys
 
 import pytest
 
+from beastbt.core.errors import InvalidInput
 from beastbt.core.units import UnitError, parse_quantity
+from beastbt.mission.model import load_mission
 from beastbt.testing import MissionHarness
 from conftest import REPO
 
@@ -67,6 +69,47 @@ def test_unit_mistakes_get_a_did_you_mean(text, says):
     with pytest.raises(UnitError) as info:
         parse_quantity(text, kind)
     assert (says or "did you mean '2 s'?") in str(info.value)
+
+
+@pytest.mark.parametrize("place, step, where, says, fix", [
+    ("{lat: 40.4169, lon: -3.7038}", "drive: {distance: 0,5 m}", "5:23", "'distance: 0,5 m' has a decimal comma",
+     "write 'distance: 0.5 m'"),
+    ("{lat: 40,4169, lon: -3.7038}", "go_to: a", "3:12", "'lat: 40,4169' has a decimal comma", "write 'lat: 40.4169'"),
+    ('{lat: "40,4169", lon: -3.7038}', "go_to: a", "3:12", "'40,4169' in 'lat' has a decimal comma",
+     "write 40.4169"),
+])
+def test_a_decimal_comma_in_flow_style_or_in_quotes_is_said_as_one(tmp_path, place, step, where, says, fix):
+    path = tmp_path / "m.yaml"
+    path.write_text(f"mission: dc\nplaces:\n  a: {place}\nsteps:\n  - {step}\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(path)
+    text = info.value.format()
+    assert len(info.value.problems) == 1, text
+    assert f"m.yaml:{where}: error: {says}" in text and fix in text
+    assert "unknown key" not in text and "is zero" not in text
+
+
+@pytest.mark.parametrize("places, world, blamed", [
+    # one swapped, one right, no world: the swapped one is blamed, not the other
+    ({"a": (-3.7038, 40.4169), "b": (40.4169, -3.7038)}, None, ["a"]),
+    ({"a": (40.4169, -3.7038), "b": (-3.7038, 40.4169)}, None, ["b"]),
+    # a single swapped place and no world: still said
+    ({"a": (-3.7038, 40.4169)}, None, ["a"]),
+    # with the world: judged against its datum
+    ({"a": (40.4172, -3.7030), "b": (-3.7030, 40.4172)}, "campus.yaml", ["b"]),
+    # all right: nothing to say
+    ({"a": (40.4172, -3.7030), "b": (40.4175, -3.7032)}, "campus.yaml", []),
+])
+def test_a_swapped_place_is_blamed_on_its_own(tmp_path, places, world, blamed):
+    lines = "".join(f"  {name}: {{lat: {lat}, lon: {lon}}}\n" for name, (lat, lon) in places.items())
+    head = f"mission: sw\nworld: {REPO / 'worlds' / world}\n" if world else "mission: sw\n"
+    path = tmp_path / "m.yaml"
+    path.write_text(head + "places:\n" + lines + "steps:\n" + "".join(f"  - go_to: {n}\n" for n in places))
+    done = beastbt("validate", str(path))
+    assert done.returncode == 0, done.stderr
+    said = [line for line in done.stderr.splitlines() if ": warning: " in line]
+    assert [line.split("place '")[1].split("'")[0] for line in said] == blamed, done.stderr
+    assert all("with lat and lon swapped: are they swapped?" in line for line in said)
 
 
 def test_a_target_thousands_of_km_away_is_refused_at_run_time():

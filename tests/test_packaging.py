@@ -38,3 +38,16 @@ def test_readme_quick_start_has_exactly_two_command_lines():
 def test_ci_runs_the_readme_test_line_verbatim():
     ci = (REPO / ".ci" / "run").read_text()
     assert quick_start_lines()[1].strip() in ci
+
+
+def test_the_consoles_page_files_are_package_data():
+    import fnmatch
+
+    from beastbt.live.console_server import PAGE_FILES
+    text = (REPO / "pyproject.toml").read_text()  # no tomllib on Python 3.10
+    data = re.search(r"^\[tool\.setuptools\.package-data\]\n(.*?)(?:\n\[|\Z)", text, re.S | re.M).group(1)
+    shipped = re.findall(r'"([^"]+)"', re.search(r'^"beastbt\.live" = \[(.*?)\]', data, re.M).group(1))
+    assert shipped
+    for name in ["index.html", *PAGE_FILES]:  # the page, its script, style and icon: in the wheel, no CDN
+        assert (REPO / "beastbt" / "live" / "console_page" / name).is_file(), name
+        assert any(fnmatch.fnmatch(f"console_page/{name}", pattern) for pattern in shipped), name

@@ -141,3 +141,30 @@ def test_config_from_dict_and_schema():
         PwmBaseConfig.from_dict({"left_channel": 1, "right_channel": 1})
     with pytest.raises(ValueError, match="mode"):
         PwmBaseConfig.from_dict({"mode": "servo"})
+
+
+def test_a_pwm_base_without_odometry_is_said_at_validate_at_start_and_at_the_failure(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from conftest import REPO
+
+    def beastbt(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "beastbt", *args], capture_output=True, text=True, timeout=120,
+                              cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(REPO)))
+
+    patrol, pwm = str(REPO / "missions" / "patrol.yaml"), str(REPO / "robots" / "diy_pwm.yaml")
+    checked = beastbt("validate", patrol, "--robot", pwm)
+    assert checked.returncode == 0 and "patrol.yaml:17:18: warning: robot 'diy_pwm' has no odometry" in checked.stderr
+    assert "this turn cannot measure how far it turned" in checked.stderr
+    assert "no odometry" not in beastbt("validate", patrol, "--robot", "ugv_beast").stderr  # it reports wheel travel
+    assert beastbt("validate", patrol, "--robot", pwm, "--strict").returncode == 2
+    ran = beastbt("run", patrol, "--robot", pwm, "--sim", "--no-record", "--summary", "s.json")
+    assert ran.returncode == 1
+    assert "warning: robot 'diy_pwm' has no odometry" in ran.stderr  # said before it starts
+    failed = next(line for line in ran.stdout.splitlines() if "step_failed" in line)
+    assert "no odometry: this robot's base reports no wheel travel" in failed and "drive: {time: 20 s" in failed
+    assert "after 0.00 m" not in ran.stdout  # no 'blocked after 0.00 m' beside a summary saying it moved
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["distance_m"] > 0.3  # it did move (the truth), and the failure no longer says otherwise

@@ -180,7 +180,7 @@ def test_runs_lists_each_run_with_its_outcome(runs, tmp_path, capsys):
     assert entries[unfinished.name].status == "unfinished" and entries[unfinished.name].mission == "killed_run"
     assert main(["runs", "--runs-dir", str(runs["dir"])]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert len(lines) == len(entries)
+    assert lines[0].startswith("RUN") and len(lines) == len(entries) + 1
     line = next(x for x in lines if x.startswith(runs["patrol"][0].name))
     assert "corridor_patrol" in line and "stopped" in line and "35.0 s" in line and "MB" in line
     assert main(["runs", "--runs-dir", str(tmp_path / "none")]) == 0

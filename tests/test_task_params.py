@@ -66,3 +66,27 @@ def test_the_docs_example_runs():
     text = re.search(r"```yaml\n(mission: look_both_ways.*?)```", doc, re.S).group(1)
     h = MissionHarness.from_yaml(text)
     assert h.run_to_end(60) == "success" and h.summary()["servos"]["pan"] == [45.0, 0.0, -30.0, 0.0]
+
+
+@pytest.mark.parametrize("declared, column, says", [
+    ("{angle: 45 deg, hold}", 29, "parameter 'hold' of task 'look_side' has no default"),
+    ("{angle: 45 deg, hold: [1, 2]}", 35, "parameter 'hold' of task 'look_side' has a list as its default"),
+])
+def test_a_parameter_without_a_default_is_one_error_at_its_declaration_in_words(tmp_path, declared, column, says):
+    path = tmp_path / "m.yaml"
+    path.write_text("mission: p\ntasks:\n  look_side:\n    params: " + declared + "\n    steps:\n"
+                    "      - look: {pan: $angle}\n      - wait: $hold\nsteps:\n  - do: {task: look_side, angle: -30 deg}\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(path)
+    text = info.value.format()
+    assert len(info.value.problems) == 1, text
+    assert f"m.yaml:4:{column}: error: {says}" in text and "every parameter needs a default" in text
+    assert "NoneType" not in text and "list'" not in text
+
+
+def test_a_value_of_the_wrong_shape_is_named_in_words_not_python_types(tmp_path):
+    path = tmp_path / "m.yaml"
+    path.write_text("mission: p\nsteps:\n  - wait: {}\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(path)
+    assert "dict" not in info.value.format() and "mapping" in info.value.format()

@@ -24,7 +24,17 @@ steps:
 def test_teleop_step_without_a_joystick_fails_no_joystick():
     h = MissionHarness.from_yaml(HAND)
     assert h.tick() == "failure"
-    assert h.node("teleop until released").feedback_message == "no joystick"
+    said = h.node("teleop until released").feedback_message
+    assert said.startswith("no joystick: on the simulator") and "--joystick FILE" in said and "--console" in said
+
+
+def test_with_an_operator_console_the_teleop_step_waits_for_its_stick_instead_of_failing():
+    h = MissionHarness.from_yaml(HAND)
+    h.run.ctx.services.teleop.remote_attached = True  # what the console does when it serves the run
+    for _ in range(20):
+        h.tick()
+    assert h.run.status is None and h.status_of("teleop until released") == "RUNNING"
+    assert "waiting for the operator" in h.node("teleop until released").feedback_message
 
 
 def test_until_released_waits_for_the_operator_then_succeeds_on_release():
@@ -160,7 +170,7 @@ def test_bad_joystick_script_is_invalid_input(tmp_path, capsys):
     code = cli.main(["run", str(REPO / "missions" / "teleop.yaml"), "--joystick", str(bad), "--no-record"])
     err = capsys.readouterr().err
     assert code == 2
-    assert f"{bad}:2:3: error:" in err and "presss" in err
+    assert f"{bad}:2:13: error:" in err and "presss" in err and "did you mean 'press'?" in err
 
 
 def test_a_hold_failsafe_is_restored_after_the_operator_lets_go(tmp_path):

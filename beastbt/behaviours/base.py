@@ -13,6 +13,11 @@ from beastbt.blackboard.types import VelocityCommand
 Status = py_trees.common.Status
 
 
+NO_ODOMETRY = ("no odometry: this robot's base reports no wheel travel (a PWM base drives open loop), so {what} "
+               "cannot be measured and the robot seemed not to move")
+"""Why a step that measures motion with the wheels failed on a base without odometry ({what}: what it measures)."""
+
+
 class BeastBehaviour(py_trees.behaviour.Behaviour):
     """A leaf that reads the catalogue keys in ``READS`` and writes those in ``WRITES``.
 

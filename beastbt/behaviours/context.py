@@ -121,6 +121,9 @@ class RunServices:
     ``return_home: {along: path}`` needs it."""
     questions: Optional[Any] = None
     """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
+    obstacle_sensing: Optional[Any] = None
+    """Where the LiDAR sits, the footprint and the scan rules for ``obstacle_within``
+    (:class:`~beastbt.behaviours.obstacle_within.ObstacleSensing`); set by the LiDAR part."""
     collision_hold: Callable[[], Optional[str]] = lambda: None
     """Why the collision monitor holds the robot back now, naming the nearest obstacle's distance and bearing
     (:meth:`~beastbt.actuation.collision_monitor.CollisionMonitor.holding`); None when it does not, or without one."""

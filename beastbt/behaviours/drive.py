@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from beastbt.behaviours.base import BeastBehaviour, Status
+from beastbt.behaviours.base import NO_ODOMETRY, BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.blackboard.types import FusedPose
 from beastbt.estimation.estimator import wrap_angle
@@ -49,6 +49,8 @@ class DriveDistance(_Straight):
     progress for ``stuck_after_s`` (blocked), or when there is no odometry.
     """
 
+    READS = ("pose_odom", "odometry")
+
     def __init__(self, name: str, ctx: MissionContext, distance_m: float, speed_mps: Optional[float] = None,
                  stuck_after_s: Optional[float] = None) -> None:
         super().__init__(name, ctx, speed_mps)
@@ -81,6 +83,10 @@ class DriveDistance(_Straight):
             self.progress_at_s = self.now()
         elif self.now() - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
+            if self.read("odometry") is None:
+                return self.fail(NO_ODOMETRY.format(what="the distance driven") + "; drive for a time instead: "
+                                 f"drive: {{time: {abs(self.distance_m) / max(self.speed_mps, 1e-3):.0f} s, "
+                                 f"speed: {self.speed_mps:g} m/s}}")
             return self.fail(f"blocked: no progress for {self.stuck_after_s:g} s after {covered:.2f} m"
                              + held_by(self.ctx))
         speed = min(self.speed_mps, max(p.min_drive_speed_mps, math.sqrt(2.0 * p.decel_mps2 * remaining)))

@@ -168,7 +168,7 @@ class GuardedBlock(py_trees.composites.Composite):
             if self.body.status == Status.RUNNING:
                 self.body.stop(Status.INVALID)  # the running step's terminate runs now
             what = f", halting {halted.name}" if halted is not None else ""
-            self.feedback_message = f"{self.condition} holds{what}"
+            self.feedback_message = f"{self.condition} holds{self.condition.details()}{what}"
             self.events.add("guard" if self.on_hold == Status.SUCCESS else "step_failed",
                             f"{self.name}: {self.feedback_message}")
             self.current_child = None  # the block itself is where it ended (tip() is this block)

@@ -45,6 +45,8 @@ class TeleopStep(BeastBehaviour):
             service.request_handover(self)
 
     def _connected(self) -> bool:
+        if getattr(self.ctx.services.teleop, "remote_attached", False):
+            return True  # an operator console can drive this run: its on-page stick is the joystick
         js = self.read("joystick")
         return js is not None and js.connected and self.now() - js.stamp_s <= JOYSTICK_MAX_AGE_S
 
@@ -56,7 +58,8 @@ class TeleopStep(BeastBehaviour):
         connected = self._connected()
         active = bool(self.read("teleop_active"))
         if not connected and (first or (self.until_released and not self.engaged)):
-            return self.fail("no joystick")
+            hint = getattr(self.ctx.services.teleop, "no_joystick_hint", None)
+            return self.fail("no joystick" + (f": {hint()}" if callable(hint) else ""))
         if self.duration_s is not None:
             left = self.start_s + self.duration_s - self.now()
             if left <= 1e-9:

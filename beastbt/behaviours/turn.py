@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from beastbt.behaviours.base import BeastBehaviour, Status
+from beastbt.behaviours.base import NO_ODOMETRY, BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
 from beastbt.behaviours.drive import held_by
 from beastbt.estimation.estimator import wrap_angle
@@ -39,6 +39,8 @@ class _TurnInPlace(BeastBehaviour):
             self.progress_at_s = self.now()
         elif self.now() - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
+            if "odometry" in self.READS and self.read("odometry") is None:
+                return self.fail(NO_ODOMETRY.format(what="the angle turned"))
             return self.fail(f"no progress for {self.stuck_after_s:g} s, {math.degrees(err_rad):.1f} deg to go"
                              + held_by(self.ctx))
         rate = max(p.min_turn_rate_rps, min(self.rate_rps, p.turn_gain * abs(err_rad)))
@@ -54,7 +56,7 @@ class TurnBy(_TurnInPlace):
     remaining angle does not shrink for ``stuck_after_s``.
     """
 
-    READS = ("pose_odom",)
+    READS = ("pose_odom", "odometry")
 
     def __init__(self, name: str, ctx: MissionContext, angle_rad: float, rate_rps: Optional[float] = None,
                  stuck_after_s: Optional[float] = None) -> None:

@@ -14,6 +14,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="robot profile: a name in robots/ or a YAML file (default: ugv_beast)")
 
 
+def plural(count: int, word: str) -> str:
+    """``1 check``, ``2 checks``: a count and its noun, in the singular for one."""
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
+
 def command(args: argparse.Namespace) -> int:
     """Probe the profile's devices; one OK/WARN/FAIL line each; exit 0 only if nothing failed."""
     from beastbt.core.errors import InvalidInput
@@ -36,5 +41,5 @@ def command(args: argparse.Namespace) -> int:
     warned = sum(f.level == WARN for f in findings)
     if not findings:
         print("this profile has no devices to check (the simulator?)")
-    print(f"{len(findings)} checks: {failed} failed, {warned} warnings")
+    print(f"{plural(len(findings), 'check')}: {failed} failed, {plural(warned, 'warning')}")
     return EXIT_SOMETHING_FAILED if failed else EXIT_HEALTHY

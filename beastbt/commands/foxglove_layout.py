@@ -24,7 +24,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def command(args: argparse.Namespace) -> int:
     """Print the layout (JSON) on standard output."""
-    from beastbt.core.errors import InvalidInput
+    from beastbt.core.errors import InvalidInput, plain_reason
     from beastbt.recording.layout import foxglove_layout
     frames = None
     if args.robot:
@@ -32,8 +32,11 @@ def command(args: argparse.Namespace) -> int:
         from beastbt.robot.profile import load_profile, section_config
         try:
             frames = section_config(load_profile(args.robot), "frames", FramesConfig)
-        except (InvalidInput, OSError) as exc:
-            print(f"beastbt foxglove-layout: error: {exc}", file=sys.stderr)
+        except InvalidInput as exc:
+            print(exc.format(), file=sys.stderr)  # positioned already: FILE:LINE:COL: error: ...
+            return 2
+        except OSError as exc:
+            print(f"beastbt foxglove-layout: error: {args.robot}: {plain_reason(exc)}", file=sys.stderr)
             return 2
     json.dump(foxglove_layout(frames), sys.stdout, indent=2)
     sys.stdout.write("\n")

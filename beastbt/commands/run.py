@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any, Callable
+from typing import Any, Callable, Mapping, Optional
 
 from beastbt.core.units import UnitError, parse_duration
 
@@ -79,6 +79,37 @@ def _answer(text: str) -> tuple[str, str]:
     if not qid.strip() or choice is None:
         raise argparse.ArgumentTypeError(f"'{text}' is not ID=yes or ID=no (e.g. --answer door=yes)")
     return qid.strip(), choice
+
+
+def question_ids(mission: Any) -> list[str]:
+    """The ids of the mission's ``ask`` steps (its tasks' included), in document order, each once."""
+    from beastbt.mission import steps as st
+    from beastbt.mission.warnings import all_steps
+    ids: list[str] = []
+    for steps in (mission.steps, *mission.tasks.values()):
+        for step in all_steps(tuple(steps)):
+            if isinstance(step, st.Ask) and step.question_id not in ids:
+                ids.append(step.question_id)
+    return ids
+
+
+def unknown_answers(mission: Any, answers: Mapping[str, str]) -> Optional[str]:
+    """Why ``--answer`` names a question the mission does not ask (with a hint), or None when all are known.
+
+    An answer to no question would be dropped silently while the real question waits for its timeout.
+    """
+    import difflib
+    ids = question_ids(mission)
+    for qid in answers:
+        if qid in ids:
+            continue
+        if not ids:
+            return f"--answer {qid}=...: the mission asks no question (it has no 'ask:' step)"
+        close = difflib.get_close_matches(qid, ids, n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        return (f"--answer {qid}=...: the mission asks no question '{qid}'; {hint}"
+                f"its questions: {', '.join(repr(i) for i in ids)}")
+    return None
 
 
 def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
@@ -192,6 +223,11 @@ def command(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     except (DeviceUnavailable, RunFolderUnavailable) as exc:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    unknown = unknown_answers(prepared.mission, opts.answers or {})
+    if unknown:
+        print(f"beastbt run: error: {unknown}", file=sys.stderr)
+        prepared.abandon()
         return EXIT_INVALID
     for problem in prepared.warnings:
         print(problem.format(), file=sys.stderr)

@@ -12,11 +12,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def command(args: argparse.Namespace) -> int:
     """List the recorded runs with their outcome, one line each."""
-    from beastbt.recording.runs_list import list_runs
+    from beastbt.recording.runs_list import list_runs, table
     runs = list_runs(args.runs_dir)
     if not runs:
         print(f"no runs in {args.runs_dir}")
         return 0
-    for r in runs:
-        print(r.line())
+    for line in table(runs):
+        print(line)
     return 0

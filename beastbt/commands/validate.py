@@ -16,6 +16,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("files", nargs="*", help="mission files (or robot profiles / worlds, recognised by their first key; "
                                             "joystick scripts, a list)")
     p.add_argument("--strict", action="store_true", help="count warnings as errors (exit 2)")
+    p.add_argument("--robot", metavar="PROFILE",
+                   help="also check missions for this robot, as 'beastbt run --robot' would (its top speed; a "
+                        "battery, joystick, LiDAR or odometry the mission needs and the robot lacks)")
     p.add_argument("--explain", metavar="STEP", help="print a short help for a step (from the mission schema) and exit")
 
 
@@ -35,7 +38,7 @@ def command(args: argparse.Namespace) -> int:
     from beastbt.validate import validate_file
     bad = 0
     for f in args.files:
-        problems = validate_file(f)
+        problems = validate_file(f, args.robot)
         errors = [p for p in problems if p.severity == "error" or args.strict]
         for p in problems:
             print(p.format(), file=sys.stderr)

@@ -18,6 +18,8 @@ import typing
 from collections.abc import Mapping
 from typing import Any, Optional, TypeVar
 
+from beastbt.core.errors import value_in_words
+
 T = TypeVar("T")
 
 
@@ -75,7 +77,7 @@ def dataclass_from_dict(cls: type[T], data: Any, what: str) -> T:
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise ValueError(f"{what}: expected a mapping of settings, got {type(data).__name__}")
+        raise ValueError(f"{what}: expected a mapping of settings, got {value_in_words(data)}")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
@@ -101,7 +103,7 @@ def check_config_keys(data: Any, cls: type, what: str) -> None:
     Raises ``ValueError`` ("{what} config must be a mapping ..." or "unknown {what} config key(s): ...").
     """
     if not isinstance(data, dict):
-        raise ValueError(f"{what} config must be a mapping, got {type(data).__name__}")
+        raise ValueError(f"{what} config must be a mapping, got {value_in_words(data)}")
     known = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - known)
     if unknown:

@@ -33,8 +33,13 @@ class Problem:
     """``error`` (nothing runs) or ``warning`` (it runs, unless ``--strict``)."""
 
     def format(self) -> str:
-        """Render as ``FILE:LINE:COLUMN: error: message`` (or ``warning:``) plus an indented hint line."""
-        text = f"{self.file}:{self.position.line}:{self.position.column}: {self.severity}: {self.message}"
+        """Render as ``FILE:LINE:COLUMN: error: message`` (or ``warning:``) plus an indented hint line; a problem with a
+        command-line option (its ``file`` is the option, ``--console``) as ``beastbt: --console: error: message``."""
+        if self.file.startswith("--"):
+            # A command-line option has no lines: 'beastbt run: --console: error: ...', not '--console:1:1:'.
+            text = f"beastbt: {self.file}: {self.severity}: {self.message}"
+        else:
+            text = f"{self.file}:{self.position.line}:{self.position.column}: {self.severity}: {self.message}"
         if self.hint:
             text += f"\n    hint: {self.hint}"
         return text
@@ -84,6 +89,24 @@ def plain_reason(exc: BaseException) -> str:
     text = getattr(exc, "strerror", None) or str(exc)
     import re as _re
     return _re.sub(r"\[Errno \d+\]\s*", "", text).strip() or type(exc).__name__
+
+
+def value_in_words(value: object) -> str:
+    """What a YAML value is, for people: "nothing (an empty value)", "a list", "a mapping", "true/false"...
+
+    Errors never show Python's type names (NoneType, dict): a mission's author writes YAML, not Python.
+    """
+    if isinstance(value, bool):
+        return "true/false"
+    if isinstance(value, dict):
+        return "a mapping"
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    if isinstance(value, (int, float)):
+        return f"the number {value}"
+    if value is None:
+        return "nothing (an empty value)"
+    return f"'{value}'"
 
 
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:

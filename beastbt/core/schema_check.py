@@ -10,6 +10,7 @@ the ``anyOf`` of steps and conditions it picks the branch the author meant
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import re
@@ -20,29 +21,15 @@ import jsonschema
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
-from beastbt.core.errors import Position, Problem, did_you_mean
+from beastbt.core.errors import Position, Problem, did_you_mean, value_in_words
 from beastbt.core.resources import data_dir
-from beastbt.core.units import KINDS, UNIT_TO_KIND, UnitError, parse_quantity
+from beastbt.core.units import DECIMAL_COMMA, KINDS, UNIT_TO_KIND, UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
 
 _TYPE_WORDS = {
     "object": "a mapping (key: value)", "array": "a list", "string": "text", "number": "a number",
     "integer": "a whole number", "boolean": "true or false", "null": "nothing",
 }
-
-
-def _type_of(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true/false"
-    if isinstance(value, dict):
-        return "a mapping"
-    if isinstance(value, list):
-        return "a list"
-    if isinstance(value, (int, float)):
-        return f"the number {value}"
-    if value is None:
-        return "nothing"
-    return f"'{value}'"
 
 
 @lru_cache(maxsize=None)
@@ -188,9 +175,13 @@ def _where(path: tuple) -> str:
 
 
 class _Explainer:
-    def __init__(self, doc: SourceDoc, what: str) -> None:
+    def __init__(self, doc: SourceDoc, what: str,
+                 validator: Optional[jsonschema.Draft202012Validator] = None) -> None:
         self.doc = doc
         self.what = what
+        self.validator = validator
+        self.reindented: dict[tuple, Problem] = {}
+        """Mappings whose unknown keys are a matter of indentation: path -> the one problem that says so."""
 
     def problems(self, errors: Iterable[jsonschema.ValidationError]) -> list[Problem]:
         out: list[Problem] = []
@@ -219,7 +210,7 @@ class _Explainer:
         if "x-knob-unit" in schema and v == "type":
             # a profile or world knob named with its unit (timeout_s), whose texts ('500 ms') were read before this
             said = str(schema.get("patternErrorMessage", "")).removeprefix("Expected ").rstrip(".")
-            return [self.at(path, f"expected a number{_where(path)}, got {_type_of(err.instance)}",
+            return [self.at(path, f"expected a number{_where(path)}, got {value_in_words(err.instance)}",
                             f"write {said}" if said else None)]
         if v in ("anyOf", "oneOf"):
             return self.explain_alternatives(err, path, schema)
@@ -242,7 +233,11 @@ class _Explainer:
                 return [self.at(path, f"'{path[-1]}' is a whole number or 'forever', got '{err.instance}'",
                                 f"write '{path[-1]}: forever' to repeat without end, or a number such as "
                                 f"'{path[-1]}: 3'")]
-            return [self.at(path, f"expected {words}{_where(path)}, got {_type_of(err.instance)}", hint)]
+            if isinstance(err.instance, str) and "number" in words and DECIMAL_COMMA.match(err.instance):
+                fixed = err.instance.strip().replace(",", ".", 1)
+                return [self.at(path, f"'{err.instance}'{_where(path)} has a decimal comma",
+                                f"write {fixed} (a point, not a comma), without quotes")]
+            return [self.at(path, f"expected {words}{_where(path)}, got {value_in_words(err.instance)}", hint)]
         if v in ("enum", "const") and path and path[-1] == "until" and isinstance(err.instance, dict):
             choices = schema.get("enum", [schema.get("const")])
             amount = next(iter(err.instance), "")
@@ -255,12 +250,12 @@ class _Explainer:
         if v in ("enum", "const"):
             choices = schema.get("enum", [schema.get("const")])
             word = err.instance if isinstance(err.instance, str) else None
-            msg = f"{_type_of(err.instance)} is not allowed{_where(path)}: expected one of {', '.join(map(str, choices))}"
+            msg = f"{value_in_words(err.instance)} is not allowed{_where(path)}: expected one of {', '.join(map(str, choices))}"
             if word:
                 msg += did_you_mean(word, [str(c) for c in choices])
             return [self.at(path, msg)]
         if v == "pattern":
-            return [self.at(path, f"{_type_of(err.instance)} is not a valid name{_where(path)}",
+            return [self.at(path, f"{value_in_words(err.instance)} is not a valid name{_where(path)}",
                             "names use letters (of any alphabet), digits, _ and -, and start with a letter")]
         if v == "propertyNames":
             return [self.at(path + (err.instance,), f"'{err.instance}' is not a valid name{_where(path)}",
@@ -271,6 +266,11 @@ class _Explainer:
         if v == "minItems" and isinstance(err.instance, list) and err.instance:
             return [self.at(path, f"{_where(path).strip().replace('in ', '', 1) or 'this'} needs at least "
                                   f"{err.validator_value} items, has {len(err.instance)}", self.describe(schema))]
+        if v == "maxItems" and isinstance(err.instance, list):
+            what = _where(path).strip().replace('in ', '', 1) or 'this'
+            most = err.validator_value
+            takes = f"exactly {most}" if schema.get("minItems") == most else f"at most {most}"
+            return [self.at(path, f"{what} takes {takes} items, has {len(err.instance)}", self.describe(schema))]
         if v in ("minItems", "minProperties"):
             return [self.at(path, f"{_where(path).strip() or 'this'} is empty".replace("in ", "", 1), self.describe(schema))]
         return [self.at(path, err.message, self.describe(schema))]
@@ -291,12 +291,12 @@ class _Explainer:
                      schema_comment: Optional[str] = None) -> Problem:
         try:
             parse_quantity(value, kind)
-            message = f"{_type_of(value)} is not a valid {kind.replace('_', ' ')}"
+            message = f"{value_in_words(value)} is not a valid {kind.replace('_', ' ')}"
         except UnitError as exc:
             message = str(exc)
         except KeyError:  # a kind the unit parser does not read (acceleration): the schema's own words
             said = (expected or f"Expected a valid {kind.replace('_', ' ')}").split(";")[0].rstrip(".")
-            message = f"{said[0].lower()}{said[1:]}, got {_type_of(value)}"
+            message = f"{said[0].lower()}{said[1:]}, got {value_in_words(value)}"
         label = f"'{path[-1]}': " if path and isinstance(path[-1], str) else ""
         # The hint says what the kind is, its range included (the definition's comment).
         return self.at(path, f"{label}{message}", schema_comment)
@@ -314,10 +314,72 @@ class _Explainer:
         where = _where(path)
         if required and isinstance(path[-1:], tuple) and path and isinstance(path[-1], int):
             where = f" in the '{required[0]}' step"
+        if extras and isinstance(inst, dict):
+            indent = self.indentation(path, inst, extras)
+            if indent is not None:
+                self.reindented[path] = indent
+                return [indent]
         for key in extras:
             msg = f"unknown key '{key}'{where}{did_you_mean(key, allowed)}"
             out.append(self.at(path + (key,), msg, f"allowed here: {', '.join(allowed)}", key=True))
         return out
+
+    # -- keys at the wrong indentation -----------------------------------------------------------------------
+    def _fits_with(self, path: tuple, changed: Any, subtree: tuple) -> bool:
+        """True when the document with ``changed`` at ``path`` has no problem left at or under ``subtree``."""
+        if self.validator is None:
+            return False
+        data = copy.deepcopy(self.doc.data)
+        if path:
+            node = data
+            for part in path[:-1]:
+                node = node[part]
+            node[path[-1]] = changed
+        else:
+            data = changed
+        n = len(subtree)
+        return not any(tuple(e.absolute_path)[:n] == subtree for e in self.validator.iter_errors(data))
+
+    def indentation(self, path: tuple, inst: dict, extras: list) -> Optional[Problem]:
+        """A problem saying "indent it" when the unknown ``extras`` of the mapping at ``path`` would be right one
+        level deeper (under one of their siblings) or one level shallower (beside the mapping's own key)."""
+        keys = ", ".join(f"'{k}'" for k in extras)
+        them = "it" if len(extras) == 1 else "them"
+        first = self.doc.position(path + (extras[0],), key=True)
+        for owner, value in inst.items():
+            if owner in extras or not (isinstance(value, dict) or value is None):
+                continue
+            moved = {k: v for k, v in inst.items() if k not in extras}
+            moved[owner] = {**(value or {}), **{k: inst[k] for k in extras}}
+            if self._fits_with(path, moved, path):
+                inner = [self.doc.position(path + (owner, k), key=True) for k in (value or {})]
+                owner_at = self.doc.position(path + (owner,), key=True)
+                column = inner[0].column if inner else owner_at.column + 2
+                spaces = column - first.column
+                how = (f"{spaces} more space{'s' if spaces != 1 else ''}, to line up with "
+                       f"'{next(iter(value))}:' on line {inner[0].line}" if inner and spaces > 0
+                       else "further than it, e.g. 2 more spaces")
+                return self.at(path + (extras[0],), f"{keys} belong{'s' if len(extras) == 1 else ''} under "
+                                                    f"'{owner}:' (line {owner_at.line}): indent {them} {how}",
+                               "in YAML the indentation says what belongs to what", key=True)
+        if len(path) >= 2 and isinstance(path[-1], str):
+            parent_path = path[:-1]
+            parent = self.doc.data
+            for part in parent_path:
+                parent = parent[part]
+            if isinstance(parent, dict) and not any(k in parent for k in extras):
+                here = dict(parent)
+                here[path[-1]] = {k: v for k, v in inst.items() if k not in extras}
+                here.update({k: inst[k] for k in extras})
+                if self._fits_with(parent_path, here, parent_path):
+                    beside = self.doc.position(path, key=True)
+                    spaces = first.column - beside.column
+                    how = f"{spaces} fewer space{'s' if spaces != 1 else ''}, " if spaces > 0 else ""
+                    return self.at(path + (extras[0],), f"{keys} belong{'s' if len(extras) == 1 else ''} beside "
+                                                        f"'{path[-1]}:', not under it: indent {them} {how}to line "
+                                                        f"up with '{path[-1]}:' on line {beside.line}",
+                                   "in YAML the indentation says what belongs to what", key=True)
+        return None
 
     def explain_alternatives(self, err: jsonschema.ValidationError, path: tuple, schema: dict) -> list[Problem]:
         branches = schema.get(err.validator, [])
@@ -332,7 +394,7 @@ class _Explainer:
         if chosen is not None and chosen in by_branch:
             return self.problems(by_branch[chosen])
         alts = "; or ".join(filter(None, (self.describe(b) or "" for b in branches)))
-        return [self.at(path, f"{_type_of(inst)} does not fit{_where(path)}", alts or self.describe(schema))]
+        return [self.at(path, f"{value_in_words(inst)} does not fit{_where(path)}", alts or self.describe(schema))]
 
     @staticmethod
     def pick_branch(inst: Any, branches: list, by_branch: dict) -> Optional[int]:
@@ -393,10 +455,22 @@ class _Explainer:
                                 "start each step with its own '- '", key=True)]
             return self.problems(by_branch.get(keyed[present[0]], [])) or [
                 self.at(path, f"invalid '{present[0]}' {label}", self.describe(branches[keyed[present[0]]]))]
-        return [self.at(path, f"expected a {label}, got {_type_of(inst)}", f"the {label}s are: {listing}")]
+        return [self.at(path, f"expected a {label}, got {value_in_words(inst)}", f"the {label}s are: {listing}")]
 
 
 def schema_problems(doc: SourceDoc, schema_name: str, what: str, schema: Optional[dict] = None) -> list[Problem]:
     """Validate ``doc`` against ``schema_name`` (or ``schema``, an extension of it); every problem, explained."""
     validator = validator_for(schema_name) if schema is None else validator_of(schema, schema_name)
-    return _Explainer(doc, what).problems(validator.iter_errors(doc.data))
+    explainer = _Explainer(doc, what, validator)
+    problems = explainer.problems(validator.iter_errors(doc.data))
+    if not explainer.reindented:
+        return problems
+    # A key at the wrong indentation upsets its mapping in several ways (a step without its steps, a keyword
+    # with nothing under it): once "indent it" is said, the rest about that mapping is noise.
+    inside: set = set()
+    for path in explainer.reindented:
+        n = len(path)
+        inside |= {(doc.file, pos) for p, pos in doc.positions.items() if p[:n] == path}
+        inside |= {(doc.file, pos) for p, pos in doc.key_positions.items() if p[:n] == path}
+    said = set(map(id, explainer.reindented.values()))
+    return [p for p in problems if id(p) in said or (p.file, p.position) not in inside]

@@ -19,6 +19,8 @@ import re
 from dataclasses import dataclass
 from typing import Union
 
+from beastbt.core.errors import value_in_words
+
 _NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
 _VALUE = re.compile(rf"^\s*({_NUMBER})\s*([A-Za-z%/°][A-Za-z%/°0-9]*)?\s*$")
 
@@ -91,7 +93,8 @@ UNIT_SYNONYMS: dict[str, str] = {
     "percent": "%", "pct": "%",
 }
 """Units authors write for the ones the language knows: a did-you-mean, never accepted silently."""
-_DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+")
+DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d+,\d+")
+"""A text that starts like a number written with a decimal comma (``0,5 m``, ``40,4169``)."""
 
 
 class UnitError(ValueError):
@@ -124,10 +127,10 @@ def parse_quantity(value: Union[str, int, float], kind: str) -> float:
                             f"got {_number_text(value)}")
         return _within(value, 1.0, k, _number_text(value))
     if not isinstance(value, str):
-        raise UnitError(f"expected {_describe(k)}, got {type(value).__name__}")
+        raise UnitError(f"expected {_describe(k)}, got {value_in_words(value)}")
     m = _VALUE.match(value)
     if not m:
-        if _DECIMAL_COMMA.match(value):
+        if DECIMAL_COMMA.match(value):
             fixed = value.replace(",", ".", 1)
             raise UnitError(f"'{value}' has a decimal comma: write '{fixed.strip()}' (a point, not a comma)")
         raise UnitError(f"expected {_describe(k)}, got '{value}'")

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, Optional, Union
 
 import math
+import re
 
 import yaml
 
@@ -116,6 +117,8 @@ class _Builder:
             # YAML merge keys (<<: *base): the merged pairs come first and the mapping's own keys override
             # them, as in PyYAML; only a key written twice in the mapping itself is a duplicate.
             own = {id(k) for k, _ in node.value if k.tag != "tag:yaml.org,2002:merge"}
+            if node.flow_style and self._decimal_comma_split(node):
+                return None
             self.constructor.flatten_mapping(node)
             out: dict = {}
             merged: set = set()
@@ -148,6 +151,24 @@ class _Builder:
             if rest.lstrip().startswith("#"):
                 self.doc.comments_after[path] = rest.lstrip()
         return value
+
+    def _decimal_comma_split(self, node: yaml.MappingNode) -> bool:
+        """A flow mapping where YAML split a decimal comma: ``{distance: 0,5 m}`` reads as ``distance: 0`` and a
+        key ``5 m`` with no value. Said as a decimal comma (a problem added, True), not as an unknown key."""
+        found = False
+        pairs = node.value
+        for (key, value), (next_key, next_value) in zip(pairs, pairs[1:]):
+            if (isinstance(value, yaml.ScalarNode) and value.style is None and _DIGITS.match(value.value)
+                    and isinstance(next_key, yaml.ScalarNode) and next_key.style is None
+                    and _DIGITS_AND_UNIT.match(next_key.value)
+                    and isinstance(next_value, yaml.ScalarNode) and next_value.value == ""):
+                written = f"{value.value},{next_key.value}"
+                self.problems.append(Problem(
+                    self.doc.file, _pos(value.start_mark),
+                    f"'{key.value}: {written}' has a decimal comma: inside {{...}} YAML splits it at the comma",
+                    f"write '{key.value}: {value.value}.{next_key.value}' (a point, not a comma)"))
+                found = True
+        return found
 
     def build_scalar_key(self, node: yaml.Node) -> Any:
         if not isinstance(node, yaml.ScalarNode):
@@ -192,6 +213,9 @@ class _Builder:
                 return None
         return value
 
+
+_DIGITS = re.compile(r"^[-+]?\d+$")
+_DIGITS_AND_UNIT = re.compile(r"^\d+(\s*[^\s\d,:{}\[\]][^,:{}\[\]]*)?$")
 
 _NUMBER_HINT = ("every number must be finite and within the range its field can mean (.nan, .inf and numbers "
                 "beyond 1e15 mean nothing to a robot); write the value you mean, e.g. 'wait: 2 s', 'lat: 40.4168'")

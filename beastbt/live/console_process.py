@@ -39,7 +39,7 @@ import numpy as np
 
 from beastbt.live.console_control import Refused
 from beastbt.live.console_server import ConsoleServer
-from beastbt.live.console_state import Published
+from beastbt.live.console_state import Published, video_caption
 from beastbt.live.console_video import ConsoleVideo, VideoConfig
 
 
@@ -132,10 +132,7 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     controls = RemoteControls(outbox, lock)
 
     def caption() -> list[str]:
-        s = state.latest().state
-        if not s:
-            return []
-        return [f"{s['mission']}  {s['status']}  t {s['time_s']:.1f} s", f"step: {s['step']}"]
+        return video_caption(state.latest().state)
 
     video = ConsoleVideo(VideoConfig(**config["video"]), time.monotonic, time.time, caption)
     server = ConsoleServer(state, controls, video, state.map, config["host"], config["port"], config["token"],

@@ -76,7 +76,7 @@ CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; img-src 'self
 """The page loads only its own files and talks only to its own server; no other page may frame it (the e-stop
 and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code."""
 WS_PATHS = ("/api/ws", "/api/video")
-PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css"}
+PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css", "favicon.svg": "image/svg+xml"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
 
 
@@ -150,6 +150,7 @@ class ConsoleServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/index.html", self._index)
         app.router.add_get("/static/{name}", self._static)
+        app.router.add_get("/favicon.ico", self._favicon)  # asked for by browsers that do not read the page's link
         app.router.add_get("/api/state", self._get_state)
         app.router.add_get("/api/map", self._get_map)
         app.router.add_get("/api/ws", self._ws_state)
@@ -288,6 +289,10 @@ class ConsoleServer:
         if name not in PAGE_FILES:
             return _error(404, f"no file '{name}'")
         return web.Response(body=_page(name), content_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
+
+    async def _favicon(self, request: web.Request) -> web.Response:
+        return web.Response(body=_page("favicon.svg"), content_type=PAGE_FILES["favicon.svg"],
+                            headers={"Cache-Control": "max-age=86400"})
 
     # -- state -----------------------------------------------------------------------------
     def _state_json(self) -> str:

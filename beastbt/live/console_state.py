@@ -237,11 +237,17 @@ class ConsoleState:
         mission_time = run.mission_time_s
         progress = progress_of(run.root, mission_time)
         override = run.ctx.services.teleop
+        tip = run.root.tip()
+        at_step = tip.name if tip is not None else None
+        step = run.current_step()
+        if step.startswith("(") and at_step is not None:
+            step = f"{at_step} {step}"  # paused: the step it is paused in, and who paused it
         state: dict = {
             "mission": run.mission.name,
             "status": self.status_word(),
             "time_s": round(mission_time, 2),
-            "step": run.current_step(),
+            "step": step,
+            "last_step": at_step,
             "progress": progress.as_dict(),
             "pose": None if pose is None else {
                 "x": round(pose[0], 3), "y": round(pose[1], 3), "yaw_deg": round(math.degrees(pose[2]), 1),
@@ -270,16 +276,13 @@ class ConsoleState:
             "trail_len": len(self.trail),
             "map_version": self._current_map_version(),
         }
-        last = getattr(self, "_published", None)
-        reset = run.root.status == py_trees.common.Status.INVALID
-        if run.status is not None and reset and last is not None and last.state["status"] in ("running", "paused"):
-            # The run has just ended and its tree was reset: show where it was when it ended.
-            state["tree"] = last.state["tree"]
-            state["ended_at"] = last.state["step"]
-            state["step"] = f"ended at: {last.state['step']}"
-        elif run.status is not None and reset and last is not None:
-            state["tree"], state["ended_at"], state["step"] = (last.state["tree"], last.state["ended_at"],
-                                                               last.state["step"])
+        if run.status is not None:
+            last = getattr(self, "_published", None)
+            if run.root.status == py_trees.common.Status.INVALID and last is not None:
+                # The tree was reset at the end (an abort, an e-stop): show it, and its step, as they were.
+                state["tree"], state["last_step"] = last.state["tree"], last.state.get("last_step")
+            state["step"] = f"ended: {state['status']}"
+            state["ended_at"] = state["last_step"]
         return state
 
     def _current_map_version(self) -> int:
@@ -305,6 +308,16 @@ class ConsoleState:
         return self._layers
 
 
+def video_caption(state: dict) -> list[str]:
+    """The lines the console's video overlay shows for a state: the mission, status and time; the step (at the
+    end, that it ended, and the last step)."""
+    if not state:
+        return []
+    ended = state["status"] in STATUS_NAMES.values()
+    head = f"{state['mission']}  {'ended: ' if ended else ''}{state['status']}  t {state['time_s']:.1f} s"
+    return [head, f"last step: {state.get('ended_at') or '-'}" if ended else f"step: {state['step']}"]
+
+
 def _accuracy_m(fix: GpsFix) -> float:
     cov = getattr(fix, "covariance_enu", None)
     if cov is not None:
@@ -315,4 +328,5 @@ def _accuracy_m(fix: GpsFix) -> float:
     return (fix.hdop or 1.0) * GPS_UERE_M
 
 
-__all__ = ["ConsoleState", "MapFrame", "map_layers", "route_waypoints", "battery_percent", "STATUS_NAMES"]
+__all__ = ["ConsoleState", "MapFrame", "map_layers", "route_waypoints", "battery_percent", "video_caption",
+           "STATUS_NAMES"]

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import math
 from types import MappingProxyType
-from typing import Callable, Mapping, Optional, Sequence
+from typing import Any, Callable, Mapping, Optional, Sequence
 
 import py_trees
 
 from beastbt.behaviours import drive, stand, turn
-from beastbt.behaviours.conditions import (Condition, ConditionReader, battery_below, elapsed, gps_fix, line_flag,
-                                           near, teleop_active)
+from beastbt.behaviours.conditions import (Condition, ConditionReader, all_of, any_of, battery_below, elapsed, gps_fix,
+                                           line_flag, near, not_of, teleop_active)
 from beastbt.behaviours.context import MissionContext
 from beastbt.behaviours.flow import BlockStart, ClockTimeout, GuardedBlock, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
 from beastbt.behaviours.operator import NotAvailable, Say, Snapshot
@@ -37,10 +37,22 @@ StepBuilder = Callable[["Compiler", st.Step], Behaviour]
 """Makes the behaviour (or subtree) of one typed step: ``fn(compiler, step)``."""
 
 CONDITION_READS: Mapping[type, tuple[str, ...]] = MappingProxyType({
-    st.BatteryBelow: ("battery",), st.Near: ("pose",), st.Elapsed: ("mission_start_s",)})
+    st.BatteryBelow: ("battery",), st.Near: ("pose",), st.Elapsed: ("mission_start_s",), st.ObstacleWithin: ("scan",)})
 """Blackboard keys each kind of condition reads (flags read the key they name, or ``line``)."""
 LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
 """Condition words read from the line observation, and the observation's flag each reads."""
+
+
+class ConditionUnavailable(Exception):
+    """A condition this robot cannot check (``obstacle_within`` without a LiDAR): the step that uses it fails at once.
+
+    ``text``: the condition in words; ``why``: what the robot lacks.
+    """
+
+    def __init__(self, text: str, why: str) -> None:
+        super().__init__(why)
+        self.text = text
+        self.why = why
 
 
 class Compiler:
@@ -53,6 +65,8 @@ class Compiler:
         self.reader = ConditionReader(ctx)
         self.blocks: list[BlockStart] = [self.new_block()]
         """The guard blocks being compiled, innermost last; the first stands for the mission itself."""
+        self.scan_watch: Optional[Any] = None
+        """The latest scan for the mission's ``obstacle_within`` conditions (one for all), once one is compiled."""
 
     # -- structure --------------------------------------------------------
     def compile(self) -> Behaviour:
@@ -77,7 +91,11 @@ class Compiler:
             why = (f"'{kind}' needs {needs}, which this robot or version does not provide" if needs
                    else f"'{kind}' is not supported by this version of beastbt")
             return NotAvailable(kind, self.ctx, why)
-        return builder(self, s)
+        try:
+            return builder(self, s)
+        except ConditionUnavailable as exc:
+            # A step whose condition this robot cannot check fails at once, saying why (as a step it cannot do).
+            return NotAvailable(f"{kind.replace('_', ' ')} ({exc.text}: not on this robot)", self.ctx, exc.why)
 
     def place(self, name: str) -> tuple[Optional[float], Optional[float], Optional[float]]:
         """(lat, lon, tolerance_m) of a named place; ``home`` is (None, None, None) until known."""
@@ -139,13 +157,28 @@ class Compiler:
             self.ctx.condition_reads.add("mission_start_s")
             return Condition(f"time in block {format_quantity(seconds, 'duration')}",
                              lambda rd: block.elapsed_s() >= seconds, r)
+        if isinstance(c, st.ObstacleWithin):
+            return self.obstacle_condition(c)
         if isinstance(c, st.Not):
             inner = self.condition(c.condition)
-            return Condition(f"not {inner}", lambda rd, i=inner: not i.test(rd), r)
+            return Condition(f"not {inner}", not_of(inner.test), r)
         parts = [self.condition(x) for x in c.conditions]
         if isinstance(c, st.AllOf):
-            return Condition("all of (" + ", ".join(map(str, parts)) + ")", lambda rd: all(p.test(rd) for p in parts), r)
-        return Condition("any of (" + ", ".join(map(str, parts)) + ")", lambda rd: any(p.test(rd) for p in parts), r)
+            return Condition("all of (" + ", ".join(map(str, parts)) + ")", all_of([p.test for p in parts]), r)
+        return Condition("any of (" + ", ".join(map(str, parts)) + ")", any_of([p.test for p in parts]), r)
+
+    def obstacle_condition(self, c: st.ObstacleWithin) -> Condition:
+        """``obstacle_within``: on the latest LiDAR scan; :class:`ConditionUnavailable` on a robot without a LiDAR."""
+        text = f"obstacle within {format_quantity(c.gap_m, 'distance')}"
+        if "lidar" not in self.ctx.capabilities:
+            raise ConditionUnavailable(text, "'obstacle_within' needs a LiDAR, and this robot has none "
+                                             "(no lidar: section in its profile)")
+        from beastbt.behaviours.obstacle_within import ObstacleTest, ScanWatch, sector_words
+        if self.scan_watch is None:
+            self.scan_watch = ScanWatch(self.ctx)
+        self.ctx.condition_reads.add("scan")
+        test = ObstacleTest(c.gap_m, c.sector_rad, self.scan_watch)
+        return Condition(text + sector_words(c.sector_rad), test, self.reader, test.detail)
 
 
 def _at(speed_mps: Optional[float]) -> str:
@@ -356,4 +389,5 @@ def tree_to_dot(root: Behaviour) -> str:
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["Compiler", "compile_mission", "CORE_STEPS", "NEEDS_A_PART", "StepBuilder", "Behaviour", "tree_to_dot"]
+__all__ = ["Compiler", "ConditionUnavailable", "compile_mission", "CORE_STEPS", "NEEDS_A_PART", "StepBuilder", "Behaviour",
+           "tree_to_dot"]

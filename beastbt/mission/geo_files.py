@@ -206,9 +206,9 @@ def read_points(path: Path, want: str) -> GeoPoints:
     if want == "polygon" and len(got.points) > 3 and got.points[0][1:] == got.points[-1][1:]:
         got.points.pop()  # a closed ring repeats its first corner
     if not got.points:
-        what = {"polygon": "a polygon (KML Polygon, GeoJSON Polygon)",
+        what = {"polygon": "polygon (KML Polygon, GeoJSON Polygon)",
                 "places": "named points (GPX wpt, KML Placemark Point, GeoJSON Point with a name)"}.get(
-            want, "a route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)")
+            want, "route (GPX rte/trk, KML or GeoJSON LineString, .plan or .waypoints NAV_WAYPOINTs)")
         raise GeoFileError(f"{path.name} has no {what}")
     return got
 
@@ -221,6 +221,11 @@ def _name(text: str, fallback: str) -> str:
     if not cleaned or not cleaned[0].isalpha():
         cleaned = f"{fallback}_{cleaned}" if cleaned else fallback
     return cleaned
+
+
+UNREADABLE_ROUTE = "unreadable_route_file"
+"""The place a route whose file cannot be read stands for: the file's own error says what is wrong, so the mission's
+check passes over this name instead of adding an "unknown place" error."""
 
 
 def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # type: ignore[name-defined]  # noqa: F821
@@ -269,7 +274,7 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
         relative = route.pop("file")
         got = load(path_key + ("file",), relative, "route")
         if got is None:
-            route["places"] = ["unreadable_route"]
+            route["places"] = [UNREADABLE_ROUTE]
             continue
         stem = _name(Path(relative).stem, "route")
         names = []
@@ -283,4 +288,4 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     return errors, warnings
 
 
-__all__ = ["read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]
+__all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]

@@ -231,7 +231,8 @@ class _SemanticChecker:
         return node
 
     def place_ref(self, path: PathKey, name: str) -> None:
-        if name not in self.places:
+        from beastbt.mission.geo_files import UNREADABLE_ROUTE
+        if name not in self.places and name != UNREADABLE_ROUTE:
             known = sorted(self.places - {HOME})
             self.error(path, f"unknown place '{name}'{did_you_mean(name, self.places)}",
                        f"places are defined under 'places:' ({', '.join(known) or 'none yet'}); 'home' is where the mission started")
@@ -359,11 +360,27 @@ class _SemanticChecker:
                 self.positive(path + ("distance_travelled",), "distance")
             if "time_in_block" in c:
                 self.positive(path + ("time_in_block",), "duration")
+            if "obstacle_within" in c:
+                self.positive(path + ("obstacle_within",), "distance")
+                self.check_sector(c.get("sector_deg"), path + ("sector_deg",))
             if "not" in c:
                 self.check_condition(c["not"], path + ("not",))
             for key in ("all", "any"):
                 for j, sub in enumerate(c.get(key, [])):
                     self.check_condition(sub, path + (key, j))
+
+    def check_sector(self, sector: Any, path: PathKey) -> None:
+        """An ``obstacle_within`` sector [from, to] that is not empty (from == to)."""
+        if not isinstance(sector, list) or len(sector) != 2:
+            return  # absent, or the schema's to report
+        try:
+            start, end = sector_angle(sector[0]), sector_angle(sector[1])
+        except (ValueError, TypeError):
+            return  # a malformed angle is the schema's to report
+        if abs(start - end) < 1e-12:
+            self.error(path, f"'sector_deg' [{sector[0]}, {sector[1]}] is empty: it starts and ends at the same angle",
+                       "write [from, to], counterclockwise from 'from' to 'to' (0 ahead, positive to the left), "
+                       "e.g. [-30, 30] for the 60 degrees ahead; leave sector_deg out to look all around")
 
     def task_calls(self, steps: list, path: PathKey) -> list[tuple[str, PathKey]]:
         """Every (task, position) that a step list calls with ``do``, at any depth."""
@@ -596,6 +613,13 @@ DEFAULT_NEAR_WITHIN_M = parse_quantity(mission_default("/$defs/condition/anyOf/2
 """``{near: place}`` without ``within`` means within this many metres (the schema's default)."""
 
 
+def sector_angle(value: Any) -> float:
+    """One end of an ``obstacle_within`` sector in radians: a bare number is degrees, a text has its unit."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return math.radians(float(value))
+    return parse_quantity(value, "angle")
+
+
 def condition_of(raw: Any) -> st.Condition:
     """The typed condition of what the author wrote (already checked by the schema)."""
     if isinstance(raw, str):
@@ -617,6 +641,10 @@ def condition_of(raw: Any) -> st.Condition:
         return st.DistanceTravelled(distance_m=parse_quantity(raw["distance_travelled"], "distance"))
     if "time_in_block" in raw:
         return st.TimeInBlock(duration_s=parse_quantity(raw["time_in_block"], "duration"))
+    if "obstacle_within" in raw:
+        sector = raw.get("sector_deg")
+        ends = None if sector is None else (sector_angle(sector[0]), sector_angle(sector[1]))
+        return st.ObstacleWithin(gap_m=parse_quantity(raw["obstacle_within"], "distance"), sector_rad=ends)
     if "not" in raw:
         return st.Not(condition=condition_of(raw["not"]))
     if "all" in raw:
@@ -642,9 +670,10 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
     schema = with_external_steps(load_schema("mission.schema.json"), external) if external else None
     taken = {(p.file, p.position) for p in param_problems}  # a bad $name: said once, not again by the schema
+    said = {(p.file, p.position) for p in (doc.problem(path, "") for path in params.said_at_declaration)}
     problems = param_problems + [p for p in schema_problems(doc, "mission.schema.json", "mission", schema)
-                                 if (p.file, p.position) not in taken]
-    problems += _SemanticChecker(doc).run_guarded()
+                                 if (p.file, p.position) not in taken | said]
+    problems += [p for p in _SemanticChecker(doc).run_guarded() if (p.file, p.position) not in said]
     if problems:
         raise InvalidInput(problems)
     mission = _build(doc, Path(path), external)
@@ -726,4 +755,4 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
 
 
 __all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "step_of", "steps_of", "condition_of",
-           "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M"]
+           "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M", "sector_angle"]

@@ -289,8 +289,18 @@ class InFence:
     inside: bool
 
 
+@dataclass(frozen=True, kw_only=True)
+class ObstacleWithin:
+    """``{obstacle_within: 0.5 m, sector_deg: [-30, 30]}``: the LiDAR sees something within ``gap_m`` of the
+    footprint (free space, m), in the sector from ``sector_rad[0]`` counterclockwise to ``sector_rad[1]`` (base_link,
+    rad, 0 ahead) or all around (None)."""
+
+    gap_m: float
+    sector_rad: Optional[tuple[float, float]] = None
+
+
 Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered,
-                  InFence]
+                  InFence, ObstacleWithin]
 """A condition of ``if``, ``while``, ``wait_until``, ``until`` and ``abort_if``."""
 
 

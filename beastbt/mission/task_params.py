@@ -16,7 +16,7 @@ from __future__ import annotations
 import copy
 from typing import Any, Optional
 
-from beastbt.core.errors import Problem, did_you_mean
+from beastbt.core.errors import Problem, did_you_mean, value_in_words
 from beastbt.core.units import KINDS, UnitError, parse_quantity
 from beastbt.core.yaml_source import PathKey, SourceDoc, values_at_key
 
@@ -87,6 +87,8 @@ class TaskParameters:
         self.kinds: dict[str, dict[str, str]] = {}
         self.calls: dict[PathKey, dict[str, Any]] = {}
         """Path of each ``do:`` with arguments -> the arguments as written."""
+        self.said_at_declaration: list[PathKey] = []
+        """Uses of a parameter already reported where it is declared (no default): not reported again."""
 
     def task_steps(self, task: str, args: Optional[dict[str, Any]] = None) -> Optional[list]:
         """The raw steps of ``task`` for a call with ``args`` (defaults for the rest); None for a task without params."""
@@ -105,11 +107,25 @@ def expand_task_parameters(doc: SourceDoc) -> tuple[TaskParameters, list[Problem
         if not (isinstance(task, dict) and isinstance(task.get("params"), dict) and isinstance(task.get("steps"), list)):
             continue
         defaults = task["params"]
+        broken: set[str] = set()
+        for key, value in list(defaults.items()):
+            if value is None or isinstance(value, (dict, list)):
+                # The default also gives the parameter its kind: without one, each use would fail on its own
+                # with a message about an empty value, far from the mistake. Said once, here, instead.
+                what = "has no default" if value is None else f"has {value_in_words(value)} as its default"
+                problems.append(doc.problem(("tasks", name, "params", key),
+                                            f"parameter '{key}' of task '{name}' {what}",
+                                            f"every parameter needs a default, which also gives its kind: "
+                                            f"e.g. '{key}: 2 s' or '{key}: 45 deg'", key=value is None))
+                del defaults[key]
+                broken.add(key)
         params.defaults[name] = dict(defaults)
         params.kinds[name] = {k: kind_of(v) for k, v in defaults.items()}
         params.templates[name] = copy.deepcopy(task["steps"])
         for path, ref in _references(task["steps"], ("tasks", name, "steps")):
-            if ref not in defaults:
+            if ref in broken:
+                params.said_at_declaration.append(path)
+            elif ref not in defaults:
                 problems.append(doc.problem(path, f"'${ref}' is not a parameter of task '{name}'"
                                                   f"{did_you_mean(ref, list(defaults))}",
                                             f"its parameters are: {', '.join(defaults) or 'none'}; declare it under "

@@ -12,11 +12,14 @@ does not report its battery.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, Iterator, Optional
 
 from beastbt.core.errors import Problem, warning
+from beastbt.core.schema_defaults import schema_default
 from beastbt.core.units import format_quantity
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, distance_m
+from beastbt.behaviours.conditions import sector_width_rad
 from beastbt.mission import steps as st
 
 FAR_PLACE_M = TYPO_DISTANCE_M
@@ -60,6 +63,47 @@ def _speed_warnings(mission: Any, limit_mps: Optional[float], whose: str) -> lis
     return out
 
 
+def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float, float]]) -> Optional[tuple[str, str]]:
+    """(message, hint) when ``place`` is far from where the mission happens, judged on its own; else None.
+
+    Where the mission happens is its world's datum, or (no world) the
+    simulator's default world. A place far from it that swapping its lat and
+    lon would bring near is said to be swapped; one far from a real world's
+    datum, or from every one of two or more other places, is said to be far.
+    Comparing places pairwise would blame the right place and the swapped one
+    alike: with one of two swapped, each is far from the other.
+    """
+    datum = world_datum
+    reference = "the world's datum"
+    if datum is None:
+        default = schema_default("world.schema.json#/properties", "datum")
+        datum = (float(default["lat"]), float(default["lon"]))
+        reference = "the simulator's default world (the mission names no world)"
+    def looks_swapped(p: Any) -> bool:
+        return (distance_m(p.lat, p.lon, *datum) > FAR_PLACE_M and abs(p.lon) <= 90.0
+                and distance_m(p.lon, p.lat, *datum) <= FAR_PLACE_M)
+
+    d = distance_m(place.lat, place.lon, *datum)
+    swapped = (distance_m(place.lon, place.lat, *datum) if abs(place.lon) <= 90.0 else math.inf)
+    hint = (f"lat is north-south (-90..90), lon east-west: check lat: {place.lat:.6f}, lon: {place.lon:.6f}")
+    if looks_swapped(place):
+        return (f"place '{place.name}' is {d / 1000:.0f} km from {reference}, and {swapped / 1000:.1f} km from it with "
+                f"lat and lon swapped: are they swapped?", f"write lat: {place.lon:.6f}, lon: {place.lat:.6f}")
+    if d > FAR_PLACE_M and world_datum is not None:
+        return f"place '{place.name}' is {d / 1000:.0f} km from {reference}: is it typed right?", hint
+    others = [(distance_m(place.lat, place.lon, o.lat, o.lon), o.name) for o in places if o is not place]
+    if len(others) >= 2 and all(far > FAR_PLACE_M for far, _ in others):
+        nearest, name = min(others)
+        return (f"place '{place.name}' is {nearest / 1000:.0f} km from the nearest other place ('{name}'), and "
+                f"farther from all the others: are its lat and lon swapped?", hint)
+    if len(places) == 2 and place is places[1] and others[0][0] > FAR_PLACE_M and not looks_swapped(places[0]):
+        # Two places far apart, neither swapped by the look of it: which one is wrong cannot be told, so say it
+        # once, at the second, without blaming it.
+        return (f"place '{place.name}' is {others[0][0] / 1000:.0f} km from '{others[0][1]}', the only other place: "
+                f"is one of them typed wrong (lat and lon swapped, a digit off)?", hint)
+    return None
+
+
 def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = None) -> list[Problem]:
     """What looks wrong in the mission itself; ``world_datum`` (lat, lon) is where its world is, if known."""
     doc = mission.doc
@@ -75,17 +119,10 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
                                        "add what the robot should do under 'steps:'")))
     out += _speed_warnings(mission, mission.speed_limit_mps, "the mission's limit")
     places = list(mission.places.values())
-    for i, place in enumerate(places):
-        far = [(other.name, distance_m(place.lat, place.lon, other.lat, other.lon)) for other in places[:i]]
-        if world_datum is not None:
-            far.append(("the world's datum", distance_m(place.lat, place.lon, *world_datum)))
-        far = [(name, d) for name, d in far if d > FAR_PLACE_M]
-        if far:
-            name, d = far[0]
-            out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {d / 1000:.0f} km from "
-                                                                   f"{name}: are its lat and lon swapped?",
-                                           f"lat is north-south (-90..90), lon east-west: check lat: "
-                                           f"{place.lat:.6f}, lon: {place.lon:.6f}")))
+    for place in places:
+        said = _place_far_away(place, places, world_datum)
+        if said is not None:
+            out.append(warning(doc.problem(("places", place.name), said[0], said[1])))
     for fence in getattr(mission, "fences", {}).values():
         for place in places:
             inside = fence.contains(place.lat, place.lon)
@@ -94,15 +131,59 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
                 out.append(warning(doc.problem(("places", place.name), f"place '{place.name}' is {where} fence "
                                                                        f"'{fence.name}': going there crosses it",
                                                "move the place, or the fence")))
+    out += _sector_warnings(mission)
     return by_position(out)
+
+
+def _inner(condition: Any) -> tuple:
+    """The conditions inside ``not``, ``all`` and ``any``."""
+    return getattr(condition, "conditions", None) or ((condition.condition,) if isinstance(condition, st.Not) else ())
 
 
 def _needs_a_fix(condition: Any) -> bool:
     """True when a condition reads the position on Earth (``near``, ``inside``/``outside`` a fence)."""
     if isinstance(condition, (st.Near, st.InFence)):
         return True
-    inner = getattr(condition, "conditions", None) or ((condition.condition,) if isinstance(condition, st.Not) else ())
-    return any(_needs_a_fix(c) for c in inner)
+    return any(_needs_a_fix(c) for c in _inner(condition))
+
+
+def _needs_a_lidar(condition: Any) -> bool:
+    """True when a condition reads the LiDAR (``obstacle_within``)."""
+    if isinstance(condition, st.ObstacleWithin):
+        return True
+    return any(_needs_a_lidar(c) for c in _inner(condition))
+
+
+def _sectors(condition: Any, path: tuple) -> Iterator[tuple[st.ObstacleWithin, tuple]]:
+    """Every ``obstacle_within`` with a sector in ``condition`` (written at ``path``), with where it is written."""
+    if isinstance(condition, st.ObstacleWithin):
+        if condition.sector_rad is not None:
+            yield condition, path + ("sector_deg",)
+    elif isinstance(condition, st.Not):
+        yield from _sectors(condition.condition, path + ("not",))
+    elif isinstance(condition, (st.AllOf, st.AnyOf)):
+        key = "all" if isinstance(condition, st.AllOf) else "any"
+        for i, c in enumerate(condition.conditions):
+            yield from _sectors(c, path + (key, i))
+
+
+def _sector_warnings(mission: Any) -> list[Problem]:
+    """A sector written from left to right the long way round (``[30, -30]``: everything but the 60 deg ahead)."""
+    out = []
+    for step in _every_step(mission):
+        condition = getattr(step, "condition", None)
+        if condition is None:
+            continue
+        for c, path in _sectors(condition, step.path + (step.KEYWORD,)):
+            start, end = (math.degrees(a) for a in c.sector_rad)
+            width = math.degrees(sector_width_rad(*c.sector_rad))
+            if end < start and width > 180.0:
+                out.append(warning(mission.doc.problem(
+                    path, f"sector_deg [{start:g}, {end:g}] runs counterclockwise from {start:g} deg to {end:g} deg: "
+                          f"the {width:g} degrees round the back, all but the {360 - width:g} degrees between them",
+                    f"for the {360 - width:g} degrees between them write [{end:g}, {start:g}] (0 is straight ahead, "
+                    f"positive to the left)")))
+    return out
 
 
 def world_warnings(mission: Any, world: Any) -> list[Problem]:
@@ -135,9 +216,28 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
 
 
 def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
-                   has_joystick: bool = True) -> list[Problem]:
+                   has_joystick: bool = True, has_lidar: bool = True, has_odometry: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
     out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    if not has_odometry:
+        for step in _every_step(mission):
+            if isinstance(step, (st.DriveDistance, st.TurnBy)):
+                what = "how far it drove" if isinstance(step, st.DriveDistance) else "how far it turned"
+                out.append(warning(mission.doc.problem(
+                    step.path + (step.KEYWORD,), f"robot '{robot}' has no odometry (its base reports no wheel "
+                                                 f"travel): this {step.KEYWORD} cannot measure {what}, and fails "
+                                                 f"as if blocked",
+                    "drive for a time instead (drive: {time: 4 s, speed: 0.15 m/s}), or give the base wheel "
+                    "encoders")))
+    if not has_lidar:
+        for step in _every_step(mission):
+            if _needs_a_lidar(getattr(step, "condition", None)):
+                out.append(warning(mission.doc.problem(
+                    step.path + (step.KEYWORD,), f"robot '{robot}' has no LiDAR (no lidar: section): this "
+                                                 f"obstacle_within cannot be checked, so this {step.KEYWORD} step "
+                                                 f"fails at once", "run it on a robot with a lidar: section "
+                                                                   "(robots/sim.yaml has an LD19), or remove the "
+                                                                   "condition")))
     if mission.on_failure == "hold" and not has_joystick and "on_failure" in (mission.doc.data or {}):
         out.append(warning(mission.doc.problem(("on_failure",), f"on_failure: hold on robot '{robot}', which has no "
                                                                 f"joystick: nothing can clear the hold, the robot "

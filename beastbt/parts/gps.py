@@ -20,6 +20,7 @@ from beastbt.core.events import EventLog
 from beastbt.devices.nmea_gps import GpsConfig, NmeaGps
 from beastbt.robot.hardware import open_serial
 from beastbt.robot.part import REAL, SIM, Build, Part, sleep_device
+from beastbt.robot.serial_hint import serial_port_hint
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.session import Prepared
@@ -27,8 +28,9 @@ from beastbt.sim.gps_emulator import GpsNoiseModel, SimGps
 from beastbt.sim.robot import Emulator, Simulator
 
 
-GPS_HINT = ("check the GPS HAT is seated, that the serial port is enabled (raspi-config: serial hardware on, "
-            "login shell off) and that your user is in the 'dialout' group")
+def gps_hint(port: str) -> str:
+    """What to check when the GPS's ``port`` cannot be opened: the HAT, then that kind of port's set-up."""
+    return f"check the GPS HAT is seated; {serial_port_hint(port)}"
 
 
 def attach_real_gps(profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog) -> None:
@@ -38,7 +40,7 @@ def attach_real_gps(profile: RobotProfile, io: RobotIO, clock: Clock, events: Ev
     import serial
 
     config: GpsConfig = section_config(profile, "gps", GpsConfig)
-    port = open_serial("gps (NMEA receiver)", config.port, config.port_baud, GPS_HINT)
+    port = open_serial("gps (NMEA receiver)", config.port, config.port_baud, gps_hint(config.port))
     ports = [port]
 
     def reopen() -> Any:
@@ -129,4 +131,4 @@ class GpsPart(Part):
         sleep_device(prepared, "gps", self.emulator)
 
 
-__all__ = ["GpsPart", "attach_real_gps", "attach_sim_gps", "GPS_HINT"]
+__all__ = ["GpsPart", "attach_real_gps", "attach_sim_gps", "gps_hint"]

@@ -140,5 +140,17 @@ class LidarPart(Part):
         """Nothing reads the scans: neither poll the driver nor ray-cast the world."""
         sleep_device(prepared, "lidar", self.emulator)
 
+    def install(self, prepared: Prepared) -> None:
+        """Tell the ``obstacle_within`` conditions where the LiDAR sits, the footprint, and the collision monitor's
+        rules for a scan (its ``source_timeout_s`` and ``min_points``), so both judge a scan alike."""
+        from beastbt.actuation.collision_monitor import CollisionMonitorConfig, footprint_radius
+        from beastbt.behaviours.obstacle_within import ObstacleSensing
+
+        profile = prepared.profile
+        lidar: LidarConfig = section_config(profile, "lidar", LidarConfig)
+        monitor: CollisionMonitorConfig = section_config(profile, "collision_monitor", CollisionMonitorConfig)
+        prepared.run.ctx.services.obstacle_sensing = ObstacleSensing(
+            lidar.mounting, footprint_radius(profile.data), monitor.source_timeout_s, monitor.min_points)
+
 
 __all__ = ["LidarPart", "attach_real_lidar", "attach_sim_lidar", "lidar_driver", "LIDAR_HINT", "LIDAR_RNG_STREAM"]

@@ -22,7 +22,7 @@ from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.robot.robot_io import RobotIO
-from beastbt.sim.joystick_script import ScriptedJoystick, script_doc
+from beastbt.sim.joystick_script import ScriptedJoystick, ScriptProblems, script_doc
 from beastbt.sim.robot import Simulator
 
 DUE_TOLERANCE_S = 1e-6
@@ -44,6 +44,8 @@ def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping)
                                         "--joystick takes a YAML file: a list like [{at: 2 s, press: enable}]")])
         # Read here, not in from_yaml, so that the loader's problems keep their hints.
         return ScriptedJoystick.from_doc(script_doc(text, str(spec)), mapping)
+    except ScriptProblems as exc:
+        raise InvalidInput(exc.problems) from None
     except ValueError as exc:
         problems = []
         for line in str(exc).splitlines():

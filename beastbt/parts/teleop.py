@@ -107,6 +107,13 @@ class TeleopOverride:
         """True when the robot has a joystick device (it may be unplugged right now)."""
         return self.run.io.joystick is not None or self.remote_attached
 
+    def no_joystick_hint(self) -> str:
+        """How to give this run a joystick: a script on the simulator, the gamepad on a robot, or the console."""
+        if self.run.io.sim is not None:
+            return ("on the simulator, play a joystick script with --joystick FILE (e.g. "
+                    "missions/joystick/teleop_demo.yaml), or drive from the operator console: --console 8080")
+        return "plug in the gamepad (beastbt doctor checks it), or drive from the operator console: --console 8080"
+
     def request_handover(self, step: Any) -> None:
         """A teleop step starts: the operator may drive while it runs, without pausing the mission."""
         self.handovers.add(id(step))
@@ -125,7 +132,8 @@ class TeleopOverride:
 
     def _hand_to_operator(self, run: MissionRun, pause: str, why: str) -> None:
         if not self.has_joystick:
-            run.events.add("teleop", f"{why}, but there is no joystick to hand over to: stopping")
+            run.events.add("teleop", f"{why}, but there is no joystick to hand over to: stopping; "
+                                     f"{self.no_joystick_hint()}")
             run.finish("failure", f"{why}; teleop: no joystick")
             return
         self.operator_control = pause

@@ -13,11 +13,11 @@ from beastbt.devices.waveshare_base import WaveshareBase, WaveshareConfig
 from beastbt.robot.hardware import open_serial
 from beastbt.robot.part import BasePart, Build
 from beastbt.robot.profile import section_config
+from beastbt.robot.serial_hint import serial_port_hint
 from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.waveshare_emulator import SimWaveshareBase
 
-SERIAL_HINT = ("check the cable to the sub-controller, that the serial port is enabled "
-               "(raspi-config: serial on, login shell off) and that your user is in the 'dialout' group")
+
 
 
 class WaveshareBasePart(BasePart):
@@ -34,7 +34,8 @@ class WaveshareBasePart(BasePart):
     def open_real(self, build: Build) -> RobotIO:
         """Open ``base.port``; DeviceUnavailable when it cannot be opened."""
         config = section_config(build.profile, "base", WaveshareConfig)
-        port = open_serial("base (Waveshare ESP32)", config.port, config.baud, SERIAL_HINT)
+        port = open_serial("base (Waveshare ESP32)", config.port, config.baud,
+                           f"check the cable to the sub-controller; {serial_port_hint(config.port)}")
         base = WaveshareBase(port, config, build.events.sink("base"), track_width_m=build.profile.track_width_m)
         return RobotIO(base=base, servos=[base] if config.gimbal else [])
 

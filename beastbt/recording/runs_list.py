@@ -31,17 +31,44 @@ class RunEntry:
     mcap_bytes: Optional[int]
     dropped: Optional[int]
 
-    def line(self) -> str:
-        """The run in one line."""
-        t = f"{self.sim_time_s:8.1f} s" if self.sim_time_s is not None else "       ? s"
-        dist = f"{self.distance_m:7.2f} m" if self.distance_m is not None else "      ? m"
+    def cells(self) -> tuple[str, str, str, str, str, str]:
+        """The run's columns as texts: folder, mission, outcome, mission time, distance, recording."""
+        t = f"{self.sim_time_s:.1f} s" if self.sim_time_s is not None else "? s"
+        dist = f"{self.distance_m:.2f} m" if self.distance_m is not None else "? m"
         if self.mcap_bytes is None:
             rec = "not recorded"
         else:
             rec = f"run.mcap {self.mcap_bytes / 1e6:.2f} MB"
             if self.dropped:
                 rec += f", {self.dropped} dropped"
-        return f"{self.folder.name:40s} {self.mission:24s} {self.status:10s} {t} {dist}  {rec}"
+        return self.folder.name, self.mission, self.status, t, dist, rec
+
+    def line(self) -> str:
+        """The run in one line (columns as wide as this run needs; :func:`table` lines up many)."""
+        return "  ".join(self.cells())
+
+
+HEADER = ("RUN", "MISSION", "OUTCOME", "TIME", "DISTANCE", "RECORDING")
+"""The column titles of ``beastbt runs``."""
+WIDEST = (48, 32, 28)
+"""The widest the run, mission and outcome columns get (characters); longer texts end in an ellipsis."""
+
+
+def _fit(text: str, width: int) -> str:
+    return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def table(entries: list[RunEntry]) -> list[str]:
+    """``beastbt runs``'s lines: a header, then one line per run, in columns as wide as the widest entry (up to
+    :data:`WIDEST`), the time and distance right-aligned."""
+    rows = [HEADER] + [e.cells() for e in entries]
+    rows = [tuple(_fit(c, WIDEST[i]) if i < len(WIDEST) else c for i, c in enumerate(r)) for r in rows]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
+    out = []
+    for r in rows:
+        cols = [c.rjust(widths[i]) if i in (3, 4) else c.ljust(widths[i]) for i, c in enumerate(r)]
+        out.append("  ".join(cols).rstrip())
+    return out
 
 
 def list_runs(runs_dir: str) -> list[RunEntry]:
@@ -77,4 +104,4 @@ def _mission_from_name(name: str) -> str:
     return name.split("_", 1)[1] if "_" in name else name
 
 
-__all__ = ["list_runs", "RunEntry"]
+__all__ = ["list_runs", "RunEntry", "table"]

@@ -25,6 +25,7 @@ from typing import Any, Callable, Iterator, Optional
 from beastbt.core.clock import WallClock
 from beastbt.core.errors import plain_reason
 from beastbt.robot.profile import RobotProfile
+from beastbt.robot.serial_hint import serial_port_hint
 from beastbt.devices.gamepad_presets import describe_controls
 
 OK, WARN, FAIL = "OK", "WARN", "FAIL"
@@ -38,8 +39,6 @@ LIDAR_SCANS = 5
 """Revolutions to see before the LiDAR's figures are reported."""
 LIDAR_CRC_WARN = 0.01
 """A share of bad packets above this is a noisy line (WARN)."""
-SERIAL_HINT = ("enable the serial port (raspi-config: interface options, serial port: login shell no, hardware yes) "
-               "and add your user to the 'dialout' group")
 WHO_AM_I_REGISTER = 0x75
 """MPU9250 register holding the chip id."""
 WHO_AM_I = {0x71: "MPU9250", 0x73: "MPU9255"}
@@ -100,7 +99,7 @@ def check_serial_ports(ctx: DoctorContext) -> Iterator[Finding]:
     for device, port in serial_ports(ctx.profile):
         path = ctx.path(port)
         if not path.exists():
-            yield Finding(FAIL, device, f"{port} does not exist", f"check the wiring and {SERIAL_HINT}")
+            yield Finding(FAIL, device, f"{port} does not exist", f"check the wiring; {serial_port_hint(port)}")
             continue
         real = os.path.realpath(path)
         if real in seen:
@@ -123,7 +122,7 @@ def check_base(ctx: DoctorContext) -> Iterator[Finding]:
     config = WaveshareConfig.from_dict({k: v for k, v in base.items()})
     port = _open_serial(config.port, config.baud)
     if isinstance(port, str):
-        yield Finding(FAIL, "base", f"cannot open {config.port}: {port}", SERIAL_HINT)
+        yield Finding(FAIL, "base", f"cannot open {config.port}: {port}", serial_port_hint(config.port))
         return
     events: list[str] = []
     driver = WaveshareBase(port, config, lambda kind, text: events.append(text))
@@ -179,7 +178,7 @@ def check_gps(ctx: DoctorContext) -> Iterator[Finding]:
     port_path, baud = str(gps.get("port", "/dev/serial0")), int(gps.get("port_baud", 9600))
     port = _open_serial(port_path, baud)
     if isinstance(port, str):
-        yield Finding(FAIL, "gps", f"cannot open {port_path}: {port}", SERIAL_HINT)
+        yield Finding(FAIL, "gps", f"cannot open {port_path}: {port}", serial_port_hint(port_path))
         return
     buf, good, bad, fix, sats = b"", 0, 0, None, None
     end = ctx.clock.now() + GPS_WAIT_S
@@ -232,9 +231,7 @@ def check_lidar(ctx: DoctorContext) -> Iterator[Finding]:
     config: LidarConfig = section_config(ctx.profile, "lidar", LidarConfig)
     port = _open_serial(config.port, config.port_baud)
     if isinstance(port, str):
-        yield Finding(FAIL, "lidar", f"cannot open {config.port}: {port}",
-                      "check the LiDAR's USB cable (ls /dev/ttyUSB* /dev/serial/by-id/) and that your user is "
-                      "in the 'dialout' group")
+        yield Finding(FAIL, "lidar", f"cannot open {config.port}: {port}", serial_port_hint(config.port))
         return
     driver_cls = RplidarA1 if config.type == "rplidar_a1" else Ld19Lidar
     driver = driver_cls(port, ctx.clock, lambda kind, text: None, config=config)

@@ -55,6 +55,10 @@ def _safe(name: str) -> str:
     return re.sub(r"[^\w-]", "_", name)
 
 
+NAME_CHARS = 48
+"""The most characters of a mission's name a run folder's name keeps (file systems allow 255 bytes; people read less)."""
+
+
 class RunFolderUnavailable(Exception):
     """The run folder cannot be made (a full disk, no permission): the run does not start; says what to do."""
 
@@ -69,16 +73,15 @@ class RunFolder:
     """``summary.json`` was written whole by :meth:`finish`."""
 
     @classmethod
-    def create(cls, runs_dir: str, mission: str, clock: Any, mission_file: Optional[str] = None,
+    def create(cls, runs_dir: str, mission: str, clock: Any,
                calendar: Callable[[], _dt.datetime] = utc_now) -> "RunFolder":
-        """Make ``runs_dir/<UTC time>_[<file>_]<mission>/`` (a suffix keeps two runs in one second apart).
+        """Make ``runs_dir/<UTC time>_<mission>/``, as the README says (a suffix keeps two runs in one second apart).
 
-        ``calendar`` gives the date and time in the name (UTC).
+        The mission's name is cut to :data:`NAME_CHARS` characters. ``calendar``
+        gives the date and time in the name (UTC).
         """
         stamp = calendar().strftime("%Y%m%dT%H%M%SZ")
-        safe = _safe(mission)
-        stem = _safe(Path(mission_file).stem) if mission_file else safe
-        base = Path(runs_dir) / (f"{stamp}_{safe}" if stem == safe else f"{stamp}_{stem}_{safe}")
+        base = Path(runs_dir) / f"{stamp}_{_safe(mission)[:NAME_CHARS]}"
         path = base
         n = 1
         while path.exists():

@@ -168,6 +168,8 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     tty = opts.status_line
     restore_sigterm = _sigterm_as_interrupt()
     terminal = TerminalAnswers(run.ctx.services.questions, out) if tty and sys.stdin.isatty() else None
+    unanswerable = (UnanswerableQuestions(run.ctx.services.questions, p.events)
+                    if terminal is None and opts.console is None else None)
     # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
     # out of the garbage collector's sight, so that a full collection during the run walks only what the run
     # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.
@@ -195,6 +197,8 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
                 wait_for_tick(run, clock, run.start_s + run.ticks * dt)
             if tty and terminal is not None:
                 terminal.poll()
+            if unanswerable is not None:
+                unanswerable.poll()
             if tty:
                 now_wall = wall.now()
                 if now_wall - last_status_wall > 0.1:
@@ -304,6 +308,29 @@ class TerminalAnswers:
             line = sys.stdin.readline()
             if not self.questions.answer(question.id, line, "terminal"):
                 self.out.write(f"{CLEAR_LINE}? please type y or n, then Enter\n")
+
+
+class UnanswerableQuestions:
+    """Say at once when a question is open that nobody can answer: no console, no terminal, no ``--answer``.
+
+    Without this the run would stand silently until the question's timeout
+    (an hour, say) with nothing on the screen telling why.
+    """
+
+    def __init__(self, questions: Any, events: Any) -> None:
+        self.questions = questions
+        self.events = events
+        self.said: set[str] = set()
+
+    def poll(self) -> None:
+        """Add an ``ask`` event, once per question id, naming how to answer it."""
+        question = self.questions.current() if self.questions is not None else None
+        if question is None or question.id in self.said:
+            return
+        self.said.add(question.id)
+        self.events.add("ask", f"nobody can answer '{question.id}' in this run (no --console, and the input is not "
+                               f"a terminal): it waits for its timeout; answer in advance with "
+                               f"--answer {question.id}=yes (or =no), or run with --console 8080")
 
 
 def _console_listener(out: TextIO, tty: bool = False) -> Callable:

@@ -57,17 +57,26 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
 
 
 def human_summary(summary: dict) -> str:
-    """A few lines for a person at the end of a run."""
+    """A few lines for a person at the end of a run.
+
+    The end itself is said once, in the first line (the mission_end event was
+    printed as it happened); its time is that event's, so the two agree. The
+    failures before it (last five) are repeated for whoever scrolled past them.
+    """
+    events = summary["events"]
+    end = next((e for e in reversed(events) if e["kind"] == "mission_end"), None)
+    why = end["text"].split(": ", 1)[1] if end is not None and ": " in end["text"] else None
+    time_s = end["time_s"] if end is not None else summary["sim_time_s"]
     lines = [
-        f"mission {summary['mission']}: {summary['status'].upper()}",
-        f"  time {summary['sim_time_s']:.1f} s (wall {summary['wall_time_s']:.2f} s, {summary['ticks']} ticks)",
+        f"mission {summary['mission']}: {summary['status'].upper()}" + (f" ({why})" if why else ""),
+        f"  time {time_s:.1f} s (wall {summary['wall_time_s']:.2f} s, {summary['ticks']} ticks)",
         f"  distance {summary['distance_m']:.2f} m, top speed {summary['max_speed_mps']:.2f} m/s",
     ]
     for wp in summary.get("waypoints", []):
         err = wp.get("arrival_error_m")
         lines.append(f"  waypoint {wp['name']}: {'reached' if wp['reached'] else 'NOT reached'}"
                      + (f", {err:.2f} m off" if err is not None else ""))
-    ends = [e for e in summary["events"] if e["kind"] in ("mission_end", "step_failed", "failsafe", "estop")]
+    ends = [e for e in events if e["kind"] in ("step_failed", "failsafe", "estop")]
     for e in ends[-5:]:
-        lines.append(f"  [{e['time_s']:7.2f} s] {e['kind']}: {e['text']}")
+        lines.append(f"  [{e['time_s']:7.1f} s] {e['kind']}: {e['text']}")
     return "\n".join(lines)

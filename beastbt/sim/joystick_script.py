@@ -41,6 +41,7 @@ from beastbt.devices.joystick import (
 )
 
 if TYPE_CHECKING:
+    from beastbt.core.errors import Position
     from beastbt.core.yaml_source import SourceDoc
 
 _DURATION = re.compile(r"^\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)\s*(ms|s|sec|min|h)?\s*$")
@@ -108,6 +109,19 @@ def script_doc(text: str, source: str) -> "SourceDoc":
         raise
 
 
+EVENT_HINT = ("an event is {at: TIME, press: BUTTON}, {at: TIME, release: BUTTON}, {at: TIME, linear: -1..1, "
+              "angular: -1..1}, {at: TIME, unplug: true} or {at: TIME, replug: true}")
+"""The hint of every joystick script error: what an event looks like."""
+
+
+class ScriptProblems(ValueError):
+    """A joystick script's problems, each positioned (``problems``: :class:`~beastbt.core.errors.Problem`)."""
+
+    def __init__(self, problems: list) -> None:
+        super().__init__("\n".join(p.format() for p in problems))
+        self.problems = problems
+
+
 class _Handle:
     """One open file of the scripted device: its own byte stream, dead once unplugged."""
 
@@ -146,6 +160,7 @@ class ScriptedJoystick:
         *,
         source: str = "<joystick script>",
         positions: Optional[Sequence[Optional[tuple[int, int]]]] = None,
+        doc: Optional["SourceDoc"] = None,
         rng: Optional[np.random.Generator] = None,
         n_axes: int = 8,
         n_buttons: int = 11,
@@ -153,6 +168,7 @@ class ScriptedJoystick:
     ) -> None:
         self.mapping = mapping if mapping is not None else JoystickMapping()
         self.source = source
+        self.doc = doc
         self.rng = rng
         self.events: list[ScriptEvent] = self._validate(events, positions)
         self.plugged = plugged
@@ -165,6 +181,16 @@ class ScriptedJoystick:
         self.raw_buttons = [0] * n_buttons
 
     # --- loading and validation ---------------------------------------------------------
+    def _where(self, i: int, positions: Optional[Sequence[Optional[tuple[int, int]]]], key: Optional[str],
+               value: bool) -> "Position":
+        """Where event ``i`` (or its ``key``, or that key's value) is written: the document's position when the
+        script was read with one, else the event's line and column, else the file's start."""
+        from beastbt.core.errors import Position
+        if self.doc is not None:
+            return self.doc.position((i,) if key is None else (i, key), key=key is not None and not value)
+        pos = positions[i] if positions is not None and i < len(positions) else None
+        return Position(pos[0], pos[1]) if pos else Position()
+
     @classmethod
     def from_yaml(cls, text: str, mapping: Optional[JoystickMapping] = None, *, source: str = "<joystick script>", **kwargs: Any) -> "ScriptedJoystick":
         """Build from YAML text; errors name ``source:line:column`` and the event index.
@@ -190,7 +216,7 @@ class ScriptedJoystick:
         for i in range(len(data)):
             at = doc.position((i,))
             positions.append((at.line, at.column))
-        return cls(data, mapping, source=doc.file, positions=positions, **kwargs)
+        return cls(data, mapping, source=doc.file, positions=positions, doc=doc, **kwargs)
 
     @classmethod
     def from_file(cls, path: Union[str, Path], mapping: Optional[JoystickMapping] = None, **kwargs: Any) -> "ScriptedJoystick":
@@ -199,24 +225,29 @@ class ScriptedJoystick:
         return cls.from_yaml(p.read_text(encoding="utf-8"), mapping, source=str(p), **kwargs)
 
     def _validate(self, events: Any, positions: Optional[Sequence[Optional[tuple[int, int]]]]) -> list[ScriptEvent]:
+        from beastbt.core.errors import Position, Problem, did_you_mean
         if not isinstance(events, Sequence) or isinstance(events, (str, bytes)):
-            raise ValueError(f"{self.source}: error: a joystick script is a list of events, got {type(events).__name__}")
-        errors: list[str] = []
+            raise ScriptProblems([Problem(self.source, Position(), "a joystick script is a list of events, got "
+                                          + ("a mapping" if isinstance(events, Mapping) else repr(events)),
+                                          EVENT_HINT)])
+        problems: list[Problem] = []
         out: list[ScriptEvent] = []
         buttons = self.mapping.roles()
+        keys = ("at",) + _ACTION_KEYS + _STICK_KEYS
         for i, ev in enumerate(events):
-            pos = positions[i] if positions is not None and i < len(positions) else None
-            where = f"{self.source}:{pos[0]}:{pos[1]}" if pos else self.source
-
-            def bad(text: str) -> None:
-                errors.append(f"{where}: error: joystick script event {i}: {text}")
+            def bad(text: str, hint: str = EVENT_HINT, key: Optional[str] = None, value: bool = False) -> None:
+                problems.append(Problem(self.source, self._where(i, positions, key, value),
+                                        f"joystick script event {i + 1}: {text}", hint))
 
             if not isinstance(ev, Mapping):
                 bad(f"expected a mapping like {{at: 2 s, press: enable}}, got {ev!r}")
                 continue
-            unknown = [k for k in ev if k not in ("at",) + _ACTION_KEYS + _STICK_KEYS]
+            unknown = [k for k in ev if k not in keys]
+            for k in unknown:
+                swapped = [known for known in keys if sorted(known) == sorted(str(k))]  # 'ta' for 'at'
+                bad(f"unknown key '{k}'" + (f"; did you mean '{swapped[0]}'?" if swapped else
+                                            did_you_mean(str(k), keys)), key=str(k))
             if unknown:
-                bad(f"unknown key(s) {', '.join(map(repr, unknown))}; expected at, press, release, linear, angular, unplug, replug")
                 continue
             if "at" not in ev:
                 bad("missing 'at' (when the event happens, e.g. at: 2 s)")
@@ -224,7 +255,7 @@ class ScriptedJoystick:
             try:
                 at_s = parse_time_s(ev["at"])
             except ValueError as exc:
-                bad(f"at: {exc}")
+                bad(f"at: {exc}", "a time since the run started: 'at: 2 s', 'at: 500 ms'", "at", True)
                 continue
             actions = [k for k in _ACTION_KEYS if k in ev]
             sticks = [k for k in _STICK_KEYS if k in ev]
@@ -237,7 +268,9 @@ class ScriptedJoystick:
                     v = ev[k]
                     # Compared before float(): a huge int would overflow it, and NaN fails every comparison.
                     if isinstance(v, bool) or not isinstance(v, (int, float)) or not -1 <= v <= 1:
-                        bad(f"{k} must be a number from -1 to 1, got {v!r}")
+                        bad(f"{k} must be a number from -1 to 1 (the stick's position), got {v!r}",
+                            f"1 is the stick pushed all the way ({'forward' if k == AXIS_LINEAR else 'left'}), "
+                            f"-1 the other way, 0 centred: e.g. {k}: 0.8", k, True)
                         break
                     values[k] = float(v)
                 else:
@@ -247,16 +280,17 @@ class ScriptedJoystick:
             if action in ("press", "release"):
                 name = ev[action]
                 if name not in buttons:
-                    bad(f"{action}: no button '{name}' in the mapping (have: {', '.join(buttons)})")
+                    bad(f"{action}: no button '{name}' in the mapping{did_you_mean(str(name), list(buttons))}",
+                        f"the buttons, by role: {', '.join(buttons)}", action, True)
                     continue
                 out.append(ScriptEvent(at_s, action, button=name))
             else:
                 if ev[action] is not True:
-                    bad(f"write '{action}: true', got {ev[action]!r}")
+                    bad(f"write '{action}: true', got {ev[action]!r}", f"e.g. {{at: 10 s, {action}: true}}", action, True)
                     continue
                 out.append(ScriptEvent(at_s, action))
-        if errors:
-            raise ValueError("\n".join(errors))
+        if problems:
+            raise ScriptProblems(problems)
         # Stable sort: events at the same time keep their written order.
         return sorted(out, key=lambda e: e.at_s)
 

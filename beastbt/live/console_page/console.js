@@ -82,7 +82,10 @@ function render(s) {
   const st = $("status");
   st.textContent = s.estop && !ENDED.has(s.status) ? "e-stop" : s.status;
   st.className = "status " + s.status;
-  $("step").textContent = s.step;
+  // Ended: the outcome, and the step it ended in; paused, the state's step says so and names the step (both).
+  const over = ENDED.has(s.status);
+  $("step-label").textContent = over ? "" : "step:";
+  $("step").textContent = over && s.ended_at ? `${s.step} · last step: ${s.ended_at}` : s.step;
   const p = s.progress || {};
   const frac = p.total ? Math.min(1, p.done / p.total) : 0;
   $("progress-fill").style.width = (ENDED.has(s.status) && s.status === "succeeded" ? 100 : frac * 100) + "%";
@@ -114,6 +117,7 @@ function render(s) {
   renderTree(s.tree);
   renderEvents(s.events || []);
   mapDirty = true;
+  if (over) endVideo(s);
 }
 
 let eventsKey = "";
@@ -162,9 +166,19 @@ function renderTree(nodes) {
   if (deepest && deepest.id !== renderTree.lastTip) {
     renderTree.lastTip = deepest.id;
     const row = treeRows.get(deepest.id);
-    if (row) row.div.scrollIntoView({block: "nearest"});
+    if (row) followInTree(row.div);
   }
   $("tree-info").textContent = `${nodes.length} nodes`;
+}
+
+// Scroll the tree panel, and only it, to show a row: scrollIntoView would scroll the page too (on a phone the
+// question went under the header, on a desktop the panel titles). The row is kept in the part of the panel that is
+// on the screen (the whole panel when little of it is), a third of the way down: the steps done above, the next below.
+function followInTree(div) {
+  const t = $("tree"), row = div.getBoundingClientRect(), box = t.getBoundingClientRect();
+  let top = Math.max(box.top, $("top").getBoundingClientRect().bottom), bottom = Math.min(box.bottom, innerHeight);
+  if (bottom - top < 3 * row.height) { top = box.top; bottom = box.bottom; }
+  if (row.top < top || row.bottom > bottom) t.scrollTop += row.top - (top + (bottom - top) / 3);
 }
 
 function buildTree(nodes, ids) {
@@ -339,6 +353,7 @@ function connectVideo() {
       if (c.width !== bitmap.width) { c.width = bitmap.width; c.height = bitmap.height; }
       c.getContext("2d").drawImage(bitmap, 0, 0);
       bitmap.close();
+      if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
       const age = Date.now() - capturedMs;
       videoStats.ages.push(age);
       if (videoStats.ages.length > 500) videoStats.ages.shift();
@@ -348,6 +363,21 @@ function connectVideo() {
     busy = false;
   };
   ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
+}
+
+// At the end no frame comes any more: the last one (captioned "running") gets a band that says the run ended.
+function endVideo(s) {
+  const c = $("video"), g = c.getContext("2d");
+  const lines = [`ended: ${s.status} at t ${s.time_s.toFixed(1)} s`, `last step: ${s.ended_at || "-"}`];
+  const text = lines.join(" · ");
+  const size = Math.max(14, Math.round(c.height / 16));
+  g.fillStyle = "#101214"; g.fillRect(0, 0, c.width, Math.max(size * 3.2, c.height * 0.2));  // over the caption
+  g.fillStyle = s.status === "succeeded" ? "#4caf50" : "#e5534b"; g.font = `bold ${size}px sans-serif`;
+  g.fillText(lines[0], size * 0.5, size * 1.25);
+  g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
+  g.fillText(lines[1], size * 0.5, size * 2.6);
+  c.dataset.ended = text;  // what the band says, for the tests
+  $("video-info").textContent = "the run has ended";
 }
 
 // ---- driving: the on-page joystick and the browser's gamepad ---------------------------------------
