@@ -10,8 +10,10 @@ Prints, per physics step (the robot driving, slip noise on, as in a run):
    comparison: one ``clearance`` and one
    swept test (``free_fraction`` forced) in the crowded yard, which is what a
    step would cost if the lower bound never spared it;
-4. the patrol's real-time factor on worlds/corridor.yaml against the same run
-   in the same corridor without its walls (whole runs through ``execute``).
+4. the patrol's real-time factor on worlds/corridor.yaml, and on
+   worlds/corridor_person.yaml (the person meets the robot, waits and steps
+   around it), against the same run in the same corridor without its walls
+   (whole runs through ``execute``, robots/sim.yaml with its LiDAR).
 
 The bound (``beastbt.sim.contact``) skips the geometry while everything is
 further than the robot can reach, so items 1-2 should stay close to 1x.
@@ -148,8 +150,10 @@ def main() -> None:
         bare.write_text(yaml.safe_dump({k: v for k, v in corridor.data.items() if k != "walls"}))
         rtf_bare = max(patrol_rtf(str(bare)) for _ in range(3))
         rtf_walls = max(patrol_rtf(str(REPO / "worlds" / "corridor.yaml")) for _ in range(3))
+        rtf_person = max(patrol_rtf(str(REPO / "worlds" / "corridor_person.yaml")) for _ in range(3))
     print(f"patrol real-time factor (best of 3): corridor without walls {rtf_bare:5.0f}x, with its walls "
-          f"{rtf_walls:5.0f}x (ratio {rtf_walls / rtf_bare:.2f})")
+          f"{rtf_walls:5.0f}x (ratio {rtf_walls / rtf_bare:.2f}), with the pacing person giving way "
+          f"{rtf_person:5.0f}x (ratio {rtf_person / rtf_bare:.2f})")
 
 
 if __name__ == "__main__":

@@ -111,8 +111,8 @@ def test_a_looping_person_goes_back_and_forth_on_an_open_path_and_around_a_close
     assert square.position_at(5.5) == pytest.approx((1.0, 0.5))
 
 
-def test_a_person_stops_at_a_standing_robot_and_walks_on_when_it_has_gone():
-    person = Person(radius_m=0.25, speed_mps=1.0, path=((3.0, 0.0), (-3.0, 0.0)))
+def test_a_person_who_does_not_give_way_stops_at_contact_and_walks_on_when_the_robot_has_gone():
+    person = Person(radius_m=0.25, speed_mps=1.0, path=((3.0, 0.0), (-3.0, 0.0)), gives_way=False)
     sim = drive_sim(obstacles=[person])
     for _ in range(400):  # 4 s: the person would be at -1 m if nothing stood in its way
         sim.step(0.01)
@@ -245,7 +245,7 @@ walls: [[-1, -1.5, 8, -1.5], [-1, 1.5, 8, 1.5]]
 obstacles:
   - {shape: box, x: 2.0, y: 0.4, size_m: [0.3, 0.5], yaw_deg: 30}
   - {shape: cylinder, x: 4.0, y: -0.9, radius_m: 0.1}
-  - {shape: person, radius_m: 0.25, speed_mps: 0.6, path: [[5.0, 0.0], [-0.8, 0.0]]}
+  - {shape: person, radius_m: 0.25, speed_mps: 0.6, path: [[5.0, 0.0], [-0.8, 0.0]], gives_way: false}
 """)
     world = load_world(tmp_path / "w.yaml")
     h = MissionHarness.from_yaml("""mission: t

@@ -397,6 +397,18 @@ class CollisionMonitor:
         """For the run summary: the zones, and per action the episodes (events) and the ticks it cut a command."""
         return {"zones": self.zones(), "episodes": dict(self.episodes), "limited_ticks": dict(self.limited_ticks)}
 
+    def holding(self) -> Optional[str]:
+        """Why the last :meth:`limit` held a motion back (stop, approach, slow or a silent LiDAR), naming the nearest
+        point's distance (m from base_link) and bearing (deg, left positive); None when it let the command through.
+
+        What a step that makes no progress adds to its failure, so that "blocked" says what blocked it.
+        """
+        if self.action == NONE or self.ratio >= 1.0:
+            return None
+        what = {STOP: "stopped it", SLOW: f"slowed it to {self.ratio:.0%}", APPROACH: f"held it to {self.ratio:.0%}",
+                SILENT: "held it"}[self.action]
+        return f"the collision monitor {what}: {self.reason}"
+
     def status(self) -> dict[str, Any]:
         """What the last :meth:`limit` did: action (none/slow/approach/stop/silent), ratio, why, whose command."""
         return {"action": self.action, "ratio": self.ratio, "reason": self.reason, "source": self.limited_source}

@@ -124,6 +124,9 @@ class RunServices:
     obstacle_sensing: Optional[Any] = None
     """Where the LiDAR sits, the footprint and the scan rules for ``obstacle_within``
     (:class:`~beastbt.behaviours.obstacle_within.ObstacleSensing`); set by the LiDAR part."""
+    collision_hold: Callable[[], Optional[str]] = lambda: None
+    """Why the collision monitor holds the robot back now, naming the nearest obstacle's distance and bearing
+    (:meth:`~beastbt.actuation.collision_monitor.CollisionMonitor.holding`); None when it does not, or without one."""
     plugins: dict[str, Any] = field(default_factory=dict)
     """What parts from other packages offer their steps, by the part's name (see docs/extending.md)."""
 

@@ -11,6 +11,13 @@ from beastbt.blackboard.types import FusedPose
 from beastbt.estimation.estimator import wrap_angle
 
 
+def held_by(ctx: MissionContext) -> str:
+    """What a step that makes no progress adds to its failure: ``"; "`` and why the collision monitor holds the robot
+    (the nearest obstacle's distance and bearing), or ``""`` when it does not."""
+    why = ctx.services.collision_hold()
+    return f"; {why}" if why else ""
+
+
 class _Straight(BeastBehaviour):
     """Shared heading hold for straight driving on the odometry pose."""
 
@@ -80,7 +87,8 @@ class DriveDistance(_Straight):
                 return self.fail(NO_ODOMETRY.format(what="the distance driven") + "; drive for a time instead: "
                                  f"drive: {{time: {abs(self.distance_m) / max(self.speed_mps, 1e-3):.0f} s, "
                                  f"speed: {self.speed_mps:g} m/s}}")
-            return self.fail(f"blocked: no progress for {self.stuck_after_s:g} s after {covered:.2f} m")
+            return self.fail(f"blocked: no progress for {self.stuck_after_s:g} s after {covered:.2f} m"
+                             + held_by(self.ctx))
         speed = min(self.speed_mps, max(p.min_drive_speed_mps, math.sqrt(2.0 * p.decel_mps2 * remaining)))
         self.command(direction * speed, self.steer(pose))
         self.feedback_message = f"{covered:.2f} of {abs(self.distance_m):.2f} m"

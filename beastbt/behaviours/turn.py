@@ -7,6 +7,7 @@ from typing import Optional
 
 from beastbt.behaviours.base import NO_ODOMETRY, BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
+from beastbt.behaviours.drive import held_by
 from beastbt.estimation.estimator import wrap_angle
 
 
@@ -40,7 +41,8 @@ class _TurnInPlace(BeastBehaviour):
             self.command(0.0, 0.0)
             if "odometry" in self.READS and self.read("odometry") is None:
                 return self.fail(NO_ODOMETRY.format(what="the angle turned"))
-            return self.fail(f"no progress for {self.stuck_after_s:g} s, {math.degrees(err_rad):.1f} deg to go")
+            return self.fail(f"no progress for {self.stuck_after_s:g} s, {math.degrees(err_rad):.1f} deg to go"
+                             + held_by(self.ctx))
         rate = max(p.min_turn_rate_rps, min(self.rate_rps, p.turn_gain * abs(err_rad)))
         self.command(0.0, math.copysign(rate, err_rad))
         self.feedback_message = f"{math.degrees(err_rad):.1f} deg to go"

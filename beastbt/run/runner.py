@@ -115,6 +115,8 @@ class MissionRun:
         self.watchdog, self.watchdog_checked_by = guard_actuators(io, clock, profile, events)
         self.collision_monitor = guard_collisions(profile, events, self.latest_scan)
         """The collision monitor (profiles with ``lidar:``), applied to every command between the mux and the gate."""
+        if self.collision_monitor is not None:
+            self.ctx.services.collision_hold = self.collision_monitor.holding  # for a blocked step's reason
         self._no_scan_source_said = False
         self.odom = OdometryEstimator(profile.track_width_m)
         self.estimator: Optional[Estimator] = estimator

@@ -15,8 +15,29 @@ that radius: a wall becomes a capsule, a cylinder or a person a larger circle.
 - :meth:`ContactWorld.observe` keeps the run's truth: ``collisions`` (contact
   episodes, each counted once until the footprint is :data:`CLEAR_AFTER_M`
   clear of everything again) and ``min_clearance_m``.
-- :meth:`ContactWorld.advance_persons` walks the persons; one who would walk
-  into the robot stops at contact (it does not push) and walks on once it can.
+- :meth:`ContactWorld.advance_persons` walks the persons. A person who gives
+  way (the default) keeps its ``keeps_m`` from the robot's footprint, waits,
+  and after ``patience_s`` steps around the robot on the side with room (walls
+  and fixed obstacles respected), then rejoins its path; with no room on
+  either side it waits on. One with ``gives_way: false`` walks until contact
+  (it does not push) and walks on once it can.
+
+How a person steps around: its place is a point of its path plus a sideways
+offset (across the leg it is on, as the path is written, so the offset keeps
+its side on the way back of a back-and-forth path). It waits while its next
+step would come within ``keeps_m`` of the footprint; once it has waited
+``patience_s`` it picks the offset that passes the robot ``keeps_m`` (plus
+:data:`PASS_MARGIN_M`) away: on a side not ahead of where the robot faces,
+then the side that needs the smaller step, then the person's right; a side
+counts where the step sideways keeps half its ``keeps_m``
+(:data:`STEP_ASIDE_KEEPS`) from the robot and the person fits
+(:data:`ROOM_MARGIN_M` from walls and fixed obstacles) all along the step and
+the pass. It steps sideways there at its walking speed, walks on beside the
+robot, and once the robot is behind it drifts back onto its path. Every move
+is checked against the robot where it is now (a swept circle test): walking,
+a person's own move never brings it nearer than ``keeps_m``, stepping
+sideways than half of it (a robot that came nearer may only be stepped away
+from), so a person never walks into the robot, only a robot into a person.
 
 Most physics steps need no geometry at all: after an exact clearance at some
 place and time, the clearance anywhere else is at least that minus the distance
@@ -44,6 +65,34 @@ rocks against a wall counts one collision, not one per physics step)."""
 SMALL_WORLD: int = 32
 """Up to this many walls and obstacles, :meth:`ContactWorld.clearance` and the swept test run in plain floats
 (measured quicker than NumPy's cost per call up to about this many; benchmarks/sim_contact.py)."""
+
+PASS_MARGIN_M: float = 0.02
+"""A person passing the robot aims this much wider than its ``keeps_m`` (so walking past is not stopped by the
+robot's own wobble of a few millimetres), m."""
+
+STEP_ASIDE_KEEPS: float = 0.5
+"""While it steps sideways a person keeps at least this fraction of its ``keeps_m`` from the footprint (the step out
+from behind a robot it follows starts a little inside its personal distance, as people's do)."""
+
+ROOM_MARGIN_M: float = 0.02
+"""Where a person steps around the robot, it keeps at least this from walls and fixed obstacles, m."""
+
+ROOM_STEP_M: float = 0.1
+"""The room for a step around is checked at points this far apart along it, m."""
+
+REJOIN_RATE: float = 0.5
+"""Back onto its path, a person drifts sideways at this fraction of its walking speed (a gentle diagonal)."""
+
+AHEAD_COS: float = 0.3
+"""A place is ahead of the robot when the cosine of its bearing from the way the robot faces (or backs) is more than
+this (within about 72 degrees): a person stepping around the robot prefers a side that is not."""
+
+REJOIN_AHEAD_M: float = 1.0
+"""A person beside its path drifts back onto it once the robot is behind it, or farther than its personal distance
+plus this (a robot far ahead is not yet in the way), m."""
+
+RETHINK_S: float = 0.5
+"""A person with no room to step around looks again this often, s (it waits meanwhile)."""
 
 _INF = math.inf
 
@@ -86,6 +135,14 @@ class ContactWorld:
         self.person_xy = np.array([p.path[0] for p in self.persons], dtype=float).reshape(-1, 2)
         """Where each person is now (m, world frame)."""
         self._person_r = np.array([p.radius_m for p in self.persons], dtype=float) + self.radius_m
+        self.person_offset_m = [0.0] * len(self.persons)
+        """How far each person is beside its path, m (left of the leg it is on, as the path is written)."""
+        self.person_waited_s = [0.0] * len(self.persons)
+        """How long each person has been held up by the robot so far, s (0 while it walks freely)."""
+        self.person_aside_to_m: list[Optional[float]] = [None] * len(self.persons)
+        """The offset each person is stepping sideways to (m), or None when it is not stepping aside."""
+        self._look_at_s = [p.patience_s for p in self.persons]  # waited this long, a person looks for a side, s
+        self._robot_way = (0.0, 0.0)  # the unit vector of where the robot is going (it faces, or backs), world frame
         self._persons_moved_m = 0.0  # the most any person can have come closer since the last exact look, m
         self.collisions = 0
         """Distinct contact episodes so far."""
@@ -115,8 +172,24 @@ class ContactWorld:
             return self._clearance_small(x, y)
         return self._clearance_numpy(x, y)
 
+    def fixed_distance(self, x: float, y: float) -> float:
+        """Distance from the point (x, y) to the nearest wall, box or cylinder, m (negative inside a box; inf if none).
+
+        What a person stepping around the robot keeps clear of (the robot and the persons are not counted).
+        """
+        if self._small:
+            return self._fixed_small(x, y)
+        return self._fixed_numpy(x, y)
+
     def _clearance_small(self, x: float, y: float) -> float:
         """:meth:`clearance` in plain floats, one thing at a time."""
+        best = self._fixed_small(x, y)
+        for (px, py), person in zip(self.person_xy.tolist(), self.persons):
+            best = min(best, math.hypot(x - px, y - py) - person.radius_m)
+        return best - self.radius_m
+
+    def _fixed_small(self, x: float, y: float) -> float:
+        """:meth:`fixed_distance` in plain floats."""
         best = _INF
         for ax, ay, dx, dy, l2 in self._walls_py:
             rx, ry = x - ax, y - ay
@@ -128,12 +201,18 @@ class ContactWorld:
             rx, ry = x - cx, y - cy
             lx, ly = abs(rx * c + ry * s) - hx, abs(-rx * s + ry * c) - hy
             best = min(best, math.hypot(max(lx, 0.0), max(ly, 0.0)) + min(max(lx, ly), 0.0))
-        for (px, py), person in zip(self.person_xy.tolist(), self.persons):
-            best = min(best, math.hypot(x - px, y - py) - person.radius_m)
-        return best - self.radius_m
+        return best
 
     def _clearance_numpy(self, x: float, y: float) -> float:
         """:meth:`clearance` vectorised over each kind of thing."""
+        best = self._fixed_numpy(x, y)
+        if len(self.persons):
+            d = np.hypot(self.person_xy[:, 0] - x, self.person_xy[:, 1] - y) - self._person_r
+            best = min(best, float(d.min()) + self.radius_m)
+        return best - self.radius_m
+
+    def _fixed_numpy(self, x: float, y: float) -> float:
+        """:meth:`fixed_distance` vectorised over each kind of thing."""
         best = _INF
         if len(self._wall_a):
             rel = np.array((x, y)) - self._wall_a
@@ -141,7 +220,8 @@ class ContactWorld:
             off = rel - t[:, None] * self._wall_d
             best = float(np.sqrt(np.einsum("ij,ij->i", off, off).min()))
         if self._n_cyl:
-            d = np.hypot(self._circ_c[:self._n_cyl, 0] - x, self._circ_c[:self._n_cyl, 1] - y) - self._circ_r[:self._n_cyl]
+            n = self._n_cyl
+            d = np.hypot(self._circ_c[:n, 0] - x, self._circ_c[:n, 1] - y) - self._circ_r[:n]
             best = min(best, float(d.min()) + self.radius_m)
         if len(self._box_c):
             rel = np.array((x, y)) - self._box_c
@@ -149,10 +229,7 @@ class ContactWorld:
             ly = np.abs(-rel[:, 0] * self._box_cs[:, 1] + rel[:, 1] * self._box_cs[:, 0]) - self._box_h[:, 1]
             sdf = np.hypot(np.maximum(lx, 0.0), np.maximum(ly, 0.0)) + np.minimum(np.maximum(lx, ly), 0.0)
             best = min(best, float(sdf.min()))
-        if len(self.persons):
-            d = np.hypot(self.person_xy[:, 0] - x, self.person_xy[:, 1] - y) - self._person_r
-            best = min(best, float(d.min()) + self.radius_m)
-        return best - self.radius_m
+        return best
 
     def free_fraction(self, x0: float, y0: float, x1: float, y1: float) -> float:
         """The fraction (0 to 1) of the straight move from (x0, y0) to (x1, y1) (m) the footprint makes before contact.
@@ -206,30 +283,208 @@ class ContactWorld:
         return s
 
     # -- persons ------------------------------------------------------------------
-    def advance_persons(self, t_s: float, dt_s: float, robot_x: float, robot_y: float) -> None:
-        """Walk every person for the step of ``dt_s`` ending at ``t_s`` (s), stopping at contact with the robot at
-        (``robot_x``, ``robot_y``) (m).
+    def advance_persons(self, t_s: float, dt_s: float, robot_x: float, robot_y: float,
+                        robot_yaw: Optional[float] = None, robot_v_mps: float = 0.0) -> None:
+        """Walk every person for the step of ``dt_s`` ending at ``t_s`` (s), around the robot at
+        (``robot_x``, ``robot_y``) (m) facing ``robot_yaw`` (rad; None: unknown) and driving at ``robot_v_mps``
+        (m/s, negative backwards): as the module docstring says, giving way, or with ``gives_way: false`` stopping
+        at contact.
 
-        A person held up by the robot walks on from where it stopped, at its own speed (it does not run to catch up
+        A person held up by the robot walks on from where it is, at its own speed (it does not run to catch up
         with its timetable).
         """
         farthest = 0.0
+        if robot_yaw is None:
+            self._robot_way = (0.0, 0.0)
+        else:
+            way = -1.0 if robot_v_mps < 0.0 else 1.0
+            self._robot_way = (way * math.cos(robot_yaw), way * math.sin(robot_yaw))
         for i, person in enumerate(self.persons):
             walking_s = min(dt_s, t_s - person.start_s)
             if walking_s <= 0.0 or person.speed_mps <= 0.0:
                 continue
-            walked = self.person_walked_m[i]
-            if not person.loop and walked >= person.length_m:
-                continue  # standing at its end for good
-            target = walked + person.speed_mps * walking_s
-            qx, qy = float(self.person_xy[i, 0]), float(self.person_xy[i, 1])
-            nx, ny = person.point_at(target)
-            s = _sweep_circle(qx, qy, nx - qx, ny - qy, robot_x, robot_y, person.radius_m + self.radius_m)
-            s = min(s, 1.0)  # below 1: it stops at the robot, as far along as it got
-            self.person_walked_m[i] = walked + s * (target - walked)
-            self.person_xy[i, 0], self.person_xy[i, 1] = qx + s * (nx - qx), qy + s * (ny - qy)
-            farthest = max(farthest, s * math.hypot(nx - qx, ny - qy))
+            if person.gives_way:
+                moved = self._give_way(i, person, walking_s, robot_x, robot_y)
+            else:
+                moved = self._walk_into(i, person, walking_s, robot_x, robot_y)
+            farthest = max(farthest, moved)
         self._persons_moved_m += farthest  # the bound: no person came closer than this since the last look
+
+    def _walk_into(self, i: int, person: Person, dt_s: float, robot_x: float, robot_y: float) -> float:
+        """One step of a person who does not give way: on along its path until contact. Returns how far it moved, m."""
+        walked = self.person_walked_m[i]
+        if not person.loop and walked >= person.length_m:
+            return 0.0  # standing at its end for good
+        target = walked + person.speed_mps * dt_s
+        qx, qy = float(self.person_xy[i, 0]), float(self.person_xy[i, 1])
+        nx, ny = person.point_at(target)
+        s = _sweep_circle(qx, qy, nx - qx, ny - qy, robot_x, robot_y, person.radius_m + self.radius_m)
+        s = min(s, 1.0)  # below 1: it stops at the robot, as far along as it got
+        self.person_walked_m[i] = walked + s * (target - walked)
+        self.person_xy[i, 0], self.person_xy[i, 1] = qx + s * (nx - qx), qy + s * (ny - qy)
+        return s * math.hypot(nx - qx, ny - qy)
+
+    def _person_at(self, person: Person, walked_m: float, offset_m: float) -> tuple[float, float]:
+        """Where a person is after ``walked_m`` along its path and ``offset_m`` beside it (m, world frame)."""
+        x, y, ux, uy, _ = person.place_at(walked_m)
+        return x - offset_m * uy, y + offset_m * ux
+
+    def _fits(self, person: Person, x: float, y: float, walked_m: float) -> bool:
+        """Whether a person off its path at (x, y) (m) is clear of walls and fixed obstacles: by
+        :data:`ROOM_MARGIN_M`, or at least as clear as its path is there (a path that runs close to a wall)."""
+        need = person.radius_m + ROOM_MARGIN_M
+        gap = self.fixed_distance(x, y)
+        if gap >= need:
+            return True
+        px, py = person.point_at(walked_m)
+        return gap >= min(need, self.fixed_distance(px, py))
+
+    def _give_way(self, i: int, person: Person, dt_s: float, robot_x: float, robot_y: float) -> float:
+        """One step of a person who gives way to the robot. Returns how far it moved, m."""
+        walked, offset = self.person_walked_m[i], self.person_offset_m[i]
+        qx, qy = float(self.person_xy[i, 0]), float(self.person_xy[i, 1])
+        step = person.speed_mps * dt_s
+        touch = person.radius_m + self.radius_m
+        aside = self.person_aside_to_m[i]
+        if offset == 0.0 and aside is None and (person.loop or walked < person.length_m):
+            # The common case, on its path with the robot out of reach of this step: no more than before persons
+            # gave way (one point of the path, one distance).
+            reach = touch + person.keeps_m + step
+            if (qx - robot_x) ** 2 + (qy - robot_y) ** 2 > reach * reach:
+                ahead = walked + step if person.loop else min(walked + step, person.length_m)
+                x, y = person.point_at(ahead)
+                self.person_waited_s[i] = 0.0
+                self._look_at_s[i] = person.patience_s
+                return self._move(i, ahead, x, y, qx, qy)
+        if aside is not None:  # stepping sideways, out of the robot's way
+            o = _toward(offset, aside, step)
+            x, y = self._person_at(person, walked, o)
+            # Most of its personal distance holds here too; a robot that came nearer may only be stepped away from.
+            if (_sweep_circle(qx, qy, x - qx, y - qy, robot_x, robot_y, touch + STEP_ASIDE_KEEPS * person.keeps_m) > 1.0
+                    and self._fits(person, x, y, walked)):
+                self.person_offset_m[i] = o
+                if o == aside:  # out of the way: walk on beside the robot (and wait afresh if it is still there)
+                    self.person_aside_to_m[i] = None
+                    self.person_waited_s[i] = 0.0
+                    self._look_at_s[i] = person.patience_s
+                return self._move(i, walked, x, y, qx, qy)
+            # The robot moved into the way of the step: wait, and look for a side again a little later.
+            self.person_aside_to_m[i] = None
+            self.person_waited_s[i] += dt_s
+            self._look_at_s[i] = self.person_waited_s[i] + RETHINK_S
+            return 0.0
+        keep = touch + person.keeps_m
+        if not person.loop and walked >= person.length_m:  # at its end: back onto it if it can, then stands
+            if offset == 0.0:
+                return 0.0
+            o = _toward(offset, 0.0, REJOIN_RATE * step)
+            x, y = self._person_at(person, walked, o)
+            if _sweep_circle(qx, qy, x - qx, y - qy, robot_x, robot_y, keep) > 1.0 and self._fits(person, x, y, walked):
+                self.person_offset_m[i] = o
+                return self._move(i, walked, x, y, qx, qy)
+            return 0.0
+        ahead = walked + step if person.loop else min(walked + step, person.length_m)
+        candidates = []
+        if offset != 0.0 and self._may_rejoin(person, walked, offset, keep, robot_x, robot_y):
+            candidates.append((ahead, _toward(offset, 0.0, REJOIN_RATE * step)))  # drift back onto the path
+        candidates.append((ahead, offset))
+        for n, (w, o) in enumerate(candidates):
+            x, y = self._person_at(person, w, o)
+            s = _sweep_circle(qx, qy, x - qx, y - qy, robot_x, robot_y, keep)
+            if o != 0.0 and not self._fits(person, x, y, w):
+                continue
+            if s > 1.0:
+                self.person_offset_m[i] = o
+                self.person_waited_s[i] = 0.0
+                self._look_at_s[i] = person.patience_s
+                return self._move(i, w, x, y, qx, qy)
+            if n == len(candidates) - 1 and s > 0.0:
+                # Held up: as far as its personal distance allows (it stops keeps_m from the robot).
+                w = walked + s * (w - walked)
+                x, y = self._person_at(person, w, o)
+                self._move(i, w, x, y, qx, qy)
+                self._held(i, person, dt_s, robot_x, robot_y)
+                return math.hypot(x - qx, y - qy)
+        return self._held(i, person, dt_s, robot_x, robot_y)
+
+    def _move(self, i: int, walked_m: float, x: float, y: float, qx: float, qy: float) -> float:
+        """Put person ``i`` at (x, y) (m), ``walked_m`` along its path, from (qx, qy); returns how far it moved, m."""
+        self.person_walked_m[i] = walked_m
+        self.person_xy[i, 0], self.person_xy[i, 1] = x, y
+        return math.hypot(x - qx, y - qy)
+
+    def _held(self, i: int, person: Person, dt_s: float, robot_x: float, robot_y: float) -> float:
+        """Person ``i`` is held up by the robot for ``dt_s`` (s): once it has waited its patience it picks a side to
+        step around to, or, with no room on either, waits and looks again after :data:`RETHINK_S`. Returns 0 (m)."""
+        waited = self.person_waited_s[i] + dt_s
+        self.person_waited_s[i] = waited
+        if waited >= self._look_at_s[i]:
+            side = self._side_with_room(i, person, robot_x, robot_y)
+            if side is None:
+                self._look_at_s[i] = waited + RETHINK_S
+            else:
+                self.person_aside_to_m[i] = side
+        return 0.0
+
+    def _may_rejoin(self, person: Person, walked_m: float, offset_m: float, keep_m: float,
+                    robot_x: float, robot_y: float) -> bool:
+        """Whether a person beside its path may drift back onto it: once the robot is behind it (seen along the way
+        it walks), or more than :data:`REJOIN_AHEAD_M` beyond its personal distance (``keep_m``, centre to centre)."""
+        x, y, ux, uy, way = person.place_at(walked_m)
+        x, y = x - offset_m * uy, y + offset_m * ux
+        if math.hypot(robot_x - x, robot_y - y) > keep_m + REJOIN_AHEAD_M:
+            return True
+        return ((robot_x - x) * ux + (robot_y - y) * uy) * way < 0.0
+
+    def _side_with_room(self, i: int, person: Person, robot_x: float, robot_y: float) -> Optional[float]:
+        """The offset (m) person ``i`` steps to so as to pass the robot at (robot_x, robot_y), or None: no room.
+
+        Of the offsets that pass it ``keeps_m`` + :data:`PASS_MARGIN_M` away on either side: one not ahead of the
+        robot (within :data:`AHEAD_COS` of the way it faces, or backs; a robot held by its collision monitor still
+        faces where it is going), then the nearer, then the person's right; among those where the step sideways
+        comes no nearer the robot than :data:`STEP_ASIDE_KEEPS` of ``keeps_m`` (or than it is, when the robot came
+        nearer) and the person fits (:meth:`_fits`) all along the step and the pass.
+        """
+        walked, offset = self.person_walked_m[i], self.person_offset_m[i]
+        bx, by, ux, uy, way = person.place_at(walked)
+        touch = person.radius_m + self.radius_m
+        lateral = -(robot_x - bx) * uy + (robot_y - by) * ux  # the robot's offset from the path here, m
+        along = ((robot_x - bx) * ux + (robot_y - by) * uy) * way  # how far ahead of the person it is, m
+        pass_m = touch + person.keeps_m + PASS_MARGIN_M
+        qx, qy = float(self.person_xy[i, 0]), float(self.person_xy[i, 1])
+        best: Optional[tuple[float, int, float]] = None
+        for side in (1.0, -1.0):
+            target = lateral + side * pass_m
+            tx, ty = self._person_at(person, walked, target)
+            near = min(touch + STEP_ASIDE_KEEPS * person.keeps_m, math.hypot(robot_x - qx, robot_y - qy))
+            if _segment_distance(robot_x, robot_y, qx, qy, tx, ty) < near - 1e-9:
+                continue  # the step would come too near the robot (or nearer to a robot already that near)
+            if not self._room_along(person, walked, offset, target, max(0.0, along) + pass_m):
+                continue
+            hx, hy = self._robot_way
+            in_front = (tx - robot_x) * hx + (ty - robot_y) * hy > AHEAD_COS * math.hypot(tx - robot_x, ty - robot_y)
+            rank = (in_front, abs(target - offset), 0 if side == -way else 1, target)  # -way: the person's right
+            if best is None or rank < best:
+                best = rank
+        return None if best is None else best[-1]
+
+    def _room_along(self, person: Person, walked_m: float, offset_m: float, target_m: float, pass_m: float) -> bool:
+        """Whether a person fits all along a step sideways from ``offset_m`` to ``target_m`` at ``walked_m`` and on
+        for ``pass_m`` at ``target_m`` (m), looked at every :data:`ROOM_STEP_M`."""
+        n = max(1, math.ceil(abs(target_m - offset_m) / ROOM_STEP_M))
+        for k in range(1, n + 1):
+            o = offset_m + (target_m - offset_m) * k / n
+            if not self._fits(person, *self._person_at(person, walked_m, o), walked_m):
+                return False
+        end = walked_m + pass_m
+        if not person.loop:
+            end = min(end, person.length_m)
+        n = math.ceil((end - walked_m) / ROOM_STEP_M)
+        for k in range(1, n + 1):
+            w = walked_m + (end - walked_m) * k / n
+            if not self._fits(person, *self._person_at(person, w, target_m), w):
+                return False
+        return True
 
     # -- truth --------------------------------------------------------------------
     def observe(self, x: float, y: float) -> None:
@@ -273,6 +528,21 @@ def _segment(w: object) -> tuple[float, float, float, float]:
         return float(w.x1), float(w.y1), float(w.x2), float(w.y2)  # type: ignore[attr-defined]
     x1, y1, x2, y2 = w  # type: ignore[misc]
     return float(x1), float(y1), float(x2), float(y2)
+
+
+def _toward(value: float, target: float, step: float) -> float:
+    """``value`` moved toward ``target`` by at most ``step`` (landing on it exactly)."""
+    if abs(target - value) <= step:
+        return target
+    return value + step if target > value else value - step
+
+
+def _segment_distance(px: float, py: float, ax: float, ay: float, bx: float, by: float) -> float:
+    """Distance from the point (px, py) to the segment from (ax, ay) to (bx, by), m."""
+    dx, dy = bx - ax, by - ay
+    l2 = dx * dx + dy * dy
+    t = 0.0 if l2 == 0.0 else min(1.0, max(0.0, ((px - ax) * dx + (py - ay) * dy) / l2))
+    return math.hypot(px - ax - t * dx, py - ay - t * dy)
 
 
 def _sweep_circle(x0: float, y0: float, dx: float, dy: float, cx: float, cy: float, radius: float) -> float:
@@ -329,4 +599,5 @@ def _sweep_slabs(p0: np.ndarray, d: np.ndarray, a: np.ndarray, u: np.ndarray, le
     return np.where(inside, np.where(y0 * dy < 0.0, 0.0, _INF), np.where(hit, s, _INF))
 
 
-__all__ = ["ContactWorld", "CONTACT_M", "CLEAR_AFTER_M"]
+__all__ = ["ContactWorld", "CONTACT_M", "CLEAR_AFTER_M", "PASS_MARGIN_M", "STEP_ASIDE_KEEPS", "ROOM_MARGIN_M",
+           "ROOM_STEP_M", "REJOIN_RATE", "REJOIN_AHEAD_M", "RETHINK_S", "AHEAD_COS"]

@@ -123,7 +123,8 @@ class DiffDriveSim:
         m = self.model
         contact = self.contact
         if contact is not None and contact.persons:
-            contact.advance_persons(t.t_s + dt, dt, t.x, t.y)  # the persons walk first; the robot then meets them
+            # The persons walk first (knowing where the robot is and where it is going); the robot then meets them.
+            contact.advance_persons(t.t_s + dt, dt, t.x, t.y, t.yaw, t.v_mps)
         vl = self._side(t.left_mps, self.target_left_mps, dt)
         vr = self._side(t.right_mps, self.target_right_mps, dt)
         if vl == 0.0 and vr == 0.0:

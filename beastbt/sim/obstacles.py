@@ -11,8 +11,16 @@ path at ``speed_mps``. With ``loop: false`` it stands at the end for good. With
 ``loop: true`` it walks for ever: around again when the path is closed (its
 last point is its first), else back and forth along it. Where it is depends on
 how far it has walked (:meth:`Person.point_at`), not on the clock alone, because
-a person who meets the robot stops there and walks on later (see
-:class:`beastbt.sim.contact.ContactWorld`).
+a person who meets the robot waits, or steps around it, and walks on later.
+
+A person gives way to the robot as people do (``gives_way``, the default): it
+keeps ``keeps_m`` between itself and the robot's footprint, waits, and when the
+robot stays in its way for ``patience_s`` steps around it on the side with
+room, then rejoins its path. With ``gives_way: false`` it walks on until it
+touches the robot (a test of the robot's own collision monitor). What a person
+does from step to step is in :class:`beastbt.sim.contact.ContactWorld`, which
+knows the robot, the walls and the fixed obstacles; here are only the records
+and the geometry of the path.
 """
 
 from __future__ import annotations
@@ -59,7 +67,9 @@ class CylinderObstacle:
 class Person:
     """A person seen from above as a circle of ``radius_m`` (m) who walks ``path`` (m) at ``speed_mps`` (m/s).
 
-    It sets off at ``start_s`` (s of simulated time); ``loop`` as the module docstring says.
+    It sets off at ``start_s`` (s of simulated time); ``loop`` as the module docstring says. ``gives_way``: it keeps
+    ``keeps_m`` (m) between itself and the robot's footprint and steps around a robot that stays in its way for
+    ``patience_s`` (s); False: it walks until it touches the robot. The defaults are the world schema's.
     """
 
     radius_m: float
@@ -67,6 +77,9 @@ class Person:
     path: tuple[tuple[float, float], ...]
     start_s: float = 0.0
     loop: bool = False
+    keeps_m: float = 0.3
+    patience_s: float = 1.5
+    gives_way: bool = True
 
     @cached_property
     def legs_m(self) -> tuple[float, ...]:
@@ -78,12 +91,18 @@ class Person:
         """Length of the path, m."""
         return sum(self.legs_m)
 
-    @property
+    @cached_property
     def closed(self) -> bool:
         """True when the path ends where it starts (and has somewhere to go)."""
         return (len(self.path) > 2 and self.length_m > 0
                 and math.hypot(self.path[-1][0] - self.path[0][0], self.path[-1][1] - self.path[0][1])
                 <= CLOSED_PATH_TOLERANCE_M)
+
+    @cached_property
+    def _legs(self) -> tuple[tuple[float, float, float, float, float, float, float], ...]:
+        """``(ax, ay, dx, dy, length, ux, uy)`` of each leg of some length (m; u the unit vector along it)."""
+        return tuple((a[0], a[1], b[0] - a[0], b[1] - a[1], leg, (b[0] - a[0]) / leg, (b[1] - a[1]) / leg)
+                     for a, b, leg in zip(self.path, self.path[1:], self.legs_m) if leg > 0)
 
     def walked_by(self, t_s: float) -> float:
         """How far the person has walked at ``t_s`` if nothing stopped it, m."""
@@ -91,23 +110,38 @@ class Person:
 
     def point_at(self, walked_m: float) -> tuple[float, float]:
         """Where the person is after walking ``walked_m`` metres from the path's start (m, world frame)."""
+        x, y, _, _, _ = self.place_at(walked_m)
+        return x, y
+
+    def place_at(self, walked_m: float) -> tuple[float, float, float, float, float]:
+        """``(x, y, ux, uy, way)`` after walking ``walked_m`` metres: where (m, world frame), the unit vector of the
+        leg it is on as the path is written, and ``way`` +1 when it walks that leg forwards, -1 backwards (the
+        way back of a back-and-forth loop). A path of one point, or of no length, has the leg (1, 0)."""
         length = self.length_m
-        if length <= 0.0 or walked_m <= 0.0:
-            return self.path[0]
+        if length <= 0.0:
+            return self.path[0][0], self.path[0][1], 1.0, 0.0, 1.0
+        way = 1.0
         if walked_m >= length:
             if not self.loop:
-                return self.path[-1]
+                last = self._legs[-1]
+                return self.path[-1][0], self.path[-1][1], last[5], last[6], 1.0  # its last point, exactly
             if self.closed:
                 walked_m = math.fmod(walked_m, length)
             else:  # back and forth: odd laps walk the path backwards
                 lap, along = divmod(walked_m, length)
-                walked_m = along if int(lap) % 2 == 0 else length - along
-        for (ax, ay), (bx, by), leg in zip(self.path, self.path[1:], self.legs_m):
-            if walked_m <= leg and leg > 0:
+                if int(lap) % 2 == 0:
+                    walked_m = along
+                else:
+                    walked_m, way = length - along, -1.0
+        elif walked_m < 0.0:
+            walked_m = 0.0
+        for ax, ay, dx, dy, leg, ux, uy in self._legs:
+            if walked_m <= leg:
                 f = walked_m / leg
-                return ax + f * (bx - ax), ay + f * (by - ay)
+                return ax + f * dx, ay + f * dy, ux, uy, way
             walked_m -= leg
-        return self.path[-1]
+        last = self._legs[-1]  # past the end by a rounding
+        return last[0] + last[2], last[1] + last[3], last[5], last[6], way
 
     def position_at(self, t_s: float) -> tuple[float, float]:
         """Where the person is at ``t_s`` (s) if nothing stopped it on the way (m, world frame)."""
@@ -136,7 +170,10 @@ def obstacle_of(d: dict) -> Obstacle:
                       speed_mps=float(d.get("speed_mps", _default("person", "speed_mps"))),
                       path=tuple((float(p[0]), float(p[1])) for p in d["path"]),
                       start_s=float(d.get("start_s", _default("person", "start_s"))),
-                      loop=bool(d.get("loop", _default("person", "loop"))))
+                      loop=bool(d.get("loop", _default("person", "loop"))),
+                      keeps_m=float(d.get("keeps_m", _default("person", "keeps_m"))),
+                      patience_s=float(d.get("patience_s", _default("person", "patience_s"))),
+                      gives_way=bool(d.get("gives_way", _default("person", "gives_way"))))
     raise ValueError(f"unknown obstacle shape {shape!r}")
 
 
