@@ -126,3 +126,12 @@ def assert_real_plot(path: Path, size_in: tuple[float, float], dpi: int) -> None
     # Colour, not only black axes: the data lines are drawn in colour.
     colourful = float((img[..., :3].max(axis=2) - img[..., :3].min(axis=2) > 0.2).mean())
     assert colourful > 0.001, f"{path.name}: no coloured pixels ({colourful:.3%})"
+
+
+def rude_person_world(folder) -> str:
+    """worlds/corridor_person.yaml with a person who does not give way (``gives_way: false``): it walks into the
+    standing robot, the contact these views must show (a person who gives way never touches it)."""
+    text = (REPO / "worlds" / "corridor_person.yaml").read_text(encoding="utf-8")
+    path = folder / "corridor_rude_person.yaml"
+    path.write_text(text.replace("    loop: true", "    gives_way: false\n    loop: true", 1), encoding="utf-8")
+    return str(path)

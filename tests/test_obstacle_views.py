@@ -29,6 +29,7 @@ from beastbt.recording.foxglove_live import LATCHED
 from beastbt.recording.schemas import CHANNELS
 from beastbt.run.session import RunOptions, execute
 from conftest import REPO
+from recording_support import rude_person_world
 
 OFFICIAL = REPO / "tests" / "data" / "foxglove"
 PERSON_WORLD = REPO / "worlds" / "corridor_person.yaml"
@@ -100,11 +101,14 @@ def test_the_zones_ride_on_base_link_and_the_acting_one_is_drawn_bold():
     assert stop["entities"][0]["texts"][0]["text"] == "collision monitor: stop" and not quiet["entities"][0]["texts"]
 
 
+
+
 @pytest.fixture(scope="module")
 def person_run(tmp_path_factory):
     """16 s standing in the corridor with the pacing person, a hand-made planner writing until 6 s; the messages."""
     p = prepare(str(tmp_path_factory.mktemp("m") / "m.yaml"),
-                RunOptions(seed=1, runs_dir=str(tmp_path_factory.mktemp("runs")), world=str(PERSON_WORLD)),
+                RunOptions(seed=1, runs_dir=str(tmp_path_factory.mktemp("runs")),
+                           world=rude_person_world(tmp_path_factory.mktemp("world"))),
                 mission_text=WAIT_MISSION)
     board = catalogue.writer("fake_planner", ("costmap", "local_plan"))
     made: list[LocalCostmap] = []

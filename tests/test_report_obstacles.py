@@ -7,16 +7,18 @@ import numpy as np
 import pytest
 
 from beastbt.recording.report import DPI, FIG_SIZE_IN, MAP_SIZE_IN, RunData, draw_path, plot_clearance, plot_path
-from recording_support import GPS_ROUTE, PATROL, REPO, assert_real_plot, record_run
+from recording_support import GPS_ROUTE, PATROL, REPO, assert_real_plot, record_run, rude_person_world
 
 STAND = "mission: stand\nsteps:\n  - wait: 16 s\n"
 """The robot stands in the corridor; the person (from 5 s, 0.8 m/s, from x 9.5 m) walks into it at about 15 s."""
 
 
+
+
 @pytest.fixture(scope="module")
 def person(tmp_path_factory):
     return record_run(PATROL, tmp_path_factory.mktemp("runs"), seed=2, mission_text=STAND,
-                      world=str(REPO / "worlds" / "corridor_person.yaml"))
+                      world=rude_person_world(tmp_path_factory.mktemp("world")))
 
 
 def test_the_clearance_plot_has_the_truth_the_lidar_and_the_collision(person, tmp_path):
