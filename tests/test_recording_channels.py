@@ -78,7 +78,9 @@ def test_example_runs_have_every_channel_with_messages_that_match_their_schemas(
         with_messages |= {t for t, v in topics.items() if v}
         assert summary["recording"]["dropped"] == 0
         assert summary["recording"]["messages"] == sum(len(v) for v in topics.values())
-    missing = set(CHANNELS) - with_messages
+    # /operator/input holds what an operator did from the console or a terminal: none in these runs
+    # (tests/test_replay_operator.py records and validates it).
+    missing = set(CHANNELS) - with_messages - {"/operator/input"}
     assert not missing, f"no messages on {sorted(missing)}"
 
 
@@ -251,7 +253,7 @@ def test_every_stream_type_gets_its_channel_and_validates(tmp_path):
     # No mission command (teleop drove), no watched device, no mission or world to draw (no scene item), no
     # camera mounting in the metadata to calibrate and annotate the images with.
     assert empty == {"/cmd/mission", "/devices/state", "/scene", "/route", "/camera/calibration",
-                     "/camera/annotations"}
+                     "/camera/annotations", "/operator/input"}
     # Images at 2 Hz out of 20 fps over 2 s: at t = 0, 0.5, 1.0, 1.5, 2.0; each a real JPEG, scaled to 32 px wide.
     images = topics["/camera/image"]
     offset = read_recording(tmp_path / "s.mcap", topics=[]).log_time_offset_ns

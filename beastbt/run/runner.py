@@ -26,6 +26,7 @@ from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
+from beastbt.run.operator_inputs import OperatorInputs
 from beastbt.run.failsafes import FailsafeMonitor, Situation, failsafe_reads
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
@@ -139,6 +140,8 @@ class MissionRun:
         """The operator pressed pause (the console): the tree is not ticked and the robot is stopped until resume."""
         self.operator_driving = False
         """The operator drives from the console (its stick's deadman is held)."""
+        self.inputs = OperatorInputs()
+        """What the operator did from outside the tree (console controls, typed answers): recorded for replay."""
         self.ended_by: Optional[str] = None
         """Who ended the run when it was not the mission itself (``operator``: an abort from the console)."""
         self._paused_total_s = 0.0
