@@ -720,6 +720,12 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     info, attachments = run_info(prepared)
     rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)
     run = prepared.run
+    camera = run.io.camera
+    if camera is not None and config.image_rate_hz > 0:
+        # --record-images is frames kept per second, whatever the mission does: the camera runs for the
+        # recording too (a mission that never looks at it would otherwise leave it off, and record none),
+        # at that rate when nothing else needs more (a simulated camera renders only the frames kept).
+        camera.enable("recording", max_rate_hz=config.image_rate_hz)
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
         rec.on_event(ev)
