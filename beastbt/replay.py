@@ -490,10 +490,14 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
             break
     summary = rec.summary
     recorded_status = summary.get("status") if summary else None
+    ends = [m for m in rec.topic("/events") if m["kind"] == "mission_end"]
     if recorded_status is None:
-        ends = [m for m in rec.topic("/events") if m["kind"] == "mission_end"]
         recorded_status = ends[-1]["text"].split(":")[0] if ends else None
     result.recorded_status = recorded_status
+    if run.status is None and ends and not diffs:
+        # Ended from outside the tree (--max-time, Ctrl-C): the recording stops there, and so does the replay.
+        result.notes.append(f"the run was ended from outside the mission ({ends[-1]['text']}): the replay went "
+                            f"to the same tick, with nothing after it to replay")
     result.replay_status = run.status
     if run.status is not None and recorded_status is not None and run.status != recorded_status:
         diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))
