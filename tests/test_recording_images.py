@@ -48,6 +48,7 @@ def test_the_patrol_records_images_at_the_asked_rate(tmp_path, hz):
     assert summary["camera"]["enabled_for"] == ["recording"]
     assert len(rec.topic("/sensors/camera")) == len(images) == summary["camera"]["frames"]
     assert len(rec.topic("/camera/calibration")) == len(images)
+    assert not rec.topic("/sensors/line")  # pictures only: no line observations nobody asked for
     # The patrol still replays exactly with its camera readings, to where --max-time stopped it (and says so).
     result = replay(str(folder))
     assert result.identical and any("max time 5 s reached" in n for n in result.notes)
@@ -71,4 +72,5 @@ def test_a_step_that_uses_the_camera_still_gets_every_frame(tmp_path):
     frames, images = rec.topic("/sensors/camera"), rec.messages.get("/camera/image", [])
     assert len(images) == 3  # 0, 0.5 and 1.0 s
     assert len(frames) > 3 * len(images)  # the camera's own frame rate, not the recording's
+    assert len(rec.topic("/sensors/line")) == len(frames)  # and the line detector on every frame
     assert json.loads(summary.read_text())["camera"]["enabled_for"][0] == "snapshot"

@@ -724,8 +724,9 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     if camera is not None and config.image_rate_hz > 0:
         # --record-images is frames kept per second, whatever the mission does: the camera runs for the
         # recording too (a mission that never looks at it would otherwise leave it off, and record none),
-        # at that rate when nothing else needs more (a simulated camera renders only the frames kept).
-        camera.enable("recording", max_rate_hz=config.image_rate_hz)
+        # at that rate when nothing else needs more (a simulated camera renders only the frames kept), and
+        # without the line detector when nothing reads lines (no line observations nobody asked for).
+        camera.enable("recording", max_rate_hz=config.image_rate_hz, lines=False)
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
         rec.on_event(ev)

@@ -70,6 +70,8 @@ class CameraPipeline:
         """Why the pipeline was enabled (``follow_line``, ``stream``...), first reason first."""
         self.rate_limits: dict[str, Optional[float]] = {}
         """Reason -> the frames per second it needs (None: every frame the camera gives)."""
+        self.pictures_only: set[str] = set()
+        """Reasons that need the frames but not the line detector's observations (the recording)."""
         self._next_frame_s = float("-inf")
         self.latest: Optional[Latest] = None
         """The newest frame and what the detector found in it (None before the first frame)."""
@@ -95,16 +97,21 @@ class CameraPipeline:
         self.detector.reset()
         self.detector.last = None
 
-    def enable(self, reason: str, max_rate_hz: Optional[float] = None) -> None:
+    def enable(self, reason: str, max_rate_hz: Optional[float] = None, lines: bool = True) -> None:
         """Start reading frames (builds the camera on first use); ``reason`` is kept for the log.
 
         ``max_rate_hz``: the frames per clock second this reason needs (the recording keeps a few), None
         for every frame. While every reason has a rate, frames come at the highest: a simulated camera
-        renders only those, and on the robot the others are read and dropped before the line detector.
+        renders only those, and on the robot the others are read and dropped. ``lines`` False: this
+        reason needs the pictures only; while no reason needs lines, the line detector does not run.
         """
         if reason not in self.reasons:
             self.reasons.append(reason)
         self.rate_limits[reason] = max_rate_hz if max_rate_hz is None or max_rate_hz > 0 else None
+        if not lines:
+            self.pictures_only.add(reason)
+        else:
+            self.pictures_only.discard(reason)
         if self.enabled:
             return
         self.enabled = True
@@ -151,14 +158,14 @@ class CameraPipeline:
         period = self.frame_period_s
         if period is not None:
             if frame.stamp_s < self._next_frame_s - 1e-9:
-                return False  # read (a real camera's buffer is drained) but not needed: no detection
+                return False  # read (a real camera's buffer is drained) but not needed
             # Whole periods from the last due time, as the recorder keeps its images: each frame is one it keeps.
             late = frame.stamp_s - self._next_frame_s
             self._next_frame_s = self._next_frame_s + period if late < period else frame.stamp_s + period
         else:
             self._next_frame_s = float("-inf")
         detection: Optional[LineDetection] = None
-        if self.detect_lines:
+        if self.detect_lines and any(r not in self.pictures_only for r in self.reasons):
             with self._lock:
                 try:
                     detection = self.detector.detect_full(frame.image, frame.stamp_s)
