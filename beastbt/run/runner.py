@@ -141,6 +141,8 @@ class MissionRun:
         self.operator_driving = False
         """The operator drives from the console (its stick's deadman is held)."""
         self.inputs = OperatorInputs()
+        self.read_between_ticks: list = []
+        """Readings a reactor took between ticks (:meth:`react`): the next tick's readings start with them."""
         """What the operator did from outside the tree (console controls, typed answers): recorded for replay."""
         self.ended_by: Optional[str] = None
         """Who ended the run when it was not the mission itself (``operator``: an abort from the console)."""
@@ -260,7 +262,8 @@ class MissionRun:
 
     def sense(self, now: float) -> list:
         """Poll every device, update the estimators and publish everything on the blackboard."""
-        readings: list = []
+        # What a reactor read between ticks (the robot's joystick) goes first: it is recorded with this tick.
+        readings, self.read_between_ticks = self.read_between_ticks, []
         try:
             readings.extend(self.io.base.poll(now))
         except Exception as exc:  # a driver bug must not stop the loop with the robot moving
