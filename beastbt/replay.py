@@ -8,6 +8,12 @@ in the recording. The replay's commands (mission, mux, gate, servos) are then
 compared with the recorded ones, tick by tick: a deterministic simulated run
 replays with no difference; a field run shows where a changed mission
 (``--mission FILE``) or a changed estimator would have acted differently.
+
+What the operator did from outside the tree is given again at the tick it
+counted in (:class:`InputPlayer`): the ``--answer`` answers (metadata
+``answers``), the console's controls and stick and a terminal's answers
+(``/operator/input``), the console's e-stop (its event). A joystick's states
+are readings like any other sensor's.
 """
 
 from __future__ import annotations
