@@ -8,6 +8,12 @@ in the recording. The replay's commands (mission, mux, gate, servos) are then
 compared with the recorded ones, tick by tick: a deterministic simulated run
 replays with no difference; a field run shows where a changed mission
 (``--mission FILE``) or a changed estimator would have acted differently.
+
+What the operator did from outside the tree is given again at the tick it
+counted in (:class:`InputPlayer`): the ``--answer`` answers (metadata
+``answers``), the console's controls and stick and a terminal's answers
+(``/operator/input``), the console's e-stop (its event). A joystick's states
+are readings like any other sensor's.
 """
 
 from __future__ import annotations
@@ -30,8 +36,10 @@ from beastbt.recording.reader import Recording, find_recording, read_recording
 from beastbt.robot.robot_io import RobotIO
 from beastbt.assembly import assemble
 from beastbt.behaviours.context import RunServices
-from beastbt.robot.part import REPLAY
+from beastbt.robot.part import REPLAY, Part
+from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT, TERMINAL
 from beastbt.run.runner import TickRecord
+from beastbt.run.safety import request_estop
 from beastbt.run.session import RunOptions
 
 
@@ -176,6 +184,65 @@ class DeviceFlags:
         """Set the states recorded at ``tick`` (they held from that tick's sensing on)."""
         for device, attr, value in self.changes.get(tick, ()):
             setattr(getattr(self.io, device), attr, value)
+
+
+CONSOLE_ESTOP = "operator console"
+"""The reason the console's e-stop gives (:func:`~beastbt.run.safety.request_estop`), as its event says it."""
+
+
+class InputPlayer:
+    """Replays ``/operator/input``: what the operator did from the console or a terminal, again at its tick.
+
+    A tick hook where the console's own hook was (:meth:`install`): each recorded
+    input of the tick under way is carried out through the same code as in
+    the run (the console's :class:`~beastbt.live.console_control.ConsoleControls`
+    with a wall clock that never lets its stick go silent by itself: the
+    recorded ``stick_silent`` says when it did; a typed answer through the
+    question board). A run with a console had it from the start (it makes the
+    robot drivable by hand): the replay has one too, used or not.
+    """
+
+    def __init__(self, rec: Recording, run: Any) -> None:
+        self.run = run
+        self.inputs: dict[int, list[dict]] = {}
+        for m in rec.topic("/operator/input"):
+            self.inputs.setdefault(int(m["tick"]), []).append(m)
+        # The console's e-stop latches at once from the server's thread, not through a control: its event
+        # (clock time of the tick it came in, or of the next) says when.
+        self.estops = [float(m["time_s"]) for m in rec.topic("/events")
+                       if m["kind"] == "estop" and m["text"].endswith(f": {CONSOLE_ESTOP}")]
+        self.controls: Any = None
+        if CONSOLE in json.loads(rec.info.get("operator_inputs", "[]")) or any(
+                m["source"] == CONSOLE for ms in self.inputs.values() for m in ms):
+            from beastbt.live.console_control import ConsoleControls
+            self.controls = ConsoleControls(run, wall=lambda: 0.0)
+
+    def install(self) -> None:
+        """Put the player where the console's hook is in a run: right after the parts' own tick hooks (the
+        assembly puts those first), before the hooks parts add when installed (when there is anything to play)."""
+        if not self.inputs and not self.estops:
+            return
+        hooks = self.run.hooks
+        at = next((i for i, h in enumerate(hooks) if not isinstance(getattr(h, "__self__", None), Part)), len(hooks))
+        hooks.insert(at, self)
+
+    def __call__(self, run: Any, now_s: float) -> None:
+        """Carry out the inputs recorded for this tick, in their order."""
+        if self.estops and now_s >= self.estops[0] - 1e-9:
+            self.estops.pop(0)
+            request_estop(run, CONSOLE_ESTOP)
+        for m in self.inputs.pop(run.ticks, ()):
+            source, control, body, at_s = m["source"], m["control"], dict(m["body"]), float(m["now_s"])
+            if source == CONSOLE and self.controls is not None:
+                if control == STICK_SILENT:
+                    self.controls.release_silent_stick(at_s)
+                else:
+                    self.controls.submit(control, body)
+                    self.controls.apply_pending(at_s)
+            elif source == TERMINAL and control == "answer":
+                questions = run.ctx.services.questions
+                if questions is not None:
+                    questions.answer(str(body.get("id")), body.get("choice"), TERMINAL)
 
 
 @dataclass
@@ -379,13 +446,15 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     services = RunServices(save_snapshot=lambda name, frame: snapshots.append(name) or f"(replay) {name}.jpg")
     # The same assembly as the run, with the recording in place of every device: the same parts
     # (navigation tuning, teleop, line following...) install the same hooks; nothing is recorded.
-    options = RunOptions(robot=str(info.get("robot", "sim")), seed=int(info.get("seed", 0) or 0), record=False)
+    options = RunOptions(robot=str(info.get("robot", "sim")), seed=int(info.get("seed", 0) or 0), record=False,
+                         answers=json.loads(info.get("answers", "{}")))  # --answer: given again, at the same ask
     clock = SimClock()
     prepared = assemble(mission, profile, options, REPLAY, io=io, clock=clock, services=services)
     run = prepared.run
     if "ctx_capabilities" in info:
         # What other parts added after the tree was compiled (a scripted joystick...).
         run.ctx.capabilities = frozenset(json.loads(info["ctx_capabilities"]))
+    InputPlayer(rec, run).install()
     seen: list[TickRecord] = []
     run.recorders.append(seen.append)
 
@@ -427,10 +496,14 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
             break
     summary = rec.summary
     recorded_status = summary.get("status") if summary else None
+    ends = [m for m in rec.topic("/events") if m["kind"] == "mission_end"]
     if recorded_status is None:
-        ends = [m for m in rec.topic("/events") if m["kind"] == "mission_end"]
         recorded_status = ends[-1]["text"].split(":")[0] if ends else None
     result.recorded_status = recorded_status
+    if run.status is None and ends and not diffs:
+        # Ended from outside the tree (--max-time, Ctrl-C): the recording stops there, and so does the replay.
+        result.notes.append(f"the run was ended from outside the mission ({ends[-1]['text']}): the replay went "
+                            f"to the same tick, with nothing after it to replay")
     result.replay_status = run.status
     if run.status is not None and recorded_status is not None and run.status != recorded_status:
         diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))

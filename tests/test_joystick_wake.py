@@ -8,10 +8,10 @@ import threading
 import time
 
 from beastbt.assembly import assemble
-from beastbt.blackboard.types import VelocityCommand
+from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.core.clock import WallClock
-from beastbt.devices.joystick import (JS_EVENT, JS_EVENT_AXIS, JS_EVENT_BUTTON, JoystickDevice, JoystickMapping,
-                                      JoystickWatcher)
+from beastbt.devices.joystick import (BUTTON_ENABLE, JS_EVENT, JS_EVENT_AXIS, JS_EVENT_BUTTON, JoystickDevice,
+                                      JoystickMapping, JoystickWatcher)
 from beastbt.mission.model import load_mission
 from beastbt.parts.teleop import TeleopPart
 from beastbt.robot.part import REAL
@@ -97,6 +97,8 @@ def test_stick_and_estop_reach_the_base_between_ticks(tmp_path):
         marks["after"] = run.ticks
 
     threading.Thread(target=operator, daemon=True).start()
+    seen: list = []
+    run.recorders.append(seen.append)
     try:
         summary = execute(prepared, io.StringIO())
     finally:
@@ -111,3 +113,7 @@ def test_stick_and_estop_reach_the_base_between_ticks(tmp_path):
     assert stops and stops[0] > moving[0], f"the e-stop waited for the next tick: {between}"
     assert all(v == 0.0 for kind, v in between[stops[0]:] if kind == "velocity")
     assert robot.joystick_watcher.wakes >= 2
+    # What the loop read between the ticks is recorded with the next tick, before that tick's own reading.
+    [after] = [rec for rec in seen if rec.tick == marks["press"]]
+    states = [r for r in after.readings if isinstance(r, JoystickState)]
+    assert len(states) >= 3 and states[0].buttons.get(BUTTON_ENABLE), states

@@ -215,7 +215,10 @@ class ConsoleLink:
         pipeline = run.io.camera
         if pipeline is None:
             return
-        if pipeline.enabled:
+        viewer_renders = run.io.viewer_camera is not None and run.io.sim is not None
+        # A camera on only for the recording gives a few frames a second: in the simulator the viewer's own
+        # camera renders the full rate instead (on the robot those few frames are all there is).
+        if pipeline.enabled and (pipeline.frame_period_s is None or not viewer_renders):
             latest = pipeline.latest
             if latest is None or latest[0].seq == self._fed_seq:
                 return
@@ -223,7 +226,7 @@ class ConsoleLink:
             self._fed_seq = frame.seq
             self._last_video_wall = wall
             self._send(self._frame_message(frame.image, frame.seq, detection, pipeline.lookahead_m))
-        elif run.io.viewer_camera is not None and run.io.sim is not None:
+        elif viewer_renders:
             t = run.io.sim.truth
             self._last_video_wall = wall
             self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)))

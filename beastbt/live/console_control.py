@@ -11,6 +11,11 @@ between ticks (a reactor). Its result goes back through a
 The e-stop does not wait for a tick: :func:`~beastbt.run.safety.request_estop`
 is safe from any thread and latches the mux and the watchdog at once.
 
+Every control carried out (and a silent stick's release) is noted in
+``run.inputs`` (:mod:`beastbt.run.operator_inputs`) with its tick: the
+recording keeps it and ``beastbt replay`` carries it out again, here, at the
+same tick.
+
 The remote stick (the page's touch joystick or the browser's gamepad) is a
 joystick to teleop (:class:`~beastbt.parts.teleop.TeleopOverride`): the same
 deadman, scales, mux, gate and watchdog. Its axes are stick deflections in
@@ -34,6 +39,7 @@ from typing import Any, Callable, Optional
 
 from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE
+from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT
 
 STICK_TIMEOUT_S = 0.2
 """The remote stick is released when no message came for this long (wall s); the page sends every 0.1 s."""
@@ -74,6 +80,7 @@ class ConsoleControls:
         override = run.ctx.services.teleop
         if override is not None and hasattr(override, "remote_attached"):
             override.remote_attached = True
+        run.inputs.sources.add(CONSOLE)
 
     # -- any thread ------------------------------------------------------------------
     def submit(self, name: str, body: Optional[dict] = None) -> Future:
@@ -118,14 +125,21 @@ class ConsoleControls:
             except Exception as exc:  # noqa: BLE001 - a bad control must never end the run
                 cmd.result.set_exception(Refused(400, f"could not {cmd.name}: {exc}"))
             else:
+                # Carried out: recorded with its tick, so that a replay does it again at the same tick.
+                self.run.inputs.note(self.run, CONSOLE, cmd.name, cmd.body, now_s)
                 cmd.result.set_result(outcome)
             self.applied += 1
         if self.stick_held and self.wall() - self.stick_wall_s > self.stick_timeout_s:
-            self._set_stick(0.0, 0.0, False, now_s)
-            self.run.mux.submit("teleop", VelocityCommand(0.0, 0.0, now_s, "teleop"), now_s)
-            self.run.gate.reset()
-            self.run.events.add("teleop", f"console stick silent for {self.stick_timeout_s:g} s (lost link or closed "
-                                          f"page): stopped at once, the robot is handed back")
+            self.release_silent_stick(now_s)
+
+    def release_silent_stick(self, now_s: float) -> None:
+        """The stick's messages stopped (wall time): stop at once and hand the robot back (recorded for replay)."""
+        self._set_stick(0.0, 0.0, False, now_s)
+        self.run.mux.submit("teleop", VelocityCommand(0.0, 0.0, now_s, "teleop"), now_s)
+        self.run.gate.reset()
+        self.run.events.add("teleop", f"console stick silent for {self.stick_timeout_s:g} s (lost link or closed "
+                                      f"page): stopped at once, the robot is handed back")
+        self.run.inputs.note(self.run, CONSOLE, STICK_SILENT, {}, now_s)
 
     def apply(self, cmd: Command, now_s: float) -> dict:
         """Carry out one control; raise :class:`Refused` when it cannot be done now."""

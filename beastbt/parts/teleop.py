@@ -343,6 +343,7 @@ class TeleopPart(Part):
         for state in states:
             run.latest[JoystickState] = state
             run.bb.joystick = state
+        run.read_between_ticks.extend(states)  # recorded with the next tick: a replay sees them too
         self.override(run, now_s)
 
     def summarise(self, run: MissionRun, summary: dict) -> None:

@@ -280,6 +280,9 @@ class McapRecorder:
         self.info["tree"] = json.dumps(tree_nodes(run))
         self.tag_sources(run.io)
         self.info["sensor_sources"] = json.dumps(["base"] + [str(k) for k in run.io.sensors])
+        inputs = getattr(run, "inputs", None)
+        if inputs is not None:  # the operator's channels (a console can drive the robot by hand): replay opens them
+            self.info["operator_inputs"] = json.dumps(sorted(inputs.sources))
         for key, attr in WATCHED_DEVICE_FLAGS:
             device = getattr(run.io, key, None)
             if device is not None and hasattr(device, attr):
@@ -380,6 +383,11 @@ class McapRecorder:
         """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
         # At once, with whatever is batched: the moments before a fault are the ones worth keeping.
         self._put(("event", ev.time_s, ev.kind, ev.text), ev.time_s, urgent=True)
+
+    def on_input(self, item: Any) -> None:
+        """``run.inputs`` listener: queue an operator input (:class:`~beastbt.run.operator_inputs.OperatorInput`)."""
+        self._put(("input", item.tick, item.now_s, item.source, item.control, dict(item.body)), item.now_s,
+                  urgent=True)
 
     def on_snapshot(self, path: str, stamp_s: float) -> None:
         """Queue a snapshot the run saved (a JPEG file): it becomes an attachment of the recording."""
@@ -651,6 +659,7 @@ def run_info(prepared: Any) -> tuple[dict, list[tuple[str, str, bytes]]]:
         "tree": json.dumps(tree_nodes(run)),
         "start_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "max_time_s": "" if opts.max_time_s is None else repr(opts.max_time_s),
+        "answers": json.dumps(dict(opts.answers or {})),  # --answer: replay gives the questions the same
     }
     # For the Foxglove views the writer builds: the frame names and where the camera sits on base_link.
     from beastbt.robot.profile import section_config  # here: jsonschema, OpenCV only for a run being recorded
@@ -725,6 +734,13 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     info, attachments = run_info(prepared)
     rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)
     run = prepared.run
+    camera = run.io.camera
+    if camera is not None and config.image_rate_hz > 0:
+        # --record-images is frames kept per second, whatever the mission does: the camera runs for the
+        # recording too (a mission that never looks at it would otherwise leave it off, and record none),
+        # at that rate when nothing else needs more (a simulated camera renders only the frames kept), and
+        # without the line detector when nothing reads lines (no line observations nobody asked for).
+        camera.enable("recording", max_rate_hz=config.image_rate_hz, lines=False)
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
         rec.on_event(ev)
@@ -733,6 +749,9 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
                  prepared.clock.now())
     run.recorders.append(rec.on_tick)
     run.events.listeners.append(rec.on_event)
+    inputs = getattr(run, "inputs", None)
+    if inputs is not None:
+        inputs.listeners.append(rec.on_input)
     _record_servo_commands(run, rec)
     save = run.ctx.services.save_snapshot
     if save is not None:

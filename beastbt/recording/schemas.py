@@ -155,6 +155,17 @@ DEVICE_STATE = _obj("beastbt.DeviceState",
                         "field": {"type": "string", "description": "The attribute (bias_ready...)."},
                         "value": {"type": ["boolean", "number", "string", "null"]}})
 
+OPERATOR_INPUT = _obj("beastbt.OperatorInput",
+                      "What the operator did from outside the tree (a console control, a typed answer), "
+                      "at the tick it counted in: beastbt replay does it again there.", {
+                          "tick": _TICK,
+                          "now_s": {"type": "number", "description": "Clock time it was carried out at, seconds."},
+                          "source": {"type": "string", "description": "console or terminal."},
+                          "control": {"type": "string",
+                                      "description": "pause, resume, abort, answer, teleop or stick_silent."},
+                          "body": {"type": "object", "description": "The control's body ({id, choice} for an "
+                                                                    "answer; {linear, angular, deadman} for teleop)."}})
+
 EVENT = _obj("beastbt.Event", "One run event (clock seconds, a kind word, a text).", {
     "time_s": {"type": "number"}, "kind": {"type": "string"}, "text": {"type": "string"}})
 
@@ -216,6 +227,7 @@ CHANNELS: dict[str, dict] = {
     "/cmd/gate": STAGE_COMMAND,
     "/cmd/servo": SERVO_COMMAND,
     "/devices/state": DEVICE_STATE,
+    "/operator/input": OPERATOR_INPUT,
     # the tree, events, failsafes, truth
     "/tree": TREE_CHANGES,
     "/events": EVENT,

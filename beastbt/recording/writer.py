@@ -570,6 +570,10 @@ class RunFileWriter:
             _, tick, now_s, key, attr, value = item
             self._emit("/devices/state", self._ns(now_s), {"tick": tick, "now_s": now_s, "device": key,
                                                            "field": attr, "value": value})
+        elif kind == "input":
+            _, tick, now_s, source, control, body = item
+            self._emit("/operator/input", self._ns(now_s), {"tick": tick, "now_s": now_s, "source": source,
+                                                            "control": control, "body": body})
         elif kind == "snapshot":
             _, stamp_s, path = item
             data = Path(path).read_bytes()
@@ -769,7 +773,7 @@ def message_count(item: tuple, images: bool) -> int:
     kind = item[0]
     if kind == "event":
         return 3 if item[2] == "failsafe" else 2
-    if kind in ("servo", "flag", "snapshot"):
+    if kind in ("servo", "flag", "snapshot", "input"):
         return 1
     if kind == "scene":
         return 2  # /route, /scene

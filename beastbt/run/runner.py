@@ -26,6 +26,7 @@ from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
+from beastbt.run.operator_inputs import OperatorInputs
 from beastbt.run.failsafes import FailsafeMonitor, Situation, failsafe_reads
 from beastbt.robot.profile import RobotProfile
 from beastbt.robot.robot_io import RobotIO
@@ -141,6 +142,10 @@ class MissionRun:
         """The operator pressed pause (the console): the tree is not ticked and the robot is stopped until resume."""
         self.operator_driving = False
         """The operator drives from the console (its stick's deadman is held)."""
+        self.inputs = OperatorInputs()
+        self.read_between_ticks: list = []
+        """Readings a reactor took between ticks (:meth:`react`): the next tick's readings start with them."""
+        """What the operator did from outside the tree (console controls, typed answers): recorded for replay."""
         self.ended_by: Optional[str] = None
         """Who ended the run when it was not the mission itself (``operator``: an abort from the console)."""
         self._paused_total_s = 0.0
@@ -259,7 +264,8 @@ class MissionRun:
 
     def sense(self, now: float) -> list:
         """Poll every device, update the estimators and publish everything on the blackboard."""
-        readings: list = []
+        # What a reactor read between ticks (the robot's joystick) goes first: it is recorded with this tick.
+        readings, self.read_between_ticks = self.read_between_ticks, []
         try:
             readings.extend(self.io.base.poll(now))
         except Exception as exc:  # a driver bug must not stop the loop with the robot moving

@@ -22,6 +22,7 @@ from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
 from beastbt.run.run_folder import RunFolder, save_text
+from beastbt.run.operator_inputs import TERMINAL
 from beastbt.run.runner import MissionRun
 from beastbt.run.summary import build_summary
 from beastbt.sim.world import World
@@ -167,7 +168,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     last_status_wall = 0.0
     tty = opts.status_line
     restore_sigterm = _sigterm_as_interrupt()
-    terminal = TerminalAnswers(run.ctx.services.questions, out) if tty and sys.stdin.isatty() else None
+    terminal = TerminalAnswers(run.ctx.services.questions, out, run) if tty and sys.stdin.isatty() else None
     unanswerable = (UnanswerableQuestions(run.ctx.services.questions, p.events)
                     if terminal is None and opts.console is None else None)
     # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
@@ -284,9 +285,12 @@ def status_line(run: Any) -> str:
 class TerminalAnswers:
     """Answer the mission's questions from an interactive terminal: the question is shown, y or n + Enter answers."""
 
-    def __init__(self, questions: Any, out: TextIO) -> None:
+    def __init__(self, questions: Any, out: TextIO, run: Any = None) -> None:
         self.questions = questions
         self.out = out
+        self.run = run
+        if run is not None:
+            run.inputs.sources.add(TERMINAL)
         self.prompted: Optional[str] = None
 
     def poll(self) -> None:
@@ -308,6 +312,9 @@ class TerminalAnswers:
             line = sys.stdin.readline()
             if not self.questions.answer(question.id, line, "terminal"):
                 self.out.write(f"{CLEAR_LINE}? please type y or n, then Enter\n")
+            elif self.run is not None:  # recorded, so that a replay answers at the same tick
+                self.run.inputs.note(self.run, TERMINAL, "answer", {"id": question.id, "choice": line.strip()},
+                                     self.run.clock.now())
 
 
 class UnanswerableQuestions:

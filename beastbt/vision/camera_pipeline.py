@@ -17,7 +17,8 @@ Two ways to run it:
   renders while the pipeline is *enabled* (:meth:`enable`): the run enables it
   when the mission uses the camera (``follow_line``, ``snapshot``, the
   ``intersection``/``line_seen`` conditions) or when video is streamed, so a
-  mission that never looks costs nothing.
+  mission that never looks costs nothing; a recording that keeps a few
+  images a second enables it at that rate (:meth:`enable`'s ``max_rate_hz``).
 * **In a thread** (the robot, :meth:`start_thread`): ``VideoCapture.read``
   blocks for up to a frame period, so a daemon thread reads and detects, and
   :meth:`poll` only hands over the newest result.
@@ -67,6 +68,11 @@ class CameraPipeline:
         """Read in a thread of its own once enabled (the robot); False: :meth:`poll` reads (the simulator)."""
         self.reasons: list[str] = []
         """Why the pipeline was enabled (``follow_line``, ``stream``...), first reason first."""
+        self.rate_limits: dict[str, Optional[float]] = {}
+        """Reason -> the frames per second it needs (None: every frame the camera gives)."""
+        self.pictures_only: set[str] = set()
+        """Reasons that need the frames but not the line detector's observations (the recording)."""
+        self._next_frame_s = float("-inf")
         self.latest: Optional[Latest] = None
         """The newest frame and what the detector found in it (None before the first frame)."""
         self.frames = 0
@@ -91,10 +97,21 @@ class CameraPipeline:
         self.detector.reset()
         self.detector.last = None
 
-    def enable(self, reason: str) -> None:
-        """Start reading frames (builds the camera on first use); ``reason`` is kept for the log."""
+    def enable(self, reason: str, max_rate_hz: Optional[float] = None, lines: bool = True) -> None:
+        """Start reading frames (builds the camera on first use); ``reason`` is kept for the log.
+
+        ``max_rate_hz``: the frames per clock second this reason needs (the recording keeps a few), None
+        for every frame. While every reason has a rate, frames come at the highest: a simulated camera
+        renders only those, and on the robot the others are read and dropped. ``lines`` False: this
+        reason needs the pictures only; while no reason needs lines, the line detector does not run.
+        """
         if reason not in self.reasons:
             self.reasons.append(reason)
+        self.rate_limits[reason] = max_rate_hz if max_rate_hz is None or max_rate_hz > 0 else None
+        if not lines:
+            self.pictures_only.add(reason)
+        else:
+            self.pictures_only.discard(reason)
         if self.enabled:
             return
         self.enabled = True
@@ -102,6 +119,14 @@ class CameraPipeline:
             self.camera = self._make_camera()
         if self.threaded:
             self._start_reader()
+
+    @property
+    def frame_period_s(self) -> Optional[float]:
+        """Seconds between the frames the reasons need (None: every frame the camera gives)."""
+        rates = [self.rate_limits.get(r) for r in self.reasons]
+        if not rates or any(r is None for r in rates):
+            return None
+        return 1.0 / max(rates)  # type: ignore[type-var, arg-type]
 
     def reset_detector(self) -> None:
         """Forget where the line was (a new follow_line step starts looking straight ahead)."""
@@ -113,7 +138,7 @@ class CameraPipeline:
         """The new frame and its line observation since the last call (``[]`` when none); never raises."""
         if not self.enabled:
             return []
-        if self._thread is None:
+        if self._thread is None and now_s >= self._next_frame_s - 1e-9:
             self._read_one()
         latest = self.latest
         if latest is None or latest[0].seq == self._handed_seq:
@@ -130,8 +155,17 @@ class CameraPipeline:
         frame = camera.poll()
         if frame is None:
             return False
+        period = self.frame_period_s
+        if period is not None:
+            if frame.stamp_s < self._next_frame_s - 1e-9:
+                return False  # read (a real camera's buffer is drained) but not needed
+            # Whole periods from the last due time, as the recorder keeps its images: each frame is one it keeps.
+            late = frame.stamp_s - self._next_frame_s
+            self._next_frame_s = self._next_frame_s + period if late < period else frame.stamp_s + period
+        else:
+            self._next_frame_s = float("-inf")
         detection: Optional[LineDetection] = None
-        if self.detect_lines:
+        if self.detect_lines and any(r not in self.pictures_only for r in self.reasons):
             with self._lock:
                 try:
                     detection = self.detector.detect_full(frame.image, frame.stamp_s)
