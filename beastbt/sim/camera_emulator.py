@@ -8,6 +8,10 @@ robot's true pose; :meth:`SimCamera.read` warps the floor raster of a
 :class:`~beastbt.sim.floor.FloorMap` into the image with one
 ``cv2.warpPerspective`` (floor raster -> world -> body -> image homography,
 including the gimbal's pan/tilt), only for the image rows below the horizon.
+With a :class:`~beastbt.sim.scenery.Scenery` it also draws the world around
+the floor: a ground texture where the world has no ``floor:`` (sampled the same
+way, wrapping around its periodic tile), the sky or a ceiling above the horizon,
+and walls, obstacles and persons standing up (:mod:`beastbt.sim.scenery`).
 Camera effects (:class:`CameraEffects`): exposure flicker, vignetting,
 sensor noise and motion blur from the true speed, all driven by the
 ``numpy.random.Generator`` handed in, so a seed gives the same pictures.
@@ -17,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import cv2
 import numpy as np
@@ -25,6 +29,7 @@ import numpy as np
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.floor import FloorMap
+from beastbt.sim.scenery import Scenery, SceneryRenderer, ground_texture, ground_world_from_texture
 from beastbt.sim.truth import RobotTruth
 from beastbt.vision.camera_model import CameraGeometry
 
@@ -84,11 +89,24 @@ class SimCamera:
 
     ``geometry`` gives image size, field of view and mounting; the truth's
     ``pan_rad``/``tilt_rad`` turn the camera further (pan left, tilt up).
-    Frames are BGR uint8 ``(height_px, width_px, 3)``.
+    Frames are BGR uint8 ``(height_px, width_px, 3)``. ``scenery`` adds the
+    ground, sky, walls and obstacles; ``persons_xy`` says where the scenery's
+    persons are now ((N, 2) m, world frame), read at each frame.
     """
 
-    def __init__(self, floor: FloorMap, geometry: CameraGeometry, rng: np.random.Generator, effects: Optional[CameraEffects] = None) -> None:
+    def __init__(self, floor: FloorMap, geometry: CameraGeometry, rng: np.random.Generator,
+                 effects: Optional[CameraEffects] = None, scenery: Optional[Scenery] = None,
+                 persons_xy: Optional[Callable[[], Any]] = None) -> None:
         self.floor = floor
+        self.scenery = scenery if scenery is not None and not scenery.empty else None
+        self.persons_xy = persons_xy
+        self._painter = SceneryRenderer(self.scenery) if self.scenery is not None else None
+        self._ground: Optional[np.ndarray] = None
+        self._ground_far_bgr = np.zeros(3, np.uint8)
+        if self.scenery is not None and self.scenery.ground is not None:
+            self._ground = ground_texture(self.scenery.ground, self.scenery.seed)
+            # Far ground is finer than a pixel: it shows as the texture's average colour.
+            self._ground_far_bgr = np.rint(self._ground.reshape(-1, 3).mean(axis=0)).astype(np.uint8)
         self.geometry = geometry
         self.rng = rng
         self.effects = effects if effects is not None else CameraEffects()
@@ -150,7 +168,8 @@ class SimCamera:
         if self.effects.drop_probability > 0 and self.rng.random() < self.effects.drop_probability:
             return False, None
         t = self.truth
-        frame = self.render(t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)
+        persons = self.persons_xy() if self.persons_xy is not None else None
+        frame = self.render(t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad, persons)
         self.frames_rendered += 1
         return True, frame
 
@@ -162,17 +181,33 @@ class SimCamera:
             self._geom_cache = ((pan_rad, tilt_rad), geom)
         return geom
 
-    def render(self, x_m: float, y_m: float, yaw_rad: float, v_mps: float = 0.0, w_rps: float = 0.0, pan_rad: float = 0.0, tilt_rad: float = 0.0) -> np.ndarray:
-        """The camera image (BGR uint8, a new array) for the robot at (x, y metres, yaw rad) with all effects."""
+    def render(self, x_m: float, y_m: float, yaw_rad: float, v_mps: float = 0.0, w_rps: float = 0.0,
+               pan_rad: float = 0.0, tilt_rad: float = 0.0, persons_xy: Optional[Any] = None) -> np.ndarray:
+        """The camera image (BGR uint8, a new array) for the robot at (x, y metres, yaw rad) with all effects.
+
+        ``persons_xy``: where the scenery's persons stand ((N, 2) m, world frame); None draws no person.
+        """
         geom = self._geometry_for(pan_rad, tilt_rad)
         h, w = geom.height_px, geom.width_px
         out = self._out
         # Rows at or just below the horizon see the floor at huge distances: start a
         # little lower, where a pixel covers less than about 30 m of floor.
         v0 = max(0, min(h, int(math.floor(geom.horizon_v + geom.focal_px * 0.007)) + 1))
-        if v0 > 0:
+        ground = self._ground
+        if ground is not None:
+            if v0 > 0:
+                sky_rows = max(0, min(v0, int(math.floor(geom.horizon_v)) + 1))
+                assert self._painter is not None
+                self._painter.draw_sky(out, geom, sky_rows)
+                out[sky_rows:v0] = self._ground_far_bgr
+            if v0 < h:
+                img_from_tex = geom.image_from_world(x_m, y_m, yaw_rad) @ ground_world_from_texture()
+                shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -v0], [0.0, 0.0, 1.0]])
+                cv2.warpPerspective(ground, shift @ img_from_tex, (w, h - v0), dst=out[v0:], flags=cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_WRAP)
+        elif v0 > 0:
             out[:v0] = self._sky
-        if v0 < h:
+        if ground is None and v0 < h:
             img_from_raster = geom.image_from_raster(x_m, y_m, yaw_rad, self.floor.world_from_raster)
             shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -v0], [0.0, 0.0, 1.0]])
             sub_from_raster = shift @ img_from_raster
@@ -185,6 +220,8 @@ class SimCamera:
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=self._border,
             )
+        if self._painter is not None:
+            self._painter.draw_solids(out, geom, x_m, y_m, yaw_rad, persons_xy)
         img = out
         e = self.effects
         if e.exposure_s > 0:
