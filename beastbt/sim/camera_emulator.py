@@ -29,7 +29,7 @@ import numpy as np
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.floor import FloorMap
-from beastbt.sim.scenery import Scenery, SceneryRenderer, ground_texture, ground_world_from_texture
+from beastbt.sim.scenery import FINE_GROUND_M, Scenery, SceneryRenderer, ground_canvas, ground_world_from_canvas
 from beastbt.sim.truth import RobotTruth
 from beastbt.vision.camera_model import CameraGeometry
 
@@ -103,10 +103,12 @@ class SimCamera:
         self._painter = SceneryRenderer(self.scenery) if self.scenery is not None else None
         self._ground: Optional[np.ndarray] = None
         self._ground_far_bgr = np.zeros(3, np.uint8)
+        self._ground_far: Optional[np.ndarray] = None
         if self.scenery is not None and self.scenery.ground is not None:
-            self._ground = ground_texture(self.scenery.ground, self.scenery.seed)
-            # Far ground is finer than a pixel: it shows as the texture's average colour.
-            self._ground_far_bgr = np.rint(self._ground.reshape(-1, 3).mean(axis=0)).astype(np.uint8)
+            self._ground = ground_canvas(self.scenery.ground, self.scenery.seed, 0)
+            self._ground_far = ground_canvas(self.scenery.ground, self.scenery.seed, 1)
+            # Ground farther than about 30 m is finer than a pixel: it shows as the texture's average colour.
+            self._ground_far_bgr = np.rint(self._ground_far.reshape(-1, 3).mean(axis=0)).astype(np.uint8)
         self.geometry = geometry
         self.rng = rng
         self.effects = effects if effects is not None else CameraEffects()
@@ -201,10 +203,7 @@ class SimCamera:
                 self._painter.draw_sky(out, geom, sky_rows)
                 out[sky_rows:v0] = self._ground_far_bgr
             if v0 < h:
-                img_from_tex = geom.image_from_world(x_m, y_m, yaw_rad) @ ground_world_from_texture()
-                shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -v0], [0.0, 0.0, 1.0]])
-                cv2.warpPerspective(ground, shift @ img_from_tex, (w, h - v0), dst=out[v0:], flags=cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_WRAP)
+                self._draw_ground(out, geom, x_m, y_m, yaw_rad, v0)
         elif v0 > 0:
             out[:v0] = self._sky
         if ground is None and v0 < h:
@@ -238,6 +237,23 @@ class SimCamera:
             noise = self._noise_bank[k, oy : oy + h, ox : ox + w]
             img = cv2.add(img, noise, dtype=cv2.CV_8U)
         return img.copy() if img is out else img
+
+    def _draw_ground(self, out: np.ndarray, geom: CameraGeometry, x_m: float, y_m: float, yaw_rad: float,
+                     v0: int) -> None:
+        """Warp the ground canvases into rows ``[v0, h)``: the coarse one beyond FINE_GROUND_M, the fine one nearer."""
+        assert self._ground is not None and self._ground_far is not None
+        h, w = geom.height_px, geom.width_px
+        # Row of the centre column that sees the floor FINE_GROUND_M ahead of the camera.
+        depression = math.atan2(geom.height_m, FINE_GROUND_M) - math.radians(geom.pitch_deg)
+        v_fine = max(v0, min(h, int(math.ceil((h - 1) / 2.0 + geom.focal_px * math.tan(depression)))))
+        img_from_world = geom.image_from_world(x_m, y_m, yaw_rad)
+        for canvas, level, top, bottom in ((self._ground_far, 1, v0, v_fine), (self._ground, 0, v_fine, h)):
+            if top >= bottom:
+                continue
+            shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -top], [0.0, 0.0, 1.0]])
+            cv2.warpPerspective(canvas, shift @ img_from_world @ ground_world_from_canvas(x_m, y_m, level),
+                                (w, bottom - top), dst=out[top:bottom], flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_WRAP)
 
     def _motion_blur(self, img: np.ndarray, geom: CameraGeometry, v_mps: float, w_rps: float) -> np.ndarray:
         """Smear along the image motion of the floor point at the image centre during the exposure."""

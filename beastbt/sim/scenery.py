@@ -4,8 +4,8 @@
 world's walls and obstacles, and which ground it has. :func:`ground_texture`
 builds the ground once per kind and seed as a periodic BGR tile (its right
 edge continues its left, its bottom its top), which the camera samples through
-its floor homography with wrap-around, so the ground covers the whole world
-at the cost of one perspective warp. :class:`SceneryRenderer` draws, on a
+its floor homography with wrap-around (:func:`ground_world_from_canvas`), so
+the ground covers the whole world at the cost of one perspective warp. :class:`SceneryRenderer` draws, on a
 rendered frame, the sky above the horizon and the walls, boxes, cylinders and
 persons as flat-shaded vertical faces, far to near (the painter's algorithm:
 each face is short, so sorting by distance occludes correctly).
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import cached_property, lru_cache
+from functools import lru_cache
 from typing import Any, Literal, Optional, Sequence
 
 import cv2
@@ -61,11 +61,13 @@ FACE_LENGTH_M = 0.5
 NEAR_M = 0.02
 """Faces are clipped this far in front of the camera (m), so that a wall beside the camera projects finitely."""
 
-TEXTURE_RES_M = 0.005
-"""Ground texture cell, m (5 mm, like the floor raster)."""
+TEXTURE_RES_M = 0.01
+"""Ground texture cell, m (1 cm: the 3 x 3 canvas stays within a few megabytes and the processor's caches)."""
 
-TEXTURE_TILE_PX = 1000
-"""Ground texture period in cells (5 m): the pattern repeats every 5 m, beyond what one view shows in detail."""
+TEXTURE_TILE_PX = 500
+"""Ground texture period in cells (5 m): the pattern repeats every 5 m, beyond what one view shows in detail.
+
+A multiple of 5 (GROUND_LEVELS) and of TILE_SIZE_M / TEXTURE_RES_M."""
 
 TILE_SIZE_M = 0.5
 """Indoor floor tiles, m square (TEXTURE_TILE_PX x TEXTURE_RES_M is a whole number of them)."""
@@ -78,7 +80,8 @@ SUBPIXEL_BITS = 4
 
 # Colours, BGR 0-255.
 WALL_BGR = (196, 212, 222)
-SKIRTING_BGR = (100, 112, 126)  # 40 % darker than the floor: a clear foot, short of what the line detector takes for tape
+# The skirting is 40 % darker than the floor tiles: a clear foot, short of what the line detector takes for tape (60 %).
+SKIRTING_BGR = (100, 112, 126)
 BOX_BGR = (60, 105, 150)
 CYLINDER_BGR = (125, 125, 130)
 LEGS_BGR = (110, 72, 48)
@@ -147,7 +150,7 @@ def ground_texture(kind: GroundKind, seed: int) -> np.ndarray:
     if kind == "grass":
         patches = _periodic_noise(rng, n, 0.6 / cell)  # lawn patches about a metre across
         tufts = _periodic_noise(rng, n, 0.04 / cell)  # tufts a few centimetres across
-        grain = _periodic_noise(rng, n, 1.0)  # blades
+        grain = _periodic_noise(rng, n, 0.6)  # blades
         lush = np.array([48, 128, 62], np.float32)
         dry = np.array([70, 150, 128], np.float32)
         mix = np.clip(0.35 + 0.25 * patches, 0.0, 1.0)[..., None]
@@ -161,16 +164,54 @@ def ground_texture(kind: GroundKind, seed: int) -> np.ndarray:
         img = base * np.kron(shade, np.ones((pitch, pitch), np.float32))[..., None]
         img *= (1.0 + 0.025 * _periodic_noise(rng, n, 0.03 / cell) + 0.015 * _periodic_noise(rng, n, 1.0))[..., None]
         grout = np.zeros(n, bool)
-        grout[np.arange(n) % pitch < 2] = True  # a 1 cm joint, only 12 % darker: seen, never taken for tape
+        grout[np.arange(n) % pitch < max(1, round(0.01 / cell))] = True  # a 1 cm joint, 12 % darker: never tape
         img[grout, :] *= 0.88
         img[:, grout] *= 0.88
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-def ground_world_from_texture() -> np.ndarray:
-    """3x3 affine map from ground texture (col, row) to world (x east, y north) metres: the tile at the origin."""
-    r = TEXTURE_RES_M
-    return np.array([[r, 0.0, 0.5 * r], [0.0, -r, -0.5 * r], [0.0, 0.0, 1.0]])
+GROUND_LEVELS = ((1, 3), (5, 9))
+"""The ground's two sampling levels: (cells of the tile averaged into one, tiles per canvas side).
+
+Level 0 is the tile itself, 3 x 3 (the ground within 5 m); level 1 is the
+tile averaged 5 x 5 into 5 cm cells, 9 x 9 (the ground within 20 m), so that
+the far ground, where one pixel spans many cells, shows their average instead
+of flickering.
+"""
+
+FINE_GROUND_M = 4.0
+"""Image rows that see the ground nearer than this (m, on the centre column) sample level 0; farther rows level 1."""
+
+
+@lru_cache(maxsize=4)
+def ground_canvas(kind: GroundKind, seed: int, level: int = 0) -> np.ndarray:
+    """The ground tile of ``kind`` at sampling ``level`` (GROUND_LEVELS), repeated to a square canvas (read-only).
+
+    What the camera samples; see :func:`ground_world_from_canvas`.
+    """
+    shrink, tiles = GROUND_LEVELS[level]
+    tile = ground_texture(kind, seed)
+    if shrink > 1:
+        n = TEXTURE_TILE_PX // shrink
+        tile = cv2.resize(tile, (n, n), interpolation=cv2.INTER_AREA)
+    return np.tile(tile, (tiles, tiles, 1))
+
+
+def ground_world_from_canvas(x_m: float, y_m: float, level: int = 0) -> np.ndarray:
+    """3x3 affine map from :func:`ground_canvas` (col, row) to world (x east, y north) m, for a camera at (x, y).
+
+    The canvas is placed, by whole periods of the tile, so that (x, y) lies in
+    its middle tile: the ground within (tiles - 1) / 2 periods of the camera
+    samples inside the canvas. OpenCV's wrap-around border is several times
+    slower than an inside sample, so only the ground beyond wraps.
+    """
+    shrink, tiles = GROUND_LEVELS[level]
+    r = TEXTURE_RES_M * shrink
+    period = TEXTURE_TILE_PX * TEXTURE_RES_M
+    half = tiles // 2
+    west = period * (math.floor(x_m / period) - half)
+    north = period * (math.floor(y_m / period) + half + 1)
+    return np.array([[r, 0.0, west + 0.5 * r], [0.0, -r, north - 0.5 * r], [0.0, 0.0, 1.0]])
 
 
 # --- solid faces ------------------------------------------------------------------------
@@ -231,7 +272,7 @@ def _prism(outline: np.ndarray, z0: float, z1: float, colour: Sequence[int]) -> 
                           for i in range(len(pts))])
 
 
-def _cylinder_template() -> _Faces:
+def _person_template() -> _Faces:
     """A person at the origin with radius 1 (x, y scaled by the radius later): legs, shirt and head."""
     ring = _ring()
     return _Faces.concat([_prism(ring, 0.0, 0.85, LEGS_BGR), _prism(ring, 0.85, 1.5, SHIRT_BGR),
@@ -252,7 +293,8 @@ class SceneryRenderer:
             parts.append(_upright((x1, y1), (x2, y2), SKIRTING_M, WALL_HEIGHT_M, WALL_BGR, True))
         for o in scenery.obstacles:
             if isinstance(o, BoxObstacle):
-                parts.append(_prism(np.array(o.corners()), 0.0, BOX_HEIGHT_M, BOX_BGR))  # corners() is counter-clockwise
+                # corners() run counter-clockwise, as _prism wants them
+                parts.append(_prism(np.array(o.corners()), 0.0, BOX_HEIGHT_M, BOX_BGR))
                 top = np.array([[*c, BOX_HEIGHT_M] for c in o.corners()], float)[None]
                 parts.append(_Faces(top, np.array([[0.0, 0.0, 1.0]]), np.array([BOX_BGR], float) * 1.1,
                                     np.zeros(1, bool)))
@@ -260,7 +302,7 @@ class SceneryRenderer:
                 parts.append(_prism(np.array([o.x, o.y]) + o.radius_m * _ring(), 0.0, CYLINDER_HEIGHT_M, CYLINDER_BGR))
         self.static = _Faces.concat(parts)
         self._static_centres = self.static.quads.mean(axis=1) if len(self.static.quads) else np.zeros((0, 3))
-        self._person = _cylinder_template()
+        self._person = _person_template()
         self._person_radii = np.array([p.radius_m for p in scenery.persons], float)
         light = math.radians(LIGHT_DIRECTION_DEG)
         self._light = np.array([math.cos(light), math.sin(light), 0.0])
@@ -304,40 +346,44 @@ class SceneryRenderer:
         rot, trans = cam_from_world[:, :3], cam_from_world[:, 3]
         cam_pos = -rot.T @ trans  # camera centre in the world
         pts = faces.quads @ rot.T + trans  # (F, 4, 3) camera coordinates
-        z = pts[..., 2]
         k = geom.camera_matrix
+        fx, cx, cy = k[0, 0], k[0, 2], k[1, 2]
         w, h = geom.width_px, geom.height_px
-        # Cull: behind the camera, wholly left or right of the view, or facing away (one-sided faces).
-        ahead = (z > NEAR_M).any(axis=1)
-        zc = np.maximum(z, NEAR_M)
-        u = k[0, 0] * pts[..., 0] / zc + k[0, 2]
-        in_view = ahead & ~((u < -1).all(axis=1) & (z > NEAR_M).all(axis=1)) & ~((u > w).all(axis=1) & (z > NEAR_M).all(axis=1))
+        x, y, z = pts[..., 0], pts[..., 1], pts[..., 2]
+        # Cull a face when all its corners are outside one plane of the view (near, left, right, top, bottom):
+        # linear tests in camera coordinates, right for corners behind the camera too.
+        outside = ((z < NEAR_M).all(axis=1) | (fx * x + (cx + 1.0) * z < 0).all(axis=1)
+                   | (fx * x + (cx - w) * z > 0).all(axis=1) | (fx * y + (cy + 1.0) * z < 0).all(axis=1)
+                   | (fx * y + (cy - h) * z > 0).all(axis=1))
         centres = faces.quads.mean(axis=1)
         to_cam = cam_pos - centres
         facing = np.einsum("ij,ij->i", faces.normals, to_cam) > 0
-        visible = in_view & (facing | faces.two_sided)
-        idx = np.nonzero(visible)[0]
+        idx = np.nonzero(~outside & (facing | faces.two_sided))[0]
         if not len(idx):
             return 0
         dist = np.hypot(to_cam[idx, 0], to_cam[idx, 1])
         order = idx[np.argsort(-dist, kind="stable")]  # far to near; a skirting board stays after its wall
         # Flat shading: vertical faces by the light's direction (a two-sided face by its lit side), tops bright.
-        lam = faces.normals @ self._light
-        lam = np.where(faces.two_sided, np.abs(lam), np.maximum(lam, 0.0))
-        gain = np.where(faces.normals[:, 2] > 0.5, 1.0, 0.62 + 0.38 * lam)
-        colours = np.clip(faces.colours * gain[:, None], 0, 255)
+        normals = faces.normals[order]
+        lam = normals @ self._light
+        lam = np.where(faces.two_sided[order], np.abs(lam), np.maximum(lam, 0.0))
+        gain = np.where(normals[:, 2] > 0.5, 1.0, 0.62 + 0.38 * lam)
+        colours = np.clip(faces.colours[order] * gain[:, None], 0, 255).tolist()
         one = float(1 << SUBPIXEL_BITS)
-        limit = 8.0 * max(w, h)
-        for i in order.tolist():
-            poly = pts[i]
-            if (poly[:, 2] <= NEAR_M).any():
-                poly = _clip_near(poly)
-                if len(poly) < 3:
+        limit = 8.0 * max(w, h) * one
+        sel = pts[order]
+        near = (sel[..., 2] < NEAR_M).any(axis=1)
+        zc = np.maximum(sel[..., 2:3], NEAR_M)
+        uv = np.clip(np.rint((sel[..., :2] / zc * fx + k[:2, 2]) * one), -limit, limit).astype(np.int32)
+        for j in range(len(order)):
+            poly = uv[j]
+            if near[j]:
+                clipped = _clip_near(sel[j])
+                if len(clipped) < 3:
                     continue
-            uv = poly[:, :2] / poly[:, 2:3] * k[0, 0] + k[:2, 2]
-            uv = np.clip(uv, -limit, limit)
-            colour = tuple(float(v) for v in colours[i])
-            cv2.fillConvexPoly(out, np.rint(uv * one).astype(np.int32), colour, cv2.LINE_8, SUBPIXEL_BITS)
+                poly = np.clip(np.rint((clipped[:, :2] / clipped[:, 2:3] * fx + k[:2, 2]) * one), -limit, limit)
+                poly = poly.astype(np.int32)
+            cv2.fillConvexPoly(out, poly, colours[j], cv2.LINE_8, SUBPIXEL_BITS)
         return len(order)
 
 
@@ -356,5 +402,5 @@ def _clip_near(poly: np.ndarray) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
-__all__ = ["Scenery", "SceneryRenderer", "GroundKind", "ground_texture", "ground_world_from_texture",
+__all__ = ["Scenery", "SceneryRenderer", "GroundKind", "ground_texture", "ground_canvas", "ground_world_from_canvas",
            "WALL_HEIGHT_M", "SKIRTING_M", "BOX_HEIGHT_M", "CYLINDER_HEIGHT_M", "PERSON_HEIGHT_M"]
