@@ -54,7 +54,7 @@ class CameraEffects:
     # Exposure time for motion blur, seconds: the image smears by speed x exposure.
     # 0 turns motion blur off.
     exposure_s: float
-    # Grey level rendered above the horizon (walls, far away), 0-255.
+    # Grey level rendered above the horizon in a world with floor: (elsewhere the scenery draws a sky), 0-255.
     sky_grey: int
     # Probability that a read() returns no frame (a dropped frame), 0-1.
     drop_probability: float
