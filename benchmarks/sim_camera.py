@@ -4,7 +4,7 @@ Run from the repository root::
 
     python benchmarks/sim_camera.py
 
-Renders 640x480 frames at poses around worlds/corridor.yaml (walls),
+Renders 640x480 (the console's size) and 320x240 (robots/sim.yaml's) frames at poses around worlds/corridor.yaml (walls),
 worlds/corridor_person.yaml (a person), worlds/campus_obstacles.yaml (boxes
 and cylinders) and worlds/line_track.yaml (a painted floor, no scenery: the
 control), the camera once at its mounting and once tilted 40 deg up (walls and
@@ -77,25 +77,27 @@ def median_ms(old: SimCamera, new: SimCamera, poses: list[tuple[float, float, fl
 
 
 def main() -> None:
-    """Print the table: world, tilt, baseline ms, with scenery ms, ratio."""
+    """Print the table: size, world, tilt, baseline ms, with scenery ms, ratio."""
     cv2.setNumThreads(1)
-    geom = CameraGeometry(width_px=640, height_px=480, pitch_deg=40.0)
-    print("640x480, default camera effects, OpenCV on one thread; ms per frame (median over poses of best of 3)")
-    print(f"{'world':<22} {'tilt':>5} {'baseline ms':>12} {'scenery ms':>11} {'ratio':>6}")
-    for name in ("corridor", "corridor_person", "campus_obstacles", "line_track"):
-        world = load_world(ROOT / "worlds" / f"{name}.yaml")
-        raw = world.section("floor")
-        floor = build_floor(raw if raw is not None else PLAIN_FLOOR, 11)
-        scenery = Scenery.of_world(world.walls, world.obstacles, raw is not None, 11)
-        persons = [p.path[0] for p in scenery.persons] or None
-        old = SimCamera(floor, geom, np.random.default_rng(1), CameraEffects())
-        new = SimCamera(floor, geom, np.random.default_rng(1), CameraEffects(), scenery)
-        poses = drive(name, FRAMES)
-        for tilt_deg in (0.0, 40.0):
-            tilt = math.radians(tilt_deg)
-            median_ms(old, new, poses[:10], tilt, persons)  # warm caches
-            base, with_scenery = median_ms(old, new, poses, tilt, persons)
-            print(f"{name:<22} {tilt_deg:>5.0f} {base:>12.2f} {with_scenery:>11.2f} {with_scenery / base:>6.2f}")
+    print("default camera effects, OpenCV on one thread; ms per frame (median over poses of the best of 3)")
+    print(f"{'size':>8} {'world':<18} {'tilt':>5} {'baseline ms':>12} {'scenery ms':>11} {'ratio':>6}")
+    for w, h in ((640, 480), (320, 240)):
+        geom = CameraGeometry(width_px=w, height_px=h, pitch_deg=40.0)
+        for name in ("corridor", "corridor_person", "campus_obstacles", "line_track"):
+            world = load_world(ROOT / "worlds" / f"{name}.yaml")
+            raw = world.section("floor")
+            floor = build_floor(raw if raw is not None else PLAIN_FLOOR, 11)
+            scenery = Scenery.of_world(world.walls, world.obstacles, raw is not None, 11)
+            persons = [p.path[0] for p in scenery.persons] or None
+            old = SimCamera(floor, geom, np.random.default_rng(1), CameraEffects())
+            new = SimCamera(floor, geom, np.random.default_rng(1), CameraEffects(), scenery)
+            poses = drive(name, FRAMES)
+            for tilt_deg in (0.0, 40.0):
+                tilt = math.radians(tilt_deg)
+                median_ms(old, new, poses[:10], tilt, persons)  # warm caches
+                base, with_scenery = median_ms(old, new, poses, tilt, persons)
+                print(f"{w}x{h:<4} {name:<18} {tilt_deg:>5.0f} {base:>12.2f} {with_scenery:>11.2f} "
+                      f"{with_scenery / base:>6.2f}")
 
 
 if __name__ == "__main__":
