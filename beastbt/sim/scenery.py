@@ -100,7 +100,7 @@ class Scenery:
     and, above the horizon, the camera's plain ``sky_grey``; otherwise the ground
     texture of that kind covers the world and the sky (``grass``) or a ceiling
     (``tiles``) is drawn above the horizon. Persons are drawn where the caller
-    says they are now (:meth:`SceneryRenderer.draw`), in the order of
+    says they are now (:meth:`SceneryRenderer.draw_solids`), in the order of
     :attr:`persons`.
     """
 
@@ -362,7 +362,7 @@ class SceneryRenderer:
         if not len(idx):
             return 0
         dist = np.hypot(to_cam[idx, 0], to_cam[idx, 1])
-        order = idx[np.argsort(-dist, kind="stable")]  # far to near; a skirting board stays after its wall
+        order = idx[np.argsort(-dist, kind="stable")]  # far to near
         # Flat shading: vertical faces by the light's direction (a two-sided face by its lit side), tops bright.
         normals = faces.normals[order]
         lam = normals @ self._light
