@@ -229,7 +229,8 @@ class ConsoleLink:
         elif viewer_renders:
             t = run.io.sim.truth
             self._last_video_wall = wall
-            self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)))
+            from beastbt.parts.camera import persons_xy  # the viewer draws the persons where they are now
+            self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad, persons_xy(run.io.sim))))
 
     # -- the sender and the reader ---------------------------------------------------
     def _frame_message(self, image: Any, seq: int, detection: Any, lookahead_m: float) -> tuple:

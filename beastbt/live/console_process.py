@@ -118,7 +118,8 @@ def _viewer_camera(spec: Optional[dict]) -> Optional[Any]:
     from beastbt.parts.camera import PLAIN_FLOOR, build_floor
     from beastbt.sim.camera_emulator import SimCamera
     floor = build_floor(spec["floor"] if spec["floor"] is not None else PLAIN_FLOOR, spec["floor_seed"])
-    return SimCamera(floor, spec["geometry"], np.random.default_rng(spec["floor_seed"] + 1), spec["effects"])
+    return SimCamera(floor, spec["geometry"], np.random.default_rng(spec["floor_seed"] + 1), spec["effects"],
+                     spec.get("scenery"))
 
 
 def serve(inbox: Connection, outbox: Connection) -> int:

@@ -5,7 +5,9 @@ the run enables it (a mission that uses the camera, the video stream); on
 the simulator a
 :class:`~beastbt.sim.camera_emulator.SimCamera` renders the world's
 ``floor:`` (or a plain floor) through the profile's mounting and the gimbal's
-true pan/tilt, with the world's ``camera:`` effects, behind the same
+true pan/tilt, with the world's walls and obstacles standing up, a ground
+texture where the world has no ``floor:`` (grass outdoors, tiles within walls)
+and the world's ``camera:`` effects (:mod:`beastbt.sim.scenery`), behind the same
 :class:`~beastbt.devices.camera.Camera` driver. Either way the profile's line
 detector runs on the frames (:class:`~beastbt.vision.camera_pipeline.CameraPipeline`,
 ``io.sensors['camera']``) and the robot gets the ``camera`` capability.
@@ -35,6 +37,7 @@ from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera
 from beastbt.sim.floor import FloorMap
+from beastbt.sim.scenery import Scenery
 from beastbt.sim.robot import Simulator, world_problem
 from beastbt.vision.camera_pipeline import CameraPipeline
 from beastbt.vision.line_detector import LineDetectorConfig
@@ -113,8 +116,10 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
                 raise world_problem(world, "floor", exc) from None
         return floor_holder[0]
 
+    scenery = Scenery.of_world(world.walls, world.obstacles, raw_floor is not None, floor_seed)
+
     def make_camera() -> Camera:
-        sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects)
+        sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects, scenery, lambda: persons_xy(sim))
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
         io.sim_camera = sim_camera
         return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
@@ -131,8 +136,17 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     io.floor_map = floor_map
     # What a live viewer's process needs to build a camera of its own on the same mounting and floor.
     io.viewer_camera = {"floor": raw_floor, "floor_seed": floor_seed, "geometry": pipeline.geometry,
-                        "effects": effects}
+                        "effects": effects, "scenery": scenery}
     io.closers.append(pipeline.close)
+
+
+def persons_xy(sim: Simulator) -> Optional[list[tuple[float, float]]]:
+    """Where the world's persons stand now ((x, y) m, world order), or None in a world without persons."""
+    contact = getattr(sim.drive, "contact", None)
+    xy = getattr(contact, "person_xy", None)
+    if xy is None or not len(xy):
+        return None
+    return [(float(x), float(y)) for x, y in xy]
 
 
 def floor_of(io: RobotIO) -> Optional[FloorMap]:
@@ -160,4 +174,4 @@ class CameraPart(Part):
             attach_sim_camera(build.sim, build.profile, build.io, build.events)
 
 
-__all__ = ["CameraPart", "attach_camera", "attach_sim_camera", "build_floor", "floor_of", "PLAIN_FLOOR"]
+__all__ = ["CameraPart", "attach_camera", "attach_sim_camera", "build_floor", "floor_of", "persons_xy", "PLAIN_FLOOR"]

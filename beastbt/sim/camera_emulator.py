@@ -8,6 +8,10 @@ robot's true pose; :meth:`SimCamera.read` warps the floor raster of a
 :class:`~beastbt.sim.floor.FloorMap` into the image with one
 ``cv2.warpPerspective`` (floor raster -> world -> body -> image homography,
 including the gimbal's pan/tilt), only for the image rows below the horizon.
+With a :class:`~beastbt.sim.scenery.Scenery` it also draws the world around
+the floor: a ground texture where the world has no ``floor:`` (sampled the same
+way, wrapping around its periodic tile), the sky or a ceiling above the horizon,
+and walls, obstacles and persons standing up (:mod:`beastbt.sim.scenery`).
 Camera effects (:class:`CameraEffects`): exposure flicker, vignetting,
 sensor noise and motion blur from the true speed, all driven by the
 ``numpy.random.Generator`` handed in, so a seed gives the same pictures.
@@ -17,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import cv2
 import numpy as np
@@ -25,6 +29,7 @@ import numpy as np
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.floor import FloorMap
+from beastbt.sim.scenery import FINE_GROUND_M, Scenery, SceneryRenderer, ground_canvas, ground_world_from_canvas
 from beastbt.sim.truth import RobotTruth
 from beastbt.vision.camera_model import CameraGeometry
 
@@ -49,7 +54,7 @@ class CameraEffects:
     # Exposure time for motion blur, seconds: the image smears by speed x exposure.
     # 0 turns motion blur off.
     exposure_s: float
-    # Grey level rendered above the horizon (walls, far away), 0-255.
+    # Grey level rendered above the horizon in a world with floor: (elsewhere the scenery draws a sky), 0-255.
     sky_grey: int
     # Probability that a read() returns no frame (a dropped frame), 0-1.
     drop_probability: float
@@ -84,11 +89,26 @@ class SimCamera:
 
     ``geometry`` gives image size, field of view and mounting; the truth's
     ``pan_rad``/``tilt_rad`` turn the camera further (pan left, tilt up).
-    Frames are BGR uint8 ``(height_px, width_px, 3)``.
+    Frames are BGR uint8 ``(height_px, width_px, 3)``. ``scenery`` adds the
+    ground, sky, walls and obstacles; ``persons_xy`` says where the scenery's
+    persons are now ((N, 2) m, world frame), read at each frame.
     """
 
-    def __init__(self, floor: FloorMap, geometry: CameraGeometry, rng: np.random.Generator, effects: Optional[CameraEffects] = None) -> None:
+    def __init__(self, floor: FloorMap, geometry: CameraGeometry, rng: np.random.Generator,
+                 effects: Optional[CameraEffects] = None, scenery: Optional[Scenery] = None,
+                 persons_xy: Optional[Callable[[], Any]] = None) -> None:
         self.floor = floor
+        self.scenery = scenery if scenery is not None and not scenery.empty else None
+        self.persons_xy = persons_xy
+        self._painter = SceneryRenderer(self.scenery) if self.scenery is not None else None
+        self._ground: Optional[np.ndarray] = None
+        self._ground_far_bgr = np.zeros(3, np.uint8)
+        self._ground_far: Optional[np.ndarray] = None
+        if self.scenery is not None and self.scenery.ground is not None:
+            self._ground = ground_canvas(self.scenery.ground, self.scenery.seed, 0)
+            self._ground_far = ground_canvas(self.scenery.ground, self.scenery.seed, 1)
+            # Ground farther than about 30 m is finer than a pixel: it shows as the texture's average colour.
+            self._ground_far_bgr = np.rint(self._ground_far.reshape(-1, 3).mean(axis=0)).astype(np.uint8)
         self.geometry = geometry
         self.rng = rng
         self.effects = effects if effects is not None else CameraEffects()
@@ -150,7 +170,8 @@ class SimCamera:
         if self.effects.drop_probability > 0 and self.rng.random() < self.effects.drop_probability:
             return False, None
         t = self.truth
-        frame = self.render(t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad)
+        persons = self.persons_xy() if self.persons_xy is not None else None
+        frame = self.render(t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad, persons)
         self.frames_rendered += 1
         return True, frame
 
@@ -162,17 +183,30 @@ class SimCamera:
             self._geom_cache = ((pan_rad, tilt_rad), geom)
         return geom
 
-    def render(self, x_m: float, y_m: float, yaw_rad: float, v_mps: float = 0.0, w_rps: float = 0.0, pan_rad: float = 0.0, tilt_rad: float = 0.0) -> np.ndarray:
-        """The camera image (BGR uint8, a new array) for the robot at (x, y metres, yaw rad) with all effects."""
+    def render(self, x_m: float, y_m: float, yaw_rad: float, v_mps: float = 0.0, w_rps: float = 0.0,
+               pan_rad: float = 0.0, tilt_rad: float = 0.0, persons_xy: Optional[Any] = None) -> np.ndarray:
+        """The camera image (BGR uint8, a new array) for the robot at (x, y metres, yaw rad) with all effects.
+
+        ``persons_xy``: where the scenery's persons stand ((N, 2) m, world frame); None draws no person.
+        """
         geom = self._geometry_for(pan_rad, tilt_rad)
         h, w = geom.height_px, geom.width_px
         out = self._out
         # Rows at or just below the horizon see the floor at huge distances: start a
         # little lower, where a pixel covers less than about 30 m of floor.
         v0 = max(0, min(h, int(math.floor(geom.horizon_v + geom.focal_px * 0.007)) + 1))
-        if v0 > 0:
+        ground = self._ground
+        if ground is not None:
+            if v0 > 0:
+                sky_rows = max(0, min(v0, int(math.floor(geom.horizon_v)) + 1))
+                assert self._painter is not None
+                self._painter.draw_sky(out, geom, sky_rows)
+                out[sky_rows:v0] = self._ground_far_bgr
+            if v0 < h:
+                self._draw_ground(out, geom, x_m, y_m, yaw_rad, v0)
+        elif v0 > 0:
             out[:v0] = self._sky
-        if v0 < h:
+        if ground is None and v0 < h:
             img_from_raster = geom.image_from_raster(x_m, y_m, yaw_rad, self.floor.world_from_raster)
             shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -v0], [0.0, 0.0, 1.0]])
             sub_from_raster = shift @ img_from_raster
@@ -185,6 +219,8 @@ class SimCamera:
                 borderMode=cv2.BORDER_CONSTANT,
                 borderValue=self._border,
             )
+        if self._painter is not None:
+            self._painter.draw_solids(out, geom, x_m, y_m, yaw_rad, persons_xy)
         img = out
         e = self.effects
         if e.exposure_s > 0:
@@ -201,6 +237,23 @@ class SimCamera:
             noise = self._noise_bank[k, oy : oy + h, ox : ox + w]
             img = cv2.add(img, noise, dtype=cv2.CV_8U)
         return img.copy() if img is out else img
+
+    def _draw_ground(self, out: np.ndarray, geom: CameraGeometry, x_m: float, y_m: float, yaw_rad: float,
+                     v0: int) -> None:
+        """Warp the ground canvases into rows ``[v0, h)``: the coarse one beyond FINE_GROUND_M, the fine one nearer."""
+        assert self._ground is not None and self._ground_far is not None
+        h, w = geom.height_px, geom.width_px
+        # Row of the centre column that sees the floor FINE_GROUND_M ahead of the camera.
+        depression = math.atan2(geom.height_m, FINE_GROUND_M) - math.radians(geom.pitch_deg)
+        v_fine = max(v0, min(h, int(math.ceil((h - 1) / 2.0 + geom.focal_px * math.tan(depression)))))
+        img_from_world = geom.image_from_world(x_m, y_m, yaw_rad)
+        for canvas, level, top, bottom in ((self._ground_far, 1, v0, v_fine), (self._ground, 0, v_fine, h)):
+            if top >= bottom:
+                continue
+            shift = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -top], [0.0, 0.0, 1.0]])
+            cv2.warpPerspective(canvas, shift @ img_from_world @ ground_world_from_canvas(x_m, y_m, level),
+                                (w, bottom - top), dst=out[top:bottom], flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_WRAP)
 
     def _motion_blur(self, img: np.ndarray, geom: CameraGeometry, v_mps: float, w_rps: float) -> np.ndarray:
         """Smear along the image motion of the floor point at the image centre during the exposure."""

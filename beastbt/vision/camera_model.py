@@ -111,6 +111,14 @@ class CameraGeometry:
         """Image row of the horizon (pixels); rows below it (larger v) see the floor."""
         return float(self._k[1, 2] - self._k[1, 1] * math.tan(math.radians(self.pitch_deg)))  # type: ignore[attr-defined]
 
+    @property
+    def camera_from_body(self) -> np.ndarray:
+        """3x4 matrix [R | -R t] from body points (x forward, y left, z up, metres) to the camera frame.
+
+        Camera frame: x right, y down, z along the optical axis (metres); pixels are K times it, divided by z.
+        """
+        return np.column_stack([self._r, -self._r @ self._t])  # type: ignore[attr-defined]
+
     # --- floor <-> image -------------------------------------------------------------
     @property
     def image_from_ground(self) -> np.ndarray:
