@@ -76,7 +76,9 @@ def test_steps_that_share_a_name_get_a_row_each(runs):
     assert min(iv.start_s for iv in drives if iv.node_id == second) > max(iv.end_s for iv in drives
                                                                         if iv.node_id == first)
     rows = dict(timeline_rows(intervals))
-    assert rows[first] == f"drive 3 m at 0.15 m/s [{first}]" and rows[second] == f"drive 3 m at 0.15 m/s [{second}]"
+    # Told apart in words, by the order they first ran: no node ids such as [0.0.0.1.0] on a person's plot.
+    assert rows[first] == "drive 3 m at 0.15 m/s (1st)" and rows[second] == "drive 3 m at 0.15 m/s (2nd)"
+    assert not any("[" in label for label in rows.values())
 
 
 def _old_recording(path, changes_by_tick, tree):
@@ -311,11 +313,16 @@ def test_the_waypoint_table_shows_tolerance_and_error(runs, tmp_path):
         row = dict(zip(WAYPOINT_COLUMNS, rows[wp["name"]]))
         assert row["tolerance (m)"] == f"{wp['tolerance_m']:.2f}"
         if wp["arrival_error_m"] is not None:
-            assert row["arrival error (m)"] == f"{wp['arrival_error_m']:.2f}"
-            assert row["within tolerance"] == ("yes" if wp["arrival_error_m"] <= wp["tolerance_m"] else "NO")
+            # Both distances: the estimate's (judged against the tolerance, so within it for a reached place)
+            # and the truth's (which adds the estimate's own error and may exceed it).
+            assert row["true distance (m)"] == f"{wp['arrival_error_m']:.2f}"
+            assert row["estimated distance (m)"] == f"{wp['estimated_error_m']:.2f}"
+            assert wp["estimated_error_m"] <= wp["tolerance_m"]
     assert rows["a"][2] == "2.00"  # the mission gives a no tolerance: the profile's default
     page = make_report(str(folder), str(tmp_path / "out")).html.read_text(encoding="utf-8")
-    assert "<th>tolerance (m)</th><th>arrival error (m)</th>" in page
+    assert "<th>tolerance (m)</th><th>estimated distance (m)</th><th>true distance (m)</th>" in page
+    assert "counts as reached when the robot" in page and "fused estimate comes within the tolerance" in page
+    assert "within tolerance" not in page  # the old column that said NO for a place the run rightly reached
     first = summary["waypoints"][0]
     assert f"<td>{first['name']}</td>" in page and f"<td class='num'>{first['tolerance_m']:.2f}</td>" in page
     # A summary from before tolerance_m: the mission's place tolerance (b: 3 m), else the default.
@@ -382,3 +389,45 @@ def test_a_tree_put_in_during_the_run_shows_its_leaf_only(tmp_path):
     assert [(iv.node_id, iv.name, iv.how) for iv in intervals] == [
         ("0.0", "go_to a", "INVALID"), ("1.0", "return_home", "SUCCESS")]
     assert intervals[1].start_s == pytest.approx(0.5) and intervals[1].end_s == pytest.approx(1.5)
+
+
+def test_the_map_draws_the_fences_and_the_speeds_plot_turns_in_deg_per_s(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    mission = GPS_ROUTE.read_text(encoding="utf-8")
+    fenced = mission.replace("steps:", "fences:\n  yard: {keep: in, polygon: [{lat: 40.4166, lon: -3.7042}, "
+                             "{lat: 40.4166, lon: -3.7030}, {lat: 40.4175, lon: -3.7030}, {lat: 40.4175, "
+                             "lon: -3.7042}]}\nsteps:", 1)
+    folder, _ = record_run(GPS_ROUTE, tmp_path / "runs", seed=3, max_time_s=20.0, mission_text=fenced)
+    data = RunData.load(str(folder))
+    (yard,) = data.fences()
+    assert yard[0] == "yard" and yard[1] == "in" and len(yard[2]) == 4
+    labels, (x0, x1), (y0, y1), _ = _drawn(data)
+    assert "fence yard (keep in)" in labels
+    assert all(x0 <= x <= x1 and y0 <= y <= y1 for x, y in yard[2])  # the map is wide enough to show it
+    report = make_report(str(folder), str(tmp_path / "out"))
+    assert "speeds" in report.plots
+    from beastbt.recording import report as report_module
+    drawn: list = []
+    real_subplots = plt.subplots
+
+    def spy(*args, **kwargs):
+        fig, axes = real_subplots(*args, **kwargs)
+        drawn.append(axes)
+        return fig, axes
+
+    plt.subplots = spy
+    try:
+        report_module.plot_speeds(data, tmp_path / "speeds.png")
+    finally:
+        plt.subplots = real_subplots
+    (speed_ax, turn_ax), = drawn
+    assert turn_ax.get_ylabel() == "turn rate (deg/s)"
+    lines = {line.get_label(): line for line in turn_ax.get_lines()}
+    mission_line, sent = lines["mission command"], lines["sent (after gate)"]
+    assert mission_line.get_zorder() > sent.get_zorder() > lines["true turn rate"].get_zorder()  # asked, on top
+    rates = [abs(v) for v in mission_line.get_ydata()]
+    assert max(rates) > 5.0  # deg/s: a route's turns, not the 0.1-1 of rad/s
+

@@ -139,6 +139,8 @@ def contribute(run: Any, summary: dict) -> None:
                 "arrival_error_m": round(err, 3) if v.reached and err is not None else None,
                 "time_s": round(v.time_s, 3) if v.time_s is not None else None,
                 "tolerance_m": round(v.tolerance_m, 3) if v.tolerance_m is not None else None,
+                "estimated_error_m": (round(v.estimated_error_m, 3)
+                                      if v.reached and v.estimated_error_m is not None else None),
             })
         summary["waypoints"] = out
         if log.visits.dropped:  # a long route keeps its first and its last visits

@@ -20,7 +20,7 @@ From a run folder (``runs/<time>_<mission>/``) or an ``.mcap`` file:
   ``line_error.png`` (when a line was followed), ``timeline.png`` (which
   step ran when, one row per node of the tree: steps that share a name
   are told apart by their stable node id), and ``report.html`` showing
-  them together with a waypoint table (tolerance, arrival error).
+  them together with a waypoint table (tolerance; the estimated and the true distance at arrival).
 
 Times are seconds from the run's first tick, whatever the recording's time
 base. A plot whose data the run does not have (no truth on the robot, no
@@ -86,13 +86,10 @@ class Waypoint:
     tolerance_m: Optional[float]
     arrival_error_m: Optional[float]
     time_s: Optional[float]
-
-    @property
-    def within(self) -> Optional[bool]:
-        """The arrival error is within the tolerance (None when either is unknown)."""
-        if self.arrival_error_m is None or self.tolerance_m is None:
-            return None
-        return self.arrival_error_m <= self.tolerance_m
+    estimated_error_m: Optional[float] = None
+    """The fused estimate's distance to the place at arrival (m): what arrival was judged on."""
+    true_error_m: Optional[float] = None
+    """The true distance at arrival (m, simulator only): the estimate's own error included."""
 
 
 EPOCH_NS_AFTER = 946_684_800 * 10**9
@@ -395,8 +392,11 @@ class RunData:
                 if tol is None:
                     default = default if default is not None else self.default_tolerance_m()
                     tol = default
+            simulated = "truth" in (self.summary or {})
+            estimated = wp.get("estimated_error_m", None if simulated else wp.get("arrival_error_m"))
             out.append(Waypoint(str(wp.get("name", "?")), wp.get("lat"), wp.get("lon"), bool(wp.get("reached")),
-                                tol, wp.get("arrival_error_m"), wp.get("time_s")))
+                                tol, wp.get("arrival_error_m"), wp.get("time_s"), estimated,
+                                wp.get("arrival_error_m") if simulated else None))
         return out
 
     def _places(self) -> dict:
@@ -432,6 +432,18 @@ class RunData:
                 tol = default
             e, n, _ = frame.to_enu(place.lat, place.lon)
             out.append((name, e, n, tol, None))
+        return out
+
+    def fences(self) -> list[tuple[str, str, list[tuple[float, float]]]]:
+        """The mission's fences in the map's frame: (name, keep ``in``/``out``, corners as (east m, north m))."""
+        frame = self.local_frame()
+        mission = self.mission()
+        if frame is None or mission is None:
+            return []
+        out = []
+        for name, fence in getattr(mission, "fences", {}).items():
+            corners = [tuple(frame.to_enu(lat, lon)[:2]) for lat, lon in fence.corners]
+            out.append((str(name), fence.keep, corners))
         return out
 
     # -- what happened ----------------------------------------------------------------------
@@ -587,6 +599,9 @@ def map_extent(d: RunData) -> Optional[tuple[float, float, float, float]]:
         r = tol or 0.0
         xs += [e - r, e + r]
         ys += [n - r, n + r]
+    for _, _, corners in d.fences():
+        xs += [p[0] for p in corners]
+        ys += [p[1] for p in corners]
     if not xs:
         frame = d.local_frame()
         for _, m in d.gps_fixes() if frame is not None else []:
@@ -621,6 +636,7 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
         ax.plot([p[0] for p in line], [p[1] for p in line], color="0.55", linewidth=4, alpha=0.5,
                 solid_capstyle="round", zorder=1, label="line track" if i == 0 else None)
     _draw_obstacles(ax, d)
+    _draw_fences(ax, d)
     frame = d.local_frame()
     fixes = d.gps_fixes() if frame is not None else []
     if fixes:
@@ -690,6 +706,21 @@ def _draw_obstacles(ax: Any, d: RunData) -> None:
         if walk:  # the person as big as it is, where the run left it
             ax.add_patch(Circle(walk[-1], radius, facecolor=PERSON_COLOUR, edgecolor="black", alpha=0.5, zorder=6,
                                 label=label("person at the end")))
+
+
+def _draw_fences(ax: Any, d: RunData) -> None:
+    """The mission's fences as closed polygons: keep-in green (dashed edge), keep-out red (shaded)."""
+    from matplotlib.colors import to_rgba
+    from matplotlib.patches import Polygon
+    for name, keep, corners in d.fences():
+        inside = keep == "in"
+        colour = "tab:green" if inside else "tab:red"
+        ax.add_patch(Polygon(corners, closed=True, facecolor=to_rgba(colour, 0.0 if inside else 0.15),
+                             edgecolor=colour, linestyle="--" if inside else "-", linewidth=1.5, zorder=2,
+                             label=f"fence {name} (keep {keep})"))
+        x, y = corners[0]
+        ax.annotate(f"fence {name}", (x, y), textcoords="offset points", xytext=(4, -10), fontsize=8, color=colour,
+                    zorder=8)
 
 
 def _draw_targets(ax: Any, d: RunData) -> None:
@@ -808,7 +839,7 @@ def plot_position_error(d: RunData, out: Path) -> Optional[str]:
         if label in errors:
             times, errs = errors[label]
             rms = math.sqrt(sum(e * e for e in errs) / len(errs))
-            size = f"{rms:.2f} m" if rms >= 0.1 else f"{rms * 1000:.0f} mm"  # indoors, odometry errs by millimetres
+            size = f"{rms:.2f} m" if rms >= 0.1 else f"{rms:.3f} m"  # the axis's unit; indoors odometry errs by mm
             ax.plot(times, errs, label=f"{label} (RMS {size})", **styles[label])
     _mark_failsafes(ax, d)
     ax.set_xlabel("time (s)")
@@ -832,31 +863,38 @@ def plot_speeds(d: RunData, out: Path) -> Optional[str]:
     t_fused, fused = d.series("/estimate/fused")
     plt = _plt()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=FIG_SIZE_IN, dpi=DPI, sharex=True)
-    if mission:
-        ax1.plot(t_mission, [m["linear_mps"] for m in mission], color="tab:gray", linewidth=1, label="mission command")
-    ax1.plot(t_gate, [m["linear_mps"] for m in gate], color="tab:blue", linewidth=1.5, label="sent (after gate)")
+    deg = math.degrees(1.0)  # turn rates in deg/s, the unit missions write them in
+    # What was measured goes underneath, thin and light (it is noisy); what was asked on top, so that it shows.
+    measured = dict(linewidth=0.8, alpha=0.6, zorder=2)
     if truth:
-        ax1.plot(t_truth, [m["v_mps"] for m in truth], color="black", linewidth=1, label="true speed")
+        ax1.plot(t_truth, [m["v_mps"] for m in truth], color="black", label="true speed", **measured)
     if odo:
-        ax1.plot(t_odo, [(m["left_mps"] + m["right_mps"]) / 2 for m in odo], color="tab:green", linewidth=1,
-                 linestyle="--", label="wheel odometry")
+        ax1.plot(t_odo, [(m["left_mps"] + m["right_mps"]) / 2 for m in odo], color="tab:green", linestyle="--",
+                 label="wheel odometry", **measured)
     elif fused:
-        ax1.plot(t_fused, [m["speed_mps"] for m in fused], color="tab:green", linewidth=1, linestyle="--",
-                 label="fused estimate")
+        ax1.plot(t_fused, [m["speed_mps"] for m in fused], color="tab:green", linestyle="--", label="fused estimate",
+                 **measured)
+    ax1.plot(t_gate, [m["linear_mps"] for m in gate], color="tab:blue", linewidth=1.5, zorder=3,
+             label="sent (after gate)")
+    if mission:
+        ax1.plot(t_mission, [m["linear_mps"] for m in mission], color="tab:orange", linewidth=1.8, linestyle="--",
+                 zorder=4, label="mission command")
     ax1.set_ylabel("forward speed (m/s)")
     ax1.legend(loc="best", fontsize=8)
     ax1.grid(True, alpha=0.3)
-    if mission:
-        ax2.plot(t_mission, [m["angular_rps"] for m in mission], color="tab:gray", linewidth=1, label="mission command")
-    ax2.plot(t_gate, [m["angular_rps"] for m in gate], color="tab:blue", linewidth=1.5, label="sent (after gate)")
     if truth:
-        ax2.plot(t_truth, [m["w_rps"] for m in truth], color="black", linewidth=1, label="true turn rate")
+        ax2.plot(t_truth, [m["w_rps"] * deg for m in truth], color="black", label="true turn rate", **measured)
     if fused:
-        ax2.plot(t_fused, [m["yaw_rate_rps"] for m in fused], color="tab:green", linewidth=1, linestyle="--",
-                 label="fused estimate")
+        ax2.plot(t_fused, [m["yaw_rate_rps"] * deg for m in fused], color="tab:green", linestyle="--",
+                 label="fused estimate", **measured)
+    ax2.plot(t_gate, [m["angular_rps"] * deg for m in gate], color="tab:blue", linewidth=1.5, zorder=3,
+             label="sent (after gate)")
+    if mission:
+        ax2.plot(t_mission, [m["angular_rps"] * deg for m in mission], color="tab:orange", linewidth=1.8,
+                 linestyle="--", zorder=4, label="mission command")
     for ax in (ax1, ax2):
         _mark_failsafes(ax, d)
-    ax2.set_ylabel("turn rate (rad/s)")
+    ax2.set_ylabel("turn rate (deg/s)")
     ax2.set_xlabel("time (s)")
     ax2.legend(loc="best", fontsize=8)
     ax2.grid(True, alpha=0.3)
@@ -965,13 +1003,29 @@ def step_intervals(d: RunData) -> list[StepRun]:
 def timeline_rows(intervals: list[StepRun]) -> list[tuple[str, str]]:
     """(key, label) of the timeline's rows, in the order the steps first started: one row per step.
 
-    A label is the step's name, with its node id when another step shares that name.
+    A label is the step's name; when another step shares that name, also which of them it is in the order they
+    first ran ("drive 3 m (2nd)").
     """
     keys: dict[str, str] = {}
     for iv in sorted(intervals, key=lambda iv: iv.start_s):
         keys.setdefault(iv.key, iv.name)
-    names = [name for name in keys.values()]
-    return [(key, name if names.count(name) == 1 or key == name else f"{name} [{key}]") for key, name in keys.items()]
+    names = list(keys.values())
+    out = []
+    for key, name in keys.items():
+        if names.count(name) == 1 or key == name:
+            out.append((key, name))
+            continue
+        # Two steps say the same (the two drives of a patrol's lap): told apart in words, by the order in which
+        # they first ran, not by their node ids.
+        k = sum(1 for other_key, other in out if other == name or other.startswith(f"{name} ("))
+        out.append((key, f"{name} ({_ordinal(k + 1)})"))
+    return out
+
+
+def _ordinal(n: int) -> str:
+    """1st, 2nd, 3rd, 4th... 11th, 12th, 13th, 21st."""
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"
 
 
 def plot_timeline(d: RunData, out: Path) -> Optional[str]:
@@ -1042,8 +1096,14 @@ def make_report(run: str, out: Optional[str] = None) -> Report:
     return report
 
 
-WAYPOINT_COLUMNS = ("waypoint", "reached", "tolerance (m)", "arrival error (m)", "within tolerance", "arrived at (s)")
+WAYPOINT_COLUMNS = ("waypoint", "reached", "tolerance (m)", "estimated distance (m)", "true distance (m)",
+                    "arrived at (s)")
 """The header of the waypoint table."""
+WAYPOINT_NOTE = ("A place counts as reached when the robot's fused estimate comes within the tolerance (the "
+                 "estimated distance). The true distance (simulator) is where the robot really stopped: it adds the "
+                 "estimate's own error, a few metres with a plain GPS, so it may exceed the tolerance of a place that "
+                 "was rightly reached.")
+"""What the waypoint table's distances mean, printed above it."""
 
 
 def waypoint_table(d: RunData) -> list[tuple[str, ...]]:
@@ -1053,9 +1113,8 @@ def waypoint_table(d: RunData) -> list[tuple[str, ...]]:
 
     rows = []
     for wp in d.waypoints():
-        within = {True: "yes", False: "NO", None: ""}[wp.within]
-        rows.append((wp.name, "yes" if wp.reached else "NO", num(wp.tolerance_m), num(wp.arrival_error_m), within,
-                     "" if wp.time_s is None else f"{wp.time_s:.1f}"))
+        rows.append((wp.name, "yes" if wp.reached else "NO", num(wp.tolerance_m), num(wp.estimated_error_m),
+                     num(wp.true_error_m), "" if wp.time_s is None else f"{wp.time_s:.1f}"))
     return rows
 
 
@@ -1075,12 +1134,11 @@ def write_html(d: RunData, report: Report) -> Path:
     ]
     rows = waypoint_table(d)
     if rows:
-        parts.append("<h2>Waypoints</h2><table><tr>" + "".join(f"<th>{esc(c)}</th>" for c in WAYPOINT_COLUMNS)
-                     + "</tr>")
+        parts.append(f"<h2>Waypoints</h2><p>{esc(WAYPOINT_NOTE)}</p><table><tr>"
+                     + "".join(f"<th>{esc(c)}</th>" for c in WAYPOINT_COLUMNS) + "</tr>")
         for row in rows:
             cells = [f"<td>{esc(row[0])}</td>", f"<td>{esc(row[1])}</td>"]
-            cells += [f"<td class='num'>{esc(v)}</td>" for v in row[2:4]]
-            cells += [f"<td>{esc(row[4])}</td>", f"<td class='num'>{esc(row[5])}</td>"]
+            cells += [f"<td class='num'>{esc(v)}</td>" for v in row[2:]]
             parts.append("<tr>" + "".join(cells) + "</tr>")
         parts.append("</table>")
     for stem, path in report.plots.items():
@@ -1110,5 +1168,5 @@ def write_html(d: RunData, report: Report) -> Path:
 
 
 __all__ = ["make_report", "Report", "RunData", "Waypoint", "summary_text", "step_intervals", "StepRun",
-           "timeline_rows", "map_extent", "draw_path", "position_errors", "waypoint_table", "WAYPOINT_COLUMNS",
+           "timeline_rows", "map_extent", "draw_path", "position_errors", "waypoint_table", "WAYPOINT_COLUMNS", "WAYPOINT_NOTE",
            "PLOTS", "FIG_SIZE_IN", "MAP_SIZE_IN", "DPI"]
