@@ -56,9 +56,22 @@ def write_world(folder: Path, name: str = "field", gps: Optional[dict] = None, i
     return str(path)
 
 
-def harness(folder: Path, mission: str, seed: int = 1, **world: Any) -> MissionHarness:
-    """A harness for ``mission`` (YAML text) in a test world written to ``folder``."""
-    return MissionHarness.from_yaml(mission, world=write_world(folder, **world), seed=seed, base_dir=folder)
+def harness(folder: Path, mission: str, seed: int = 1, robot: str = "sim", **world: Any) -> MissionHarness:
+    """A harness for ``mission`` (YAML text) in a test world written to ``folder`` (``robot``: a profile)."""
+    return MissionHarness.from_yaml(mission, world=write_world(folder, **world), seed=seed, base_dir=folder,
+                                    robot=robot)
+
+
+def robot_without_lidar(folder: Path) -> str:
+    """robots/sim.yaml without its LiDAR (no collision monitor, no local costmap): go_to as pure pursuit alone."""
+    import yaml
+
+    root = Path(__file__).resolve().parent.parent
+    data = yaml.safe_load((root / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    data.pop("lidar", None)
+    path = folder / "robot_without_lidar.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return str(path)
 
 
 def true_distance_m(h: MissionHarness, east_m: float, north_m: float) -> float:
