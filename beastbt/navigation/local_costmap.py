@@ -9,7 +9,9 @@ square grid of ``width_m`` centred on the robot:
   points nearer than ``obstacle_min_range_m`` or farther than
   ``obstacle_max_range_m`` from the LiDAR are left out;
 * **inflation layer**: with ``d`` the distance (m) from a cell's centre to the
-  nearest lethal cell's centre (``cv2.distanceTransform``, exact Euclidean),
+  nearest lethal cell's centre (``cv2.distanceTransform`` with its 5x5 mask:
+  within 2 % of the Euclidean distance, several times quicker than the exact
+  one when the window is full of points),
   cells with ``d`` up to the inscribed radius (the footprint radius plus
   ``footprint_padding_m``) are :data:`COST_INSCRIBED` (253), those up to
   ``inflation_radius_m`` get ``252 * exp(-cost_scaling_factor * (d -
@@ -39,7 +41,8 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 
 LUT_STEPS_PER_CELL = 8
-"""The inflation cost is looked up at this many distances per cell (a distance is rounded down to 1/8 cell)."""
+"""The inflation cost is looked up at this many distances per cell (a distance is rounded down to 1/8 cell), fewer
+when the inflation reaches farther than 254 / 8 cells (the lookup is a 256-entry ``cv2.LUT``)."""
 
 
 @dataclass(frozen=True)
@@ -81,21 +84,29 @@ class LocalCostmapConfig:
         return dataclass_from_dict(cls, d, "local_costmap")
 
 
+def lut_steps(config: LocalCostmapConfig, inscribed_m: float) -> int:
+    """Steps per cell of the inflation lookup: :data:`LUT_STEPS_PER_CELL`, fewer for a far-reaching inflation."""
+    reach_cells = max(config.inflation_radius_m, inscribed_m) / config.resolution_m
+    return max(1, min(LUT_STEPS_PER_CELL, int(254 // (reach_cells + 1))))
+
+
 def inflation_lut(config: LocalCostmapConfig, inscribed_m: float) -> np.ndarray:
-    """Cost (uint8) by distance to the nearest lethal cell, indexed by the distance in 1/8 cells.
+    """Cost (uint8, 256 entries) by distance to the nearest lethal cell, indexed by the distance in
+    1 / :func:`lut_steps` cells (255: that far or farther).
 
     254 at 0, 253 up to ``inscribed_m``, Nav2's exponential decay up to
-    ``inflation_radius_m``, 0 beyond. The last entry is 0 (for every farther cell).
+    ``inflation_radius_m``, 0 beyond.
     """
     res = config.resolution_m
-    reach = max(config.inflation_radius_m, inscribed_m)
-    n = int(math.ceil(reach / res * LUT_STEPS_PER_CELL)) + 2
-    d = np.arange(n) * (res / LUT_STEPS_PER_CELL)
+    steps = lut_steps(config, inscribed_m)
+    d = np.arange(256) * (res / steps)
     cost = np.where(d <= config.inflation_radius_m,
                     (COST_INSCRIBED - 1) * np.exp(-config.cost_scaling_factor * (d - inscribed_m)), COST_FREE)
     cost = np.where(d <= inscribed_m, COST_INSCRIBED, np.floor(cost))
     cost[0] = COST_LETHAL
     cost[-1] = COST_FREE
+    if config.inflation_radius_m >= d[-1] and inscribed_m < d[-1]:
+        raise ValueError("local_costmap: inflation_radius_m reaches too many cells for the lookup")
     return cost.astype(np.uint8)
 
 
@@ -123,7 +134,8 @@ class RollingCostmap:
         self.inscribed_m = footprint_radius_m + config.footprint_padding_m
         self.cells = int(round(config.width_m / config.resolution_m))
         self._lut = inflation_lut(config, self.inscribed_m)
-        self._lut_scale = LUT_STEPS_PER_CELL
+        self._lut_scale = float(lut_steps(config, self.inscribed_m))
+        self._reach_cells = int(math.ceil(max(config.inflation_radius_m, self.inscribed_m) / config.resolution_m)) + 1
         self._scans: deque[tuple[float, np.ndarray]] = deque()
         self._free = np.full((self.cells, self.cells), 255, np.uint8)
         self.points_odom = np.zeros((0, 2))
@@ -160,21 +172,27 @@ class RollingCostmap:
         n = self.cells
         ox = math.floor(centre_xy[0] / res - n / 2) * res
         oy = math.floor(centre_xy[1] / res - n / 2) * res
-        grid = self._free.copy()
+        cost = np.zeros((n, n), np.uint8)
         pts = self.points_odom
         if len(pts):
-            ix = np.floor((pts[:, 0] - ox) / res).astype(np.intp)
-            iy = np.floor((pts[:, 1] - oy) / res).astype(np.intp)
-            inside = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n)
-            grid[iy[inside], ix[inside]] = 0
-        if len(pts) == 0 or grid.all():
-            cost = np.zeros((n, n), np.uint8)
-        else:
-            # Distance (cells) from each cell to the nearest marked one: exact Euclidean (DIST_MASK_PRECISE).
-            dist = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-            idx = dist * self._lut_scale
-            np.minimum(idx, len(self._lut) - 1, out=idx)
-            cost = self._lut[idx.astype(np.intp)]
+            ix = ((pts[:, 0] - ox) * (1.0 / res)).astype(np.intp)  # truncation is floor here: only >= 0 is kept
+            iy = ((pts[:, 1] - oy) * (1.0 / res)).astype(np.intp)
+            inside = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n) & (pts[:, 0] >= ox) & (pts[:, 1] >= oy)
+            ix, iy = ix[inside], iy[inside]
+            if len(ix):
+                # Only cells within the inflation's reach of a point can cost anything: the distance transform
+                # runs on the box round the points (the whole window in a room, a corner of it on a lawn).
+                m = self._reach_cells
+                x0, x1 = max(0, int(ix.min()) - m), min(n, int(ix.max()) + m + 1)
+                y0, y1 = max(0, int(iy.min()) - m), min(n, int(iy.max()) + m + 1)
+                grid = self._free[y0:y1, x0:x1].copy()
+                grid[iy - y0, ix - x0] = 0
+                # Distance (cells) from each cell to the nearest marked one, then the cost by lookup: the distance
+                # in 1/steps cells, saturated at 255 (convertScaleAbs rounds: less half a step, it floors),
+                # through a 256-entry cv2.LUT.
+                dist = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_5)
+                idx = cv2.convertScaleAbs(dist, alpha=self._lut_scale, beta=-0.5)
+                cost[y0:y1, x0:x1] = cv2.LUT(idx, self._lut)
         self.latest = LocalCostmap(stamp_s, ox, oy, res, cost)
         return self.latest
 
