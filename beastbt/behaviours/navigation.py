@@ -165,6 +165,9 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
+KEEP_PLANNING_S = 2.0
+"""After obstacles were last in the pure-pursuit command's way, the local planner keeps choosing for this long (s)."""
+
 FARTHEST_TARGET_M = TYPO_DISTANCE_M
 """A go_to target farther than this from the robot (m) is refused: a typo, not a destination."""
 
@@ -405,8 +408,9 @@ class GoTo(BeastBehaviour):
                 self.best_turn_rad = abs(alpha)
                 self.progress_at_s = now
         self.mode = "rotate" if rotate else "drive"
-        v, w = self._preference(rotate, alpha, ld, dist, tolerance)
-        plan = self._steer(now, pose, (v, w), (de, dn), (-e, -n))
+        preferred = self._preference(rotate, alpha, ld, dist, tolerance)
+        v, w = preferred
+        plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
         if plan is not None:
             v, w = plan.linear_mps, plan.angular_rps
         # Obstacles in the way since the last progress: going round them or waiting for them is not being
@@ -429,7 +433,7 @@ class GoTo(BeastBehaviour):
             return self.fail(f"stuck: no closer to {self.place} for {position_after:g} s, {dist:.1f} m to go")
         self.command(v, w)
         self.last_cmd = (v, w)
-        if plan is not None and not plan.free:
+        if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:
             what = "blocked, waiting" if plan.blocked and v == 0.0 and w == 0.0 else "going round an obstacle"
             self.feedback_message = f"{what}, {dist:.1f} m to {self.place}"
         elif rotate:
@@ -492,9 +496,12 @@ class GoTo(BeastBehaviour):
         odom: Optional[FusedPose] = self.read("pose_odom")
         if local is None or not self.costmap_fresh or odom is None:
             return None
+        # Half way round something (obstructed a moment ago), the planner keeps choosing: pure pursuit would turn
+        # straight back toward the line, into what it is going round.
         result = local.planner.plan(local.costmap.latest, (odom.x, odom.y, odom.yaw), self.last_cmd, preferred,
                                     self._to_odom(carrot[0], carrot[1], pose, odom), self.speed_mps,
-                                    self.ctx.turn_rate_limit_rps, self._to_odom(target[0], target[1], pose, odom))
+                                    self.ctx.turn_rate_limit_rps, self._to_odom(target[0], target[1], pose, odom),
+                                    keep_planning=now - self.obstructed_at_s < KEEP_PLANNING_S)
         if not result.free:
             self.obstructed_at_s = now
         self.bb.local_plan = LocalPlan(now, result.points_xy, result.linear_mps, result.angular_rps, result.blocked)

@@ -13,9 +13,9 @@ costmap, a preferred command (go_to's regulated pure pursuit) and a carrot
 2. follows each for ``sim_time_s`` as an arc (constant v, w), in steps of
    ``time_step_s``, all at once with NumPy;
 3. refuses an arc that enters a cell of cost >= :data:`COST_INSCRIBED` (the
-   footprint would touch), unless it never gets costlier than where the
-   robot is now (so a robot that ended up too close can still turn or back
-   off);
+   footprint would touch), unless the robot is already that close and the
+   arc turns in place or never gets costlier and ends cheaper (out, not
+   deeper);
 4. scores the others, lowest best: ``path_align_scale`` x the squared
    distance to the preference (per top speed and top turn rate) +
    ``goal_dist_scale`` x the change in distance to the goal (per top-speed
@@ -128,7 +128,8 @@ class Limits:
 @dataclass(frozen=True)
 class PlanResult:
     """What :meth:`DwaPlanner.plan` chose: the twist (m/s, rad/s), its arc in odom ((k+1, 2), m, from the robot),
-    whether it is the preference unchanged (``free``), whether no admissible arc gets closer to the carrot
+    whether the preference's own arc met no cost (``free``; then the twist is the preference unless asked to keep
+    planning), whether no admissible arc gets closer to the carrot
     (``blocked``), and how many arcs were admissible of how many sampled."""
 
     linear_mps: float
@@ -248,17 +249,22 @@ class DwaPlanner:
 
     def plan(self, costmap: Optional[LocalCostmap], pose: tuple[float, float, float], last: tuple[float, float],
              preferred: tuple[float, float], carrot_xy: tuple[float, float], max_speed_mps: float,
-             max_turn_rps: float, target_xy: Optional[tuple[float, float]] = None) -> PlanResult:
+             max_turn_rps: float, target_xy: Optional[tuple[float, float]] = None, keep_planning: bool = False
+             ) -> PlanResult:
         """Choose a twist: see the module docstring. ``pose`` odom (x m, y m, yaw rad); ``last`` and ``preferred``
         (v m/s, w rad/s); ``carrot_xy`` and ``target_xy`` odom (m; no target: the carrot);
-        ``max_speed_mps`` and ``max_turn_rps`` the step's limits."""
+        ``max_speed_mps`` and ``max_turn_rps`` the step's limits. ``keep_planning``: choose among the window even
+        when the preference's arc is free (the robot is half way round something: a pure-pursuit turn in place
+        back toward the line would undo it)."""
         cfg = self.config
         vp = min(max(preferred[0], 0.0), max_speed_mps)
         wp = min(max(preferred[1], -max_turn_rps), max_turn_rps)
         px, py = arcs(pose, np.array([vp]), np.array([wp]), self.times)
-        if costmap is None or not cost_at(costmap, px[0], py[0]).any():
+        free = costmap is None or not cost_at(costmap, px[0], py[0]).any()
+        if free and (not keep_planning or costmap is None):
             # Nothing near the preference's arc: drive it as it is (and compute nothing more).
             return PlanResult(vp, wp, np.column_stack((px[0], py[0])), True, False, 1, 1)
+        assert costmap is not None
         vs, ws = self.window(last, max_speed_mps, max_turn_rps)
         # The preference clipped into the window, and stopping, are always candidates.
         v_in = min(max(vp, float(vs.min())), float(vs.max()))
@@ -269,7 +275,9 @@ class DwaPlanner:
         cost = cost_at(costmap, x, y).astype(np.float32)
         here = float(cost[0, 0])
         worst = cost[:, 1:].max(axis=1)
-        admissible = (worst < COST_INSCRIBED) | (worst <= here)
+        # A robot already too close (in the inscribed band) may turn in place (its footprint is a circle) or take
+        # an arc that never gets costlier and ends cheaper: out, not deeper.
+        admissible = (worst < COST_INSCRIBED) | ((worst <= here) & ((vs == 0.0) | (cost[:, -1] < here)))
         d0, d_end = self._goal_distances(costmap, pose, carrot_xy, target_xy, x[:, -1], y[:, -1])
         admissible &= np.isfinite(d_end)
         reach = max(max_speed_mps * cfg.sim_time_s, 1e-3)
@@ -283,8 +291,8 @@ class DwaPlanner:
         n_ok = int(np.count_nonzero(admissible))
         if not np.isfinite(score[best]):
             # Nothing admissible (hemmed in): stand still.
-            return PlanResult(0.0, 0.0, np.array([[pose[0], pose[1]]]), False, True, 0, len(vs))
-        return PlanResult(float(vs[best]), float(ws[best]), np.column_stack((x[best], y[best])), False,
+            return PlanResult(0.0, 0.0, np.array([[pose[0], pose[1]]]), free, True, 0, len(vs))
+        return PlanResult(float(vs[best]), float(ws[best]), np.column_stack((x[best], y[best])), free,
                           not bool(progress.any()), n_ok, len(vs))
 
     def _goal_distances(self, costmap: LocalCostmap, pose: tuple[float, float, float], carrot_xy: tuple[float, float],
