@@ -38,7 +38,8 @@ def place_yaml(east_m: float, north_m: float, tolerance: Optional[str] = None) -
 
 
 def write_world(folder: Path, name: str = "field", gps: Optional[dict] = None, imu: Optional[dict] = None,
-                walls: Optional[list] = None, start_yaw_deg: float = 90.0, battery_v: float = 12.3) -> str:
+                walls: Optional[list] = None, start_yaw_deg: float = 90.0, battery_v: float = 12.3,
+                obstacles: Optional[list] = None) -> str:
     """Write a test world file (JSON is YAML) and return its path."""
     world: dict[str, Any] = {
         "world": name,
@@ -51,6 +52,8 @@ def write_world(folder: Path, name: str = "field", gps: Optional[dict] = None, i
         world["imu"] = imu
     if walls:
         world["walls"] = walls
+    if obstacles:
+        world["obstacles"] = obstacles
     path = folder / f"{name}.yaml"
     path.write_text(json.dumps(world, indent=1), encoding="utf-8")
     return str(path)

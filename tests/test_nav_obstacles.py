@@ -226,6 +226,28 @@ steps:
     assert h.blackboard("costmap") is not None and h.blackboard("local_plan") is not None
 
 
+def test_go_to_waits_for_a_person_in_a_doorway_longer_than_stuck_after_and_then_goes_through(tmp_path):
+    # A wall across the field with a 1 m doorway; a person stands in it until 30 s, then walks on ahead.
+    h = harness(tmp_path, f"""
+mission: t
+places:
+  a: {place_yaml(0.0, 7.0)}
+steps:
+  - go_to: {{place: a, stuck_after: 5 s, blocked_after: 30 s}}
+""", walls=[[-10.0, 4.0, -0.5, 4.0], [0.5, 4.0, 10.0, 4.0]],
+        obstacles=[{"shape": "person", "radius_m": 0.25, "speed_mps": 0.8, "path": [[0.0, 4.0], [0.0, 14.0]],
+                    "start_s": 30}])
+    waited = 0.0
+    while not h.done and h.now_s < 120:
+        h.tick()
+        if h.now_s < 30 and h.truth.y > 3.0 and h.truth.v_mps < 0.01:
+            waited += h.dt_s
+    assert h.result == "success", [e.text for e in events_of(h, "step_failed")]
+    assert waited > 5.0                                   # it stood before the person for longer than stuck_after
+    assert h.truth.y > 4.5                                # and went through the doorway once the person had gone
+    assert h.summary()["truth"]["collisions"] == 0
+
+
 def test_go_to_without_a_lidar_steers_by_pure_pursuit_alone(tmp_path):
     h = harness(tmp_path, f"""
 mission: t
