@@ -214,7 +214,11 @@ places:
 steps:
   - go_to: {{place: a, blocked_after: 6 s}}
 """, walls=[[-15.0, 5.0, 15.0, 5.0]])
-    assert h.run_to_end(timeout_s=200) == "failure"
+    plans = []
+    while not h.done and h.now_s < 200:
+        h.tick()
+        plans.append(h.blackboard("local_plan"))
+    assert h.result == "failure"
     failed = events_of(h, "step_failed")
     assert len(failed) == 1
     text = failed[0].text
@@ -223,7 +227,9 @@ steps:
     assert 0.15 < metres < 1.0                        # it stopped short, but close
     assert h.summary()["truth"]["collisions"] == 0
     assert h.truth.y < 5.0 - 0.15
-    assert h.blackboard("costmap") is not None and h.blackboard("local_plan") is not None
+    assert h.blackboard("costmap") is not None
+    assert any(p is not None and p.blocked for p in plans)   # the plan said so while it waited
+    assert plans[-1] is None                                  # and no plan is shown once the step has ended
 
 
 def test_go_to_waits_for_a_person_in_a_doorway_longer_than_stuck_after_and_then_goes_through(tmp_path):

@@ -240,6 +240,8 @@ class GoTo(BeastBehaviour):
         self._resolve_goal()
 
     def terminate(self, new_status: Status) -> None:
+        if self.local is not None:
+            self.bb.local_plan = None  # no plan is followed once the step has ended (the costmap keeps its stamp)
         visit = self.visit
         if visit is None:
             return

@@ -57,8 +57,9 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.navigation.local_costmap import cost_at
 
-PROGRESS_EPS_M = 0.01
-"""An arc must end this much closer to the goal to count as progress (m)."""
+PROGRESS_EPS_M = 0.05
+"""An arc must end this much closer to the goal to count as progress (m): creeping at under 3 cm/s over the
+horizon toward a wall is blocked, not progress."""
 NF_COST_WEIGHT = 3.0
 """A step of the navigation function through a cell of cost c is (1 + this * c / 252) times its length: the way
 round keeps away from obstacles where it can."""
