@@ -10,7 +10,6 @@ lawn (simulated time, same seed).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
