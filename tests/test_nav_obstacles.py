@@ -231,6 +231,26 @@ steps:
     assert plans[-1] is None                                  # and no plan is shown once the step has ended
 
 
+def test_go_to_goes_round_a_box_while_it_still_finds_its_heading(tmp_path):
+    # No magnetometer in the test field: go_to drives straight ahead to find its heading, and a bench is in the way.
+    h = harness(tmp_path, f"""
+mission: t
+places:
+  a: {place_yaml(0.0, 9.0)}
+steps:
+  - go_to: a
+""", obstacles=[{"shape": "box", "x": 0.1, "y": 2.5, "size_m": [1.2, 0.4], "yaw_deg": 0}])
+    finding = []
+    while not h.done and h.now_s < 120:
+        h.tick()
+        tip = h.run.root.tip()
+        if tip is not None and tip.feedback_message.startswith("finding the heading") and abs(h.truth.y - 2.5) < 0.5:
+            finding.append(h.truth.x)
+    assert h.result == "success", [e.text for e in events_of(h, "step_failed")]
+    assert finding and max(abs(x - 0.1) for x in finding) > 0.6 + 0.15   # it passed the bench beside it
+    assert h.summary()["truth"]["collisions"] == 0
+
+
 def test_go_to_waits_for_a_person_in_a_doorway_longer_than_stuck_after_and_then_goes_through(tmp_path):
     # A wall across the field with a 1 m doorway; a person stands in it until 30 s, then walks on ahead.
     h = harness(tmp_path, f"""

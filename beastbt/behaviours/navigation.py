@@ -340,17 +340,36 @@ class GoTo(BeastBehaviour):
         if driven > nav.heading_init_distance_m:
             self.command(0.0, 0.0)
             return self.fail(f"no heading estimate after driving {driven:.1f} m")
+        hold = wrap_angle(self.init_start.yaw - odom.yaw)
+        limit = self.ctx.turn_rate_limit_rps
+        preferred = (self.speed_mps, max(-limit, min(limit, self.ctx.params.heading_gain * hold)))
+        # With a LiDAR, round what is in the way too: the carrot is ahead on the line it set off along (odom).
+        start, ux, uy = self.init_start, math.cos(self.init_start.yaw), math.sin(self.init_start.yaw)
+        ahead = max(0.0, (odom.x - start.x) * ux + (odom.y - start.y) * uy) + nav.lookahead_m
+        carrot = (start.x + ux * ahead, start.y + uy * ahead)
+        plan = self._plan(now, odom, preferred, carrot, carrot)
+        v, w = (plan.linear_mps, plan.angular_rps) if plan is not None else preferred
         if odom.distance_m - self.odom_at_progress_m >= nav.progress_m:
             self.progress_at_s = now
             self.odom_at_progress_m = odom.distance_m
+        elif self.obstructed_at_s >= self.progress_at_s:
+            blocked_after = max(self._blocked_after(), self.stuck_after_s)
+            if now - self.progress_at_s > blocked_after:
+                self.command(0.0, 0.0)
+                toward = wrap_angle(math.atan2(carrot[1] - odom.y, carrot[0] - odom.x) - odom.yaw)
+                return self.fail(f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, while finding "
+                                 f"the heading")
         elif now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
             return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
-        hold = wrap_angle(self.init_start.yaw - odom.yaw)
-        limit = self.ctx.turn_rate_limit_rps
-        self.command(self.speed_mps, max(-limit, min(limit, self.ctx.params.heading_gain * hold)))
+        self.command(v, w)
+        self.last_cmd = (v, w)
         self.feedback_message = f"finding the heading: {driven:.1f} m driven, {dist:.1f} m to {self.place}"
         return Status.RUNNING
+
+    def _blocked_after(self) -> float:
+        """The step's blocked_after, else the profile's default (s)."""
+        return self.blocked_after_s if self.blocked_after_s is not None else self.nav.default_blocked_after_s
 
     # -- heading known: regulated pure pursuit -------------------------------------------------
     def _cross_track_m(self, e: float, n: float) -> float:
@@ -418,11 +437,12 @@ class GoTo(BeastBehaviour):
         # Obstacles in the way since the last progress: going round them or waiting for them is not being
         # stuck; only blocked_after without progress is.
         obstructed = self.obstructed_at_s >= self.progress_at_s
-        blocked_after = self.blocked_after_s if self.blocked_after_s is not None else nav.default_blocked_after_s
+        blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
+            toward = wrap_angle(math.atan2(dn, de) - pose.yaw)
             return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(de, dn, pose)}, {dist:.1f} m to {self.place}")
+                             f"{self._obstacle_text(toward)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
             return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
@@ -491,32 +511,38 @@ class GoTo(BeastBehaviour):
 
     def _steer(self, now: float, pose: FusedPose, preferred: tuple[float, float], carrot: tuple[float, float],
                target: tuple[float, float]) -> Optional[PlanResult]:
-        """The local planner's plan for the preferred command (v m/s, w rad/s), the carrot and the target (east,
-        north m from the robot), written to ``local_plan``; None without a LiDAR or a fresh scan (drive the
-        preference)."""
-        local = self.local
+        """:meth:`_plan` for the carrot and the target given east, north m from the robot (by the fused pose)."""
         odom: Optional[FusedPose] = self.read("pose_odom")
-        if local is None or not self.costmap_fresh or odom is None:
+        if odom is None:
+            return None
+        return self._plan(now, odom, preferred, self._to_odom(carrot[0], carrot[1], pose, odom),
+                          self._to_odom(target[0], target[1], pose, odom))
+
+    def _plan(self, now: float, odom: FusedPose, preferred: tuple[float, float], carrot: tuple[float, float],
+              target: tuple[float, float]) -> Optional[PlanResult]:
+        """The local planner's plan for the preferred command (v m/s, w rad/s), the carrot and the target (odom,
+        m), written to ``local_plan``; None without a LiDAR or a fresh scan (drive the preference)."""
+        local = self.local
+        if local is None or not self.costmap_fresh:
             return None
         # Half way round something (obstructed a moment ago), the planner keeps choosing: pure pursuit would turn
         # straight back toward the line, into what it is going round.
         result = local.planner.plan(local.costmap.latest, (odom.x, odom.y, odom.yaw), self.last_cmd, preferred,
-                                    self._to_odom(carrot[0], carrot[1], pose, odom), self.speed_mps,
-                                    self.ctx.turn_rate_limit_rps, self._to_odom(target[0], target[1], pose, odom),
+                                    carrot, self.speed_mps, self.ctx.turn_rate_limit_rps, target,
                                     keep_planning=now - self.obstructed_at_s < KEEP_PLANNING_S)
         if not result.free:
             self.obstructed_at_s = now
         self.bb.local_plan = LocalPlan(now, result.points_xy, result.linear_mps, result.angular_rps, result.blocked)
         return result
 
-    def _obstacle_text(self, de: float, dn: float, pose: FusedPose) -> str:
-        """``obstacle 0.6 m ahead, 15 deg to the left``: the nearest obstacle toward the carrot (east/north m)."""
+    def _obstacle_text(self, toward_rad: float) -> str:
+        """``obstacle 0.6 m ahead, 15 deg to the left``: the nearest obstacle round the bearing ``toward_rad``
+        (rad CCW from the heading)."""
         local = self.local
         odom: Optional[FusedPose] = self.read("pose_odom")
         if local is None or odom is None:
             return "an obstacle in the way"
-        toward = wrap_angle(math.atan2(dn, de) - pose.yaw)
-        found = local.nearest_obstacle(odom, toward)
+        found = local.nearest_obstacle(odom, toward_rad)
         return describe_obstacle(*found) if found is not None else "an obstacle in the way"
 
 
