@@ -10,11 +10,16 @@ the real driver through an in-memory port in 10 ms reads, and times per scan:
   the scan is new (points to base_link, both zones, the approach simulation);
 * monitor, same scan: ``limit`` on the next tick (20 Hz ticks, 10 Hz scans:
   the zones are kept, only the command's checks run);
+* costmap: what go_to's local costmap does with a new scan
+  (:class:`~beastbt.navigation.local_costmap.RollingCostmap`: the points to
+  base_link and odom, the last 0.3 s of scans kept, the 6 m grid rebuilt with
+  ``cv2.distanceTransform`` and Nav2's inflation);
 
 and, as baselines measured in the same run on the same points, shapely's
 ``contains_xy`` and matplotlib's ``Path.contains_points`` for the same two
-polygons (what the zone tests would cost through those libraries).
-Goal of issue 20: decode + monitor (+ the costmap, not measured here) at
+polygons (what the zone tests would cost through those libraries), and the
+same costmap with ``scipy.ndimage.distance_transform_edt`` in place of
+OpenCV's distance transform. Goal of issue 20: decode + costmap + monitor at
 most 0.5 ms per 10 Hz scan.
 
 Run: python benchmarks/collision_monitor.py [--revolutions 300]
@@ -40,6 +45,7 @@ from beastbt.blackboard.types import VelocityCommand  # noqa: E402
 from beastbt.core.clock import SimClock  # noqa: E402
 from beastbt.devices.ld19 import Ld19Lidar  # noqa: E402
 from beastbt.devices.lidar_scan import LidarConfig, LidarMounting  # noqa: E402
+from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap  # noqa: E402
 from fake_ld19 import SyntheticRoom, ld19_packet  # noqa: E402
 
 from lidar_decode import Port  # noqa: E402  (benchmarks/ is on the path as the script's own folder)
@@ -76,6 +82,25 @@ def room_stream(revolutions: int, room: SyntheticRoom) -> bytes:
     return bytes(out)
 
 
+def costmap_with_scipy(cm: RollingCostmap, centre: tuple) -> np.ndarray:
+    """The costmap's grid as :meth:`RollingCostmap.build` makes it, with scipy's exact Euclidean distance transform
+    instead of OpenCV's: the baseline."""
+    from scipy.ndimage import distance_transform_edt
+
+    res, n = cm.config.resolution_m, cm.cells
+    ox = np.floor(centre[0] / res - n / 2) * res
+    oy = np.floor(centre[1] / res - n / 2) * res
+    grid = np.ones((n, n), bool)
+    pts = cm.points_odom
+    ix = np.floor((pts[:, 0] - ox) / res).astype(np.intp)
+    iy = np.floor((pts[:, 1] - oy) / res).astype(np.intp)
+    ok = (ix >= 0) & (ix < n) & (iy >= 0) & (iy < n)
+    grid[iy[ok], ix[ok]] = False
+    dist = distance_transform_edt(grid)
+    lut = cm._lut
+    return lut[np.minimum(np.floor(dist * cm._lut_scale), len(lut) - 1).astype(np.intp)]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--revolutions", type=int, default=300)
@@ -92,6 +117,8 @@ def main() -> None:
     mon = CollisionMonitor(CollisionMonitorConfig(), lambda: latest.get("scan"), 0.15, 0.35, mounting)
     chunk = 230400 // 10 // 100
     decode, fresh, cached, zones_shapely, zones_mpl, zones_ours = [], [], [], [], [], []
+    costmap_us, costmap_scipy, differ = [], [], []
+    costmap = RollingCostmap(LocalCostmapConfig(), 0.15)
     stop_poly, slow_poly = mon.stop_polygon, mon.slow_polygon
     s_stop, s_slow = shapely.Polygon(stop_poly), shapely.Polygon(slow_poly)
     shapely.prepare(s_stop)
@@ -120,6 +147,15 @@ def main() -> None:
         mon.limit(command, now + 0.05)
         cached.append(time.perf_counter() - t0)
         actions[mon.action] = actions.get(mon.action, 0) + 1
+        pose = (0.01 * len(decode), 0.0, 0.0)  # the robot creeps forward: the window rolls
+        t0 = time.perf_counter()
+        costmap.add_scan(scan.stamp_s, base_points_xy(scan, mounting), pose, (mounting.x_m, mounting.y_m))
+        built = costmap.build(scan.stamp_s, pose[:2])
+        costmap_us.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        other = costmap_with_scipy(costmap, pose[:2])
+        costmap_scipy.append(time.perf_counter() - t0)
+        differ.append(float(np.mean(np.abs(other.astype(int) - built.cost.astype(int)) > 8)))
         pts = base_points_xy(scan, mounting)
         t0 = time.perf_counter()
         even_odd(pts, stop_poly), even_odd(pts, slow_poly)
@@ -135,12 +171,16 @@ def main() -> None:
     def us(xs: list) -> float:
         return statistics.median(xs[5:] or xs) * 1e6
 
-    total = us(decode) + us(fresh) + us(cached)
+    total = us(decode) + us(fresh) + us(cached) + us(costmap_us)
     print(f"LD19 at 10 Hz: {len(decode)} scans of {driver.stats.points_per_scan} points; actions {actions}")
     print(f"  decode              {us(decode):7.0f} us per scan (median)")
     print(f"  monitor, new scan   {us(fresh):7.0f} us (points to base_link, 2 zones, approach)")
     print(f"  monitor, same scan  {us(cached):7.0f} us (the second 20 Hz tick of a 10 Hz scan)")
-    print(f"  decode + monitor    {total:7.0f} us per 10 Hz scan = {total * 10 / 1e4:.2f} % of a core "
+    print(f"  costmap, new scan   {us(costmap_us):7.0f} us (go_to's rolling 6 m costmap: points to odom, "
+          f"0.3 s of scans, cv2.distanceTransform, inflation; baseline with scipy's distance_transform_edt "
+          f"{us(costmap_scipy):5.0f} us, ratio {us(costmap_scipy) / us(costmap_us):.1f}; cells whose cost differs "
+          f"by more than 8 from the exact transform's: {100 * max(differ):.2f} % at most)")
+    print(f"  decode + costmap + monitor {total:7.0f} us per 10 Hz scan = {total * 10 / 1e4:.2f} % of a core "
           f"(goal <= 500 us: {'met' if total <= 500 else 'NOT met'})")
     print(f"  the 2 zone tests on the same points: shapely.contains_xy (what the monitor uses) "
           f"{us(zones_shapely):5.0f} us; baselines: numpy even-odd {us(zones_ours):5.0f} us (ratio "

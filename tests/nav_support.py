@@ -38,7 +38,8 @@ def place_yaml(east_m: float, north_m: float, tolerance: Optional[str] = None) -
 
 
 def write_world(folder: Path, name: str = "field", gps: Optional[dict] = None, imu: Optional[dict] = None,
-                walls: Optional[list] = None, start_yaw_deg: float = 90.0, battery_v: float = 12.3) -> str:
+                walls: Optional[list] = None, start_yaw_deg: float = 90.0, battery_v: float = 12.3,
+                obstacles: Optional[list] = None) -> str:
     """Write a test world file (JSON is YAML) and return its path."""
     world: dict[str, Any] = {
         "world": name,
@@ -51,14 +52,29 @@ def write_world(folder: Path, name: str = "field", gps: Optional[dict] = None, i
         world["imu"] = imu
     if walls:
         world["walls"] = walls
+    if obstacles:
+        world["obstacles"] = obstacles
     path = folder / f"{name}.yaml"
     path.write_text(json.dumps(world, indent=1), encoding="utf-8")
     return str(path)
 
 
-def harness(folder: Path, mission: str, seed: int = 1, **world: Any) -> MissionHarness:
-    """A harness for ``mission`` (YAML text) in a test world written to ``folder``."""
-    return MissionHarness.from_yaml(mission, world=write_world(folder, **world), seed=seed, base_dir=folder)
+def harness(folder: Path, mission: str, seed: int = 1, robot: str = "sim", **world: Any) -> MissionHarness:
+    """A harness for ``mission`` (YAML text) in a test world written to ``folder`` (``robot``: a profile)."""
+    return MissionHarness.from_yaml(mission, world=write_world(folder, **world), seed=seed, base_dir=folder,
+                                    robot=robot)
+
+
+def robot_without_lidar(folder: Path) -> str:
+    """robots/sim.yaml without its LiDAR (no collision monitor, no local costmap): go_to as pure pursuit alone."""
+    import yaml
+
+    root = Path(__file__).resolve().parent.parent
+    data = yaml.safe_load((root / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    data.pop("lidar", None)
+    path = folder / "robot_without_lidar.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return str(path)
 
 
 def true_distance_m(h: MissionHarness, east_m: float, north_m: float) -> float:

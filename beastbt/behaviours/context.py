@@ -106,6 +106,9 @@ class RunServices:
     """Truth scores of line following (``beastbt.run.line_metrics.LineTruthMetrics``), in the simulator."""
     navigation: Optional[Any] = None
     """The profile's navigation tuning (``beastbt.behaviours.navigation.NavConfig``)."""
+    local_navigator: Optional[Any] = None
+    """On a robot with a LiDAR: the local costmap and planner that go_to steers around obstacles with
+    (``beastbt.navigation.local_navigator.LocalNavigator``); None without a LiDAR."""
     nav_visits: Optional[Any] = None
     """The log of place visits (``beastbt.behaviours.navigation.VisitLog``), made on first use."""
     nav_truth: Optional[Any] = None

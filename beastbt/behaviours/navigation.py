@@ -12,6 +12,17 @@ Positions are compared in a local east-north-up frame anchored at the
 target (:class:`~beastbt.estimation.geodesy.LocalFrame`), exact at any
 distance. The tuning is :class:`NavConfig` (the robot profile's
 ``navigation:`` section, ``schemas/parts/navigation.schema.json``).
+
+On a robot with a LiDAR (the run's ``services.local_navigator``, a
+:class:`~beastbt.navigation.local_navigator.LocalNavigator`) and a fresh
+scan, the pure-pursuit command is only the preference: each tick the scan
+goes into the rolling local costmap (odom frame) and the local planner
+(DWA) turns the preference into a command that goes around what is there.
+While obstacles are in the way the step is not "stuck" after
+``stuck_after`` but "blocked" after ``blocked_after`` (default
+``navigation.default_blocked_after_s``, 20 s) without progress, and the
+reason names the obstacle's distance and bearing. Without a LiDAR the step
+drives exactly the pure-pursuit command.
 """
 
 from __future__ import annotations
@@ -27,10 +38,12 @@ from beastbt.core.bounded import HeadTail
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.behaviours.base import BeastBehaviour, Status
 from beastbt.behaviours.context import MissionContext
-from beastbt.blackboard.types import FusedPose
+from beastbt.blackboard.types import FusedPose, LaserScan, LocalPlan
 from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
+from beastbt.navigation.local_navigator import LocalNavigator, describe_obstacle
+from beastbt.navigation.local_planner import PlanResult
 
 @dataclass(frozen=True)
 @schema_defaults("parts/navigation.schema.json")
@@ -73,12 +86,15 @@ class NavConfig:
     resume_gap_s: float
     """A gap this long between two ticks of the step (the mission was held or teleoperated)
     restarts the stuck timer, so that the pause does not count as being stuck (s)."""
+    default_blocked_after_s: float
+    """With a LiDAR: a step that obstacles keep from making progress for this long fails as blocked, when the
+    step gives no blocked_after (s). The language says 20 s."""
 
     def __post_init__(self) -> None:
         for name in ("default_tolerance_m", "default_gps_timeout_s", "lookahead_m", "rotate_to_heading_min_angle_rad",
                      "regulated_min_radius_m", "replan_cross_track_m", "min_speed_mps", "heading_init_distance_m",
                      "progress_m",
-                     "stuck_position_factor", "resume_gap_s"):
+                     "stuck_position_factor", "resume_gap_s", "default_blocked_after_s"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"navigation: '{name}' must be > 0, got {getattr(self, name)}")
         if self.approach_dist_m < 0.0:
@@ -149,6 +165,9 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
+KEEP_PLANNING_S = 2.0
+"""After obstacles were last in the pure-pursuit command's way, the local planner keeps choosing for this long (s)."""
+
 FARTHEST_TARGET_M = TYPO_DISTANCE_M
 """A go_to target farther than this from the robot (m) is refused: a typo, not a destination."""
 
@@ -159,16 +178,17 @@ class GoTo(BeastBehaviour):
     Succeeds when the fused position is within ``tolerance_m`` of the target.
     Fails when no GPS fix came for ``gps_timeout_s`` (or home is still
     unknown by then), when it makes no progress toward the target for
-    ``stuck_after_s``, or when the heading is still unknown after driving
-    ``heading_init_distance_m``. Speeds m/s, times s, distances m.
+    ``stuck_after_s`` (``blocked_after_s`` when obstacles were in the way
+    since the last progress), or when the heading is still unknown after
+    driving ``heading_init_distance_m``. Speeds m/s, times s, distances m.
     """
 
-    READS = ("pose", "pose_odom", "gps_fix", "mission_start_s")
-    WRITES = ("cmd_mission",)
+    READS = ("pose", "pose_odom", "gps_fix", "mission_start_s", "scan")
+    WRITES = ("cmd_mission", "costmap", "local_plan")
 
     def __init__(self, name: str, ctx: MissionContext, place: str, target: Target, tolerance_m: Optional[float],
                  speed_mps: Optional[float] = None, gps_timeout_s: Optional[float] = None,
-                 stuck_after_s: Optional[float] = None) -> None:
+                 stuck_after_s: Optional[float] = None, blocked_after_s: Optional[float] = None) -> None:
         super().__init__(name, ctx)
         self.place = place
         self.target = target
@@ -176,7 +196,12 @@ class GoTo(BeastBehaviour):
         self.speed_mps = min(speed_mps or ctx.params.default_speed_mps, ctx.speed_limit_mps)
         self.gps_timeout_s = gps_timeout_s
         self.stuck_after_s = stuck_after_s or ctx.params.default_stuck_after_s
+        self.blocked_after_s = blocked_after_s
         self.nav = NavConfig()
+        self.local: Optional[LocalNavigator] = None
+        self.costmap_fresh = False
+        self.last_cmd = (0.0, 0.0)
+        self.obstructed_at_s = -math.inf
         self.visit: Optional[Visit] = None
         self.goal: Optional[tuple[float, float]] = None
         self.frame: Optional[LocalFrame] = None
@@ -197,6 +222,11 @@ class GoTo(BeastBehaviour):
     # -- lifecycle ------------------------------------------------------------------------
     def initialise(self) -> None:
         self.nav = self.ctx.services.navigation or NavConfig()
+        self.local = self.ctx.services.local_navigator
+        self.costmap_fresh = False
+        self.obstructed_at_s = -math.inf
+        odom = self.read("pose_odom")
+        self.last_cmd = (max(0.0, odom.speed_mps), odom.yaw_rate_rps) if odom is not None else (0.0, 0.0)
         now = self.now()
         self.started_s = self.last_tick_s = now
         self.goal = None
@@ -210,6 +240,8 @@ class GoTo(BeastBehaviour):
         self._resolve_goal()
 
     def terminate(self, new_status: Status) -> None:
+        if self.local is not None:
+            self.bb.local_plan = None  # no plan is followed once the step has ended (the costmap keeps its stamp)
         visit = self.visit
         if visit is None:
             return
@@ -251,6 +283,7 @@ class GoTo(BeastBehaviour):
             self._restart_progress(now)
             self.line_start = None
         self.last_tick_s = now
+        self._observe(now)
         tolerance = self.tolerance_m if self.tolerance_m is not None else nav.default_tolerance_m
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         fix = self.read("gps_fix")
@@ -307,17 +340,36 @@ class GoTo(BeastBehaviour):
         if driven > nav.heading_init_distance_m:
             self.command(0.0, 0.0)
             return self.fail(f"no heading estimate after driving {driven:.1f} m")
+        hold = wrap_angle(self.init_start.yaw - odom.yaw)
+        limit = self.ctx.turn_rate_limit_rps
+        preferred = (self.speed_mps, max(-limit, min(limit, self.ctx.params.heading_gain * hold)))
+        # With a LiDAR, round what is in the way too: the carrot is ahead on the line it set off along (odom).
+        start, ux, uy = self.init_start, math.cos(self.init_start.yaw), math.sin(self.init_start.yaw)
+        ahead = max(0.0, (odom.x - start.x) * ux + (odom.y - start.y) * uy) + nav.lookahead_m
+        carrot = (start.x + ux * ahead, start.y + uy * ahead)
+        plan = self._plan(now, odom, preferred, carrot, carrot)
+        v, w = (plan.linear_mps, plan.angular_rps) if plan is not None else preferred
         if odom.distance_m - self.odom_at_progress_m >= nav.progress_m:
             self.progress_at_s = now
             self.odom_at_progress_m = odom.distance_m
+        elif self.obstructed_at_s >= self.progress_at_s:
+            blocked_after = max(self._blocked_after(), self.stuck_after_s)
+            if now - self.progress_at_s > blocked_after:
+                self.command(0.0, 0.0)
+                toward = wrap_angle(math.atan2(carrot[1] - odom.y, carrot[0] - odom.x) - odom.yaw)
+                return self.fail(f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, while finding "
+                                 f"the heading")
         elif now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
             return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
-        hold = wrap_angle(self.init_start.yaw - odom.yaw)
-        limit = self.ctx.turn_rate_limit_rps
-        self.command(self.speed_mps, max(-limit, min(limit, self.ctx.params.heading_gain * hold)))
+        self.command(v, w)
+        self.last_cmd = (v, w)
         self.feedback_message = f"finding the heading: {driven:.1f} m driven, {dist:.1f} m to {self.place}"
         return Status.RUNNING
+
+    def _blocked_after(self) -> float:
+        """The step's blocked_after, else the profile's default (s)."""
+        return self.blocked_after_s if self.blocked_after_s is not None else self.nav.default_blocked_after_s
 
     # -- heading known: regulated pure pursuit -------------------------------------------------
     def _cross_track_m(self, e: float, n: float) -> float:
@@ -377,20 +429,51 @@ class GoTo(BeastBehaviour):
                 self.best_turn_rad = abs(alpha)
                 self.progress_at_s = now
         self.mode = "rotate" if rotate else "drive"
-        if now - self.progress_at_s > self.stuck_after_s:
+        preferred = self._preference(rotate, alpha, ld, dist, tolerance)
+        v, w = preferred
+        plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
+        if plan is not None:
+            v, w = plan.linear_mps, plan.angular_rps
+        # Obstacles in the way since the last progress: going round them or waiting for them is not being
+        # stuck; only blocked_after without progress is.
+        obstructed = self.obstructed_at_s >= self.progress_at_s
+        blocked_after = self._blocked_after()
+        if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
+            self.command(0.0, 0.0)
+            toward = wrap_angle(math.atan2(dn, de) - pose.yaw)
+            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                             f"{self._obstacle_text(toward)}, {dist:.1f} m to {self.place}")
+        if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
             return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
-        if now - self.best_dist_at_s > nav.stuck_position_factor * self.stuck_after_s:
+        position_after = nav.stuck_position_factor * self.stuck_after_s
+        if obstructed:
+            position_after = max(position_after, blocked_after)
+        if now - self.best_dist_at_s > position_after:
             # The wheels turn but the position does not follow (tracks slipping against an obstacle).
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no closer to {self.place} for "
-                             f"{nav.stuck_position_factor * self.stuck_after_s:g} s, {dist:.1f} m to go")
+            return self.fail(f"stuck: no closer to {self.place} for {position_after:g} s, {dist:.1f} m to go")
+        self.command(v, w)
+        self.last_cmd = (v, w)
+        if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:
+            what = "blocked, waiting" if plan.blocked and v == 0.0 and w == 0.0 else "going round an obstacle"
+            self.feedback_message = f"{what}, {dist:.1f} m to {self.place}"
+        elif rotate:
+            self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {dist:.1f} m to go"
+        else:
+            self.feedback_message = f"{dist:.1f} m to {self.place}"
+        return Status.RUNNING
+
+    def _preference(self, rotate: bool, alpha: float, ld: float, dist: float, tolerance: float
+                    ) -> tuple[float, float]:
+        """The regulated-pure-pursuit command (m/s, rad/s) toward a carrot ``alpha`` rad off the heading, ``ld`` m
+        away, the target ``dist`` m away."""
+        nav = self.nav
+        p = self.ctx.params
         limit = self.ctx.turn_rate_limit_rps
         if rotate:
             rate = max(p.min_turn_rate_rps, min(p.default_turn_rate_rps, limit, p.turn_gain * abs(alpha)))
-            self.command(0.0, math.copysign(rate, alpha))
-            self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {dist:.1f} m to go"
-            return Status.RUNNING
+            return 0.0, math.copysign(rate, alpha)
         curvature = 2.0 * math.sin(alpha) / max(ld, 1e-3)
         v = self.speed_mps
         radius = 1.0 / abs(curvature) if curvature != 0.0 else math.inf
@@ -404,9 +487,63 @@ class GoTo(BeastBehaviour):
             # keep the curvature: slow down rather than cut the turn
             v *= limit / abs(w)
             w = math.copysign(limit, w)
-        self.command(v, w)
-        self.feedback_message = f"{dist:.1f} m to {self.place}"
-        return Status.RUNNING
+        return v, w
+
+    # -- obstacles: the local costmap and planner ----------------------------------------------
+    def _observe(self, now: float) -> None:
+        """Put a new scan into the run's local costmap (robots with a LiDAR); note whether it is fresh."""
+        self.costmap_fresh = False
+        local = self.local
+        if local is None:
+            return
+        scan: Optional[LaserScan] = self.read("scan")
+        costmap = local.observe(scan, self.read("pose_odom"), now)
+        if costmap is not None:
+            self.costmap_fresh = True
+            self.bb.costmap = costmap
+
+    def _to_odom(self, de: float, dn: float, pose: FusedPose, odom: FusedPose) -> tuple[float, float]:
+        """A point ``de``, ``dn`` m east/north of the fused position, in the odom frame (through the body frame)."""
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        bx, by = c * de + s * dn, -s * de + c * dn
+        c, s = math.cos(odom.yaw), math.sin(odom.yaw)
+        return odom.x + c * bx - s * by, odom.y + s * bx + c * by
+
+    def _steer(self, now: float, pose: FusedPose, preferred: tuple[float, float], carrot: tuple[float, float],
+               target: tuple[float, float]) -> Optional[PlanResult]:
+        """:meth:`_plan` for the carrot and the target given east, north m from the robot (by the fused pose)."""
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if odom is None:
+            return None
+        return self._plan(now, odom, preferred, self._to_odom(carrot[0], carrot[1], pose, odom),
+                          self._to_odom(target[0], target[1], pose, odom))
+
+    def _plan(self, now: float, odom: FusedPose, preferred: tuple[float, float], carrot: tuple[float, float],
+              target: tuple[float, float]) -> Optional[PlanResult]:
+        """The local planner's plan for the preferred command (v m/s, w rad/s), the carrot and the target (odom,
+        m), written to ``local_plan``; None without a LiDAR or a fresh scan (drive the preference)."""
+        local = self.local
+        if local is None or not self.costmap_fresh:
+            return None
+        # Half way round something (obstructed a moment ago), the planner keeps choosing: pure pursuit would turn
+        # straight back toward the line, into what it is going round.
+        result = local.planner.plan(local.costmap.latest, (odom.x, odom.y, odom.yaw), self.last_cmd, preferred,
+                                    carrot, self.speed_mps, self.ctx.turn_rate_limit_rps, target,
+                                    keep_planning=now - self.obstructed_at_s < KEEP_PLANNING_S)
+        if not result.free:
+            self.obstructed_at_s = now
+        self.bb.local_plan = LocalPlan(now, result.points_xy, result.linear_mps, result.angular_rps, result.blocked)
+        return result
+
+    def _obstacle_text(self, toward_rad: float) -> str:
+        """``obstacle 0.6 m ahead, 15 deg to the left``: the nearest obstacle round the bearing ``toward_rad``
+        (rad CCW from the heading)."""
+        local = self.local
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if local is None or odom is None:
+            return "an obstacle in the way"
+        found = local.nearest_obstacle(odom, toward_rad)
+        return describe_obstacle(*found) if found is not None else "an obstacle in the way"
 
 
 def place_target(lat: float, lon: float) -> Target:

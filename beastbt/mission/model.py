@@ -143,7 +143,8 @@ class _SemanticChecker:
 
     POSITIVE = {"speed": "speed", "rate": "turn_rate", "tolerance": "distance", "within": "distance",
                 "radius": "distance", "after": "duration", "time": "duration", "for": "duration",
-                "stuck_after": "duration", "gps_timeout": "duration", "lost_after": "duration"}
+                "stuck_after": "duration", "gps_timeout": "duration", "lost_after": "duration",
+                "blocked_after": "duration"}
 
     def __init__(self, doc: SourceDoc) -> None:
         self.doc = doc
@@ -274,7 +275,7 @@ class _SemanticChecker:
             if isinstance(v, str):
                 self.place_ref(p, v)
             elif isinstance(v, dict):
-                for k in ("speed", "tolerance", "gps_timeout", "stuck_after"):
+                for k in ("speed", "tolerance", "gps_timeout", "stuck_after", "blocked_after"):
                     if k in v:
                         self.positive(p + (k,), self.POSITIVE[k])
                 if s.kind == "go_to":
@@ -517,7 +518,8 @@ class _StepReader:
         def nav(mapping: Any) -> dict:
             return {"tolerance_m": opt("tolerance", "distance", mapping), "speed_mps": opt("speed", "speed", mapping),
                     "gps_timeout_s": opt("gps_timeout", "duration", mapping),
-                    "stuck_after_s": opt("stuck_after", "duration", mapping)}
+                    "stuck_after_s": opt("stuck_after", "duration", mapping),
+                    "blocked_after_s": opt("blocked_after", "duration", mapping)}
 
         k = s.kind
         if k in self.external:

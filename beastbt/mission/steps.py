@@ -96,6 +96,8 @@ class NavOptions:
     speed_mps: Optional[float] = None
     gps_timeout_s: Optional[float] = None
     stuck_after_s: Optional[float] = None
+    blocked_after_s: Optional[float] = None
+    """With a LiDAR: fail after this long kept from progress by obstacles (s); None: the robot's default."""
 
 
 @dataclass(frozen=True, kw_only=True)

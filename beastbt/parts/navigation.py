@@ -7,7 +7,10 @@
   anchored at the first good fix, on the robot and in the simulator alike:
   the simulator's world datum is never told to the filter.
 - :func:`install_navigation`: the profile's
-  ``navigation:`` section for go_to, and, on a robot with a GPS, the
+  ``navigation:`` section for go_to; on a robot with a LiDAR the local
+  costmap and planner that go_to steers around obstacles with
+  (:func:`local_navigator`, the profile's ``local_costmap:`` and
+  ``local_planner:``); and, on a robot with a GPS, the
   ``return_home`` handlers of failsafes (``then: return_home``) and of
   ``on_failure: return_home``. Both replace the mission's tree by a single
   return_home; once home (or when going home fails) the run ends as a
@@ -40,6 +43,7 @@ from beastbt.run.session import Prepared
 
 if TYPE_CHECKING:  # the EKF (filterpy, scipy) is imported only for a robot that fuses GPS or IMU
     from beastbt.estimation.ekf import EkfEstimator
+    from beastbt.navigation.local_navigator import LocalNavigator
 
 Status = py_trees.common.Status
 
@@ -139,10 +143,32 @@ def return_home_instead(run: MissionRun, why: str) -> None:
     run.hooks.append(end_when_home)
 
 
+def local_navigator(profile: RobotProfile) -> Optional["LocalNavigator"]:
+    """The local costmap and planner for a profile with ``lidar:`` (None without), from its ``local_costmap:``,
+    ``local_planner:``, footprint, LiDAR mounting and limits; a bad section raises a positioned InvalidInput."""
+    if profile.section("lidar") is None:
+        return None
+    from beastbt.actuation.collision_monitor import footprint_radius
+    from beastbt.devices.lidar_scan import LidarConfig
+    from beastbt.navigation.local_costmap import LocalCostmapConfig
+    from beastbt.navigation.local_navigator import LocalNavigator
+    from beastbt.navigation.local_planner import Limits, LocalPlannerConfig
+
+    lidar: LidarConfig = section_config(profile, "lidar", LidarConfig)
+    limits = Limits(profile.max_speed_mps, profile.max_turn_rate_rps, profile.max_accel_mps2,
+                    profile.max_angular_accel_rps2)
+    return LocalNavigator(section_config(profile, "local_costmap", LocalCostmapConfig),
+                          section_config(profile, "local_planner", LocalPlannerConfig),
+                          footprint_radius(profile.data), lidar.mounting, limits)
+
+
 def install_navigation(p: Prepared) -> None:
-    """Give go_to the profile's navigation tuning; on a robot with a GPS, offer going home."""
+    """Give go_to the profile's navigation tuning and, with a LiDAR, the local costmap and planner; on a robot
+    with a GPS, offer going home."""
     run = p.run
     run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
+    if "lidar" in run.ctx.capabilities:
+        run.ctx.services.local_navigator = local_navigator(p.profile)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
@@ -198,5 +224,6 @@ class NavigationPart(Part):
         contribute(run, summary)
 
 
-__all__ = ["NavigationPart", "NavEstimator", "ekf_estimator", "install_navigation", "return_home_instead",
+__all__ = ["NavigationPart", "NavEstimator", "ekf_estimator", "install_navigation", "local_navigator",
+           "return_home_instead",
            "ReturnHomeInstead"]

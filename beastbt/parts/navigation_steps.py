@@ -28,8 +28,9 @@ _DEFAULT_TOLERANCE_M = NavConfig().default_tolerance_m
 
 
 def _options(s: st.NavOptions) -> dict:
-    """speed_mps, gps_timeout_s and stuck_after_s of a navigation step (None when not given)."""
-    return {"speed_mps": s.speed_mps, "gps_timeout_s": s.gps_timeout_s, "stuck_after_s": s.stuck_after_s}
+    """speed_mps, gps_timeout_s, stuck_after_s and blocked_after_s of a navigation step (None when not given)."""
+    return {"speed_mps": s.speed_mps, "gps_timeout_s": s.gps_timeout_s, "stuck_after_s": s.stuck_after_s,
+            "blocked_after_s": s.blocked_after_s}
 
 
 def _within(tolerance_m: Optional[float]) -> str:
@@ -54,7 +55,8 @@ def _go_to_place(c: Compiler, name: str, step_tolerance_m: Optional[float], opti
 
 
 def build_go_to(c: Compiler, s: st.Step) -> Behaviour:
-    """``go_to: gate`` or ``go_to: {place: gate | lat:, lon:, tolerance:, speed:, gps_timeout:, stuck_after:}``."""
+    """``go_to: gate`` or ``go_to: {place: gate | lat:, lon:, tolerance:, speed:, gps_timeout:, stuck_after:,
+    blocked_after:}``."""
     if isinstance(s, st.GoToPlace):
         return _go_to_place(c, s.place, s.tolerance_m, _options(s))
     assert isinstance(s, st.GoToPoint)
@@ -81,7 +83,7 @@ def build_route(c: Compiler, s: st.Route) -> Behaviour:
 
 
 def build_return_home(c: Compiler, s: st.ReturnHome) -> Behaviour:
-    """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:}``."""
+    """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:, blocked_after:}``."""
     if "gps" not in c.ctx.capabilities:
         return NotAvailable("return_home", c.ctx, "this robot has no GPS")
     if s.along == "path":
