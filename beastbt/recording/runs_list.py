@@ -50,7 +50,7 @@ class RunEntry:
 
 HEADER = ("RUN", "MISSION", "OUTCOME", "TIME", "DISTANCE", "RECORDING")
 """The column titles of ``beastbt runs``."""
-WIDEST = (48, 32, 28)
+WIDEST = (48, 32, 40)
 """The widest the run, mission and outcome columns get (characters); longer texts end in an ellipsis."""
 
 
