@@ -358,20 +358,30 @@ class ReplayResult:
         return not self.differences
 
 
-def _cmd_text(d: Optional[dict], exact: bool = False) -> str:
+def _cmd_text(d: Optional[dict], than: Optional[dict] = None) -> str:
+    """A command in words, rounded; with ``than`` (the other command), each field that differs from it by less
+    than the rounding shows by how much (``0.1500 m/s (+2.8e-17)``) and the stamps are given."""
     if d is None:
         return "none"
-    if exact:  # every field, every digit: what made two commands differ
-        return (f"{d['linear_mps']!r} m/s {d['angular_rps']!r} rad/s at {d['stamp_s']!r} s "
-                f"({d['source']}, mux {d['mux_source']})")
-    return f"{d['linear_mps']:.4f} m/s {d['angular_rps']:.4f} rad/s ({d['source']}, mux {d['mux_source']})"
+
+    def field(key: str, fmt: str) -> str:
+        text = format(d[key], fmt)
+        if than is not None and d[key] != than[key]:
+            text += f" ({d[key] - than[key]:+.2g})"
+        return text
+
+    if than is None:
+        return f"{d['linear_mps']:.4f} m/s {d['angular_rps']:.4f} rad/s ({d['source']}, mux {d['mux_source']})"
+    return (f"{field('linear_mps', '.4f')} m/s {field('angular_rps', '.4f')} rad/s at {field('stamp_s', '.3f')} s "
+            f"({d['source']}, mux {d['mux_source']})")
 
 
 def command_texts(recorded: Optional[dict], replayed: Optional[dict]) -> tuple[str, str]:
-    """How two differing commands are printed: rounded, or exactly when rounding would print them the same."""
+    """How two differing commands are printed: rounded; when rounding would print them the same, the replayed
+    one says by how much each field differs (float noise shows as +2.8e-17, never as 0.15000000000000002)."""
     a, b = _cmd_text(recorded), _cmd_text(replayed)
-    if a == b:
-        a, b = _cmd_text(recorded, exact=True), _cmd_text(replayed, exact=True)
+    if a == b and recorded is not None and replayed is not None:
+        a, b = _cmd_text(recorded, recorded), _cmd_text(replayed, recorded)
     return a, b
 
 

@@ -132,5 +132,8 @@ def test_a_listed_difference_never_prints_two_equal_values():
     for other in ({**base, "linear_mps": 0.3 + 1e-9}, {**base, "stamp_s": 1.05}, {**base, "linear_mps": 0.2}):
         recorded, replayed = command_texts(base, other)
         assert recorded != replayed, (recorded, replayed)
+    # Float noise is shown with the fewest digits that tell the two apart, not every digit of the float.
+    close = command_texts({**base, "linear_mps": 0.15}, {**base, "linear_mps": 0.1 + 0.05})
+    assert close[0] != close[1] and "0.15000000000000002" not in close[1] and "0.15000000000000002" in repr(0.1 + 0.05)
     assert command_texts(base, {**base, "linear_mps": 0.2}) == (
         "0.3000 m/s 0.1000 rad/s (nav, mux mission)", "0.2000 m/s 0.1000 rad/s (nav, mux mission)")
