@@ -31,3 +31,12 @@ def test_along_the_path_goes_back_by_the_corner_and_straight_does_not():
     assert result == "success" and by_corner < 2.5 and home_error < 4.0
     result, straight_by_corner, _ = closest_to_the_corner_on_the_way_back("")
     assert result == "success" and straight_by_corner > 3.5  # the straight way home cuts the corner
+
+
+def test_the_retraced_points_are_named_in_order_and_the_last_is_home():
+    h = MissionHarness.from_yaml(OUT % ": {along: path}", base_dir=REPO / "worlds", seed=3)
+    assert h.run_to_end(400) == "success"
+    names = [wp["name"] for wp in h.summary()["waypoints"]]
+    along = [n for n in names if n != "home"]
+    assert names[-1] == "home" and along and len(set(along)) == len(along)  # not twenty points all called "path"
+    assert along == [f"path point {k} of {len(along)}" for k in range(1, len(along) + 1)]

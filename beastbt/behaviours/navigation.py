@@ -586,6 +586,7 @@ class RetracePath(py_trees.composites.Composite):
     def __init__(self, name: str, leg_factory: Callable[[Target], "GoTo"], path: DrivenPath,
                  home: Target) -> None:
         self.points: list[tuple[float, float]] = []
+        self.home_known = False
         self.index = 0
         self.path = path
         self.home = home
@@ -595,14 +596,24 @@ class RetracePath(py_trees.composites.Composite):
     def _current(self) -> Optional[tuple[float, float]]:
         return self.points[self.index] if self.index < len(self.points) else None
 
+    def _point_name(self) -> str:
+        """The current point in words: ``path point 3 of 20`` (counted from where the retrace starts), or ``home``."""
+        along = len(self.points) - (1 if self.home_known else 0)
+        if self.home_known and self.index == len(self.points) - 1:
+            return "home"
+        return f"path point {self.index + 1} of {along}"
+
     def tick(self) -> typing.Iterator[py_trees.behaviour.Behaviour]:
         if self.status != Status.RUNNING:
             if self.leg.status != Status.INVALID:
                 self.leg.stop(Status.INVALID)
             home = self.home()
             self.points = list(reversed(self.path.points)) + ([home] if home is not None else [])
+            self.home_known = home is not None
             self.index = 0
             self.initialise()
+        if self.leg.status != Status.RUNNING:
+            self.leg.place = self._point_name()  # what the visit (the summary's waypoint) is called
         self.current_child = self.leg
         for node in self.leg.tick():
             yield node
