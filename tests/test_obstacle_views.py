@@ -225,3 +225,24 @@ def test_a_standing_person_is_redrawn_with_the_scene_when_map_is_anchored_on_ear
         (bx, by), (px, py) = bench(scene), person(update)
         assert (px - bx, py - by) == pytest.approx((2.0, 0.0), abs=0.01)  # where the world has it, beside the bench
     assert bench(scenes[1]) == pytest.approx((0.3 - 3.0, 6.0), abs=0.05)  # map moved 3 m east
+
+
+def test_a_route_round_the_campus_benches_records_the_planners_costmap_and_plan_as_foxglove_says(tmp_path):
+    """The real local planner (not a hand-made one): its /costmap and /local_plan are recorded while it goes
+    round the bench across the way to a, and each message is what Foxglove's own schemas describe."""
+    from beastbt.recording.reader import read_recording
+    from recording_support import GPS_ROUTE, record_run
+    folder, summary = record_run(GPS_ROUTE, tmp_path / "runs", seed=1, max_time_s=45.0,
+                                 world=str(REPO / "worlds" / "campus_obstacles.yaml"))
+    assert summary["truth"]["collisions"] == 0
+    rec = read_recording(folder / "run.mcap", topics=["/costmap", "/local_plan"])
+    grids, plans = rec.topic("/costmap"), rec.topic("/local_plan")
+    assert len(grids) >= 5 and any(g["column_count"] > 0 for g in grids)
+    assert any(entity.get("lines") for p in plans for entity in p["entities"])
+    for g in grids:
+        assert not errors("Grid", g), errors("Grid", g)
+    for p in plans:
+        assert not errors("SceneUpdate", p), errors("SceneUpdate", p)
+    import base64
+    seen = max((np.frombuffer(base64.b64decode(g["data"]), dtype=np.uint8) == COST_LETHAL).sum() for g in grids)
+    assert seen >= 3  # the bench's and the posts' returns, marked lethal
