@@ -31,6 +31,7 @@ Protocols, as the vendors document them (and as the drivers' docstrings cite):
 
 from __future__ import annotations
 
+import bisect
 import math
 import struct
 from dataclasses import dataclass
@@ -107,38 +108,56 @@ class RayCaster:
         self._circ_r = c[:, 2]
         self.person_r = np.array(radii, dtype=float)
         """Each person's radius, in the world's order of persons (m)."""
+        m, k = len(s), len(c) + len(radii)
+        # One matrix product per cast gives every ray-times-thing term (see cast); its columns: m of (ey, -ex),
+        # m of (-wy, wx), then k of (wx, wy) for the circles and the persons. The edges' columns never change.
+        self._matrix = np.zeros((2, 2 * m + k))
+        self._matrix[0, :m] = self._e[:, 1]
+        self._matrix[1, :m] = -self._e[:, 0]
+        self._segments = m
+        self._radii2 = np.concatenate((self._circ_r, self.person_r)) ** 2
+        self._centres = np.vstack((self._circ_c, np.zeros((len(radii), 2))))
 
     def cast(self, ox: float, oy: float, angles: np.ndarray, person_xy: Optional[np.ndarray] = None) -> np.ndarray:
         """Distance from (``ox``, ``oy``) along each world angle (rad, CCW from east) to the first thing hit; inf
         where nothing is."""
-        dx, dy = np.cos(angles), np.sin(angles)
-        best = np.full(angles.shape, NO_HIT)
-        if len(self._p):
-            ex, ey = self._e[:, 0], self._e[:, 1]
-            wx, wy = self._p[:, 0] - ox, self._p[:, 1] - oy
-            # Ray o + t d meets segment p + u e where t = (w x e) / (d x e), u = (w x d) / (d x e).
-            denom = np.outer(dx, ey) - np.outer(dy, ex)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv = 1.0 / denom
-                t = (wx * ey - wy * ex) * inv
-                u = (np.outer(dy, wx) - np.outer(dx, wy)) * inv
-            t[~((u >= 0.0) & (u <= 1.0) & (t > 0.0))] = NO_HIT
-            best = np.minimum(best, t.min(axis=1))
-        centres, radii = self._circ_c, self._circ_r
-        if person_xy is not None and len(person_xy):
-            centres = np.vstack((centres, person_xy))
-            radii = np.concatenate((radii, self.person_r))
-        if len(centres):
-            wx, wy = centres[:, 0] - ox, centres[:, 1] - oy
-            b = np.outer(dx, wx) + np.outer(dy, wy)  # distance along the ray to the closest approach
-            disc = b * b - (wx * wx + wy * wy - radii * radii)
-            with np.errstate(invalid="ignore"):
+        m = self._segments
+        centres = self._centres
+        if len(self.person_r):
+            if person_xy is None or not len(person_xy):
+                centres = self._circ_c  # no persons given: only the fixed circles
+            else:
+                centres[len(self._circ_c):] = person_xy
+        k = len(centres)
+        if m + k == 0:
+            return np.full(angles.shape, NO_HIT)
+        d = np.empty((len(angles), 2))
+        d[:, 0] = np.cos(angles)
+        d[:, 1] = np.sin(angles)
+        matrix = self._matrix[:, :2 * m + k]
+        wx, wy = self._p[:, 0] - ox, self._p[:, 1] - oy
+        matrix[0, m:2 * m] = -wy
+        matrix[1, m:2 * m] = wx
+        cx, cy = centres[:, 0] - ox, centres[:, 1] - oy
+        matrix[0, 2 * m:] = cx
+        matrix[1, 2 * m:] = cy
+        terms = d @ matrix
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # Ray o + t d meets segment p + u e where t = (w x e) / (d x e), u = (w x d) / (d x e), w = p - o;
+            # d x e and w x d are the product's first 2m columns.
+            denom = terms[:, :m]
+            t = (wx * self._e[:, 1] - wy * self._e[:, 0]) / denom
+            u = terms[:, m:2 * m] / denom
+            hit = np.where((u >= 0.0) & (u <= 1.0) & (t > 0.0), t, NO_HIT)
+            if k:
+                # Circles: b, the distance along the ray to the closest approach, is the last k columns.
+                b = terms[:, 2 * m:]
+                disc = b * b - (cx * cx + cy * cy - self._radii2[:k])
                 root = np.sqrt(disc)
-            near = b - root
-            t = np.where(near > 0.0, near, b + root)  # from inside a circle: its far side
-            t[~((disc >= 0.0) & (t > 0.0))] = NO_HIT
-            best = np.minimum(best, t.min(axis=1))
-        return best
+                near = b - root
+                t = np.where(near > 0.0, near, b + root)  # from inside a circle: its far side
+                hit = np.concatenate((hit, np.where((disc >= 0.0) & (t > 0.0), t, NO_HIT)), axis=1)
+        return hit.min(axis=1)
 
 
 class LidarEmulator:
@@ -190,23 +209,26 @@ class LidarEmulator:
         lo, hi = m.range_m
         noise = self.rng.standard_normal(count)
         drop = self.rng.random(count) < m.dropout
-        finite = np.isfinite(r)
-        r = np.where(finite, r, 0.0)
-        r = r + noise * (m.range_sigma_m + m.range_sigma_ratio * r)
-        r[~finite | drop | (r < lo) | (r > hi)] = 0.0
-        return deg_cw, np.round(r * 1000.0)
+        with np.errstate(invalid="ignore"):
+            # No hit (inf) stays inf or turns NaN with the noise: either fails the range test below.
+            r = r + noise * (m.range_sigma_m + m.range_sigma_ratio * r)
+            kept = (r >= lo) & (r <= hi) & ~drop
+        return deg_cw, np.round(np.where(kept, r, 0.0) * 1000.0)
 
     def queue(self, times_s: np.ndarray, data: bytes) -> None:
         """Send ``data``, made of ``len(times_s)`` equal items, each once the sim clock reaches its time (s)."""
-        self._pending.append([times_s, data, len(data) // len(times_s), 0])
+        # A list for bisect: flush runs at every physics step, where np.searchsorted's call costs more.
+        self._pending.append([times_s.tolist(), data, len(data) // len(times_s), 0])
 
     def flush(self, now_s: float) -> None:
         """Feed the port every queued item whose time has come."""
         pending = self._pending
+        if not pending or pending[0][0][pending[0][3]] > now_s + 1e-9:
+            return  # nothing due (most physics steps between two packets)
         out = []
         while pending:
             times, data, size, sent = pending[0]
-            due = int(np.searchsorted(times, now_s + 1e-9, side="right"))
+            due = bisect.bisect_right(times, now_s + 1e-9)
             if due > sent:
                 out.append(data[sent * size:due * size])
                 pending[0][3] = due
@@ -252,11 +274,16 @@ def _position_tables(n: int) -> np.ndarray:
 
 
 _CRC_AT = _position_tables(46)
+_CRC_FLAT = _CRC_AT.ravel()
+_CRC_BASE = np.arange(46, dtype=np.intp) * 256
 
 
 def ld19_crc8(packets: np.ndarray) -> np.ndarray:
     """LDRobot's CRC-8 (poly 0x4D, init 0) of each row of ``packets`` ((n, 46) uint8), for all rows at once."""
-    table = _CRC_AT if packets.shape[1] == _CRC_AT.shape[0] else _position_tables(packets.shape[1])
+    if packets.shape[1] == _CRC_AT.shape[0]:
+        # Row-major flat table: one gather instead of a two-index one.
+        return np.bitwise_xor.reduce(_CRC_FLAT[packets + _CRC_BASE], axis=1)
+    table = _position_tables(packets.shape[1])
     return np.bitwise_xor.reduce(table[np.arange(packets.shape[1]), packets], axis=1)
 
 
