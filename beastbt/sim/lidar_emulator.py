@@ -103,6 +103,7 @@ class RayCaster:
         s = np.array(segs, dtype=float).reshape(-1, 4)
         self._p = s[:, :2]
         self._e = s[:, 2:] - s[:, :2]
+        self._ex, self._ey = self._e[:, 0].copy(), self._e[:, 1].copy()
         c = np.array(circles, dtype=float).reshape(-1, 3)
         self._circ_c = c[:, :2]
         self._circ_r = c[:, 2]
@@ -132,27 +133,26 @@ class RayCaster:
         if m + k == 0:
             return np.full(angles.shape, NO_HIT)
         d = np.empty((len(angles), 2))
-        d[:, 0] = np.cos(angles)
-        d[:, 1] = np.sin(angles)
+        np.cos(angles, out=d[:, 0])
+        np.sin(angles, out=d[:, 1])
         matrix = self._matrix[:, :2 * m + k]
-        wx, wy = self._p[:, 0] - ox, self._p[:, 1] - oy
-        matrix[0, m:2 * m] = -wy
-        matrix[1, m:2 * m] = wx
-        cx, cy = centres[:, 0] - ox, centres[:, 1] - oy
-        matrix[0, 2 * m:] = cx
-        matrix[1, 2 * m:] = cy
+        w = self._p - (ox, oy)
+        matrix[0, m:2 * m] = -w[:, 1]
+        matrix[1, m:2 * m] = w[:, 0]
+        c = centres - (ox, oy)
+        matrix[:, 2 * m:] = c.T
         terms = d @ matrix
         with np.errstate(divide="ignore", invalid="ignore"):
             # Ray o + t d meets segment p + u e where t = (w x e) / (d x e), u = (w x d) / (d x e), w = p - o;
             # d x e and w x d are the product's first 2m columns.
             denom = terms[:, :m]
-            t = (wx * self._e[:, 1] - wy * self._e[:, 0]) / denom
+            t = (w[:, 0] * self._ey - w[:, 1] * self._ex) / denom
             u = terms[:, m:2 * m] / denom
             hit = np.where((u >= 0.0) & (u <= 1.0) & (t > 0.0), t, NO_HIT)
             if k:
                 # Circles: b, the distance along the ray to the closest approach, is the last k columns.
                 b = terms[:, 2 * m:]
-                disc = b * b - (cx * cx + cy * cy - self._radii2[:k])
+                disc = b * b - ((c * c).sum(axis=1) - self._radii2[:k])
                 root = np.sqrt(disc)
                 near = b - root
                 t = np.where(near > 0.0, near, b + root)  # from inside a circle: its far side
@@ -287,46 +287,112 @@ def ld19_crc8(packets: np.ndarray) -> np.ndarray:
     return np.bitwise_xor.reduce(table[np.arange(packets.shape[1]), packets], axis=1)
 
 
+class PacedPort(SimSerialPort):
+    """The LD19's port: its bytes are fed when the driver looks (a read, ``in_waiting``), each batch the ones
+    whose time has come by the device's latest update, instead of at every physics step.
+
+    What the driver sees is the same (it reads only between steps), for a
+    fifth of the work: the physics runs at 100 Hz, the tick loop reads at
+    20 Hz. Unplugging and replugging catch up first, so what came before
+    stays and what came while unplugged is lost, as on an eagerly fed port.
+    """
+
+    def __init__(self, name: str, device: "SimLd19") -> None:
+        super().__init__(name, on_write=device.on_write)
+        self._device = device
+
+    def _catch_up(self) -> None:
+        self._device.flush(self._device.now_s)
+
+    @property
+    def in_waiting(self) -> int:
+        """Bytes available without blocking."""
+        self._catch_up()
+        return len(self._rx) if not self.unplugged and self.is_open else super().in_waiting
+
+    def read(self, size: int = 1) -> bytes:
+        """Read up to ``size`` bytes (never blocks)."""
+        self._catch_up()
+        return super().read(size)
+
+    def readline(self) -> bytes:
+        """Read up to and including the next newline, or what is there."""
+        self._catch_up()
+        return super().readline()
+
+    def reset_input_buffer(self) -> None:
+        """Drop unread bytes."""
+        self._catch_up()
+        super().reset_input_buffer()
+
+    def unplug(self) -> None:
+        """Make the port vanish: reads and writes raise ``serial.SerialException``."""
+        self._catch_up()
+        super().unplug()
+
+    def replug(self) -> None:
+        """Bring the port back (a driver must reopen it)."""
+        self._catch_up()  # while unplugged: dropped, as an eager feed would have
+        super().replug()
+
+
 class SimLd19(LidarEmulator):
     """An LD19 that starts turning at power-up (t = 0) and streams packets for as long as the run lasts."""
 
     def __init__(self, caster: RayCaster, truth: Any, contact: Any, mounting: tuple[float, float, float],
                  rng: np.random.Generator, model: LidarModel = LD19_MODEL) -> None:
         super().__init__(model, caster, truth, contact, mounting, rng)
+        self.port = PacedPort("sim-lidar", self)
+        self.now_s = 0.0
+        """The latest update's time (sim s): what the port feeds up to when the driver reads."""
         self.packet_s = LD19_POINTS / model.points_per_s
         self.chunk_packets = max(1, int(round(1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION * self.packet_s))))
         self.chunk_s = self.chunk_packets * self.packet_s
+        self._template = np.zeros(self.chunk_packets, dtype=_LD19_DTYPE)
+        self._template["header"], self._template["verlen"] = 0x54, 0x2C
+        self._template["speed"] = int(round(model.rate_hz * 360.0))
+        self._next_cast_s = self.t0_s
+        """When the next chunk's first packet starts (sim s)."""
 
-    def packets(self, first_packet: int, count: int) -> bytes:
-        """``count`` packets from packet index ``first_packet``, cast now."""
+    def packets(self, first_packet: int, count: int, times_s: Optional[np.ndarray] = None) -> bytes:
+        """``count`` packets from packet index ``first_packet``, cast now; ``times_s`` the packets' end times
+        (computed when not given)."""
         m = self.model
         deg, mm = self.measure(first_packet * LD19_POINTS, count * LD19_POINTS)
         deg = deg.reshape(count, LD19_POINTS)
         mm = mm.reshape(count, LD19_POINTS)
-        out = np.zeros(count, dtype=_LD19_DTYPE)
-        out["header"], out["verlen"] = 0x54, 0x2C
-        out["speed"] = int(round(m.rate_hz * 360.0))
-        out["start"] = np.round(deg[:, 0] * 100.0).astype(np.int64) % 36000
-        out["end"] = np.round(deg[:, -1] * 100.0).astype(np.int64) % 36000
-        out["points"]["mm"] = mm.astype(np.uint16)
-        out["points"]["intensity"] = np.where(mm > 0, m.intensity, 0).astype(np.uint8)
-        times = self.t0_s + (np.arange(first_packet, first_packet + count) + 1) * self.packet_s
-        out["stamp"] = np.round(times * 1000.0).astype(np.int64) % 30000
+        out = self._template[:count].copy() if count <= len(self._template) else np.zeros(count, dtype=_LD19_DTYPE)
+        if count > len(self._template):
+            out["header"], out["verlen"], out["speed"] = 0x54, 0x2C, int(round(m.rate_hz * 360.0))
+        ends = np.round(deg[:, ::LD19_POINTS - 1] * 100.0).astype(np.int64) % 36000  # first and last point
+        out["start"] = ends[:, 0]
+        out["end"] = ends[:, 1]
+        points = out["points"]
+        points["mm"] = mm
+        points["intensity"] = (mm > 0) * m.intensity
+        if times_s is None:
+            times_s = self.t0_s + (np.arange(first_packet, first_packet + count) + 1) * self.packet_s
+        out["stamp"] = np.round(times_s * 1000.0).astype(np.int64) % 30000
         raw = out.view(np.uint8).reshape(count, 47)
         raw[:, 46] = ld19_crc8(raw[:, :46])
         return raw.tobytes()
 
     def update(self, now_s: float, dt_s: float) -> None:
-        """Cast and queue the packets due by the end of the next chunk, and feed those due by ``now_s``."""
+        """Cast and queue the packets due by the end of the next chunk; the port feeds those due by ``now_s``
+        when the driver reads."""
+        self.now_s = now_s
+        if self._next_cast_s > now_s + 1e-9:
+            return
         while True:
             first = self.next_point // LD19_POINTS
             start_s = self.t0_s + first * self.packet_s
             if start_s > now_s + 1e-9:
                 break
             n = self.chunk_packets
-            self.queue(self.t0_s + (np.arange(first, first + n) + 1) * self.packet_s, self.packets(first, n))
+            times = self.t0_s + (np.arange(first, first + n) + 1) * self.packet_s
+            self.queue(times, self.packets(first, n, times))
             self.next_point += n * LD19_POINTS
-        self.flush(now_s)
+        self._next_cast_s = self.t0_s + (self.next_point // LD19_POINTS) * self.packet_s
 
 
 # -- RPLIDAR A1 ---------------------------------------------------------------------------------------------
@@ -483,5 +549,5 @@ def make_emulator(kind: str, caster: RayCaster, truth: Any, contact: Any, mounti
     return SimLd19(caster, truth, contact, mounting, rng)
 
 
-__all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "SimRplidarA1", "A1Port", "make_emulator",
+__all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "PacedPort", "SimRplidarA1", "A1Port", "make_emulator",
            "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
