@@ -215,10 +215,12 @@ class LidarEmulator:
             kept = (r >= lo) & (r <= hi) & ~drop
         return deg_cw, np.round(np.where(kept, r, 0.0) * 1000.0)
 
-    def queue(self, times_s: np.ndarray, data: bytes) -> None:
-        """Send ``data``, made of ``len(times_s)`` equal items, each once the sim clock reaches its time (s)."""
-        # A list for bisect: flush runs at every physics step, where np.searchsorted's call costs more.
-        self._pending.append([times_s.tolist(), data, len(data) // len(times_s), 0])
+    def queue(self, times_s: Any, data: bytes) -> None:
+        """Send ``data``, made of ``len(times_s)`` equal items (an array or a list of times, s, rising), each once
+        the sim clock reaches its time."""
+        # A list for bisect: flush runs often, where np.searchsorted's call costs more.
+        times = times_s.tolist() if isinstance(times_s, np.ndarray) else list(times_s)
+        self._pending.append([times, data, len(data) // len(times), 0])
 
     def flush(self, now_s: float) -> None:
         """Feed the port every queued item whose time has come."""
@@ -354,7 +356,7 @@ class SimLd19(LidarEmulator):
         self._next_cast_s = self.t0_s
         """When the next chunk's first packet starts (sim s)."""
 
-    def packets(self, first_packet: int, count: int, times_s: Optional[np.ndarray] = None) -> bytes:
+    def packets(self, first_packet: int, count: int, times_s: Optional[list[float]] = None) -> bytes:
         """``count`` packets from packet index ``first_packet``, cast now; ``times_s`` the packets' end times
         (computed when not given)."""
         m = self.model
@@ -371,8 +373,9 @@ class SimLd19(LidarEmulator):
         points["mm"] = mm
         points["intensity"] = (mm > 0) * m.intensity
         if times_s is None:
-            times_s = self.t0_s + (np.arange(first_packet, first_packet + count) + 1) * self.packet_s
-        out["stamp"] = np.round(times_s * 1000.0).astype(np.int64) % 30000
+            times_s = [self.t0_s + (j + 1) * self.packet_s for j in range(first_packet, first_packet + count)]
+        # round() halves to even as np.round does; a few packets: Python is cheaper than four NumPy calls.
+        out["stamp"] = [round(t * 1000.0) % 30000 for t in times_s]
         raw = out.view(np.uint8).reshape(count, 47)
         raw[:, 46] = ld19_crc8(raw[:, :46])
         return raw.tobytes()
@@ -389,7 +392,7 @@ class SimLd19(LidarEmulator):
             if start_s > now_s + 1e-9:
                 break
             n = self.chunk_packets
-            times = self.t0_s + (np.arange(first, first + n) + 1) * self.packet_s
+            times = [self.t0_s + (j + 1) * self.packet_s for j in range(first, first + n)]
             self.queue(times, self.packets(first, n, times))
             self.next_point += n * LD19_POINTS
         self._next_cast_s = self.t0_s + (self.next_point // LD19_POINTS) * self.packet_s
