@@ -199,33 +199,37 @@ class Ld19Lidar(SerialLidar):
         unpack = _SCALARS.unpack_from
         scans: list[LaserScan] = []
         segment: list[int] = []  # where this read's packets of the revolution in progress start in data
+        # The loop runs for every packet (375 a second): state in locals, written back once after it.
+        last_deg = assembler.last_deg  # the latest point's angle; NaN after a reset: no comparison holds
+        reported = self._spinning_up_reported
+        speed = stamp_ms = 0
         for at in starts:
             speed, start_cdeg, end_cdeg, stamp_ms = unpack(data, at)
-            self.last_speed_dps, self.last_timestamp_ms = speed, stamp_ms
             if speed < slow_below:
                 stats.spinup_packets += 1
                 assembler.reset()
+                last_deg = assembler.last_deg
                 speeds.clear()
                 segment.clear()
-                if not self._spinning_up_reported:
+                if not reported:
                     self._events("lidar_spinning_up", f"{self.label}: the head turns at {speed / 360.0:.1f} Hz, "
                                                       f"below {self.config.spinning_below_hz:g} Hz: no scans until "
                                                       f"it is at speed")
-                    self._spinning_up_reported = True
+                    reported = True
                 continue
-            self._spinning_up_reported = False
+            reported = False
             # Where a new revolution starts in this packet: the angle falls back by more than half a turn (at
             # most once per packet: 12 points span a few degrees). The angles are packet_angles_deg's; a packet
             # that does not pass 360 has them rising from its start, so only its first point can fall back.
-            prev = assembler.last_deg  # NaN after a reset: no comparison holds
             first = start_cdeg / 100.0
             last = first + (POINTS_PER_PACKET - 1) * ((((end_cdeg - start_cdeg) % 36000) / 100.0)
                                                       / (POINTS_PER_PACKET - 1))
             cut = -1
             if last < 360.0:
-                if first + 180.0 < prev:
+                if first + 180.0 < last_deg:
                     cut = 0
             else:
+                prev = last_deg
                 for k, deg in enumerate(packet_angles_deg(start_cdeg, end_cdeg)):
                     if deg + 180.0 < prev:
                         cut = k
@@ -241,9 +245,12 @@ class Ld19Lidar(SerialLidar):
                     scans.append(scan)
                 speeds.clear()
                 segment = [at]
-            assembler.last_deg = last
+            last_deg = last
             speeds.append(speed)
         assembler.keep(data, segment)
+        assembler.last_deg = last_deg
+        self._spinning_up_reported = reported
+        self.last_speed_dps, self.last_timestamp_ms = speed, stamp_ms
         return scans
 
 
