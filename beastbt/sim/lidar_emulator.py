@@ -9,10 +9,12 @@ What a LiDAR sees is cast by :class:`RayCaster` from the LiDAR's pose
 walls and box sides as segments, cylinders and persons as circles, persons
 where they are at the time of the cast (:attr:`ContactWorld.person_xy`, so a
 person stopped by the robot is seen stopped). All of it is vectorised
-(rays x segments, rays x circles). Rays are cast in chunks (half a revolution's
+(rays x segments, rays x circles: one matrix product per cast). Rays are cast in chunks (half a revolution's
 points at once, :data:`CHUNKS_PER_REVOLUTION`, with the pose at the chunk's start) and the chunk's bytes are
 fed to the port as their points' times come, so the driver reads them at the
-model's byte rate and a revolution's points span the revolution's time.
+model's byte rate and a revolution's points span the revolution's time (the
+LD19's port, :class:`PacedPort`, feeds them when the driver reads: the same
+bytes, without work at every physics step).
 
 Noise, per point: a Gaussian range error (:attr:`LidarModel.range_sigma_m`
 plus a part proportional to range), a dropout probability (no return), and
