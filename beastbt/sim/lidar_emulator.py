@@ -554,5 +554,5 @@ def make_emulator(kind: str, caster: RayCaster, truth: Any, contact: Any, mounti
     return SimLd19(caster, truth, contact, mounting, rng)
 
 
-__all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "PacedPort", "SimRplidarA1", "A1Port", "make_emulator",
-           "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
+__all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "PacedPort", "SimRplidarA1", "A1Port",
+           "make_emulator", "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
