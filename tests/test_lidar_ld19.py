@@ -194,3 +194,68 @@ def test_a_packet_across_zero_spreads_its_points_through_360():
     steps = np.diff(np.unwrap(np.radians(angles)))
     assert np.allclose(np.degrees(steps), 2.1 / 11)
     assert all(0.0 <= a < 360.0 for a in angles)
+
+
+def _faulty_stream(seed: int) -> tuple[bytes, int, int]:
+    """LD19 bytes with what a real line brings: garbage, bad CRCs, cut packets, header bytes inside packets
+    (a distance of 0x2C54 mm), a stretch spinning up; how many packets in it are good, and how many of those
+    came while it spun up."""
+    rng = random.Random(seed)
+    out = bytearray()
+    angle, good, slow = 0.0, 0, 0
+    for i in range(400):
+        speed = 1000 if 150 <= i < 170 else 3600  # 20 packets spinning up (2.8 Hz)
+        step = speed / 4500.0
+        points = [(0x2C54 if k == 3 and i % 7 == 0 else 1000 + (i * 12 + k) % 3000, 200) for k in range(12)]
+        packet = ld19_packet(speed, int(round(angle * 100)) % 36000, points,
+                             int(round((angle + 11 * step) * 100)) % 36000, i * 3, good_crc=rng.random() > 0.03)
+        if rng.random() < 0.02:
+            packet = packet[:rng.randrange(2, 46)]  # cut short: the rest never comes
+        else:
+            ok = crc8(packet[:-1]) == packet[-1]
+            good += ok
+            slow += ok and speed < 3600
+        out += packet
+        if rng.random() < 0.05:
+            out += bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40))) + b"\x54\x2c\x54"
+        angle = (angle + 12 * step) % 360.0
+    return bytes(out), good, slow
+
+
+def test_how_the_bytes_are_cut_into_reads_does_not_change_the_scans():
+    # The driver decodes each read at once (all its packets together): one read, reads of any size and
+    # single bytes must give the same scans and the same counts.
+    wire, good, slow = _faulty_stream(3)
+    results = []
+    rng = random.Random(5)
+    for sizes in ([len(wire)], [1], [47], [230], [rng.randrange(1, 600) for _ in range(len(wire))]):
+        port = MemorySerial()
+        events: list = []
+        driver = Ld19Lidar(port, SimClock(), lambda kind, text: events.append(kind),
+                           config=LidarConfig.from_dict({"type": "ld19"}))
+        scans, at, k = [], 0, 0
+        while at < len(wire):
+            size = sizes[k % len(sizes)]
+            port.feed(wire[at:at + size])
+            at, k = at + size, k + 1
+            scans += driver.poll()
+        results.append((scans, driver.stats, sorted(set(events))))
+    scans, stats, events = results[0]
+    assert stats.packets == good and stats.crc_failures > 5 and stats.spinup_packets == slow > 15
+    assert stats.garbage_bytes > 100
+    assert events == ["lidar_crc", "lidar_spinning_up"]
+    assert len(scans) >= 6
+    for scan in scans:
+        assert 400 <= len(scan) <= 460
+        # The distances put in, never garbage: 1000-3999 mm, or the header-looking 0x2C54 (11.348 m).
+        mm = np.round(scan.ranges_m * 1000.0)
+        assert np.all(((mm >= 1000) & (mm < 4000)) | (mm == 0x2C54))
+    for other_scans, other_stats, other_events in results[1:]:
+        assert other_stats.packets == stats.packets and other_stats.crc_failures == stats.crc_failures
+        assert other_stats.garbage_bytes == stats.garbage_bytes and other_stats.spinup_packets == slow
+        assert other_events == events
+        assert len(other_scans) == len(scans)
+        for a, b in zip(scans, other_scans):
+            assert np.array_equal(a.angles_rad, b.angles_rad)
+            assert np.array_equal(a.ranges_m, b.ranges_m, equal_nan=True)
+            assert a.scan_rate_hz == b.scan_rate_hz

@@ -261,3 +261,46 @@ def test_a_port_that_fails_is_reopened():
     driver.poll()
     assert opened and driver.port_open and "lidar_port_reopened" in events
     assert second.dtr_changes == [False] and bytes(second.written[:2]) == bytes((0xA5, STOP))  # started again
+
+
+def test_how_the_samples_are_cut_into_reads_does_not_change_the_scans():
+    # Aligned runs of samples are taken at once (NumPy), breaks go sample by sample: reads of one byte, of a
+    # few samples or of everything must give the same scans and counts, and the same as the sample-by-sample
+    # loop alone (the reference: the driver with its aligned runs turned off).
+    rng = random.Random(11)
+    wire = bytearray()
+    for rev in range(6):
+        for k in range(300):
+            sample = bytearray(scan_sample(k == 0, 0 if k % 37 == 0 else 40, k * 1.2, 800.0 + (rev * 300 + k) % 900))
+            if rng.random() < 0.01:
+                sample[1] ^= 1  # a bad check bit
+            wire += sample
+            if rng.random() < 0.01:
+                wire += bytes(rng.randrange(256) for _ in range(rng.randrange(1, 9)))  # garbage between samples
+    results = []
+    for size, one_by_one in ((115, True), (1, False), (17, False), (115, False), (len(wire), False)):
+        clock, port = SimClock(), MemorySerial()
+        driver = RplidarA1(port, clock, config=LidarConfig.from_dict({"type": "rplidar_a1"}))
+        if one_by_one:
+            driver._aligned_run = lambda buf, pos, now_s, scans: pos  # type: ignore[method-assign]
+        answer_sequence(port, driver, clock)
+        scans = []
+        for i in range(0, len(wire), size):
+            chunk = bytes(wire[i:i + size])
+            port.feed(chunk)
+            clock.advance(len(chunk) / 11520.0)  # the bytes' time at 115200 baud
+            scans += driver.poll()
+        results.append((scans, driver.stats))
+    scans, stats = results[0]
+    assert stats.crc_failures > 3 and stats.garbage_bytes > 20 and len(scans) >= 3
+    for scan in scans:
+        ranges = scan.ranges_m[np.isfinite(scan.ranges_m)]
+        assert len(scan) > 250 and np.all((ranges >= 0.8) & (ranges < 1.7))  # what was sent, never garbage
+        assert np.all(np.isnan(scan.ranges_m[scan.intensities == 0]))  # quality 0: no return
+    for other, other_stats in results[1:]:
+        assert (other_stats.packets, other_stats.crc_failures, other_stats.garbage_bytes, other_stats.spinup_packets) \
+            == (stats.packets, stats.crc_failures, stats.garbage_bytes, stats.spinup_packets)
+        assert len(other) == len(scans)
+        for a, b in zip(scans, other):
+            assert np.array_equal(a.angles_rad, b.angles_rad)
+            assert np.array_equal(a.ranges_m, b.ranges_m, equal_nan=True)

@@ -366,3 +366,42 @@ def test_the_lidar_has_its_own_random_stream_and_shifts_no_other_emulators_draws
     assert np.array_equal(first, b.stream_rng("lidar").random(5))  # the same for a seed
     assert not np.array_equal(first, c.stream_rng("lidar").random(5))
     assert not np.array_equal(first, b.stream_rng("other").random(5))
+
+
+def test_the_ld19_port_gives_each_packet_once_its_time_has_come_however_often_it_is_read():
+    # The LD19's port is fed when the driver reads (not at every physics step): reading at every step, at
+    # 20 Hz or once must give the same bytes, and never a packet before its last point was measured.
+    def stream(read_every: int) -> tuple[bytes, list[tuple[float, int]]]:
+        truth = RobotTruth(x=2.0, y=0.0, yaw=0.3)
+        device = make_emulator("ld19", RayCaster(CORRIDOR, []), truth, None, (0.0, 0.0, 0.0),
+                               np.random.default_rng(3))
+        out, seen = bytearray(), []
+        for step in range(1, 301):  # 3 s at the 100 Hz physics rate
+            device.update(step * 0.01, 0.01)
+            if step % read_every == 0:
+                out += device.port.read(device.port.in_waiting)
+                seen.append((step * 0.01, len(out)))
+        return bytes(out), seen
+
+    every_step, seen = stream(1)
+    assert stream(5)[0] == every_step and stream(300)[0] == every_step
+    packet_s = 12 / LD19_MODEL.points_per_s
+    for t, n in seen:
+        assert n == 47 * int(t / packet_s + 1e-6)  # the packets whose end time has come, all of them
+
+
+def test_an_unplugged_ld19_port_loses_what_came_while_it_was_out():
+    truth = RobotTruth(x=2.0, y=0.0, yaw=0.0)
+    device = make_emulator("ld19", RayCaster(CORRIDOR, []), truth, None, (0.0, 0.0, 0.0), np.random.default_rng(3))
+    for step in range(1, 11):
+        device.update(step * 0.01, 0.01)
+    device.port.unplug()  # 0.1 s: 37 packets had come; unread, they go with the port
+    for step in range(11, 21):
+        device.update(step * 0.01, 0.01)
+    device.port.replug()
+    device.port.open()
+    assert device.port.in_waiting == 0  # nothing of what came while it was out
+    for step in range(21, 31):
+        device.update(step * 0.01, 0.01)
+    got = device.port.read(device.port.in_waiting)
+    assert len(got) == 47 * (int(0.3 / (12 / LD19_MODEL.points_per_s) + 1e-6) - 75) and got[:2] == b"\x54\x2c"

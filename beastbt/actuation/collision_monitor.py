@@ -195,13 +195,25 @@ def inside_polygon(points: np.ndarray, polygon: Any) -> np.ndarray:
 
 @dataclass
 class _ScanView:
-    """What the monitor keeps of one scan: its points in base_link and which fall in each zone."""
+    """What the monitor keeps of one scan: its points in base_link, and the near ones with their zones.
+
+    Near means closer than the monitor's ``near_m``: every point of a zone,
+    and every point the approach check can reach at the top speed, is near.
+    The checks of each tick look at the near points only (a handful: most of
+    a scan is farther away).
+    """
 
     scan: LaserScan
     points: np.ndarray
-    in_stop: np.ndarray
-    in_slow: np.ndarray
     ranges: np.ndarray
+    near_points: np.ndarray
+    near_ranges: np.ndarray
+    in_stop: np.ndarray
+    """For each near point: inside the stop zone."""
+    in_slow: np.ndarray
+    """For each near point: inside the slow zone."""
+    nearest: dict = field(default_factory=dict)
+    """What :meth:`CollisionMonitor._describe` said of the nearest point, by zone and direction (this scan's)."""
 
 
 class CollisionMonitor:
@@ -230,6 +242,13 @@ class CollisionMonitor:
         self._slow_shape = shapely.Polygon(self.slow_polygon)
         shapely.prepare(self._stop_shape)
         shapely.prepare(self._slow_shape)
+        self.near_m = float(max(np.hypot(*self.stop_polygon.T).max(), np.hypot(*self.slow_polygon.T).max(),
+                                footprint_radius_m + max_speed_mps * config.approach.time_s)) + 0.01
+        """Points closer than this (m) are all a tick looks at at up to the top speed: both zones lie within it
+        (a polygon lies within its farthest corner's distance) and so does the approach's reach."""
+        step = config.approach.simulation_time_step_s
+        self._sim_t = np.arange(1, int(math.ceil(config.approach.time_s / step)) + 1) * step
+        """The approach simulation's times, s."""
         self.action = NONE
         self.ratio = 1.0
         self.reason = ""
@@ -252,12 +271,15 @@ class CollisionMonitor:
             return None
         if self._view is None or self._view.scan is not scan:
             pts = base_points_xy(scan, self.mounting)
-            self._view = _ScanView(scan, pts,
-                                   inside_polygon(pts, self._stop_shape) if self.config.stop.enabled else
-                                   np.zeros(len(pts), bool),
-                                   inside_polygon(pts, self._slow_shape) if self.config.slow.enabled else
-                                   np.zeros(len(pts), bool),
-                                   np.hypot(pts[:, 0], pts[:, 1]))
+            ranges = np.hypot(pts[:, 0], pts[:, 1])
+            near = ranges < self.near_m
+            near_pts = pts[near]
+            off = np.zeros(len(near_pts), bool)
+            self._view = _ScanView(scan, pts, ranges, near_pts, ranges[near],
+                                   inside_polygon(near_pts, self._stop_shape) if self.config.stop.enabled and
+                                   len(near_pts) else off,
+                                   inside_polygon(near_pts, self._slow_shape) if self.config.slow.enabled and
+                                   len(near_pts) else off)
         return self._view
 
     # -- the limit ----------------------------------------------------------------
@@ -286,26 +308,30 @@ class CollisionMonitor:
     def _evaluate(self, view: _ScanView, v: float, w: float) -> tuple[str, float, str]:
         """The strongest action for the twist (v m/s, w rad/s) against ``view``: (action, ratio, why)."""
         cfg = self.config
-        pts = view.points
-        # Points the twist brings closer: d|p|/dt = -v x / |p| for a circular footprint round base_link.
-        toward = v * pts[:, 0] > 1e-9
         best = (NONE, 1.0, "")
+        if v == 0.0:
+            # Turning in place brings no point closer to a circular footprint round base_link: nothing to limit
+            # (the checks below would find nothing: no point is toward, none gets closer in the simulation).
+            return best
+        # Points the twist brings closer: d|p|/dt = -v x / |p| for a circular footprint round base_link.
+        # Counted among the near points (the zones hold no other).
+        toward = v * view.near_points[:, 0] > 1e-9
         n_stop = int(np.count_nonzero(view.in_stop & toward))
         if n_stop >= cfg.min_points:
-            return STOP, 0.0, self._describe(f"{n_stop} points in the stop zone", view, view.in_stop & toward)
+            return STOP, 0.0, self._describe(f"{n_stop} points in the stop zone", view, STOP, v)
         if cfg.approach.enabled:
-            free_s = self._free_time(pts, view.ranges, v, w)
+            free_s = self._free_time(view, v, w)
             if free_s < cfg.approach.time_s:
                 ratio = free_s / cfg.approach.time_s
                 best = (APPROACH, ratio, self._describe(
-                    f"contact in {free_s + cfg.approach.simulation_time_step_s:.2f} s at this command", view, toward))
+                    f"contact in {free_s + cfg.approach.simulation_time_step_s:.2f} s at this command", view,
+                    APPROACH, v))
         n_slow = int(np.count_nonzero(view.in_slow & toward))
         if n_slow >= cfg.min_points and cfg.slow.ratio < best[1]:
-            best = (SLOW, cfg.slow.ratio, self._describe(f"{n_slow} points in the slow zone", view,
-                                                         view.in_slow & toward))
+            best = (SLOW, cfg.slow.ratio, self._describe(f"{n_slow} points in the slow zone", view, SLOW, v))
         return best
 
-    def _free_time(self, pts: np.ndarray, ranges: np.ndarray, v: float, w: float) -> float:
+    def _free_time(self, view: _ScanView, v: float, w: float) -> float:
         """How long the twist (v, w) can be followed before the footprint covers ``min_points`` points, s.
 
         The robot's centre after t seconds of the twist, in the present
@@ -317,31 +343,52 @@ class CollisionMonitor:
         cfg = self.config.approach
         r = self.footprint_radius_m
         reach = r + abs(v) * cfg.time_s + 1e-6
-        near = ranges < reach  # only points the footprint can reach in time_s (an arc is no longer than |v| t)
+        # Only points the footprint can reach in time_s (an arc is no longer than |v| t): near ones up to the
+        # top speed, any beyond it (a command above the top speed: the gate clamps it only afterwards).
+        pts, ranges = (view.near_points, view.near_ranges) if reach < self.near_m else (view.points, view.ranges)
+        near = ranges < reach
         if np.count_nonzero(near) < self.config.min_points:
             return cfg.time_s
         p = pts[near]
-        d0 = ranges[near]
-        n = int(math.ceil(cfg.time_s / cfg.simulation_time_step_s))
-        t = np.arange(1, n + 1) * cfg.simulation_time_step_s
+        # Inside the footprint and closer than now: squared distance below min(r, d0) squared.
+        limit = np.minimum(ranges[near], r) ** 2
+        t = self._sim_t
         if abs(w) < 1e-9:
             cx, cy = v * t, np.zeros_like(t)
         else:
             cx, cy = np.sin(w * t) * v / w, (1.0 - np.cos(w * t)) * v / w
-        d = np.hypot(p[None, :, 0] - cx[:, None], p[None, :, 1] - cy[:, None])
-        hits = np.count_nonzero((d < r) & (d < d0[None, :]), axis=1)
+        dx = p[:, 0] - cx[:, None]
+        dy = p[:, 1] - cy[:, None]
+        hits = np.count_nonzero(dx * dx + dy * dy < limit, axis=1)
         blocked = np.flatnonzero(hits >= self.config.min_points)
         if blocked.size == 0:
             return cfg.time_s
         return float(blocked[0]) * cfg.simulation_time_step_s
 
     @staticmethod
-    def _describe(what: str, view: _ScanView, mask: np.ndarray) -> str:
-        if not np.any(mask):
-            return what
-        i = int(np.argmin(np.where(mask, view.ranges, np.inf)))
-        x, y = view.points[i]
-        return f"{what}; nearest {view.ranges[i]:.2f} m at {math.degrees(math.atan2(y, x)):.0f} deg"
+    def _describe(what: str, view: _ScanView, zone: str, v: float) -> str:
+        """``what``, and where the nearest point is of those in ``zone`` (all points for the approach) that
+        the linear speed ``v`` drives toward."""
+        key = (zone, v > 0.0)
+        nearest = view.nearest.get(key)
+        if nearest is None:
+            # The same for every tick of this scan in this zone and direction: said once, kept with the scan.
+            # Among the near points (all of a zone's; for the approach, the nearest point driven toward is a
+            # near one if any near one is driven toward), else among all.
+            points, ranges = view.near_points, view.near_ranges
+            mask = v * points[:, 0] > 1e-9
+            if zone != APPROACH:
+                mask &= view.in_stop if zone == STOP else view.in_slow
+            elif not np.any(mask):
+                points, ranges = view.points, view.ranges
+                mask = v * points[:, 0] > 1e-9
+            nearest = ""
+            if np.any(mask):
+                i = int(np.argmin(np.where(mask, ranges, np.inf)))
+                x, y = points[i]
+                nearest = f"; nearest {ranges[i]:.2f} m at {math.degrees(math.atan2(y, x)):.0f} deg"
+            view.nearest[key] = nearest
+        return what + nearest
 
     # -- state and events -----------------------------------------------------------
     def _set(self, action: str, ratio: float, why: str, cmd: VelocityCommand, now_s: float) -> None:

@@ -187,10 +187,19 @@ class LidarStats:
 def base_points_xy(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
     """The returns of ``scan`` as (n, 2) x, y in metres in base_link (x forward, y left), through ``mounting``
     (no-return points left out): what a costmap or a collision monitor works in."""
-    xy = scan.points_xy()
-    yaw = math.radians(mounting.yaw_deg)
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.column_stack((mounting.x_m + c * xy[:, 0] - s * xy[:, 1], mounting.y_m + s * xy[:, 0] + c * xy[:, 1]))
+    ok = np.isfinite(scan.ranges_m)
+    r = scan.ranges_m[ok]
+    a = scan.angles_rad[ok]
+    if mounting.yaw_deg:
+        a = a + math.radians(mounting.yaw_deg)  # the LiDAR's angles turned into base_link's
+    # Filled in place: fewer temporary arrays than a rotation of points_xy (a collision monitor does this at
+    # every scan).
+    out = np.empty((len(r), 2))
+    np.multiply(r, np.cos(a), out=out[:, 0])
+    np.multiply(r, np.sin(a), out=out[:, 1])
+    if mounting.x_m or mounting.y_m:
+        out += (mounting.x_m, mounting.y_m)
+    return out
 
 
 def ccw_rad_from_cw_deg(deg_cw: np.ndarray) -> np.ndarray:
@@ -221,17 +230,25 @@ class RevolutionAssembler:
 
     def __init__(self, config: LidarConfig) -> None:
         self._config = config
+        # Points come one by one (append: the RPLIDAR) into lists, or a packet's worth at once (extend: the
+        # LD19, NumPy arrays) into chunks; take() joins them in order. Lists stay for append: a NumPy append
+        # per point would cost more than the list's.
+        self._chunks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._deg: list[float] = []
         self._mm: list[float] = []
         self._intensity: list[float] = []
         self._last_deg = math.nan
         self._complete_start = False
 
-    def reset(self) -> None:
-        """Forget the revolution in progress (the next one starts clean after a new-revolution mark)."""
+    def _clear(self) -> None:
+        self._chunks.clear()
         self._deg.clear()
         self._mm.clear()
         self._intensity.clear()
+
+    def reset(self) -> None:
+        """Forget the revolution in progress (the next one starts clean after a new-revolution mark)."""
+        self._clear()
         self._last_deg = math.nan
         self._complete_start = False
 
@@ -250,13 +267,27 @@ class RevolutionAssembler:
         """The angle of the latest point seen (clockwise degrees; NaN after a reset)."""
         return self._last_deg
 
+    @property
+    def collecting(self) -> bool:
+        """True when the revolution in progress began at a revolution's start (its scan will be given)."""
+        return self._complete_start
+
     def extend(self, degs_cw: Sequence[float], distances_mm: Sequence[float], intensities: Sequence[float]) -> None:
-        """Store points of one revolution at once (the caller split them at the revolution's start)."""
-        if degs_cw:
-            self._deg.extend(degs_cw)
-            self._mm.extend(distances_mm)
-            self._intensity.extend(intensities)
-            self._last_deg = degs_cw[-1]
+        """Store points of one revolution at once (the caller split them at the revolution's start); sequences
+        or 1-D NumPy arrays of equal length."""
+        if len(degs_cw):
+            self._flush_points()
+            self._chunks.append((np.asarray(degs_cw, dtype=np.float64), np.asarray(distances_mm, dtype=np.float64),
+                                 np.asarray(intensities, dtype=np.float64)))
+            self._last_deg = float(degs_cw[-1])
+
+    def _flush_points(self) -> None:
+        if self._deg:
+            self._chunks.append((np.asarray(self._deg, dtype=np.float64), np.asarray(self._mm, dtype=np.float64),
+                                 np.asarray(self._intensity, dtype=np.float64)))
+            self._deg.clear()
+            self._mm.clear()
+            self._intensity.clear()
 
     def append(self, deg_cw: float, distance_mm: float, intensity: float) -> None:
         """Store a point in the revolution in progress."""
@@ -267,21 +298,26 @@ class RevolutionAssembler:
     def take(self, stamp_s: float, rate_hz: float) -> Optional[LaserScan]:
         """The revolution collected so far as a scan (None if it was partial), and start a new one."""
         scan = None
-        if self._complete_start and self._deg:
+        if self._complete_start and (self._deg or self._chunks):
+            self._flush_points()
             cfg = self._config
-            angles = ccw_rad_from_cw_deg(np.asarray(self._deg, dtype=np.float64))
-            ranges = np.asarray(self._mm, dtype=np.float64) / 1000.0
+            chunks = self._chunks
+            if len(chunks) == 1:
+                deg, mm, intensity = chunks[0]
+            else:
+                deg, mm, intensity = (np.concatenate([c[i] for c in chunks]) for i in range(3))
+            angles = ccw_rad_from_cw_deg(deg)
+            ranges = mm / 1000.0
             lo, hi = cfg.limits_m
             bad = ~((ranges >= lo) & (ranges <= hi))
             if cfg.ignore_deg:
                 bad |= sector_mask(angles, cfg.ignore_deg)
             ranges[bad] = np.nan
+            # A copy when the chunk's array is the scan's: the scan owns its arrays.
             scan = LaserScan(stamp_s=stamp_s, angles_rad=angles, ranges_m=ranges,
-                             intensities=np.asarray(self._intensity, dtype=np.float64),
+                             intensities=intensity.copy() if len(chunks) == 1 else intensity,
                              scan_rate_hz=rate_hz, model=cfg.type)
-        self._deg.clear()
-        self._mm.clear()
-        self._intensity.clear()
+        self._clear()
         self._complete_start = True
         return scan
 

@@ -48,6 +48,7 @@ import struct
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
 import serial
 
 from beastbt.devices.lidar_scan import LaserScan, SerialLidar
@@ -304,6 +305,8 @@ class RplidarA1(SerialLidar):
         pos = 0
         n = len(buf)
         while True:
+            if not self._resync:
+                pos = self._aligned_run(buf, pos, now_s, scans)
             ahead = 3 if self._resync else 2  # this sample and the next one (two after a failure) must pass
             if n - pos < SAMPLE_BYTES * ahead:
                 break
@@ -338,6 +341,47 @@ class RplidarA1(SerialLidar):
             self._assembler.append(deg, mm, quality)
         del buf[:pos]
         return scans
+
+    def _aligned_run(self, buf: bytearray, pos: int, now_s: float, scans: list[LaserScan]) -> int:
+        """Take at once (NumPy) the samples from ``pos`` that the loop of :meth:`_samples` would take one by one
+        in an aligned stream, as it would; the position after them (``pos`` when there are none)."""
+        m = (len(buf) - pos) // SAMPLE_BYTES
+        if m < 2:
+            return pos
+        raw = np.frombuffer(bytes(buf[pos:pos + m * SAMPLE_BYTES]), dtype=np.uint8).reshape(m, SAMPLE_BYTES)
+        b0, b1 = raw[:, 0].astype(np.int64), raw[:, 1].astype(np.int64)
+        deg = ((b1 >> 1) | (raw[:, 2].astype(np.int64) << 7)) / 64.0
+        # As _aligned for each sample: its bits pass and its angle follows the one before (the sample before it,
+        # or the last one taken).
+        good = (((b0 ^ (b0 >> 1)) & 1) == 1) & ((b1 & 1) == 1)
+        good[1:] &= ((deg[1:] - deg[:-1]) % 360.0) <= MAX_STEP_DEG
+        if self._last_deg is not None:
+            good[0] &= ((deg[0] - self._last_deg) % 360.0) <= MAX_STEP_DEG
+        # A sample is taken when it and the next one pass: the run ends before the first that does not.
+        both = good[:-1] & good[1:]
+        count = int(np.argmin(both)) if not both.all() else m - 1
+        if count == 0:
+            return pos
+        self._last_sample_s = now_s
+        self.stats.packets += count
+        self._last_deg = float(deg[count - 1])
+        quality = b0[:count] >> 2
+        mm = np.where(quality > 0, (raw[:count, 3] | (raw[:count, 4].astype(np.int64) << 8)) / 4.0, 0.0)
+        deg = deg[:count]
+        marks = np.flatnonzero(b0[:count] & 1).tolist()  # new revolutions (S bit)
+        begin = marks[0] if marks else count
+        if not self._synced:
+            self.stats.spinup_packets += begin  # no revolution mark yet: the motor is not at speed
+        elif begin:
+            self._assembler.extend(deg[:begin], mm[:begin], quality[:begin])
+        for k, mark in enumerate(marks):
+            scan = self._revolution(now_s, self._arrival_s(pos + (mark + 1) * SAMPLE_BYTES))
+            if scan is not None:
+                scans.append(scan)
+            self._synced = True
+            end = marks[k + 1] if k + 1 < len(marks) else count
+            self._assembler.extend(deg[mark:end], mm[mark:end], quality[mark:end])
+        return pos + count * SAMPLE_BYTES
 
     def _revolution(self, now_s: float, mark_s: float) -> Optional[LaserScan]:
         # An S bit closes the revolution in progress (the first one is partial and dropped by the assembler).
