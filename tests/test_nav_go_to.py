@@ -109,7 +109,7 @@ steps:
     assert h.summary()["waypoints"] == [{"name": "a", "lat": round(latlon(0, 10)[0], 8),
                                          "lon": round(latlon(0, 10)[1], 8), "reached": False,
                                          "arrival_error_m": None, "time_s": h.summary()["waypoints"][0]["time_s"],
-                                         "tolerance_m": 2.0}]
+                                         "tolerance_m": 2.0, "estimated_error_m": None}]
 
 
 def test_losing_the_fix_while_driving_dead_reckons_then_fails_after_the_timeout(tmp_path):

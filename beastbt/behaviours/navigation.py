@@ -42,8 +42,10 @@ from beastbt.blackboard.types import FusedPose, LaserScan, LocalPlan
 from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
-from beastbt.navigation.local_navigator import LocalNavigator, describe_obstacle
-from beastbt.navigation.local_planner import PlanResult
+if typing.TYPE_CHECKING:  # OpenCV and SciPy load when a robot with a LiDAR navigates, not with the language
+    from beastbt.navigation.local_navigator import LocalNavigator
+    from beastbt.navigation.local_planner import PlanResult
+
 
 @dataclass(frozen=True)
 @schema_defaults("parts/navigation.schema.json")
@@ -543,6 +545,7 @@ class GoTo(BeastBehaviour):
         if local is None or odom is None:
             return "an obstacle in the way"
         found = local.nearest_obstacle(odom, toward_rad)
+        from beastbt.navigation.local_navigator import describe_obstacle
         return describe_obstacle(*found) if found is not None else "an obstacle in the way"
 
 
