@@ -201,3 +201,16 @@ def test_the_corridor_person_world_still_loads_and_gives_way_by_default():
     world = load_world(Path(__file__).resolve().parents[1] / "worlds" / "corridor_person.yaml")
     (person,) = world.obstacles
     assert person.gives_way and person.keeps_m == 0.3 and person.loop
+
+
+def test_a_person_who_keeps_no_distance_is_refused_in_the_words_of_a_strict_bound(tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import REPO
+    path = tmp_path / "w.yaml"
+    path.write_text("world: w\nobstacles:\n  - {shape: person, path: [[0, 0], [1, 0]], keeps_m: 0}\n")
+    done = subprocess.run([sys.executable, "-m", "beastbt", "validate", str(path)], capture_output=True, text=True,
+                          timeout=60, env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    assert done.returncode == 2
+    assert "0 is out of range in 'keeps_m': must be more than 0" in done.stderr  # not "at least 0", which 0 is

@@ -261,8 +261,10 @@ class _Explainer:
             return [self.at(path + (err.instance,), f"'{err.instance}' is not a valid name{_where(path)}",
                             "names use letters (of any alphabet), digits, _ and -, and start with a letter", key=True)]
         if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
-            return [self.at(path, f"{err.instance} is out of range{_where(path)}: must be {v.replace('exclusive', '').lower()} {err.validator_value}"
-                            .replace("minimum", "at least").replace("maximum", "at most"), self.describe(schema))]
+            bound = {"minimum": "at least", "maximum": "at most", "exclusiveMinimum": "more than",
+                     "exclusiveMaximum": "less than"}[v]
+            return [self.at(path, f"{err.instance} is out of range{_where(path)}: must be {bound} {err.validator_value}",
+                            self.describe(schema))]
         if v == "minItems" and isinstance(err.instance, list) and err.instance:
             return [self.at(path, f"{_where(path).strip().replace('in ', '', 1) or 'this'} needs at least "
                                   f"{err.validator_value} items, has {len(err.instance)}", self.describe(schema))]
