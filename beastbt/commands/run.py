@@ -232,7 +232,8 @@ def command(args: argparse.Namespace) -> int:
     for problem in prepared.warnings:
         print(problem.format(), file=sys.stderr)
     if args.strict and prepared.warnings:
-        print(f"beastbt run: error: {len(prepared.warnings)} warning(s) and --strict: not started", file=sys.stderr)
+        n = len(prepared.warnings)
+        print(f"beastbt run: error: {n} warning{'' if n == 1 else 's'} and --strict: not started", file=sys.stderr)
         prepared.abandon()
         return EXIT_INVALID
     if args.foxglove is not None:

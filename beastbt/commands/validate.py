@@ -45,7 +45,8 @@ def command(args: argparse.Namespace) -> int:
         if errors:
             bad += 1
         elif problems:
-            print(f"{f}: ok, with {len(problems)} warning(s) (--strict refuses them)")
+            n = len(problems)
+            print(f"{f}: ok, with {n} warning{'' if n == 1 else 's'} (--strict refuses {'it' if n == 1 else 'them'})")
         else:
             print(f"{f}: ok")
     return 2 if bad else 0
