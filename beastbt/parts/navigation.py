@@ -20,7 +20,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 import py_trees
 
@@ -61,10 +61,19 @@ class NavEstimator:
     samples the tick brings (the base's own IMU).
     """
 
-    def __init__(self, ekf: "EkfEstimator", imu_tap: Optional[ImuTap] = None) -> None:
-        self.ekf = ekf
+    def __init__(self, make_ekf: "Callable[[], EkfEstimator]", imu_tap: Optional[ImuTap] = None) -> None:
+        # Built on first use: a run whose EKF sleeps (nothing reads the fused pose) never imports filterpy.
+        self._make_ekf = make_ekf
+        self._ekf: "Optional[EkfEstimator]" = None
         self.epochs = EpochFilter()
         self.imu_tap = imu_tap
+
+    @property
+    def ekf(self) -> "EkfEstimator":
+        """The EKF (built, with filterpy imported, the first time it is asked for)."""
+        if self._ekf is None:
+            self._ekf = self._make_ekf()
+        return self._ekf
 
     @property
     def frame(self) -> Optional[LocalFrame]:
@@ -99,8 +108,8 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
             io.magnetic_declination_deg = float(declination)
         if io.magnetic_declination_deg is not None:
             config = replace(config, declination_deg=float(io.magnetic_declination_deg))
-    ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
-    return NavEstimator(ekf, io.imu_tap)
+    sink = events.sink("ekf")
+    return NavEstimator(lambda: EkfEstimator(config, frame=None, events=sink, track_width_m=track), io.imu_tap)
 
 
 class ReturnHomeInstead(py_trees.decorators.Decorator):
