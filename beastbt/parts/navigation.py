@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 import py_trees
 
-from beastbt.behaviours.navigation import GoTo, NavConfig, home_target
+from beastbt.behaviours.navigation import GoTo, NavConfig, RetracePath, home_target
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.estimation.gps_epochs import EpochFilter
@@ -178,6 +178,11 @@ def install_navigation(p: Prepared) -> None:
     run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
     if "lidar" in run.ctx.capabilities:
         run.ctx.services.local_navigator = local_navigator(p.profile)
+        if run.ctx.services.local_navigator is not None and any(isinstance(n, (GoTo, RetracePath))
+                                                                for n in run.nodes):
+            # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
+            from beastbt.navigation.local_planner import graph_search
+            graph_search()
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
