@@ -18,7 +18,7 @@ written and warm (``PYTHONDONTWRITEBYTECODE`` is removed from the children's
 environment and each command runs once before timing), as after an
 installation: the libraries' caches are written by pip, and beastbt's own
 would otherwise be compiled from source on every run. ``--cold`` keeps the
-caller's environment instead.
+caller's environment instead (caches already written are still read).
 
 Run: python benchmarks/startup.py [--repeats N] [--cold]
 """
