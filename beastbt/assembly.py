@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
-from importlib import metadata
 from typing import Any, Callable, Mapping, Optional, Sequence
 
 from beastbt.behaviours.context import MissionContext, RunServices
@@ -130,6 +129,8 @@ def _instantiate(factory: Any, name: str) -> Part:
 
 def external_part(name: str, profile: RobotProfile) -> Part:
     """The part called ``name`` from the ``beastbt.parts`` entry points; InvalidInput when none is installed."""
+    from importlib import metadata  # only for a profile naming an external part: it costs every run milliseconds
+
     found = [ep for ep in metadata.entry_points(group=PART_ENTRY_POINTS) if ep.name == name]
     if not found:
         installed = sorted(ep.name for ep in metadata.entry_points(group=PART_ENTRY_POINTS))

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional, Union
+from typing import TYPE_CHECKING, Optional, Union
 
-import numpy as np
+if TYPE_CHECKING:  # NumPy is imported by the methods that compute: 'beastbt tree' and 'validate' never need it
+    import numpy as np
 
 
 @dataclass(frozen=True)
@@ -221,6 +222,8 @@ class LaserScan:
     @property
     def valid_count(self) -> int:
         """Number of points with a return (finite range)."""
+        import numpy as np
+
         return int(np.count_nonzero(np.isfinite(self.ranges_m)))
 
     def __len__(self) -> int:
@@ -228,6 +231,8 @@ class LaserScan:
 
     def points_xy(self) -> np.ndarray:
         """The returns as (n, 2) x, y in metres in the LiDAR's frame (no-return points left out)."""
+        import numpy as np
+
         ok = np.isfinite(self.ranges_m)
         r, a = self.ranges_m[ok], self.angles_rad[ok]
         return np.column_stack((r * np.cos(a), r * np.sin(a)))

@@ -9,9 +9,10 @@ drivers, so that both sides stay interchangeable.
 
 from __future__ import annotations
 
-from typing import Callable, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
 
-import numpy as np
+if TYPE_CHECKING:  # only in annotations: the interfaces cost no NumPy import
+    import numpy as np
 
 
 class SerialLike(Protocol):

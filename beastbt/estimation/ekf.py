@@ -35,10 +35,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 from typing import Any, Optional, Sequence
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
@@ -200,29 +200,41 @@ class EkfConfig:
                 raise ValueError(f"ekf: '{name}' must be > 0, got {getattr(self, name)}")
 
 
-class _UnicycleEkf(ExtendedKalmanFilter):
-    """filterpy's EKF with the unicycle motion model as its state transition.
+@lru_cache(maxsize=None)
+def _unicycle_ekf_class() -> type:
+    """The class of filterpy's EKF with the unicycle motion model, defined on first use.
 
-    The Jacobian ``F`` and ``Q`` are set by the caller before ``predict()``;
-    ``dt_s`` is the prediction step in seconds.
+    filterpy's package imports SciPy's statistics (about half a second of start-up): it is
+    imported only when a filter is built, so that the profile's ``estimator`` section (:class:`EkfConfig`)
+    is checked, and a run whose EKF sleeps starts, without it.
     """
+    from filterpy.kalman import ExtendedKalmanFilter
 
-    def __init__(self) -> None:
-        super().__init__(dim_x=STATE_SIZE, dim_z=1)
-        self.dt_s = 0.0
-        self.move_position = True
+    class _UnicycleEkf(ExtendedKalmanFilter):  # type: ignore[misc]
+        """filterpy's EKF with the unicycle motion model as its state transition.
 
-    def predict_x(self, u: Any = 0) -> None:
-        """Move the state by ``dt_s`` along the arc (midpoint heading); position only if ``move_position``."""
-        x = self.x
-        dt = self.dt_s
-        v = x[IV, 0]
-        w = x[IW, 0]
-        if self.move_position:
-            yaw_mid = x[IYAW, 0] + 0.5 * w * dt
-            x[IX, 0] += v * math.cos(yaw_mid) * dt
-            x[IY, 0] += v * math.sin(yaw_mid) * dt
-        x[IYAW, 0] = wrap_angle(x[IYAW, 0] + w * dt)
+        The Jacobian ``F`` and ``Q`` are set by the caller before ``predict()``;
+        ``dt_s`` is the prediction step in seconds.
+        """
+
+        def __init__(self) -> None:
+            super().__init__(dim_x=STATE_SIZE, dim_z=1)
+            self.dt_s = 0.0
+            self.move_position = True
+
+        def predict_x(self, u: Any = 0) -> None:
+            """Move the state by ``dt_s`` along the arc (midpoint heading); position only if ``move_position``."""
+            x = self.x
+            dt = self.dt_s
+            v = x[IV, 0]
+            w = x[IW, 0]
+            if self.move_position:
+                yaw_mid = x[IYAW, 0] + 0.5 * w * dt
+                x[IX, 0] += v * math.cos(yaw_mid) * dt
+                x[IY, 0] += v * math.sin(yaw_mid) * dt
+            x[IYAW, 0] = wrap_angle(x[IYAW, 0] + w * dt)
+
+    return _UnicycleEkf
 
 
 def _angle_residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -255,7 +267,7 @@ class EkfEstimator:
         if self.track_width_m <= 0.0:
             raise ValueError(f"ekf: track_width_m must be > 0, got {self.track_width_m}")
         cfg = self.config
-        self._kf = _UnicycleEkf()
+        self._kf = _unicycle_ekf_class()()
         self._kf.P = np.diag([1.0, 1.0, 1.0, cfg.initial_speed_sigma_mps ** 2, cfg.initial_yaw_rate_sigma_rps ** 2,
                               cfg.initial_gyro_bias_sigma_rps ** 2])
         self._frame = frame

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from importlib import metadata
 from typing import Any, Callable, Collection, Iterable, Mapping
 
 STEP_ENTRY_POINTS = "beastbt.steps"
@@ -62,6 +61,8 @@ def load_external_steps(keywords: Iterable[str], core: Collection[str]) -> dict[
     wanted = set(keywords) - set(core)
     if not wanted:
         return {}
+    from importlib import metadata  # only for a mission with a keyword the core lacks: it costs milliseconds
+
     out: dict[str, ExternalStep] = {}
     for ep in metadata.entry_points(group=STEP_ENTRY_POINTS):
         if ep.name in wanted and ep.name not in out:

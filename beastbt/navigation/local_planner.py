@@ -49,13 +49,25 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from beastbt.blackboard.types import COST_INSCRIBED, LocalCostmap
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.navigation.local_costmap import cost_at
+
+
+def graph_search() -> tuple[Any, Any]:
+    """SciPy's ``csr_matrix`` and ``csgraph.dijkstra``, imported on first use.
+
+    scipy.sparse costs about 60 ms of start-up: a run whose tree has no go_to
+    never pays it, and one that has is given it before its first tick
+    (:func:`beastbt.parts.navigation.install_navigation`), not at its first plan.
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    return csr_matrix, dijkstra
+
 
 PROGRESS_EPS_M = 0.05
 """An arc must end this much closer to the goal to count as progress (m): creeping at under 3 cm/s over the
@@ -200,6 +212,7 @@ class NavigationFunction:
         keep = ok[a] & ok[b]
         c = coarse.astype(np.float32)
         w = length[keep] * res * (1.0 + NF_COST_WEIGHT * (c[a[keep]] + c[b[keep]]) / (2.0 * (COST_INSCRIBED - 1)))
+        csr_matrix, dijkstra = graph_search()
         graph = csr_matrix((w, (a[keep], b[keep])), shape=(n * n, n * n))
         return dijkstra(graph, directed=False, indices=goal).reshape(n, n), res
 

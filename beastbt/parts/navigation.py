@@ -20,11 +20,11 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 import py_trees
 
-from beastbt.behaviours.navigation import GoTo, NavConfig, home_target
+from beastbt.behaviours.navigation import GoTo, NavConfig, RetracePath, home_target
 from beastbt.blackboard.types import FusedPose, GpsFix, ImuSample, WheelOdometry
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.estimation.gps_epochs import EpochFilter
@@ -61,10 +61,19 @@ class NavEstimator:
     samples the tick brings (the base's own IMU).
     """
 
-    def __init__(self, ekf: "EkfEstimator", imu_tap: Optional[ImuTap] = None) -> None:
-        self.ekf = ekf
+    def __init__(self, make_ekf: "Callable[[], EkfEstimator]", imu_tap: Optional[ImuTap] = None) -> None:
+        # Built on first use: a run whose EKF sleeps (nothing reads the fused pose) never imports filterpy.
+        self._make_ekf = make_ekf
+        self._ekf: "Optional[EkfEstimator]" = None
         self.epochs = EpochFilter()
         self.imu_tap = imu_tap
+
+    @property
+    def ekf(self) -> "EkfEstimator":
+        """The EKF (built, with filterpy imported, the first time it is asked for)."""
+        if self._ekf is None:
+            self._ekf = self._make_ekf()
+        return self._ekf
 
     @property
     def frame(self) -> Optional[LocalFrame]:
@@ -99,8 +108,8 @@ def ekf_estimator(profile: RobotProfile, io: RobotIO, events: EventLog) -> Optio
             io.magnetic_declination_deg = float(declination)
         if io.magnetic_declination_deg is not None:
             config = replace(config, declination_deg=float(io.magnetic_declination_deg))
-    ekf = EkfEstimator(config, frame=None, events=events.sink("ekf"), track_width_m=track)
-    return NavEstimator(ekf, io.imu_tap)
+    sink = events.sink("ekf")
+    return NavEstimator(lambda: EkfEstimator(config, frame=None, events=sink, track_width_m=track), io.imu_tap)
 
 
 class ReturnHomeInstead(py_trees.decorators.Decorator):
@@ -169,6 +178,11 @@ def install_navigation(p: Prepared) -> None:
     run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
     if "lidar" in run.ctx.capabilities:
         run.ctx.services.local_navigator = local_navigator(p.profile)
+        if run.ctx.services.local_navigator is not None and any(isinstance(n, (GoTo, RetracePath))
+                                                                for n in run.nodes):
+            # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
+            from beastbt.navigation.local_planner import graph_search
+            graph_search()
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
