@@ -17,8 +17,8 @@ median of several reps (each rep a batch of calls, per call in µs), with the sp
 
 The score is the geometric mean of the items' medians (µs): lower is faster, and
 each item weighs the same (a plain sum would be mostly the JPEG encode), so the
-ratio of two machines' scores is the geometric mean of the items' ratios. It is no absolute figure; only the ratio of two machines' scores means
-something.
+ratio of two machines' scores is the geometric mean of the items' ratios. The
+score is no absolute figure: only a ratio of two machines' scores means something.
 
 How to use it: run it on the development machine and on a Pi 4 (64-bit Raspberry
 Pi OS, ``pip install beastbt`` there, the performance governor or the default
@@ -119,8 +119,8 @@ def make_video() -> Callable[[], None]:
     frame[:] = np.linspace(40, 200, 640, dtype=np.uint8)[None, :, None]
     for _ in range(12):
         x, y = rng.integers(0, 600), rng.integers(0, 440)
-        cv2.rectangle(frame, (int(x), int(y)), (int(x) + 40, int(y) + 30), tuple(int(c) for c in rng.integers(0, 255, 3)),
-                      -1)
+        colour = tuple(int(c) for c in rng.integers(0, 255, 3))
+        cv2.rectangle(frame, (int(x), int(y)), (int(x) + 40, int(y) + 30), colour, -1)
 
     def step() -> None:
         cv2.resize(frame, (320, 240), interpolation=cv2.INTER_AREA)
@@ -168,7 +168,8 @@ def machine() -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=7, help="reps per item; the median is reported (default 7)")
-    parser.add_argument("--quick", action="store_true", help="3 reps of a tenth of the calls: a smoke run, not a figure")
+    parser.add_argument("--quick", action="store_true",
+                        help="3 reps of a tenth of the calls: a smoke run, not a figure")
     parser.add_argument("--json", metavar="FILE", help="also write the figures as JSON to FILE")
     parser.add_argument("--compare", metavar="OTHER", help="a JSON written by --json on another machine (the Pi)")
     args = parser.parse_args()
@@ -179,7 +180,8 @@ def main() -> None:
     for name, v in items.items():
         print(f"  {name:8s} {v['median_us']:9.1f} µs per call (reps {v['min_us']:.1f}-{v['max_us']:.1f})")
     print(f"score: {score:.1f} µs (geometric mean of the medians; lower is faster)")
-    result = {"machine": machine(), "python": platform.python_version(), "reps": reps, "items": items, "score_us": score}
+    result = {"machine": machine(), "python": platform.python_version(), "reps": reps, "items": items,
+              "score_us": score}
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1), encoding="utf-8")
     if args.compare:

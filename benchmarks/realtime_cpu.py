@@ -140,7 +140,8 @@ def joystick_script(path: Path, seconds: float) -> Path:
 
 
 def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Optional[str] = None,
-        extra: Optional[list[str]] = None, console: bool = False) -> tuple[float, float, dict, list[tuple[float, float]]]:
+        extra: Optional[list[str]] = None,
+        console: bool = False) -> tuple[float, float, dict, list[tuple[float, float]]]:
     """(cpu s, wall s, summary, [(wall s since start, cpu s of the run and its descendants)]) of one realtime run of
     ``mission`` lasting at most ``seconds`` of mission time; ``extra`` arguments are added to the command, and
     ``console`` serves the console with one viewer. The summary gets ``peak_rss_mib`` (the run and its descendants'
