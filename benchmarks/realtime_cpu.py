@@ -24,7 +24,8 @@ Goal (issues 11 and 20): the patrol, with the LiDAR, under 5 % of one core.
 (missions/joystick/teleop_demo.yaml) lasts 6.5 s, so a longer one of the same
 kind is written for the run (enable held, the sticks changing every second,
 released 0.5 s before the end). ``--console`` adds, for the patrol with the
-LiDAR, recorded and not, a run with ``--console`` and one viewer: a client
+LiDAR, recorded and not, and for the other missions recorded, a run with
+``--console`` and one viewer: a client
 process following ``WS /api/ws`` and ``WS /api/video`` as the page does (the
 one of benchmarks/console.py); the viewer's own CPU is not counted (it is the
 browser's), the console's server and encoder processes are (all the run's
@@ -198,7 +199,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=30.0, help="mission seconds per run (default 30)")
     parser.add_argument("--missions", default="patrol,line",
                         help="comma-separated, of " + ", ".join(MISSIONS) + " (default patrol,line)")
-    parser.add_argument("--console", action="store_true", help="also the patrol with --console and one viewer")
+    parser.add_argument("--console", action="store_true", help="also runs with --console and one viewer")
     parser.add_argument("--json", metavar="FILE", help="also write the rows as JSON to FILE")
     args = parser.parse_args()
     names = [n.strip() for n in args.missions.split(",") if n.strip()]
@@ -218,6 +219,7 @@ def main() -> None:
             rows += [("patrol", None, True, True), ("patrol", None, False, True)] if args.console else []
         else:
             rows += [(name, None, True, False), (name, None, False, False)]
+            rows += [(name, None, True, True)] if args.console else []
     joystick = joystick_script(Path(runs_dir) / "joystick.yaml", args.seconds)
     print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (1, 5, 15 min)")
     steady: dict[tuple, float] = {}
