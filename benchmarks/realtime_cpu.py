@@ -18,7 +18,23 @@ the baseline, measured in the same run, against which the LiDAR's share
 (emulator, driver, collision monitor, /scan) is the difference and the ratio.
 Goal (issues 11 and 20): the patrol, with the LiDAR, under 5 % of one core.
 
-Run: python benchmarks/realtime_cpu.py [--seconds T]
+``--missions`` picks the missions (default ``patrol,line``, the rows above):
+``gps_route`` runs missions/gps_route.yaml with ``--seed 1`` as its comment says;
+``teleop`` runs missions/teleop.yaml with a joystick script: the demo's
+(missions/joystick/teleop_demo.yaml) lasts 6.5 s, so a longer one of the same
+kind is written for the run (enable held, the sticks changing every second,
+released 0.5 s before the end). ``--console`` adds, for the patrol with the
+LiDAR, recorded and not, and for the other missions recorded, a run with
+``--console`` and one viewer: a client
+process following ``WS /api/ws`` and ``WS /api/video`` as the page does (the
+one of benchmarks/console.py); the viewer's own CPU is not counted (it is the
+browser's), the console's server and encoder processes are (all the run's
+descendants are). Each row also prints the run's peak resident memory (the
+largest VmRSS sampled of the run and its descendants together). ``--json FILE``
+writes the rows for docs/performance.md.
+
+Run: python benchmarks/realtime_cpu.py [--seconds T] [--missions patrol,line,gps_route,teleop] [--console]
+      [--json FILE]
 """
 
 from __future__ import annotations
@@ -27,6 +43,7 @@ import argparse
 import json
 import os
 import resource
+import socket
 import subprocess
 import sys
 import tempfile
@@ -37,7 +54,9 @@ from typing import Optional
 import yaml
 
 REPO = Path(__file__).resolve().parent.parent
-MISSIONS = {"patrol": "missions/patrol.yaml", "line": "missions/line_to_intersection.yaml"}
+MISSIONS = {"patrol": "missions/patrol.yaml", "line": "missions/line_to_intersection.yaml",
+            "gps_route": "missions/gps_route.yaml", "teleop": "missions/teleop.yaml"}
+EXTRA_ARGS = {"gps_route": ["--seed", "1"]}  # as the mission's own comment runs it
 TICKS_PER_S = os.sysconf("SC_CLK_TCK")
 
 
@@ -51,36 +70,103 @@ def _cpu_s(pid: int) -> Optional[float]:
     return (int(fields[11]) + int(fields[12])) / TICKS_PER_S
 
 
+def _rss_kib(pid: int) -> int:
+    """Resident memory of process ``pid`` in KiB (0 once it is gone)."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1])
+    except (FileNotFoundError, ProcessLookupError, ValueError):
+        pass
+    return 0
+
+
 def _children(pid: int) -> list[int]:
-    """The live processes whose parent is ``pid`` (the recording writer)."""
-    out = []
+    """The live descendants of ``pid`` (the recording writer; the console's server and encoder)."""
+    parents: dict[int, int] = {}
     for entry in os.listdir("/proc"):
         if entry.isdigit():
             try:
                 with open(f"/proc/{entry}/stat", encoding="ascii") as f:
-                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
-                        out.append(int(entry))
+                    parents[int(entry)] = int(f.read().rsplit(")", 1)[1].split()[1])
             except (FileNotFoundError, ProcessLookupError, IndexError, ValueError):
                 pass
+    out, frontier = [], {pid}
+    while frontier:
+        found = [child for child, parent in parents.items() if parent in frontier]
+        out += found
+        frontier = set(found)
     return out
 
 
-def run(mission: str, seconds: float, record: bool, runs_dir: str,
-        robot: Optional[str] = None) -> tuple[float, float, dict, list[tuple[float, float]]]:
-    """(cpu s, wall s, summary, [(wall s since start, cpu s of the run and its children)]) of one realtime run of
-    ``mission`` lasting at most ``seconds`` of mission time."""
+def _free_port() -> int:
+    """A TCP port free on 127.0.0.1 now (for the console)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _start_viewer(port: int, proc: subprocess.Popen) -> Optional[subprocess.Popen]:
+    """Once the console on ``port`` answers, a viewer process following its state and video (None if it never
+    answers while the run lives)."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from console import VIEWER  # the same viewer as benchmarks/console.py
+    deadline = time.monotonic() + 30
+    while proc.poll() is None and time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.2).close()
+        except OSError:
+            time.sleep(0.05)
+            continue
+        return subprocess.Popen([sys.executable, "-c", VIEWER, f"http://127.0.0.1:{port}"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return None
+
+
+def joystick_script(path: Path, seconds: float) -> Path:
+    """A joystick script like missions/joystick/teleop_demo.yaml but lasting ``seconds``: enable held, the sticks
+    changing every second, released 0.5 s before the end."""
+    pattern = [(0.8, 0.0), (0.5, 0.6), (0.5, -0.6), (0.3, 0.0), (0.0, 0.0)]
+    events = [{"at": "1 s", "press": "enable"}]
+    t = 1.5
+    while t < seconds - 1.0:
+        linear, angular = pattern[int(t) % len(pattern)]
+        events.append({"at": f"{t} s", "linear": linear, "angular": angular})
+        t += 1.0
+    events += [{"at": f"{t} s", "linear": 0.0, "angular": 0.0}, {"at": f"{max(t, seconds - 0.5) + 0.1} s",
+                                                                  "release": "enable"}]
+    path.write_text(yaml.safe_dump(events, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Optional[str] = None,
+        extra: Optional[list[str]] = None,
+        console: bool = False) -> tuple[float, float, dict, list[tuple[float, float]]]:
+    """(cpu s, wall s, summary, [(wall s since start, cpu s of the run and its descendants)]) of one realtime run of
+    ``mission`` lasting at most ``seconds`` of mission time; ``extra`` arguments are added to the command, and
+    ``console`` serves the console with one viewer. The summary gets ``peak_rss_mib`` (the run and its descendants'
+    largest resident memory sampled)."""
     summary = Path(runs_dir) / "summary.json"
     args = [sys.executable, "-m", "beastbt", "run", mission, "--speed", "realtime", "--max-time", f"{seconds} s",
             "--summary", str(summary)] + (["--runs-dir", runs_dir] if record else ["--no-record"])
     args += ["--robot", robot, "--sim"] if robot else []
+    args += extra or []
+    port = _free_port() if console else 0
+    args += ["--console", f"127.0.0.1:{port}"] if console else []
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     samples: list[tuple[float, float]] = []
     children: dict[int, float] = {}  # the latest CPU seen of each child (kept once it has ended)
+    viewer = _start_viewer(port, proc) if console else None
+    peak_rss = 0
     while proc.poll() is None:
+        rss = _rss_kib(proc.pid)
         for child in _children(proc.pid):
             children[child] = _cpu_s(child) or children.get(child, 0.0)
+            rss += _rss_kib(child)
+        peak_rss = max(peak_rss, rss)
         own = _cpu_s(proc.pid)
         if own is not None:
             samples.append((time.perf_counter() - t0, own + sum(children.values())))
@@ -88,7 +174,15 @@ def run(mission: str, seconds: float, record: bool, runs_dir: str,
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, wall, json.loads(summary.read_text()), samples
+    if viewer is not None:  # reaped after ``after``: its CPU (the browser's) is not in ``cpu``
+        try:
+            viewer.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+            viewer.wait()
+    result = json.loads(summary.read_text())
+    result["peak_rss_mib"] = peak_rss / 1024
+    return cpu, wall, result, samples
 
 
 def steady_share(samples: list[tuple[float, float]], start_s: float, end_s: float) -> float:
@@ -103,31 +197,63 @@ def steady_share(samples: list[tuple[float, float]], start_s: float, end_s: floa
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="mission seconds per run (default 30)")
+    parser.add_argument("--missions", default="patrol,line",
+                        help="comma-separated, of " + ", ".join(MISSIONS) + " (default patrol,line)")
+    parser.add_argument("--console", action="store_true", help="also runs with --console and one viewer")
+    parser.add_argument("--json", metavar="FILE", help="also write the rows as JSON to FILE")
     args = parser.parse_args()
+    names = [n.strip() for n in args.missions.split(",") if n.strip()]
+    unknown = [n for n in names if n not in MISSIONS]
+    if unknown:
+        parser.error(f"--missions: unknown {', '.join(unknown)}; expected some of {', '.join(MISSIONS)}")
     runs_dir = tempfile.mkdtemp(prefix="beastbt-realtime-")
     data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
     bare_robot = Path(runs_dir) / "sim_no_lidar.yaml"
     bare_robot.write_text(yaml.safe_dump({k: v for k, v in data.items() if k != "lidar"}, sort_keys=False),
                           encoding="utf-8")
-    rows = [("patrol", None, True), ("patrol", str(bare_robot), True), ("patrol", None, False),
-            ("patrol", str(bare_robot), False), ("line", None, True), ("line", None, False)]
+    rows: list[tuple[str, Optional[str], bool, bool]] = []  # (mission, robot profile, recorded, console)
+    for name in names:
+        if name == "patrol":
+            rows += [("patrol", None, True, False), ("patrol", str(bare_robot), True, False),
+                     ("patrol", None, False, False), ("patrol", str(bare_robot), False, False)]
+            rows += [("patrol", None, True, True), ("patrol", None, False, True)] if args.console else []
+        else:
+            rows += [(name, None, True, False), (name, None, False, False)]
+            rows += [(name, None, True, True)] if args.console else []
+    joystick = joystick_script(Path(runs_dir) / "joystick.yaml", args.seconds)
+    print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (1, 5, 15 min)")
     steady: dict[tuple, float] = {}
-    for name, robot, record in rows:
-        start_cpu, start_wall, _, _ = run(MISSIONS[name], 0.05, record, runs_dir, robot)
-        cpu, wall, summary, samples = run(MISSIONS[name], args.seconds, record, runs_dir, robot)
+    out_rows = []
+    for name, robot, record, console in rows:
+        extra = EXTRA_ARGS.get(name, []) + (["--joystick", str(joystick)] if name == "teleop" else [])
+        start_cpu, start_wall, _, _ = run(MISSIONS[name], 0.05, record, runs_dir, robot, extra, console)
+        cpu, wall, summary, samples = run(MISSIONS[name], args.seconds, record, runs_dir, robot, extra, console)
         # The mission runs from about start_wall to start_wall + its seconds (realtime): its middle part.
         share = steady_share(samples, start_wall + 3.0, start_wall + summary["sim_time_s"] - 0.5)
         older = (cpu - start_cpu) / max(wall - start_wall, 1e-9)
-        steady[(name, robot is None, record)] = share
-        label = ("recorded" if record else "--no-record") + ("" if robot is None else ", no LiDAR")
-        goal = "  (goal < 5 %)" if name == "patrol" and robot is None else ""
+        if not console:
+            steady[(name, robot is None, record)] = share
+        label = (("recorded" if record else "--no-record") + ("" if robot is None else ", no LiDAR")
+                 + (", console+viewer" if console else ""))
+        goal = "  (goal < 5 %)" if name == "patrol" and robot is None and not console else ""
         print(f"{name:7s} {label:23s} {summary['sim_time_s']:6.1f} s of mission in {wall:6.1f} s: cpu {cpu:5.2f} s, "
               f"start-up {start_cpu:4.2f} s; steady {100 * share:5.2f} % of one core{goal} "
-              f"(whole run minus start-up: {100 * older:4.1f} %)")
-    for record in (True, False):
-        with_lidar, without = steady[("patrol", True, record)], steady[("patrol", False, record)]
-        print(f"patrol {'recorded' if record else '--no-record'}: the LiDAR adds {100 * (with_lidar - without):4.2f} % "
-              f"of one core (x{with_lidar / without:4.2f} the profile without it, measured in this run)")
+              f"(whole run minus start-up: {100 * older:4.1f} %); peak RSS {summary['peak_rss_mib']:5.1f} MiB",
+              flush=True)
+        out_rows.append({"mission": name, "recorded": record, "lidar": robot is None, "console": console,
+                         "sim_time_s": summary["sim_time_s"], "steady_share": share, "whole_run_share": older,
+                         "startup_cpu_s": start_cpu, "peak_rss_mib": summary["peak_rss_mib"]})
+    if "patrol" in names:
+        for record in (True, False):
+            with_lidar, without = steady[("patrol", True, record)], steady[("patrol", False, record)]
+            print(f"patrol {'recorded' if record else '--no-record'}: the LiDAR adds "
+                  f"{100 * (with_lidar - without):4.2f} % of one core (x{with_lidar / without:4.2f} the profile "
+                  f"without it, measured in this run)")
+    load = os.getloadavg()
+    print(f"load after: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"seconds": args.seconds, "rows": out_rows, "load_after": load},
+                                              indent=1), encoding="utf-8")
 
 
 if __name__ == "__main__":
