@@ -127,3 +127,14 @@ def wait_for_page(page: Any, expression: str, timeout_s: float = 20.0) -> Any:
         if time.monotonic() > deadline:
             raise AssertionError(f"still false after {timeout_s} s: {expression}")
         page.wait_for_timeout(100)
+
+
+STILL_M = 0.005
+"""How far a stopped robot's reported pose may still move (m): the odometry reads 0.000 m/s (rounded) while the
+last fraction of a millimetre of the ramp-down lands, which the pose, rounded to the millimetre, can show."""
+
+
+def moved_m(a: dict, b: dict) -> float:
+    """How far apart two poses of the console's state are, in x plus y (m)."""
+    return abs(a["x"] - b["x"]) + abs(a["y"] - b["y"])
+
