@@ -184,9 +184,19 @@ class LidarStats:
     """Other counted conditions by name."""
 
 
+_last_points: tuple = (None, None, None)
+"""The last scan :func:`base_points_xy` turned, its mounting and its points: the collision monitor, the
+obstacle condition, the local costmap and the console all ask for the same scan in one tick."""
+
+
 def base_points_xy(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
     """The returns of ``scan`` as (n, 2) x, y in metres in base_link (x forward, y left), through ``mounting``
-    (no-return points left out): what a costmap or a collision monitor works in."""
+    (no-return points left out): what a costmap or a collision monitor works in. Read-only: the same array
+    is handed to every reader of the same scan."""
+    global _last_points
+    last_scan, last_mounting, last = _last_points  # one read: another thread may swap the tuple
+    if last_scan is scan and last_mounting == mounting:
+        return last
     ok = np.isfinite(scan.ranges_m)
     r = scan.ranges_m[ok]
     a = scan.angles_rad[ok]
@@ -199,6 +209,8 @@ def base_points_xy(scan: LaserScan, mounting: LidarMounting) -> np.ndarray:
     np.multiply(r, np.sin(a), out=out[:, 1])
     if mounting.x_m or mounting.y_m:
         out += (mounting.x_m, mounting.y_m)
+    out.setflags(write=False)
+    _last_points = (scan, mounting, out)
     return out
 
 
