@@ -83,32 +83,29 @@ def not_of(inner: Test) -> Test:
     return test
 
 
-def all_of(parts: list[Test]) -> Test:
-    """``all``: False when one is False, else unknown when one is unknown, else True."""
+def _decided_by(parts: list[Test], decisive: bool) -> Test:
+    """Three-valued ``all``/``any``: ``decisive`` as soon as one part answers it, else unknown when one is
+    unknown, else the other answer."""
     def test(r: ConditionReader) -> Optional[bool]:
         unknown = False
         for part in parts:
             answer = part(r)
             if answer is None:
                 unknown = True
-            elif not answer:
-                return False
-        return None if unknown else True
+            elif bool(answer) is decisive:
+                return decisive
+        return None if unknown else not decisive
     return test
+
+
+def all_of(parts: list[Test]) -> Test:
+    """``all``: False when one is False, else unknown when one is unknown, else True."""
+    return _decided_by(parts, False)
 
 
 def any_of(parts: list[Test]) -> Test:
     """``any``: True when one is True, else unknown when one is unknown, else False."""
-    def test(r: ConditionReader) -> Optional[bool]:
-        unknown = False
-        for part in parts:
-            answer = part(r)
-            if answer is None:
-                unknown = True
-            elif answer:
-                return True
-        return None if unknown else False
-    return test
+    return _decided_by(parts, True)
 
 
 GPS_MAX_AGE_S = 2.0

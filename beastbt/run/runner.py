@@ -143,9 +143,9 @@ class MissionRun:
         self.operator_driving = False
         """The operator drives from the console (its stick's deadman is held)."""
         self.inputs = OperatorInputs()
+        """What the operator did from outside the tree (console controls, typed answers): recorded for replay."""
         self.read_between_ticks: list = []
         """Readings a reactor took between ticks (:meth:`react`): the next tick's readings start with them."""
-        """What the operator did from outside the tree (console controls, typed answers): recorded for replay."""
         self.ended_by: Optional[str] = None
         """Who ended the run when it was not the mission itself (``operator``: an abort from the console)."""
         self._paused_total_s = 0.0
