@@ -173,19 +173,25 @@ class RunData:
         return f"{self.mission_name()}, {when:%Y-%m-%d %H:%M} UTC" if when else f"{self.mission_name()}, date unknown"
 
     # -- the world --------------------------------------------------------------------------
-    def world_doc(self) -> Optional[dict]:
-        """The simulated world file as recorded (``world.yaml`` attachment), or None."""
-        if not hasattr(self, "_world_doc"):
-            self._world_doc = None
-            text = self.rec.text("world.yaml")
+    def attached_yaml(self, name: str) -> Optional[dict]:
+        """A YAML file attached to the recording (``world.yaml``, ``robot.yaml``) as a mapping, read once; None
+        when it is absent or is not a mapping."""
+        cache = self.__dict__.setdefault("_attached_yaml", {})
+        if name not in cache:
+            cache[name] = None
+            text = self.rec.text(name)
             if text is not None:
                 import yaml
                 try:
                     doc = yaml.safe_load(text)
                 except yaml.YAMLError:
                     doc = None
-                self._world_doc = doc if isinstance(doc, dict) else None
-        return self._world_doc
+                cache[name] = doc if isinstance(doc, dict) else None
+        return cache[name]
+
+    def world_doc(self) -> Optional[dict]:
+        """The simulated world file as recorded (``world.yaml`` attachment), or None."""
+        return self.attached_yaml("world.yaml")
 
     def walls(self) -> list[tuple[float, float, float, float]]:
         """The world's walls as (x1, y1, x2, y2) metres: the metadata's, else the recorded world file's."""
@@ -284,16 +290,8 @@ class RunData:
                 return float(raw)
         except ValueError:
             pass
-        text = self.rec.text("robot.yaml")
-        if text is not None:
-            import yaml
-            try:
-                doc = yaml.safe_load(text)
-            except yaml.YAMLError:
-                doc = None
-            if isinstance(doc, dict):
-                return footprint_radius(doc)
-        return DEFAULT_FOOTPRINT_RADIUS_M
+        doc = self.attached_yaml("robot.yaml")
+        return footprint_radius(doc) if doc is not None else DEFAULT_FOOTPRINT_RADIUS_M
 
     def to_world(self, p: dict) -> tuple[float, float]:
         """A recorded pose's position in the report's frame (the world's, in the simulator).
@@ -361,17 +359,14 @@ class RunData:
     def default_tolerance_m(self) -> Optional[float]:
         """The arrival tolerance of a place that gives none: the profile's navigation default (m), if known."""
         try:
-            import yaml
-
             from beastbt.behaviours.navigation import NavConfig
         except ImportError:
             return None
         default = NavConfig().default_tolerance_m
-        text = self.rec.text("robot.yaml")
+        nav = (self.attached_yaml("robot.yaml") or {}).get("navigation")
         try:
-            nav = (yaml.safe_load(text) or {}).get("navigation") or {} if text else {}
-            return float(nav.get("default_tolerance_m", default))
-        except (yaml.YAMLError, AttributeError, TypeError, ValueError):
+            return float(nav.get("default_tolerance_m", default)) if isinstance(nav, dict) else default
+        except (TypeError, ValueError):
             return default
 
     def waypoints(self) -> list[Waypoint]:
