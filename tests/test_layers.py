@@ -18,8 +18,9 @@ LAYERS: tuple[tuple[int, tuple[str, ...], str], ...] = (
     (0, ("core",), "clock, events, errors with positions, units, YAML with positions, schema loading, config helpers"),
     (1, ("blackboard",), "the reading and command types, the catalogue of blackboard keys"),
     (2, ("devices",), "drivers that speak each device's wire protocol, and the port interfaces they use"),
-    (3, ("estimation", "vision", "actuation", "navigation"), "EKF and geodesy; line detection; mux, gate, watchdog, "
-                                                             "base adapters; local costmap and planner"),
+    (3, ("estimation", "vision", "actuation", "navigation", "mapping"), "EKF and geodesy; line detection; mux, gate, "
+                                                                          "watchdog, base adapters; local costmap and "
+                                                                          "planner; occupancy maps and SLAM"),
     (4, ("sim",), "the world, the dynamics, and an emulator behind every device's port"),
     (5, ("behaviours",), "leaf behaviours and flow decorators, one small class each"),
     (6, ("mission",), "the mission model and the compiler to a tree"),
