@@ -37,7 +37,10 @@ def truth_map(world: World, map_start: tuple[float, float, float] = (0.0, 0.0, 0
             circles.append((*moved(o.x, o.y), o.radius_m))
     xs = [v for s in segments for v in (s[0], s[2])]
     ys = [v for s in segments for v in (s[1], s[3])]
-    x0, y0 = min(xs) - margin_m, min(ys) - margin_m
+    # Whole metres of the world fall on cell centres, so that a wall is drawn centred in its cells and the map
+    # has no half-cell bias (a wall on a cell boundary would be drawn on one side of it).
+    x0 = (math.floor((min(xs) - margin_m) / resolution_m) - 0.5) * resolution_m
+    y0 = (math.floor((min(ys) - margin_m) / resolution_m) - 0.5) * resolution_m
     grid = empty_map(max(xs) + margin_m - x0, max(ys) + margin_m - y0, resolution_m, x0, y0, fill=FREE)
     return mark_outlines(grid, segments, circles)
 
@@ -53,4 +56,4 @@ def mission_text(name: str, steps: str, extra: str = "", world: Path = OFFICE) -
     return (f"mission: {name}\nworld: {world}\nmap: office_map.yaml\n{extra}steps:\n{steps}")
 
 
-__all__ = ["truth_map", "office_map_file", "mission_text", "OFFICE", "math"]
+__all__ = ["truth_map", "office_map_file", "mission_text", "OFFICE"]

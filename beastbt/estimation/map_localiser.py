@@ -28,7 +28,8 @@ The filter updates only when the robot has moved ``update_min_d_m`` or turned
 ``update_min_angle_deg`` since the last update (AMCL's ``update_min_d``/``a``):
 weighting the same view again while standing still would make the estimate
 overconfident. The reported covariance is the particles' weighted covariance
-(around the estimate), so it is as wide as the cloud. ``match_quality`` is the
+(around the estimate), so it is as wide as the cloud, plus the map's own
+quantisation (``resolution^2 / 12`` on x and y). ``match_quality`` is the
 share of the scan's beams that end within ``match_tolerance_m`` of an occupied
 cell at the estimate; ``localized`` turns false when it has stayed below
 ``lost_quality`` for ``lost_after_s``.
@@ -320,7 +321,10 @@ class MapLocaliser:
         yaw = float(math.atan2(np.average(np.sin(pth[near]), weights=wn), np.average(np.cos(pth[near]), weights=wn)))
         d = np.stack((px - x, py - y, wrap(pth - yaw)))
         cov = (d * w) @ d.T
-        self.covariance = 0.5 * (cov + cov.T)
+        # The map itself is only known to a cell: add the variance of that quantisation (res^2 / 12) on x and y,
+        # which the particles cannot see (they all weigh the same cells).
+        quantisation = self.grid.resolution_m ** 2 / 12.0
+        self.covariance = 0.5 * (cov + cov.T) + np.diag([quantisation, quantisation, 0.0])
         return (x, y, yaw)
 
     def _recover_average(self, mean_log_p: np.ndarray) -> None:
