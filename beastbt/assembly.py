@@ -66,6 +66,14 @@ class PartEntry:
     needed: Callable[[RobotProfile, RunOptions], bool]
     capability: Optional[str] = None
     real_only: bool = False
+    for_mission: Optional[Callable[[Mission], bool]] = None
+    """When given, the part is needed only by a mission for which this holds (``map:``: the localisation)."""
+
+    def needed_by(self, profile: RobotProfile, options: RunOptions, mission: Optional[Mission]) -> bool:
+        """Whether a run of ``mission`` (None: any) on ``profile`` with ``options`` needs this part."""
+        if not self.needed(profile, options):
+            return False
+        return self.for_mission is None or (mission is not None and self.for_mission(mission))
 
     def load(self) -> Part:
         """Import the part's module and make the part."""
@@ -101,6 +109,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
+    PartEntry("map_localisation", "beastbt.parts.map_localisation:MapLocalisationPart", _always,
+              for_mission=lambda mission: mission.map_file is not None),
     # What the run shows and keeps.
     PartEntry("recording", "beastbt.parts.recording:RecordingPart",
               lambda profile, options: bool(options.record or options.record_path or options.foxglove is not None)),
@@ -161,9 +171,10 @@ def base_part(profile: RobotProfile, simulated: bool) -> BasePart:
 
 
 def parts_for(profile: RobotProfile, options: RunOptions,
-              builtin: Sequence[PartEntry] = BUILTIN_PARTS) -> list[Part]:
-    """The parts a run of ``profile`` with ``options`` needs: the built-in ones it uses, then the profile's ``parts:``."""
-    parts = [entry.load() for entry in builtin if entry.needed(profile, options)]
+              builtin: Sequence[PartEntry] = BUILTIN_PARTS, mission: Optional[Mission] = None) -> list[Part]:
+    """The parts a run of ``mission`` on ``profile`` with ``options`` needs: the built-in ones it uses, then the
+    profile's ``parts:`` (without a mission, none of the parts only some missions need)."""
+    parts = [entry.load() for entry in builtin if entry.needed_by(profile, options, mission)]
     for name in (profile.section("parts") or {}):
         parts.append(external_part(str(name), profile))
     return parts
@@ -196,7 +207,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         clock = WallClock() if mode == REAL else SimClock()
     events = EventLog(clock)
     if parts is None:
-        parts = parts_for(profile, options)
+        parts = parts_for(profile, options, mission=mission)
     build = Build(mode, profile, clock, events)
     if mode not in (REAL, SIM, REPLAY):
         raise ValueError(f"unknown build mode {mode!r}")
@@ -293,7 +304,7 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     no OpenCV, no EKF). What ``beastbt tree`` prints.
     """
     options = RunOptions(record=False)
-    entries = [entry for entry in BUILTIN_PARTS if entry.needed(profile, options)]
+    entries = [entry for entry in BUILTIN_PARTS if entry.needed_by(profile, options, mission)]
     capabilities = frozenset(entry.capability for entry in entries
                              if entry.capability is not None and not (simulated and entry.real_only))
     parts = [entry.load() for entry in entries if entry.capability is None]
