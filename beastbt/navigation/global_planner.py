@@ -75,12 +75,20 @@ class GlobalPlannerConfig:
     """The path is planned again this often while following it (s); 0: only when blocked."""
     blocked_replan_s: float
     """Replan when the robot has made no progress along the path for this long (s)."""
+    lookahead_m: float
+    """go_to on a map steers toward a carrot this far ahead along the path (m): shorter than outdoors (navigation's
+    lookahead_m), so that it turns through a door instead of cutting the door's corner."""
+    replan_off_path_m: float
+    """Plan again when the robot is this far from the path (m)."""
+    default_tolerance_m: float
+    """A place on the map counts as reached this close when neither the place nor the step says (m)."""
     start_search_m: float
     """A start in the inscribed zone (the robot close to a wall) plans from the nearest passable cell within this
     distance (m)."""
 
     def __post_init__(self) -> None:
-        for name in ("inflation_radius_m", "cost_scaling_factor", "blocked_replan_s"):
+        for name in ("inflation_radius_m", "cost_scaling_factor", "blocked_replan_s", "default_tolerance_m",
+                     "lookahead_m", "replan_off_path_m"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"global_planner: '{name}' must be > 0, got {getattr(self, name)}")
         for name in ("footprint_padding_m", "cost_weight", "replan_period_s", "start_search_m"):
@@ -397,56 +405,65 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
     return GlobalPath(points, length, expanded)
 
 
-def _segment_cost(costmap: GlobalCostmap, a: np.ndarray, b: np.ndarray) -> int:
-    """The highest cost of the cells on the straight line between cells ``a`` and ``b`` (row, col), sampled at a
-    third of a cell, with the cells beside each sample on a diagonal."""
+def _multiplier(costmap: GlobalCostmap, cost: np.ndarray) -> np.ndarray:
+    """What a step through cells of ``cost`` costs per cell of length: 1 + cost_weight * cost / 252."""
+    return 1.0 + costmap.config.cost_weight * np.minimum(cost, MAX_COST) / MAX_COST
+
+
+def _segment_cost(costmap: GlobalCostmap, a: np.ndarray, b: np.ndarray) -> float:
+    """The travel cost (cells, as A* counts it) of the straight line between cells ``a`` and ``b`` (row, col),
+    sampled at a third of a cell; inf when the band the robot's centre sweeps (the cells beside each sample on a
+    diagonal) touches an impassable cell."""
+    length = math.hypot(b[0] - a[0], b[1] - a[1])
     n = int(max(abs(b[0] - a[0]), abs(b[1] - a[1])) * 3) + 1
-    t = np.linspace(0.0, 1.0, n + 1)
+    t = (np.arange(n) + 0.5) / n
     r = a[0] + t * (b[0] - a[0])
     c = a[1] + t * (b[1] - a[1])
-    # both neighbours when the line passes near a cell corner: the robot sweeps a band, not a line
-    rows = np.concatenate((np.floor(r + 0.5 - 0.25), np.floor(r + 0.5 + 0.25))).astype(np.intp)
-    cols = np.concatenate((np.floor(c + 0.5 - 0.25), np.floor(c + 0.5 + 0.25))).astype(np.intp)
-    rows2 = np.concatenate((rows, rows))
-    cols2 = np.concatenate((cols, cols[::-1]))
-    return int(costmap.cost[rows2, cols2].max())
+    lo_r, hi_r = np.floor(r + 0.25).astype(np.intp), np.floor(r + 0.75).astype(np.intp)
+    lo_c, hi_c = np.floor(c + 0.25).astype(np.intp), np.floor(c + 0.75).astype(np.intp)
+    band = np.concatenate((costmap.cost[lo_r, lo_c], costmap.cost[lo_r, hi_c], costmap.cost[hi_r, lo_c],
+                           costmap.cost[hi_r, hi_c]))
+    if band.max() >= COST_INSCRIBED:
+        return math.inf
+    cells = costmap.cost[np.floor(r + 0.5).astype(np.intp), np.floor(c + 0.5).astype(np.intp)]
+    return float(_multiplier(costmap, cells).mean() * length)
 
 
 def shorten(costmap: GlobalCostmap, cells: np.ndarray) -> np.ndarray:
-    """String pulling: from each kept cell, the farthest later cell of the path that a straight line reaches
-    without crossing a cell costlier than the path between them (so the shortcut keeps as far from walls); the
-    cells (k, 2) kept, first and last included."""
+    """String pulling: from each kept cell, the farthest later cell of the path that a straight line reaches at no
+    more travel cost (as A* counts it) than the path between them, so that a shortcut never trades length for
+    nearness to walls (it does not cross a door on the slant); the cells (k, 2) kept, first and last included."""
     n = len(cells)
     if n <= 2:
         return cells
-    path_cost = costmap.cost[cells[:, 0], cells[:, 1]].astype(int)
+    mult = _multiplier(costmap, costmap.cost[cells[:, 0], cells[:, 1]].astype(float))
+    steps = np.hypot(*np.diff(cells, axis=0).T) * 0.5 * (mult[:-1] + mult[1:])
+    along = np.concatenate(([0.0], np.cumsum(steps)))
+
+    def ok(i: int, j: int) -> bool:
+        return _segment_cost(costmap, cells[i], cells[j]) <= along[j] - along[i] + 1e-6
+
     kept = [0]
     i = 0
     while i < n - 1:
         # Doubling then bisecting the reach: a line of sight is checked some log(n) times per kept cell.
-        best = i + 1
         step = 1
-        while i + step * 2 < n and _ok(costmap, cells, path_cost, i, i + step * 2):
+        while i + step * 2 < n and ok(i, i + step * 2):
             step *= 2
-        lo, hi = i + step, min(n - 1, i + step * 2)
-        best = lo if lo == i + 1 or _ok(costmap, cells, path_cost, i, lo) else i + 1
+        best, hi = i + step, min(n - 1, i + step * 2)
+        if best > i + 1 and not ok(i, best):
+            best = i + 1
         while hi > best + 1:
             mid = (best + hi) // 2
-            if _ok(costmap, cells, path_cost, i, mid):
+            if ok(i, mid):
                 best = mid
             else:
                 hi = mid
-        if hi == n - 1 and hi > best and _ok(costmap, cells, path_cost, i, hi):
+        if hi == n - 1 and hi > best and ok(i, hi):
             best = hi
         kept.append(best)
         i = best
     return cells[kept]
-
-
-def _ok(costmap: GlobalCostmap, cells: np.ndarray, path_cost: np.ndarray, i: int, j: int) -> bool:
-    """Whether the straight line from path cell ``i`` to ``j`` is no costlier than the path between them."""
-    limit = max(int(path_cost[i:j + 1].max()), 0)
-    return _segment_cost(costmap, cells[i], cells[j]) <= limit
 
 
 def path_length_m(points: Sequence[Sequence[float]]) -> float:

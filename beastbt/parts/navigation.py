@@ -183,6 +183,12 @@ def install_navigation(p: Prepared) -> None:
             # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
             from beastbt.navigation.local_planner import graph_search
             graph_search()
+    planner = run.ctx.services.plugins.get("map_planner")
+    if planner is not None:  # go_to on the mission's map: the profile's global planner and the robot's size
+        from beastbt.actuation.collision_monitor import footprint_radius
+        from beastbt.navigation.global_planner import GlobalPlannerConfig
+        planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
+                          footprint_radius(p.profile.data))
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
