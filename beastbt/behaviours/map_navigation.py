@@ -86,7 +86,8 @@ class MapPlanner:
         self._costmap: Any = None
         self.visits: list[MapVisit] = []
         self.plans = 0
-        self.plan_cpu_s: list[float] = []
+        self.listeners: list[Callable[[MapVisit], None]] = []
+        """Called with a visit when it ends (the simulator's truth listens here)."""
 
     def configure(self, config: Any, footprint_radius_m: float) -> None:
         """The profile's ``global_planner:`` section and the robot's footprint radius (m), before the first plan."""
@@ -107,6 +108,16 @@ class MapPlanner:
         from beastbt.navigation.global_planner import plan_path
         self.plans += 1
         return plan_path(self.costmap, start, goal, tolerance_m, goal_name=name)
+
+
+def map_waypoints(planner: MapPlanner) -> list[dict]:
+    """The summary's ``map_waypoints``: each place on the map a go_to aimed for, in order (metres, seconds)."""
+    def r(v: Optional[float], nd: int = 3) -> Optional[float]:
+        return None if v is None else round(float(v), nd)
+    return [{"name": v.name, "x": r(v.x), "y": r(v.y), "reached": v.reached, "time_s": r(v.time_s, 2),
+             "tolerance_m": r(v.tolerance_m), "estimated_error_m": r(v.estimated_error_m),
+             "arrival_error_m": r(v.true_error_m if v.true_error_m is not None else v.estimated_error_m),
+             "path_m": r(v.path_m, 2), "replans": v.replans} for v in planner.visits]
 
 
 def map_planner(ctx: MissionContext, grid: Any, start: tuple[float, float, float]) -> MapPlanner:
@@ -184,6 +195,8 @@ class MapGoTo(GoTo):
         visit.replans = self.replans
         start = self.read("mission_start_s")
         visit.time_s = self.now() - start if start is not None else None
+        for listener in self.planner.listeners:
+            listener(visit)
 
     def _tolerance(self) -> float:
         return self.tolerance_m if self.tolerance_m is not None else self.planner.config.default_tolerance_m
@@ -415,4 +428,4 @@ def map_home_target(planner: MapPlanner) -> MapTarget:
     return lambda: (planner.start[0], planner.start[1])
 
 
-__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "map_place_target", "map_home_target", "MAP_PLANNER"]
+__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "map_waypoints", "map_place_target", "map_home_target", "MAP_PLANNER"]

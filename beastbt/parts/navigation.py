@@ -19,6 +19,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
@@ -171,6 +173,28 @@ def local_navigator(profile: RobotProfile) -> Optional["LocalNavigator"]:
                           footprint_radius(profile.data), lidar.mounting, limits)
 
 
+def install_map_truth(p: Prepared, planner: Any) -> None:
+    """The summary's ``map_waypoints`` and, in the simulator, each arrival's true distance to its place (the true
+    pose moved into the map frame by the world's start and the mission's start on the map)."""
+    from beastbt.behaviours.map_navigation import map_waypoints
+    run, world = p.run, p.world
+
+    def contribute_map(r: MissionRun, summary: dict) -> None:
+        summary["map_waypoints"] = map_waypoints(planner)
+    run.summary_contributors.append(contribute_map)
+    if run.io.sim is None or world is None:
+        return
+    from beastbt.estimation.map_localiser import compose, invert
+    map_from_world = compose(planner.start, invert((world.start_x, world.start_y, world.start_yaw)))
+
+    def true_error(visit: Any) -> None:
+        if visit.reached and visit.x is not None:
+            truth = run.io.sim.truth
+            x, y, _ = compose(map_from_world, (truth.x, truth.y, truth.yaw))
+            visit.true_error_m = math.hypot(x - visit.x, y - visit.y)
+    planner.listeners.append(true_error)
+
+
 def install_navigation(p: Prepared) -> None:
     """Give go_to the profile's navigation tuning and, with a LiDAR, the local costmap and planner; on a robot
     with a GPS, offer going home."""
@@ -189,6 +213,7 @@ def install_navigation(p: Prepared) -> None:
         from beastbt.navigation.global_planner import GlobalPlannerConfig
         planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
                           footprint_radius(p.profile.data))
+        install_map_truth(p, planner)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
