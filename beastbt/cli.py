@@ -41,6 +41,7 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                               "gets and what each control does"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "
                                           "joystick, CAN) without moving"),
+    "map": ("beastbt.commands.map", "map tools: 'map show MAP --places MISSION' draws a map with its places"),
     "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
                                                             "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })

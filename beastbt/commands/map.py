@@ -1,0 +1,32 @@
+"""``beastbt map ACTION``: map tools. ``map show maps/office.yaml --places MISSION --out office.png`` draws a map.
+
+Each action is one ``(help, add_arguments, run)`` entry in :data:`ACTIONS`, so
+a new one (``map build``) is a function pair and a line there. Exit status:
+0 done, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Callable
+
+from beastbt.commands.map_show import add_show_arguments, show
+
+ACTIONS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Callable[[argparse.Namespace], int]]] = {
+    "show": ("draw a map (map_server YAML) with the places of a mission or places file into a PNG",
+             add_show_arguments, show),
+}
+"""Action -> (one-line help, add its arguments, run it -> exit status)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """``beastbt map ACTION ...``: one subparser per action of :data:`ACTIONS`."""
+    p.description = "Map tools: " + "; ".join(f"'{name}': {help_text}" for name, (help_text, _, _) in ACTIONS.items())
+    sub = p.add_subparsers(dest="action", metavar="ACTION", required=True)
+    for name, (help_text, add, _) in ACTIONS.items():
+        add(sub.add_parser(name, help=help_text))
+
+
+def command(args: argparse.Namespace) -> int:
+    """Run the chosen action."""
+    return ACTIONS[args.action][2](args)
