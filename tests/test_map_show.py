@@ -50,3 +50,28 @@ def test_bad_input_exits_2_with_the_position(tmp_path, capsys):
     assert main(["map", "show", str(OFFICE_MAP), "--places", str(bad), "--out", str(tmp_path / "y.png")]) == 2
     assert "bad.yaml:1:10: error: place 'kitchen' needs x and y" in capsys.readouterr().err
     assert not (tmp_path / "y.png").exists()
+
+
+def test_a_recorded_run_on_a_map_carries_map_once_and_the_planned_path(tmp_path, monkeypatch):
+    import base64
+    from beastbt.mapping.occupancy_map import load_map
+    from beastbt.recording.reader import find_recording, read_recording
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(REPO / "missions" / "office_rooms.yaml"), "--speed", "max", "--max-time", "3"]) == 1
+    rec = read_recording(find_recording(next((tmp_path / "runs").iterdir())), topics=("/map", "/path"))
+    maps, paths = rec.messages["/map"], rec.messages["/path"]
+    assert len(maps) == 1  # latched, sent once: nothing marked the map since
+    grid = maps[0][-1]
+    saved = load_map(OFFICE_MAP)
+    cells = np.frombuffer(base64.b64decode(grid["data"]), dtype=np.int8).reshape(-1, grid["column_count"])
+    assert np.array_equal(cells, saved.data) and grid["frame_id"] == "map"
+    assert grid["pose"]["position"]["x"] == saved.origin_x and grid["cell_size"]["x"] == saved.resolution_m
+    import jsonschema
+    from beastbt.recording.schemas import CHANNELS
+    jsonschema.Draft202012Validator(CHANNELS["/map"]).validate(grid)
+    for _, *rest in paths:
+        jsonschema.Draft202012Validator(CHANNELS["/path"]).validate(rest[-1])
+    path = paths[0][-1]["entities"][0]
+    points = path["lines"][0]["points"]
+    assert abs(points[0]["x"]) < 0.05 and abs(points[0]["y"]) < 0.05  # from where the robot stood (the origin)...
+    assert (round(points[-1]["x"], 2), round(points[-1]["y"], 2)) == (3.0, 5.5)  # ...to the kitchen

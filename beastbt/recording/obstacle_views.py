@@ -112,6 +112,9 @@ class ObstacleSampler:
         self._contact_s = -math.inf
         self._collisions = 0
         self._last_persons: Optional[list] = None
+        from beastbt.recording.map_views import MapSampler
+        self._map = MapSampler(run)
+        """The saved map and the planned path (a mission with map:), sampled here so they ride the same item."""
 
     def sample(self, now_s: float) -> Optional[dict]:
         """What changed since the last payload (rate-limited), or None."""
@@ -143,6 +146,7 @@ class ObstacleSampler:
                 out["contact"] = {"t_s": float(truth.t_s), "clearance_m": gap if math.isfinite(gap) else None,
                                   "collisions": int(contact.collisions), "in_contact": bool(contact.in_contact),
                                   "persons": persons, "moved": moved}
+        out.update(self._map.sample(now_s))
         return out or None
 
 

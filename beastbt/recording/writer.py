@@ -687,7 +687,7 @@ class RunFileWriter:
 
     def _write_views(self, t: int, views: dict) -> None:
         """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
-        /local_plan, /collision_monitor/zones, /sim/persons and /sim/contact."""
+        /local_plan, /collision_monitor/zones, /map, /path, /sim/persons and /sim/contact."""
         frames = self.frames
         if "costmap" in views:
             self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
@@ -697,6 +697,14 @@ class RunFileWriter:
             msg = ov.zones_update(t, frames.base_link, views["zones"])
             self._emit("/collision_monitor/zones", t, msg)
             self._latched_views["/collision_monitor/zones"] = encode_json(msg)  # sent once: a late client needs it
+        if "map" in views:  # latched: a client that joins later gets the map at once
+            from beastbt.recording.map_views import map_grid
+            msg = map_grid(t, frames.map, *views["map"])
+            self._emit("/map", t, msg)
+            self._latched_views["/map"] = encode_json(msg)
+        if "path" in views:
+            from beastbt.recording.map_views import path_update
+            self._emit("/path", t, path_update(t, frames.map, views["path"]))
         contact = views.get("contact")
         if contact is not None:
             self._emit("/sim/contact", t, ov.contact_message(contact))
@@ -780,7 +788,7 @@ def message_count(item: tuple, images: bool) -> int:
     if kind == "views":
         views = item[2]
         contact = views.get("contact")
-        return (("costmap" in views) + ("plan" in views) + ("zones" in views)
+        return (("costmap" in views) + ("plan" in views) + ("zones" in views) + ("map" in views) + ("path" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0
