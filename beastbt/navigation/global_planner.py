@@ -252,7 +252,7 @@ class _Graph:
         # An inconsistent heuristic can make a reduced cost negative, which Dijkstra refuses: clipped at 0.
         np.maximum(reduced, 0.0, out=reduced)
         matrix = csr_matrix((reduced.ravel(), self.indices, self.indptr), shape=(self.n, self.n))
-        limit = 16.0 + 0.05 * float(h.flat[start])
+        limit = 8.0 + 0.03 * float(h.flat[start])
         while True:
             dist, pred = dijkstra(matrix, directed=True, indices=start, return_predecessors=True, limit=limit)
             if np.isfinite(dist[goal]):
@@ -260,7 +260,7 @@ class _Graph:
             if not np.isfinite(limit):
                 raise NoPath("no way to the goal")
             # Everything within the limit is settled and the goal is not among it: look farther.
-            limit = limit * 2.0 if limit < 8.0 * self.n else np.inf
+            limit = limit * 1.5 if limit < 8.0 * self.n else np.inf
         nodes = [goal]
         while nodes[-1] != start:
             nodes.append(int(pred[nodes[-1]]))
