@@ -20,6 +20,8 @@ import numpy as np
 from beastbt.blackboard import catalogue
 from beastbt.recording.foxglove import color, fox_time, planar_pose, vector3
 
+POSE_PERIOD_S = 0.2
+"""The pose on the map goes to the recording at most this often (5 Hz), s: the report draws the driven path."""
 GRID_INT8 = 2
 """``foxglove.NumericType`` INT8."""
 PATH_ID = "global_plan"
@@ -130,10 +132,26 @@ def path_update(t_ns: int, frame_id: str, plan: Any) -> dict:
     return {"deletions": [], "entities": [entity]}
 
 
+def map_pose_message(t_ns: int, frame_id: str, pose: tuple) -> dict:
+    """The pose on the map ``(x m, y m, yaw rad, localized)`` as a ``foxglove.PoseInFrame`` in ``frame_id`` (map)."""
+    return {"timestamp": fox_time(t_ns), "frame_id": frame_id, "pose": planar_pose(pose[0], pose[1], pose[2])}
+
+
+def grid_of_message(msg: dict) -> Any:
+    """The :class:`~beastbt.mapping.occupancy_map.OccupancyMap` of a ``/map`` message (its inverse of
+    :func:`map_grid`, for the report)."""
+    from beastbt.mapping.occupancy_map import OccupancyMap
+    cols = int(msg["column_count"])
+    data = np.frombuffer(base64.b64decode(msg["data"]), dtype=np.int8).reshape(-1, cols)
+    p, q = msg["pose"]["position"], msg["pose"]["orientation"]
+    yaw = 2.0 * math.atan2(float(q["z"]), float(q["w"]))
+    return OccupancyMap(data.copy(), float(msg["cell_size"]["x"]), float(p["x"]), float(p["y"]), yaw)
+
+
 class MapSampler:
     """On the tick side: the mission's map once (and again when the planner marked cells lethal) and the planned
     path when it changes; :meth:`sample` returns ``{"map": (grid, lethal or None)}`` and/or ``{"path": plan or
-    None}``, or an empty dict."""
+    None}`` and ``{"map_pose": (x, y, yaw, localized)}`` (at most every :data:`POSE_PERIOD_S`), or an empty dict."""
 
     def __init__(self, run: Any) -> None:
         import py_trees
@@ -141,6 +159,8 @@ class MapSampler:
         self.grid = getattr(getattr(run, "mission", None), "map_grid", None)
         self._board = py_trees.blackboard.Client(name="map_views")
         catalogue.register(self._board, "global_plan")
+        catalogue.register(self._board, "map_pose")
+        self._pose_s = -math.inf
         self._known_free = ~(self.grid.occupied() | self.grid.unknown()) if self.grid is not None else None
         self._sent_map = False
         self._lethal_cells = 0
@@ -164,7 +184,12 @@ class MapSampler:
         if plan is not self._plan:
             self._plan = plan
             out["path"] = plan
+        pose = catalogue.get(self._board, "map_pose")
+        if pose is not None and now_s - self._pose_s >= POSE_PERIOD_S - 1e-9:
+            self._pose_s = now_s
+            out["map_pose"] = (float(pose.x), float(pose.y), float(pose.yaw), bool(pose.localized))
         return out
 
 
-__all__ = ["draw_map", "save_map_png", "map_rgb", "map_grid", "path_update", "MapSampler", "PATH_ID"]
+__all__ = ["draw_map", "save_map_png", "map_rgb", "map_grid", "path_update", "map_pose_message", "grid_of_message",
+           "MapSampler", "PATH_ID", "POSE_PERIOD_S"]

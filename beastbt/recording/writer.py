@@ -705,6 +705,9 @@ class RunFileWriter:
         if "path" in views:
             from beastbt.recording.map_views import path_update
             self._emit("/path", t, path_update(t, frames.map, views["path"]))
+        if "map_pose" in views:
+            from beastbt.recording.map_views import map_pose_message
+            self._emit("/map/pose", t, map_pose_message(t, frames.map, views["map_pose"]))
         contact = views.get("contact")
         if contact is not None:
             self._emit("/sim/contact", t, ov.contact_message(contact))
@@ -789,6 +792,7 @@ def message_count(item: tuple, images: bool) -> int:
         views = item[2]
         contact = views.get("contact")
         return (("costmap" in views) + ("plan" in views) + ("zones" in views) + ("map" in views) + ("path" in views)
+                + ("map_pose" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0
