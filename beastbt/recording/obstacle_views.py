@@ -61,11 +61,12 @@ GRID_UINT8 = 1
 
 
 def board_reader() -> Any:
-    """A blackboard client that reads ``costmap`` and ``local_plan`` (whoever writes them)."""
+    """A blackboard client that reads ``costmap``, ``local_plan`` and ``global_plan`` (whoever writes them)."""
     import py_trees
     client = py_trees.blackboard.Client(name="obstacle_views")
     catalogue.register(client, "costmap")
     catalogue.register(client, "local_plan")
+    catalogue.register(client, "global_plan")
     return client
 
 
