@@ -214,3 +214,38 @@ steps:
     assert "no path to wall" in summary["events"][-1]["text"]
     assert "occupied cell of the map" in summary["events"][-1]["text"]
     assert np.hypot(*(trail[-1] - trail[0])) < 0.05  # it never moved
+
+
+def test_near_a_place_on_the_map_reads_the_pose_on_the_map(tmp_path):
+    mission = write(tmp_path, "m.yaml", f"""mission: near_on_map
+world: {OFFICE_WORLD}
+map: {MAP}
+places:
+  mark: {{x: 1.5 m, y: 0 m}}
+steps:
+  - until: {{near: mark, within: 0.3 m}}
+    steps:
+      - drive: {{distance: 2.5 m}}
+""")
+    summary, trail, _ = run_traced(mission, 30.0)
+    assert summary["status"] == "success"
+    assert 1.1 < summary["distance_m"] < 1.35  # stopped 0.3 m short of the mark, 1.5 m ahead of the start
+
+
+def test_on_failure_return_home_goes_home_on_the_map(tmp_path):
+    wall = office_to_map(5.0, 2.0)
+    mission = write(tmp_path, "m.yaml", f"""mission: home_on_map
+world: {OFFICE_WORLD}
+map: {MAP}
+places:
+  wall: {{x: {wall[0]} m, y: {wall[1]} m}}
+steps:
+  - drive: {{distance: 1 m}}
+  - go_to: wall
+on_failure: return_home
+""")
+    summary, trail, _ = run_traced(mission, 60.0)
+    assert summary["status"] == "failure"
+    assert "returned home" in summary["events"][-1]["text"], summary["events"][-3:]
+    assert np.hypot(trail[-1][0] - 2.5, trail[-1][1] - 2.0) < 0.4  # back where it started (world 2.5, 2.0)
+    assert [w["name"] for w in summary["map_waypoints"]] == ["wall", "home"]

@@ -120,6 +120,16 @@ def map_waypoints(planner: MapPlanner) -> list[dict]:
              "path_m": r(v.path_m, 2), "replans": v.replans} for v in planner.visits]
 
 
+def mission_map_start(mission: Any) -> tuple[float, float, float]:
+    """Where a mission with ``map:`` starts on its map (x m, y m, yaw rad): its ``start:`` pose, the place it names,
+    or the map frame's origin. Home on the map."""
+    name = getattr(mission, "map_start_place", None)
+    place = mission.places.get(name) if name is not None else None
+    if place is not None and place.on_map:
+        return (place.x, place.y, place.yaw or 0.0)
+    return tuple(mission.map_start)  # type: ignore[return-value]
+
+
 def map_planner(ctx: MissionContext, grid: Any, start: tuple[float, float, float]) -> MapPlanner:
     """The run's :class:`MapPlanner` (made on first use, for the mission's map and its start on it)."""
     planner = ctx.services.plugins.get(MAP_PLANNER)
@@ -418,6 +428,17 @@ class MapGoTo(GoTo):
         return self._plan(now, odom, preferred, to_odom(carrot), to_odom(target))
 
 
+def near_on_map(xy: tuple[float, float], within_m: float) -> Callable[[Any], bool]:
+    """The condition ``near: place`` for a place on the map at ``xy`` (m): the pose on the map (``map_pose``) is
+    within ``within_m`` (m) of it; false without a pose on the map."""
+    def test(r: Any) -> bool:
+        pose = r.get("map_pose")
+        if pose is None:
+            return False
+        return math.hypot(pose.x - xy[0], pose.y - xy[1]) <= within_m
+    return test
+
+
 def map_place_target(x: float, y: float) -> MapTarget:
     """A fixed place on the map at (x, y) m."""
     return lambda: (x, y)
@@ -428,4 +449,4 @@ def map_home_target(planner: MapPlanner) -> MapTarget:
     return lambda: (planner.start[0], planner.start[1])
 
 
-__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "map_waypoints", "map_place_target", "map_home_target", "MAP_PLANNER"]
+__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints", "near_on_map", "map_place_target", "map_home_target", "MAP_PLANNER"]

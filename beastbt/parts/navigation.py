@@ -141,7 +141,12 @@ def return_home_instead(run: MissionRun, why: str) -> None:
         return  # already on the way home
     if run.root.status == Status.RUNNING:
         run.root.stop(Status.INVALID)
-    leaf = GoTo("return_home (within 2 m)", run.ctx, HOME, home_target(run.ctx), None)
+    planner = run.ctx.services.plugins.get("map_planner")
+    if planner is not None:  # a mission on a saved map goes home on the map, by a planned path
+        from beastbt.behaviours.map_navigation import MapGoTo, map_home_target
+        leaf: GoTo = MapGoTo("return_home (on the map)", run.ctx, HOME, map_home_target(planner), planner, None)
+    else:
+        leaf = GoTo("return_home (within 2 m)", run.ctx, HOME, home_target(run.ctx), None)
     root = ReturnHomeInstead(f"return home ({why})", leaf)
     run.root = root
     run.nodes = list(root.iterate())
@@ -208,6 +213,10 @@ def install_navigation(p: Prepared) -> None:
             from beastbt.navigation.local_planner import graph_search
             graph_search()
     planner = run.ctx.services.plugins.get("map_planner")
+    if planner is None and getattr(p.mission, "map_grid", None) is not None:
+        # no go_to on the map, but a failsafe or on_failure may go home on it
+        from beastbt.behaviours.map_navigation import map_planner, mission_map_start
+        planner = map_planner(run.ctx, p.mission.map_grid, mission_map_start(p.mission))
     if planner is not None:  # go_to on the mission's map: the profile's global planner and the robot's size
         from beastbt.actuation.collision_monitor import footprint_radius
         from beastbt.navigation.global_planner import GlobalPlannerConfig
@@ -222,7 +231,7 @@ def install_navigation(p: Prepared) -> None:
             if pose is not None and pose.position_valid and pose.lat is not None:
                 path.add(pose.lat, pose.lon)
         run.hooks.append(keep_the_path)
-    if "gps" not in run.ctx.capabilities:
+    if "gps" not in run.ctx.capabilities and planner is None:
         return
 
     def failsafe_return_home(r: MissionRun, spec: Any) -> None:

@@ -49,13 +49,10 @@ def _on_map(c: Compiler, name: str) -> bool:
 def _map_go_to(c: Compiler, name: str, step_tolerance_m: Optional[float], options: dict,
                label: str = "go_to") -> Behaviour:
     """A :class:`MapGoTo` leaf for a place on the map (``home``: where the mission started on the map)."""
-    from beastbt.behaviours.map_navigation import MapGoTo, map_home_target, map_place_target, map_planner
+    from beastbt.behaviours.map_navigation import (MapGoTo, map_home_target, map_place_target, map_planner,
+                                                   mission_map_start)
     m = c.mission
-    start = m.map_start
-    if m.map_start_place is not None and m.map_start_place in m.places and m.places[m.map_start_place].on_map:
-        p = m.places[m.map_start_place]
-        start = (p.x, p.y, p.yaw or 0.0)
-    planner = map_planner(c.ctx, m.map_grid, start)
+    planner = map_planner(c.ctx, m.map_grid, mission_map_start(m))
     if name == HOME:
         target, tolerance = map_home_target(planner), step_tolerance_m
     else:
