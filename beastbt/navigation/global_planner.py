@@ -252,7 +252,7 @@ class _Graph:
         # An inconsistent heuristic can make a reduced cost negative, which Dijkstra refuses: clipped at 0.
         np.maximum(reduced, 0.0, out=reduced)
         matrix = csr_matrix((reduced.ravel(), self.indices, self.indptr), shape=(self.n, self.n))
-        limit = 8.0 + 0.03 * float(h.flat[start])
+        limit = 8.0 + 0.045 * float(h.flat[start])
         while True:
             dist, pred = dijkstra(matrix, directed=True, indices=start, return_predecessors=True, limit=limit)
             if np.isfinite(dist[goal]):
