@@ -83,7 +83,7 @@ def test_a_tour_of_the_office_localises_within_10_cm_with_an_honest_covariance(o
     # Honest: the true error lies within 3 sigma of the reported covariance on most ticks.
     assert truth["position_error_within_3sigma_frac"] >= 0.8
     loc = summary["localisation"]
-    assert loc["localized"] and loc["updates"] > 50 and loc["match_quality"] >= 0.8
+    assert loc["localized"] and loc["not_localized_ticks"] == 0 and loc["updates"] > 50 and loc["match_quality"] >= 0.8
     # map_pose follows odometry between scans: it moves every tick the robot moves, never stands still in steps.
     poses = [(p.x, p.y) for _, p, _, _ in rows]
     assert len(set(poses)) > 0.5 * len(poses)
@@ -102,6 +102,20 @@ def test_a_wrong_start_within_the_initial_uncertainty_converges(office):
     late = [(now, math.hypot(p.x - t[0], p.y - t[1])) for now, p, t, _ in rows if now >= 10.0]
     assert late and max(err for _, err in late) <= 0.10
     assert math.sqrt(sum(err * err for _, err in late) / len(late)) <= 0.05
+
+
+def test_a_start_far_from_the_truth_is_noticed_and_searched_for(office):
+    """Kidnapped (the mission's start is 5 m and 90 deg off): localized turns false within lost_after_s of the first
+    scans and recovery draws particles over the map. (Where it lands is not asserted: the office and the lab are the
+    same room 5 m apart, so a scan from inside one fits both.)"""
+    extra = "start: {x: 5 m, y: 0.5 m, yaw: 90 deg}\n"
+    summary, rows = run_mission(office, mission_text("kidnapped", TOUR, extra), trace=True)
+    lost = [now for now, p, _, _ in rows if not p.localized]
+    assert lost and lost[0] <= 2.5
+    assert summary["localisation"]["injected_particles"] > 0
+    # While lost, the covariance says so: the robot could be anywhere on the map.
+    first_lost = next(p for _, p, _, _ in rows if not p.localized)
+    assert math.sqrt(first_lost.covariance[0][0]) >= 1.0
 
 
 def test_the_run_is_the_same_for_the_same_seed(office):

@@ -131,7 +131,7 @@ class MapLocalisationPart(Part):
             loc.update(now_s, base_points_xy(scan, self.mounting), odom)
         x, y, yaw = loc.map_pose_of(odom)
         mo = loc.map_from_odom
-        cov = tuple(tuple(float(v) for v in row) for row in loc.covariance)
+        cov = tuple(tuple(float(v) for v in row) for row in loc.pose_covariance)
         pose = MapPose(now_s, x, y, yaw, cov, loc.match_quality, loc.localized, mo[0], mo[1], mo[2])
         self.writer.map_pose = pose
         run.latest[MapPose] = pose
