@@ -110,6 +110,7 @@ class MapLocalisationPart(Part):
         self.covered_3sigma = 0
         """Ticks whose true error lay within 3 standard deviations of the reported covariance (Mahalanobis)."""
         self.lost_ticks = 0
+        run.ctx.services.plugins["map_localiser"] = self.localiser  # the recording's views draw its particles
         run.hooks.append(self.on_tick)
         run.summary_contributors.append(self.contribute)
 
