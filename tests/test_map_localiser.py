@@ -180,6 +180,21 @@ def test_a_missing_map_is_named_where_the_mission_says_it(tmp_path):
     assert (problem.position.line, problem.position.column) == (3, 6) and "nowhere.yaml" in problem.message
 
 
+def test_a_world_with_a_map_gives_it_to_a_mission_without_one(office):
+    world = office / "office_with_map.yaml"
+    world.write_text(OFFICE.read_text().replace("\nstart:", "\nmap: office_map.yaml\nstart:", 1))
+    path = office / "mission.yaml"
+    path.write_text(f"mission: m\nworld: {world}\nsteps:\n  - drive: {{distance: 1 m}}\n")
+    with open("/dev/null", "w") as quiet:
+        summary = execute(prepare(str(path), RunOptions(record=False)), quiet)
+    assert summary["localisation"]["updates"] > 5 and summary["truth"]["position_error_rms_m"] <= 0.05
+    world.write_text(OFFICE.read_text().replace("\nstart:", "\nmap: elsewhere.yaml\nstart:", 1))
+    with pytest.raises(InvalidInput) as exc:
+        prepare(str(path), RunOptions(record=False))
+    problem = exc.value.problems[0]
+    assert problem.file.endswith("office_with_map.yaml") and "elsewhere.yaml" in problem.message
+
+
 def test_start_without_a_map_is_refused(tmp_path):
     path = tmp_path / "mission.yaml"
     path.write_text("mission: m\nstart: {x: 1 m, y: 0 m}\nsteps:\n  - drive: {distance: 1 m}\n")

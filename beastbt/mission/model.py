@@ -742,16 +742,23 @@ def _load_map(m: Mission, doc: SourceDoc) -> None:
         if stray:
             raise InvalidInput(stray)
         return
-    if not m.map_file.is_file():
-        raise InvalidInput([doc.problem(("map",), f"the map file {str(m.map_file)!r} does not exist",
-                                        "the path is relative to the mission file; build a map with "
-                                        "beastbt run MISSION --build-map maps/NAME.yaml")])
-    from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
-    m.map_grid = load_map(m.map_file)
     for key, value in (("xy", m.initial_uncertainty_xy_m), ("yaw", m.initial_uncertainty_yaw_rad)):
         if value < 0:
             raise InvalidInput([doc.problem(("initial_uncertainty", key), "an uncertainty cannot be negative",
                                             "give a standard deviation such as xy: 0.5 m, yaw: 20 deg")])
+    read_map(m, doc)
+
+
+def read_map(m: Mission, doc: SourceDoc) -> None:
+    """Read ``m.map_file`` into ``m.map_grid``: a missing file is a problem at ``doc``'s ``map:`` (the mission's,
+    or the world's that gave it), a bad one at the line of the map's own YAML."""
+    assert m.map_file is not None
+    if not m.map_file.is_file():
+        raise InvalidInput([doc.problem(("map",), f"the map file {str(m.map_file)!r} does not exist",
+                                        "the path is relative to the file that names it; build a map with "
+                                        "beastbt run MISSION --build-map maps/NAME.yaml")])
+    from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
+    m.map_grid = load_map(m.map_file)
 
 
 def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:
@@ -820,5 +827,5 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     return m
 
 
-__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "step_of", "steps_of", "condition_of",
+__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "read_map", "step_of", "steps_of", "condition_of",
            "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M", "sector_angle"]
