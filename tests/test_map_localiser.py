@@ -20,6 +20,7 @@ from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_check import load_schema
 from beastbt.estimation.map_localiser import compose, invert
 from beastbt.run.session import RunOptions, execute
+from beastbt.run.summary import human_summary
 from conftest import REPO
 from localisation_support import OFFICE, mission_text, office_map_file
 
@@ -84,6 +85,7 @@ def test_a_tour_of_the_office_localises_within_10_cm_with_an_honest_covariance(o
     assert truth["position_error_within_3sigma_frac"] >= 0.8
     loc = summary["localisation"]
     assert loc["localized"] and loc["not_localized_ticks"] == 0 and loc["updates"] > 50 and loc["match_quality"] >= 0.8
+    assert f"localisation: localised at the end, match {loc['match_quality']:.0%}" in human_summary(summary)
     # map_pose follows odometry between scans: it moves every tick the robot moves, never stands still in steps.
     poses = [(p.x, p.y) for _, p, _, _ in rows]
     assert len(set(poses)) > 0.5 * len(poses)
