@@ -110,3 +110,23 @@ def test_a_bad_map_file_is_named_at_its_own_line(tmp_path):
         load_mission(path)
     problem = exc.value.problems[0]
     assert problem.file.endswith("m_map.yaml") and problem.position.line == 2
+
+
+@pytest.mark.parametrize("steps", ["  - wait_until: localized\n",
+                                   "  - abort_if: {not: localized}\n    steps:\n      - wait: 1 s\n",
+                                   "  - if: {all: [gps_fix, localized]}\n    then:\n      - wait: 1 s\n"])
+def test_the_condition_without_a_map_is_refused_where_it_stands(tmp_path, steps):
+    path = tmp_path / "mission.yaml"
+    path.write_text("mission: m\nsteps:\n" + steps)
+    with pytest.raises(InvalidInput) as exc:
+        load_mission(path)
+    problem = exc.value.problems[0]
+    assert problem.position.line >= 3 and "'localized'" in problem.message
+
+
+def test_a_start_naming_no_place_is_refused(tmp_path):
+    path = write_mission(tmp_path, "{then: hold}")
+    path.write_text(path.read_text().replace("map: m_map.yaml\n", "map: m_map.yaml\nstart: kitchen\n"))
+    with pytest.raises(InvalidInput) as exc:
+        load_mission(path)
+    assert exc.value.problems[0].position.line == 3 and "kitchen" in exc.value.problems[0].message

@@ -739,6 +739,10 @@ def _load_map(m: Mission, doc: SourceDoc) -> None:
         stray += [doc.problem(f.path, "the failsafe localization_lost watches the localisation on a map, but the "
                               "mission has no 'map:'", "add map: ../maps/NAME.yaml", key=True)
                   for f in m.failsafes if f.kind == "localization_lost"]
+        stray += [doc.problem(path, "the condition 'localized' is about the localisation on a map, but the mission "
+                              "has no 'map:' (it would never hold)", "add map: ../maps/NAME.yaml")
+                  for path in _localized_conditions(d.get("steps"), ("steps",))
+                  + _localized_conditions(d.get("tasks"), ("tasks",))]
         if stray:
             raise InvalidInput(stray)
         return
@@ -746,7 +750,32 @@ def _load_map(m: Mission, doc: SourceDoc) -> None:
         if value < 0:
             raise InvalidInput([doc.problem(("initial_uncertainty", key), "an uncertainty cannot be negative",
                                             "give a standard deviation such as xy: 0.5 m, yaw: 20 deg")])
+    if m.map_start_place is not None and m.map_start_place not in m.places:
+        raise InvalidInput([doc.problem(("start",), f"'start: {m.map_start_place}' names no place",
+                                        "name a place of places: with x and y on the map, or write "
+                                        "start: {x: 1 m, y: 2 m, yaw: 90 deg}")])
     read_map(m, doc)
+
+
+_CONDITION_KEYS = ("if", "while", "wait_until", "until", "abort_if", "not", "all", "any")
+
+
+def _localized_conditions(node: Any, path: PathKey) -> list[PathKey]:
+    """Where the raw steps use the condition word ``localized`` (paths into the document)."""
+    found: list[PathKey] = []
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key in _CONDITION_KEYS and value == "localized":
+                found.append(path + (key,))
+            else:
+                found += _localized_conditions(value, path + (key,))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            if value == "localized" and path and path[-1] in ("all", "any"):
+                found.append(path + (i,))
+            else:
+                found += _localized_conditions(value, path + (i,))
+    return found
 
 
 def read_map(m: Mission, doc: SourceDoc) -> None:
