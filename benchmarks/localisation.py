@@ -14,7 +14,8 @@ processes). Printed: milliseconds per scan and the share of one core at
 * the worst case: an update on every scan (``update_min_d_m: 0``),
 
 and, as the baseline measured in the same run, the LD19 driver decoding one
-10 Hz revolution (benchmarks/lidar_decode.py's stream), with the ratio. Goal
+10 Hz revolution. Also the localisation part's whole per-tick hook in the
+recorded run (one run: filter, ``map_pose`` every tick, truth) (benchmarks/lidar_decode.py's stream), with the ratio. Goal
 of issue 21: localisation at most 5 % of one core on this machine.
 
 Run: python benchmarks/localisation.py [--reps 5]
@@ -60,8 +61,9 @@ TOUR = """\
 """
 
 
-def record_scans(folder: Path) -> tuple[object, list]:
-    """Run the tour; the map and (clock s, points in base_link, odometry pose) of every scan."""
+def record_scans(folder: Path) -> tuple[object, list, float, int]:
+    """Run the tour; the map, (clock s, points in base_link, odometry pose) of every scan, and the CPU seconds
+    the localisation part's per-tick hook took in that run (filter, map_pose, truth), with its number of ticks."""
     office_map_file(folder)
     path = folder / "tour.yaml"
     path.write_text(mission_text("tour", TOUR))
@@ -77,9 +79,18 @@ def record_scans(folder: Path) -> tuple[object, list]:
             last[0] = scan
             scans.append((now_s, np.array(base_points_xy(scan, mounting)), (odom.x, odom.y, odom.yaw)))
     prepared.run.hooks.append(keep)
+    part_hook = next(h for h in prepared.run.hooks if getattr(h, "__name__", "") == "on_tick")
+    spent = [0.0, 0]
+
+    def timed(run, now_s):
+        t0 = time.thread_time()
+        part_hook(run, now_s)
+        spent[0] += time.thread_time() - t0
+        spent[1] += 1
+    prepared.run.hooks[prepared.run.hooks.index(part_hook)] = timed
     with open("/dev/null", "w") as quiet:
         execute(prepared, quiet)
-    return prepared.mission.map_grid, scans
+    return prepared.mission.map_grid, scans, spent[0], spent[1]
 
 
 def time_filter(grid, scans: list, config: LocaliserConfig) -> tuple[float, int]:
@@ -113,7 +124,7 @@ def main() -> None:
     args = ap.parse_args()
     reps = max(5, args.reps)
     with tempfile.TemporaryDirectory() as tmp:
-        grid, scans = record_scans(Path(tmp))
+        grid, scans, hook_s, ticks = record_scans(Path(tmp))
     duration_s = scans[-1][0] - scans[0][0]
     print(f"tour: {len(scans)} scans over {duration_s:.1f} s ({len(scans) / duration_s:.1f} Hz), "
           f"map {grid.cols} x {grid.rows} cells at {grid.resolution_m} m")
@@ -136,6 +147,8 @@ def main() -> None:
         print(f"localisation, {name:10s}:    {spread(ms)} ms per scan, {spread(share)} % of a core at 10 Hz "
               f"({updates[name]} filter updates of {len(scans)} scans; x{statistics.median(ms) / decode:.1f} "
               f"the decode)")
+    print(f"the whole part in the run (one run, {ticks} ticks at 20 Hz: filter, map_pose every tick, truth): "
+          f"{100.0 * hook_s / duration_s:.2f} % of a core")
     print(f"goal: <= 5 % of a core; {reps} repetitions, medians (min..max), thread CPU time")
 
 
