@@ -95,15 +95,20 @@ def test_a_tour_of_the_office_localises_within_10_cm_with_an_honest_covariance(o
         assert (x, y, yaw) == pytest.approx((pose.x, pose.y, pose.yaw), abs=1e-9)
 
 
-def test_a_wrong_start_within_the_initial_uncertainty_converges(office):
-    extra = "start: {x: 0.4 m, y: -0.3 m, yaw: 12 deg}\ninitial_uncertainty: {xy: 0.5 m, yaw: 20 deg}\n"
-    summary, rows = run_mission(office, mission_text("wrong_start", TOUR, extra), trace=True)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_wrong_start_within_the_initial_uncertainty_converges(office, seed):
+    """The mission's start is 1 m and 25 deg from where the robot stands, with initial_uncertainty 1 m, 30 deg (the
+    issue's example): the filter finds the robot within a few seconds of driving and keeps it."""
+    extra = "start: {x: 0.8 m, y: 0.6 m, yaw: -25 deg}\ninitial_uncertainty: {xy: 1 m, yaw: 30 deg}\n"
+    summary, rows = run_mission(office, mission_text("wrong_start", TOUR, extra), seed=seed, trace=True)
     assert summary["status"] == "success"
     first = rows[0]
-    assert math.hypot(first[1].x - first[2][0], first[1].y - first[2][1]) == pytest.approx(0.5, abs=0.01)
-    late = [(now, math.hypot(p.x - t[0], p.y - t[1])) for now, p, t, _ in rows if now >= 10.0]
+    assert math.hypot(first[1].x - first[2][0], first[1].y - first[2][1]) == pytest.approx(1.0, abs=0.01)
+    late = [(now, math.hypot(p.x - t[0], p.y - t[1])) for now, p, t, _ in rows if now >= 5.0]
     assert late and max(err for _, err in late) <= 0.10
     assert math.sqrt(sum(err * err for _, err in late) / len(late)) <= 0.05
+    # It may say it is not localised while it converges, not after.
+    assert all(p.localized for now, p, _, _ in rows if now >= 5.0)
 
 
 def test_a_start_far_from_the_truth_is_noticed_and_searched_for(office):

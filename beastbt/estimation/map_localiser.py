@@ -102,7 +102,8 @@ class LocaliserConfig:
     lost_inject_share: float
     """Share of the particles drawn at random over the free cells at each update while not localised."""
     candidates_per_injected: int
-    """Random poses scored against the scan for each particle injected (the best are kept)."""
+    """Random poses scored against the scan for each particle injected (the best are kept); also how many times
+    ``particles`` the first scan weighs, drawn from the initial uncertainty."""
     match_tolerance_m: float
     """A beam within this of an occupied cell matches the map (m)."""
     lost_quality: float
@@ -234,7 +235,10 @@ class MapLocaliser:
     def start(self, pose: Pose2D, sigma_xy_m: float, sigma_yaw_rad: float, odom: Pose2D) -> None:
         """Spread the particles around ``pose`` (map) with these standard deviations; ``odom`` is the odometry
         pose at that moment (the ``map -> odom`` transform follows from the two)."""
-        n = self.config.particles
+        # The first scan weighs candidates_per_injected times as many particles as the filter keeps (only
+        # once, so it costs little): a wide initial uncertainty is then covered densely enough for some to lie
+        # near the robot; resampling brings the cloud back to its size.
+        n = self.config.particles * self.config.candidates_per_injected
         self.px = pose[0] + self.rng.normal(0.0, sigma_xy_m, n)
         self.py = pose[1] + self.rng.normal(0.0, sigma_xy_m, n)
         self.pth = wrap(pose[2] + self.rng.normal(0.0, sigma_yaw_rad, n))
@@ -389,7 +393,7 @@ class MapLocaliser:
         """Low-variance resampling; a share ``1 - w_fast / w_slow`` of the new particles is drawn at random over
         the free cells (AMCL's recovery)."""
         cfg = self.config
-        n = len(self.w)
+        n = cfg.particles  # the first update weighs more (see start); the cloud keeps this many
         inject = 0
         if len(self.field.free_cells):
             share = 0.0
@@ -401,7 +405,7 @@ class MapLocaliser:
             inject = int(self.rng.binomial(n, min(share, 1.0))) if share > 0.0 else 0
         keep = n - inject
         positions = (self.rng.random() + np.arange(keep)) / max(keep, 1)
-        idx = np.minimum(np.searchsorted(np.cumsum(self.w), positions), n - 1)
+        idx = np.minimum(np.searchsorted(np.cumsum(self.w), positions), len(self.w) - 1)
         px, py, pth = self.px[idx], self.py[idx], self.pth[idx]
         if inject:
             cx, cy, cth = self._random_poses(inject, beams)
