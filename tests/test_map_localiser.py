@@ -21,6 +21,7 @@ from beastbt.core.schema_check import load_schema
 from beastbt.estimation.map_localiser import compose, invert
 from beastbt.run.session import RunOptions, execute
 from beastbt.run.summary import human_summary
+from beastbt.sim.world import load_world
 from conftest import REPO
 from localisation_support import OFFICE, mission_text, office_map_file
 
@@ -93,6 +94,22 @@ def test_a_tour_of_the_office_localises_within_10_cm_with_an_honest_covariance(o
     for _, pose, _, odom in rows[::50]:
         x, y, yaw = compose((pose.odom_x, pose.odom_y, pose.odom_yaw), odom)
         assert (x, y, yaw) == pytest.approx((pose.x, pose.y, pose.yaw), abs=1e-9)
+
+
+def test_persons_walking_where_the_map_has_nothing_do_not_lose_it(office):
+    """Two persons pace the office (the map has none): their returns fit no wall, the filter keeps its place."""
+    persons = ("  - {shape: person, radius_m: 0.25, speed_mps: 0.6, path: [[0.8, 1.0], [4.2, 1.0]], start_s: 2, "
+               "loop: true}\n  - {shape: person, radius_m: 0.25, speed_mps: 0.5, path: [[4.0, 3.3], [1.0, 3.3]], "
+               "loop: true}\n")
+    world = office / "office_persons.yaml"
+    lines = OFFICE.read_text().splitlines(keepends=True)
+    plant = next(i for i, line in enumerate(lines) if "a plant" in line)  # the last of the world's obstacles
+    world.write_text("".join(lines[:plant + 1]) + persons + "".join(lines[plant + 1:]))
+    assert len(load_world(world).obstacles) == len(load_world(OFFICE).obstacles) + 2
+    summary, _ = run_mission(office, mission_text("persons", TOUR, world=world))
+    assert summary["status"] == "success" and summary["truth"]["collisions"] == 0
+    assert summary["truth"]["position_error_rms_m"] <= 0.05
+    assert summary["localisation"]["not_localized_ticks"] == 0
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
