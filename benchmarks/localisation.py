@@ -14,9 +14,10 @@ processes). Printed: milliseconds per scan and the share of one core at
 * the worst case: an update on every scan (``update_min_d_m: 0``),
 
 and, as the baseline measured in the same run, the LD19 driver decoding one
-10 Hz revolution. Also the localisation part's whole per-tick hook in the
-recorded run (one run: filter, ``map_pose`` every tick, truth) (benchmarks/lidar_decode.py's stream), with the ratio. Goal
-of issue 21: localisation at most 5 % of one core on this machine.
+10 Hz revolution (benchmarks/lidar_decode.py's stream, 50 ms reads), with the
+ratio. Also the localisation part's whole per-tick hook in the recorded run
+(one run: filter, ``map_pose`` every tick, truth). Goal of issue 21:
+localisation at most 5 % of one core on this machine.
 
 Run: python benchmarks/localisation.py [--reps 5]
 """
