@@ -299,7 +299,8 @@ class MapLocaliser:
         mean_log_p = self._weigh(beams)
         est = self._estimate()
         self.map_from_odom = compose(est, invert(odom))
-        self._recover_average(mean_log_p)
+        if not first:  # the first update weighs the whole initial spread: its average says nothing of a match
+            self._recover_average(mean_log_p)
         self._resample(beams)
         self.updates += 1
         self._judge(now_s, self._quality(beams, est))
