@@ -9,6 +9,7 @@ message what its schema describes, and the particles lie round the robot.
 from __future__ import annotations
 
 import math
+import statistics
 
 import jsonschema
 
@@ -39,7 +40,8 @@ def test_a_recorded_tour_on_a_map_has_the_particles_and_the_match_quality(tmp_pa
     assert len(points) == 2 * 200  # 200 of the 400 particles, a stroke each
     odom = rec.topic("/odom")[-1]["pose"]["position"]
     starts = points[0::2]
-    cx = sum(p["x"] for p in starts) / len(starts)
-    cy = sum(p["y"] for p in starts) / len(starts)
-    # In odom, round the robot: the cloud's centre within a few centimetres of the odometry pose.
+    cx = statistics.median(p["x"] for p in starts)
+    cy = statistics.median(p["y"] for p in starts)
+    # In odom, round the robot: the cloud's middle (the median: recovery may have drawn a few particles anywhere
+    # on the map) within a few centimetres of the odometry pose.
     assert math.hypot(cx - odom["x"], cy - odom["y"]) <= 0.1
