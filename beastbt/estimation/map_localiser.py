@@ -19,6 +19,10 @@ The method is AMCL's (Thrun, Burgard, Fox, *Probabilistic Robotics*, ch. 4, 6, 8
   reason);
 * **resampling**: low-variance (systematic) resampling after each update
   that moved the robot, as AMCL's ``resample_interval: 1``;
+* **a wide start**: the first scan weighs ``candidates_per_injected`` times
+  ``particles`` drawn from the initial uncertainty, then resamples to
+  ``particles``, so that a start known to a metre and 30 degrees is covered
+  densely enough (a fixed-size filter otherwise, not KLD);
 * **recovery**: AMCL's ``recovery_alpha_slow``/``fast`` averages of the
   particles' mean beam likelihood; when the fast one drops below the slow one,
   random particles are injected over the free cells (a kidnapped robot is
@@ -36,9 +40,9 @@ overconfident. The reported covariance is the particles' weighted covariance
 (around the estimate), so it is as wide as the cloud, plus the map's own
 quantisation (``resolution^2 / 12`` on x and y); while the robot is not
 localised, that of a pose anywhere on the map (uniform over its extent and
-every heading) is added, since the cloud may be tight around a wrong place. ``match_quality`` is the
-share of the scan's beams that end within ``match_tolerance_m`` of an occupied
-cell at the estimate; ``localized`` turns false when it has stayed below
+every heading) is added, since the cloud may be tight around a wrong place.
+``match_quality`` is the share of the scan's beams that end within
+``match_tolerance_m`` of an occupied cell at the estimate; ``localized`` turns false when it has stayed below
 ``lost_quality`` for ``lost_after_s``, and true again once it reaches
 ``found_quality`` (higher: a place that half fits the scan is not found).
 
