@@ -142,6 +142,28 @@ def test_a_start_far_from_the_truth_is_noticed_and_searched_for(office):
     assert math.sqrt(first_lost.covariance[0][0]) >= 1.0
 
 
+def test_a_lidar_gone_quiet_leaves_the_robot_not_localized(office):
+    """From 3 s the LiDAR says nothing more: half a second later that counts as no match, and after the
+    localiser's lost_after_s (1 s) map_pose is not localised; the pose goes on with odometry meanwhile."""
+    path = office / "mission.yaml"
+    path.write_text(mission_text("quiet", "  - wait: 6 s\n"))
+    prepared = prepare(str(path), RunOptions(record=False))
+    seen: list = []
+
+    def silence_and_watch(run, now_s):
+        if now_s >= 3.0:
+            run.io.sensors.pop("lidar", None)
+        pose = run.latest.get(MapPose)
+        if pose is not None:
+            seen.append((now_s, pose.localized))
+    prepared.run.hooks.append(silence_and_watch)
+    with open("/dev/null", "w") as quiet:
+        execute(prepared, quiet)
+    lost = [now for now, ok in seen if not ok]
+    assert all(ok for now, ok in seen if now < 3.0)
+    assert lost and 4.3 <= lost[0] <= 4.8 and all(not ok for now, ok in seen if now >= lost[0])
+
+
 def test_the_run_is_the_same_for_the_same_seed(office):
     text = mission_text("seeded", "  - drive: {distance: 1 m}\n  - turn: {angle: 90 deg}\n")
     _, a = run_mission(office, text, seed=3, trace=True)

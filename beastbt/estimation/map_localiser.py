@@ -310,6 +310,11 @@ class MapLocaliser:
         self._judge(now_s, self._quality(beams, est))
         return True
 
+    def no_scan(self, now_s: float) -> None:
+        """The LiDAR has gone quiet: nothing matches the map now (``localized`` turns false after
+        ``lost_after_s``, as for a poor match); the pose is carried by odometry alone meanwhile."""
+        self._judge(now_s, 0.0)
+
     def _predict(self, before: Pose2D, after: Pose2D) -> None:
         """Move every particle by the odometry's motion from ``before`` to ``after``, with AMCL's noise."""
         dx, dy, dth = compose(invert(before), after)

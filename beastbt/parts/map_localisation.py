@@ -12,7 +12,9 @@ Each tick, after sensing: a new scan (``run.latest[LaserScan]``) updates the
 filter with the odometry pose (``pose_odom``) of that tick; every tick,
 ``map_pose`` is the odometry pose carried into the map by the filter's
 ``map -> odom`` transform, so it moves smoothly between scans and never waits
-for one. The failsafe ``localization_lost`` and the condition ``localized``
+for one. A LiDAR that goes quiet (no scan for :data:`SCAN_STALE_S`) counts as
+no match: the robot is no longer localised after the localiser's
+``lost_after_s``. The failsafe ``localization_lost`` and the condition ``localized``
 read it.
 
 In the simulator it also measures the pose against the truth: the true pose
@@ -46,6 +48,9 @@ from beastbt.run.session import Prepared
 LOCALISATION_RNG_STREAM = 0x10CA1
 """Mixed with the run's seed for the filter's own random numbers: the same seed gives the same run, and the
 filter draws from no emulator's stream."""
+
+SCAN_STALE_S = 0.5
+"""Once scans have come, none for this long (five LD19 revolutions) counts as no match at all (s)."""
 
 ERRORS_KEPT = 12000
 """Per-tick true errors kept for tests and benchmarks (10 minutes at 20 Hz); the metrics are running sums."""
@@ -126,6 +131,8 @@ class MapLocalisationPart(Part):
         if scan is not None and scan is not self._last_scan:
             self._last_scan = scan
             loc.update(now_s, base_points_xy(scan, self.mounting), odom)
+        elif self._last_scan is not None and now_s - self._last_scan.stamp_s > SCAN_STALE_S:
+            loc.no_scan(now_s)  # a LiDAR gone quiet matches nothing: the robot is soon not localised
         x, y, yaw = loc.map_pose_of(odom)
         mo = loc.map_from_odom
         cov = tuple(tuple(float(v) for v in row) for row in loc.pose_covariance)
