@@ -61,7 +61,8 @@ class RawStep:
 
 @dataclass(frozen=True)
 class Failsafe:
-    """A failsafe: ``kind`` (gps_lost, battery_low, geofence), its SI parameters and its action."""
+    """A failsafe: ``kind`` (gps_lost, battery_low, geofence, keepout, localization_lost), its SI parameters and its
+    action."""
 
     kind: str
     then: str
