@@ -291,8 +291,23 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
             world = load_mission_world(mission)
         else:
             world = empty_world()
+        use_world_map(mission, world)
         return assemble(mission, profile, options, SIM, world=world)
     return assemble(mission, profile, options, REAL)
+
+
+def use_world_map(mission: Mission, world: World) -> None:
+    """A mission that names no ``map:`` of its own localises on its world's ``map:``, if the world has one (the
+    path relative to the world file; a missing or bad map is an error at the world's line)."""
+    name = world.data.get("map") if world.doc is not None else None
+    if mission.map_file is not None or not isinstance(name, str) or world.file is None:
+        return
+    from pathlib import Path
+    from beastbt.mission.model import read_map
+
+    path = Path(name)
+    mission.map_file = path if path.is_absolute() else (Path(world.file).parent / path).resolve()
+    read_map(mission, world.doc)
 
 
 def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True) -> Behaviour:

@@ -19,20 +19,32 @@ The method is AMCL's (Thrun, Burgard, Fox, *Probabilistic Robotics*, ch. 4, 6, 8
   reason);
 * **resampling**: low-variance (systematic) resampling after each update
   that moved the robot, as AMCL's ``resample_interval: 1``;
+* **a wide start**: the first scan weighs ``candidates_per_injected`` times
+  ``particles`` drawn from the initial uncertainty, then resamples to
+  ``particles``, so that a start known to a metre and 30 degrees is covered
+  densely enough (a fixed-size filter otherwise, not KLD);
 * **recovery**: AMCL's ``recovery_alpha_slow``/``fast`` averages of the
   particles' mean beam likelihood; when the fast one drops below the slow one,
-  random particles are injected over the free cells (a kidnapped robot or a
-  bad start is found again).
+  random particles are injected over the free cells (a kidnapped robot is
+  found again); and while the robot is not localised (a start far from where
+  it is: the averages then have nothing better to compare with), a share
+  ``lost_inject_share`` of them at every update. Each injected particle is
+  the best of ``candidates_per_injected`` random poses scored against the
+  current scan (sensor resetting, Lenser and Veloso 2000): plain random
+  particles rarely land near the robot in a building of many rooms.
 
 The filter updates only when the robot has moved ``update_min_d_m`` or turned
 ``update_min_angle_deg`` since the last update (AMCL's ``update_min_d``/``a``):
 weighting the same view again while standing still would make the estimate
 overconfident. The reported covariance is the particles' weighted covariance
 (around the estimate), so it is as wide as the cloud, plus the map's own
-quantisation (``resolution^2 / 12`` on x and y). ``match_quality`` is the
-share of the scan's beams that end within ``match_tolerance_m`` of an occupied
-cell at the estimate; ``localized`` turns false when it has stayed below
-``lost_quality`` for ``lost_after_s``.
+quantisation (``resolution^2 / 12`` on x and y); while the robot is not
+localised, that of a pose anywhere on the map (uniform over its extent and
+every heading) is added, since the cloud may be tight around a wrong place.
+``match_quality`` is the share of the scan's beams that end within
+``match_tolerance_m`` of an occupied cell at the estimate; ``localized`` turns false when it has stayed below
+``lost_quality`` for ``lost_after_s``, and true again once it reaches
+``found_quality`` (higher: a place that half fits the scan is not found).
 
 Everything is vectorised with NumPy over particles x beams; random numbers
 come from one seeded generator, so a run is the same for the same seed. Units:
@@ -91,12 +103,19 @@ class LocaliserConfig:
     """Smoothing of the slow average of the beam likelihood (0 disables recovery)."""
     recovery_alpha_fast: float
     """Smoothing of the fast average of the beam likelihood."""
+    lost_inject_share: float
+    """Share of the particles drawn at random over the free cells at each update while not localised."""
+    candidates_per_injected: int
+    """Random poses scored against the scan for each particle injected (the best are kept); also how many times
+    ``particles`` the first scan weighs, drawn from the initial uncertainty."""
     match_tolerance_m: float
     """A beam within this of an occupied cell matches the map (m)."""
     lost_quality: float
     """Match quality below which the robot is losing its place (share of beams)."""
     lost_after_s: float
     """How long the quality must stay below ``lost_quality`` before ``localized`` turns false (s)."""
+    found_quality: float
+    """Match quality at which a robot that was not localised counts as localised again (share of beams)."""
 
     def __post_init__(self) -> None:
         if self.particles < 10 or self.particles > 100_000:
@@ -112,8 +131,14 @@ class LocaliserConfig:
                 raise ValueError(f"localisation: '{name}' must be >= 0, got {getattr(self, name)}")
         if not self.z_rand > 0.0:
             raise ValueError("localisation: 'z_rand' must be > 0 (a beam the map cannot explain must not veto a pose)")
-        if not 0.0 <= self.lost_quality <= 1.0:
-            raise ValueError(f"localisation: 'lost_quality' must be 0..1, got {self.lost_quality}")
+        if not 1 <= self.candidates_per_injected <= 1000:
+            raise ValueError(f"localisation: 'candidates_per_injected' must be 1..1000, got "
+                             f"{self.candidates_per_injected}")
+        if not 0.0 <= self.lost_inject_share <= 1.0:
+            raise ValueError(f"localisation: 'lost_inject_share' must be 0..1, got {self.lost_inject_share}")
+        if not 0.0 <= self.lost_quality <= self.found_quality <= 1.0:
+            raise ValueError(f"localisation: 'lost_quality' ({self.lost_quality}) and 'found_quality' "
+                             f"({self.found_quality}) must be 0..1, lost_quality <= found_quality")
 
     @classmethod
     def from_dict(cls, d: Any) -> "LocaliserConfig":
@@ -214,7 +239,10 @@ class MapLocaliser:
     def start(self, pose: Pose2D, sigma_xy_m: float, sigma_yaw_rad: float, odom: Pose2D) -> None:
         """Spread the particles around ``pose`` (map) with these standard deviations; ``odom`` is the odometry
         pose at that moment (the ``map -> odom`` transform follows from the two)."""
-        n = self.config.particles
+        # The first scan weighs candidates_per_injected times as many particles as the filter keeps (only
+        # once, so it costs little): a wide initial uncertainty is then covered densely enough for some to lie
+        # near the robot; resampling brings the cloud back to its size.
+        n = self.config.particles * self.config.candidates_per_injected
         self.px = pose[0] + self.rng.normal(0.0, sigma_xy_m, n)
         self.py = pose[1] + self.rng.normal(0.0, sigma_xy_m, n)
         self.pth = wrap(pose[2] + self.rng.normal(0.0, sigma_yaw_rad, n))
@@ -223,6 +251,16 @@ class MapLocaliser:
         self.map_from_odom = compose(pose, invert(odom))
         self.last_odom = None
         self._start_odom = odom
+
+    @property
+    def pose_covariance(self) -> np.ndarray:
+        """The covariance to report (3x3 over x, y, yaw; m^2, rad^2): the cloud's, and while the robot is not
+        localised that of a pose anywhere on the map (uniform over its extent, any heading) on top, since the
+        cloud may then be tight around a wrong place."""
+        if self.localized:
+            return self.covariance
+        g = self.grid
+        return self.covariance + np.diag([g.width_m ** 2 / 12.0, g.height_m ** 2 / 12.0, math.pi ** 2 / 3.0])
 
     def map_pose_of(self, odom: Pose2D) -> Pose2D:
         """The odometry pose ``odom`` carried into the map by the current ``map -> odom`` transform."""
@@ -265,11 +303,17 @@ class MapLocaliser:
         mean_log_p = self._weigh(beams)
         est = self._estimate()
         self.map_from_odom = compose(est, invert(odom))
-        self._recover_average(mean_log_p)
-        self._resample()
+        if not first:  # the first update weighs the whole initial spread: its average says nothing of a match
+            self._recover_average(mean_log_p)
+        self._resample(beams)
         self.updates += 1
         self._judge(now_s, self._quality(beams, est))
         return True
+
+    def no_scan(self, now_s: float) -> None:
+        """The LiDAR has gone quiet: nothing matches the map now (``localized`` turns false after
+        ``lost_after_s``, as for a poor match); the pose is carried by odometry alone meanwhile."""
+        self._judge(now_s, 0.0)
 
     def _predict(self, before: Pose2D, after: Pose2D) -> None:
         """Move every particle by the odometry's motion from ``before`` to ``after``, with AMCL's noise."""
@@ -337,27 +381,47 @@ class MapLocaliser:
             self.w_slow += cfg.recovery_alpha_slow * (w_avg - self.w_slow)
             self.w_fast += cfg.recovery_alpha_fast * (w_avg - self.w_fast)
 
-    def _resample(self) -> None:
+    def _random_poses(self, count: int, beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``count`` poses over the free cells that explain this scan best among ``candidates_per_injected`` times
+        as many drawn uniformly (free cells, any heading): sensor resetting (Lenser and Veloso, 2000), so that a
+        handful of random particles has a chance to land where the robot is."""
+        g, rng = self.grid, self.rng
+        m = min(count * self.config.candidates_per_injected, 20_000)
+        cells = rng.choice(self.field.free_cells, m)
+        row, col = np.divmod(cells, g.cols)
+        x, y = g.cell_centres(col + rng.random(m) - 0.5, row + rng.random(m) - 0.5)
+        th = rng.uniform(-math.pi, math.pi, m)
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        ex = x[:, None] + c * beams[:, 0][None, :] - s * beams[:, 1][None, :]
+        ey = y[:, None] + s * beams[:, 0][None, :] + c * beams[:, 1][None, :]
+        row_e, col_e = self.field.cells(ex, ey)
+        score = self.field.log_p[row_e, col_e].sum(axis=1)
+        best = np.argpartition(-score, count - 1)[:count] if count < m else np.arange(m)
+        return np.asarray(x)[best], np.asarray(y)[best], th[best]
+
+    def _resample(self, beams: np.ndarray) -> None:
         """Low-variance resampling; a share ``1 - w_fast / w_slow`` of the new particles is drawn at random over
         the free cells (AMCL's recovery)."""
         cfg = self.config
-        n = len(self.w)
+        n = cfg.particles  # the first update weighs more (see start); the cloud keeps this many
         inject = 0
-        if cfg.recovery_alpha_slow > 0.0 and self.w_slow > 0.0 and len(self.field.free_cells):
-            share = max(0.0, 1.0 - self.w_fast / self.w_slow)
+        if len(self.field.free_cells):
+            share = 0.0
+            if cfg.recovery_alpha_slow > 0.0 and self.w_slow > 0.0:
+                share = max(0.0, 1.0 - self.w_fast / self.w_slow)
+            if not self.localized:
+                # Started lost (or lost for long): the averages have nothing better to compare with, so search.
+                share = max(share, cfg.lost_inject_share)
             inject = int(self.rng.binomial(n, min(share, 1.0))) if share > 0.0 else 0
         keep = n - inject
         positions = (self.rng.random() + np.arange(keep)) / max(keep, 1)
-        idx = np.minimum(np.searchsorted(np.cumsum(self.w), positions), n - 1)
+        idx = np.minimum(np.searchsorted(np.cumsum(self.w), positions), len(self.w) - 1)
         px, py, pth = self.px[idx], self.py[idx], self.pth[idx]
         if inject:
-            g = self.grid
-            cells = self.rng.choice(self.field.free_cells, inject)
-            row, col = np.divmod(cells, g.cols)
-            cx, cy = g.cell_centres(col + self.rng.random(inject) - 0.5, row + self.rng.random(inject) - 0.5)
+            cx, cy, cth = self._random_poses(inject, beams)
             px = np.concatenate((px, cx))
             py = np.concatenate((py, cy))
-            pth = np.concatenate((pth, self.rng.uniform(-math.pi, math.pi, inject)))
+            pth = np.concatenate((pth, cth))
             self.injected += inject
             # The averages restart from the level reached: otherwise every update would inject again.
             self.w_fast = self.w_slow
@@ -373,15 +437,22 @@ class MapLocaliser:
         return float(np.mean(self.field.dist_m[row, col] <= self.config.match_tolerance_m))
 
     def _judge(self, now_s: float, quality: float) -> None:
-        """Keep the match quality and turn ``localized`` false once it has stayed low for ``lost_after_s``."""
+        """Keep the match quality; ``localized`` turns false once it has stayed below ``lost_quality`` for
+        ``lost_after_s``, and true again only at ``found_quality`` (a hysteresis: a place on the map that only
+        half fits the scan does not count as found)."""
         self.match_quality = quality
-        if quality >= self.config.lost_quality:
+        cfg = self.config
+        if not self.localized:
+            if quality >= cfg.found_quality:
+                self.localized = True
+                self._low_since = None
+            return
+        if quality >= cfg.lost_quality:
             self._low_since = None
-            self.localized = True
             return
         if self._low_since is None:
             self._low_since = now_s
-        if now_s - self._low_since >= self.config.lost_after_s:
+        if now_s - self._low_since >= cfg.lost_after_s:
             self.localized = False
 
 

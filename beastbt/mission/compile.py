@@ -41,9 +41,9 @@ CONDITION_READS: Mapping[type, tuple[str, ...]] = MappingProxyType({
     st.BatteryBelow: ("battery",), st.Near: ("pose",), st.Elapsed: ("mission_start_s",), st.ObstacleWithin: ("scan",)})
 """Blackboard keys each kind of condition reads (flags read the key they name, or ``line``)."""
 LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
+"""Condition words read from the line observation, and the observation's flag each reads."""
 FLAG_READS = MappingProxyType({"localized": "map_pose"})
 """The blackboard key a named condition reads, where it is not the word itself."""
-"""Condition words read from the line observation, and the observation's flag each reads."""
 
 
 class ConditionUnavailable(Exception):

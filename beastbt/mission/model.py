@@ -70,7 +70,8 @@ class RawStep:
 
 @dataclass(frozen=True)
 class Failsafe:
-    """A failsafe: ``kind`` (gps_lost, battery_low, geofence), its SI parameters and its action."""
+    """A failsafe: ``kind`` (gps_lost, battery_low, geofence, keepout, localization_lost), its SI parameters and its
+    action."""
 
     kind: str
     then: str
@@ -778,19 +779,55 @@ def _load_map(m: Mission, doc: SourceDoc) -> None:
         stray += [doc.problem(f.path, "the failsafe localization_lost watches the localisation on a map, but the "
                               "mission has no 'map:'", "add map: ../maps/NAME.yaml", key=True)
                   for f in m.failsafes if f.kind == "localization_lost"]
+        stray += [doc.problem(path, "the condition 'localized' is about the localisation on a map, but the mission "
+                              "has no 'map:' (it would never hold)", "add map: ../maps/NAME.yaml")
+                  for path in _localized_conditions(d.get("steps"), ("steps",))
+                  + _localized_conditions(d.get("tasks"), ("tasks",))]
         if stray:
             raise InvalidInput(stray)
         return
-    if not m.map_file.is_file():
-        raise InvalidInput([doc.problem(("map",), f"the map file {str(m.map_file)!r} does not exist",
-                                        "the path is relative to the mission file; build a map with "
-                                        "beastbt run MISSION --build-map maps/NAME.yaml")])
-    from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
-    m.map_grid = load_map(m.map_file)
     for key, value in (("xy", m.initial_uncertainty_xy_m), ("yaw", m.initial_uncertainty_yaw_rad)):
         if value < 0:
             raise InvalidInput([doc.problem(("initial_uncertainty", key), "an uncertainty cannot be negative",
                                             "give a standard deviation such as xy: 0.5 m, yaw: 20 deg")])
+    if m.map_start_place is not None and m.map_start_place not in m.places:
+        raise InvalidInput([doc.problem(("start",), f"'start: {m.map_start_place}' names no place",
+                                        "name a place of places: with x and y on the map, or write "
+                                        "start: {x: 1 m, y: 2 m, yaw: 90 deg}")])
+    read_map(m, doc)
+
+
+_CONDITION_KEYS = ("if", "while", "wait_until", "until", "abort_if", "not", "all", "any")
+
+
+def _localized_conditions(node: Any, path: PathKey) -> list[PathKey]:
+    """Where the raw steps use the condition word ``localized`` (paths into the document)."""
+    found: list[PathKey] = []
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key in _CONDITION_KEYS and value == "localized":
+                found.append(path + (key,))
+            else:
+                found += _localized_conditions(value, path + (key,))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            if value == "localized" and path and path[-1] in ("all", "any"):
+                found.append(path + (i,))
+            else:
+                found += _localized_conditions(value, path + (i,))
+    return found
+
+
+def read_map(m: Mission, doc: SourceDoc) -> None:
+    """Read ``m.map_file`` into ``m.map_grid``: a missing file is a problem at ``doc``'s ``map:`` (the mission's,
+    or the world's that gave it), a bad one at the line of the map's own YAML."""
+    assert m.map_file is not None
+    if not m.map_file.is_file():
+        raise InvalidInput([doc.problem(("map",), f"the map file {str(m.map_file)!r} does not exist",
+                                        "the path is relative to the file that names it; build a map with "
+                                        "beastbt run MISSION --build-map maps/NAME.yaml")])
+    from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
+    m.map_grid = load_map(m.map_file)
 
 
 def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:
@@ -864,5 +901,5 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     return m
 
 
-__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "step_of", "steps_of", "condition_of",
+__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "read_map", "step_of", "steps_of", "condition_of",
            "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M", "sector_angle"]

@@ -12,7 +12,9 @@ Each tick, after sensing: a new scan (``run.latest[LaserScan]``) updates the
 filter with the odometry pose (``pose_odom``) of that tick; every tick,
 ``map_pose`` is the odometry pose carried into the map by the filter's
 ``map -> odom`` transform, so it moves smoothly between scans and never waits
-for one. The failsafe ``localization_lost`` and the condition ``localized``
+for one. A LiDAR that goes quiet (no scan for :data:`SCAN_STALE_S`) counts as
+no match: the robot is no longer localised after the localiser's
+``lost_after_s``. The failsafe ``localization_lost`` and the condition ``localized``
 read it.
 
 In the simulator it also measures the pose against the truth: the true pose
@@ -26,27 +28,35 @@ the GPS fusion's (there is no GPS fix indoors). The summary's
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Optional
+from collections import deque
+from typing import Any, Optional
+
+import numpy as np
 
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import LaserScan, MapPose
 from beastbt.core.errors import InvalidInput
+from beastbt.devices.lidar_scan import LidarConfig, base_points_xy
+from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser, Pose2D, compose, invert
 from beastbt.robot.part import Part
+from beastbt.robot.profile import section_config
 from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared
 
-if TYPE_CHECKING:  # NumPy, OpenCV and the filter are imported only for a mission with a map
-    from beastbt.estimation.map_localiser import MapLocaliser, Pose2D
+# This module is imported only for a mission with a map (beastbt.assembly), so NumPy and the filter come with it.
 
 LOCALISATION_RNG_STREAM = 0x10CA1
 """Mixed with the run's seed for the filter's own random numbers: the same seed gives the same run, and the
 filter draws from no emulator's stream."""
 
+SCAN_STALE_S = 0.5
+"""Once scans have come, none for this long (five LD19 revolutions) counts as no match at all (s)."""
+
 ERRORS_KEPT = 12000
 """Per-tick true errors kept for tests and benchmarks (10 minutes at 20 Hz); the metrics are running sums."""
 
 
-def start_pose(prepared: Prepared) -> "Pose2D":
+def start_pose(prepared: Prepared) -> Pose2D:
     """The mission's start on the map: ``start: {x, y, yaw}``, a named place with map coordinates, or the origin."""
     mission = prepared.mission
     name = mission.map_start_place
@@ -69,17 +79,11 @@ class MapLocalisationPart(Part):
     schema = "parts/localisation.schema.json"
     fills = ("map_pose",)
     reads = ("scan", "pose_odom")
-    localiser: Optional["MapLocaliser"] = None
+    localiser: Optional[MapLocaliser] = None
     """The particle filter (None until installed)."""
 
     def install(self, prepared: Prepared) -> None:
         """Refuse a robot without a LiDAR; build the filter at the start pose; hook the tick and the summary."""
-        import numpy as np
-
-        from beastbt.devices.lidar_scan import LidarConfig
-        from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser
-        from beastbt.robot.profile import section_config
-
         mission, profile, run = prepared.mission, prepared.profile, prepared.run
         if mission.map_grid is None:
             return
@@ -97,19 +101,18 @@ class MapLocalisationPart(Part):
         self._started = False
         self._prepared = prepared
         world = prepared.world
-        self.map_from_world: Optional["Pose2D"] = None
+        self.map_from_world: Optional[Pose2D] = None
         if run.io.sim is not None and world is not None:
-            from beastbt.estimation.map_localiser import compose, invert
             self.map_from_world = compose(self.start, invert((world.start_x, world.start_y, world.start_yaw)))
         self.error_sq_m2 = 0.0
         self.error_n = 0
         self.error_max_m = 0.0
-        from collections import deque
         self.errors: "deque[tuple[float, float]]" = deque(maxlen=ERRORS_KEPT)
         """(clock s, true error m) per tick, the latest :data:`ERRORS_KEPT`."""
         self.covered_3sigma = 0
         """Ticks whose true error lay within 3 standard deviations of the reported covariance (Mahalanobis)."""
         self.lost_ticks = 0
+        run.ctx.services.plugins["map_localiser"] = self.localiser  # the recording's views draw its particles
         run.hooks.append(self.on_tick)
         run.summary_contributors.append(self.contribute)
 
@@ -127,11 +130,12 @@ class MapLocalisationPart(Part):
         scan = run.latest.get(LaserScan)
         if scan is not None and scan is not self._last_scan:
             self._last_scan = scan
-            from beastbt.devices.lidar_scan import base_points_xy
             loc.update(now_s, base_points_xy(scan, self.mounting), odom)
+        elif self._last_scan is not None and now_s - self._last_scan.stamp_s > SCAN_STALE_S:
+            loc.no_scan(now_s)  # a LiDAR gone quiet matches nothing: the robot is soon not localised
         x, y, yaw = loc.map_pose_of(odom)
         mo = loc.map_from_odom
-        cov = tuple(tuple(float(v) for v in row) for row in loc.covariance)
+        cov = tuple(tuple(float(v) for v in row) for row in loc.pose_covariance)
         pose = MapPose(now_s, x, y, yaw, cov, loc.match_quality, loc.localized, mo[0], mo[1], mo[2])
         self.writer.map_pose = pose
         run.latest[MapPose] = pose
@@ -142,10 +146,6 @@ class MapLocalisationPart(Part):
 
     def _measure(self, pose: MapPose, truth: Any, now_s: float) -> None:
         """The true error of ``pose`` (m), the truth moved into the map frame by the two starts."""
-        from beastbt.estimation.map_localiser import compose
-
-        import numpy as np
-
         assert self.map_from_world is not None
         tx, ty, _ = compose(self.map_from_world, (truth.x, truth.y, truth.yaw))
         dx, dy = pose.x - tx, pose.y - ty
@@ -154,13 +154,12 @@ class MapLocalisationPart(Part):
         self.error_n += 1
         self.error_max_m = max(self.error_max_m, err)
         self.errors.append((now_s, err))
-        d = np.array([dx, dy])
-        cov = np.array(pose.covariance)[:2, :2] + np.diag([1e-6, 1e-6])  # a collapsed cloud is not a point
-        try:
-            if float(d @ np.linalg.solve(cov, d)) <= 9.0:  # within 3 sigma (Mahalanobis), ~99 % for a true Gaussian
-                self.covered_3sigma += 1
-        except np.linalg.LinAlgError:
-            pass
+        # Mahalanobis distance over (x, y), the 2x2 inverse written out: this runs every tick.
+        (a, b, _), (_, c, _), _ = pose.covariance
+        a, c = a + 1e-6, c + 1e-6  # a collapsed cloud is not a point
+        det = a * c - b * b
+        if det > 0.0 and (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det <= 9.0:
+            self.covered_3sigma += 1  # within 3 sigma: ~99 % of the time for an honest Gaussian
 
     def contribute(self, run: MissionRun, summary: dict) -> None:
         """``localisation`` (how the filter did) and, in the simulator, the map-frame ``truth`` errors."""
