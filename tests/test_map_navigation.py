@@ -103,9 +103,10 @@ steps:
 
 # -- driving on the office map ------------------------------------------------------------------------------
 
-def run_traced(path: Path, max_time_s: float) -> tuple[dict, np.ndarray, object]:
+def run_traced(path: Path, max_time_s: float, robot: str = "sim") -> tuple[dict, np.ndarray, object]:
     """Run a mission to its end; its summary, the true (x, y) in the world each tick, and the run's map planner."""
-    prepared = prepare(str(path), RunOptions(record=False, seed=1, max_time_s=max_time_s))
+    prepared = prepare(str(path), RunOptions(record=False, seed=1, max_time_s=max_time_s, robot=robot,
+                                             simulate=robot != "sim"))
     trail: list = []
     prepared.run.hooks.append(lambda run, now_s: trail.append((run.io.sim.truth.x, run.io.sim.truth.y)))
     summary = execute(prepared, out=io.StringIO())
@@ -172,7 +173,13 @@ places:
 steps:
   - go_to: lab
 """)
-    summary, trail, planner = run_traced(mission, 200.0)
+    # The box the map does not show spoils the scan match at the door; AMCL's recovery (random particles) can
+    # then settle in a room that looks alike, which is the localiser's business (docs/localisation.md), not the
+    # planner's: this robot keeps tracking its start.
+    profile = folder / "robot.yaml"
+    profile.write_text((REPO / "robots" / "sim.yaml").read_text().replace("geometry:", "localisation: "
+                       "{recovery_alpha_slow: 0, lost_inject_share: 0}\n\ngeometry:", 1))
+    summary, trail, planner = run_traced(mission, 200.0, robot=str(profile))
     assert summary["status"] == "success", summary["events"][-3:]
     assert summary["truth"]["collisions"] == 0
     assert any(e["kind"] == "replan" and "(blocked)" in e["text"] for e in summary["events"])

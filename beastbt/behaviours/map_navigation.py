@@ -22,9 +22,10 @@ It plans again (Nav2's replanning):
 
 It fails at once, with the reason, when no path exists (the goal off the
 map, in a wall or an unknown cell, enclosed, or every way blocked), when the
-robot is not localised on the map for ``gps_timeout`` (the GPS step's own
-"no position" limit), and when blocked for ``blocked_after`` without
-progress. ``return_home`` goes to where the mission started on the map.
+robot has not been localised on the map for ``gps_timeout`` (the GPS step's
+own "no position" limit; until then it drives on the localiser's pose, carried
+by odometry, as Nav2 does on AMCL's), and when blocked for ``blocked_after``
+without progress. ``return_home`` goes to where the mission started on the map.
 Nothing here reads a clock but the context's.
 """
 
@@ -224,17 +225,23 @@ class MapGoTo(GoTo):
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         pose: Optional[MapPose] = self.read("map_pose")
         if pose is None or not pose.localized:
-            self.command(0.0, 0.0)
+            # Not localised: without a pose at all it waits; with one it drives on (AMCL's pose carried by odometry,
+            # as Nav2 does: an obstacle the map does not show spoils the match until the robot has gone round it;
+            # the localization_lost failsafe is where a mission says to hold instead), for at most the timeout.
             since = self.unlocalised_since_s = self.unlocalised_since_s if self.unlocalised_since_s is not None \
                 else now
             if now - since > timeout:
+                self.command(0.0, 0.0)
                 what = ("no pose on the map (is the map localisation running?)" if pose is None
                         else f"scan match quality {pose.match_quality:.2f}")
                 return self.fail(f"not localized on the map for {timeout:g} s ({what}); not driving to "
                                  f"{self.place}")
-            self.feedback_message = "waiting to be localized on the map"
-            return Status.RUNNING
-        self.unlocalised_since_s = None
+            if pose is None:
+                self.command(0.0, 0.0)
+                self.feedback_message = "waiting for a pose on the map"
+                return Status.RUNNING
+        else:
+            self.unlocalised_since_s = None
         goal = self.map_target()
         if goal is None:
             self.command(0.0, 0.0)
