@@ -416,7 +416,8 @@ class MapGoTo(GoTo):
             what = "blocked, waiting" if plan.blocked and v == 0.0 and w == 0.0 else "going round an obstacle"
             self.feedback_message = f"{what}, {remaining:.1f} m to {self.place}"
         elif rotate:
-            self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {remaining:.1f} m to go"
+            self.feedback_message = (f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, "
+                                     f"{remaining:.1f} m to go")
         else:
             self.feedback_message = f"{remaining:.1f} m to {self.place} along the path"
         return Status.RUNNING
@@ -456,4 +457,5 @@ def map_home_target(planner: MapPlanner) -> MapTarget:
     return lambda: (planner.start[0], planner.start[1])
 
 
-__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints", "near_on_map", "map_place_target", "map_home_target", "MAP_PLANNER"]
+__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints", "near_on_map",
+           "map_place_target", "map_home_target", "MAP_PLANNER"]

@@ -259,7 +259,8 @@ def map_places_file(doc: "SourceDoc", base: Path, relative: str,  # type: ignore
     for name, value in places.data.items():
         where = (name,)
         if not isinstance(name, str) or not _NAME.match(name):
-            errors.append(places.problem(where, f"place name {name!r} must start with a letter (then letters, digits, _ and -)", hint,
+            errors.append(places.problem(where, f"place name {name!r} must start with a letter (then letters, digits, "
+                                                f"_ and -)", hint,
                                          key=True))
             continue
         if not isinstance(value, dict) or "x" not in value or "y" not in value:
@@ -276,8 +277,8 @@ def map_places_file(doc: "SourceDoc", base: Path, relative: str,  # type: ignore
             try:
                 parse_quantity(value[key], kind)
             except (ValueError, TypeError) as exc:
-                errors.append(places.problem(where + (key,), f"place '{name}': '{key}' {exc}",
-                                             "an angle such as 90 deg" if kind == "angle" else "a distance such as 2 m"))
+                example = "an angle such as 90 deg" if kind == "angle" else "a distance such as 2 m"
+                errors.append(places.problem(where + (key,), f"place '{name}': '{key}' {exc}", example))
                 ok = False
         if ok:
             out[name] = dict(value)
