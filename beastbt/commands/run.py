@@ -112,6 +112,12 @@ def unknown_answers(mission: Any, answers: Mapping[str, str]) -> Optional[str]:
     return None
 
 
+def _map_resolution(text: str) -> float:
+    """A map cell size such as ``5 cm`` -> metres (1 mm to 1 m)."""
+    from beastbt.mapping.map_files import parse_resolution
+    return parse_resolution(text)
+
+
 def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
     """``[HOST:]PORT`` of ``option`` -> (host, port); errors name the option."""
     def parse(text: str) -> tuple[str, int]:
@@ -163,6 +169,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (default 2; 0 for none)")
+    p.add_argument("--build-map", metavar="FILE",
+                   help="build a map with the LiDAR while the mission (or teleop) runs, and write it when the run "
+                        "ends, as a map_server YAML with a PGM beside it, e.g. maps/office.yaml (docs/mapping.md)")
+    p.add_argument("--map-resolution", metavar="SIZE", type=_checked(_map_resolution),
+                   help="cell size of the --build-map map, e.g. '5 cm' (default)")
 
 
 def command(args: argparse.Namespace) -> int:
@@ -174,7 +185,9 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     from beastbt.commands.paths import output_file_problem, output_folder_problem
+    from beastbt.mapping.map_files import map_output_problem
     for problem in (output_file_problem("--summary", args.summary), output_file_problem("--record", args.record),
+                    map_output_problem("--build-map", args.build_map),
                     None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)):
         if problem is not None:
             print(f"beastbt run: error: {problem}", file=sys.stderr)
@@ -187,7 +200,11 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      answers=dict(args.answer))
+                      answers=dict(args.answer), build_map=args.build_map, map_resolution_m=args.map_resolution)
+    if opts.map_resolution_m is not None and opts.build_map is None:
+        print("beastbt run: error: --map-resolution is the cell size of the map --build-map FILE writes: add "
+              "--build-map", file=sys.stderr)
+        return EXIT_INVALID
     if opts.console_token != "auto" and opts.console is None:
         print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
               f"--console [HOST:]PORT", file=sys.stderr)
@@ -242,4 +259,12 @@ def command(args: argparse.Namespace) -> int:
               f"layout: beastbt foxglove-layout)", flush=True)
     summary = execute(prepared, sys.stdout)
     print(human_summary(summary))
+    if opts.build_map is not None:
+        built = summary.get("map") or {}
+        if built.get("file"):
+            print(f"map written to {built['file']} (image {built['image']}; {built['keyframes']} keyframes, "
+                  f"{built['loops_closed']} loop closures)")
+        else:
+            print(f"beastbt run: no map written to {opts.build_map}: {built.get('error') or 'no LiDAR scan taken'}",
+                  file=sys.stderr)
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE
