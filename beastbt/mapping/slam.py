@@ -65,7 +65,7 @@ class MappingConfig:
     loop_min_score: float = 0.6
     loop_keyframes: int = 15
     hit_log_odds: float = 0.9
-    free_log_odds: float = -0.4
+    free_log_odds: float = -0.25
     max_log_odds: float = 5.0
     max_range_m: float = 12.0
     matcher: MatcherConfig = field(default_factory=MatcherConfig)
@@ -73,9 +73,11 @@ class MappingConfig:
 
 @dataclass
 class Keyframe:
-    """One keyframe: its scan's returns in base_link (n, 2; m, de-skewed to the scan's end), the sensor's
-    position in base_link (m), its dead-reckoned pose (odom frame) and the path length driven up to it (m)."""
+    """One keyframe: the clock time of its scan's end (s), the scan's returns in base_link (n, 2; m, de-skewed
+    to that time), the sensor's position in base_link (m), its dead-reckoned pose (odom frame), the path length
+    driven up to it (m) and the points the matcher uses (thinned)."""
 
+    stamp_s: float
     points: np.ndarray
     sensor_xy: tuple[float, float]
     odom: Pose2
@@ -167,7 +169,7 @@ class OnlineMapper:
                                 odom)
         if len(points) < 20:
             return False
-        self._add_keyframe(points, odom)
+        self._add_keyframe(stamp_s, points, odom)
         return True
 
     def _deskewed(self, stamp_s: float, angles: np.ndarray, ranges: np.ndarray, scan_time_s: float,
@@ -195,10 +197,10 @@ class OnlineMapper:
         return out
 
     # -- keyframes ---------------------------------------------------------------------------------------------
-    def _add_keyframe(self, points: np.ndarray, odom: Pose2) -> None:
+    def _add_keyframe(self, stamp_s: float, points: np.ndarray, odom: Pose2) -> None:
         cfg = self.config
         match_points = thin_points(points, cfg.matcher.resolution_m * 2, cfg.matcher.max_points)
-        kf = Keyframe(points, self.sensor_xy, odom, self._travelled, match_points)
+        kf = Keyframe(stamp_s, points, self.sensor_xy, odom, self._travelled, match_points)
         if not self.keyframes:
             self.graph.add_node((0.0, 0.0, 0.0))
             self.keyframes.append(kf)
