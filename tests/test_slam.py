@@ -69,7 +69,7 @@ def tour(tmp_path_factory: pytest.TempPathFactory) -> dict:
 @pytest.fixture(scope="module")
 def offline(tour: dict) -> object:
     """The tour's mapper rebuilt from its recording."""
-    from beastbt.commands.map import mapper_from_recording
+    from beastbt.commands.map_build import mapper_from_recording
     return mapper_from_recording(tour["run"])
 
 
@@ -301,3 +301,43 @@ def test_rendering_clears_along_beams_marks_their_ends_and_skips_no_returns() ->
     assert grid.value_at(2.0, 0.0) >= 65  # occupied where the beam ended
     assert grid.value_at(1.0, 0.0) <= 19  # free along the beam (eight scans)
     assert grid.value_at(0.0, 1.0) == -1 and grid.value_at(2.5, 0.0) == -1  # unknown elsewhere
+
+
+def test_on_the_robot_the_mapper_works_in_a_thread_and_the_map_is_written_at_the_end(tour: dict,
+                                                                                      tmp_path: Path) -> None:
+    # The part as the robot's wall clock assembles it: a worker thread behind a bounded queue, fed by tick().
+    from types import SimpleNamespace
+
+    from beastbt.blackboard.types import FusedPose
+    from beastbt.core.clock import WallClock
+    from beastbt.core.events import EventLog
+    from beastbt.parts.map_building import MapBuildingPart
+    from beastbt.recording.foxglove import scan_of
+    from beastbt.robot.profile import load_profile
+    from beastbt.run.session import RunOptions
+
+    clock = WallClock()
+    events = EventLog(clock)
+    prepared = SimpleNamespace(options=RunOptions(build_map=str(tmp_path / "robot.yaml")), profile=load_profile("sim"),
+                               events=events, clock=clock)
+    part = MapBuildingPart()
+    part.install(prepared)  # type: ignore[arg-type]
+    assert part._worker is not None and part._worker.is_alive()
+    rec = read_recording(find_recording(tour["run"]), topics=("/scan", "/estimate/odom"), keep_order=True)
+    run = SimpleNamespace(bb=SimpleNamespace(pose_odom=None), latest_scan=lambda: None)
+    fed = 0
+    for topic, _, m in rec.order[:1200]:  # the first minute: out of the office and along the corridor
+        if topic == "/scan":
+            scan = scan_of(m)
+            run.latest_scan = lambda scan=scan: scan
+        else:
+            run.bb.pose_odom = FusedPose(m["stamp_s"], m["x"], m["y"], m["yaw"], yaw_rate_rps=m["yaw_rate_rps"])
+            part.tick(run, m["stamp_s"])  # type: ignore[arg-type]
+            fed += 1
+    part.close()
+    assert not part._worker.is_alive()
+    summary: dict = {}
+    part.summarise(run, summary)  # type: ignore[arg-type]
+    assert summary["map"]["scans"] + summary["map"]["scans_dropped"] > 100 and summary["map"]["keyframes"] > 5
+    assert summary["map"]["file"] == str(tmp_path / "robot.yaml") and load_map(tmp_path / "robot.yaml").occupied().any()
+    assert any(e.kind == "map" and "map written to" in e.text for e in events.events)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -71,13 +71,19 @@ class PoseGraph:
         cov = np.asarray(covariance, dtype=float) + np.eye(3) * 1e-9
         self.edges.append(Edge(i, j, (float(z[0]), float(z[1]), float(z[2])), np.linalg.inv(cov), kind))
 
+    def _arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The edges' node indices and measurements as arrays (i, j, z)."""
+        return (np.array([e.i for e in self.edges]), np.array([e.j for e in self.edges]),
+                np.array([e.z for e in self.edges]).reshape(-1, 3))
+
     def residuals(self, poses: np.ndarray) -> np.ndarray:
         """The whitened errors of every edge (3 per edge) for ``poses`` (n, 3)."""
         if not self.edges:
             return np.zeros(0)
-        i = np.array([e.i for e in self.edges])
-        j = np.array([e.j for e in self.edges])
-        z = np.array([e.z for e in self.edges])
+        i, j, z = self._arrays()
+        return self._residuals(poses, i, j, z)
+
+    def _residuals(self, poses: np.ndarray, i: np.ndarray, j: np.ndarray, z: np.ndarray) -> np.ndarray:
         xi, xj = poses[i], poses[j]
         c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
         dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
@@ -88,6 +94,36 @@ class PoseGraph:
         err = np.column_stack((cz * ex + sz * ey, -sz * ex + cz * ey,
                                (rel[:, 2] - z[:, 2] + np.pi) % (2 * np.pi) - np.pi))
         return np.einsum("eab,eb->ea", self._sqrt_info(), err).ravel()
+
+    def _jacobian(self, poses: np.ndarray, i: np.ndarray, j: np.ndarray, z: np.ndarray) -> Any:
+        """The whitened residuals' Jacobian (3 m x 3 (n - 1), sparse): each edge depends on its two nodes only."""
+        from scipy.sparse import csr_matrix
+
+        m, n = len(i), len(poses)
+        xi, xj = poses[i], poses[j]
+        c, s = np.cos(xi[:, 2]), np.sin(xi[:, 2])
+        dx, dy = xj[:, 0] - xi[:, 0], xj[:, 1] - xi[:, 1]
+        cz, sz = np.cos(z[:, 2]), np.sin(z[:, 2])
+        rz = np.zeros((m, 3, 3))  # the measurement's rotation, transposed, on (x, y); 1 on yaw
+        rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cz, sz, -sz, cz, 1.0
+        ji = np.zeros((m, 3, 3))  # d(rel)/d(x_i)
+        ji[:, 0, 0], ji[:, 0, 1], ji[:, 0, 2] = -c, -s, -s * dx + c * dy
+        ji[:, 1, 0], ji[:, 1, 1], ji[:, 1, 2] = s, -c, -c * dx - s * dy
+        ji[:, 2, 2] = -1.0
+        jj = np.zeros((m, 3, 3))  # d(rel)/d(x_j)
+        jj[:, 0, 0], jj[:, 0, 1], jj[:, 1, 0], jj[:, 1, 1], jj[:, 2, 2] = c, s, -s, c, 1.0
+        w = np.einsum("eab,ebc->eac", self._sqrt_info(), rz)
+        blocks = (np.einsum("eab,ebc->eac", w, ji), np.einsum("eab,ebc->eac", w, jj))
+        rows, cols, data = [], [], []
+        r = 3 * np.arange(m)[:, None, None] + np.arange(3)[None, :, None] + np.zeros((1, 1, 3), dtype=np.int64)
+        for node, block in zip((i, j), blocks):
+            keep = node > 0  # node 0 is held fixed: no column
+            col = 3 * (node[:, None, None] - 1) + np.arange(3)[None, None, :] + np.zeros((1, 3, 1), dtype=np.int64)
+            rows.append(r[keep].ravel())
+            cols.append(col[keep].ravel())
+            data.append(block[keep].ravel())
+        return csr_matrix((np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(3 * m, 3 * (n - 1)))
 
     def _sqrt_info(self) -> np.ndarray:
         """The edges' square-root information (upper Cholesky factors), cached while no edge is added."""
@@ -102,25 +138,20 @@ class PoseGraph:
         """Move every pose but node 0 to minimise the edges' errors; the final cost (sum of squared whitened
         errors, unitless). With fewer than two nodes or no edges it does nothing."""
         from scipy.optimize import least_squares
-        from scipy.sparse import lil_matrix
 
         n = len(self.poses)
         if n < 2 or not self.edges:
             return 0.0
         x0 = np.array(self.poses, dtype=float)
         anchor = x0[0].copy()
-        m = len(self.edges)
-        sparsity = lil_matrix((3 * m, 3 * (n - 1)), dtype=np.int8)
-        for k, e in enumerate(self.edges):
-            for node in (e.i, e.j):
-                if node > 0:
-                    sparsity[3 * k:3 * k + 3, 3 * (node - 1):3 * node] = 1
+        i, j, z = self._arrays()
 
-        def fun(v: np.ndarray) -> np.ndarray:
-            return self.residuals(np.vstack((anchor, v.reshape(n - 1, 3))))
+        def full(v: np.ndarray) -> np.ndarray:
+            return np.vstack((anchor, v.reshape(n - 1, 3)))
 
-        result = least_squares(fun, x0[1:].ravel(), jac_sparsity=sparsity.tocsr(), method="trf", loss="soft_l1",
-                               f_scale=3.0, x_scale="jac", max_nfev=max_evaluations)
+        result = least_squares(lambda v: self._residuals(full(v), i, j, z), x0[1:].ravel(),
+                               jac=lambda v: self._jacobian(full(v), i, j, z), method="trf", loss="soft_l1",
+                               f_scale=3.0, x_scale="jac", max_nfev=max_evaluations, tr_solver="lsmr")
         solved = result.x.reshape(n - 1, 3)
         solved[:, 2] = (solved[:, 2] + np.pi) % (2 * np.pi) - np.pi
         self.poses = [self.poses[0]] + [tuple(map(float, p)) for p in solved]  # type: ignore[misc]

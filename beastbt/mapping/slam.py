@@ -55,7 +55,8 @@ class MappingConfig:
     resolution_m: float = 0.05
     keyframe_distance_m: float = 0.3
     keyframe_turn_rad: float = math.radians(15.0)
-    max_keyframe_turn_rate_rps: float = math.radians(20.0)
+    max_keyframe_turn_rate_rps: float = math.radians(10.0)
+    scan_latency_s: float = 0.025
     local_keyframes: int = 12
     min_match_score: float = 0.35
     loop_search_radius_m: float = 2.0
@@ -64,6 +65,7 @@ class MappingConfig:
     loop_window_yaw_rad: float = math.radians(20.0)
     loop_min_score: float = 0.6
     loop_keyframes: int = 15
+    optimise_every_keyframes: int = 5
     hit_log_odds: float = 0.9
     free_log_odds: float = -0.25
     max_log_odds: float = 5.0
@@ -119,6 +121,8 @@ class OnlineMapper:
         self._travelled = 0.0
         self._last_odom_xy: Optional[tuple[float, float]] = None
         self._last_loop = -1_000
+        self._last_optimised = -1_000
+        self._pending = False  # a loop closure not yet optimised
 
     # -- input -------------------------------------------------------------------------------------------------
     def add_odom(self, stamp_s: float, x: float, y: float, yaw: float, yaw_rate_rps: float = 0.0) -> None:
@@ -184,7 +188,7 @@ class OnlineMapper:
         pts = np.column_stack((r * np.cos(a) + self.sensor_xy[0], r * np.sin(a) + self.sensor_xy[1]))
         if not (scan_time_s > 0 and math.isfinite(scan_time_s)) or n == 0:
             return pts
-        times = stamp_s - scan_time_s * (1.0 - (idx + 1) / n)
+        times = stamp_s - self.config.scan_latency_s - scan_time_s * (1.0 - (idx + 1) / n)
         # Points in a few groups by time (a pose per group): the robot's motion in a tenth of a second is smooth.
         out = np.empty_like(pts)
         groups = np.array_split(np.arange(len(pts)), 8)
@@ -227,6 +231,7 @@ class OnlineMapper:
                                 "scan")
             self.stats.matched += 1
         self._try_loop_closure(node)
+        self._optimise_if_due(node)
 
     def _points_of(self, indices: Sequence[int] | range) -> np.ndarray:
         """The match points of keyframes ``indices`` in the map frame, at their current poses (n, 2)."""
@@ -269,13 +274,20 @@ class OnlineMapper:
                             _in_frame(fine.covariance, anchor_pose[2]) * 4.0, "loop")
         self.stats.loops_closed += 1
         self._last_loop = node
-        self.optimise()
+        self._pending = True
+
+    def _optimise_if_due(self, node: int) -> None:
+        """Optimise after a loop closure, at most once per ``optimise_every_keyframes`` keyframes."""
+        if self._pending and node - self._last_optimised >= self.config.optimise_every_keyframes:
+            self.optimise()
+            self._last_optimised = node
 
     def optimise(self) -> None:
         """Optimise the pose graph (after a loop closure, and before drawing the map)."""
         if len(self.graph.poses) > 1:
             self.graph.optimise()
             self.stats.optimisations += 1
+        self._pending = False
 
     # -- output ------------------------------------------------------------------------------------------------
     def poses(self) -> list[Pose2]:
