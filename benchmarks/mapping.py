@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import math
 import statistics
 import sys
 import tempfile
@@ -78,8 +79,10 @@ def one_run(seed: int, out_dir: Path) -> dict:
     add = part.mapper._add_keyframe  # the true pose at each keyframe, for the solver comparison
 
     def keyframe(*args: object) -> None:
-        t = prepared.run.io.sim.truth
-        truth.append((t.x - prepared.world.start_x, t.y - prepared.world.start_y, t.yaw))
+        t, w = prepared.run.io.sim.truth, prepared.world
+        c, s = math.cos(w.start_yaw), math.sin(w.start_yaw)  # the map frame is the start pose
+        dx, dy = t.x - w.start_x, t.y - w.start_y
+        truth.append((c * dx + s * dy, -s * dx + c * dy, t.yaw - w.start_yaw))
         add(*args)
 
     part.mapper._add_keyframe = keyframe

@@ -139,6 +139,10 @@ def test_the_tour_succeeds_without_collisions_and_says_where_the_map_is(tour: di
     assert built["file"] == str(tour["map"]) and tour["map"].exists()
     assert f"map written to {tour['map']}" in tour["out"]
     assert built["keyframes"] > 40 and built["loops_closed"] >= 1 and built["scans_dropped"] == 0
+    import jsonschema
+
+    from beastbt.core.schema_check import load_schema
+    jsonschema.validate(tour["summary"], load_schema("summary.schema.json"))
 
 
 def test_the_map_marks_the_walls_the_robot_saw(tour: dict, offline: object) -> None:
@@ -341,3 +345,17 @@ def test_on_the_robot_the_mapper_works_in_a_thread_and_the_map_is_written_at_the
     assert summary["map"]["scans"] + summary["map"]["scans_dropped"] > 100 and summary["map"]["keyframes"] > 5
     assert summary["map"]["file"] == str(tmp_path / "robot.yaml") and load_map(tmp_path / "robot.yaml").occupied().any()
     assert any(e.kind == "map" and "map written to" in e.text for e in events.events)
+
+
+def test_a_run_stopped_early_still_writes_its_map(tmp_path: Path) -> None:
+    out_yaml = tmp_path / "partial.yaml"
+    code, out, err = cli("run", str(TOUR), "--build-map", str(out_yaml), "--max-time", "25 s", "--no-record",
+                         "--summary", str(tmp_path / "s.json"))
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert code == 1 and summary["status"] == "stopped"
+    assert f"map written to {out_yaml}" in out and summary["map"]["file"] == str(out_yaml)
+    grid = load_map(out_yaml)
+    assert grid.occupied().any() and grid.free().any()
+    # Out of the office into the corridor only: the inside of the lab (never entered) is not on it.
+    x, y = to_map_frame(8.5, 2.0)
+    assert grid.value_at(float(x), float(y)) == -1 and summary["map"]["keyframes"] < 40

@@ -133,7 +133,11 @@ class MapBuildingPart(Part):
         if self._worker is not None and self._queue is not None:
             self._queue.put(None)
             self._worker.join()
-        self.written = self.save()
+        try:
+            self.written = self.save()
+        except (OSError, ValueError) as exc:  # a full disk, a folder that cannot be made: said, not swallowed
+            self.failed = f"cannot write the map to {self.path}: {exc}"
+            self.events.add("map", self.failed)
 
     def save(self) -> Optional[dict]:
         """Optimise and write the map to the ``--build-map`` file; what was written (None without keyframes)."""
