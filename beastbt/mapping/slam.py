@@ -43,7 +43,8 @@ class MappingConfig:
     """The knobs of the mapper (metres, radians, seconds), with the defaults docs/mapping.md lists.
 
     ``resolution_m`` the map's cell; ``keyframe_distance_m`` / ``keyframe_turn_rad`` how far the robot moves or
-    turns between keyframes; ``max_keyframe_turn_rate_rps`` no keyframe while turning faster (the scan smears);
+    turns between keyframes; ``max_keyframe_turn_rate_rps`` no keyframe while turning faster (the scan smears)
+    unless the robot has driven three keyframe distances since the last one (a long curve);
     ``local_keyframes`` how many recent keyframes the scan matcher matches against; ``min_match_score`` below
     it a match is not trusted and odometry alone places the keyframe; ``loop_search_radius_m`` how close an
     older keyframe must be to try a loop closure, ``loop_min_travel_m`` how far the robot must have driven since
@@ -162,12 +163,15 @@ class OnlineMapper:
             return False
         odom, yaw_rate = at
         cfg = self.config
+        moved = math.inf
         if self.keyframes:
-            last = self.keyframes[-1].odom
-            d = relative(last, odom)
-            if math.hypot(d[0], d[1]) < cfg.keyframe_distance_m and abs(d[2]) < cfg.keyframe_turn_rad:
+            d = relative(self.keyframes[-1].odom, odom)
+            moved = math.hypot(d[0], d[1])
+            if moved < cfg.keyframe_distance_m and abs(d[2]) < cfg.keyframe_turn_rad:
                 return False
-        if abs(yaw_rate) > cfg.max_keyframe_turn_rate_rps:
+        # While turning fast wait for the turn to end, unless driving a long curve (teleop, a planned path): then a
+        # de-skewed keyframe beats none.
+        if abs(yaw_rate) > cfg.max_keyframe_turn_rate_rps and moved < 3 * cfg.keyframe_distance_m:
             return False
         points = self._deskewed(stamp_s, np.asarray(angles_rad, float), np.asarray(ranges_m, float), scan_time_s,
                                 odom)
