@@ -265,6 +265,5 @@ def command(args: argparse.Namespace) -> int:
             print(f"map written to {built['file']} (image {built['image']}; {built['keyframes']} keyframes, "
                   f"{built['loops_closed']} loop closures)")
         else:
-            print(f"beastbt run: no map written to {opts.build_map}: {built.get('error') or 'no LiDAR scan taken'}",
-                  file=sys.stderr)
+            print(f"beastbt run: no map written to {opts.build_map}: {built.get('error')}", file=sys.stderr)
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

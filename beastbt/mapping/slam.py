@@ -38,6 +38,10 @@ from beastbt.mapping.pose_graph import PoseGraph, chain_covariance, compose, rel
 from beastbt.mapping.scan_matcher import MatcherConfig, Pose2, ScanMatcher, thin_points, transform_points, wrap
 
 
+MIN_KEYFRAME_RETURNS = 20
+"""Returns a scan needs to become a keyframe: fewer (an empty hall, a LiDAR seeing the sky) place nothing."""
+
+
 @dataclass(frozen=True)
 class MappingConfig:
     """The knobs of the mapper (metres, radians, seconds), with the defaults docs/mapping.md lists.
@@ -175,7 +179,7 @@ class OnlineMapper:
             return False
         points = self._deskewed(stamp_s, np.asarray(angles_rad, float), np.asarray(ranges_m, float), scan_time_s,
                                 odom)
-        if len(points) < 20:
+        if len(points) < MIN_KEYFRAME_RETURNS:
             return False
         self._add_keyframe(stamp_s, points, odom)
         return True
@@ -366,4 +370,4 @@ def render_map(keyframes: Sequence[Keyframe], poses: Sequence[Pose2], resolution
     return grid.with_data(data)
 
 
-__all__ = ["OnlineMapper", "MappingConfig", "Keyframe", "MapperStats", "render_map"]
+__all__ = ["OnlineMapper", "MappingConfig", "MIN_KEYFRAME_RETURNS", "Keyframe", "MapperStats", "render_map"]

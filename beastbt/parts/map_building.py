@@ -142,12 +142,16 @@ class MapBuildingPart(Part):
     def save(self) -> Optional[dict]:
         """Optimise and write the map to the ``--build-map`` file; what was written (None without keyframes)."""
         from beastbt.mapping.occupancy_map import save_map
+        from beastbt.mapping.slam import MIN_KEYFRAME_RETURNS
 
         assert self.mapper is not None and self.path is not None
         mapper = self.mapper
         if not mapper.keyframes:
-            self.events.add("map", f"no map written to {self.path}: no LiDAR scan was taken while the robot knew "
-                                   f"its odometry")
+            why = (f"no keyframe: {mapper.stats.scans} LiDAR scans, none with {MIN_KEYFRAME_RETURNS} returns or more while "
+                   f"the odometry was known (nothing within the LiDAR's range?)" if mapper.stats.scans
+                   else "no LiDAR scan was taken")
+            self.failed = why
+            self.events.add("map", f"no map written to {self.path}: {why}")
             return None
         mapper.optimise()
         grid = mapper.occupancy_map()
