@@ -147,8 +147,8 @@ class MapBuildingPart(Part):
         assert self.mapper is not None and self.path is not None
         mapper = self.mapper
         if not mapper.keyframes:
-            why = (f"no keyframe: {mapper.stats.scans} LiDAR scans, none with {MIN_KEYFRAME_RETURNS} returns or more while "
-                   f"the odometry was known (nothing within the LiDAR's range?)" if mapper.stats.scans
+            why = (f"no keyframe: {mapper.stats.scans} LiDAR scans, none with {MIN_KEYFRAME_RETURNS} returns or more "
+                   f"while the odometry was known (nothing within the LiDAR's range?)" if mapper.stats.scans
                    else "no LiDAR scan was taken")
             self.failed = why
             self.events.add("map", f"no map written to {self.path}: {why}")
