@@ -99,10 +99,10 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
-    PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
-    PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     PartEntry("map_building", "beastbt.parts.map_building:MapBuildingPart",
               lambda profile, options: options.build_map is not None),
+    PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
+    PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     # What the run shows and keeps.
     PartEntry("recording", "beastbt.parts.recording:RecordingPart",
               lambda profile, options: bool(options.record or options.record_path or options.foxglove is not None)),

@@ -150,6 +150,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
+    p.add_argument("--build-map", metavar="FILE",
+                   help="build a map with the LiDAR while the mission (or teleop) runs, and write it when the run "
+                        "ends, as a map_server YAML with a PGM beside it, e.g. maps/office.yaml (docs/mapping.md)")
+    p.add_argument("--map-resolution", metavar="SIZE", type=_checked(_map_resolution),
+                   help="cell size of the --build-map map, e.g. '5 cm' (default)")
     p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
@@ -169,11 +174,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (default 2; 0 for none)")
-    p.add_argument("--build-map", metavar="FILE",
-                   help="build a map with the LiDAR while the mission (or teleop) runs, and write it when the run "
-                        "ends, as a map_server YAML with a PGM beside it, e.g. maps/office.yaml (docs/mapping.md)")
-    p.add_argument("--map-resolution", metavar="SIZE", type=_checked(_map_resolution),
-                   help="cell size of the --build-map map, e.g. '5 cm' (default)")
 
 
 def command(args: argparse.Namespace) -> int:
@@ -200,14 +200,15 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      answers=dict(args.answer), build_map=args.build_map, map_resolution_m=args.map_resolution)
-    if opts.map_resolution_m is not None and opts.build_map is None:
-        print("beastbt run: error: --map-resolution is the cell size of the map --build-map FILE writes: add "
-              "--build-map", file=sys.stderr)
-        return EXIT_INVALID
+                      answers=dict(args.answer))
     if opts.console_token != "auto" and opts.console is None:
         print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
               f"--console [HOST:]PORT", file=sys.stderr)
+        return EXIT_INVALID
+    opts.build_map, opts.map_resolution_m = args.build_map, args.map_resolution
+    if opts.map_resolution_m is not None and opts.build_map is None:
+        print("beastbt run: error: --map-resolution is the cell size of the map --build-map FILE writes: add "
+              "--build-map", file=sys.stderr)
         return EXIT_INVALID
     if opts.joystick_script is not None and not opts.simulated:
         print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
