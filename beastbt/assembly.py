@@ -99,6 +99,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
+    PartEntry("map_building", "beastbt.parts.map_building:MapBuildingPart",
+              lambda profile, options: options.build_map is not None),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     # What the run shows and keeps.

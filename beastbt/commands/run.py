@@ -112,6 +112,12 @@ def unknown_answers(mission: Any, answers: Mapping[str, str]) -> Optional[str]:
     return None
 
 
+def _map_resolution(text: str) -> float:
+    """A map cell size such as ``5 cm`` -> metres (1 mm to 1 m)."""
+    from beastbt.mapping.map_files import parse_resolution
+    return parse_resolution(text)
+
+
 def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
     """``[HOST:]PORT`` of ``option`` -> (host, port); errors name the option."""
     def parse(text: str) -> tuple[str, int]:
@@ -144,6 +150,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
+    p.add_argument("--build-map", metavar="FILE",
+                   help="build a map with the LiDAR while the mission (or teleop) runs, and write it when the run "
+                        "ends, as a map_server YAML with a PGM beside it, e.g. maps/office.yaml (docs/mapping.md)")
+    p.add_argument("--map-resolution", metavar="SIZE", type=_checked(_map_resolution),
+                   help="cell size of the --build-map map, e.g. '5 cm' (default)")
     p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
@@ -174,7 +185,9 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     from beastbt.commands.paths import output_file_problem, output_folder_problem
+    from beastbt.mapping.map_files import map_output_problem
     for problem in (output_file_problem("--summary", args.summary), output_file_problem("--record", args.record),
+                    map_output_problem("--build-map", args.build_map),
                     None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)):
         if problem is not None:
             print(f"beastbt run: error: {problem}", file=sys.stderr)
@@ -191,6 +204,11 @@ def command(args: argparse.Namespace) -> int:
     if opts.console_token != "auto" and opts.console is None:
         print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
               f"--console [HOST:]PORT", file=sys.stderr)
+        return EXIT_INVALID
+    opts.build_map, opts.map_resolution_m = args.build_map, args.map_resolution
+    if opts.map_resolution_m is not None and opts.build_map is None:
+        print("beastbt run: error: --map-resolution is the cell size of the map --build-map FILE writes: add "
+              "--build-map", file=sys.stderr)
         return EXIT_INVALID
     if opts.joystick_script is not None and not opts.simulated:
         print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
@@ -242,4 +260,11 @@ def command(args: argparse.Namespace) -> int:
               f"layout: beastbt foxglove-layout)", flush=True)
     summary = execute(prepared, sys.stdout)
     print(human_summary(summary))
+    if opts.build_map is not None:
+        built = summary.get("map") or {}
+        if built.get("file"):
+            print(f"map written to {built['file']} (image {built['image']}; {built['keyframes']} keyframes, "
+                  f"{built['loops_closed']} loop closures)")
+        else:
+            print(f"beastbt run: no map written to {opts.build_map}: {built.get('error')}", file=sys.stderr)
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

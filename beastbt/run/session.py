@@ -75,6 +75,11 @@ class RunOptions:
     """Camera images recorded per second as JPEG (``--record-images``); None: the recording's default."""
     recording: Optional[Mapping[str, Any]] = None
     """Recording settings (the fields of ``recording.config.RecordingConfig``), for tests and benchmarks."""
+    build_map: Optional[str] = None
+    """Build a map with the LiDAR while the run goes on and write it here (map_server YAML) at its end
+    (``--build-map``)."""
+    map_resolution_m: Optional[float] = None
+    """The built map's cell size, metres (``--map-resolution``; default 5 cm)."""
 
     @property
     def simulated(self) -> bool:
