@@ -41,6 +41,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                               "gets and what each control does"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "
                                           "joystick, CAN) without moving"),
+    "studio": ("beastbt.commands.studio", "serve the mission studio: write, place on a map, check and try missions "
+                                          "in the browser (docs/studio.md)"),
     "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
                                                             "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })
