@@ -94,6 +94,17 @@ def studio(tmp_path_factory) -> Iterator[Studio]:
     s.server.close()
 
 
+def applied(text: str, change: dict) -> str:
+    """``text`` with an edit's ``change`` (1-based line and column, end exclusive) applied, as an editor would."""
+    lines = text.split("\n")
+
+    def offset(line: int, column: int) -> int:
+        return sum(len(x) + 1 for x in lines[:line - 1]) + column - 1
+
+    return text[:offset(change["line"], change["column"])] + change["text"] + \
+        text[offset(change["end_line"], change["end_column"]):]
+
+
 def only_inserted(before: str, after: str) -> list[str]:
     """The lines ``after`` adds to ``before``; fails when any line of ``before`` was changed or removed."""
     diff = list(difflib.ndiff(before.splitlines(keepends=True), after.splitlines(keepends=True)))
@@ -125,7 +136,8 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
     assert added["text"].index("  c: ") < added["text"].index("  # more places later")  # kept after the places
     status, moved = studio.post("/api/edit", {"text": added["text"], "edit": {"op": "move_place", "name": "b",
                                                                               "lat": 40.417, "lon": -3.7036}})
-    assert status == 200
+    assert status == 200 and applied(added["text"], moved["change"]) == moved["text"]
+    assert applied(COMMENTED, added["change"]) == added["text"]  # one replacement the editor can undo
     changed = [(a, b) for a, b in zip(added["text"].splitlines(), moved["text"].splitlines()) if a != b]
     assert changed == [("  b: {lat: 40.41700, lon: -3.70350, tolerance: 3 m}",
                         "  b: {lat: 40.417, lon: -3.7036, tolerance: 3 m}")]
@@ -317,3 +329,32 @@ def test_try_runs_the_text_on_the_simulator_to_success(studio):
     assert studio.get(f"/api/try/{run_id}/console/api/state")[0] == 409  # its console has closed
     assert studio.get("/api/try/nope")[0] == 404
     assert studio.post("/api/try", {"text": text, "speed": "fast"})[0] == 400
+
+
+def test_the_command_prints_the_address_and_refuses_a_folder_that_is_not_one(tmp_path):
+    import subprocess
+    import sys
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    bad = subprocess.run([sys.executable, "-m", "beastbt", "studio", str(tmp_path / "none")], capture_output=True,
+                         text=True, timeout=60, env=env)
+    assert bad.returncode == 2 and "is not a folder" in bad.stderr
+    (tmp_path / "m.yaml").write_text("mission: m\nsteps: []\n", encoding="utf-8")
+    proc = subprocess.Popen([sys.executable, "-m", "beastbt", "studio", str(tmp_path), "--listen", "127.0.0.1:0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline() for _ in range(2)]
+        url = lines[1].split()[-1]
+        assert lines[1].startswith("open http://127.0.0.1:") and url.endswith("/")
+        port = int(url.rsplit(":", 1)[1].strip("/"))
+        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        conn.request("GET", "/api/files")
+        answer = json.loads(conn.getresponse().read())
+        assert [f["path"] for f in answer["files"]] == ["m.yaml"]
+        conn.request("GET", "/")
+        page = conn.getresponse()
+        assert page.status == 200 and page.getheader("Content-Type").startswith("text/html") and page.read()
+        conn.close()
+    finally:
+        proc.terminate()
+        proc.wait(30)

@@ -342,7 +342,29 @@ def apply_edit(text: str, edit: dict) -> dict:
         raise EditRefused(f"unknown edit {op!r}{did_you_mean(str(op), OPS)}; the edits are: {', '.join(OPS)}")
     y, data = load_round_trip(text)
     made = OPS[op](data, edit)
-    return {"text": _dump(y, data), **{k: v for k, v in made.items() if v is not None}}
+    new = _dump(y, data)
+    return {"text": new, "change": change_between(text, new), **{k: v for k, v in made.items() if v is not None}}
 
 
-__all__ = ["EditRefused", "OPS", "apply_edit", "load_round_trip"]
+def change_between(old: str, new: str) -> dict:
+    """The one replacement that turns ``old`` into ``new``: ``{line, column, end_line, end_column, text}``, 1-based,
+    the end exclusive (what an editor applies as one undoable edit, the rest of its text and cursor untouched)."""
+    start = 0
+    limit = min(len(old), len(new))
+    while start < limit and old[start] == new[start]:
+        start += 1
+    end_old, end_new = len(old), len(new)
+    while end_old > start and end_new > start and old[end_old - 1] == new[end_new - 1]:
+        end_old -= 1
+        end_new -= 1
+
+    def position(offset: int) -> tuple[int, int]:
+        line = old.count("\n", 0, offset) + 1
+        return line, offset - (old.rfind("\n", 0, offset) + 1) + 1
+
+    (line, column), (end_line, end_column) = position(start), position(end_old)
+    return {"line": line, "column": column, "end_line": end_line, "end_column": end_column,
+            "text": new[start:end_new]}
+
+
+__all__ = ["EditRefused", "OPS", "apply_edit", "change_between", "load_round_trip"]
