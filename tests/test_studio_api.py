@@ -278,6 +278,12 @@ def test_the_map_draws_places_fences_routes_and_the_world(studio):
     [route] = drawn["routes"]
     assert route["places"] == ["a", "b"] and route["points"] == [[40.4169, -3.7038], [40.417, -3.7035]]
     assert drawn["world"]["name"] == "campus" and "start" in drawn["world"]
+    # a world file's text is drawn as it is in the editor, unsaved changes included
+    campus = (REPO / "worlds" / "campus.yaml").read_text(encoding="utf-8")
+    moved = campus.replace("datum: {lat: 40.41680, lon: -3.70380", "datum: {lat: 40.5, lon: -3.6")
+    world = studio.post("/api/map", {"text": moved, "path": "worlds/campus.yaml"})[1]
+    assert world["datum"] == {"lat": 40.5, "lon": -3.6} and world["world"]["name"] == "campus"
+    assert world["places"] == [] and world["problems"] == []
     # a text with an error still draws what it can read
     typo = studio.post("/api/map", {"text": COMMENTED.replace("say:", "sya:")})[1]
     assert [p["name"] for p in typo["places"]] == ["a", "b"] and typo["problems"]
