@@ -106,8 +106,9 @@ def applied(text: str, change: dict) -> str:
 
 
 def only_inserted(before: str, after: str) -> list[str]:
-    """The lines ``after`` adds to ``before``; fails when any line of ``before`` was changed or removed."""
-    diff = list(difflib.ndiff(before.splitlines(keepends=True), after.splitlines(keepends=True)))
+    """The lines ``after`` adds to ``before`` (without their line ends); fails when any line of ``before`` was changed
+    or removed."""
+    diff = list(difflib.ndiff(before.splitlines(), after.splitlines()))
     removed = [d for d in diff if d.startswith("- ")]
     assert not removed, f"lines changed or removed: {removed}"
     return [d[2:] for d in diff if d.startswith("+ ")]
@@ -132,7 +133,7 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
     status, added = studio.post("/api/edit", {"text": file["text"], "edit": {"op": "add_place", "lat": 40.4171234567,
                                                                              "lon": -3.7031}})
     assert status == 200 and added["name"] == "c"
-    assert only_inserted(COMMENTED, added["text"]) == ["  c: {lat: 40.4171235, lon: -3.7031}\n"]
+    assert only_inserted(COMMENTED, added["text"]) == ["  c: {lat: 40.4171235, lon: -3.7031}"]
     assert added["text"].index("  c: ") < added["text"].index("  # more places later")  # kept after the places
     status, moved = studio.post("/api/edit", {"text": added["text"], "edit": {"op": "move_place", "name": "b",
                                                                               "lat": 40.417, "lon": -3.7036}})
@@ -143,13 +144,13 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
                         "  b: {lat: 40.417, lon: -3.7036, tolerance: 3 m}")]
     status, routed = studio.post("/api/edit", {"text": moved["text"], "edit": {"op": "add_route",
                                                                                "places": ["a", "c", "b"]}})
-    assert status == 200 and only_inserted(moved["text"], routed["text"]) == ["  - route: {places: [a, c, b]}\n"]
+    assert status == 200 and only_inserted(moved["text"], routed["text"]) == ["  - route: {places: [a, c, b]}"]
     assert routed["text"].index("route: {places: [a, c, b]}") < routed["text"].index("  # then home")
     status, fenced = studio.post("/api/edit", {"text": routed["text"], "edit": {
         "op": "add_fence", "keep": "out", "polygon": [[40.4172, -3.704], [40.41725, -3.704], [40.41725, -3.70395]]}})
     assert status == 200
     new = only_inserted(routed["text"], fenced["text"])
-    assert "  keepout: {fence: keepout1, then: stop}\n" in new and "    keep: out\n" in new
+    assert "  keepout: {fence: keepout1, then: stop}" in new and "    keep: out" in new
     assert studio.post("/api/validate", {"text": fenced["text"], "path": "missions/commented.yaml"})[1] == \
         {"problems": []}
     # save it, then a text edit: the file on disk is what was sent, byte for byte
@@ -162,6 +163,28 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
     assert status == 200 and path.read_bytes() == typed.encode()
     assert studio.get("/api/files/missions/commented.yaml")[1]["version"] == again["version"]
     path.write_text(COMMENTED, encoding="utf-8")
+
+
+MIXED = ("---\r\nmission: mixed   # CRLF line ends, a document start, 4-space places, 'steps:' items\r\n"
+         "places:\r\n    a: {lat: 40.4169, lon: -3.7038}   # the gate\r\n\r\n"
+         "steps:\r\n- say: hi\r\n- repeat:\r\n    times: 2\r\n    steps:\r\n      - wait: 1 s\r\n"
+         "failsafes:\r\n  gps_lost: {after: 3 s, then: hold}")
+
+
+def test_a_file_in_its_own_style_keeps_it_through_map_edits(studio):
+    text = MIXED
+    for edit in ({"op": "add_place", "lat": 40.417, "lon": -3.7035}, {"op": "add_route", "places": ["a", "b"]},
+                 {"op": "add_fence", "name": "pond", "keep": "out",
+                  "polygon": [[40.4172, -3.704], [40.41725, -3.704], [40.41725, -3.70395]]}):
+        status, answer = studio.post("/api/edit", {"text": text, "edit": edit})
+        assert status == 200, answer
+        assert applied(text, answer["change"]) == answer["text"]
+        text = answer["text"]
+    assert only_inserted(MIXED, text) and "\r\n" in text and "\n" not in text.replace("\r\n", "")
+    assert not text.endswith("\n")  # it had no line end at the end, and still has none
+    lines = text.split("\r\n")
+    assert "    b: {lat: 40.417, lon: -3.7035}" in lines and "- route: {places: [a, b]}" in lines
+    assert studio.post("/api/validate", {"text": text, "path": "missions/mixed.yaml"})[1] == {"problems": []}
 
 
 def test_a_stale_save_is_a_conflict_and_nothing_is_overwritten(studio):
