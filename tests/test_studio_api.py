@@ -387,3 +387,24 @@ def test_the_command_prints_the_address_and_refuses_a_folder_that_is_not_one(tmp
     finally:
         proc.terminate()
         proc.wait(30)
+
+
+def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
+    text = "mission: long_try\nsteps:\n  - say: waiting\n  - wait: 120 s\n"
+    status, started = studio.post("/api/try", {"text": text, "speed": "realtime"})
+    assert status == 200
+    run_id = started["run_id"]
+    deadline = time.monotonic() + 60
+    status, state = studio.get(f"/api/try/{run_id}/console/api/state")
+    while status != 200 and time.monotonic() < deadline:
+        time.sleep(0.3)
+        status, state = studio.get(f"/api/try/{run_id}/console/api/state")
+    assert status == 200 and state["mission"] == "long_try"
+    tree = studio.post("/api/tree", {"text": text})[1]
+    # the console's node ids are the tree's: a try's live statuses can be painted on the studio's graph
+    assert {n["id"]: n["name"] for n in tree["nodes"]}.items() <= {n["id"]: n["name"] for n in state["tree"]}.items()
+    assert studio.post(f"/api/try/{run_id}/console/api/pause", {})[0] == 200
+    assert studio.get(f"/api/try/{run_id}/console/api/nothing")[0] == 404
+    status, ended = studio.post(f"/api/try/{run_id}/stop", {})
+    assert status == 200 and ended["state"] == "ended" and ended["exit_code"] == 1
+    assert ended["summary"]["status"] in ("stopped", "failure")
