@@ -340,55 +340,6 @@ def test_with_a_token_every_request_needs_it(tmp_path):
         s.server.close()
 
 
-def test_try_runs_the_text_on_the_simulator_to_success(studio):
-    text = "mission: quick_try\nsteps:\n  - say: hello\n  - drive: {distance: 0.5 m, speed: 0.3 m/s}\n"
-    status, started = studio.post("/api/try", {"text": text, "path": "missions/quick.yaml", "speed": "max"})
-    assert status == 200 and started["console_url"].startswith("http://127.0.0.1:")
-    run_id = started["run_id"]
-    deadline = time.monotonic() + 120
-    while True:
-        state = studio.get(f"/api/try/{run_id}")[1]
-        if state["state"] == "ended" or time.monotonic() > deadline:
-            break
-        time.sleep(0.3)
-    assert state["state"] == "ended" and state["exit_code"] == 0, state["output"]
-    assert state["summary"]["status"] == "success" and state["summary"]["mission"] == "quick_try"
-    assert state["report"] == f"/api/try/{run_id}/report/"
-    assert not list((studio.folder / "missions").glob(".quick.try-*"))  # the hidden copy is gone
-    assert studio.get(f"/api/try/{run_id}/console/api/state")[0] == 409  # its console has closed
-    assert studio.get("/api/try/nope")[0] == 404
-    assert studio.post("/api/try", {"text": text, "speed": "fast"})[0] == 400
-
-
-def test_the_command_prints_the_address_and_refuses_a_folder_that_is_not_one(tmp_path):
-    import subprocess
-    import sys
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    bad = subprocess.run([sys.executable, "-m", "beastbt", "studio", str(tmp_path / "none")], capture_output=True,
-                         text=True, timeout=60, env=env)
-    assert bad.returncode == 2 and "is not a folder" in bad.stderr
-    (tmp_path / "m.yaml").write_text("mission: m\nsteps: []\n", encoding="utf-8")
-    proc = subprocess.Popen([sys.executable, "-m", "beastbt", "studio", str(tmp_path), "--listen", "127.0.0.1:0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    try:
-        assert proc.stdout is not None
-        lines = [proc.stdout.readline() for _ in range(2)]
-        url = lines[1].split()[-1]
-        assert lines[1].startswith("open http://127.0.0.1:") and url.endswith("/")
-        port = int(url.rsplit(":", 1)[1].strip("/"))
-        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
-        conn.request("GET", "/api/files")
-        answer = json.loads(conn.getresponse().read())
-        assert [f["path"] for f in answer["files"]] == ["m.yaml"]
-        conn.request("GET", "/")
-        page = conn.getresponse()
-        assert page.status == 200 and page.getheader("Content-Type").startswith("text/html") and page.read()
-        conn.close()
-    finally:
-        proc.terminate()
-        proc.wait(30)
-
-
 def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
     text = "mission: long_try\nsteps:\n  - say: waiting\n  - wait: 120 s\n"
     status, started = studio.post("/api/try", {"text": text, "speed": "realtime"})
@@ -408,3 +359,40 @@ def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
     status, ended = studio.post(f"/api/try/{run_id}/stop", {})
     assert status == 200 and ended["state"] == "ended" and ended["exit_code"] == 1
     assert ended["summary"]["status"] in ("stopped", "failure")
+
+
+def test_a_first_mission_from_a_template_by_the_api_alone_runs_to_success_and_saves(studio):
+    """What the page does for the non-programmer test: template, three places, a route, a keep-out fence, a try,
+    a save; the saved file validates and keeps the template's comments."""
+    path = "missions/first_route.yaml"
+    text = studio.post("/api/templates/gps_route", {"path": path})[1]["text"]
+    comments = [line for line in text.splitlines() if line.lstrip().startswith("#")]
+    north, east = 1 / 111_320, 1 / 84_860  # degrees per metre at the campus datum
+    for dn, de in ((5, 0), (5, 5), (0, 5)):
+        text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_place", "lat": 40.4168 + dn * north,
+                                                                "lon": -3.7038 + de * east}})[1]["text"]
+    text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_route", "places": ["a", "b", "c"]}})[1]["text"]
+    pond = [[40.4168 - 30 * north, -3.7038], [40.4168 - 30 * north, -3.7038 + 10 * east],
+            [40.4168 - 40 * north, -3.7038 + 10 * east]]
+    text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_fence", "keep": "out",
+                                                            "polygon": pond}})[1]["text"]
+    assert studio.post("/api/validate", {"text": text, "path": path})[1] == {"problems": []}
+    run_id = studio.post("/api/try", {"text": text, "path": path, "speed": "max"})[1]["run_id"]
+    deadline = time.monotonic() + 180
+    state = studio.get(f"/api/try/{run_id}")[1]
+    while state["state"] == "running" and time.monotonic() < deadline:
+        time.sleep(0.5)
+        state = studio.get(f"/api/try/{run_id}")[1]
+    assert state.get("exit_code") == 0, state["output"]
+    assert state["summary"]["status"] == "success" and state["summary"]["mission"] == "first_route"
+    assert [w["name"] for w in state["summary"]["waypoints"] if w["reached"]] == ["a", "b", "c"]
+    assert state["report"] == f"/api/try/{run_id}/report/"
+    assert not list((studio.folder / "missions").glob(".first_route.try-*"))  # the hidden copy is gone
+    assert studio.get(f"/api/try/{run_id}/console/api/state")[0] == 409  # its console has closed
+    assert studio.get("/api/try/nope")[0] == 404
+    assert studio.post("/api/try", {"text": text, "speed": "fast"})[0] == 400
+    status, saved = studio.put(f"/api/files/{path}", {"text": text, "version": None})
+    assert status == 200
+    on_disk = (studio.folder / path).read_text(encoding="utf-8")
+    assert on_disk == text and all(line in on_disk.splitlines() for line in comments)
+    assert studio.post("/api/validate", {"text": on_disk, "path": path})[1] == {"problems": []}
