@@ -272,7 +272,8 @@ def _attach_tail(node: Any, key: Any, rest: Optional[str]) -> None:
 
 
 def _append(node: Any, key: Any, value: Any) -> None:
-    """Append ``key: value`` to a mapping (``key`` None: ``value`` to a sequence), the lines after its end kept after."""
+    """Append ``key: value`` to a mapping (``key`` None: ``value`` to a sequence); the lines after its end stay
+    after it."""
     rest = _detach_tail(node)
     if isinstance(node, CommentedMap):
         node[key] = value
