@@ -9,7 +9,6 @@ here judges a mission by other rules.
 
 from __future__ import annotations
 
-import os
 import tempfile
 from pathlib import Path
 from typing import Any, Optional
