@@ -251,6 +251,14 @@ def test_a_typo_is_a_problem_at_its_line_and_column_with_a_did_you_mean(studio):
     assert studio.post("/api/validate", {"text": text.replace("drvie", "drive"), "path": "missions/t.yaml"})[1] == \
         {"problems": []}
     elsewhere = studio.post("/api/validate", {"text": text.replace("drvie", "drive"), "path": "t.yaml"})[1]
+    # a world, a robot profile and a joystick script are checked as what they are
+    for path, typo, says in (("worlds/campus.yaml", ("datum:", "datun:"), "did you mean 'datum'"),
+                             ("missions/joystick/teleop_demo.yaml", ("press: enable", "pres: enable"),
+                              "did you mean 'press'")):
+        right = (REPO / path).read_text(encoding="utf-8")
+        assert studio.post("/api/validate", {"text": right, "path": path})[1] == {"problems": []}, path
+        wrong = studio.post("/api/validate", {"text": right.replace(*typo, 1), "path": path})[1]["problems"]
+        assert says in wrong[0]["message"] and "file" not in wrong[0], wrong
     here = elsewhere["problems"][0]  # ../worlds is not there from the top: said at 'world:', first
     assert "file" not in here and here["line"] == 2 and "world file" in here["message"]
     assert elsewhere["problems"][1]["file"].endswith("worlds/campus.yaml")
