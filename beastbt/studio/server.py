@@ -290,7 +290,7 @@ class StudioServer:
             raise BadRequest(404, f"no template '{name[:40]}'{did_you_mean(name, TEMPLATES)}; the templates are: "
                                   f"{', '.join(TEMPLATES)}")
         body = await self._body(request)
-        return web.json_response({"name": name, "text": template_text(name, body)})
+        return web.json_response({"name": name, "text": template_text(self.folder, name, body)})
 
     # -- analysis: validate, tree, map, edit -------------------------------------------------
     async def _work(self, fn: Callable[..., Any], *args: Any) -> Any:
@@ -309,7 +309,7 @@ class StudioServer:
                     raise BadRequest(400, "give the edit as 'edit': {op: add_place|move_place|add_fence|add_route, "
                                           "...}")
                 try:
-                    return web.json_response({"text": await self._work(apply_edit, text, edit)})
+                    return web.json_response(await self._work(apply_edit, text, edit))
                 except EditRefused as exc:
                     raise BadRequest(400, str(exc), **exc.where()) from None
             robot = self._optional_str(body, "robot")
