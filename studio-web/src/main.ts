@@ -91,8 +91,10 @@ function showProblems(problems: Problem[]): void {
   const list = $("problems");
   list.replaceChildren();
   const errors = problems.filter((p) => p.severity === "error").length;
-  $("problem-count").textContent = problems.length ? `${errors} error${errors === 1 ? "" : "s"}, `
-    + `${problems.length - errors} other` : "";
+  const others = problems.length - errors;
+  const count = (n: number, word: string) => `${n} ${word}${n === 1 ? "" : "s"}`;
+  $("problem-count").textContent = [errors ? count(errors, "error") : "", others ? count(others, "warning") : ""]
+    .filter(Boolean).join(", ");
   if (!problems.length) {
     const li = document.createElement("li");
     li.className = "none";
