@@ -243,3 +243,26 @@ def test_clicking_a_tree_node_selects_its_step(browser, studio, shots):
     assert selection[0] == 6, selection
     assert "turn" in selection[2]
     shots(page, "tree")
+
+
+def test_a_save_over_a_file_changed_on_disk_shows_both_and_overwrites_nothing(browser, studio, folder, shots):
+    page = open_studio(browser, studio)
+    open_file(page, "missions/short.yaml")
+    page.evaluate("studio.editor.setPosition({lineNumber: 7, column: 14}); studio.editor.focus()")
+    page.keyboard.type("  # mine")
+    on_disk = folder / "missions" / "short.yaml"
+    theirs = MISSION.replace("wait: 1 s", "wait: 2 s  # theirs")
+    on_disk.write_text(theirs, encoding="utf-8")  # someone else saved meanwhile
+    page.get_by_test_id("save").click()
+    conflict = page.get_by_test_id("conflict")
+    expect(conflict).to_be_visible()
+    expect(conflict).to_contain_text("theirs")  # both texts are shown
+    expect(conflict).to_contain_text("# mine")
+    assert on_disk.read_text(encoding="utf-8") == theirs  # nothing was overwritten
+    assert "# mine" in editor_text(page)  # and nothing of the user's was lost
+    shots(page, "conflict")
+    page.get_by_test_id("keep-mine").click()  # the user decides: their version replaces the disk's
+    expect(conflict).to_be_hidden()
+    expect(page.locator("#dirty")).to_be_hidden()
+    assert on_disk.read_text(encoding="utf-8") == editor_text(page)
+    assert (folder / "missions" / "short.yaml.bak").read_text(encoding="utf-8") == theirs

@@ -401,8 +401,7 @@ $("save").addEventListener("click", () => void save());
 function showConflict(file: OpenFile, diskText: string | null, message: string): void {
   conflictFor = { file, diskText };
   $("conflict").hidden = false;
-  $("conflict").querySelector("p")!.textContent = `${message}. On the left the file on disk, on the right your text `
-    + "(nothing is lost either way: taking the disk's version keeps yours in Undo).";
+  $("conflict").querySelector("p")!.textContent = `${message}.`;
   $<HTMLButtonElement>("take-disk").disabled = diskText === null;
   if (!diffEditor) {
     diffEditor = monaco.editor.createDiffEditor($("conflict-diff"), {
