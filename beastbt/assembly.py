@@ -284,13 +284,15 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
     return assemble(mission, profile, options, REAL)
 
 
-def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True) -> Behaviour:
+def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,
+                        on_step: Optional[Callable[[Any, Behaviour], None]] = None) -> Behaviour:
     """The tree ``mission`` compiles to on ``profile``'s robot, without opening or emulating any device.
 
     The robot's capabilities are those its device parts would give
     (:attr:`PartEntry.capability`); the steps are those of the parts that add
     steps (the device parts of beastbt add none, so they are not imported:
-    no OpenCV, no EKF). What ``beastbt tree`` prints.
+    no OpenCV, no EKF). What ``beastbt tree`` prints. ``on_step`` is told each step and the behaviour it
+    became (the studio maps the nodes back to the lines of their steps).
     """
     options = RunOptions(record=False)
     entries = [entry for entry in BUILTIN_PARTS if entry.needed(profile, options)]
@@ -300,7 +302,7 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     parts += [external_part(str(name), profile) for name in (profile.section("parts") or {})]
     clock = SimClock()
     ctx = MissionContext(clock=clock, events=EventLog(clock), params=profile.control, capabilities=capabilities)
-    return compile_mission(mission, ctx, step_builders(parts))
+    return compile_mission(mission, ctx, step_builders(parts), on_step)
 
 
 def run_file(mission_path: str, options: RunOptions) -> dict:

@@ -131,10 +131,184 @@ def validate_text(folder: StudioFolder, text: str, path: Optional[str] = None, r
 
 
 def tree_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: Optional[str] = None) -> dict:
-    """``POST /api/tree``: the compiled tree (filled in below)."""
-    raise NotImplementedError
+    """``POST /api/tree``: the compiled tree, ``{nodes, edges, root, problems}``, each node at its step's line.
+
+    Node ids are the console's (:func:`beastbt.run.tree_ids.tree_layout`): ``"0"`` the root, ``"0.1"`` its second
+    child. A node the compiler made inside a step (the ``go_to`` of a route) carries that step's position.
+    """
+    from beastbt.assembly import compile_for_profile
+    from beastbt.robot.profile import load_profile
+    from beastbt.run.tree_ids import tree_layout
+    _, name = where(folder, path)
+    mission, problems = check(folder, text, path, robot)
+    lines = text.splitlines()
+    answer: dict[str, Any] = {"nodes": [], "edges": [], "root": None,
+                              "problems": [problem_json(p, name, lines) for p in _sorted(problems)]}
+    if mission is None:
+        return answer
+    positions: dict[int, Position] = {}
+
+    def seen(step: Any, behaviour: Any) -> None:
+        positions.setdefault(id(behaviour), step.at)
+
+    try:
+        root = compile_for_profile(mission, load_profile(robot_argument(folder, robot)), on_step=seen)
+    except InvalidInput as exc:
+        answer["problems"] += [problem_json(p, name, lines) for p in exc.problems]
+        return answer
+    top = mission.doc.position(("mission",), key=True)
+    at: dict[str, Position] = {}
+    for n in tree_layout(root):
+        here = positions.get(id(n.node)) or (at[n.parent] if n.parent is not None else top)
+        at[n.id] = here
+        answer["nodes"].append({"id": n.id, "name": n.name, "kind": n.kind, "type": type(n.node).__name__,
+                                "line": here.line, "column": here.column})
+        if n.parent is not None:
+            answer["edges"].append([n.parent, n.id])
+    answer["root"] = "0"
+    return answer
+
+
+def _raw_mission(folder: StudioFolder, text: str, path: Optional[str]) -> tuple[Any, list[Problem]]:
+    """The text as positioned YAML (for a map of a text that does not load as a mission yet), and its problems."""
+    from beastbt.core.yaml_source import load_yaml
+    real, name = where(folder, path)
+    try:
+        return load_yaml(real, text=text, display_name=name), []
+    except InvalidInput as exc:
+        return None, exc.problems
+
+
+def _number(value: Any) -> Optional[float]:
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: Optional[str] = None) -> dict:
-    """``POST /api/map``: what the map pane draws (filled in below)."""
-    raise NotImplementedError
+    """``POST /api/map``: what the map pane draws (docs/studio.md, Map): places, fences, routes, the world."""
+    from beastbt.mission.mission_world import load_mission_world
+    from beastbt.sim.world import empty_world
+    _, name = where(folder, path)
+    mission, problems = check(folder, text, path, None)
+    lines = text.splitlines()
+    errors = [p for p in problems if p.severity == "error"]
+    answer: dict[str, Any] = {"frame": "gps", "datum": None, "places": [], "fences": [], "routes": [],
+                              "problems": [problem_json(p, name, lines) for p in _sorted(errors)]}
+    world = None
+    if mission is not None and mission.world is not None:
+        try:
+            world = load_mission_world(mission)
+        except InvalidInput:
+            world = None
+    frame = (world or empty_world()).frame
+    answer["datum"] = {"lat": frame.lat0_deg, "lon": frame.lon0_deg}
+    if world is not None:
+        answer["world"] = _world_json(world, frame)
+    if mission is not None:
+        _mission_layers(mission, answer)
+    else:
+        doc, _ = _raw_mission(folder, text, path)
+        if doc is not None and isinstance(doc.data, dict):
+            _raw_layers(doc, answer)
+    return answer
+
+
+def _mission_layers(mission: Any, answer: dict) -> None:
+    """Places, fences and routes of a loaded mission, each at the position of its key or step."""
+    from beastbt.mission import steps as st
+    from beastbt.mission.warnings import all_steps
+    doc = mission.doc
+    for place in mission.places.values():
+        at = doc.position(("places", place.name), key=True)
+        answer["places"].append({"name": place.name, "lat": place.lat, "lon": place.lon,
+                                 "tolerance_m": place.tolerance_m, "line": at.line, "column": at.column})
+    for fence in mission.fences.values():
+        at = doc.position(("fences", fence.name), key=True)
+        answer["fences"].append({"name": fence.name, "keep": fence.keep, "polygon": [list(c) for c in fence.corners],
+                                 "line": at.line, "column": at.column})
+    for failsafe in mission.failsafes:
+        if failsafe.kind == "geofence" and "radius_m" in failsafe.params:
+            centre = mission.places.get(failsafe.params.get("center"))
+            if centre is not None:
+                at = doc.position(failsafe.path, key=True)
+                answer["fences"].append({"name": "geofence", "keep": "in", "line": at.line, "column": at.column,
+                                         "circle": {"lat": centre.lat, "lon": centre.lon,
+                                                    "radius_m": failsafe.params["radius_m"]}})
+    steps = list(all_steps(mission.steps)) + [s for task in mission.tasks.values() for s in all_steps(task)]
+    for step in steps:
+        if isinstance(step, st.Route):
+            known = [mission.places[n] for n in step.places if n in mission.places]
+            answer["routes"].append({"places": list(step.places), "points": [[p.lat, p.lon] for p in known],
+                                     "loops": step.loops, "line": step.at.line, "column": step.at.column})
+        elif isinstance(step, st.GoToPoint):
+            answer["routes"].append({"places": [], "points": [[step.lat_deg, step.lon_deg]], "loops": 1,
+                                     "line": step.at.line, "column": step.at.column})
+
+
+def _raw_layers(doc: Any, answer: dict) -> None:
+    """What can be read of a text that does not load: its ``places:`` with lat/lon, ``fences:`` of corners, routes."""
+    data = doc.data
+    places = data.get("places") if isinstance(data.get("places"), dict) else {}
+    coords: dict[str, tuple[float, float]] = {}
+    for pname, value in places.items():
+        if isinstance(value, dict) and _number(value.get("lat")) is not None and _number(value.get("lon")) is not None:
+            coords[str(pname)] = (float(value["lat"]), float(value["lon"]))
+            at = doc.position(("places", pname), key=True)
+            answer["places"].append({"name": str(pname), "lat": coords[str(pname)][0], "lon": coords[str(pname)][1],
+                                     "line": at.line, "column": at.column})
+    fences = data.get("fences") if isinstance(data.get("fences"), dict) else {}
+    for fname, value in fences.items():
+        corners = value.get("polygon") if isinstance(value, dict) else None
+        if not isinstance(corners, list):
+            continue
+        polygon = []
+        for c in corners:
+            if isinstance(c, dict) and _number(c.get("lat")) is not None and _number(c.get("lon")) is not None:
+                polygon.append([float(c["lat"]), float(c["lon"])])
+            elif isinstance(c, str) and c in coords:
+                polygon.append(list(coords[c]))
+        if len(polygon) >= 3:
+            at = doc.position(("fences", fname), key=True)
+            answer["fences"].append({"name": str(fname), "keep": "out" if value.get("keep") == "out" else "in",
+                                     "polygon": polygon, "line": at.line, "column": at.column})
+    steps = data.get("steps") if isinstance(data.get("steps"), list) else []
+    for i, step in enumerate(steps):
+        route = step.get("route") if isinstance(step, dict) else None
+        names = route.get("places") if isinstance(route, dict) else None
+        if isinstance(names, list):
+            at = doc.position(("steps", i))
+            answer["routes"].append({"places": [str(n) for n in names],
+                                     "points": [list(coords[n]) for n in names if isinstance(n, str) and n in coords],
+                                     "loops": 1, "line": at.line, "column": at.column})
+
+
+def _world_json(world: Any, frame: Any) -> dict:
+    """A world's plan in its frame (metres, x east, y north) and the same in lat/lon for a map (``*_latlon``)."""
+    from beastbt.sim.floor import floor_lines
+    from beastbt.sim.obstacles import obstacle_outline
+
+    def latlon(x: float, y: float) -> list[float]:
+        lat, lon, _ = frame.to_geodetic(x, y, 0.0)
+        return [round(lat, 8), round(lon, 8)]
+
+    walls = [[w.x1, w.y1, w.x2, w.y2] for w in world.walls]
+    floor = world.section("floor")
+    try:
+        lines = [{"points": [[round(float(x), 3), round(float(y), 3)] for x, y in line.points], "closed": line.closed}
+                 for line in (floor_lines(floor) if floor else [])]
+    except ValueError:
+        lines = []
+    obstacles = [obstacle_outline(o) for o in world.obstacles]
+    for o in obstacles:
+        if "corners" in o:
+            o["corners_latlon"] = [latlon(x, y) for x, y in o["corners"]]
+        if "xy" in o:
+            o["latlon"] = latlon(*o["xy"])
+        if "path" in o:
+            o["path_latlon"] = [latlon(p[0], p[1]) for p in o["path"]]
+    import math
+    return {"name": world.name, "file": world.file, "walls": walls,
+            "walls_latlon": [[latlon(x1, y1), latlon(x2, y2)] for x1, y1, x2, y2 in walls],
+            "obstacles": obstacles, "lines": lines,
+            "lines_latlon": [[latlon(x, y) for x, y in line["points"]] for line in lines],
+            "start": {"x": world.start_x, "y": world.start_y, "yaw_deg": round(math.degrees(world.start_yaw), 3),
+                      "lat": latlon(world.start_x, world.start_y)[0], "lon": latlon(world.start_x, world.start_y)[1]}}

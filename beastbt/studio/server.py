@@ -89,6 +89,8 @@ class StudioServer:
         r.add_get("/api/try/{run_id}", self._try_state)
         r.add_post("/api/try/{run_id}/stop", self._try_stop)
         r.add_get("/api/try/{run_id}/report", self._try_report)
+        r.add_get("/api/try/{run_id}/report/", self._try_report)
+        r.add_get("/api/try/{run_id}/report/{name:.+}", self._try_report_asset)
         r.add_get("/api/try/{run_id}/console/{what:.+}", self._try_console)
         r.add_post("/api/try/{run_id}/console/{what:.+}", self._try_console)
         r.add_route("*", "/api/{rest:.*}", self._no_api)
@@ -128,7 +130,18 @@ class StudioServer:
             raise failure[0]
         return self
 
+    def _warm_up(self) -> None:
+        """Check a template once, in a worker, so that the first check the page asks for is as quick as the next
+        (the first imports the schemas, the compiler and the parts: about a second)."""
+        from beastbt.studio.analysis import tree_of
+        from beastbt.studio.templates import template_text
+        try:
+            tree_of(self.folder, template_text(self.folder, "gps_route", {}), None, None)
+        except Exception:  # noqa: BLE001 - a warm-up only; the real request says what is wrong
+            pass
+
     async def _bind(self) -> None:
+        self.workers.submit(self._warm_up)
         self._runner = web.AppRunner(self.app(), access_log=None, handle_signals=False)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.requested_port, reuse_address=True)
@@ -331,8 +344,18 @@ class StudioServer:
         return web.json_response(self.trials.stop(request.match_info["run_id"]))
 
     async def _try_report(self, request: web.Request) -> web.StreamResponse:
-        report = self.trials.report_file(request.match_info["run_id"])
+        if not request.path.endswith("/"):  # the report's plots are relative to it: serve it as a folder
+            raise web.HTTPFound(request.path + "/" + (f"?{request.query_string}" if request.query_string else ""))
+        report = await self._work(self.trials.report_file, request.match_info["run_id"])
         return web.FileResponse(report, headers={"Content-Type": "text/html", "Cache-Control": "no-store"})
+
+    async def _try_report_asset(self, request: web.Request) -> web.StreamResponse:
+        name = request.match_info["name"]
+        if name == "":
+            return await self._try_report(request)
+        target = await self._work(self.trials.report_asset, request.match_info["run_id"], name)
+        ctype = mimetypes.guess_type(target.name)[0] or "application/octet-stream"
+        return web.FileResponse(target, headers={"Content-Type": ctype, "Cache-Control": "no-store"})
 
     async def _try_console(self, request: web.Request) -> web.Response:
         body = await request.read() if request.method == "POST" else None
