@@ -153,6 +153,7 @@ def test_a_gps_route_by_clicks_alone_tried_to_success_and_saved(browser, studio,
     comments = [line for line in template.splitlines() if line.lstrip().startswith("#")]
     assert comments, "the template has comments to keep"
     expect(page.get_by_test_id("problems").get_by_test_id("problem")).to_have_count(0)
+    expect(page.get_by_test_id("map")).to_have_attribute("data-ready", "true")  # the campus, round its datum
 
     # three places, one click each (north, north-east, east of the start: a few metres apart at this zoom)
     for i, (dx, dy) in enumerate([(0, -70), (70, -70), (70, 0)], start=1):

@@ -169,6 +169,13 @@ $<HTMLInputElement>("tiles").addEventListener("change", (e) => {
   studioMap.setTiles((e.target as HTMLInputElement).checked);
 });
 
+/** The map's tools work once the open file's map is drawn (a click before would land on the wrong map). */
+function setMapReady(ready: boolean): void {
+  $("map").dataset.ready = ready ? "true" : "false";
+  for (const id of ["add-place", "draw-fence", "make-route"]) $<HTMLButtonElement>(id).disabled = !ready;
+}
+setMapReady(false);
+
 async function redrawMap(ticket: number, text: string): Promise<void> {
   const cur = state.current;
   if (!cur) return;
@@ -177,6 +184,7 @@ async function redrawMap(ticket: number, text: string): Promise<void> {
     if (ticket !== state.checkTicket) return;
     studioMap.draw(data);
     $("map").dataset.places = String(data?.places?.length ?? 0);
+    setMapReady(true);
   } catch (e) {
     if (ticket === state.checkTicket) status(`the map cannot be drawn yet: ${(e as Error).message}`, "info");
   }
@@ -320,6 +328,7 @@ async function openFile(path: string, given?: { text: string; version: string | 
   studioMap.refit();
   studioMap.draw(null);
   $("map").dataset.places = "0";
+  setMapReady(false);
   showProblems([]);
   state.treeStale = true;
   void check();
@@ -514,6 +523,7 @@ async function tryIt(): Promise<void> {
   $("run-question").hidden = true;
   $("run-pause").hidden = false;
   $("run-resume").hidden = true;
+  $("run-stop").hidden = false;
   setProgress(null);
   studioMap.showRobot(null);
   showTab("map");
@@ -588,6 +598,7 @@ function showEnded(s: TryState): void {
     : result === "stopped" ? "■ The run was stopped" : `✖ The mission ended in ${result}`;
   $("run-pause").hidden = true;
   $("run-resume").hidden = true;
+  $("run-stop").hidden = true;
   $("run-question").hidden = true;
   const dl = $("run-summary");
   dl.replaceChildren();

@@ -243,8 +243,14 @@ export class StudioMap {
       });
       bounds.extend(at);
     }
-    if (!this.fitted && bounds.isValid()) {
-      this.map.fitBounds(bounds.pad(0.25), { maxZoom: this.frame === "world" ? 5 : 19 });
+    if (!this.fitted) {
+      if (bounds.isValid()) {
+        this.map.fitBounds(bounds.pad(0.25), { maxZoom: this.frame === "world" ? 5 : 19 });
+      } else if (this.frame === "gps" && this.datum) {
+        this.map.setView([this.datum.lat, this.datum.lon], 18);  // nothing placed yet: the world's datum
+      } else {
+        this.map.setView([0, 0], this.frame === "world" ? 3 : 2);
+      }
       this.fitted = true;
     }
     this.drawGrid();

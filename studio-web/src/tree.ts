@@ -57,6 +57,7 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
       "elk.layered.spacing.nodeNodeBetweenLayers": "28",
       "elk.spacing.nodeNode": "14",
       "elk.edgeRouting": "ORTHOGONAL",
+      "elk.layered.mergeEdges": "true",
       "elk.layered.nodePlacement.strategy": "BRANDES_KOEPF",
       "elk.layered.considerModelOrder.strategy": "NODES_AND_EDGES",
     },
