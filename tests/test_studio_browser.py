@@ -155,13 +155,36 @@ def test_a_gps_route_by_clicks_alone_tried_to_success_and_saved(browser, studio,
     expect(page.get_by_test_id("problems").get_by_test_id("problem")).to_have_count(0)
     expect(page.get_by_test_id("map")).to_have_attribute("data-ready", "true")  # the campus, round its datum
 
-    # three places, one click each (north, north-east, east of the start: a few metres apart at this zoom)
-    for i, (dx, dy) in enumerate([(0, -70), (70, -70), (70, 0)], start=1):
+    # three places, one click each (north, north-east, east of the start: about 8 m apart at this zoom)
+    for i, (dx, dy) in enumerate([(0, -35), (35, -35), (35, 0)], start=1):
         page.get_by_test_id("add-place").click()
         click_map(page, dx, dy)
         expect(page.get_by_test_id("place-marker")).to_have_count(i)
     names = page.get_by_test_id("place-marker").evaluate_all("els => els.map(e => e.dataset.place)")
     assert len(set(names)) == 3
+
+    # one undo stack for map and text: Undo takes the last place away (text and map), Redo brings it back
+    with_three = editor_text(page)
+    page.get_by_test_id("undo").click()
+    expect(page.get_by_test_id("place-marker")).to_have_count(2)
+    assert f"{names[2]}: {{lat:" not in editor_text(page)
+    page.get_by_test_id("redo").click()
+    expect(page.get_by_test_id("place-marker")).to_have_count(3)
+    assert editor_text(page) == with_three
+
+    # dragging a place moves it in the text, and only that line changes
+    marker = page.locator(f'[data-testid="place-marker"][data-place="{names[2]}"] .dot').bounding_box()
+    x, y = marker["x"] + marker["width"] / 2, marker["y"] + marker["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 5, y + 5, steps=5)
+    page.mouse.move(x + 10, y + 10, steps=5)
+    page.mouse.up()
+    wait_for_page(page, f"studio.editor.getValue() !== {json.dumps(with_three)}")
+    before, after = with_three.splitlines(), editor_text(page).splitlines()
+    changed = [(a, b) for a, b in zip(before, after) if a != b]
+    assert len(before) == len(after) and len(changed) == 1, changed
+    assert changed[0][0].strip().startswith(f"{names[2]}:") and changed[0][1].strip().startswith(f"{names[2]}:")
 
     # the route: click the places in order, then Finish
     page.get_by_test_id("make-route").click()
@@ -187,7 +210,7 @@ def test_a_gps_route_by_clicks_alone_tried_to_success_and_saved(browser, studio,
 
     # Try it on the simulator, to success
     page.get_by_test_id("try").click()
-    expect(page.get_by_test_id("run-panel")).to_have_attribute("data-result", "success", timeout=45000)
+    expect(page.get_by_test_id("run-panel")).to_have_attribute("data-result", "success", timeout=60000)
     expect(page.get_by_test_id("try-outcome")).to_contain_text("succeeded")
     shots(page, "tried")
 

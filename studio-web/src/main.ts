@@ -97,7 +97,7 @@ function showProblems(problems: Problem[]): void {
     .filter(Boolean).join(", ");
   if (!problems.length) {
     const li = document.createElement("li");
-    li.className = "none";
+    li.className = state.current ? "none" : "none muted";
     li.textContent = state.current ? "No problems: the mission is ready to try." : "Open a file to check it.";
     list.appendChild(li);
     return;
@@ -320,6 +320,9 @@ async function openFile(path: string, given?: { text: string; version: string | 
     state.open.set(path, file);
   }
   state.current = file;
+  $("welcome").hidden = true;
+  editor.updateOptions({ readOnly: false });
+  for (const id of ["try", "save"]) $<HTMLButtonElement>(id).disabled = false;
   await useSchema(file.model.uri, schemaFor(file.kind));
   editor.setModel(file.model);
   if (file.viewState) editor.restoreViewState(file.viewState);
@@ -650,6 +653,9 @@ for (const [id, choice] of [["run-yes", "yes"], ["run-no", "no"]] as const) {
 }
 
 // ---------------------------------------------------------------- start
+// Nothing to type into, save or try until a file is open: text typed into no file would be lost.
+editor.updateOptions({ readOnly: true });
+for (const id of ["try", "save"]) $<HTMLButtonElement>(id).disabled = true;
 showTab("map");
 showProblems([]);
 void loadTemplates();

@@ -75,15 +75,17 @@ export class StudioMap {
       minZoom: frame === "world" ? -3 : 2,
       maxZoom: frame === "world" ? 8 : 23,
       zoomSnap: 0.25,
+      zoomControl: false,
       attributionControl: false,
       doubleClickZoom: false,
       boxZoom: false,
     });
     (this as any).map = map;
+    L.control.zoom({ position: "topright" }).addTo(map);
     this.layers.addTo(map);
     this.grid.addTo(map);
     this.draft.addTo(map);
-    if (frame === "gps") L.control.scale({ imperial: false }).addTo(map);
+    if (frame === "gps") L.control.scale({ imperial: false, position: "bottomright" }).addTo(map);
     map.on("click", (e: L.LeafletMouseEvent) => this.clicked(e.latlng));
     map.on("moveend zoomend", () => this.drawGrid());
     this.fitted = false;
@@ -244,8 +246,14 @@ export class StudioMap {
       bounds.extend(at);
     }
     if (!this.fitted) {
-      if (bounds.isValid()) {
-        this.map.fitBounds(bounds.pad(0.25), { maxZoom: this.frame === "world" ? 5 : 19 });
+      const small = bounds.isValid() && (this.frame === "world"
+        ? bounds.getNorthEast().distanceTo(bounds.getSouthWest()) < 4
+        : this.map.distance(bounds.getNorthEast(), bounds.getSouthWest()) < 5);
+      if (small) {
+        // one point, or a few close together: show some 100 m round them, room to add places
+        this.map.setView(bounds.getCenter(), this.frame === "world" ? 5 : 19);
+      } else if (bounds.isValid()) {
+        this.map.fitBounds(bounds.pad(0.2), { maxZoom: this.frame === "world" ? 7 : 22 });
       } else if (this.frame === "gps" && this.datum) {
         this.map.setView([this.datum.lat, this.datum.lon], 18);  // nothing placed yet: the world's datum
       } else {
@@ -274,7 +282,7 @@ export class StudioMap {
       : `${Math.abs(v).toFixed(digits)}°${axis === "y" ? (v >= 0 ? "N" : "S") : (v >= 0 ? "E" : "W")}`;
     const line = { color: "#c7ccd1", weight: 1, interactive: false };
     const label = (at: L.LatLngExpression, text: string, cls: string) => L.marker(at, {
-      icon: L.divIcon({ className: `grid-label ${cls}`, html: text, iconSize: [0, 0] }),
+      icon: L.divIcon({ className: `grid-label ${cls}`, html: `<span>${text}</span>`, iconSize: [0, 0] }),
       interactive: false, keyboard: false,
     }).addTo(this.grid);
     for (let x = Math.ceil(b.getWest() / step) * step, n = 0; x <= b.getEast() && n < 40; x += step, n++) {

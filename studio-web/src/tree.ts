@@ -72,7 +72,9 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
   const byId = new Map(data.nodes.map((n) => [String(n.id), n]));
   const W = (laid.width ?? 0) + 20;
   const H = (laid.height ?? 0) + 20;
-  const root = svg("svg", { width: W, height: H, viewBox: `-10 -10 ${W} ${H}`, class: "tree-svg" });
+  // A wide tree is shrunk to the pane (down to 60 %: the labels stay readable); wider still, the pane scrolls.
+  const scale = Math.max(0.6, Math.min(1, (host.clientWidth - 20) / W || 1));
+  const root = svg("svg", { width: W * scale, height: H * scale, viewBox: `-10 -10 ${W} ${H}`, class: "tree-svg" });
   const edges = svg("g", { class: "edges" }, root);
   for (const e of laid.edges ?? []) {
     for (const s of (e as any).sections ?? []) {
