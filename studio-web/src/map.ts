@@ -53,6 +53,8 @@ export class StudioMap {
     buttons: Record<Exclude<Mode, "none">, HTMLButtonElement>;
   }) {
     this.map = this.makeMap("gps");
+    // The run panel, the window or a tab switch can change the map's box: Leaflet must measure it again.
+    new ResizeObserver(() => this.map.invalidateSize()).observe(host);
     ui.finish.addEventListener("click", () => this.finish());
     ui.cancel.addEventListener("click", () => this.setMode("none"));
     ui.buttons.place.addEventListener("click", () => this.setMode(this.mode === "place" ? "none" : "place"));
