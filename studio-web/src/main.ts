@@ -98,7 +98,8 @@ function showProblems(problems: Problem[]): void {
   if (!problems.length) {
     const li = document.createElement("li");
     li.className = state.current ? "none" : "none muted";
-    li.textContent = state.current ? "No problems: the mission is ready to try." : "Open a file to check it.";
+    li.textContent = !state.current ? "Open a file to check it."
+      : state.current.kind === "mission" ? "No problems: the mission is ready to try." : "No problems.";
     list.appendChild(li);
     return;
   }
@@ -179,12 +180,22 @@ setMapReady(false);
 async function redrawMap(ticket: number, text: string): Promise<void> {
   const cur = state.current;
   if (!cur) return;
+  let ask = { text, path: cur.path };
+  if (cur.kind === "world") {
+    // /api/map draws a mission's world: a world file is drawn as the world of a one-line mission beside it (as it
+    // is saved on disk: its unsaved changes show once saved).
+    const name = cur.path.split("/").pop()!;
+    const beside = cur.path.slice(0, cur.path.length - name.length);
+    ask = { text: `mission: world_view\nworld: ./${name}\nsteps:\n  - wait: 1 s\n`, path: `${beside}.world_view.yaml` };
+  }
   try {
-    const data = await api<MapData>("map", { text, path: cur.path });
+    const data = await api<MapData>("map", ask);
     if (ticket !== state.checkTicket) return;
     studioMap.draw(data);
     $("map").dataset.places = String(data?.places?.length ?? 0);
-    setMapReady(true);
+    setMapReady(cur.kind === "mission");
+    if (cur.kind === "world") $("hint").textContent = "The world as saved on disk (save to see your changes here).";
+    else studioMap.showHint();
   } catch (e) {
     if (ticket === state.checkTicket) status(`the map cannot be drawn yet: ${(e as Error).message}`, "info");
   }
@@ -322,7 +333,9 @@ async function openFile(path: string, given?: { text: string; version: string | 
   state.current = file;
   $("welcome").hidden = true;
   editor.updateOptions({ readOnly: false });
-  for (const id of ["try", "save"]) $<HTMLButtonElement>(id).disabled = false;
+  $<HTMLButtonElement>("save").disabled = false;
+  $<HTMLButtonElement>("try").disabled = file.kind !== "mission";
+  $("try").title = file.kind === "mission" ? "Run this mission on the simulator" : "Only a mission can be tried";
   await useSchema(file.model.uri, schemaFor(file.kind));
   editor.setModel(file.model);
   if (file.viewState) editor.restoreViewState(file.viewState);

@@ -311,13 +311,18 @@ export class StudioMap {
       const m = layer as L.Marker;
       if (m.dragging) { if (mode === "none") m.dragging.enable(); else m.dragging.disable(); }
     });
+    this.showHint();
+    this.updateFinish();
+  }
+
+  /** The hint line under the tools: what to do in the current mode. */
+  showHint(): void {
     this.ui.hint.textContent = {
       none: "Drag a place to move it. Click a place or a fence to find it in the text.",
       place: "Click on the map where the new place is.",
       fence: "Click the corners of the area to keep out of, then press Finish.",
       route: "Click the places in the order the robot visits them, then press Finish.",
-    }[mode];
-    this.updateFinish();
+    }[this.mode];
   }
 
   private updateFinish(): void {
