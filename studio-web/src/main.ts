@@ -167,7 +167,11 @@ const studioMap = new StudioMap($("map"), {
     route: $<HTMLButtonElement>("make-route") },
 });
 $<HTMLInputElement>("tiles").addEventListener("change", (e) => {
-  studioMap.setTiles((e.target as HTMLInputElement).checked);
+  const box = e.target as HTMLInputElement;
+  studioMap.setTiles(box.checked, () => {
+    box.checked = false;
+    status("the online map could not be loaded (no internet here?): the map stays offline", "error");
+  });
 });
 
 /** The map's tools work once the open file's map is drawn (a click before would land on the wrong map). */
@@ -532,6 +536,7 @@ async function tryIt(): Promise<void> {
   delete panel.dataset.result;
   $("run-outcome").textContent = "Starting the simulator…";
   $("run-step").textContent = "-";
+  $("run-step-label").textContent = "step";
   $("run-time").textContent = "";
   $("run-details").hidden = true;
   $("run-report").hidden = true;
@@ -640,7 +645,10 @@ function showEnded(s: TryState): void {
     a.href = withToken(s.report);
     a.hidden = false;
   }
-  $("run-step").textContent = out.trim().split("\n").filter(Boolean).pop() ?? "-";
+  // beastbt run's own last word: "mission NAME: SUCCESS (all steps done)"
+  const lines = out.trim().split("\n").filter(Boolean);
+  $("run-step-label").textContent = "";
+  $("run-step").textContent = lines.find((l) => /^mission \S+: /.test(l)) ?? lines.pop() ?? "";
   $("run-time").textContent = "";
   setProgress(null);
 }

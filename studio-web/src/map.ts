@@ -95,11 +95,13 @@ export class StudioMap {
   }
 
   /** Online tiles under a GPS map (off by default: a field often has no internet). */
-  setTiles(on: boolean): void {
+  setTiles(on: boolean, failed?: () => void): void {
     if (this.tiles) { this.tiles.remove(); this.tiles = null; }
     if (on && this.frame === "gps") {
-      this.tiles = L.tileLayer(TILE_URL, { maxZoom: 19, maxNativeZoom: 19 }).addTo(this.map);
+      this.tiles = L.tileLayer(TILE_URL, { maxZoom: 23, maxNativeZoom: 19 }).addTo(this.map);
       this.tiles.bringToBack();
+      // No internet (or a page policy that keeps the studio to itself): say so once, and go back to the grid.
+      this.tiles.once("tileerror", () => { this.setTiles(false); failed?.(); });
     }
   }
 
