@@ -15,6 +15,51 @@ from beastbt.core.units import UnitError, parse_duration
 EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
 
 
+class ReaderSafeStream:
+    """Standard output that a reader who went away cannot break: ``beastbt run m.yaml --summary s.json | head -n 0``.
+
+    The first write or flush that finds the pipe closed (BrokenPipeError)
+    points the file descriptor at /dev/null and drops what was pending; the run
+    carries on to its end and writes its summary and recording, and the exit
+    status is the mission's. Everything else is the wrapped stream's.
+    """
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self.reader_gone = False
+        """True once a write found the reader gone (what was written since went nowhere)."""
+
+    def _gone(self) -> None:
+        import os
+        self.reader_gone = True
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())  # the pending bytes, flushed at exit, go nowhere, quietly
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def write(self, text: str) -> int:
+        """Write ``text``; when the reader is gone, nothing, and no error."""
+        if not self.reader_gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._gone()
+        return len(text)
+
+    def flush(self) -> None:
+        """Flush; when the reader is gone, nothing, and no error."""
+        if not self.reader_gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._gone()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
 def _duration(text: str) -> float:
     try:
         return parse_duration(text)
@@ -240,6 +285,11 @@ def command(args: argparse.Namespace) -> int:
         host, port = args.foxglove
         print(f"Foxglove live: ws://{host}:{port} (in Foxglove: Open connection -> Foxglove WebSocket; "
               f"layout: beastbt foxglove-layout)", flush=True)
-    summary = execute(prepared, sys.stdout)
-    print(human_summary(summary))
+    out = ReaderSafeStream(sys.stdout)
+    sys.stdout = out  # type: ignore[assignment]  # every print of the run, the threads' included
+    try:
+        summary = execute(prepared, out)
+        print(human_summary(summary), flush=True)
+    finally:
+        sys.stdout = out._stream
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

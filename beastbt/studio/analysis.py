@@ -80,9 +80,11 @@ def _token_end(lines: list[str], line: int, column: int) -> Optional[int]:
     return j + 1 if j > i else None
 
 
-def _sorted(problems: list[Problem]) -> list[Problem]:
+def _sorted(problems: list[Problem], name: str) -> list[Problem]:
+    """Once each: the text's own first (errors, then warnings, by position), then those in other files."""
     unique = {(p.file, p.position, p.message, p.severity): p for p in problems}
-    return sorted(unique.values(), key=lambda p: (p.severity != "error", p.position, p.message))
+    return sorted(unique.values(), key=lambda p: (p.file != name, p.file, p.severity != "error", p.position,
+                                                  p.message))
 
 
 def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[str]) -> tuple[Any, list[Problem]]:
@@ -127,7 +129,7 @@ def validate_text(folder: StudioFolder, text: str, path: Optional[str] = None, r
     _, name = where(folder, path)
     _, problems = check(folder, text, path, robot)
     lines = text.splitlines()
-    return {"problems": [problem_json(p, name, lines) for p in _sorted(problems)]}
+    return {"problems": [problem_json(p, name, lines) for p in _sorted(problems, name)]}
 
 
 def tree_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: Optional[str] = None) -> dict:
@@ -143,7 +145,7 @@ def tree_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: 
     mission, problems = check(folder, text, path, robot)
     lines = text.splitlines()
     answer: dict[str, Any] = {"nodes": [], "edges": [], "root": None,
-                              "problems": [problem_json(p, name, lines) for p in _sorted(problems)]}
+                              "problems": [problem_json(p, name, lines) for p in _sorted(problems, name)]}
     if mission is None:
         return answer
     positions: dict[int, Position] = {}
@@ -192,7 +194,7 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
     lines = text.splitlines()
     errors = [p for p in problems if p.severity == "error"]
     answer: dict[str, Any] = {"frame": "gps", "datum": None, "places": [], "fences": [], "routes": [],
-                              "problems": [problem_json(p, name, lines) for p in _sorted(errors)]}
+                              "problems": [problem_json(p, name, lines) for p in _sorted(errors, name)]}
     world = None
     if mission is not None and mission.world is not None:
         try:

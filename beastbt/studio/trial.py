@@ -125,6 +125,8 @@ class Trials:
                    "--speed", speed, "--max-time", str(max_time), "--seed", str(seed),
                    "--console", f"127.0.0.1:{port}", "--summary", str(run_folder / "summary.json"),
                    "--runs-dir", str(run_folder / "runs")]
+        if robot != "sim":
+            command.append("--sim")  # a real robot's profile on the simulator: a try never moves a robot
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         try:
             process = subprocess.Popen(command, cwd=run_folder, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
