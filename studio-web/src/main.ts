@@ -142,7 +142,7 @@ async function check(): Promise<void> {
   const text = cur.model.getValue();
   state.treeStale = true;
   try {
-    const answer = await api<{ problems: Problem[] }>("validate", { text, path: cur.path });
+    const answer = await api<{ problems: Problem[] }>("validate", { text, path: cur.path, robot: robot() });
     if (ticket !== state.checkTicket) return;
     showProblems(answer.problems ?? []);
   } catch (e) {
@@ -235,7 +235,7 @@ async function redrawTree(): Promise<void> {
   const ticket = ++state.treeTicket;
   state.treeStale = false;
   try {
-    const data = await api<TreeData>("tree", { text: cur.model.getValue(), path: cur.path });
+    const data = await api<TreeData>("tree", { text: cur.model.getValue(), path: cur.path, robot: robot() });
     if (ticket !== state.treeTicket) return;
     await drawTree($("tree-view"), data, (node) => {
       if (node.line) selectAt(editor, node.line, node.column ?? 1, node.end_line ?? undefined,
@@ -551,7 +551,7 @@ async function tryIt(): Promise<void> {
   try {
     const speed = new URLSearchParams(location.search).get("speed") || undefined;
     const answer = await api<{ run_id: string; console_url?: string }>("try",
-      { text: cur.model.getValue(), path: cur.path, speed });
+      { text: cur.model.getValue(), path: cur.path, speed, robot: robot() });
     run.id = answer.run_id;
     if (answer.console_url) {
       const link = $<HTMLAnchorElement>("run-console");
@@ -673,7 +673,36 @@ for (const [id, choice] of [["run-yes", "yes"], ["run-no", "no"]] as const) {
   });
 }
 
+// ---------------------------------------------------------------- robot
+/** The robot a mission is checked, compiled and tried for (GET /api/robots; the simulator's by default). */
+function robot(): string | undefined {
+  return $<HTMLSelectElement>("robot").value || undefined;
+}
+
+async function loadRobots(): Promise<void> {
+  try {
+    const answer = await api<{ robots: string[] }>("robots");
+    const select = $<HTMLSelectElement>("robot");
+    select.replaceChildren();
+    for (const name of answer.robots ?? []) {
+      const option = document.createElement("option");
+      option.value = name;
+      option.textContent = name;
+      select.appendChild(option);
+    }
+    if ((answer.robots ?? []).includes("sim")) select.value = "sim";
+  } catch (e) {
+    fail("the robots cannot be listed", e);
+  }
+}
+$("robot").addEventListener("change", () => {
+  $("tree-robot").textContent = robot() ?? "sim";
+  state.treeStale = true;
+  void check();
+});
+
 // ---------------------------------------------------------------- start
+void loadRobots();
 // Nothing to type into, save or try until a file is open: text typed into no file would be lost.
 editor.updateOptions({ readOnly: true });
 for (const id of ["try", "save"]) $<HTMLButtonElement>(id).disabled = true;

@@ -1,5 +1,6 @@
-// The tree pane: the compiled behaviour tree (POST /api/tree) laid out by elkjs (layered, top-down) and drawn as
-// SVG. Clicking a node selects its step in the text.
+// The tree pane: the compiled behaviour tree (POST /api/tree) laid out by elkjs (layered, left to right: a
+// mission's tree is wide and shallow, so its steps stack down the pane and scroll like the text) and drawn as SVG.
+// Clicking a node selects its step in the text.
 import ELK from "elkjs/lib/elk-api.js";
 
 /** A node of /api/tree's answer (docs/studio.md): where its step is written, 1-based. */
@@ -22,7 +23,17 @@ export interface TreeData {
 // The layout runs in its own worker (elk-worker.js, 1.4 MB), loaded when the tree is first shown.
 let elk: InstanceType<typeof ELK> | null = null;
 const SVG = "http://www.w3.org/2000/svg";
-const CHAR_W = 7.2;
+const FONT = "12px system-ui, -apple-system, 'Segoe UI', Roboto, 'Noto Sans', sans-serif";
+const MAX_W = 220;
+let measurer: CanvasRenderingContext2D | null = null;
+
+/** A label's width in the tree's font (px). */
+function textWidth(text: string): number {
+  measurer ??= document.createElement("canvas").getContext("2d");
+  if (!measurer) return text.length * 6.5;
+  measurer.font = FONT;
+  return measurer.measureText(text).width;
+}
 const COMPOSITES = new Set(["sequence", "selector", "fallback", "parallel", "repeat", "retry", "decorator",
   "root", "mission"]);
 
@@ -53,16 +64,16 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
     id: "root",
     layoutOptions: {
       "elk.algorithm": "layered",
-      "elk.direction": "DOWN",
-      "elk.layered.spacing.nodeNodeBetweenLayers": "28",
-      "elk.spacing.nodeNode": "14",
+      "elk.direction": "RIGHT",
+      "elk.layered.spacing.nodeNodeBetweenLayers": "26",
+      "elk.spacing.nodeNode": "8",
       "elk.edgeRouting": "ORTHOGONAL",
       "elk.layered.mergeEdges": "true",
       "elk.layered.nodePlacement.strategy": "BRANDES_KOEPF",
       "elk.layered.considerModelOrder.strategy": "NODES_AND_EDGES",
     },
     children: data.nodes.map((n) => ({
-      id: String(n.id), width: Math.min(260, Math.max(60, label(n).length * CHAR_W + 24)), height: 30,
+      id: String(n.id), width: Math.min(MAX_W, Math.max(50, textWidth(label(n)) + 20)), height: 28,
     })),
     edges: data.edges.map((e, i) => ({ id: `e${i}`, sources: [String(e[0])], targets: [String(e[1])] })),
   };
@@ -72,8 +83,8 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
   const byId = new Map(data.nodes.map((n) => [String(n.id), n]));
   const W = (laid.width ?? 0) + 20;
   const H = (laid.height ?? 0) + 20;
-  // A wide tree is shrunk to the pane (down to 60 %: the labels stay readable); wider still, the pane scrolls.
-  const scale = Math.max(0.6, Math.min(1, (host.clientWidth - 20) / W || 1));
+  // A deep tree is shrunk to the pane's width (down to 80 %: the labels stay readable); deeper still, it scrolls.
+  const scale = Math.max(0.75, Math.min(1, (host.clientWidth - 20) / W || 1));
   const root = svg("svg", { width: W * scale, height: H * scale, viewBox: `-10 -10 ${W} ${H}`, class: "tree-svg" });
   const edges = svg("g", { class: "edges" }, root);
   for (const e of laid.edges ?? []) {
@@ -92,8 +103,7 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
     svg("rect", { width: c.width!, height: c.height!, rx: 6 }, g);
     const t = svg("text", { x: c.width! / 2, y: c.height! / 2 + 4.5, "text-anchor": "middle" }, g);
     let text = label(node);
-    const fits = Math.floor((c.width! - 12) / CHAR_W);
-    if (text.length > fits) text = text.slice(0, fits - 1) + "…";
+    while (text.length > 2 && textWidth(text) > c.width! - 14) text = text.slice(0, -2) + "…";
     t.textContent = text;
     const title = svg("title", {}, g);
     title.textContent = `${label(node)}${node.kind ? ` (${node.kind})` : ""}${node.line ? ` — line ${node.line}` : ""}`;
