@@ -119,10 +119,13 @@ def shots(tmp_path: Path):
 def open_studio(browser, studio: Studio, query: str = ""):
     page = browser.new_page(viewport={"width": 1440, "height": 900})
     errors: list[str] = []
+    asked: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("request", lambda r: asked.append(r.url))  # the workers' requests (the schemas) come here too
     page.goto(studio.url + query)
     expect(page.get_by_test_id("file-list").get_by_test_id("file").first).to_be_visible()
     page.page_errors = errors  # type: ignore[attr-defined]
+    page.asked = asked  # type: ignore[attr-defined]
     return page
 
 
@@ -226,6 +229,9 @@ def test_a_gps_route_by_clicks_alone_tried_to_success_and_saved(browser, studio,
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stdout + done.stderr
     assert page.page_errors == []
+    origin = studio.url.split("?")[0]
+    assert page.asked and all(u.startswith(origin) or u.startswith(("data:", "blob:")) for u in page.asked), \
+        [u for u in page.asked if not u.startswith(origin)]  # it works with no internet: nothing from elsewhere
 
 
 def test_a_typo_shows_its_problem_at_its_line_and_column_within_a_second(browser, studio, shots):
