@@ -256,7 +256,9 @@ function showTab(tab: string): void {
   if (tab === "map") studioMap.resize();
   if (tab === "tree" && state.treeStale) void redrawTree();
 }
-document.querySelectorAll<HTMLElement>(".tab").forEach((b) => b.addEventListener("click", () => showTab(b.dataset.tab!)));
+document.querySelectorAll<HTMLElement>(".tab").forEach((b) => {
+  b.addEventListener("click", () => showTab(b.dataset.tab!));
+});
 
 // ---------------------------------------------------------------- files
 async function loadFiles(): Promise<void> {
@@ -390,7 +392,8 @@ async function createFromTemplate(): Promise<void> {
   if (!/\.ya?ml$/i.test(name)) name += ".yaml";
   try {
     const answer = await api<{ text: string }>("templates/" + encodeURIComponent(template), { path: name });
-    const saved = await api<{ version: string }>("files/" + filePath(name), { text: answer.text, version: null }, "PUT");
+    const saved = await api<{ version: string }>("files/" + filePath(name),
+      { text: answer.text, version: null }, "PUT");
     input.value = "";
     await loadFiles();
     await openFile(name, { text: answer.text, version: saved.version, kind: "mission" });
@@ -653,7 +656,8 @@ function showEnded(s: TryState): void {
   setProgress(null);
 }
 
-$("run-pause").addEventListener("click", () => void runApi("/console/api/pause", {}).catch((e) => fail("not paused", e)));
+$("run-pause").addEventListener("click", () => void runApi("/console/api/pause", {})
+  .catch((e) => fail("not paused", e)));
 $("run-resume").addEventListener("click", () => void runApi("/console/api/resume", {})
   .catch((e) => fail("not resumed", e)));
 $("run-stop").addEventListener("click", async () => {
@@ -669,7 +673,8 @@ $("run-close").addEventListener("click", () => {
 });
 for (const [id, choice] of [["run-yes", "yes"], ["run-no", "no"]] as const) {
   $(id).addEventListener("click", () => {
-    if (run.question) void runApi("/console/api/answer", { id: run.question, choice }).catch((e) => fail("no answer", e));
+    if (!run.question) return;
+    void runApi("/console/api/answer", { id: run.question, choice }).catch((e) => fail("no answer", e));
   });
 }
 

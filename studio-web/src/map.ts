@@ -142,7 +142,10 @@ export class StudioMap {
   draw(data: MapData | null): void {
     if (this.dragging) return;  // a redraw under a dragged marker would drop it
     const frame = data?.frame === "world" ? "world" : "gps";
-    if (frame !== this.frame) { this.makeMap(frame); this.setTiles((document.getElementById("tiles") as any)?.checked); }
+    if (frame !== this.frame) {
+      this.makeMap(frame);
+      this.setTiles((document.getElementById("tiles") as HTMLInputElement | null)?.checked ?? false);
+    }
     this.layers.clearLayers();
     this.placeAt.clear();
     if (!data) return;
@@ -202,7 +205,9 @@ export class StudioMap {
       const el = (shape as any).getElement?.() as SVGElement | undefined;
       el?.setAttribute("data-testid", "fence");
       shape.bindTooltip(`${keepIn ? "keep-in" : "keep-out"} fence ${fence.name ?? ""}`);
-      if (fence.line != null) shape.on("click", () => { if (this.mode === "none") this.edits.selectLine(fence.line!); });
+      if (fence.line != null) {
+        shape.on("click", () => { if (this.mode === "none") this.edits.selectLine(fence.line!); });
+      }
     }
     for (const place of data.places ?? []) {
       const at = this.toLatLng(place);

@@ -98,7 +98,8 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
     const kind = (node.kind ?? "").toLowerCase();
     const g = svg("g", {
       class: `node ${COMPOSITES.has(kind) ? "composite" : "leaf"}`, transform: `translate(${c.x},${c.y})`,
-      "data-testid": "tree-node", "data-node": String(node.id), "data-line": node.line ?? "", tabindex: 0, role: "button",
+      "data-testid": "tree-node", "data-node": String(node.id), "data-line": node.line ?? "", tabindex: 0,
+      role: "button",
     }, root);
     svg("rect", { width: c.width!, height: c.height!, rx: 6 }, g);
     const t = svg("text", { x: c.width! / 2, y: c.height! / 2 + 4.5, "text-anchor": "middle" }, g);
@@ -106,7 +107,8 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
     while (text.length > 2 && textWidth(text) > c.width! - 14) text = text.slice(0, -2) + "…";
     t.textContent = text;
     const title = svg("title", {}, g);
-    title.textContent = `${label(node)}${node.kind ? ` (${node.kind})` : ""}${node.line ? ` — line ${node.line}` : ""}`;
+    const what = node.kind ? ` (${node.kind})` : "";
+    title.textContent = `${label(node)}${what}${node.line ? ` — line ${node.line}` : ""}`;
     const pick = () => {
       root.querySelectorAll(".node.selected").forEach((el) => el.classList.remove("selected"));
       g.classList.add("selected");
