@@ -1,4 +1,5 @@
-"""How fast the studio answers the page as it is typed in: ``/api/validate``, ``/api/tree``, ``/api/map``, ``/api/edit``.
+"""How fast the studio answers the page as it is typed in: ``/api/validate``, ``/api/tree``, ``/api/map``,
+``/api/edit``.
 
 A studio is started on a free loopback port for the repository's folder, and
 each request is timed from the client (HTTP on loopback included), after one

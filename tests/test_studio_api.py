@@ -94,9 +94,21 @@ def studio(tmp_path_factory) -> Iterator[Studio]:
     s.server.close()
 
 
+def applied(text: str, change: dict) -> str:
+    """``text`` with an edit's ``change`` (1-based line and column, end exclusive) applied, as an editor would."""
+    lines = text.split("\n")
+
+    def offset(line: int, column: int) -> int:
+        return sum(len(x) + 1 for x in lines[:line - 1]) + column - 1
+
+    return text[:offset(change["line"], change["column"])] + change["text"] + \
+        text[offset(change["end_line"], change["end_column"]):]
+
+
 def only_inserted(before: str, after: str) -> list[str]:
-    """The lines ``after`` adds to ``before``; fails when any line of ``before`` was changed or removed."""
-    diff = list(difflib.ndiff(before.splitlines(keepends=True), after.splitlines(keepends=True)))
+    """The lines ``after`` adds to ``before`` (without their line ends); fails when any line of ``before`` was changed
+    or removed."""
+    diff = list(difflib.ndiff(before.splitlines(), after.splitlines()))
     removed = [d for d in diff if d.startswith("- ")]
     assert not removed, f"lines changed or removed: {removed}"
     return [d[2:] for d in diff if d.startswith("+ ")]
@@ -121,23 +133,24 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
     status, added = studio.post("/api/edit", {"text": file["text"], "edit": {"op": "add_place", "lat": 40.4171234567,
                                                                              "lon": -3.7031}})
     assert status == 200 and added["name"] == "c"
-    assert only_inserted(COMMENTED, added["text"]) == ["  c: {lat: 40.4171235, lon: -3.7031}\n"]
+    assert only_inserted(COMMENTED, added["text"]) == ["  c: {lat: 40.4171235, lon: -3.7031}"]
     assert added["text"].index("  c: ") < added["text"].index("  # more places later")  # kept after the places
     status, moved = studio.post("/api/edit", {"text": added["text"], "edit": {"op": "move_place", "name": "b",
                                                                               "lat": 40.417, "lon": -3.7036}})
-    assert status == 200
+    assert status == 200 and applied(added["text"], moved["change"]) == moved["text"]
+    assert applied(COMMENTED, added["change"]) == added["text"]  # one replacement the editor can undo
     changed = [(a, b) for a, b in zip(added["text"].splitlines(), moved["text"].splitlines()) if a != b]
     assert changed == [("  b: {lat: 40.41700, lon: -3.70350, tolerance: 3 m}",
                         "  b: {lat: 40.417, lon: -3.7036, tolerance: 3 m}")]
     status, routed = studio.post("/api/edit", {"text": moved["text"], "edit": {"op": "add_route",
                                                                                "places": ["a", "c", "b"]}})
-    assert status == 200 and only_inserted(moved["text"], routed["text"]) == ["  - route: {places: [a, c, b]}\n"]
+    assert status == 200 and only_inserted(moved["text"], routed["text"]) == ["  - route: {places: [a, c, b]}"]
     assert routed["text"].index("route: {places: [a, c, b]}") < routed["text"].index("  # then home")
     status, fenced = studio.post("/api/edit", {"text": routed["text"], "edit": {
         "op": "add_fence", "keep": "out", "polygon": [[40.4172, -3.704], [40.41725, -3.704], [40.41725, -3.70395]]}})
     assert status == 200
     new = only_inserted(routed["text"], fenced["text"])
-    assert "  keepout: {fence: keepout1, then: stop}\n" in new and "    keep: out\n" in new
+    assert "  keepout: {fence: keepout1, then: stop}" in new and "    keep: out" in new
     assert studio.post("/api/validate", {"text": fenced["text"], "path": "missions/commented.yaml"})[1] == \
         {"problems": []}
     # save it, then a text edit: the file on disk is what was sent, byte for byte
@@ -150,6 +163,28 @@ def test_a_map_edit_and_a_text_edit_round_trip_keeping_the_rest_byte_for_byte(st
     assert status == 200 and path.read_bytes() == typed.encode()
     assert studio.get("/api/files/missions/commented.yaml")[1]["version"] == again["version"]
     path.write_text(COMMENTED, encoding="utf-8")
+
+
+MIXED = ("---\r\nmission: mixed   # CRLF line ends, a document start, 4-space places, 'steps:' items\r\n"
+         "places:\r\n    a: {lat: 40.4169, lon: -3.7038}   # the gate\r\n\r\n"
+         "steps:\r\n- say: hi\r\n- repeat:\r\n    times: 2\r\n    steps:\r\n      - wait: 1 s\r\n"
+         "failsafes:\r\n  gps_lost: {after: 3 s, then: hold}")
+
+
+def test_a_file_in_its_own_style_keeps_it_through_map_edits(studio):
+    text = MIXED
+    for edit in ({"op": "add_place", "lat": 40.417, "lon": -3.7035}, {"op": "add_route", "places": ["a", "b"]},
+                 {"op": "add_fence", "name": "pond", "keep": "out",
+                  "polygon": [[40.4172, -3.704], [40.41725, -3.704], [40.41725, -3.70395]]}):
+        status, answer = studio.post("/api/edit", {"text": text, "edit": edit})
+        assert status == 200, answer
+        assert applied(text, answer["change"]) == answer["text"]
+        text = answer["text"]
+    assert only_inserted(MIXED, text) and "\r\n" in text and "\n" not in text.replace("\r\n", "")
+    assert not text.endswith("\n")  # it had no line end at the end, and still has none
+    lines = text.split("\r\n")
+    assert "    b: {lat: 40.417, lon: -3.7035}" in lines and "- route: {places: [a, b]}" in lines
+    assert studio.post("/api/validate", {"text": text, "path": "missions/mixed.yaml"})[1] == {"problems": []}
 
 
 def test_a_stale_save_is_a_conflict_and_nothing_is_overwritten(studio):
@@ -266,6 +301,12 @@ def test_the_map_draws_places_fences_routes_and_the_world(studio):
     [route] = drawn["routes"]
     assert route["places"] == ["a", "b"] and route["points"] == [[40.4169, -3.7038], [40.417, -3.7035]]
     assert drawn["world"]["name"] == "campus" and "start" in drawn["world"]
+    # a world file's text is drawn as it is in the editor, unsaved changes included
+    campus = (REPO / "worlds" / "campus.yaml").read_text(encoding="utf-8")
+    moved = campus.replace("datum: {lat: 40.41680, lon: -3.70380", "datum: {lat: 40.5, lon: -3.6")
+    world = studio.post("/api/map", {"text": moved, "path": "worlds/campus.yaml"})[1]
+    assert world["datum"] == {"lat": 40.5, "lon": -3.6} and world["world"]["name"] == "campus"
+    assert world["places"] == [] and world["problems"] == []
     # a text with an error still draws what it can read
     typo = studio.post("/api/map", {"text": COMMENTED.replace("say:", "sya:")})[1]
     assert [p["name"] for p in typo["places"]] == ["a", "b"] and typo["problems"]
@@ -299,21 +340,59 @@ def test_with_a_token_every_request_needs_it(tmp_path):
         s.server.close()
 
 
-def test_try_runs_the_text_on_the_simulator_to_success(studio):
-    text = "mission: quick_try\nsteps:\n  - say: hello\n  - drive: {distance: 0.5 m, speed: 0.3 m/s}\n"
-    status, started = studio.post("/api/try", {"text": text, "path": "missions/quick.yaml", "speed": "max"})
-    assert status == 200 and started["console_url"].startswith("http://127.0.0.1:")
+def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
+    text = "mission: long_try\nsteps:\n  - say: waiting\n  - wait: 120 s\n"
+    status, started = studio.post("/api/try", {"text": text, "speed": "realtime"})
+    assert status == 200
     run_id = started["run_id"]
-    deadline = time.monotonic() + 120
-    while True:
-        state = studio.get(f"/api/try/{run_id}")[1]
-        if state["state"] == "ended" or time.monotonic() > deadline:
-            break
+    deadline = time.monotonic() + 60
+    status, state = studio.get(f"/api/try/{run_id}/console/api/state")
+    while status != 200 and time.monotonic() < deadline:
         time.sleep(0.3)
-    assert state["state"] == "ended" and state["exit_code"] == 0, state["output"]
-    assert state["summary"]["status"] == "success" and state["summary"]["mission"] == "quick_try"
+        status, state = studio.get(f"/api/try/{run_id}/console/api/state")
+    assert status == 200 and state["mission"] == "long_try"
+    tree = studio.post("/api/tree", {"text": text})[1]
+    # the console's node ids are the tree's: a try's live statuses can be painted on the studio's graph
+    assert {n["id"]: n["name"] for n in tree["nodes"]}.items() <= {n["id"]: n["name"] for n in state["tree"]}.items()
+    assert studio.post(f"/api/try/{run_id}/console/api/pause", {})[0] == 200
+    assert studio.get(f"/api/try/{run_id}/console/api/nothing")[0] == 404
+    status, ended = studio.post(f"/api/try/{run_id}/stop", {})
+    assert status == 200 and ended["state"] == "ended" and ended["exit_code"] == 1
+    assert ended["summary"]["status"] in ("stopped", "failure")
+
+
+def test_a_first_mission_from_a_template_by_the_api_alone_runs_to_success_and_saves(studio):
+    """What the page does for the non-programmer test: template, three places, a route, a keep-out fence, a try,
+    a save; the saved file validates and keeps the template's comments."""
+    path = "missions/first_route.yaml"
+    text = studio.post("/api/templates/gps_route", {"path": path})[1]["text"]
+    comments = [line for line in text.splitlines() if line.lstrip().startswith("#")]
+    north, east = 1 / 111_320, 1 / 84_860  # degrees per metre at the campus datum
+    for dn, de in ((5, 0), (5, 5), (0, 5)):
+        text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_place", "lat": 40.4168 + dn * north,
+                                                                "lon": -3.7038 + de * east}})[1]["text"]
+    text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_route", "places": ["a", "b", "c"]}})[1]["text"]
+    pond = [[40.4168 - 30 * north, -3.7038], [40.4168 - 30 * north, -3.7038 + 10 * east],
+            [40.4168 - 40 * north, -3.7038 + 10 * east]]
+    text = studio.post("/api/edit", {"text": text, "edit": {"op": "add_fence", "keep": "out",
+                                                            "polygon": pond}})[1]["text"]
+    assert studio.post("/api/validate", {"text": text, "path": path})[1] == {"problems": []}
+    run_id = studio.post("/api/try", {"text": text, "path": path, "speed": "max"})[1]["run_id"]
+    deadline = time.monotonic() + 180
+    state = studio.get(f"/api/try/{run_id}")[1]
+    while state["state"] == "running" and time.monotonic() < deadline:
+        time.sleep(0.5)
+        state = studio.get(f"/api/try/{run_id}")[1]
+    assert state.get("exit_code") == 0, state["output"]
+    assert state["summary"]["status"] == "success" and state["summary"]["mission"] == "first_route"
+    assert [w["name"] for w in state["summary"]["waypoints"] if w["reached"]] == ["a", "b", "c"]
     assert state["report"] == f"/api/try/{run_id}/report/"
-    assert not list((studio.folder / "missions").glob(".quick.try-*"))  # the hidden copy is gone
+    assert not list((studio.folder / "missions").glob(".first_route.try-*"))  # the hidden copy is gone
     assert studio.get(f"/api/try/{run_id}/console/api/state")[0] == 409  # its console has closed
     assert studio.get("/api/try/nope")[0] == 404
     assert studio.post("/api/try", {"text": text, "speed": "fast"})[0] == 400
+    status, saved = studio.put(f"/api/files/{path}", {"text": text, "version": None})
+    assert status == 200
+    on_disk = (studio.folder / path).read_text(encoding="utf-8")
+    assert on_disk == text and all(line in on_disk.splitlines() for line in comments)
+    assert studio.post("/api/validate", {"text": on_disk, "path": path})[1] == {"problems": []}

@@ -15,7 +15,6 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.testing import MissionHarness

@@ -9,7 +9,6 @@ here judges a mission by other rules.
 
 from __future__ import annotations
 
-import os
 import tempfile
 from pathlib import Path
 from typing import Any, Optional
@@ -189,7 +188,9 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
     """``POST /api/map``: what the map pane draws (docs/studio.md, Map): places, fences, routes, the world."""
     from beastbt.mission.mission_world import load_mission_world
     from beastbt.sim.world import empty_world
-    _, name = where(folder, path)
+    real, name = where(folder, path)
+    if kind_of(text) == "world":
+        return _world_map(real, name, text)
     mission, problems = check(folder, text, path, None)
     lines = text.splitlines()
     errors = [p for p in problems if p.severity == "error"]
@@ -211,6 +212,28 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
         doc, _ = _raw_mission(folder, text, path)
         if doc is not None and isinstance(doc.data, dict):
             _raw_layers(doc, answer)
+    return answer
+
+
+def _world_map(real: Path, name: str, text: str) -> dict:
+    """The map of a world file's text (unsaved changes included): its plan at its datum, nothing placed."""
+    from beastbt.sim.world import empty_world, load_world
+    lines = text.splitlines()
+    answer: dict[str, Any] = {"frame": "gps", "datum": None, "places": [], "fences": [], "routes": [], "problems": []}
+    world = None
+    with tempfile.TemporaryDirectory(prefix="beastbt-studio-") as tmp:
+        fake = Path(tmp) / (real.name if real.name.endswith((".yaml", ".yml")) else "world.yaml")
+        fake.write_text(text, encoding="utf-8")
+        try:
+            world = load_world(str(fake))
+        except InvalidInput as exc:
+            answer["problems"] = [problem_json(Problem(name, p.position, p.message, p.hint, p.severity), name, lines)
+                                  for p in exc.problems if p.severity == "error"]
+    frame = (world or empty_world()).frame
+    answer["datum"] = {"lat": frame.lat0_deg, "lon": frame.lon0_deg}
+    if world is not None:
+        answer["world"] = _world_json(world, frame)
+        answer["world"]["file"] = name
     return answer
 
 

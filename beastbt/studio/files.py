@@ -49,7 +49,8 @@ def version_of(data: bytes) -> str:
 
 
 def kind_of(text: str) -> str:
-    """``mission``, ``world``, ``robot`` or ``other`` from the first key of a YAML text (cheaply: its first key line)."""
+    """``mission``, ``world``, ``robot`` or ``other`` from the first key of a YAML text (cheaply: its first key
+    line)."""
     for line in text.splitlines():
         stripped = line.strip()
         if not stripped or stripped.startswith("#") or stripped == "---":

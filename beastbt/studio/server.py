@@ -34,11 +34,13 @@ TOKEN_COOKIE = "beastbt_studio_token"
 PAGE_DIR = Path(__file__).parent / "page"
 """The built page (shipped in the package; built with npm, see docs/studio.md)."""
 CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
-                           "img-src 'self' data: blob:; font-src 'self' data:; worker-src 'self' blob:; "
+                           "img-src 'self' data: blob: https://tile.openstreetmap.org; font-src 'self' data:; "
+                           "worker-src 'self' blob:; "
                            "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
                            "frame-ancestors 'none'")
 """The page loads only its own files and talks only to its own server. Monaco sets styles inline and runs its
-language services in workers; no inline script runs and no string is evaluated as code."""
+language services in workers; no inline script runs and no string is evaluated as code. The map's online tiles
+(off by default: the page works offline) come from OpenStreetMap when the user turns them on."""
 
 
 class BadRequest(Exception):
