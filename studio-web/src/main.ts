@@ -184,21 +184,13 @@ setMapReady(false);
 async function redrawMap(ticket: number, text: string): Promise<void> {
   const cur = state.current;
   if (!cur) return;
-  let ask = { text, path: cur.path };
-  if (cur.kind === "world") {
-    // /api/map draws a mission's world: a world file is drawn as the world of a one-line mission beside it (as it
-    // is saved on disk: its unsaved changes show once saved).
-    const name = cur.path.split("/").pop()!;
-    const beside = cur.path.slice(0, cur.path.length - name.length);
-    ask = { text: `mission: world_view\nworld: ./${name}\nsteps:\n  - wait: 1 s\n`, path: `${beside}.world_view.yaml` };
-  }
   try {
-    const data = await api<MapData>("map", ask);
+    const data = await api<MapData>("map", { text, path: cur.path });
     if (ticket !== state.checkTicket) return;
     studioMap.draw(data);
     $("map").dataset.places = String(data?.places?.length ?? 0);
     setMapReady(cur.kind === "mission");
-    if (cur.kind === "world") $("hint").textContent = "The world as saved on disk (save to see your changes here).";
+    if (cur.kind === "world") $("hint").textContent = "The world's plan, as the text says it (walls, obstacles, start).";
     else studioMap.showHint();
   } catch (e) {
     if (ticket === state.checkTicket) status(`the map cannot be drawn yet: ${(e as Error).message}`, "info");

@@ -180,7 +180,8 @@ export class StudioMap {
     const start = world?.start ? xy(world.start) : null;
     if (start) {
       L.marker(start, {
-        icon: L.divIcon({ className: "home-marker", html: "<span>⌂ start</span>", iconSize: [0, 0] }),
+        icon: L.divIcon({ className: "home-marker", html: '<span class="pt"></span><span class="lbl">start</span>',
+          iconSize: [0, 0] }),
         interactive: false, keyboard: false,
       }).addTo(this.layers);
       bounds.extend(start);
