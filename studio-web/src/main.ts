@@ -106,7 +106,6 @@ function showProblems(problems: Problem[]): void {
   for (const p of problems) {
     const li = document.createElement("li");
     li.className = `problem ${p.severity}`;
-    li.dataset.testid = "problem";
     li.setAttribute("data-testid", "problem");
     li.dataset.line = String(p.line);
     li.dataset.column = String(p.column);
@@ -127,9 +126,17 @@ function showProblems(problems: Problem[]): void {
       hint.textContent = `hint: ${p.hint}`;
       li.appendChild(hint);
     }
-    const jump = () => { if (!(p as any).file) selectAt(editor, p.line, p.column, p.end_line, p.end_column); };
-    li.addEventListener("click", jump);
-    li.addEventListener("keydown", (e) => { if (e.key === "Enter") jump(); });
+    // A problem in another file (the mission's world) opens that file when it is in the folder.
+    const other: string | undefined = (p as any).file;
+    const jump = async () => {
+      if (other) {
+        if (!state.files.some((f) => f.path === other)) return;
+        await openFile(other);
+      }
+      selectAt(editor, p.line, p.column, p.end_line, p.end_column);
+    };
+    li.addEventListener("click", () => void jump());
+    li.addEventListener("keydown", (e) => { if (e.key === "Enter") void jump(); });
     list.appendChild(li);
   }
 }
@@ -319,8 +326,9 @@ async function openFile(path: string, given?: { text: string; version: string | 
       }
     }
     const kind = data.kind ?? state.files.find((f) => f.path === path)?.kind ?? "mission";
-    // The model's address is the file's place under the page's, so that a modeline such as
-    // "# yaml-language-server: $schema=../schemas/mission.schema.json" in missions/x.yaml finds the page's copy.
+    // The model's address is the file's place under the page's: one model per file, and monaco-yaml's schema
+    // association (fileMatch) names it. (A modeline's relative schema becomes a file: address whatever this is;
+    // yaml-worker.ts reads it from the page's copy.)
     const uri = monaco.Uri.parse(new URL(filePath(path), location.href).href);
     monaco.editor.getModel(uri)?.dispose();
     const model = monaco.editor.createModel(data.text, "yaml", uri);
