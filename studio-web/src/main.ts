@@ -513,6 +513,7 @@ interface LiveState {
   progress?: { done?: number; total?: number | null; eta_s?: number | null };
   pose?: { x: number; y: number; yaw_deg?: number };
   question?: { id: string; text: string } | null;
+  tree?: Array<{ id: string; status?: string }>;
 }
 
 const run = {
@@ -605,10 +606,20 @@ function showLive(live: LiveState): void {
   $("run-pause").hidden = paused;
   $("run-resume").hidden = !paused;
   if (live.pose) studioMap.showRobot(live.pose);
+  if (live.tree) showTreeStatus(live.tree);
   const q = live.question ?? null;
   run.question = q?.id ?? null;
   $("run-question").hidden = !q;
   if (q) $("run-question-text").textContent = q.text;
+}
+
+/** The run's node statuses on the Tree tab's nodes (/api/tree's ids are the console's). */
+function showTreeStatus(tree: Array<{ id: string; status?: string }> | null): void {
+  const status = new Map((tree ?? []).map((n) => [String(n.id), (n.status ?? "").toLowerCase()]));
+  document.querySelectorAll<SVGGElement>("#tree-view [data-node]").forEach((g) => {
+    const s = status.get(g.dataset.node ?? "") ?? "";
+    for (const k of ["running", "success", "failure"]) g.classList.toggle(`run-${k}`, s === k);
+  });
 }
 
 function showEnded(s: TryState): void {
@@ -665,6 +676,7 @@ $("run-stop").addEventListener("click", async () => {
   try { showEnded(await runApi<TryState>("/stop", {})); } catch (e) { fail("not stopped", e); }
 });
 $("run-close").addEventListener("click", () => {
+  showTreeStatus(null);
   if (run.id && !run.ended) void runApi("/stop", {}).catch(() => {});
   window.clearTimeout(run.timer);
   run.id = null;
