@@ -12,6 +12,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -68,14 +69,15 @@ class Studio:
             return json.loads(r.read())["problems"]
 
     def stop(self) -> None:
-        """Ctrl-C's way: SIGTERM, then kill if it lingers."""
-        if self.proc.poll() is None:
-            self.proc.terminate()
+        """Ctrl-C (SIGINT: the studio stops the runs it started), then SIGTERM and SIGKILL if it lingers."""
+        for end in (lambda: self.proc.send_signal(signal.SIGINT), self.proc.terminate, self.proc.kill):
+            if self.proc.poll() is not None:
+                return
+            end()
             try:
                 self.proc.communicate(timeout=10)
             except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.communicate()
+                continue
 
 
 @pytest.fixture(scope="module")
@@ -147,7 +149,7 @@ def click_map(page, dx: float, dy: float) -> None:
 
 def test_a_gps_route_by_clicks_alone_tried_to_success_and_saved(browser, studio, folder, shots):
     """The non-programmer test: template, three places, a route, a keep-out fence, Try it, Save."""
-    page = open_studio(browser, studio, "?speed=max")
+    page = open_studio(browser, studio, "?speed=max&max_time=5%20min")
     page.get_by_test_id("template").select_option("gps_route")
     page.get_by_test_id("new-name").fill("missions/field_trip.yaml")
     page.get_by_test_id("create").click()

@@ -553,9 +553,12 @@ async function tryIt(): Promise<void> {
   studioMap.showRobot(null);
   showTab("map");
   try {
-    const speed = new URLSearchParams(location.search).get("speed") || undefined;
+    // ?speed=max&max_time=5%20min in the page's address: a faster, shorter try (the run's own options)
+    const params = new URLSearchParams(location.search);
+    const speed = params.get("speed") || undefined;
+    const maxTime = params.get("max_time") || undefined;
     const answer = await api<{ run_id: string; console_url?: string }>("try",
-      { text: cur.model.getValue(), path: cur.path, speed, robot: robot() });
+      { text: cur.model.getValue(), path: cur.path, speed, max_time: maxTime, robot: robot() });
     run.id = answer.run_id;
     if (answer.console_url) {
       const link = $<HTMLAnchorElement>("run-console");
