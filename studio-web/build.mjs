@@ -40,6 +40,7 @@ mkdirSync(out, { recursive: true });
 
 const common = {
   bundle: true,
+  metafile: true,
   minify: true,
   legalComments: "none",
   target: "es2020",
@@ -48,12 +49,13 @@ const common = {
   assetNames: "[name]",
 };
 
-await esbuild.build({
+const bundles = [];
+bundles.push(await esbuild.build({
   ...common,
   entryPoints: { studio: join(here, "src", "main.ts") },
   outdir: out,
   format: "iife",
-});
+}));
 // The page never formats (monaco-yaml's format: false): prettier is left out of the YAML worker.
 const noPrettier = {
   name: "no-prettier",
@@ -61,7 +63,7 @@ const noPrettier = {
     build.onResolve({ filter: /^prettier(\/|$)/ }, () => ({ path: join(here, "src", "stubs", "prettier.ts") }));
   },
 };
-await esbuild.build({
+bundles.push(await esbuild.build({
   ...common,
   entryPoints: {
     "editor.worker": "monaco-editor/esm/vs/editor/editor.worker.js",
@@ -70,11 +72,35 @@ await esbuild.build({
   outdir: out,
   format: "iife",
   plugins: [noPrettier],
-});
+}));
 // elkjs ships its worker closure-compiled (smaller than esbuild makes it): copied as it is.
 copyFileSync(join(here, "node_modules", "elkjs", "lib", "elk-worker.min.js"), join(out, "elk-worker.js"));
 copyFileSync(join(here, "src", "index.html"), join(out, "index.html"));
 copyFileSync(join(here, "src", "favicon.svg"), join(out, "favicon.svg"));
+
+// The licences of every package bundled (the bundles carry no comments): one text file beside the page.
+const packages = new Set(["elkjs"]);
+for (const b of bundles) {
+  for (const input of Object.keys(b.metafile.inputs)) {
+    const m = /node_modules\/((?:@[^/]+\/)?[^/]+)\//.exec(input);
+    if (m) packages.add(m[1]);
+  }
+}
+const notices = [];
+for (const name of [...packages].sort()) {
+  const dir = join(here, "node_modules", name);
+  const meta = JSON.parse(readFileSync(join(dir, "package.json"), "utf8"));
+  const file = readdirSync(dir).find((f) => /^(licen[sc]e|copying)(\.|$)/i.test(f));
+  const text = file ? readFileSync(join(dir, file), "utf8").trim()
+    : `(no licence file; package.json says ${meta.license})`;
+  const more = readdirSync(dir).find((f) => /^thirdpartynotices/i.test(f));  // what Monaco itself bundles
+  const extra = more ? `\n\n${readFileSync(join(dir, more), "utf8").trim()}` : "";
+  notices.push(`${"=".repeat(78)}\n${name} ${meta.version} (${meta.license ?? "see below"})\n${"=".repeat(78)}\n`
+    + `${text}${extra}\n`);
+}
+writeFileSync(join(out, "THIRD_PARTY_LICENSES.txt"),
+  "The beastbt studio page bundles these packages (studio-web/package-lock.json has their exact versions).\n\n"
+  + notices.join("\n"));
 
 // The JSON Schemas monaco-yaml uses, beside the page (their $refs to parts/ resolve there). They are copies of
 // schemas/: sync_schemas.py refreshes them without npm, and tests/test_studio_page.py checks they are the same.

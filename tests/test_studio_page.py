@@ -55,7 +55,8 @@ def test_the_committed_page_was_built_from_the_committed_sources():
 
 def test_every_file_the_build_wrote_is_there_whole():
     info = build_info()
-    for name in ("index.html", "studio.js", "studio.css", "editor.worker.js", "yaml.worker.js", "elk-worker.js"):
+    for name in ("index.html", "studio.js", "studio.css", "editor.worker.js", "yaml.worker.js", "elk-worker.js",
+                 "THIRD_PARTY_LICENSES.txt"):
         assert name in info["files"], f"the build wrote no {name}"
     for name, size in info["files"].items():
         path = PAGE / name
