@@ -291,8 +291,7 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     The robot's capabilities are those its device parts would give
     (:attr:`PartEntry.capability`); the steps are those of the parts that add
     steps (the device parts of beastbt add none, so they are not imported:
-    no OpenCV, no EKF). What ``beastbt tree`` prints. ``on_step`` is told each step and the behaviour it
-    became (the studio maps the nodes back to the lines of their steps).
+    no OpenCV, no EKF). What ``beastbt tree`` prints.
     """
     options = RunOptions(record=False)
     entries = [entry for entry in BUILTIN_PARTS if entry.needed(profile, options)]
@@ -302,6 +301,7 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     parts += [external_part(str(name), profile) for name in (profile.section("parts") or {})]
     clock = SimClock()
     ctx = MissionContext(clock=clock, events=EventLog(clock), params=profile.control, capabilities=capabilities)
+    # on_step: told each step and the behaviour it became (the studio maps nodes back to their steps' lines)
     return compile_mission(mission, ctx, step_builders(parts), on_step)
 
 

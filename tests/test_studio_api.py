@@ -251,6 +251,14 @@ def test_a_typo_is_a_problem_at_its_line_and_column_with_a_did_you_mean(studio):
     assert studio.post("/api/validate", {"text": text.replace("drvie", "drive"), "path": "missions/t.yaml"})[1] == \
         {"problems": []}
     elsewhere = studio.post("/api/validate", {"text": text.replace("drvie", "drive"), "path": "t.yaml"})[1]
+    # a world, a robot profile and a joystick script are checked as what they are
+    for path, typo, says in (("worlds/campus.yaml", ("datum:", "datun:"), "did you mean 'datum'"),
+                             ("missions/joystick/teleop_demo.yaml", ("press: enable", "pres: enable"),
+                              "did you mean 'press'")):
+        right = (REPO / path).read_text(encoding="utf-8")
+        assert studio.post("/api/validate", {"text": right, "path": path})[1] == {"problems": []}, path
+        wrong = studio.post("/api/validate", {"text": right.replace(*typo, 1), "path": path})[1]["problems"]
+        assert says in wrong[0]["message"] and "file" not in wrong[0], wrong
     here = elsewhere["problems"][0]  # ../worlds is not there from the top: said at 'world:', first
     assert "file" not in here and here["line"] == 2 and "world file" in here["message"]
     assert elsewhere["problems"][1]["file"].endswith("worlds/campus.yaml")
@@ -396,3 +404,60 @@ def test_a_first_mission_from_a_template_by_the_api_alone_runs_to_success_and_sa
     on_disk = (studio.folder / path).read_text(encoding="utf-8")
     assert on_disk == text and all(line in on_disk.splitlines() for line in comments)
     assert studio.post("/api/validate", {"text": on_disk, "path": path})[1] == {"problems": []}
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    found = []
+    for entry in Path("/proc").glob("[0-9]*"):
+        try:
+            if int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                found.append(int(entry.name))
+        except (OSError, ValueError, IndexError):
+            continue
+    return found
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, ended but not yet waited for, has ended)."""
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def test_the_command_prints_the_address_serves_and_its_tries_end_with_it(tmp_path):
+    import subprocess
+    import sys
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    bad = subprocess.run([sys.executable, "-m", "beastbt", "studio", str(tmp_path / "none")], capture_output=True,
+                         text=True, timeout=60, env=env)
+    assert bad.returncode == 2 and "is not a folder" in bad.stderr
+    (tmp_path / "m.yaml").write_text("mission: m\nsteps: []\n", encoding="utf-8")
+    proc = subprocess.Popen([sys.executable, "-m", "beastbt", "studio", str(tmp_path), "--listen", "127.0.0.1:0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    tries: list[int] = []
+    try:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline() for _ in range(2)]
+        url = lines[1].split()[-1]
+        assert lines[1].startswith("open http://127.0.0.1:") and url.endswith("/")
+        port = int(url.rsplit(":", 1)[1].strip("/"))
+        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        conn.request("GET", "/api/files")
+        answer = json.loads(conn.getresponse().read())
+        assert [f["path"] for f in answer["files"]] == ["m.yaml"]
+        conn.request("GET", "/")
+        page = conn.getresponse()
+        assert page.status == 200 and page.getheader("Content-Type").startswith("text/html") and page.read()
+        body = json.dumps({"text": "mission: long\nsteps:\n  - wait: 300 s\n", "speed": "realtime"})
+        conn.request("POST", "/api/try", body=body, headers={"Content-Type": "application/json"})
+        assert conn.getresponse().status == 200
+        conn.close()
+        tries = _children(proc.pid)
+        assert tries  # the try's beastbt run
+    finally:
+        proc.terminate()  # SIGTERM, as a service manager ends it: the studio stops, and its tries with it
+        assert proc.wait(30) == 0
+    assert not [pid for pid in tries if _alive(pid)], "a try outlived the studio"
+    assert not list(tmp_path.glob(".*.try-*"))  # and its hidden copy is gone

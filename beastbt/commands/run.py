@@ -60,6 +60,23 @@ class ReaderSafeStream:
         return getattr(self._stream, name)
 
 
+def reader_safe_stdout(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """Run ``command`` with :class:`ReaderSafeStream` as standard output (every print of the run, its threads'
+    included), the stream it replaced put back after."""
+    import functools
+
+    @functools.wraps(command)
+    def guarded(args: argparse.Namespace) -> int:
+        out = ReaderSafeStream(sys.stdout)
+        sys.stdout = out  # type: ignore[assignment]
+        try:
+            return command(args)
+        finally:
+            out.flush()  # what is still buffered goes now, or nowhere: never a broken pipe at exit (status 120)
+            sys.stdout = out._stream
+    return guarded
+
+
 def _duration(text: str) -> float:
     try:
         return parse_duration(text)
@@ -210,6 +227,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="camera images recorded per second as JPEG (default 2; 0 for none)")
 
 
+@reader_safe_stdout
 def command(args: argparse.Namespace) -> int:
     """Run the mission; print the summary. 0 success, 1 failure or stopped, 2 invalid input."""
     from beastbt.run.session import RunOptions, parse_speed
@@ -285,11 +303,6 @@ def command(args: argparse.Namespace) -> int:
         host, port = args.foxglove
         print(f"Foxglove live: ws://{host}:{port} (in Foxglove: Open connection -> Foxglove WebSocket; "
               f"layout: beastbt foxglove-layout)", flush=True)
-    out = ReaderSafeStream(sys.stdout)
-    sys.stdout = out  # type: ignore[assignment]  # every print of the run, the threads' included
-    try:
-        summary = execute(prepared, out)
-        print(human_summary(summary), flush=True)
-    finally:
-        sys.stdout = out._stream
+    summary = execute(prepared, sys.stdout)
+    print(human_summary(summary))
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

@@ -228,7 +228,13 @@ class ConsoleServer:
 
     def _refusal(self, request: web.Request) -> Optional[web.Response]:
         """The answer to a request the console must not serve (see the module docstring), or None."""
-        return self.guard.refusal(request)
+        return self.guard.refusal(request, self.body_types(request))
+
+    def body_types(self, request: web.Request) -> tuple[str, ...]:
+        """The content types a POST to this path may have without the token: JSON only, for every control
+        (each one a browser sends only after asking the server; a server built on this one may add others
+        that are not a form's or ``text/plain``)."""
+        return ("application/json",)
 
     def _explicit_token(self, request: web.Request) -> bool:
         """The token sent in the request itself (``?token=``, ``Authorization: Bearer``), not by the cookie jar."""

@@ -66,8 +66,13 @@ class WebGuard:
         """A JSON ``{error}`` answer."""
         return web.json_response({"error": message}, status=status)
 
-    def refusal(self, request: web.Request) -> Optional[web.Response]:
-        """The answer to a request the server must not serve, or None when it may."""
+    def refusal(self, request: web.Request, body_types: tuple[str, ...] = ("application/json",)
+                ) -> Optional[web.Response]:
+        """The answer to a request the server must not serve, or None when it may.
+
+        ``body_types`` are the content types a request that acts may have without the token (JSON only by default:
+        a server may add others that are not a form's or ``text/plain``, which any page can send unasked).
+        """
         w = self.words
         host = request.headers.get("Host")
         if not self.needs_token and not host_allowed(host, self.host):
@@ -92,7 +97,7 @@ class WebGuard:
         if acts and site in ("cross-site", "same-site"):
             return self.error(403, f"a request from another page ({site}) is refused: only the {w.what}'s own page "
                                    f"(or a client with the token) may use it")
-        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type != "application/json":
+        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type not in body_types:
             return self.error(403, f"{w.acting} needs Content-Type: application/json (this one is "
                                    f"'{request.content_type[:60]}'), as the {w.what}'s page sends, or the token: a "
                                    f"page on another site can send a form or text/plain, never JSON without asking")

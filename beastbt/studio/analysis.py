@@ -92,7 +92,7 @@ def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[
     real, name = where(folder, path)
     kind = kind_of(text)
     try:
-        if kind in ("world", "robot"):
+        if kind in ("world", "robot") or _is_list(text):
             return None, _check_by_file(real, name, text, kind)
         from beastbt.mission.model import load_mission
         mission = load_mission(real, text=text, display_name=name)
@@ -108,19 +108,25 @@ def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[
         return None, [internal_error(name, exc)]
 
 
+def _is_list(text: str) -> bool:
+    """Whether the text's first line of content is a list item: a joystick script (``--joystick FILE``)."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#") and stripped != "---":
+            return stripped.startswith("- ") or stripped == "-"
+    return False
+
+
 def _check_by_file(real: Path, name: str, text: str, kind: str) -> list[Problem]:
-    """A world or robot text, checked as the loaders check a file (written to a private temporary file)."""
-    from beastbt.robot.profile import load_profile
-    from beastbt.sim.world import load_world
+    """A world, robot or joystick script text, checked as ``beastbt validate`` checks a file (written to a private
+    temporary file: these files name no other file)."""
+    from beastbt.validate import validate_file
     with tempfile.TemporaryDirectory(prefix="beastbt-studio-") as tmp:
         fake = Path(tmp) / (Path(name).name if name.endswith((".yaml", ".yml")) else "file.yaml")
         fake.write_text(text, encoding="utf-8")
-        try:
-            (load_world if kind == "world" else load_profile)(str(fake))
-        except InvalidInput as exc:
-            return [Problem(name if p.file in (str(fake), fake.name) else p.file, p.position, p.message, p.hint,
-                            p.severity) for p in exc.problems]
-    return []
+        found = validate_file(str(fake))
+        return [Problem(name if p.file in (str(fake), fake.name) else p.file, p.position, p.message, p.hint,
+                        p.severity) for p in found]
 
 
 def validate_text(folder: StudioFolder, text: str, path: Optional[str] = None, robot: Optional[str] = None) -> dict:

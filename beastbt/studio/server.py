@@ -14,6 +14,7 @@ import asyncio
 import json
 import mimetypes
 import os
+import signal
 import socket
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -163,12 +164,18 @@ class StudioServer:
         self.workers.shutdown(wait=False, cancel_futures=True)
 
     def serve_forever(self, on_ready: Callable[[], None] = lambda: None) -> None:
-        """Serve in this thread until Ctrl-C (the command's way)."""
+        """Serve in this thread until Ctrl-C or SIGTERM (the command's way); the tries still running are stopped."""
         async def main() -> None:
             await self._bind()
+            ending = asyncio.Event()
+            try:
+                # a service manager or a test ends the studio with SIGTERM: its tries must not outlive it
+                asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, ending.set)
+            except (NotImplementedError, RuntimeError):  # not on this platform, or not the main thread
+                pass
             on_ready()
             try:
-                await asyncio.Event().wait()
+                await ending.wait()
             finally:
                 if self._runner is not None:
                     await self._runner.cleanup()
