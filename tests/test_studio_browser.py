@@ -80,6 +80,15 @@ class Studio:
                 continue
 
 
+@pytest.fixture(scope="module", autouse=True)
+def patient_expect():
+    """15 s for each expectation here (a loaded 2-core machine answers slower; a passing run does not wait), and
+    Playwright's own 5 s again for the other test files."""
+    expect.set_options(timeout=15_000)
+    yield
+    expect.set_options(timeout=5_000)
+
+
 @pytest.fixture(scope="module")
 def browser():
     with playwright_api.sync_playwright() as pw:
