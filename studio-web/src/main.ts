@@ -39,6 +39,7 @@ const state = {
 
 // ---------------------------------------------------------------- status line
 let statusTimer = 0;
+/** One line of news in the bar: ok and info fade after 5 s, an error stays until the next news. */
 function status(message: string, kind: "info" | "ok" | "error" | "busy" = "info", sticky = false): void {
   const el = $("status");
   el.textContent = message;
@@ -47,6 +48,7 @@ function status(message: string, kind: "info" | "ok" | "error" | "busy" = "info"
   if (!sticky && kind !== "error") statusTimer = window.setTimeout(() => { el.textContent = ""; }, 5000);
 }
 
+/** An error a teacher can read: what failed and the studio's own words why. */
 function fail(what: string, e: unknown): void {
   const message = e instanceof Error ? e.message : String(e);
   status(`${what}: ${message}`, "error");
@@ -68,6 +70,7 @@ editor.onDidChangeModelContent(() => {
   checkTimer = window.setTimeout(() => { void check(); }, VALIDATE_DEBOUNCE_MS);
 });
 
+/** Mark the open file, and each file in the list, that has text not saved yet. */
 function markDirty(): void {
   const cur = state.current;
   const dirty = !!cur && cur.model.getValue() !== cur.savedText;
@@ -188,6 +191,7 @@ function setMapReady(ready: boolean): void {
 }
 setMapReady(false);
 
+/** Draw the map of `text` (the answer is dropped when the text changed meanwhile). */
 async function redrawMap(ticket: number, text: string): Promise<void> {
   const cur = state.current;
   if (!cur) return;
@@ -197,7 +201,7 @@ async function redrawMap(ticket: number, text: string): Promise<void> {
     studioMap.draw(data);
     $("map").dataset.places = String(data?.places?.length ?? 0);
     setMapReady(cur.kind === "mission");
-    if (cur.kind === "world") $("hint").textContent = "The world's plan, as the text says it (walls, obstacles, start).";
+    if (cur.kind === "world") $("hint").textContent = "The world's plan as the text says it (walls, obstacles, start).";
     else studioMap.showHint();
   } catch (e) {
     if (ticket === state.checkTicket) status(`the map cannot be drawn yet: ${(e as Error).message}`, "info");
@@ -273,6 +277,7 @@ async function loadFiles(): Promise<void> {
 
 const KIND_TITLES: Record<string, string> = { mission: "Missions", world: "Worlds", robot: "Robots", other: "Other" };
 
+/** The file list, grouped by kind: missions, worlds, robots, other. */
 function renderFiles(): void {
   const list = $("file-list");
   list.replaceChildren();
@@ -306,6 +311,7 @@ function renderFiles(): void {
   markDirty();
 }
 
+/** The page's copy of the JSON Schema of a kind of file (absolute: its `$ref`s resolve beside it). */
 function schemaFor(kind: string): string | null {
   const name = { mission: "mission", world: "world", robot: "robot" }[kind];
   return name ? new URL(`schemas/${name}.schema.json`, location.href).href : null;
@@ -375,6 +381,7 @@ async function loadTemplates(): Promise<void> {
   }
 }
 
+/** `base`.yaml, or `base`_2.yaml, ... : a name no file of the folder has yet. */
 function freeName(base: string): string {
   const taken = new Set(state.files.map((f) => f.path));
   const stem = base.replace(/\.ya?ml$/i, "");
@@ -383,6 +390,7 @@ function freeName(base: string): string {
   return name;
 }
 
+/** Make a new mission from the chosen template, save it (a new file) and open it. */
 async function createFromTemplate(): Promise<void> {
   const template = $<HTMLSelectElement>("template").value;
   if (!template) return;
@@ -409,6 +417,7 @@ $("new-name").addEventListener("keydown", (e) => { if (e.key === "Enter") void c
 let diffEditor: monaco.editor.IStandaloneDiffEditor | null = null;
 let conflictFor: { file: OpenFile; diskText: string | null } | null = null;
 
+/** PUT the open file with the version it was read at; a 409 opens the conflict view and saves nothing. */
 async function save(): Promise<void> {
   const cur = state.current;
   if (!cur) return;
@@ -430,6 +439,7 @@ async function save(): Promise<void> {
 }
 $("save").addEventListener("click", () => void save());
 
+/** Both texts side by side: the disk's and the editor's. */
 function showConflict(file: OpenFile, diskText: string | null, message: string): void {
   conflictFor = { file, diskText };
   $("conflict").hidden = false;
@@ -448,6 +458,7 @@ function showConflict(file: OpenFile, diskText: string | null, message: string):
   status(`not saved: ${file.path} changed on disk`, "error", true);
 }
 
+/** Close the conflict view (the editor's text is untouched). */
 function closeConflict(): void {
   $("conflict").hidden = true;
   const models = diffEditor?.getModel();
@@ -457,6 +468,7 @@ function closeConflict(): void {
   conflictFor = null;
 }
 
+/** The version of the file on disk now (null when it is gone). */
 async function diskVersion(path: string): Promise<string | null> {
   try {
     return (await api<{ version: string }>("files/" + filePath(path))).version;
@@ -523,10 +535,12 @@ const run = {
   question: null as string | null,
 };
 
+/** A call to the running try's part of the API (`/api/try/<id>...`). */
 function runApi<T = any>(what: string, body?: unknown): Promise<T> {
   return api<T>(`try/${encodeURIComponent(run.id!)}${what}`, body);
 }
 
+/** Start a simulated run of the editor's text (a try still running is stopped first). */
 async function tryIt(): Promise<void> {
   const cur = state.current;
   if (!cur) { status("open a mission first", "error"); return; }
@@ -574,6 +588,7 @@ async function tryIt(): Promise<void> {
 }
 $("try").addEventListener("click", () => void tryIt());
 
+/** Follow a try: its state, and while it runs the console's (step, progress, question, pose, tree). */
 async function pollRun(id: string): Promise<void> {
   if (run.id !== id) return;
   try {
@@ -592,6 +607,7 @@ async function pollRun(id: string): Promise<void> {
   run.timer = window.setTimeout(() => void pollRun(id), TRY_POLL_MS);
 }
 
+/** The progress bar: steps done of the steps a full run takes. */
 function setProgress(p: LiveState["progress"] | null): void {
   const done = p?.done ?? 0;
   const total = p?.total ?? null;
@@ -600,6 +616,7 @@ function setProgress(p: LiveState["progress"] | null): void {
     + (p.eta_s != null ? `, about ${Math.round(p.eta_s)} s left` : "") : "";
 }
 
+/** What the run does now: its step, time, progress, question, robot on the map and tree. */
 function showLive(live: LiveState): void {
   if (run.ended) return;
   $("run-step").textContent = live.step ?? "-";
@@ -625,6 +642,7 @@ function showTreeStatus(tree: Array<{ id: string; status?: string }> | null): vo
   });
 }
 
+/** The run's end: its result, a summary in words, beastbt run's output and the report. */
 function showEnded(s: TryState): void {
   run.ended = true;
   window.clearTimeout(run.timer);
@@ -699,6 +717,7 @@ function robot(): string | undefined {
   return $<HTMLSelectElement>("robot").value || undefined;
 }
 
+/** The robots to choose from (GET /api/robots). */
 async function loadRobots(): Promise<void> {
   try {
     const answer = await api<{ robots: string[] }>("robots");

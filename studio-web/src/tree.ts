@@ -37,6 +37,7 @@ function textWidth(text: string): number {
 const COMPOSITES = new Set(["sequence", "selector", "fallback", "parallel", "repeat", "retry", "decorator",
   "root", "mission"]);
 
+/** An SVG element with its attributes, appended to `parent` when given. */
 function svg<K extends keyof SVGElementTagNameMap>(tag: K, attrs: Record<string, string | number>,
                                                   parent?: Element): SVGElementTagNameMap[K] {
   const el = document.createElementNS(SVG, tag);
