@@ -108,6 +108,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",
               lambda profile, options: options.console is not None),
+    # After the console: the fleet shares its state and controls when both are on.
+    PartEntry("fleet", "beastbt.parts.fleet:FleetPart", _always),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 

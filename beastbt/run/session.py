@@ -73,6 +73,8 @@ class RunOptions:
     """Draw the detected line and the step on the streamed frames (``--stream-no-overlay`` clears it)."""
     record_images_hz: Optional[float] = None
     """Camera images recorded per second as JPEG (``--record-images``); None: the recording's default."""
+    fleet: Optional[Any] = None
+    """Report to a fleet's station on Zenoh (``--fleet``): a :class:`beastbt.fleet.config.FleetOptions`."""
     recording: Optional[Mapping[str, Any]] = None
     """Recording settings (the fields of ``recording.config.RecordingConfig``), for tests and benchmarks."""
 
