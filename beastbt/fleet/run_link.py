@@ -61,6 +61,9 @@ class FleetRunLink:
             run.reactors.append(controls)
         run.events.listeners.append(self._event)
         agent.attach(self)
+        if agent.estop_latched:  # it came between the mission's answer and now: the run starts stopped
+            from beastbt.run.safety import request_estop
+            request_estop(run, "the fleet's e-stop (latched before the run)")
 
     def _take(self, seq: int, built: dict) -> None:
         self._latest = built

@@ -252,11 +252,17 @@ class ConsoleServer:
         if acts and site in ("cross-site", "same-site"):
             return _error(403, f"a request from another page ({site}) is refused: only the console's own page "
                                f"(or a client with the token) may use it")
-        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type != "application/json":
+        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type not in self.body_types(request):
             return _error(403, f"a control needs Content-Type: application/json (this one is "
                                f"'{request.content_type[:60]}'), as the console's page sends, or the token: a "
                                f"page on another site can send a form or text/plain, never JSON without asking")
         return None
+
+    def body_types(self, request: web.Request) -> tuple[str, ...]:
+        """The content types a POST to this path may have without the token: JSON only, for every control
+        (each one a browser sends only after asking the server; a server built on this one may add others
+        that are not a form's or ``text/plain``)."""
+        return ("application/json",)
 
     def _explicit_token(self, request: web.Request) -> bool:
         """The token sent in the request itself (``?token=``, ``Authorization: Bearer``), not by the cookie jar."""

@@ -1,0 +1,79 @@
+"""``beastbt station``: the fleet's station, a Zenoh router and an HTTP API for every robot on it (docs/fleet.md).
+
+Exit status: 0 when stopped (Ctrl-C, SIGTERM), 2 when it cannot start (an
+address it cannot listen on, a bad ``--fleet-config``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+
+EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+DEFAULT_CONSOLE = "127.0.0.1:8090"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``beastbt station``."""
+    p.add_argument("--listen", default=DEFAULT_LISTEN, metavar="ENDPOINT",
+                   help=f"where robots connect (Zenoh endpoint, default {DEFAULT_LISTEN}: this computer only; "
+                        f"tcp/0.0.0.0:7447 for every network, with --fleet-config for TLS)")
+    p.add_argument("--console", default=DEFAULT_CONSOLE, metavar="[HOST:]PORT",
+                   help=f"where the station's page and HTTP API listen (default {DEFAULT_CONSOLE}); off loopback "
+                        f"they need the token printed at start")
+    p.add_argument("--console-token", choices=("auto", "always"), default="auto",
+                   help="auto (default): the token is needed off loopback only; always: on loopback too")
+    p.add_argument("--fleet-config", metavar="FILE", help="a standard Zenoh JSON5 configuration for the router "
+                                                          "(TLS, credentials, access control)")
+
+
+def command(args: argparse.Namespace) -> int:
+    """Run the station until Ctrl-C or SIGTERM."""
+    from beastbt.core.errors import InvalidInput
+    from beastbt.fleet.config import parse_endpoint
+    from beastbt.live.endpoint import parse_endpoint as parse_http
+    try:
+        listen = parse_endpoint(args.listen, "--listen")
+        host, port = parse_http(args.console, "--console")
+    except ValueError as exc:
+        print(f"beastbt station: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    from beastbt.fleet.station import Station, StationServer
+    from beastbt.live.endpoint import is_loopback
+    station = Station(listen, args.fleet_config)
+    try:
+        station.open()
+    except InvalidInput as exc:
+        print(exc.format(), file=sys.stderr)
+        return EXIT_INVALID
+    except Exception as exc:  # noqa: BLE001 - zenoh's own error: say it in one line
+        print(f"beastbt station: error: cannot open the fleet's router on {listen}: {str(exc).splitlines()[0][:300]}",
+              file=sys.stderr)
+        print("    hint: is another station listening there? pick another port with --listen", file=sys.stderr)
+        return EXIT_INVALID
+    server = StationServer(station, host, port,
+                           require_token=True if args.console_token == "always" else not is_loopback(host))
+    try:
+        server.start()
+    except OSError as exc:
+        station.close()
+        print(f"beastbt station: error: --console: cannot listen on {host}:{port}: {exc.strerror or exc}",
+              file=sys.stderr)
+        return EXIT_INVALID
+    print(f"fleet station: robots connect to {listen}", flush=True)
+    print(f"station page and API: {server.url}", flush=True)
+    done = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+    try:
+        while not done.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        server.close()
+        station.close()
+    return EXIT_SUCCESS
