@@ -28,10 +28,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="auto (default): the token is needed off loopback only; always: on loopback too")
     p.add_argument("--fleet-config", metavar="FILE", help="a standard Zenoh JSON5 configuration for the router "
                                                           "(TLS, credentials, access control)")
+    p.add_argument("--init-keys", metavar="DIR", help="write a fleet's CA, the station's and the robots' "
+                                                      "certificates, DIR/station.json5 and DIR/robot.json5 (mutual "
+                                                      "TLS, only the station commands) and a how-to; then exit")
+    p.add_argument("--host", action="append", default=[], metavar="NAME",
+                   help="with --init-keys: a name or address robots reach the station by (repeatable; localhost "
+                        "and 127.0.0.1 always)")
 
 
 def command(args: argparse.Namespace) -> int:
-    """Run the station until Ctrl-C or SIGTERM."""
+    """Run the station until Ctrl-C or SIGTERM (or, with ``--init-keys``, write the keys and exit)."""
+    if args.init_keys:
+        return init_keys(args)
     from beastbt.core.errors import InvalidInput
     from beastbt.fleet.config import parse_endpoint
     from beastbt.live.endpoint import parse_endpoint as parse_http
@@ -76,4 +84,29 @@ def command(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         server.close()
         station.close()
+    return EXIT_SUCCESS
+
+
+def init_keys(args: argparse.Namespace) -> int:
+    """``--init-keys DIR``: write the fleet's keys and configurations; 0, or 2 when they cannot be written."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    from beastbt.fleet.config import parse_endpoint
+    from beastbt.fleet.credentials import init_keys as write_keys
+    if shutil.which("openssl") is None:
+        print("beastbt station: error: --init-keys needs the openssl command (apt install openssl)", file=sys.stderr)
+        return EXIT_INVALID
+    listen = args.listen if args.listen != DEFAULT_LISTEN else DEFAULT_LISTEN.replace("tcp/", "tls/")
+    try:
+        listen = parse_endpoint(listen, "--listen")
+        written = write_keys(Path(args.init_keys), args.host, listen)
+    except (ValueError, FileExistsError, OSError, subprocess.CalledProcessError) as exc:
+        detail = getattr(exc, "stderr", "") or str(exc)
+        print(f"beastbt station: error: --init-keys {args.init_keys}: {str(detail).strip()[:300]}", file=sys.stderr)
+        return EXIT_INVALID
+    for path in written:
+        print(path)
+    print((Path(args.init_keys) / "README.txt").read_text(), end="")
     return EXIT_SUCCESS
