@@ -1,8 +1,9 @@
 """The fleet as a part: ``--fleet ENDPOINT`` reports the run to a station on Zenoh and takes its commands.
 
-Costs nothing (and imports no Zenoh) for a run without ``--fleet`` whose mission and profile have no
-``fleet:`` section; a mission that requires the fleet's supervision without a fleet link is refused
-before anything moves (:mod:`beastbt.fleet.supervision`).
+:class:`FleetPart` is assembled only for a run with ``--fleet`` (or ``beastbt serve``); every other run gets
+:class:`UnsupervisedCheck`, which reads nothing and imports no Zenoh: it refuses, before anything moves, a
+mission (or profile) whose ``fleet:`` section requires the station's supervision (:mod:`beastbt.fleet.supervision`).
+A replay is never on the fleet.
 """
 
 from __future__ import annotations
@@ -17,9 +18,8 @@ class FleetPart(Part):
     name = "fleet"
     opens = "Zenoh session (peer, connecting to the station's router)"
     reads = ("battery",)
-    """It shows what the run computes (the console's state) and wakes no sleeping sensor."""
+    """It shows what the run computes (the console's state) and the battery, and wakes no other sensor."""
     takes = ("pause, resume, abort, e-stop, answers, missions (serve)", "velocity (teleop source of the mux)")
-
     mode = ""
 
     def attach(self, build: Build) -> None:
@@ -28,18 +28,12 @@ class FleetPart(Part):
 
     def install(self, prepared: Prepared) -> None:
         """Attach the run to the fleet's agent (the one ``beastbt serve`` keeps, or one for this run)."""
-        if self.mode == REPLAY:
-            return
-        fleet = getattr(prepared.options, "fleet", None)
-        section = (prepared.mission.doc.data or {}).get("fleet") if prepared.mission.doc is not None else None
-        if fleet is None and section is None and prepared.profile.section("fleet") is None:
-            return
-        from beastbt.fleet.supervision import refuse_unsupervised, supervise, supervision_of
-        supervision = supervision_of(prepared.mission, prepared.profile)
-        if fleet is None:
-            refuse_unsupervised(supervision)
+        fleet = prepared.options.fleet
+        if self.mode == REPLAY or fleet is None:
             return
         from beastbt.fleet.run_link import FleetRunLink, open_agent
+        from beastbt.fleet.supervision import supervise, supervision_of
+        supervision = supervision_of(prepared.mission, prepared.profile)
         agent, owned = open_agent(fleet, prepared)
         link = FleetRunLink(agent, prepared)
         prepared.closers.append(link.close)
@@ -50,4 +44,25 @@ class FleetPart(Part):
         prepared.run.events.add("fleet", f"on the fleet as '{agent.name}' ({fleet.endpoint or fleet.config_file})")
 
 
-__all__ = ["FleetPart"]
+class UnsupervisedCheck(Part):
+    """A run without a fleet link: refuses a mission or profile that requires the fleet's supervision."""
+
+    name = "fleet_check"
+    mode = ""
+
+    def attach(self, build: Build) -> None:
+        """Note the mode: a replay carries out what was recorded, supervised or not."""
+        self.mode = build.mode
+
+    def install(self, prepared: Prepared) -> None:
+        """InvalidInput, positioned at the ``fleet:`` section, when it requires supervision."""
+        if self.mode == REPLAY:
+            return
+        doc = prepared.mission.doc
+        if (doc is None or "fleet" not in (doc.data or {})) and prepared.profile.section("fleet") is None:
+            return  # the usual run: nothing to import
+        from beastbt.fleet.supervision import refuse_unsupervised, supervision_of
+        refuse_unsupervised(supervision_of(prepared.mission, prepared.profile))
+
+
+__all__ = ["FleetPart", "UnsupervisedCheck"]
