@@ -46,6 +46,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="on the simulator: realtime (default, so that people can watch), max, or a factor such as 10")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
     p.add_argument("--no-record", action="store_true", help="do not write run folders")
+    from beastbt.commands.run import _checked, _endpoint
+    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
+                   help="serve each mission's operator console there (tree, video, joystick); the station's page "
+                        "links to it")
     add_fleet_arguments(p)
 
 
@@ -84,7 +88,8 @@ def command(args: argparse.Namespace) -> int:
     agent = FleetAgent(name, fleet, takes_missions=True).start()
     from dataclasses import replace
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
-                         record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent))
+                         record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
+                         console=args.console)
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
           flush=True)
     done = threading.Event()
@@ -97,7 +102,9 @@ def command(args: argparse.Namespace) -> int:
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
-                serve_one(agent, request, options)
+                summary = serve_one(agent, request, options)
+                if summary is not None and interrupted(summary):
+                    done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
             finally:
                 agent.mission_done()
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
@@ -108,6 +115,12 @@ def command(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         agent.close()
     return EXIT_SUCCESS
+
+
+def interrupted(summary: dict) -> bool:
+    """Whether the run was ended by Ctrl-C or SIGTERM (its ``mission_end`` event says so)."""
+    return any(e.get("kind") == "mission_end" and "interrupted (" in e.get("text", "")
+               for e in summary.get("events", []))
 
 
 def serve_one(agent: Any, request: Any, options: Any) -> Optional[dict]:

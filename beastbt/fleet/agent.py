@@ -173,6 +173,9 @@ class FleetAgent:
         link = self.link
         state = dict(link.latest() if link is not None else self.idle_state())
         state["robot"] = self.name
+        console = link.run.ctx.services.plugins.get("console") if link is not None else None
+        # where the run's own console is (tree, video, joystick), without its token: the fleet is not the console
+        state["console_url"] = console.url.split("?")[0] if console is not None and console.url else None
         state["last_run"] = self.last_run
         state["station"] = self.station_present
         return state

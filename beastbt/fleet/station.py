@@ -50,6 +50,8 @@ MISSION_TYPES = ("application/json", "application/yaml", "application/x-yaml", "
                  "application/zip")
 """What a mission may be sent as without the token: none of them is a form's or ``text/plain`` (a page on
 another site must ask first, and is told no)."""
+STATION_FILES = {"station.js": "application/javascript", "station.css": "text/css"}
+"""The station page's own files (``station_page/``); the rest (stylesheet, icon) is the console's."""
 ATTENTION = {"question": 0, "failed": 1, "aborted": 1, "estop": 1, "lost": 2}
 """What needs a person first (lower first): an open question, then a failure or e-stop, then a robot lost."""
 
@@ -114,7 +116,8 @@ class FleetTable:
                     "battery": s.get("battery"), "step": s.get("step"), "progress": s.get("progress"),
                     "last_seen_s": None if e.seen_wall is None else round(now - e.seen_wall, 2),
                     "mission": s.get("mission"), "question": s.get("question"), "estop": bool(s.get("estop")),
-                    "last_run": s.get("last_run"), "events": list(e.events)[-5:]}
+                    "last_run": s.get("last_run"), "console_url": s.get("console_url"),
+                    "events": list(e.events)[-5:]}
             item["attention"] = self.attention(item)
             out.append(item)
         out.sort(key=lambda r: (r["attention"] if r["attention"] is not None else 9, r["name"]))
@@ -210,6 +213,11 @@ class Station:
             session.put(keys.ESTOP_ALL, json.dumps({"by": "station"}))
 
 
+def _station_file(name: str) -> bytes:
+    from importlib import resources
+    return resources.files("beastbt.fleet").joinpath("station_page", name).read_bytes()
+
+
 def _json_object(raw: bytes) -> Optional[dict]:
     try:
         value = json.loads(bytes(raw))
@@ -239,6 +247,8 @@ class StationServer(ConsoleServer):
         app = web.Application(middlewares=[self._guard], client_max_size=MISSION_MAX_BYTES)
         app.on_response_prepare.append(self._headers)
         app.router.add_get("/", self._page)
+        app.router.add_get("/static/{name}", self._station_static)
+        app.router.add_get("/favicon.ico", self._favicon)
         app.router.add_get("/api/robots", self._robots)
         app.router.add_post("/api/estop-all", self._estop_all)
         app.router.add_post("/api/robots/{name}/mission", self._mission)
@@ -253,8 +263,15 @@ class StationServer(ConsoleServer):
             self.port = sockets[0].getsockname()[1]
 
     async def _page(self, request: web.Request) -> web.Response:
-        from beastbt.fleet.station_page import page
-        return web.Response(text=page(), content_type="text/html", headers={"Cache-Control": "no-cache"})
+        return web.Response(body=_station_file("index.html"), content_type="text/html", charset="utf-8",
+                            headers={"Cache-Control": "no-cache"})
+
+    async def _station_static(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        if name in STATION_FILES:
+            return web.Response(body=_station_file(name), content_type=STATION_FILES[name],
+                                headers={"Cache-Control": "no-cache"})
+        return await self._static(request)  # the console's own stylesheet and icon
 
     async def _robots(self, request: web.Request) -> web.Response:
         return web.json_response({"robots": self.station.table.robots()})
