@@ -175,3 +175,14 @@ def test_a_mission_zip_is_unpacked_inside_its_folder_only(tmp_path):
         unpack(zipped({"../evil.yaml": "x"}), tmp_path / "b")
     with pytest.raises(ValueError, match="mission.yaml"):
         unpack(zipped({"a.yaml": "x", "b.yaml": "y"}), tmp_path / "c")
+
+
+def test_simulated_robots_start_side_by_side_in_the_shared_world(tmp_path):
+    from beastbt.fleet.simulate import SPACING_M, world_for
+    from beastbt.sim.world import load_world
+    from conftest import REPO
+    starts = [load_world(str(world_for(i, str(REPO / "worlds" / "campus.yaml"), tmp_path))) for i in range(3)]
+    assert {w.name for w in starts} == {"campus"} and len({(w.start_x, w.start_y) for w in starts}) == 3
+    for a, b in zip(starts, starts[1:]):
+        assert abs(((b.start_x - a.start_x) ** 2 + (b.start_y - a.start_y) ** 2) ** 0.5 - SPACING_M) < 1e-3
+        assert b.start_yaw == a.start_yaw

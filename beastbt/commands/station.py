@@ -28,6 +28,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="auto (default): the token is needed off loopback only; always: on loopback too")
     p.add_argument("--fleet-config", metavar="FILE", help="a standard Zenoh JSON5 configuration for the router "
                                                           "(TLS, credentials, access control)")
+    p.add_argument("--simulate", type=int, default=0, metavar="N",
+                   help="also start N simulated robots (sim-1 ... sim-N, each a 'beastbt serve --sim') side by side")
+    p.add_argument("--world", help="with --simulate: the world they share (default: an empty plain)")
+    p.add_argument("--speed", default="realtime", help="with --simulate: realtime (default), max or a factor")
+    p.add_argument("--runs-dir", default="runs", help="with --simulate: where their run folders go (default ./runs)")
     p.add_argument("--init-keys", metavar="DIR", help="write a fleet's CA, the station's and the robots' "
                                                       "certificates, DIR/station.json5 and DIR/robot.json5 (mutual "
                                                       "TLS, only the station commands) and a how-to; then exit")
@@ -49,6 +54,18 @@ def command(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"beastbt station: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    if args.simulate < 0 or (args.simulate and (args.fleet_config or not listen.startswith("tcp/"))):
+        print("beastbt station: error: --simulate N takes N >= 0, on a plain tcp/ --listen (simulated robots "
+              "have no keys)", file=sys.stderr)
+        return EXIT_INVALID
+    if args.world:
+        from beastbt.core.errors import InvalidInput as Invalid
+        from beastbt.sim.world import load_world
+        try:
+            load_world(args.world)
+        except Invalid as exc:
+            print(exc.format(), file=sys.stderr)
+            return EXIT_INVALID
     from beastbt.fleet.station import Station, StationServer
     from beastbt.live.endpoint import is_loopback
     station = Station(listen, args.fleet_config)
@@ -73,6 +90,16 @@ def command(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     print(f"fleet station: robots connect to {listen}", flush=True)
     print(f"station page and API: {server.url}", flush=True)
+    simulated = []
+    if args.simulate > 0:
+        import tempfile
+        from pathlib import Path
+
+        from beastbt.fleet.simulate import start_robots
+        worlds = Path(tempfile.mkdtemp(prefix="beastbt-simulate-"))
+        simulated = start_robots(args.simulate, args.world, listen.replace("0.0.0.0", "127.0.0.1"), args.speed,
+                                 worlds, args.runs_dir)
+        print(f"{args.simulate} simulated robots: sim-1 ... sim-{args.simulate}", flush=True)
     done = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
     try:
@@ -82,6 +109,13 @@ def command(args: argparse.Namespace) -> int:
         pass
     finally:
         signal.signal(signal.SIGTERM, previous)
+        for proc in simulated:
+            proc.terminate()
+        for proc in simulated:
+            try:
+                proc.wait(10)
+            except Exception:  # noqa: BLE001 - one that does not end is killed
+                proc.kill()
         server.close()
         station.close()
     return EXIT_SUCCESS
