@@ -1,4 +1,4 @@
-"""The fleet on loopback: the station's CPU with N robots, a command's round trip, estop-all to wheels at zero, bandwidth.
+"""The fleet on loopback: the station's CPU with N robots, a command's round trip, estop-all, bandwidth.
 
     python benchmarks/fleet.py [--robots 20] [--commands 200]
 

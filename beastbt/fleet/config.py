@@ -26,7 +26,8 @@ from beastbt.core.errors import InvalidInput, Position, Problem
 
 DEFAULT_PORT = 7447
 """Zenoh's own default port."""
-_ENDPOINT = re.compile(r"(?P<proto>[a-z0-9]+)/(?P<addr>\[[0-9a-fA-F:.]+\]|[^/:\[\]#?]+):(?P<port>\d{1,5})(?P<tail>[?#].*)?")
+_ENDPOINT = re.compile(r"(?P<proto>[a-z0-9]+)/(?P<addr>\[[0-9a-fA-F:.]+\]|[^/:\[\]#?]+):(?P<port>\d{1,5})"
+                       r"(?P<tail>[?#].*)?")
 PROTOCOLS = ("tcp", "tls", "quic", "udp")
 """The transports an endpoint may name."""
 RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}

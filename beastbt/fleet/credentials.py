@@ -129,7 +129,8 @@ def init_keys(folder: Path, hosts: Sequence[str] = (), listen: str = "tls/127.0.
     names = ["localhost", "127.0.0.1", *hosts]
     _openssl("genpkey", "-algorithm", "EC", "-pkeyopt", "ec_paramgen_curve:P-256", "-out", "ca.key", cwd=folder)
     _openssl("req", "-x509", "-new", "-key", "ca.key", "-subj", "/CN=beastbt fleet CA", "-days", str(days),
-             "-sha256", "-addext", "basicConstraints=critical,CA:TRUE", "-addext", "keyUsage=critical,keyCertSign,cRLSign",
+             "-sha256", "-addext", "basicConstraints=critical,CA:TRUE",
+             "-addext", "keyUsage=critical,keyCertSign,cRLSign",
              "-out", "ca.crt", cwd=folder)
     _leaf(folder, "station", names, days)
     _leaf(folder, "robot", [], days)

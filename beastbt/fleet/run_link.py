@@ -88,7 +88,7 @@ class FleetRunLink:
 
 
 def robot_name(fleet: Any, profile: Any) -> str:
-    """The robot's name on the fleet: ``--name``, else the profile's ``robot:`` name; InvalidInput when it is not one."""
+    """The robot's name on the fleet: ``--name``, else the profile's ``robot:`` name; InvalidInput if it is none."""
     from beastbt.core.errors import InvalidInput, Position, Problem
     from beastbt.fleet import keys
     name = fleet.name or str(profile.name)
