@@ -89,22 +89,30 @@ def fleet(tmp_path):
             proc.kill()
 
 
-def state_rates(endpoint: str, seconds: float) -> dict[str, float]:
-    """States per second of each robot, as a plain Zenoh client subscribed to ``beastbt/**`` sees them."""
+def state_rates(endpoint: str, seconds: float) -> tuple[dict[str, float], dict[str, float]]:
+    """States per second of each robot, and the bytes per second of all its keys, as a plain Zenoh client
+    subscribed to ``beastbt/**`` sees them."""
     config = zenoh.Config()
     for key, value in {"mode": "client", "connect/endpoints": [endpoint], "scouting/multicast/enabled": False}.items():
         config.insert_json5(key, json.dumps(value))
     seen: dict[str, list[float]] = {}
+    volume: dict[str, int] = {}
+
+    def take(sample: Any) -> None:
+        key = str(sample.key_expr)
+        seen.setdefault(key, []).append(time.monotonic())
+        robot = key.split("/")[1]
+        volume[robot] = volume.get(robot, 0) + len(sample.payload.to_bytes()) + len(key)
     session = zenoh.open(config)
     try:
-        sub = session.declare_subscriber("beastbt/**", lambda s: seen.setdefault(str(s.key_expr), []).append(
-            time.monotonic()))
+        sub = session.declare_subscriber("beastbt/**", take)
         time.sleep(seconds)
         sub.undeclare()
     finally:
         session.close()
-    return {key.split("/")[1]: (len(t) - 1) / (t[-1] - t[0]) for key, t in seen.items()
-            if key.endswith("/state") and len(t) > 1}
+    rates = {key.split("/")[1]: (len(t) - 1) / (t[-1] - t[0]) for key, t in seen.items()
+             if key.endswith("/state") and len(t) > 1}
+    return rates, {robot: n / seconds for robot, n in volume.items()}
 
 
 def test_three_robots_and_a_station_on_loopback(fleet):
@@ -136,10 +144,11 @@ def test_three_robots_and_a_station_on_loopback(fleet):
                           b"mission: bad\nsteps:\n  - drivee: 1 m\n", "application/yaml")
     assert status == 422 and answer["errors"].startswith("mission.yaml:3:5: error: unknown step 'drivee'")
 
-    # a plain Zenoh subscriber on beastbt/** sees each robot's state at 5 Hz or more
-    rates = state_rates(fleet["endpoint"], 2.0)
+    # a plain Zenoh subscriber on beastbt/** sees each robot's state at 5 Hz or more, under 50 kB/s without video
+    rates, volume = state_rates(fleet["endpoint"], 2.0)
     assert names <= set(rates), rates
     assert min(rates[n] for n in names) >= 5.0, rates
+    assert max(volume[n] for n in names) < 50_000, volume
 
     # a long mission on bravo: pause and resume reach it, then the stop-all stops all three
     status, answer = http("POST", f"{base}/api/robots/bravo/mission", LONG.encode(), "application/yaml")

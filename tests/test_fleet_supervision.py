@@ -92,3 +92,17 @@ def test_a_mission_that_requires_supervision_is_refused_without_a_fleet(tmp_path
     assert proc.returncode == 2
     assert f"{mission}:2:1: error: this mission requires the fleet's supervision" in proc.stderr
     assert "--fleet" in proc.stderr
+
+
+def test_an_unsupervised_run_goes_on_without_its_station(tmp_path):
+    mission = tmp_path / "plain.yaml"
+    mission.write_text("mission: plain\nsteps:\n  - drive: {distance: 0.5 m, speed: 0.5 m/s}\n")
+    # nothing listens there: the run starts at once, runs and ends as it would without --fleet
+    proc = subprocess.run([sys.executable, "-m", "beastbt", "run", str(mission), "--fleet",
+                           f"tcp/127.0.0.1:{free_port()}", "--name", "alone", "--no-record", "--summary",
+                           str(tmp_path / "summary.json")], cwd=str(tmp_path), capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "success"
+    assert any(e["kind"] == "fleet" and "'alone'" in e["text"] for e in summary["events"])
