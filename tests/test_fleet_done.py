@@ -153,7 +153,8 @@ def test_three_robots_and_a_station_on_loopback(fleet):
     # a long mission on bravo: pause and resume reach it, then the stop-all stops all three
     status, answer = http("POST", f"{base}/api/robots/bravo/mission", LONG.encode(), "application/yaml")
     assert status == 200, answer
-    wait_for(lambda: robots(base)["bravo"]["status"] == "running", 10.0, "bravo runs")
+    wait_for(lambda: robots(base)["bravo"]["status"] == "running" and robots(base)["bravo"]["pose"]["x"] > 0.05,
+             10.0, "bravo drives")
     status, answer = http("POST", f"{base}/api/robots/bravo/pause", b"{}")
     assert status == 200 and answer["paused"] is True
     wait_for(lambda: robots(base)["bravo"]["status"] == "paused", 2.0, "bravo shows paused")

@@ -108,7 +108,8 @@ def command(args: argparse.Namespace) -> int:
             finally:
                 agent.mission_done()
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
-            print(f"robot '{name}': waiting for missions", flush=True)
+            if not done.is_set():
+                print(f"robot '{name}': waiting for missions", flush=True)
     except KeyboardInterrupt:
         pass
     finally:
