@@ -173,6 +173,7 @@ def test_three_robots_and_a_station_on_loopback(fleet):
     assert status == 409 and "e-stop" in answer["error"]
     status, answer = http("POST", f"{base}/api/robots/alpha/estop_reset", b"{}")
     assert status == 200 and answer["estop"] is False
+    wait_for(lambda: not robots(base)["alpha"]["estop"], 2.0, "alpha's state shows the e-stop reset")
 
     # kill -9 of one: lost within 2 s
     fleet["procs"]["charlie"].kill()
