@@ -105,6 +105,10 @@ def command(args: argparse.Namespace) -> int:
                 summary = serve_one(agent, request, options)
                 if summary is not None and interrupted(summary):
                     done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
+            except Exception as exc:  # noqa: BLE001 - the robot was stopped by the run's end; it serves on
+                request.answer(False, {"status": 500, "error": f"the robot could not run it: {type(exc).__name__}"})
+                print(f"beastbt serve: internal error in a mission: {type(exc).__name__}: {str(exc)[:300]}",
+                      file=sys.stderr, flush=True)
             finally:
                 agent.mission_done()
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())

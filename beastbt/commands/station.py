@@ -89,6 +89,10 @@ def command(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return EXIT_INVALID
     print(f"fleet station: robots connect to {listen}", flush=True)
+    if not args.fleet_config and not is_loopback(listen.split("/", 1)[1].rsplit(":", 1)[0].strip("[]")):
+        print("beastbt station: warning: the fleet link is plain TCP off loopback: anyone on that network can read "
+              "and command the robots; use --fleet-config with the keys of 'beastbt station --init-keys DIR'",
+              file=sys.stderr, flush=True)
     print(f"station page and API: {server.url}", flush=True)
     simulated = []
     if args.simulate > 0:
