@@ -39,6 +39,7 @@ class FleetPart(Part):
         prepared.closers.append(link.close)
         if owned:
             prepared.closers.append(agent.close)
+            print(f"fleet: reporting as '{agent.name}' to {fleet.endpoint or fleet.config_file}", flush=True)
         if supervision is not None and supervision.required:
             supervise(prepared.run, supervision, lambda: agent.station_present)
         prepared.run.events.add("fleet", f"on the fleet as '{agent.name}' ({fleet.endpoint or fleet.config_file})")
