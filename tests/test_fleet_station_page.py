@@ -42,13 +42,19 @@ def test_the_station_page_lists_the_robots_stops_them_all_and_sends_a_dropped_mi
     station = Station(endpoint).open()
     server = StationServer(station, "127.0.0.1", 0).start()
     agents = [FleetAgent(name, FleetOptions(endpoint), takes_missions=True).start() for name in ("p-1", "p-2")]
+    for i, agent in enumerate(agents):  # where each was when its last run ended: both with a GPS fix
+        agent.last_state = {"pose": {"x": float(i), "y": 0.0, "yaw_deg": 90.0, "heading_deg": 0.0},
+                            "gps": {"lat": 40.4168 + i * 1e-5, "lon": -3.7038, "fix": 1}}
     try:
         with playwright_api.sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
             page = browser.new_page()
+            errors: list = []
+            page.on("pageerror", lambda error: errors.append(str(error)))
             page.goto(f"http://127.0.0.1:{server.port}/")
             page.wait_for_selector("tr[data-robot='p-2']", timeout=10000)
             assert page.locator("tr[data-robot]").count() == 2
+            until(lambda: "GPS" in (page.locator("#map-info").text_content() or ""))  # one map, on GPS
             page.click("[data-testid=estop-all]")
             deadline = time.monotonic() + 3
             while not all(a.estop_latched for a in agents) and time.monotonic() < deadline:
@@ -70,6 +76,7 @@ def test_the_station_page_lists_the_robots_stops_them_all_and_sends_a_dropped_mi
             request.answer(True, {"started": "dropped", "warnings": []})
             until(lambda: "'dropped' started" in (page.locator("#notice").text_content() or ""))
             assert agents[1].missions.empty()
+            assert errors == []
             browser.close()
     finally:
         for agent in agents:

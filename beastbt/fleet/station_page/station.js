@@ -99,19 +99,35 @@ function render() {
   drawMap();
 }
 
+// Where each robot is on the map, metres east and north: on GPS (every placed robot has a fix) all share one
+// frame around their mean position; else each robot's own map frame (a shared simulated world: the same one).
+function positions(placed) {
+  const fixed = placed.filter((r) => r.gps && r.gps.lat !== null && r.gps.lon !== null);
+  if (fixed.length && fixed.length === placed.length) {
+    const lat0 = fixed.reduce((a, r) => a + r.gps.lat, 0) / fixed.length;
+    const lon0 = fixed.reduce((a, r) => a + r.gps.lon, 0) / fixed.length;
+    const m = 111320;  // metres per degree of latitude (equirectangular: a campus is flat enough)
+    $("map-info").textContent = "GPS, metres east and north of the robots' mean";
+    return fixed.map((r) => ({r, x: (r.gps.lon - lon0) * m * Math.cos(lat0 * Math.PI / 180),
+                              y: (r.gps.lat - lat0) * m}));
+  }
+  $("map-info").textContent = "each robot in its own map frame, metres";
+  return placed.map((r) => ({r, x: r.pose.x, y: r.pose.y}));
+}
+
 function drawMap() {
   const canvas = $("map"), g = canvas.getContext("2d");
   g.fillStyle = "#101214";
   g.fillRect(0, 0, canvas.width, canvas.height);
-  const placed = robots.filter((r) => r.pose);
+  const placed = positions(robots.filter((r) => r.pose));
   if (!placed.length) return;
-  let x0 = Math.min(...placed.map((r) => r.pose.x)) - 2, x1 = Math.max(...placed.map((r) => r.pose.x)) + 2;
-  let y0 = Math.min(...placed.map((r) => r.pose.y)) - 2, y1 = Math.max(...placed.map((r) => r.pose.y)) + 2;
+  let x0 = Math.min(...placed.map((p) => p.x)) - 2, x1 = Math.max(...placed.map((p) => p.x)) + 2;
+  let y0 = Math.min(...placed.map((p) => p.y)) - 2, y1 = Math.max(...placed.map((p) => p.y)) + 2;
   const scale = Math.min(canvas.width / (x1 - x0), canvas.height / (y1 - y0));
   const px = (x) => (x - x0) * scale, py = (y) => canvas.height - (y - y0) * scale;
   g.font = "14px system-ui, sans-serif";
-  for (const r of placed) {
-    const x = px(r.pose.x), y = py(r.pose.y), yaw = r.pose.yaw_deg * Math.PI / 180;
+  for (const p of placed) {
+    const r = p.r, x = px(p.x), y = py(p.y), yaw = r.pose.yaw_deg * Math.PI / 180;
     g.fillStyle = COLOURS[r.alive ? r.status : "lost"] || "#ccc";
     g.beginPath();
     g.arc(x, y, 8, 0, 2 * Math.PI);
