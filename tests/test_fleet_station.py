@@ -186,3 +186,15 @@ def test_simulated_robots_start_side_by_side_in_the_shared_world(tmp_path):
     for a, b in zip(starts, starts[1:]):
         assert abs(((b.start_x - a.start_x) ** 2 + (b.start_y - a.start_y) ** 2) ** 0.5 - SPACING_M) < 1e-3
         assert b.start_yaw == a.start_yaw
+
+
+def test_a_bad_fleet_config_is_said_with_its_position_before_anything_moves(tmp_path):
+    from beastbt.core.errors import InvalidInput
+    bad = tmp_path / "robot.json5"
+    bad.write_text('{mode: "peer",\n connect: {endpoints: [12]}}\n')
+    with pytest.raises(InvalidInput) as caught:
+        FleetAgent("x", FleetOptions("tcp/127.0.0.1:7447", str(bad)))
+    text = caught.value.format()
+    assert text.startswith(f"{bad}:2:") and "not a Zenoh configuration" in text and "/root/.cargo" not in text
+    with pytest.raises(InvalidInput, match="no Zenoh configuration file"):
+        FleetAgent("x", FleetOptions(None, str(tmp_path / "missing.json5")))

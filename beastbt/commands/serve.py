@@ -85,7 +85,11 @@ def command(args: argparse.Namespace) -> int:
     except InvalidInput as exc:
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
-    agent = FleetAgent(name, fleet, takes_missions=True).start()
+    try:
+        agent = FleetAgent(name, fleet, takes_missions=True).start()
+    except InvalidInput as exc:  # a --fleet-config that is not one
+        print(exc.format(), file=sys.stderr)
+        return EXIT_INVALID
     from dataclasses import replace
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),

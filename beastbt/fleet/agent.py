@@ -64,6 +64,8 @@ class FleetAgent:
                  wall: Callable[[], float] = time.monotonic) -> None:
         self.name = keys.check_name(name)
         self.options = options
+        self.config = robot_config(options)
+        """The Zenoh configuration, made now: a bad ``--fleet-config`` is said before anything moves."""
         self.takes_missions = takes_missions
         self.wall = wall
         self.missions: "queue.Queue[MissionRequest]" = queue.Queue()
@@ -112,7 +114,7 @@ class FleetAgent:
     def _serve(self) -> None:
         import zenoh
         try:
-            session = zenoh.open(robot_config(self.options))
+            session = zenoh.open(self.config)
         except Exception as exc:  # noqa: BLE001 - the run goes on without the fleet, and says so
             self.open_error = str(exc)[:300]
             print(f"beastbt: fleet: the robot is not on the fleet (the run goes on): {self.open_error}",

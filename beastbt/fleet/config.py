@@ -73,7 +73,11 @@ def _load(config_file: str, option: str) -> Any:
     try:
         return zenoh.Config.from_file(str(path))
     except Exception as exc:  # noqa: BLE001 - zenoh says what is wrong in its own words
-        raise InvalidInput([Problem(str(path), Position(1, 1), f"not a Zenoh configuration: {str(exc)[:300]}",
+        text = str(exc).split(" at /")[0]  # not where in zenoh's own source it was found
+        where = re.search(r"line: (\d+), column: (\d+)", text) or re.search(r"--> (\d+):(\d+)", text)
+        position = Position(int(where[1]), int(where[2])) if where else Position(1, 1)
+        message = re.sub(r"\s+", " ", text.split("location:")[0]).strip(" ,")
+        raise InvalidInput([Problem(str(path), position, f"not a Zenoh configuration: {message[:300]}",
                                     "a standard Zenoh JSON5 configuration (zenoh.io: Configuration)")]) from None
 
 
