@@ -115,3 +115,24 @@ def test_only_the_station_commands_robots(tls_fleet):
         assert seen == []  # and it reads no other robot's state
     finally:
         session.close()
+
+
+def test_a_robot_with_its_own_certificate_speaks_only_for_itself(tmp_path):
+    keys = tmp_path / "keys"
+    proc = subprocess.run([sys.executable, "-m", "beastbt", "station", "--init-keys", str(keys), "--robot-name", "ra",
+                           "--robot-name", "rb"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert not (keys / "robot.crt").exists() and (keys / "robot-ra.json5").exists()
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    station = Station(endpoint, str(keys / "station.json5")).open()
+    honest = FleetAgent("ra", FleetOptions(endpoint, str(keys / "robot-ra.json5"))).start()
+    impostor = FleetAgent("rb", FleetOptions(endpoint, str(keys / "robot-ra.json5"))).start()  # ra's certificate
+    try:
+        wait_for(lambda: any(r["name"] == "ra" and r["alive"] for r in station.table.robots()), 5.0, "ra listed")
+        time.sleep(1.0)  # rb's token and states, sent with ra's certificate, never reach the station
+        assert {r["name"] for r in station.table.robots()} == {"ra"}
+        assert honest.published > 0 and impostor.published > 0
+    finally:
+        honest.close()
+        impostor.close()
+        station.close()

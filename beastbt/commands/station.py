@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--init-keys", metavar="DIR", help="write a fleet's CA, the station's and the robots' "
                                                       "certificates, DIR/station.json5 and DIR/robot.json5 (mutual "
                                                       "TLS, only the station commands) and a how-to; then exit")
+    p.add_argument("--robot-name", action="append", default=[], metavar="NAME",
+                   help="with --init-keys: give robot NAME a certificate of its own, with which it may use only its "
+                        "own keys (repeatable); without it, one certificate for every robot")
     p.add_argument("--host", action="append", default=[], metavar="NAME",
                    help="with --init-keys: a name or address robots reach the station by (repeatable; localhost "
                         "and 127.0.0.1 always)")
@@ -139,7 +142,12 @@ def init_keys(args: argparse.Namespace) -> int:
     listen = args.listen if args.listen != DEFAULT_LISTEN else DEFAULT_LISTEN.replace("tcp/", "tls/")
     try:
         listen = parse_endpoint(listen, "--listen")
-        written = write_keys(Path(args.init_keys), args.host, listen)
+        from beastbt.fleet.keys import name_problem
+        for name in args.robot_name:
+            problem = name_problem(name) or ("'station' is the station's own name" if name == "station" else None)
+            if problem:
+                raise ValueError(f"--robot-name {name[:80]}: {problem}")
+        written = write_keys(Path(args.init_keys), args.host, listen, robots=args.robot_name)
     except (ValueError, FileExistsError, OSError, subprocess.CalledProcessError) as exc:
         detail = getattr(exc, "stderr", "") or str(exc)
         print(f"beastbt station: error: --init-keys {args.init_keys}: {str(detail).strip()[:300]}", file=sys.stderr)

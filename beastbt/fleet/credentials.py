@@ -38,14 +38,15 @@ def _openssl(*args: str, cwd: Path) -> None:
     subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True, text=True)
 
 
-def _leaf(folder: Path, name: str, hosts: Sequence[str], days: int) -> None:
-    """A key and a certificate signed by the fleet's CA, for ``name`` (its common name), valid for ``hosts``."""
+def _leaf(folder: Path, name: str, hosts: Sequence[str], days: int, common_name: str = "") -> None:
+    """A key and a certificate (``name.key``, ``name.crt``) signed by the fleet's CA, for ``common_name`` (default
+    ``name``), valid for ``hosts``."""
     alt = ",".join(f"IP:{h}" if _is_ip(h) else f"DNS:{h}" for h in hosts)
     ext = folder / f"{name}.ext"
     ext.write_text("basicConstraints=critical,CA:FALSE\nkeyUsage=critical,digitalSignature,keyEncipherment\n"
                    "extendedKeyUsage=serverAuth,clientAuth\n" + (f"subjectAltName={alt}\n" if alt else ""))
     _openssl("genpkey", "-algorithm", "EC", "-pkeyopt", "ec_paramgen_curve:P-256", "-out", f"{name}.key", cwd=folder)
-    _openssl("req", "-new", "-key", f"{name}.key", "-subj", f"/CN={name}", "-out", f"{name}.csr", cwd=folder)
+    _openssl("req", "-new", "-key", f"{name}.key", "-subj", f"/CN={common_name or name}", "-out", f"{name}.csr", cwd=folder)
     _openssl("x509", "-req", "-in", f"{name}.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial",
              "-days", str(days), "-sha256", "-extfile", ext.name, "-out", f"{name}.crt", cwd=folder)
     (folder / f"{name}.csr").unlink()
@@ -61,11 +62,24 @@ def _is_ip(host: str) -> bool:
         return False
 
 
-def station_json5(folder: Path, listen: str) -> dict:
-    """The station's Zenoh configuration (a router, mutual TLS only, access control for robots)."""
+def _robot_rules(prefix: str, name: str) -> list[dict]:
+    """The access rules of robot ``name`` (``*``: any robot): its own keys only, and the fleet's."""
+    own = f"beastbt/{name}/"
     # each in both flows: what a robot may send, and its echo the router must be able to send to it
-    rules = [{"id": f"robot-{i}", "messages": messages, "flows": ["ingress", "egress"], "permission": "allow",
-              "key_exprs": exprs} for i, (messages, exprs) in enumerate(ROBOT_INGRESS)]
+    return [{"id": f"{prefix}-{i}", "messages": messages, "flows": ["ingress", "egress"], "permission": "allow",
+             "key_exprs": [e.replace("beastbt/*/", own).replace("beastbt/**", own + "**") for e in exprs]}
+            for i, (messages, exprs) in enumerate(ROBOT_INGRESS)]
+
+
+def station_json5(folder: Path, listen: str, robots: Sequence[str] = ()) -> dict:
+    """The station's Zenoh configuration (a router, mutual TLS only, access control for robots).
+
+    Without ``robots`` every robot has the common name ``robot`` and may use any robot's keys; with them,
+    each robot has its own certificate (common name: its name) and may use its own keys only.
+    """
+    groups = [(f"robot-{n}", n, _robot_rules(f"robot-{n}", n)) for n in robots] or [
+        ("robots", "robot", _robot_rules("robot", "*"))]
+    rules = [rule for _, _, group in groups for rule in group]
     rules.append({"id": "to-robots", "messages": ["put", "delete", "query", "reply", "declare_subscriber",
                                                   "declare_queryable", "liveliness_token", "liveliness_query",
                                                   "declare_liveliness_subscriber"],
@@ -81,13 +95,15 @@ def station_json5(folder: Path, listen: str) -> dict:
             "enable_mtls": True}}},
         "access_control": {
             "enabled": True, "default_permission": "deny", "rules": rules,
-            "subjects": [{"id": "robots", "cert_common_names": ["robot"]}],
-            "policies": [{"rules": [r["id"] for r in rules], "subjects": ["robots"]}]},
+            "subjects": [{"id": subject, "cert_common_names": [cn]} for subject, cn, _ in groups],
+            "policies": [{"rules": [r["id"] for r in group] + ["to-robots"], "subjects": [subject]}
+                         for subject, _, group in groups]},
     }
 
 
-def robot_json5(folder: Path, connect: str) -> dict:
-    """A robot's Zenoh configuration (a peer connecting to the station by mutual TLS only)."""
+def robot_json5(folder: Path, connect: str, stem: str = "robot") -> dict:
+    """A robot's Zenoh configuration (a peer connecting to the station by mutual TLS only), with the key and
+    certificate ``stem.key``, ``stem.crt``."""
     from beastbt.fleet.config import OPEN_TIMEOUT_MS, RETRY
     return {
         "mode": "peer",
@@ -96,7 +112,7 @@ def robot_json5(folder: Path, connect: str) -> dict:
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": False}},
         "transport": {"link": {"protocols": ["tls"], "tls": {
             "root_ca_certificate": str(folder / "ca.crt"),
-            "connect_private_key": str(folder / "robot.key"), "connect_certificate": str(folder / "robot.crt"),
+            "connect_private_key": str(folder / f"{stem}.key"), "connect_certificate": str(folder / f"{stem}.crt"),
             "enable_mtls": True, "verify_name_on_connect": True}}},
     }
 
@@ -105,8 +121,9 @@ HOWTO = """The fleet's keys (beastbt station --init-keys), and how to use them.
 
 On the station:
     beastbt station --fleet-config {folder}/station.json5 --listen tls/0.0.0.0:7447
-On each robot (copy ca.crt, robot.crt, robot.key and robot.json5 to it, and fix the paths in robot.json5):
-    beastbt serve --robot PROFILE --fleet-config robot.json5 --fleet tls/STATION:7447
+On each robot (copy ca.crt, robot.crt, robot.key and robot.json5 to it, and fix the paths in robot.json5;
+with --robot-name NAME, robot-NAME.crt, .key and .json5 instead, each to its own robot):
+    beastbt serve --robot PROFILE --fleet-config robot.json5 --fleet tls/STATION:7447 [--name NAME]
 
 STATION must be a name or address the station's certificate is valid for: {hosts}
 (make the keys again with --host NAME for another one). Keep ca.key on this computer only: whoever
@@ -117,8 +134,11 @@ may command robots, send missions or stop them all (Zenoh's access control, in s
 
 
 def init_keys(folder: Path, hosts: Sequence[str] = (), listen: str = "tls/127.0.0.1:7447",
-              days: int = VALID_DAYS) -> list[Path]:
+              days: int = VALID_DAYS, robots: Sequence[str] = ()) -> list[Path]:
     """Write the CA, the certificates, ``station.json5``, ``robot.json5`` and ``README.txt`` into ``folder``.
+
+    With ``robots`` (names), each robot gets its own ``robot-NAME.crt``/``.key``/``.json5`` instead, and may
+    use only its own keys (it cannot speak for another robot).
 
     ``FileExistsError`` when ``folder`` already holds a CA (keys are never overwritten: robots hold them).
     """
@@ -133,13 +153,16 @@ def init_keys(folder: Path, hosts: Sequence[str] = (), listen: str = "tls/127.0.
              "-addext", "keyUsage=critical,keyCertSign,cRLSign",
              "-out", "ca.crt", cwd=folder)
     _leaf(folder, "station", names, days)
-    _leaf(folder, "robot", [], days)
-    for key in ("ca.key", "station.key", "robot.key"):
+    stems = {f"robot-{n}": n for n in robots} or {"robot": "robot"}
+    for stem, common_name in stems.items():
+        _leaf(folder, stem, [], days, common_name)
+    for key in ("ca.key", "station.key", *(f"{stem}.key" for stem in stems)):
         (folder / key).chmod(0o600)
     (folder / "ca.srl").unlink(missing_ok=True)
     connect = listen.replace("0.0.0.0", "127.0.0.1")
-    (folder / "station.json5").write_text(json.dumps(station_json5(folder, listen), indent=2) + "\n")
-    (folder / "robot.json5").write_text(json.dumps(robot_json5(folder, connect), indent=2) + "\n")
+    (folder / "station.json5").write_text(json.dumps(station_json5(folder, listen, robots), indent=2) + "\n")
+    for stem in stems:
+        (folder / f"{stem}.json5").write_text(json.dumps(robot_json5(folder, connect, stem), indent=2) + "\n")
     (folder / "README.txt").write_text(HOWTO.format(folder=folder, hosts=", ".join(names)))
     return sorted(folder.iterdir())
 
