@@ -46,7 +46,8 @@ def _leaf(folder: Path, name: str, hosts: Sequence[str], days: int, common_name:
     ext.write_text("basicConstraints=critical,CA:FALSE\nkeyUsage=critical,digitalSignature,keyEncipherment\n"
                    "extendedKeyUsage=serverAuth,clientAuth\n" + (f"subjectAltName={alt}\n" if alt else ""))
     _openssl("genpkey", "-algorithm", "EC", "-pkeyopt", "ec_paramgen_curve:P-256", "-out", f"{name}.key", cwd=folder)
-    _openssl("req", "-new", "-key", f"{name}.key", "-subj", f"/CN={common_name or name}", "-out", f"{name}.csr", cwd=folder)
+    _openssl("req", "-new", "-key", f"{name}.key", "-subj", f"/CN={common_name or name}", "-out", f"{name}.csr",
+             cwd=folder)
     _openssl("x509", "-req", "-in", f"{name}.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial",
              "-days", str(days), "-sha256", "-extfile", ext.name, "-out", f"{name}.crt", cwd=folder)
     (folder / f"{name}.csr").unlink()
