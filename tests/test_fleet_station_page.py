@@ -6,15 +6,20 @@ queue and is answered here: what the page sent is what the robot got.
 
 from __future__ import annotations
 
+import os
 import socket
 import time
 
 import pytest
 
 pytest.importorskip("zenoh")
-playwright_api = pytest.importorskip("playwright.sync_api")
-
 from console_support import CHROMIUM, CHROMIUM_ARGS  # noqa: E402
+
+if os.environ.get("BEASTBT_REQUIRE_BROWSER"):  # CI installs both: there a missing one is a failure, not a skip
+    import playwright.sync_api as playwright_api
+    assert CHROMIUM is not None, "Chromium is not installed (.ci/run installs Debian's package)"
+else:
+    playwright_api = pytest.importorskip("playwright.sync_api")
 from beastbt.fleet.agent import FleetAgent  # noqa: E402
 from beastbt.fleet.config import FleetOptions  # noqa: E402
 from beastbt.fleet.station import Station, StationServer  # noqa: E402
