@@ -110,6 +110,11 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",
               lambda profile, options: options.console is not None),
+    # After the console: the fleet shares its state and controls when both are on. Without --fleet, a check
+    # that refuses a mission requiring the fleet's supervision (it reads nothing, so it wakes no sensor).
+    PartEntry("fleet", "beastbt.parts.fleet:FleetPart", lambda profile, options: options.fleet is not None),
+    PartEntry("fleet_check", "beastbt.parts.fleet:UnsupervisedCheck",
+              lambda profile, options: options.fleet is None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 

@@ -45,6 +45,10 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                           "joystick, CAN) without moving"),
     "studio": ("beastbt.commands.studio", "serve the mission studio: write, place on a map, check and try missions "
                                           "in the browser (docs/studio.md)"),
+    "station": ("beastbt.commands.station", "the fleet's station: a Zenoh router for the robots and an HTTP API "
+                                            "to list them, command them, send missions and stop them all"),
+    "serve": ("beastbt.commands.serve", "a robot on the fleet: wait for missions from the station, run each as "
+                                        "'beastbt run' does, and wait again"),
     "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
                                                             "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })

@@ -193,6 +193,31 @@ def _size(text: str) -> tuple[int, int]:
     return parse_size(text)
 
 
+def add_fleet_arguments(p: argparse.ArgumentParser, required: bool = False) -> None:
+    """``--fleet ENDPOINT``, ``--fleet-config FILE`` and ``--name NAME`` (``beastbt run`` and ``beastbt serve``)."""
+    from beastbt.fleet.config import parse_endpoint
+    p.add_argument("--fleet", metavar="ENDPOINT", type=_checked(parse_endpoint),
+                   help="report to a fleet's station on Zenoh, e.g. tcp/127.0.0.1:7447; the run goes on whatever "
+                        "becomes of the link (docs/fleet.md)")
+    p.add_argument("--fleet-config", metavar="FILE",
+                   help="a standard Zenoh JSON5 configuration for the fleet link (TLS, credentials; see "
+                        "'beastbt station --init-keys')")
+    p.add_argument("--name", help="the robot's name on the fleet (default: the profile's 'robot:' name)")
+
+
+def fleet_options(args: argparse.Namespace, command: str) -> tuple[Optional[Any], Optional[str]]:
+    """The run's :class:`~beastbt.fleet.config.FleetOptions` (None without ``--fleet``), or an error message."""
+    if args.fleet is None and args.fleet_config is None:
+        if args.name is not None:
+            return None, f"beastbt {command}: error: --name names the robot on a fleet: add --fleet ENDPOINT"
+        return None, None
+    from beastbt.fleet.config import FleetOptions
+    from beastbt.fleet.keys import name_problem
+    if args.name is not None and name_problem(args.name):
+        return None, f"beastbt {command}: error: --name: {name_problem(args.name)}"
+    return FleetOptions(endpoint=args.fleet, config_file=args.fleet_config, name=args.name), None
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``beastbt run``."""
     p.add_argument("mission", help="the mission file (YAML)")
@@ -234,6 +259,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-quality", metavar="Q", type=_quality, help="JPEG quality 1-100 (default 80)")
     p.add_argument("--stream-fps", metavar="FPS", type=_positive_float, help="most frames streamed per second (default 25)")
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
+    add_fleet_arguments(p)
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (default 2; 0 for none)")
 
@@ -264,6 +290,10 @@ def command(args: argparse.Namespace) -> int:
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
                       answers=dict(args.answer))
+    opts.fleet, problem = fleet_options(args, "run")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
     if opts.console_token != "auto" and opts.console is None:
         print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
               f"--console [HOST:]PORT", file=sys.stderr)
