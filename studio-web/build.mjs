@@ -102,15 +102,8 @@ writeFileSync(join(out, "THIRD_PARTY_LICENSES.txt"),
   "The beastbt studio page bundles these packages (studio-web/package-lock.json has their exact versions).\n\n"
   + notices.join("\n"));
 
-// The JSON Schemas monaco-yaml uses, beside the page (their $refs to parts/ resolve there). They are copies of
-// schemas/: sync_schemas.py refreshes them without npm, and tests/test_studio_page.py checks they are the same.
-const schemas = join(here, "..", "schemas");
-for (const sub of ["", "parts"]) {
-  mkdirSync(join(out, "schemas", sub), { recursive: true });
-  for (const name of readdirSync(join(schemas, sub)).sort()) {
-    if (name.endsWith(".schema.json")) copyFileSync(join(schemas, sub, name), join(out, "schemas", sub, name));
-  }
-}
+// The JSON Schemas monaco-yaml uses are not copied: the studio serves schemas/NAME.schema.json (and
+// schemas/parts/...) from the installed package, the very files validation uses.
 
 const files = {};
 for (const name of readdirSync(out).sort()) {

@@ -114,6 +114,16 @@ def only_inserted(before: str, after: str) -> list[str]:
     return [d[2:] for d in diff if d.startswith("+ ")]
 
 
+def test_the_page_reads_the_schemas_validation_uses(studio):
+    for name in ("mission.schema.json", "parts/lidar.schema.json"):
+        status, served = studio.get(f"/schemas/{name}")
+        assert status == 200, served
+        assert served == json.loads((REPO / "schemas" / name).read_text(encoding="utf-8"))
+    for bad in ("../pyproject.toml", "parts/../../README.md", "mission.json", "other/x.schema.json"):
+        status, _ = studio.get(f"/schemas/{bad}")
+        assert status == 404, bad
+
+
 def test_the_folder_lists_missions_worlds_by_kind_and_reads_with_a_content_version(studio):
     status, answer = studio.get("/api/files")
     assert status == 200

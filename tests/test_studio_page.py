@@ -71,14 +71,3 @@ def test_the_page_loads_nothing_from_outside_its_folder():
             url = part.split('"', 1)[0]
             assert "//" not in url and not url.startswith("/"), f"index.html loads {url}: the page must work offline"
             assert (PAGE / url).is_file(), f"index.html loads {url}, which the build did not write"
-
-
-def test_the_schemas_beside_the_page_are_the_repositorys():
-    source = REPO / "schemas"
-    copies = PAGE / "schemas"
-    fix = "run python studio-web/sync_schemas.py (no npm needed) and commit beastbt/studio/page/schemas/"
-    wanted = sorted(p.relative_to(source).as_posix() for p in source.rglob("*.schema.json"))
-    have = sorted(p.relative_to(copies).as_posix() for p in copies.rglob("*.schema.json")) if copies.is_dir() else []
-    assert have == wanted, f"the page's schemas are not schemas/'s: {fix}"
-    for rel in wanted:
-        assert (copies / rel).read_bytes() == (source / rel).read_bytes(), f"page/schemas/{rel} is stale: {fix}"

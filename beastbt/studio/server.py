@@ -23,6 +23,7 @@ from typing import Any, Awaitable, Callable, Optional
 
 from aiohttp import web
 
+from beastbt.core.resources import data_dir
 from beastbt.live.endpoint import SECURITY_HEADERS
 from beastbt.live.web_guard import GuardWords, WebGuard
 from beastbt.studio.files import FileRefused, StudioFolder
@@ -97,6 +98,7 @@ class StudioServer:
         r.add_get("/api/try/{run_id}/console/{what:.+}", self._try_console)
         r.add_post("/api/try/{run_id}/console/{what:.+}", self._try_console)
         r.add_route("*", "/api/{rest:.*}", self._no_api)
+        r.add_get("/schemas/{name:.+}", self._schema)
         r.add_get("/", self._page)
         r.add_get("/{name:.+}", self._page)
         app.on_cleanup.append(self._cleanup)
@@ -247,6 +249,20 @@ class StudioServer:
         if target.suffix in (".js", ".mjs"):
             ctype = "application/javascript"
         return web.FileResponse(target, headers={"Content-Type": ctype, "Cache-Control": "no-cache"})
+
+    async def _schema(self, request: web.Request) -> web.StreamResponse:
+        """One of beastbt's JSON Schemas (``schemas/mission.schema.json``, ``schemas/parts/lidar.schema.json``), from
+        the installed package: the editor's completion and hover always follow the schemas validation uses."""
+        name = request.match_info["name"]
+        parts = name.split("/")
+        if (not name.endswith(".schema.json") or len(parts) > 2 or any(p in ("", ".", "..") for p in parts)
+                or (len(parts) == 2 and parts[0] != "parts")):
+            return WebGuard.error(404, f"no schema '{name[:80]}'")
+        target = data_dir("schemas").joinpath(*parts)
+        if not target.is_file():
+            return WebGuard.error(404, f"no schema '{name[:80]}'")
+        return web.Response(body=target.read_bytes(), content_type="application/json",
+                            headers={"Cache-Control": "no-cache"})
 
     # -- bodies ------------------------------------------------------------------------
     async def _body(self, request: web.Request) -> dict:
