@@ -22,6 +22,7 @@ import py_trees
 from beastbt.behaviours import drive, stand, turn
 from beastbt.behaviours.conditions import (Condition, ConditionReader, all_of, any_of, battery_below, elapsed, gps_fix,
                                            line_flag, near, not_of, teleop_active)
+from beastbt.behaviours.localized import localized
 from beastbt.behaviours.context import MissionContext
 from beastbt.behaviours.flow import BlockStart, ClockTimeout, GuardedBlock, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
 from beastbt.behaviours.operator import NotAvailable, Say, Snapshot
@@ -41,6 +42,8 @@ CONDITION_READS: Mapping[type, tuple[str, ...]] = MappingProxyType({
 """Blackboard keys each kind of condition reads (flags read the key they name, or ``line``)."""
 LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
 """Condition words read from the line observation, and the observation's flag each reads."""
+FLAG_READS = MappingProxyType({"localized": "map_pose"})
+"""The blackboard key a named condition reads, where it is not the word itself."""
 
 
 class ConditionUnavailable(Exception):
@@ -129,8 +132,8 @@ class Compiler:
         r = self.reader
         self.ctx.condition_reads.update(CONDITION_READS.get(type(c), ()))
         if isinstance(c, st.Flag):
-            self.ctx.condition_reads.add("line" if c.word in LINE_FLAGS else c.word)
-            test = {"gps_fix": gps_fix, "teleop_active": teleop_active}.get(c.word)
+            self.ctx.condition_reads.add("line" if c.word in LINE_FLAGS else FLAG_READS.get(c.word, c.word))
+            test = {"gps_fix": gps_fix, "teleop_active": teleop_active, "localized": localized}.get(c.word)
             return Condition(c.word, test if test is not None else line_flag(LINE_FLAGS[c.word]), r)
         if isinstance(c, st.BatteryBelow):
             return Condition(f"battery below {c.volts:g} V", battery_below(c.volts), r)

@@ -687,7 +687,8 @@ class RunFileWriter:
 
     def _write_views(self, t: int, views: dict) -> None:
         """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
-        /local_plan, /collision_monitor/zones, /sim/persons and /sim/contact."""
+        /local_plan, /collision_monitor/zones, /sim/persons, /sim/contact, /localisation/particles and
+        /localisation/quality."""
         frames = self.frames
         if "costmap" in views:
             self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
@@ -704,6 +705,10 @@ class RunFileWriter:
             self._persons = contact["persons"]
             if contact["moved"] and contact["persons"] and scene is not None:
                 self._emit("/sim/persons", t, ov.persons_update(t, frames.map, contact["persons"], scene.world_point))
+        localisation = views.get("localisation")
+        if localisation is not None:
+            self._emit("/localisation/particles", t, ov.particles_update(t, frames.odom, localisation))
+            self._emit("/localisation/quality", t, ov.quality_message(localisation))
 
     def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
         """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
@@ -780,7 +785,7 @@ def message_count(item: tuple, images: bool) -> int:
     if kind == "views":
         views = item[2]
         contact = views.get("contact")
-        return (("costmap" in views) + ("plan" in views) + ("zones" in views)
+        return (("costmap" in views) + ("plan" in views) + ("zones" in views) + 2 * ("localisation" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0

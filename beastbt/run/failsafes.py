@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-from beastbt.blackboard.types import BatteryState, FusedPose, GpsFix
+from beastbt.blackboard.types import BatteryState, FusedPose, GpsFix, MapPose
 from beastbt.estimation.geodesy import distance_m
 from beastbt.mission.model import HOME, Failsafe, Mission
 
@@ -26,6 +26,8 @@ class Situation:
     battery: Optional[BatteryState]
     pose: Optional[FusedPose]
     home: Optional[tuple[float, float]]
+    map_pose: Optional[MapPose] = None
+    """The pose on the mission's map (None without ``map:``)."""
 
 
 @dataclass
@@ -39,7 +41,8 @@ class FailsafeWatch:
 
 
 FAILSAFE_READS: dict[str, tuple[str, ...]] = {
-    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home"), "keepout": ("pose",)}
+    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home"), "keepout": ("pose",),
+    "localization_lost": ("map_pose",)}
 """Blackboard keys (and readings) each failsafe watches."""
 ACTION_READS: dict[str, tuple[str, ...]] = {"return_home": ("pose", "home")}
 """What a ``then:`` or ``on_failure:`` action needs kept up to date."""
@@ -98,6 +101,18 @@ class FailsafeMonitor:
                     state["below_since"] = s.now_s
                 return s.now_s - state["below_since"] >= p["for_s"]
             return battery_low
+        if f.kind == "localization_lost":
+            lost = {"since": None}
+
+            def localization_lost(s: Situation) -> bool:
+                # Without a map pose yet there is nothing to judge; only a localiser saying "lost" counts.
+                if s.map_pose is None or s.map_pose.localized:
+                    lost["since"] = None
+                    return False
+                if lost["since"] is None:
+                    lost["since"] = s.now_s
+                return s.now_s - lost["since"] >= p["after_s"]
+            return localization_lost
         if "fence" in p:
             fence, margin = mission.fences[p["fence"]], p["margin_m"]
 

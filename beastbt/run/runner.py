@@ -20,7 +20,7 @@ from beastbt.actuation.mux import CommandMux
 from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LaserScan, LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, MapPose, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
 from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
@@ -312,7 +312,7 @@ class MissionRun:
         if not self.failsafes.watches or self.status is not None:
             return
         s = Situation(now, self.start_s or now, self.latest.get(GpsFix), self.latest.get(BatteryState),
-                      self.bb.pose, self.home)
+                      self.bb.pose, self.home, self.latest.get(MapPose))
         for watch, change in self.failsafes.check(s):
             spec = watch.spec
             if change == "trigger":
