@@ -107,6 +107,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
+    PartEntry("map_building", "beastbt.parts.map_building:MapBuildingPart",
+              lambda profile, options: options.build_map is not None),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     PartEntry("map_localisation", "beastbt.parts.map_localisation:MapLocalisationPart", _always,
@@ -118,6 +120,11 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",
               lambda profile, options: options.console is not None),
+    # After the console: the fleet shares its state and controls when both are on. Without --fleet, a check
+    # that refuses a mission requiring the fleet's supervision (it reads nothing, so it wakes no sensor).
+    PartEntry("fleet", "beastbt.parts.fleet:FleetPart", lambda profile, options: options.fleet is not None),
+    PartEntry("fleet_check", "beastbt.parts.fleet:UnsupervisedCheck",
+              lambda profile, options: options.fleet is None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 
@@ -310,7 +317,8 @@ def use_world_map(mission: Mission, world: World) -> None:
     read_map(mission, world.doc)
 
 
-def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True) -> Behaviour:
+def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,
+                        on_step: Optional[Callable[[Any, Behaviour], None]] = None) -> Behaviour:
     """The tree ``mission`` compiles to on ``profile``'s robot, without opening or emulating any device.
 
     The robot's capabilities are those its device parts would give
@@ -326,7 +334,8 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     parts += [external_part(str(name), profile) for name in (profile.section("parts") or {})]
     clock = SimClock()
     ctx = MissionContext(clock=clock, events=EventLog(clock), params=profile.control, capabilities=capabilities)
-    return compile_mission(mission, ctx, step_builders(parts))
+    # on_step: told each step and the behaviour it became (the studio maps nodes back to their steps' lines)
+    return compile_mission(mission, ctx, step_builders(parts), on_step)
 
 
 def run_file(mission_path: str, options: RunOptions) -> dict:

@@ -27,9 +27,10 @@ LAYERS: tuple[tuple[int, tuple[str, ...], str], ...] = (
     (7, ("robot",), "the robot profile, its ports (RobotIO) and the part protocol"),
     (8, ("run",), "the tick loop, safety wiring, failsafes, the session, the summary, run folders"),
     (9, ("recording",), "the recorder and its writer process, the reader, the report, the list of runs"),
-    (10, ("parts", "live"), "each part of a robot (a device on the robot and the simulator, a feature); live video"),
-    (11, ("commands", "<top>"), "the subcommands and the top-level modules: assembly (the composition root), "
-                                "replay, testing, validate, cli"),
+    (10, ("parts", "live", "fleet"), "each part of a robot (a device on the robot and the simulator, a feature); live "
+                                     "video; the fleet (Zenoh)"),
+    (11, ("commands", "studio", "<top>"), "the subcommands and the top-level modules: assembly (the composition "
+                                          "root), replay, testing, validate, cli; the studio (it checks with validate)"),
 )
 """(rank, packages, what they hold): a module may import its own rank (without cycles) and lower ranks only."""
 

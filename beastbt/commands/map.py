@@ -1,8 +1,9 @@
-"""``beastbt map ACTION``: map tools. ``map show maps/office.yaml --places MISSION --out office.png`` draws a map.
+"""``beastbt map ACTION``: map tools. ``map build RUN --out maps/office.yaml`` builds a map from a recorded run;
+``map show maps/office.yaml --places MISSION --out office.png`` draws one with its places.
 
 Each action is one ``(help, add_arguments, run)`` entry in :data:`ACTIONS`, so
-a new one (``map build``) is a function pair and a line there. Exit status:
-0 done, 2 bad input.
+a new one is a function pair and a line there. Exit status:
+0 done, 1 nothing to write, 2 bad input.
 """
 
 from __future__ import annotations
@@ -10,9 +11,12 @@ from __future__ import annotations
 import argparse
 from typing import Callable
 
+from beastbt.commands.map_build import add_build_arguments, build
 from beastbt.commands.map_show import add_show_arguments, show
 
 ACTIONS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Callable[[argparse.Namespace], int]]] = {
+    "build": ("build a map (map_server YAML + PGM) from a recorded run's LiDAR scans and odometry",
+              add_build_arguments, build),
     "show": ("draw a map (map_server YAML) with the places of a mission or places file into a PNG",
              add_show_arguments, show),
 }

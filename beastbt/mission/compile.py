@@ -61,8 +61,11 @@ class ConditionUnavailable(Exception):
 class Compiler:
     """Builds the tree of one mission for one robot (its context) with the given step builders."""
 
-    def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None) -> None:
+    def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None,
+                 on_step: Optional[Callable[[st.Step, Behaviour], None]] = None) -> None:
         self.mission = mission
+        self.on_step = on_step
+        """Told each step and the behaviour it became (the studio maps nodes back to their lines)."""
         self.ctx = ctx
         self.builders: Mapping[str, StepBuilder] = CORE_STEPS if builders is None else builders
         self.reader = ConditionReader(ctx)
@@ -85,6 +88,12 @@ class Compiler:
 
     def step(self, s: st.Step) -> Behaviour:
         """The behaviour (or subtree) for one step."""
+        built = self._step(s)
+        if self.on_step is not None:
+            self.on_step(s, built)
+        return built
+
+    def _step(self, s: st.Step) -> Behaviour:
         kind = st.keyword_of(s)
         builder = self.builders.get(kind)
         if builder is None and kind in self.mission.external_steps:
@@ -378,9 +387,11 @@ CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
 
 
 def compile_mission(mission: Mission, ctx: MissionContext,
-                    builders: Optional[Mapping[str, StepBuilder]] = None) -> Behaviour:
-    """Compile ``mission`` for the robot described by ``ctx`` with step ``builders`` (default: the core steps)."""
-    return Compiler(mission, ctx, builders).compile()
+                    builders: Optional[Mapping[str, StepBuilder]] = None,
+                    on_step: Optional[Callable[[st.Step, Behaviour], None]] = None) -> Behaviour:
+    """Compile ``mission`` for the robot described by ``ctx`` with step ``builders`` (default: the core steps);
+    ``on_step`` is told each step and the behaviour it became."""
+    return Compiler(mission, ctx, builders, on_step).compile()
 
 
 def tree_to_dot(root: Behaviour) -> str:

@@ -57,6 +57,25 @@ def failsafe_reads(mission: Mission) -> frozenset[str]:
     return frozenset(keys)
 
 
+def absent_for(present: Callable[[], bool], after_s: float) -> Callable[[Situation], bool]:
+    """A failsafe's test: ``present()`` has been False for ``after_s`` (s of the run's clock) or more.
+
+    ``present`` is read once a tick (a link's state, written by its I/O thread);
+    the time it has been absent is counted on the run's clock, from the first
+    tick it was seen absent (from the start when it never was present).
+    """
+    state: dict = {"absent_since": None}
+
+    def absent(s: Situation) -> bool:
+        if present():
+            state["absent_since"] = None
+            return False
+        if state["absent_since"] is None:
+            state["absent_since"] = s.now_s
+        return s.now_s - state["absent_since"] >= after_s
+    return absent
+
+
 class FailsafeMonitor:
     """Evaluates the mission's failsafes every tick."""
 
@@ -116,6 +135,13 @@ class FailsafeMonitor:
                 lat, lon = place.lat, place.lon
             return distance_m(lat, lon, s.pose.lat, s.pose.lon) > p["radius_m"]
         return geofence
+
+    def add(self, spec: Failsafe, test: Callable[[Situation], bool]) -> FailsafeWatch:
+        """Watch one more failsafe that is not in the mission's ``failsafes:`` (a part's, such as the fleet's
+        supervision); it acts as those do (``hold``, ``stop``)."""
+        watch = FailsafeWatch(spec, test)
+        self.watches.append(watch)
+        return watch
 
     def check(self, s: Situation) -> list[tuple[FailsafeWatch, str]]:
         """Update every watch; return (watch, "trigger"|"clear") for those that changed this tick."""

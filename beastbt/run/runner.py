@@ -317,15 +317,17 @@ class MissionRun:
             spec = watch.spec
             if change == "trigger":
                 self.events.add("failsafe", f"{spec.kind} triggered: then {spec.then}")
+                # a fence's failsafe names the fence: with several fences, which one was crossed is the question
+                fence = f" (fence '{spec.params['fence']}')" if "fence" in spec.params else ""
                 if spec.then == "stop":
-                    self.finish("failure", f"failsafe {spec.kind}: stop")
+                    self.finish("failure", f"failsafe {spec.kind}: stop{fence}")
                 elif spec.then == "hold":
                     self.paused_by = f"hold ({spec.kind})"
                 else:
                     handler = self.ctx.services.failsafe.get(spec.then)
                     if handler is None:
                         self.events.add("failsafe", f"'{spec.then}' is not available on this robot: stopping instead")
-                        self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable")
+                        self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable{fence}")
                     else:
                         handler(self, spec)
             elif change == "clear":
