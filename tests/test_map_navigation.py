@@ -256,3 +256,22 @@ on_failure: return_home
     assert "returned home" in summary["events"][-1]["text"], summary["events"][-3:]
     assert np.hypot(trail[-1][0] - 2.5, trail[-1][1] - 2.0) < 0.4  # back where it started (world 2.5, 2.0)
     assert [w["name"] for w in summary["map_waypoints"]] == ["wall", "home"]
+
+
+def test_office_rooms_on_a_map_built_by_slam(tmp_path, monkeypatch):
+    """The issue's done-when on a map made by the robot itself: the office tour mapped with --build-map, then the
+    kitchen, the lab and home on that map."""
+    from beastbt.cli import main
+    monkeypatch.chdir(tmp_path)
+    built = tmp_path / "office_slam.yaml"
+    assert main(["run", str(REPO / "missions" / "office_tour.yaml"), "--speed", "max", "--build-map", str(built),
+                 "--runs-dir", str(tmp_path / "runs")]) == 0
+    text = (REPO / "missions" / "office_rooms.yaml").read_text()
+    mission = write(tmp_path, "rooms.yaml", text.replace("map: ../maps/office.yaml", f"map: {built}")
+                    .replace("world: ../worlds/office.yaml", f"world: {OFFICE_WORLD}"))
+    summary, trail, _ = run_traced(mission, 400.0)
+    assert summary["status"] == "success", summary["events"][-3:]
+    assert summary["truth"]["collisions"] == 0
+    assert all(v["reached"] and v["arrival_error_m"] < 0.4 for v in summary["map_waypoints"])
+    best = shortest_m(office_truth_map(), [(0.0, 0.0), (3.0, 5.5), (6.0, 0.5), (0.0, 0.0)])
+    assert summary["distance_m"] <= 1.3 * best, (summary["distance_m"], best)
