@@ -194,10 +194,13 @@ class CameraPipeline:
 
     # -- the tick loop's sensor poll -------------------------------------------------------
     def poll(self, now_s: float) -> list:
-        """The new frame and its line observation since the last call (``[]`` when none); never raises."""
+        """The new frame and its line observation since the last call (``[]`` when none); never raises.
+
+        Between the frames the reasons need, the camera is read only when a reason takes every JPEG (the
+        console): a simulated camera then renders only what someone needs."""
         if not self.enabled:
             return []
-        if self._thread is None and (now_s >= self._next_frame_s - 1e-9 or not self.pixel_reasons):
+        if self._thread is None and (now_s >= self._next_frame_s - 1e-9 or self.jpeg_only):
             self._read_one()
         latest = self.latest
         if latest is None or latest[0].seq == self._handed_seq:
