@@ -184,7 +184,7 @@ class JoystickState:
 @dataclass(frozen=True)
 class CameraFrame:
     """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken; ``jpeg``: the camera's own JPEG of
-    it when the camera gave one (passed on untouched to the console and the recording), else None."""
+    it when the camera gave one (passed on untouched to the console), else None."""
 
     stamp_s: float
     image: np.ndarray

@@ -10,6 +10,12 @@ reports ``camera_lost``, releases it and retries ``open_source()`` every
 ``reopen_interval_s``; meanwhile its data is stale. It never raises out of
 :meth:`Camera.poll`.
 
+A camera that hands over its own JPEG frames (``read_jpeg()``: a USB camera's MJPEG through
+:class:`MjpegCapture`, recorded frames through :class:`MjpegReplay`, the simulator's fake
+MJPEG camera) is *compressed*: each :class:`CameraFrame` carries those bytes untouched
+(``jpeg``), for the console (and the ``--stream`` server), and its pixels are decoded only when the caller
+asks (vision), possibly at a fraction of the size (:func:`decode_jpeg`).
+
 :class:`CameraConfig` also carries the camera's mounting on the robot
 (height, pitch, field of view, forward offset), which
 :class:`beastbt.vision.camera_model.CameraGeometry` turns into the
@@ -112,7 +118,7 @@ class CameraConfig:
     backend: str
     # What the camera hands over: auto (V4L2: the camera's own MJPEG when it offers it, else raw pixels;
     # the simulator: rendered pixels), mjpeg (the camera's JPEG; on the simulator a fake MJPEG camera) or raw.
-    # The camera's JPEG goes to the console untouched; only the frames vision needs are decoded.
+    # The camera's JPEG goes to the console untouched; only the frames vision or the recording needs are decoded.
     format: str
 
     def __post_init__(self) -> None:

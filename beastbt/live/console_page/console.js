@@ -400,7 +400,8 @@ function connectVideo() {
     if (busy) return;  // still drawing the last one: the newest wins
     busy = true;
     try {
-      const overlay = overlayLength ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
+      const overlay = overlayLength
+        ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
       const bitmap = await createImageBitmap(new Blob([new Uint8Array(buf, 16 + overlayLength)], {type: "image/jpeg"}));
       const c = $("video");
       // The camera's own frame, shown at least 1280 wide: the overlay is drawn at the canvas's size, sharp.
@@ -438,7 +439,8 @@ function drawOverlay(g, w, h, o) {
   }
   if (o.target && o.target.length) {
     const [x, y] = at(o.target[0]);
-    g.strokeStyle = "rgb(255,0,0)"; g.lineWidth = 2 * unit; g.beginPath(); g.arc(x, y, 5 * unit, 0, 2 * Math.PI); g.stroke();
+    g.strokeStyle = "rgb(255,0,0)"; g.lineWidth = 2 * unit;
+    g.beginPath(); g.arc(x, y, 5 * unit, 0, 2 * Math.PI); g.stroke();
   }
   const cross = (p, colour, r, tilted) => {
     const [x, y] = at(p); g.strokeStyle = colour; g.lineWidth = 2 * unit; g.beginPath();
