@@ -303,7 +303,8 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=10, help="patrol passes per full-speed run")
     ap.add_argument("--browser", action="store_true", help="also watch in headless Chromium (part 4)")
     ap.add_argument("--video-seconds", type=float, default=10.0)
-    ap.add_argument("--only", choices=("cpu", "tick"), default=None, help="run one part only")
+    ap.add_argument("--only", choices=("cpu", "tick", "browser"), default=None,
+                    help="run one part only (browser: part 4 alone)")
     ap.add_argument("--no-mjpeg", action="store_true", help="leave out the fake MJPEG camera (a tree without it)")
     args = ap.parse_args()
     os.environ.setdefault("PYTHONUNBUFFERED", "1")
@@ -314,7 +315,7 @@ def main() -> None:
         parts.append(lambda: tick_cost(args.reps, args.passes))
     for part in parts:
         part()
-    if args.browser:
+    if args.browser or args.only == "browser":
         # The line mission's camera runs at its own 15 fps (the frames the detector sees); the patrol does not use
         # the camera, so the console's process renders the simulated view itself, at the camera's rate.
         for mission in ("line_to_intersection.yaml", "patrol.yaml"):

@@ -404,15 +404,15 @@ function connectVideo() {
         ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
       const bitmap = await createImageBitmap(new Blob([new Uint8Array(buf, 16 + overlayLength)], {type: "image/jpeg"}));
       const c = $("video");
-      // The camera's own frame, shown at least 1280 wide: the overlay is drawn at the canvas's size, sharp.
-      const scale = Math.max(1, Math.round(1280 / bitmap.width));
-      if (c.width !== bitmap.width * scale || c.height !== bitmap.height * scale) {
-        c.width = bitmap.width * scale; c.height = bitmap.height * scale;
-      }
+      // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
+      // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
       const g = c.getContext("2d");
-      g.drawImage(bitmap, 0, 0, c.width, c.height);
+      const fit = Math.min(c.width / bitmap.width, c.height / bitmap.height);
+      const w = bitmap.width * fit, h = bitmap.height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
+      if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
+      g.drawImage(bitmap, x, y, w, h);
       bitmap.close();
-      if (overlay) drawOverlay(g, c.width, c.height, overlay);
+      if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
       videoStats.overlay = overlay; videoStats.quality = view.getUint16(12, true);  // 0: the camera's own JPEG
       if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
       const age = Date.now() - capturedMs;
@@ -428,9 +428,9 @@ function connectVideo() {
 
 // What the run sends with each frame (beastbt/live/console_video.py overlay_of): a caption, and the detected
 // line, its target, a junction and a line end as fractions of the picture.
-function drawOverlay(g, w, h, o) {
+function drawOverlay(g, x0, y0, w, h, o, width) {
   const unit = Math.max(1, Math.round(w / 320));
-  const at = (p) => [p[0] * w, p[1] * h];
+  const at = (p) => [x0 + p[0] * w, y0 + p[1] * h];
   g.lineCap = "round"; g.lineJoin = "round";
   if (o.line && o.line.length >= 2) {
     g.strokeStyle = "rgb(0,220,0)"; g.lineWidth = 2 * unit; g.beginPath();
@@ -452,8 +452,8 @@ function drawOverlay(g, w, h, o) {
   if (o.end && o.end.length) cross(o.end[0], "rgb(255,128,0)", 6 * unit, true);
   const lines = o.caption || [];
   if (!lines.length) return;
-  const size = Math.max(12, Math.round(w / 45)), step = Math.round(size * 1.35);
-  g.fillStyle = "rgba(0,0,0,0.5)"; g.fillRect(0, 0, w, Math.min(h, step * lines.length + step / 3));
+  const size = Math.max(12, Math.round(width / 45)), step = Math.round(size * 1.35);
+  g.fillStyle = "rgba(0,0,0,0.5)"; g.fillRect(0, 0, width, step * lines.length + step / 3);
   g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
   lines.forEach((text, i) => g.fillText(text, 6, step * (i + 1) - step / 4));
 }
