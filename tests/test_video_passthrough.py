@@ -236,3 +236,30 @@ def test_the_overlay_goes_with_the_frame_for_the_page_to_draw(tmp_path: Path) ->
     assert all(0.0 <= u <= 1.0 and 0.0 <= v <= 1.0 for o in seen for u, v in o["line"])
     pipeline = prepared.run.io.camera
     assert pipeline.decoded > 0  # vision decoded its frames (the same JPEG the console passed on)
+
+
+class PixelSource:
+    """A camera that gives pixels (a V4L2 camera without MJPEG, a Pi camera)."""
+
+    def isOpened(self) -> bool:  # noqa: N802
+        return True
+
+    def read(self) -> tuple[bool, Any]:
+        return True, np.full((240, 320, 3), 90, np.uint8)
+
+    def release(self) -> None:
+        pass
+
+
+def test_frames_read_for_a_viewer_alone_are_not_the_runs_readings_nor_looked_at() -> None:
+    clock = SimClock()
+    config = CameraConfig(fps=10.0)
+    pipeline = CameraPipeline(lambda: Camera(PixelSource, clock, config=config), config)
+    pipeline.enable("console", pixels=False)
+    assert pipeline.poll(clock.now()) == []
+    assert pipeline.latest is not None and pipeline.latest[1] is None  # the viewer's frame, no detection
+    assert pipeline.latest_jpeg is None and pipeline.frames == 0
+    pipeline.enable("recording", max_rate_hz=2.0, lines=False)
+    clock.advance(0.1)
+    readings = pipeline.poll(clock.now())
+    assert len(readings) == 1 and pipeline.latest[1] is None  # the recording's picture; the detector stayed idle

@@ -202,6 +202,8 @@ class CameraPipeline:
             return []
         if self._thread is None and (now_s >= self._next_frame_s - 1e-9 or self.jpeg_only):
             self._read_one()
+        if not self.pixel_reasons:
+            return []  # frames read for a viewer alone are not the run's readings
         latest = self.latest
         if latest is None or latest[0].seq == self._handed_seq:
             return []
@@ -221,8 +223,7 @@ class CameraPipeline:
             self.latest_jpeg = frame
             self.jpeg_frames += 1
         if not self.pixel_reasons:
-            if frame.image is not None:  # a camera that gives pixels: they are all there is to show
-                self.frames += 1
+            if frame.image is not None:  # a camera that gives pixels: they are all a viewer can have
                 self.latest = (frame, None)
             return True
         period = self.frame_period_s
@@ -241,7 +242,7 @@ class CameraPipeline:
             frame = decoded
             self.decoded += 1
         detection: Optional[LineDetection] = None
-        if self.detect_lines and any(r not in self.pictures_only for r in self.reasons):
+        if self.detect_lines and any(r not in self.pictures_only for r in self.pixel_reasons):
             with self._lock:
                 try:
                     detection = self.detector.detect_full(frame.image, frame.stamp_s)
