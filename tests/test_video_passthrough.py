@@ -263,3 +263,27 @@ def test_frames_read_for_a_viewer_alone_are_not_the_runs_readings_nor_looked_at(
     clock.advance(0.1)
     readings = pipeline.poll(clock.now())
     assert len(readings) == 1 and pipeline.latest[1] is None  # the recording's picture; the detector stayed idle
+
+
+def test_the_recording_keeps_the_cameras_own_jpeg(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import base64
+
+    from beastbt.cli import main
+    from beastbt.recording.reader import read_recording
+    made: list[bytes] = []
+    real_read = SimMjpegCamera.read_jpeg
+
+    def read_jpeg(self: SimMjpegCamera) -> tuple[bool, Any]:
+        ok, data = real_read(self)
+        if ok:
+            made.append(data)
+        return ok, data
+
+    monkeypatch.setattr(SimMjpegCamera, "read_jpeg", read_jpeg)
+    code = main(["run", str(REPO / "missions" / "patrol.yaml"), "--robot", str(mjpeg_profile(tmp_path)), "--sim",
+                 "--max-time", "3 s", "--runs-dir", str(tmp_path / "runs"), "--record-images", "2"])
+    assert code == 1  # stopped by --max-time, as asked
+    [folder] = list((tmp_path / "runs").iterdir())
+    images = read_recording(folder / "run.mcap").messages.get("/camera/image", [])
+    assert len(images) == 7
+    assert all(base64.b64decode(m["data"]) in made for _, m in images)  # as the camera gave them, not re-encoded
