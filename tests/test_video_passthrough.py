@@ -287,3 +287,21 @@ def test_the_recording_keeps_the_cameras_own_jpeg(tmp_path: Path, monkeypatch: p
     images = read_recording(folder / "run.mcap").messages.get("/camera/image", [])
     assert len(images) == 7
     assert all(base64.b64decode(m["data"]) in made for _, m in images)  # as the camera gave them, not re-encoded
+
+
+def test_the_simulated_camera_renders_only_while_a_vision_step_runs(tmp_path: Path) -> None:
+    from beastbt.assembly import prepare
+    from beastbt.run.session import RunOptions, execute
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"mission: follow_then_wait\nworld: {REPO / 'worlds' / 'line_track.yaml'}\nsteps:\n"
+                       "  - follow_line: {speed: 0.12 m/s, until: {distance: 0.3 m}}\n  - wait: 10 s\n",
+                       encoding="utf-8")
+    with contextlib.redirect_stdout(io.StringIO()):
+        prepared = prepare(str(mission), RunOptions(record=False))
+    summary = execute(prepared, out=io.StringIO())
+    assert summary["status"] == "success"
+    rendered = prepared.run.io.sim_camera.frames_rendered
+    fps = prepared.run.io.camera.config.fps
+    # Frames for the follow_line step only (the run minus its 10 s wait), none while it waited.
+    assert 0 < rendered <= fps * (summary["sim_time_s"] - 10.0) + 5
+    assert not prepared.run.io.camera.enabled
