@@ -305,3 +305,49 @@ def test_the_simulated_camera_renders_only_while_a_vision_step_runs(tmp_path: Pa
     # Frames for the follow_line step only (the run minus its 10 s wait), none while it waited.
     assert 0 < rendered <= fps * (summary["sim_time_s"] - 10.0) + 5
     assert not prepared.run.io.camera.enabled
+
+
+def test_a_pi_camera_with_format_mjpeg_hands_over_the_hardware_encoders_jpeg(monkeypatch: pytest.MonkeyPatch) -> None:
+    """picamera2 is on a Pi only: a stand-in with its API checks the glue (MJPEGEncoder into an output we read)."""
+    import sys
+    import types
+
+    from beastbt.devices.camera import Picamera2Capture
+    calls: list[Any] = []
+
+    class FakePicamera2:
+        def create_video_configuration(self, main: dict, **kw: Any) -> dict:
+            return {"main": main, **kw}
+
+        def configure(self, config: dict) -> None:
+            calls.append(("configure", config["main"]["format"]))
+
+        def start_recording(self, encoder: Any, output: Any) -> None:
+            calls.append(("start_recording", type(encoder).__name__))
+            self.output = output.fileoutput
+
+        def stop_recording(self) -> None:
+            calls.append(("stop_recording",))
+
+        def close(self) -> None:
+            calls.append(("close",))
+
+    camera = FakePicamera2()
+    fake = types.ModuleType("picamera2")
+    fake.Picamera2 = lambda: camera  # type: ignore[attr-defined]
+    encoders = types.ModuleType("picamera2.encoders")
+    encoders.MJPEGEncoder = type("MJPEGEncoder", (), {})  # type: ignore[attr-defined]
+    outputs = types.ModuleType("picamera2.outputs")
+    outputs.FileOutput = lambda f: types.SimpleNamespace(fileoutput=f)  # type: ignore[attr-defined]
+    for name, module in (("picamera2", fake), ("picamera2.encoders", encoders), ("picamera2.outputs", outputs)):
+        monkeypatch.setitem(sys.modules, name, module)
+    frames = jpegs(2, 320, 240)
+    capture = Picamera2Capture(CameraConfig(format="mjpeg", fps=30.0))
+    assert calls == [("configure", "YUV420"), ("start_recording", "MJPEGEncoder")] and capture.compressed
+    assert capture.read_jpeg() == (False, None)  # nothing encoded yet: no frame, after two frame periods
+    camera.output.write(frames[0])
+    camera.output.write(frames[1])
+    assert capture.read_jpeg() == (True, frames[1])  # the newest, untouched
+    assert capture.read_jpeg() == (False, None)  # not the same frame twice
+    capture.release()
+    assert calls[-2:] == [("stop_recording",), ("close",)]

@@ -24,7 +24,9 @@ image <-> floor mapping the line detector needs.
 
 from __future__ import annotations
 
+import io
 import math
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Union
@@ -117,7 +119,8 @@ class CameraConfig:
     # Which camera stack reads it: auto (picamera2 when it sees a Pi camera, else V4L2), picamera2 or v4l2.
     backend: str
     # What the camera hands over: auto (V4L2: the camera's own MJPEG when it offers it, else raw pixels;
-    # the simulator: rendered pixels), mjpeg (the camera's JPEG; on the simulator a fake MJPEG camera) or raw.
+    # picamera2 and the simulator: pixels), mjpeg (the camera's JPEG; a Pi camera's from the Pi's hardware
+    # encoder; on the simulator a fake MJPEG camera) or raw.
     # The camera's JPEG goes to the console untouched; only the frames vision or the recording needs are decoded.
     format: str
 
@@ -255,12 +258,42 @@ class MjpegReplay:
         self._open = False
 
 
+class _NewestJpeg(io.BufferedIOBase):
+    """picamera2's output for its MJPEG encoder: keeps the newest JPEG and wakes a reader waiting for it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._cond = threading.Condition()
+        self.frame: Optional[bytes] = None
+        self.count = 0
+
+    def writable(self) -> bool:
+        """An output picamera2 writes to."""
+        return True
+
+    def write(self, buf: Any) -> int:  # type: ignore[override]
+        """One encoded frame from the encoder's thread."""
+        with self._cond:
+            self.frame = bytes(buf)
+            self.count += 1
+            self._cond.notify_all()
+        return len(buf)
+
+    def newer(self, count: int, timeout_s: float) -> tuple[int, Optional[bytes]]:
+        """The newest frame once there is one after frame ``count`` (or ``timeout_s`` passed): (count, JPEG)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self.count > count, timeout_s)
+            return self.count, (self.frame if self.count > count else None)
+
+
 class Picamera2Capture:
     """A Raspberry Pi camera (libcamera, through picamera2) behind the ``cv2.VideoCapture`` methods the driver uses.
 
     ``read()`` returns the newest BGR frame of ``width_px`` x ``height_px``.
     Pi cameras on a recent Raspberry Pi OS are libcamera devices, which
-    OpenCV's V4L2 backend cannot read.
+    OpenCV's V4L2 backend cannot read. With ``camera.format: mjpeg`` the Pi's hardware JPEG encoder
+    (picamera2's ``MJPEGEncoder``) encodes every frame and ``read_jpeg()`` hands its bytes over untouched
+    (:attr:`compressed`); ``read()`` then decodes them.
     """
 
     def __init__(self, config: CameraConfig) -> None:
@@ -269,19 +302,41 @@ class Picamera2Capture:
         self._camera = Picamera2()
         size = (int(config.width_px), int(config.height_px))
         frame_us = int(1e6 / config.fps)
+        self._wait_s = 2.0 * frame_us / 1e6
+        self.compressed = config.format == "mjpeg"
+        self._jpeg: Optional[_NewestJpeg] = None
+        self._count = 0
+        # The hardware encoder takes YUV420; the pixel path wants "RGB888" (B, G, R in memory: OpenCV's order).
         video = self._camera.create_video_configuration(
-            main={"size": size, "format": "RGB888"}, buffer_count=2,
+            main={"size": size, "format": "YUV420" if self.compressed else "RGB888"}, buffer_count=2,
             controls={"FrameDurationLimits": (frame_us, frame_us)})
         self._camera.configure(video)
-        self._camera.start()
+        if self.compressed:
+            from picamera2.encoders import MJPEGEncoder
+            from picamera2.outputs import FileOutput
+            self._jpeg = _NewestJpeg()
+            self._camera.start_recording(MJPEGEncoder(), FileOutput(self._jpeg))
+        else:
+            self._camera.start()
         self._open = True
 
     def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
         """True until released."""
         return self._open
 
+    def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the hardware encoder's next JPEG), or (False, None) when none came within two frame periods."""
+        if self._jpeg is None or not self._open:
+            return False, None
+        self._count, data = self._jpeg.newer(self._count, self._wait_s)
+        return (True, data) if data else (False, None)
+
     def read(self) -> tuple[bool, Optional[np.ndarray]]:
         """(True, the newest frame as BGR uint8), or (False, None) when it cannot be had."""
+        if self.compressed:
+            ok, data = self.read_jpeg()
+            image = decode_jpeg(data) if ok and data is not None else None
+            return (image is not None), image
         try:
             # picamera2's "RGB888" is laid out B, G, R in memory: already OpenCV's order.
             return True, self._camera.capture_array("main")
@@ -293,7 +348,10 @@ class Picamera2Capture:
         if self._open:
             self._open = False
             try:
-                self._camera.stop()
+                if self.compressed:
+                    self._camera.stop_recording()
+                else:
+                    self._camera.stop()
                 self._camera.close()
             except Exception:  # noqa: BLE001 - closing a vanished camera may fail; it is gone anyway
                 pass
