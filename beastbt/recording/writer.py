@@ -727,15 +727,20 @@ class RunFileWriter:
         import cv2  # only runs with a camera need it
         image = frame.image
         max_w = self.config.image_max_width_px
+        data: Optional[bytes] = None
         if max_w and frame.width > max_w:
             h = max(1, int(round(frame.height * max_w / frame.width)))
             image = cv2.resize(image, (max_w, h), interpolation=cv2.INTER_AREA)
-        ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
-        if not ok:
-            self.dropped += 1
-            return None
+        elif frame.jpeg is not None:
+            data = frame.jpeg  # the camera's own JPEG, at a size that needs no scaling: recorded as it came
+        if data is None:
+            ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
+            if not ok:
+                self.dropped += 1
+                return None
+            data = jpeg.tobytes()
         self._emit("/camera/image", t_ns, {"timestamp": fox_time(t_ns), "frame_id": self.frames.camera_optical,
-                                           "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
+                                           "data": base64.b64encode(data).decode("ascii"),
                                            "format": "jpeg"})
         return frame.width, frame.height, int(image.shape[1]), int(image.shape[0])
 
