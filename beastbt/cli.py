@@ -38,7 +38,7 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "route": ("beastbt.commands.route", "route tools: 'route from-run RUN' writes the path a recorded run drove "
                                         "as a GPX route (teach and repeat)"),
     "map": ("beastbt.commands.map", "map tools: 'map build RUN --out maps/office.yaml' builds a map_server map from a "
-                                    "recorded run's LiDAR scans"),
+                                    "recorded run's LiDAR scans; 'map show MAP --places MISSION' draws one"),
     "joystick": ("beastbt.commands.joystick", "gamepad tools: 'joystick test' shows its input live, the preset it "
                                               "gets and what each control does"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "

@@ -168,7 +168,7 @@ def test_report_without_truth_or_positions_leaves_those_plots_out(tmp_path):
     rec.finish(None)
     report = make_report(str(tmp_path / "bare.mcap"))
     assert set(report.plots) == {"speeds", "timeline"}
-    assert set(report.skipped) == {"path", "clearance", "position_error", "line_error"}
+    assert set(report.skipped) == {"path", "saved_map", "clearance", "position_error", "line_error"}
     assert not (report.folder / "path.png").exists()
 
 

@@ -14,7 +14,8 @@ from typing import Any, Optional
 import py_trees
 
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LaserScan, LineObservation, LocalCostmap, LocalPlan, MapPose, VelocityCommand,
+                                      GlobalPlan, LaserScan, LineObservation, LocalCostmap, LocalPlan,
+                                      MapPose, VelocityCommand,
                                       WheelOdometry)
 
 
@@ -48,6 +49,8 @@ KEYS: dict[str, KeySpec] = {k.name: k for k in (
             "Rolling local costmap around the robot: scan points inflated by the footprint, decaying."),
     KeySpec("local_plan", LocalPlan, "m, m/s, rad/s", "odom",
             "The local planner's chosen command and the path it would drive (go_to, route, return_home)."),
+    KeySpec("global_plan", GlobalPlan, "m", "map",
+            "The path planned on the mission's map that go_to, route and return_home follow (absent without a map)."),
     KeySpec("joystick", JoystickState, "-", "-", "Latest joystick state (named axes -1..1 and buttons)."),
     KeySpec("home", tuple, "deg", "WGS84", "(lat, lon) where the mission started: the first good fix."),
     KeySpec("cmd_mission", VelocityCommand, "m/s, rad/s", "body", "What the mission asks the base to do this tick."),

@@ -306,6 +306,21 @@ class LocalCostmap:
 
 
 @dataclass(frozen=True)
+class GlobalPlan:
+    """The path go_to follows on the mission's map, in the ``map`` frame.
+
+    ``points_xy`` is an (n, 2) array of metres from where the robot was when
+    it was planned to the goal, ``goal`` the place's name, ``length_m`` the
+    path's length (m); ``stamp_s`` when it was planned (a replan makes a new one).
+    """
+
+    stamp_s: float
+    points_xy: np.ndarray
+    goal: str = ""
+    length_m: float = 0.0
+
+
+@dataclass(frozen=True)
 class LocalPlan:
     """What the local planner chose this tick, in the ``odom`` frame.
 

@@ -1,7 +1,8 @@
-"""``beastbt map ACTION``: map tools. ``map build RUN --out maps/office.yaml`` builds a map from a recorded run.
+"""``beastbt map ACTION``: map tools. ``map build RUN --out maps/office.yaml`` builds a map from a recorded run;
+``map show maps/office.yaml --places MISSION --out office.png`` draws one with its places.
 
 Each action is one ``(help, add_arguments, run)`` entry in :data:`ACTIONS`, so
-a new one (``map show``) is a function pair and a line there. Exit status:
+a new one is a function pair and a line there. Exit status:
 0 done, 1 nothing to write, 2 bad input.
 """
 
@@ -11,10 +12,13 @@ import argparse
 from typing import Callable
 
 from beastbt.commands.map_build import add_build_arguments, build
+from beastbt.commands.map_show import add_show_arguments, show
 
 ACTIONS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Callable[[argparse.Namespace], int]]] = {
     "build": ("build a map (map_server YAML + PGM) from a recorded run's LiDAR scans and odometry",
               add_build_arguments, build),
+    "show": ("draw a map (map_server YAML) with the places of a mission or places file into a PNG",
+             add_show_arguments, show),
 }
 """Action -> (one-line help, add its arguments, run it -> exit status)."""
 

@@ -21,7 +21,7 @@ from typing import Any, Callable, Optional
 import py_trees
 
 from beastbt.blackboard import catalogue
-from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, BatteryState, GpsFix
+from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, BatteryState, GpsFix, MapPose
 from beastbt.estimation.geodesy import LocalFrame
 from beastbt.run.progress import progress_of
 
@@ -107,10 +107,17 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
     ``plan``: the local planner's path (``local_plan``, odom frame, put on the plan through the robot's pose in
     both); ``blocked``: the planner finds no way; ``costmap``: ``{cells, resolution_m}``, the centres of the
     local costmap's cells an obstacle is in or the footprint would touch (Nav2's lethal and inscribed, at most
-    :data:`MAX_COSTMAP_CELLS`); ``persons``: the simulator's persons where they are, ``[x, y, radius]``.
+    :data:`MAX_COSTMAP_CELLS`); ``persons``: the simulator's persons where they are, ``[x, y, radius]``;
+    ``path``: the path planned on the mission's saved map (``global_plan``), on the plan.
     """
     from beastbt.recording.obstacle_views import fresh, sim_contact
-    out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "costmap": None, "persons": None}
+    out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "costmap": None, "persons": None,
+                 "path": None}
+    on_plan = frame.map_on_plan()
+    global_plan = catalogue.get(board_client, "global_plan") if on_plan is not None else None
+    if global_plan is not None and len(global_plan.points_xy) >= 2:
+        # the path go_to follows on the saved map, moved onto the plan
+        out["path"] = _to_plan(global_plan.points_xy, *on_plan)
     if pose is not None:
         px, py, pyaw = pose
         scan = run.latest_scan()
@@ -169,13 +176,41 @@ class MapFrame:
             return self.world.frame
         return getattr(self.run.estimator, "frame", None)
 
+    def map_on_plan(self) -> Optional[tuple[float, float, float]]:
+        """The pose (x m, y m, yaw rad) of the mission's saved map frame on the plan: the robot started at the
+        plan's start and at the mission's start on the map (``start:``); None without ``map:``."""
+        mission = getattr(self.run, "mission", None)
+        if getattr(mission, "map_grid", None) is None:
+            return None
+        mx, my, myaw = mission.map_start
+        sx, sy, syaw = self.start
+        yaw = syaw - myaw
+        c, s = math.cos(yaw), math.sin(yaw)
+        return sx - (c * mx - s * my), sy - (s * mx + c * my), yaw
+
+    def map_point(self, x: float, y: float) -> list[float]:
+        """A point of the saved map's frame (m) on the plan, [x, y] m (a mission with ``map:``)."""
+        on_plan = self.map_on_plan()
+        assert on_plan is not None
+        ox, oy, yaw = on_plan
+        c, s = math.cos(yaw), math.sin(yaw)
+        return [round(ox + c * x - s * y, 3), round(oy + s * x + c * y, 3)]
+
     def pose(self) -> Optional[tuple[float, float, float]]:
         """The robot's pose on the plan (x, y m, yaw rad CCW from east), as the robot believes it.
+
+        On a mission with a saved map, its pose on the map (``map_pose``, the
+        localiser's), moved onto the plan, so that it is drawn where it is on
+        the map drawn under it.
 
         A mission that navigates by the fused pose (GPS, IMU and odometry) is
         shown by it; one that drives by odometry by its odometry, placed at
         the world's start (on a robot, at the origin).
         """
+        on_map = self.run.latest.get(MapPose) if self.map_on_plan() is not None else None
+        if on_map is not None:
+            x, y = self.map_point(on_map.x, on_map.y)
+            return x, y, self.map_on_plan()[2] + on_map.yaw  # type: ignore[index]
         fused = board(self.run, "pose") if self.fused else None
         geo = self.geo
         if fused is not None and fused.position_valid and fused.lat is not None and geo is not None:
@@ -197,7 +232,7 @@ class MapFrame:
 
 def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
     """The map's fixed layers: walls, obstacles, line track, start, places, the mission's waypoints and fences (plan
-    metres)."""
+    metres); with ``map:``, the saved map under them (:func:`saved_map_layer`)."""
     from beastbt.sim.floor import floor_lines
     from beastbt.sim.obstacles import obstacle_outline
     mission = run.mission
@@ -216,8 +251,13 @@ def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
         except ValueError:
             out["track"] = []  # the world was checked before the run; a drawing must never fail the page
         out["start"] = {"x": world.start_x, "y": world.start_y, "yaw_deg": math.degrees(world.start_yaw)}
+    on_plan = frame.map_on_plan()
+    out["saved_map"] = saved_map_layer(mission.map_grid, frame) if on_plan is not None else None
     for place in mission.places.values():
-        xy = frame.point(place.lat, place.lon)
+        if place.lat is None:  # a place on the saved map
+            xy = frame.map_point(place.x, place.y) if on_plan is not None else None
+        else:
+            xy = frame.point(place.lat, place.lon)
         out["places"].append({"name": place.name, "lat": place.lat, "lon": place.lon, "xy": xy,
                               "tolerance_m": place.tolerance_m})
     out["waypoints"] = route_waypoints(run, frame)
@@ -227,12 +267,46 @@ def map_layers(run: Any, world: Any, frame: MapFrame) -> dict:
     return out
 
 
+SAVED_MAP_RGBA = {"free": (27, 31, 36, 255), "occupied": (200, 204, 208, 255), "unknown": (0, 0, 0, 0)}
+"""The saved map's colours on the console's dark plan: free a shade above the background, walls light, unknown
+transparent (RGBA)."""
+
+
+def saved_map_layer(grid: Any, frame: MapFrame) -> dict:
+    """The mission's saved map as the console draws it: ``png`` (a data URL, north up: the image's top row is the
+    map's last), ``corner`` (the plan position of its lower-left corner, m), ``yaw_rad`` (the map's x axis on the
+    plan), ``width_m`` and ``height_m``."""
+    import base64
+
+    import cv2
+    import numpy as np
+    rgba = np.zeros(grid.data.shape + (4,), np.uint8)
+    rgba[:] = SAVED_MAP_RGBA["unknown"]
+    rgba[grid.free()] = SAVED_MAP_RGBA["free"]
+    rgba[grid.occupied()] = SAVED_MAP_RGBA["occupied"]
+    ok, png = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgba[::-1]), cv2.COLOR_RGBA2BGRA))
+    on_plan = frame.map_on_plan()
+    assert ok and on_plan is not None
+    corner_yaw = grid.origin_yaw
+    return {"png": "data:image/png;base64," + base64.b64encode(png.tobytes()).decode("ascii"),
+            "corner": frame.map_point(grid.origin_x, grid.origin_y), "yaw_rad": round(on_plan[2] + corner_yaw, 6),
+            "width_m": grid.width_m, "height_m": grid.height_m}
+
+
 def route_waypoints(run: Any, frame: MapFrame) -> list[dict]:
     """The places the mission drives to, in the order of its steps: ``{name, xy, tolerance_m}``."""
     from beastbt.behaviours.navigation import GoTo, NavConfig
     nav = run.ctx.services.navigation or NavConfig()
     out = []
+    from beastbt.behaviours.map_navigation import MapGoTo
     for node in run.nodes:
+        if isinstance(node, MapGoTo):
+            goal = node.map_target()
+            if goal is not None and frame.map_on_plan() is not None:
+                out.append({"name": node.place, "step": node.name, "xy": frame.map_point(*goal),
+                            "tolerance_m": node.tolerance_m if node.tolerance_m is not None
+                            else node.planner.config.default_tolerance_m})
+            continue
         if isinstance(node, GoTo):
             try:
                 target = node.target()

@@ -116,6 +116,12 @@ class Compiler:
         p = self.mission.places[name]
         return p.lat, p.lon, p.tolerance_m
 
+    def on_map(self, name: str) -> bool:
+        """Whether place ``name`` is on the mission's saved map (``home`` is, on a mission with ``map:``)."""
+        if getattr(self.mission, "map_grid", None) is None:
+            return False
+        return name == HOME or self.mission.places[name].on_map
+
     def new_block(self) -> BlockStart:
         """Where a guard block (or the mission) starts: the clock, and the odometry distance read then."""
         reader = self.reader
@@ -137,6 +143,12 @@ class Compiler:
             return Condition(c.word, test if test is not None else line_flag(LINE_FLAGS[c.word]), r)
         if isinstance(c, st.BatteryBelow):
             return Condition(f"battery below {c.volts:g} V", battery_below(c.volts), r)
+        if isinstance(c, st.Near) and self.on_map(c.place):
+            from beastbt.behaviours.map_navigation import near_on_map
+            self.ctx.condition_reads.add("map_pose")
+            m = self.mission
+            xy = (m.map_start[0], m.map_start[1]) if c.place == HOME else (m.places[c.place].x, m.places[c.place].y)
+            return Condition(f"near {c.place} within {c.within_m:g} m", near_on_map(xy, c.within_m), r)
         if isinstance(c, st.Near):
             lat, lon, _ = self.place(c.place)
             if lat is None:

@@ -228,6 +228,65 @@ UNREADABLE_ROUTE = "unreadable_route_file"
 check passes over this name instead of adding an "unknown place" error."""
 
 
+_NAME = re.compile(r"^[^\W\d][\w-]*$")
+"""A place name the mission language accepts: a letter first, then letters, digits, _ and -."""
+
+MAP_PLACE_KEYS = ("x", "y", "yaw", "tolerance")
+"""What a place on the map may say (the mission schema's map_place)."""
+
+
+def map_places_file(doc: "SourceDoc", base: Path, relative: str,  # type: ignore[name-defined]  # noqa: F821
+                    errors: list) -> dict:
+    """The named poses of a places YAML (``name: {x: 1 m, y: 2 m, yaw: 90 deg, tolerance: 0.3 m}``, map frame) as
+    the mission's ``places:``; problems go to ``errors``, positioned in that file (and at the mission's ``file:``
+    when the file cannot be read)."""
+    from beastbt.core.errors import InvalidInput, Problem
+    from beastbt.core.units import parse_quantity
+    from beastbt.core.yaml_source import load_yaml
+    path = (base / relative) if not Path(relative).is_absolute() else Path(relative)
+    if not path.is_file():
+        errors.append(doc.problem(("places", "file"), f"the places file {relative} does not exist",
+                                  "the path is relative to the mission file; a places YAML holds "
+                                  "name: {x: 1 m, y: 2 m, yaw: 90 deg} lines"))
+        return {}
+    try:
+        places = load_yaml(path)
+    except InvalidInput as exc:
+        errors.extend(exc.problems)
+        return {}
+    hint = "each place is name: {x: 1.5 m, y: -2 m} with optional yaw: 90 deg and tolerance: 0.3 m"
+    out: dict = {}
+    for name, value in places.data.items():
+        where = (name,)
+        if not isinstance(name, str) or not _NAME.match(name):
+            errors.append(places.problem(where, f"place name {name!r} must start with a letter (then letters, digits, "
+                                                f"_ and -)", hint,
+                                         key=True))
+            continue
+        if not isinstance(value, dict) or "x" not in value or "y" not in value:
+            errors.append(places.problem(where, f"place '{name}' needs x and y (metres on the map)", hint))
+            continue
+        bad = [k for k in value if k not in MAP_PLACE_KEYS]
+        if bad:
+            errors.append(places.problem(where + (bad[0],), f"place '{name}': unknown key '{bad[0]}'", hint,
+                                         key=True))
+            continue
+        ok = True
+        for key in value:
+            kind = "angle" if key == "yaw" else "distance"
+            try:
+                parse_quantity(value[key], kind)
+            except (ValueError, TypeError) as exc:
+                example = "an angle such as 90 deg" if kind == "angle" else "a distance such as 2 m"
+                errors.append(places.problem(where + (key,), f"place '{name}': '{key}' {exc}", example))
+                ok = False
+        if ok:
+            out[name] = dict(value)
+    if not out and not any(isinstance(p, Problem) and p.file == places.file for p in errors):
+        errors.append(places.problem((), "the places file names no place", hint))
+    return out
+
+
 def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # type: ignore[name-defined]  # noqa: F821
     """Read ``places: {file}`` and every ``route: {file}`` of a mission document into plain places (in ``doc.data``).
 
@@ -256,7 +315,10 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
         return got
 
     places = data.get("places")
-    if isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str):
+    if (isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str)
+            and Path(places["file"]).suffix.lower() in (".yaml", ".yml")):
+        data["places"] = map_places_file(doc, base, places["file"], errors)
+    elif isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str):
         got = load(("places", "file"), places["file"], "places")
         data["places"] = {} if got is None else {
             _name(name or f"point_{i + 1}", "place"): {"lat": lat, "lon": lon}

@@ -42,12 +42,21 @@ def mission_default(pointer: str, name: str) -> Any:
 
 @dataclass(frozen=True)
 class Place:
-    """A named GPS place: WGS84 degrees and an arrival tolerance in metres."""
+    """A named place: a GPS place (``lat``, ``lon``: WGS84 degrees) or a place on the mission's map (``x``, ``y``:
+    metres in the map frame, ``yaw`` rad or None), and an arrival tolerance in metres."""
 
     name: str
-    lat: float
-    lon: float
+    lat: Optional[float]
+    lon: Optional[float]
     tolerance_m: Optional[float] = None
+    x: Optional[float] = None
+    y: Optional[float] = None
+    yaw: Optional[float] = None
+
+    @property
+    def on_map(self) -> bool:
+        """Whether the place is in the map frame (x, y) rather than GPS (lat, lon)."""
+        return self.x is not None
 
 
 @dataclass(frozen=True)
@@ -207,10 +216,14 @@ class _SemanticChecker:
                 self.fence_ref(path + ("fence",), spec["fence"])
             if "margin" in spec:
                 self.positive(path + ("margin",), "distance", allow_zero=True)
+        map_places = self.check_place_frames()
         for name, fence in (d.get("fences") or {}).items():
             for i, corner in enumerate(fence.get("polygon") or []):
                 if isinstance(corner, str):
                     self.place_ref(("fences", name, "polygon", i), corner)
+                    if corner in map_places:
+                        self.error(("fences", name, "polygon", i), f"fence corner '{corner}' is a place on the map "
+                                   "(x, y): a fence's corners are GPS places", "give the corners as {lat, lon}")
             if kind == "battery_low":
                 self.positive(path + ("below",), "voltage")
         return self.problems
@@ -245,6 +258,32 @@ class _SemanticChecker:
         for part in path:
             node = node[part]
         return node
+
+    def check_place_frames(self) -> set[str]:
+        """One mission, one frame: GPS places (lat, lon) or places on the map (x, y), and these only with ``map:``.
+        The names of the places on the map."""
+        places = self.data.get("places") or {}
+        if not isinstance(places, dict):
+            return set()
+        on_map = [n for n, p in places.items() if isinstance(p, dict) and "x" in p]
+        gps = [n for n, p in places.items() if isinstance(p, dict) and "lat" in p]
+        if on_map and gps:
+            first_map, first_gps = on_map[0], gps[0]
+            later = first_map if list(places).index(first_map) > list(places).index(first_gps) else first_gps
+            kinds = {first_map: "a place on the map (x, y)", first_gps: "a GPS place (lat, lon)"}
+            other = first_gps if later == first_map else first_map
+            self.error(("places", later), f"'{later}' is {kinds[later]} but '{other}' is {kinds[other]}: one "
+                       "mission's places are all in one frame", "indoors on a map write x and y; outdoors with GPS "
+                       "write lat and lon", key=True)
+        elif on_map and "map" not in self.data:
+            self.error(("places", on_map[0]), f"'{on_map[0]}' is a place on a map (x, y), but the mission has no "
+                       "'map:'", "add map: ../maps/NAME.yaml (a map_server YAML) at the top of the mission",
+                       key=True)
+        center = ((self.data.get("failsafes") or {}).get("geofence") or {})
+        if isinstance(center, dict) and center.get("center") in on_map:
+            self.error(("failsafes", "geofence", "center"), f"'{center['center']}' is a place on the map: a "
+                       "geofence's centre is a GPS place", "give the fence's centre as a GPS place")
+        return set(on_map)
 
     def place_ref(self, path: PathKey, name: str) -> None:
         from beastbt.mission.geo_files import UNREADABLE_ROUTE
@@ -809,7 +848,12 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
         m.accel_limit_mps2 = _accel(limits["acceleration"])
     for name, place in (d.get("places") or {}).items():
         tol = parse_quantity(place["tolerance"], "distance") if "tolerance" in place else None
-        m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
+        if "x" in place:
+            yaw = parse_quantity(place["yaw"], "angle") if "yaw" in place else None
+            m.places[name] = Place(name, None, None, tol, parse_quantity(place["x"], "distance"),
+                                   parse_quantity(place["y"], "distance"), yaw)
+        else:
+            m.places[name] = Place(name, float(place["lat"]), float(place["lon"]), tol)
     for name, fence in (d.get("fences") or {}).items():
         corners = []
         for corner in fence.get("polygon") or fence.get("points") or []:

@@ -104,6 +104,33 @@ def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float,
     return None
 
 
+def _map_place_warnings(mission: Any) -> list[Problem]:
+    """A place on the map that lies in an occupied or unknown cell of the mission's map, or off it: go_to there
+    would fail (the planner does not drive into walls or where the map has not been)."""
+    grid = getattr(mission, "map_grid", None)
+    if grid is None:
+        return []
+    out = []
+    for place in mission.places.values():
+        if place.x is None:
+            continue
+        value = grid.value_at(place.x, place.y)
+        col, row = grid.to_cells(place.x, place.y)
+        where = f"({place.x:g}, {place.y:g}) m"
+        if not grid.inside(col, row):
+            said = "lies off the map"
+        elif grid.occupied()[int(row), int(col)]:
+            said = "lies in an occupied cell of the map (a wall or furniture)"
+        elif value < 0:
+            said = "lies in an unknown cell of the map (where the map has not been)"
+        else:
+            continue
+        out.append(warning(mission.doc.problem(("places", place.name), f"place '{place.name}' {where} {said}: "
+                                               "go_to there will fail", "move the place into a free (white) part "
+                                               "of the map: beastbt map show MAP --places MISSION draws them")))
+    return out
+
+
 def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = None) -> list[Problem]:
     """What looks wrong in the mission itself; ``world_datum`` (lat, lon) is where its world is, if known."""
     doc = mission.doc
@@ -118,7 +145,8 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
         out.append(warning(doc.problem(("steps",), "the mission has no steps: it succeeds at once, doing nothing",
                                        "add what the robot should do under 'steps:'")))
     out += _speed_warnings(mission, mission.speed_limit_mps, "the mission's limit")
-    places = list(mission.places.values())
+    out += _map_place_warnings(mission)
+    places = [p for p in mission.places.values() if p.lat is not None]
     for place in places:
         said = _place_far_away(place, places, world_datum)
         if said is not None:
@@ -186,6 +214,20 @@ def _sector_warnings(mission: Any) -> list[Problem]:
     return out
 
 
+def _on_the_map(mission: Any, step: Any) -> bool:
+    """Whether a navigation step drives on the mission's map (a mission with ``map:``, places on the map, home)."""
+    if getattr(mission, "map_grid", None) is None:
+        return False
+    places = mission.places
+    if isinstance(step, st.ReturnHome):
+        return True
+    if isinstance(step, st.GoToPlace):
+        return step.place == "home" or (step.place in places and places[step.place].on_map)
+    if isinstance(step, st.Route):
+        return all(p == "home" or (p in places and places[p].on_map) for p in step.places)
+    return False
+
+
 def world_warnings(mission: Any, world: Any) -> list[Problem]:
     """What cannot work in the mission's world: what needs a GPS fix indoors (a world whose ``gps`` says ``sky: none``).
 
@@ -200,6 +242,8 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
             "sky")
     out = []
     for step in _every_step(mission):
+        if _on_the_map(mission, step):
+            continue  # planned on the mission's map and localised by the LiDAR: no GPS needed
         if isinstance(step, (st.GoToPlace, st.GoToPoint, st.Route, st.ReturnHome)):
             out.append(warning(doc.problem(step.path + (step.KEYWORD,),
                                            f"{indoors}, so this {step.KEYWORD} cannot arrive", hint)))

@@ -19,6 +19,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
@@ -139,7 +141,12 @@ def return_home_instead(run: MissionRun, why: str) -> None:
         return  # already on the way home
     if run.root.status == Status.RUNNING:
         run.root.stop(Status.INVALID)
-    leaf = GoTo("return_home (within 2 m)", run.ctx, HOME, home_target(run.ctx), None)
+    planner = run.ctx.services.plugins.get("map_planner")
+    if planner is not None:  # a mission on a saved map goes home on the map, by a planned path
+        from beastbt.behaviours.map_navigation import MapGoTo, map_home_target
+        leaf: GoTo = MapGoTo("return_home (on the map)", run.ctx, HOME, map_home_target(planner), planner, None)
+    else:
+        leaf = GoTo("return_home (within 2 m)", run.ctx, HOME, home_target(run.ctx), None)
     root = ReturnHomeInstead(f"return home ({why})", leaf)
     run.root = root
     run.nodes = list(root.iterate())
@@ -171,6 +178,28 @@ def local_navigator(profile: RobotProfile) -> Optional["LocalNavigator"]:
                           footprint_radius(profile.data), lidar.mounting, limits)
 
 
+def install_map_truth(p: Prepared, planner: Any) -> None:
+    """The summary's ``map_waypoints`` and, in the simulator, each arrival's true distance to its place (the true
+    pose moved into the map frame by the world's start and the mission's start on the map)."""
+    from beastbt.behaviours.map_navigation import map_waypoints
+    run, world = p.run, p.world
+
+    def contribute_map(r: MissionRun, summary: dict) -> None:
+        summary["map_waypoints"] = map_waypoints(planner)
+    run.summary_contributors.append(contribute_map)
+    if run.io.sim is None or world is None:
+        return
+    from beastbt.estimation.map_localiser import compose, invert
+    map_from_world = compose(planner.start, invert((world.start_x, world.start_y, world.start_yaw)))
+
+    def true_error(visit: Any) -> None:
+        if visit.reached and visit.x is not None:
+            truth = run.io.sim.truth
+            x, y, _ = compose(map_from_world, (truth.x, truth.y, truth.yaw))
+            visit.true_error_m = math.hypot(x - visit.x, y - visit.y)
+    planner.listeners.append(true_error)
+
+
 def install_navigation(p: Prepared) -> None:
     """Give go_to the profile's navigation tuning and, with a LiDAR, the local costmap and planner; on a robot
     with a GPS, offer going home."""
@@ -183,6 +212,17 @@ def install_navigation(p: Prepared) -> None:
             # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
             from beastbt.navigation.local_planner import graph_search
             graph_search()
+    planner = run.ctx.services.plugins.get("map_planner")
+    if planner is None and getattr(p.mission, "map_grid", None) is not None:
+        # no go_to on the map, but a failsafe or on_failure may go home on it
+        from beastbt.behaviours.map_navigation import map_planner, mission_map_start
+        planner = map_planner(run.ctx, p.mission.map_grid, mission_map_start(p.mission))
+    if planner is not None:  # go_to on the mission's map: the profile's global planner and the robot's size
+        from beastbt.actuation.collision_monitor import footprint_radius
+        from beastbt.navigation.global_planner import GlobalPlannerConfig
+        planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
+                          footprint_radius(p.profile.data))
+        install_map_truth(p, planner)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
 
@@ -191,7 +231,7 @@ def install_navigation(p: Prepared) -> None:
             if pose is not None and pose.position_valid and pose.lat is not None:
                 path.add(pose.lat, pose.lon)
         run.hooks.append(keep_the_path)
-    if "gps" not in run.ctx.capabilities:
+    if "gps" not in run.ctx.capabilities and planner is None:
         return
 
     def failsafe_return_home(r: MissionRun, spec: Any) -> None:

@@ -38,9 +38,37 @@ def _within(tolerance_m: Optional[float]) -> str:
     return f"(within {shown:g} m)"
 
 
+def _on_map(c: Compiler, name: str) -> bool:
+    """Whether going to place ``name`` is driving on the mission's map: a mission with ``map:``, and the place is
+    on the map (``home`` on a mission with a map is where it started on the map)."""
+    if getattr(c.mission, "map_grid", None) is None:
+        return False
+    return name == HOME or c.mission.places[name].on_map
+
+
+def _map_go_to(c: Compiler, name: str, step_tolerance_m: Optional[float], options: dict,
+               label: str = "go_to") -> Behaviour:
+    """A :class:`MapGoTo` leaf for a place on the map (``home``: where the mission started on the map)."""
+    from beastbt.behaviours.map_navigation import (MapGoTo, map_home_target, map_place_target, map_planner,
+                                                   mission_map_start)
+    m = c.mission
+    planner = map_planner(c.ctx, m.map_grid, mission_map_start(m))
+    if name == HOME:
+        target, tolerance = map_home_target(planner), step_tolerance_m
+    else:
+        place = m.places[name]
+        target = map_place_target(place.x, place.y)
+        tolerance = step_tolerance_m if step_tolerance_m is not None else place.tolerance_m
+    shown = f"(within {tolerance:g} m)" if tolerance is not None else "(on the map)"
+    title = f"{label} {shown}" if name == HOME and label == "return_home" else f"{label} {name} {shown}"
+    return MapGoTo(title, c.ctx, name, target, planner, tolerance, **options)
+
+
 def _go_to_place(c: Compiler, name: str, step_tolerance_m: Optional[float], options: dict,
                  label: str = "go_to") -> Behaviour:
-    """A GoTo leaf for a named place (``home`` included)."""
+    """A GoTo leaf for a named place (``home`` included); a MapGoTo for a place on the mission's map."""
+    if _on_map(c, name):
+        return _map_go_to(c, name, step_tolerance_m, options, label)
     if "gps" not in c.ctx.capabilities:
         return NotAvailable(f"{label} {name}", c.ctx, "this robot has no GPS")
     if name == HOME:
@@ -83,7 +111,10 @@ def build_route(c: Compiler, s: st.Route) -> Behaviour:
 
 
 def build_return_home(c: Compiler, s: st.ReturnHome) -> Behaviour:
-    """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:, blocked_after:}``."""
+    """``return_home`` or ``return_home: {tolerance:, speed:, gps_timeout:, stuck_after:, blocked_after:}``; on a
+    mission with a map, a planned path to where it started on the map (``along: path`` plans too)."""
+    if _on_map(c, HOME):
+        return _map_go_to(c, HOME, s.tolerance_m, _options(s), "return_home")
     if "gps" not in c.ctx.capabilities:
         return NotAvailable("return_home", c.ctx, "this robot has no GPS")
     if s.along == "path":

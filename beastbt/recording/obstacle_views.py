@@ -66,11 +66,12 @@ GRID_UINT8 = 1
 
 
 def board_reader() -> Any:
-    """A blackboard client that reads ``costmap`` and ``local_plan`` (whoever writes them)."""
+    """A blackboard client that reads ``costmap``, ``local_plan`` and ``global_plan`` (whoever writes them)."""
     import py_trees
     client = py_trees.blackboard.Client(name="obstacle_views")
     catalogue.register(client, "costmap")
     catalogue.register(client, "local_plan")
+    catalogue.register(client, "global_plan")
     return client
 
 
@@ -117,6 +118,9 @@ class ObstacleSampler:
         self._contact_s = -math.inf
         self._collisions = 0
         self._last_persons: Optional[list] = None
+        from beastbt.recording.map_views import MapSampler
+        self._map = MapSampler(run)
+        """The saved map and the planned path (a mission with map:), sampled here so they ride the same item."""
         self._localiser = run.ctx.services.plugins.get("map_localiser")
         self._localisation_s = -math.inf
 
@@ -150,6 +154,7 @@ class ObstacleSampler:
                 out["contact"] = {"t_s": float(truth.t_s), "clearance_m": gap if math.isfinite(gap) else None,
                                   "collisions": int(contact.collisions), "in_contact": bool(contact.in_contact),
                                   "persons": persons, "moved": moved}
+        out.update(self._map.sample(now_s))
         loc = self._localiser
         if loc is not None and now_s - self._localisation_s >= LOCALISATION_PERIOD_S - 1e-9:
             self._localisation_s = now_s

@@ -29,6 +29,8 @@ GPS, no line) is left out, and the report says so.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import datetime as _dt
 import html
 import json
@@ -1050,8 +1052,40 @@ def plot_timeline(d: RunData, out: Path) -> Optional[str]:
     return None
 
 
+def plot_saved_map(d: RunData, out: Path) -> Optional[str]:
+    """The mission's saved map (``/map``) with the paths planned on it (``/path``) and the path driven (``/map/pose``,
+    the localiser's pose); returns why it was skipped, or None."""
+    from beastbt.recording.map_views import draw_map, grid_of_message
+    maps = d.rec.topic("/map")
+    if not maps:
+        return "no saved map in this run (a mission without map:)"
+    grid = grid_of_message(maps[-1])
+    driven = [(m["pose"]["position"]["x"], m["pose"]["position"]["y"]) for m in d.rec.topic("/map/pose")]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=MAP_SIZE_IN, dpi=DPI)
+    first = True
+    for msg in d.rec.topic("/path"):
+        for entity in msg.get("entities") or []:
+            for line in entity.get("lines") or []:
+                pts = [(p["x"], p["y"]) for p in line["points"]]
+                if len(pts) > 1:
+                    xs, ys = zip(*pts)
+                    ax.plot(xs, ys, "-", color="#2f6fff", lw=0.8, alpha=0.35,
+                            label="paths planned" if first else None, zorder=2)
+                    first = False
+    places = []
+    for w in (d.summary or {}).get("map_waypoints") or []:
+        if w.get("x") is not None:
+            places.append(SimpleNamespace(name=w["name"], x=w["x"], y=w["y"], tolerance_m=w.get("tolerance_m")))
+    draw_map(ax, grid, places=places, driven=driven or None, start=(0.0, 0.0, 0.0) if driven else None)
+    ax.set_title(f"{d.title()}: on the map")
+    _save(plt, fig, out)
+    return None
+
+
 PLOTS = (
     ("path", "path on a map", plot_path),
+    ("saved_map", "the saved map with the paths planned and driven", plot_saved_map),
     ("clearance", "clearance to obstacles over time", plot_clearance),
     ("position_error", "position error over time", plot_position_error),
     ("speeds", "commanded against actual speeds", plot_speeds),

@@ -67,8 +67,9 @@ def scene_description(mission: Any, world: Any, footprint_radius_m: Optional[flo
     from beastbt.mission import steps as st
     from beastbt.mission.warnings import all_steps
 
+    # GPS places only: places on a saved map are drawn with the map (/map, /path), not on Earth
     places = {name: {"name": name, "lat": p.lat, "lon": p.lon, "tolerance_m": p.tolerance_m}
-              for name, p in mission.places.items()}
+              for name, p in mission.places.items() if p.lat is not None}
     route: list[dict] = []
     waypoints: list[dict] = []
     every = list(all_steps(tuple(mission.steps)))

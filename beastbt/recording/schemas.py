@@ -223,6 +223,9 @@ CHANNELS: dict[str, dict] = {
     "/scan": FOXGLOVE_LASER_SCAN,  # each LiDAR revolution, in the lidar frame (0 = no return)
     "/costmap": FOXGLOVE_GRID,  # the local costmap (odom frame, uint8 Nav2 costs), at most 2 Hz when it changed
     "/local_plan": FOXGLOVE_SCENE_UPDATE,  # the local planner's path (odom frame), at most 5 Hz when it changed
+    "/map": FOXGLOVE_GRID,  # the mission's saved map (map frame, int8 occupancy as nav_msgs), once and on change
+    "/path": FOXGLOVE_SCENE_UPDATE,  # the path go_to plans on the map (map frame), when it is planned
+    "/map/pose": FOXGLOVE_POSE_IN_FRAME,  # the pose on the saved map (map frame), 5 Hz
     "/collision_monitor/zones": FOXGLOVE_SCENE_UPDATE,  # stop and slow polygons (base_link), bold when acting
     "/sim/persons": FOXGLOVE_SCENE_UPDATE,  # the simulator's persons where they are now (map frame), 5 Hz
     "/localisation/particles": FOXGLOVE_SCENE_UPDATE,  # on a map: up to 200 particles (odom frame), 2 Hz

@@ -687,8 +687,8 @@ class RunFileWriter:
 
     def _write_views(self, t: int, views: dict) -> None:
         """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
-        /local_plan, /collision_monitor/zones, /sim/persons, /sim/contact, /localisation/particles and
-        /localisation/quality."""
+        /local_plan, /collision_monitor/zones, /map, /path, /map/pose, /sim/persons, /sim/contact,
+        /localisation/particles and /localisation/quality."""
         frames = self.frames
         if "costmap" in views:
             self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
@@ -698,6 +698,17 @@ class RunFileWriter:
             msg = ov.zones_update(t, frames.base_link, views["zones"])
             self._emit("/collision_monitor/zones", t, msg)
             self._latched_views["/collision_monitor/zones"] = encode_json(msg)  # sent once: a late client needs it
+        if "map" in views:  # latched: a client that joins later gets the map at once
+            from beastbt.recording.map_views import map_grid
+            msg = map_grid(t, frames.map, *views["map"])
+            self._emit("/map", t, msg)
+            self._latched_views["/map"] = encode_json(msg)
+        if "path" in views:
+            from beastbt.recording.map_views import path_update
+            self._emit("/path", t, path_update(t, frames.map, views["path"]))
+        if "map_pose" in views:
+            from beastbt.recording.map_views import map_pose_message
+            self._emit("/map/pose", t, map_pose_message(t, frames.map, views["map_pose"]))
         contact = views.get("contact")
         if contact is not None:
             self._emit("/sim/contact", t, ov.contact_message(contact))
@@ -790,7 +801,8 @@ def message_count(item: tuple, images: bool) -> int:
     if kind == "views":
         views = item[2]
         contact = views.get("contact")
-        return (("costmap" in views) + ("plan" in views) + ("zones" in views) + 2 * ("localisation" in views)
+        return (("costmap" in views) + ("plan" in views) + ("zones" in views) + ("map" in views) + ("path" in views)
+                + ("map_pose" in views) + 2 * ("localisation" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0

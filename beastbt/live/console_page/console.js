@@ -239,6 +239,13 @@ function mapBounds() {
     for (const w of mapLayers.waypoints) add(w.xy);
     for (const f of mapLayers.fences) f.points.forEach(add);
     if (mapLayers.start) add([mapLayers.start.x, mapLayers.start.y]);
+    const m = mapLayers.saved_map;
+    if (m) {  // the saved map's four corners on the plan
+      const c = Math.cos(m.yaw_rad), s = Math.sin(m.yaw_rad);
+      for (const [u, v] of [[0, 0], [m.width_m, 0], [0, m.height_m], [m.width_m, m.height_m]]) {
+        add([m.corner[0] + c * u - s * v, m.corner[1] + s * u + c * v]);
+      }
+    }
   }
   trail.forEach(add);
   if (state && state.pose) add([state.pose.x, state.pose.y]);
@@ -271,6 +278,7 @@ function drawMap() {
   const ob = state && state.obstacles;
   const walking = !!(ob && ob.persons);  // the persons where they are now come with the state
   if (mapLayers) {
+    drawSavedMap(g, mapLayers.saved_map, px, scale, c);
     g.strokeStyle = "#9aa0a6"; g.lineWidth = 3;
     for (const w of mapLayers.walls) poly([[w[0], w[1]], [w[2], w[3]]]);
     // obstacles: boxes and posts filled grey; a person's path dotted (and where it sets off, until the state says
@@ -334,13 +342,35 @@ function drawMap() {
   $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
 }
 
+// The mission's saved map (map:) under everything else: an image decoded once per layers fetch, placed by its
+// lower-left corner and turned by its yaw on the plan; canvas.dataset.savedMap says it was drawn (the tests read it).
+let savedMapImage = null, savedMapSrc = "";
+function drawSavedMap(g, m, px, scale, canvas) {
+  if (!m) { canvas.dataset.savedMap = ""; return; }
+  if (m.png !== savedMapSrc) {
+    savedMapSrc = m.png; savedMapImage = new Image();
+    savedMapImage.onload = () => { mapDirty = true; };
+    savedMapImage.src = m.png;
+  }
+  if (!savedMapImage.complete || !savedMapImage.naturalWidth) return;
+  const [x, y] = px(m.corner[0], m.corner[1]);
+  g.save(); g.translate(x, y); g.rotate(-m.yaw_rad); g.imageSmoothingEnabled = false;
+  g.drawImage(savedMapImage, 0, -m.height_m * scale, m.width_m * scale, m.height_m * scale);
+  g.restore();
+  canvas.dataset.savedMap = `${savedMapImage.naturalWidth}x${savedMapImage.naturalHeight}`;
+}
+
 // What the robot sees and plans (the state's "obstacles", plan metres): the local costmap's occupied cells, the
 // collision monitor's zones round the robot (the acting one bold and filled), the local planner's path, the
 // LiDAR's returns, the persons where they are. What was drawn is counted on the canvas's data attributes (the tests read them).
 const ZONE_COLOURS = {slow: "#ff9f1a", stop: "#e5534b"};
 const ZONE_ACTIVE = {stop: new Set(["stop", "silent"]), slow: new Set(["slow", "approach"])};
 function drawObstacles(g, ob, poly, ring, px, canvas) {
-  const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0, costmap: 0};
+  const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0, costmap: 0, path: 0};
+  if (ob && ob.path) {  // the path planned on the saved map (go_to on a map), under what the robot sees now
+    g.strokeStyle = "#4a7dff"; g.lineWidth = 3; g.setLineDash([]); poly(ob.path);
+    drawn.path = ob.path.length;
+  }
   if (ob && ob.costmap) {  // the cells an obstacle is in or the footprint would touch: where the planner will not go
     g.fillStyle = "#d04ae8bb";
     const side = Math.max(3, ob.costmap.resolution_m * (px(1, 0)[0] - px(0, 0)[0]));
@@ -378,6 +408,7 @@ function drawObstacles(g, ob, poly, ring, px, canvas) {
   canvas.dataset.scanPoints = drawn.scan;
   canvas.dataset.persons = drawn.persons;
   canvas.dataset.costmapCells = drawn.costmap;
+  canvas.dataset.pathPoints = drawn.path;
   canvas.dataset.personsXy = ob && ob.persons ? ob.persons.map((p) => p[0].toFixed(2) + " " + p[1].toFixed(2)).join(",") : "";
 }
 

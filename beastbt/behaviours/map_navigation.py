@@ -1,0 +1,461 @@
+"""Driving to places on the mission's map: ``go_to``, ``route`` and ``return_home`` indoors, by a planned path.
+
+On a mission with ``map:`` whose places are on the map (``{x, y}``), the
+navigation steps compile to :class:`MapGoTo` instead of the GPS
+:class:`~beastbt.behaviours.navigation.GoTo`. It reads the robot's pose on
+the map (``map_pose``, from the localiser), plans a path with the global
+planner (:mod:`beastbt.navigation.global_planner`: A* on the map inflated by
+the footprint) and follows it with regulated pure pursuit toward a carrot a
+look-ahead along the path; on a robot with a LiDAR that command is the
+preference the local planner (DWA on the rolling costmap) turns into one
+that goes around what is there, exactly as outdoors.
+
+It plans again (Nav2's replanning):
+
+* every ``global_planner.replan_period_s``, from where the robot is;
+* when it has come no closer along the path for ``blocked_replan_s``: what
+  the LiDAR sees within a metre ahead on the path is marked lethal on the
+  map's costmap first, so the new path goes another way (through another
+  door) if there is one;
+* when the robot has strayed farther than ``navigation.replan_cross_track_m``
+  from the path.
+
+It fails at once, with the reason, when no path exists (the goal off the
+map, in a wall or an unknown cell, enclosed, or every way blocked), when the
+robot has not been localised on the map for ``gps_timeout`` (the GPS step's
+own "no position" limit; until then it drives on the localiser's pose, carried
+by odometry, as Nav2 does on AMCL's), and when blocked for ``blocked_after``
+without progress. ``return_home`` goes to where the mission started on the map.
+Nothing here reads a clock but the context's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from beastbt.behaviours.base import Status
+from beastbt.behaviours.context import MissionContext
+from beastbt.behaviours.navigation import GoTo
+from beastbt.blackboard.types import FusedPose, GlobalPlan, MapPose
+from beastbt.estimation.estimator import wrap_angle
+
+MapTarget = Callable[[], Optional[tuple[float, float]]]
+"""Where to go on the map: a function giving (x, y) in metres (map frame), or None while unknown."""
+
+MAP_PLANNER = "map_planner"
+"""The key of the run's :class:`MapPlanner` in ``ctx.services.plugins``."""
+
+LOCAL_GOAL_AHEAD_M = 2.0
+"""The local planner aims at the path's point this far ahead (m): within its window (local_costmap.width_m / 2)."""
+
+BLOCKED_LOOK_M = 1.0
+"""On a blocked replan, scan points this far ahead along the path (m) and near it are marked lethal."""
+
+
+@dataclass
+class MapVisit:
+    """One place on the map a go_to aimed for (the summary's ``map_waypoints``): metres, seconds."""
+
+    name: str
+    x: Optional[float]
+    y: Optional[float]
+    tolerance_m: float
+    reached: bool = False
+    time_s: Optional[float] = None
+    estimated_error_m: Optional[float] = None
+    true_error_m: Optional[float] = None
+    path_m: Optional[float] = None
+    """The length of the first path planned to it (m)."""
+    replans: int = 0
+
+
+class MapPlanner:
+    """The run's global planner on the mission's map: its costmap (built on first use, with the profile's
+    ``global_planner:`` and footprint), the plans made and the visits, for the summary and the views."""
+
+    def __init__(self, grid: Any, start_xy_yaw: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        from beastbt.navigation.global_planner import GlobalPlannerConfig
+        self.grid = grid
+        self.start = start_xy_yaw
+        """Where the mission started on the map (x m, y m, yaw rad): home."""
+        self.config = GlobalPlannerConfig()
+        self.footprint_radius_m = 0.15
+        self._costmap: Any = None
+        self.visits: list[MapVisit] = []
+        self.plans = 0
+        self.listeners: list[Callable[[MapVisit], None]] = []
+        """Called with a visit when it ends (the simulator's truth listens here)."""
+
+    def configure(self, config: Any, footprint_radius_m: float) -> None:
+        """The profile's ``global_planner:`` section and the robot's footprint radius (m), before the first plan."""
+        self.config = config
+        self.footprint_radius_m = footprint_radius_m
+        self._costmap = None
+
+    @property
+    def costmap(self) -> Any:
+        """The :class:`~beastbt.navigation.global_planner.GlobalCostmap` of the map (built on first use)."""
+        if self._costmap is None:
+            from beastbt.navigation.global_planner import GlobalCostmap
+            self._costmap = GlobalCostmap(self.grid, self.config, self.footprint_radius_m)
+        return self._costmap
+
+    def plan(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float, name: str) -> Any:
+        """A :class:`~beastbt.navigation.global_planner.GlobalPath` (map frame, m); raises ``NoPath``."""
+        from beastbt.navigation.global_planner import plan_path
+        self.plans += 1
+        return plan_path(self.costmap, start, goal, tolerance_m, goal_name=name)
+
+
+def map_waypoints(planner: MapPlanner) -> list[dict]:
+    """The summary's ``map_waypoints``: each place on the map a go_to aimed for, in order (metres, seconds)."""
+    def r(v: Optional[float], nd: int = 3) -> Optional[float]:
+        return None if v is None else round(float(v), nd)
+    return [{"name": v.name, "x": r(v.x), "y": r(v.y), "reached": v.reached, "time_s": r(v.time_s, 2),
+             "tolerance_m": r(v.tolerance_m), "estimated_error_m": r(v.estimated_error_m),
+             "arrival_error_m": r(v.true_error_m if v.true_error_m is not None else v.estimated_error_m),
+             "path_m": r(v.path_m, 2), "replans": v.replans} for v in planner.visits]
+
+
+def mission_map_start(mission: Any) -> tuple[float, float, float]:
+    """Where a mission with ``map:`` starts on its map (x m, y m, yaw rad): its ``start:`` pose, the place it names,
+    or the map frame's origin. Home on the map."""
+    name = getattr(mission, "map_start_place", None)
+    place = mission.places.get(name) if name is not None else None
+    if place is not None and place.on_map:
+        return (place.x, place.y, place.yaw or 0.0)
+    return tuple(mission.map_start)  # type: ignore[return-value]
+
+
+def map_planner(ctx: MissionContext, grid: Any, start: tuple[float, float, float]) -> MapPlanner:
+    """The run's :class:`MapPlanner` (made on first use, for the mission's map and its start on it)."""
+    planner = ctx.services.plugins.get(MAP_PLANNER)
+    if planner is None:
+        planner = ctx.services.plugins[MAP_PLANNER] = MapPlanner(grid, start)
+    return planner
+
+
+def _to_body(dx: float, dy: float, yaw: float) -> tuple[float, float]:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+class MapGoTo(GoTo):
+    """Drive to a place on the map along a planned path (regulated pure pursuit, DWA round obstacles with a LiDAR).
+
+    Succeeds when the pose on the map is within ``tolerance_m`` of the place.
+    Fails at once when no path exists (the reason names why); when the robot
+    has not been localised on the map for ``gps_timeout_s``; when it makes no
+    progress for ``stuck_after_s`` (``blocked_after_s`` while obstacles are in
+    the way) even after replanning. Metres, seconds, map frame.
+    """
+
+    READS = ("map_pose", "pose_odom", "mission_start_s", "scan")
+    WRITES = ("cmd_mission", "costmap", "local_plan", "global_plan")
+
+    def __init__(self, name: str, ctx: MissionContext, place: str, target: MapTarget, planner: MapPlanner,
+                 tolerance_m: Optional[float], speed_mps: Optional[float] = None,
+                 gps_timeout_s: Optional[float] = None, stuck_after_s: Optional[float] = None,
+                 blocked_after_s: Optional[float] = None) -> None:
+        super().__init__(name, ctx, place, lambda: None, tolerance_m, speed_mps, gps_timeout_s, stuck_after_s,
+                         blocked_after_s)
+        self.map_target = target
+        self.planner = planner
+        self.path: Optional[np.ndarray] = None
+        self.cum: Optional[np.ndarray] = None
+        self.along_m = 0.0
+        self.planned_at_s = -math.inf
+        self.best_along_m = -math.inf
+        self.best_along_at_s = 0.0
+        self.map_visit: Optional[MapVisit] = None
+        self.unlocalised_since_s: Optional[float] = None
+        self.replans = 0
+
+    # -- lifecycle ----------------------------------------------------------------------------------
+    def initialise(self) -> None:
+        super().initialise()
+        # Places on the map are no GPS waypoints: the GPS visit GoTo opened keeps lat/lon None (the summary's
+        # waypoints leave it out) and this step's visit is a map visit (the summary's map_waypoints).
+        self.path = None
+        self.cum = None
+        self.along_m = 0.0
+        self.planned_at_s = -math.inf
+        self.best_along_m = -math.inf
+        self.best_along_at_s = self.now()
+        self.unlocalised_since_s = None
+        self.replans = 0
+        goal = self.map_target()
+        self.map_visit = MapVisit(self.place, goal[0] if goal else None, goal[1] if goal else None,
+                                  self._tolerance())
+        self.planner.visits.append(self.map_visit)
+
+    def terminate(self, new_status: Status) -> None:
+        super().terminate(new_status)
+        self.bb.global_plan = None
+        visit = self.map_visit
+        if visit is None:
+            return
+        self.map_visit = None
+        visit.reached = new_status == Status.SUCCESS
+        if visit.reached:
+            visit.estimated_error_m = self.distance_m
+        visit.replans = self.replans
+        start = self.read("mission_start_s")
+        visit.time_s = self.now() - start if start is not None else None
+        for listener in self.planner.listeners:
+            listener(visit)
+
+    def _tolerance(self) -> float:
+        return self.tolerance_m if self.tolerance_m is not None else self.planner.config.default_tolerance_m
+
+    # -- the tick -----------------------------------------------------------------------------------
+    def update(self) -> Status:
+        now = self.now()
+        nav = self.nav
+        if now - self.last_tick_s > nav.resume_gap_s:
+            self._restart_progress(now)  # a hold or a take-over is not being stuck
+            self.best_along_at_s = now
+            self.path = None  # and the robot may have been driven anywhere: plan again from where it is
+        self.last_tick_s = now
+        self._observe(now)
+        timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
+        pose: Optional[MapPose] = self.read("map_pose")
+        if pose is None or not pose.localized:
+            # Not localised: without a pose at all it waits; with one it drives on (AMCL's pose carried by odometry,
+            # as Nav2 does: an obstacle the map does not show spoils the match until the robot has gone round it;
+            # the localization_lost failsafe is where a mission says to hold instead), for at most the timeout.
+            since = self.unlocalised_since_s = self.unlocalised_since_s if self.unlocalised_since_s is not None \
+                else now
+            if now - since > timeout:
+                self.command(0.0, 0.0)
+                what = ("no pose on the map (is the map localisation running?)" if pose is None
+                        else f"scan match quality {pose.match_quality:.2f}")
+                return self.fail(f"not localized on the map for {timeout:g} s ({what}); not driving to "
+                                 f"{self.place}")
+            if pose is None:
+                self.command(0.0, 0.0)
+                self.feedback_message = "waiting for a pose on the map"
+                return Status.RUNNING
+        else:
+            self.unlocalised_since_s = None
+        goal = self.map_target()
+        if goal is None:
+            self.command(0.0, 0.0)
+            return self.fail(f"{self.place} is not known on the map")
+        if self.map_visit is not None and self.map_visit.x is None:
+            self.map_visit.x, self.map_visit.y = goal
+        gx, gy = goal
+        dist = math.hypot(gx - pose.x, gy - pose.y)
+        self.distance_m = dist
+        tolerance = self._tolerance()
+        if dist <= tolerance:
+            self.command(0.0, 0.0)
+            self.feedback_message = f"reached, {dist:.2f} m from {self.place}"
+            return Status.SUCCESS
+        status = self._replan_if_due(now, pose, goal, tolerance)
+        if status is not None:
+            return status
+        return self._follow(now, pose, goal, dist, tolerance)
+
+    # -- planning -------------------------------------------------------------------------------------
+    def _replan_if_due(self, now: float, pose: MapPose, goal: tuple[float, float],
+                       tolerance: float) -> Optional[Status]:
+        """Plan when there is no path, periodically, when off the path, or when stalled (marking what blocks
+        it); FAILURE with the reason when no path exists, else None."""
+        cfg = self.planner.config
+        why = None
+        if self.path is None:
+            why = "start"
+        elif cfg.replan_period_s > 0.0 and now - self.planned_at_s >= cfg.replan_period_s:
+            why = "period"
+        elif self._off_path_m(pose) > cfg.replan_off_path_m:
+            why = "off the path"
+        elif now - self.best_along_at_s > cfg.blocked_replan_s:
+            why = "blocked"
+            self._mark_blocking(pose)
+        if why is None:
+            return None
+        from beastbt.navigation.global_planner import NoPath
+        try:
+            path = self.planner.plan((pose.x, pose.y), goal, max(tolerance * 0.5, 0.0), self.place)
+        except NoPath as exc:
+            self.command(0.0, 0.0)
+            if why == "blocked":
+                return self.fail(f"blocked: no other way to {self.place} ({exc.reason}); "
+                                 f"{self._obstacle_text(0.0)}")
+            return self.fail(f"no path to {self.place}: {exc.reason}")
+        if why != "start":
+            self.replans += 1
+            if why != "period":
+                self.ctx.events.add("replan", f"{self.name}: planned again ({why}), {path.length_m:.1f} m to go")
+        elif self.map_visit is not None and self.map_visit.path_m is None:
+            self.map_visit.path_m = path.length_m
+        self.path = path.points
+        seg = np.hypot(*np.diff(self.path, axis=0).T) if len(self.path) > 1 else np.zeros(0)
+        self.cum = np.concatenate(([0.0], np.cumsum(seg)))
+        self.along_m = 0.0
+        self.planned_at_s = now
+        self.best_along_m = -math.inf
+        self.best_along_at_s = now
+        self.bb.global_plan = GlobalPlan(now, self.path, self.place, path.length_m)
+        return None
+
+    def _off_path_m(self, pose: MapPose) -> float:
+        """Distance (m) from the robot to the nearest segment of the path ahead."""
+        p = self.path
+        if p is None or len(p) < 2:
+            return 0.0
+        a, b = p[:-1], p[1:]
+        ab = b - a
+        t = np.clip(((pose.x - a[:, 0]) * ab[:, 0] + (pose.y - a[:, 1]) * ab[:, 1])
+                    / np.maximum((ab ** 2).sum(axis=1), 1e-12), 0.0, 1.0)
+        d = np.hypot(a[:, 0] + t * ab[:, 0] - pose.x, a[:, 1] + t * ab[:, 1] - pose.y)
+        return float(d.min())
+
+    def _mark_blocking(self, pose: MapPose) -> None:
+        """Mark lethal on the map's costmap the LiDAR's points that lie near the path just ahead: what stopped the
+        robot, so the next path goes round it or another way."""
+        local = self.local
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if local is None or odom is None or self.path is None or self.cum is None:
+            return
+        pts = local.costmap.points_odom
+        if len(pts) == 0:
+            return
+        # odom -> body -> map, through the robot's pose in each frame
+        bx, by = _to_body(pts[:, 0] - odom.x, pts[:, 1] - odom.y, odom.yaw)
+        c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+        mx, my = pose.x + c * bx - s * by, pose.y + s * bx + c * by
+        ahead = self.path[(self.cum >= self.along_m) & (self.cum <= self.along_m + BLOCKED_LOOK_M)]
+        if len(ahead) == 0:
+            return
+        near = np.zeros(len(mx), bool)
+        reach = self.planner.costmap.inscribed_m + 0.1
+        for x, y in ahead:
+            near |= np.hypot(mx - x, my - y) <= reach
+        # densify the polyline ahead with the points near it, so that a thin door's gap is closed
+        if near.any():
+            self.planner.costmap.mark_lethal(mx[near], my[near])
+
+    # -- following ------------------------------------------------------------------------------------
+    def _project(self, pose: MapPose) -> float:
+        """How far along the path (m) the robot is: the nearest point of the path from a little behind the last
+        such point onward (so that a path passing near itself is not skipped ahead)."""
+        p, cum = self.path, self.cum
+        assert p is not None and cum is not None
+        if len(p) < 2:
+            return 0.0
+        a, b = p[:-1], p[1:]
+        ab = b - a
+        L2 = np.maximum((ab ** 2).sum(axis=1), 1e-12)
+        t = np.clip(((pose.x - a[:, 0]) * ab[:, 0] + (pose.y - a[:, 1]) * ab[:, 1]) / L2, 0.0, 1.0)
+        d = np.hypot(a[:, 0] + t * ab[:, 0] - pose.x, a[:, 1] + t * ab[:, 1] - pose.y)
+        along = cum[:-1] + t * np.sqrt(L2)
+        window = (along >= self.along_m - 0.5) & (along <= self.along_m + 2.0 * self.planner.config.lookahead_m + 1.0)
+        if window.any():
+            d = np.where(window, d, np.inf)
+        i = int(np.argmin(d))
+        return float(max(self.along_m, along[i]))
+
+    def _point_at(self, along_m: float) -> tuple[float, float]:
+        """The path's point ``along_m`` (m) from its start (its end beyond)."""
+        p, cum = self.path, self.cum
+        assert p is not None and cum is not None
+        if along_m >= cum[-1]:
+            return float(p[-1, 0]), float(p[-1, 1])
+        i = int(np.searchsorted(cum, along_m, side="right")) - 1
+        f = (along_m - cum[i]) / max(cum[i + 1] - cum[i], 1e-12)
+        return float(p[i, 0] + f * (p[i + 1, 0] - p[i, 0])), float(p[i, 1] + f * (p[i + 1, 1] - p[i, 1]))
+
+    def _follow(self, now: float, pose: MapPose, goal: tuple[float, float], dist: float, tolerance: float) -> Status:
+        nav, p = self.nav, self.ctx.params
+        self.along_m = self._project(pose)
+        if self.along_m > self.best_along_m + nav.progress_m:
+            self.best_along_m = self.along_m
+            self.best_along_at_s = now
+            self.progress_at_s = now
+        lookahead = self.planner.config.lookahead_m
+        cx, cy = self._point_at(self.along_m + lookahead)
+        dx, dy = cx - pose.x, cy - pose.y
+        ld = math.hypot(dx, dy)
+        alpha = wrap_angle(math.atan2(dy, dx) - pose.yaw)
+        rotate = abs(alpha) > nav.rotate_to_heading_min_angle_rad
+        if rotate:
+            if self.mode != "rotate":
+                self.best_turn_rad = math.inf
+            if abs(alpha) < self.best_turn_rad - p.stuck_progress_rad:
+                self.best_turn_rad = abs(alpha)
+                self.progress_at_s = now
+                self.best_along_at_s = now  # turning toward the path is progress too: not blocked
+        self.mode = "rotate" if rotate else "drive"
+        remaining = float(self.cum[-1] - self.along_m) if self.cum is not None else dist
+        preferred = self._preference(rotate, alpha, ld, max(dist, min(remaining, dist + 1.0)), tolerance)
+        v, w = preferred
+        # The local planner's own goal is a point further along the path, inside its window (not the place, which
+        # may lie beyond a wall it cannot see round): it follows the global path, as Nav2's controller does.
+        tx, ty = self._point_at(self.along_m + LOCAL_GOAL_AHEAD_M)
+        plan = self._steer_map(now, pose, preferred, (dx, dy), (tx - pose.x, ty - pose.y))
+        if plan is not None:
+            v, w = plan.linear_mps, plan.angular_rps
+        obstructed = self.obstructed_at_s >= self.progress_at_s
+        blocked_after = self._blocked_after()
+        if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
+            self.command(0.0, 0.0)
+            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                             f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
+        if not obstructed and now - self.progress_at_s > self.stuck_after_s:
+            self.command(0.0, 0.0)
+            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+        self.command(v, w)
+        self.last_cmd = (v, w)
+        if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:
+            what = "blocked, waiting" if plan.blocked and v == 0.0 and w == 0.0 else "going round an obstacle"
+            self.feedback_message = f"{what}, {remaining:.1f} m to {self.place}"
+        elif rotate:
+            self.feedback_message = (f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, "
+                                     f"{remaining:.1f} m to go")
+        else:
+            self.feedback_message = f"{remaining:.1f} m to {self.place} along the path"
+        return Status.RUNNING
+
+    def _steer_map(self, now: float, pose: MapPose, preferred: tuple[float, float], carrot: tuple[float, float],
+                   target: tuple[float, float]) -> Any:
+        """The local planner's command for the carrot and target given as map-frame offsets (m) from the robot."""
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if odom is None or self.local is None or not self.costmap_fresh:
+            return None
+
+        def to_odom(d: tuple[float, float]) -> tuple[float, float]:
+            bx, by = _to_body(d[0], d[1], pose.yaw)
+            c, s = math.cos(odom.yaw), math.sin(odom.yaw)
+            return odom.x + c * bx - s * by, odom.y + s * bx + c * by
+        return self._plan(now, odom, preferred, to_odom(carrot), to_odom(target))
+
+
+def near_on_map(xy: tuple[float, float], within_m: float) -> Callable[[Any], bool]:
+    """The condition ``near: place`` for a place on the map at ``xy`` (m): the pose on the map (``map_pose``) is
+    within ``within_m`` (m) of it; false without a pose on the map."""
+    def test(r: Any) -> bool:
+        pose = r.get("map_pose")
+        if pose is None:
+            return False
+        return math.hypot(pose.x - xy[0], pose.y - xy[1]) <= within_m
+    return test
+
+
+def map_place_target(x: float, y: float) -> MapTarget:
+    """A fixed place on the map at (x, y) m."""
+    return lambda: (x, y)
+
+
+def map_home_target(planner: MapPlanner) -> MapTarget:
+    """Home on the map: where the mission started on it."""
+    return lambda: (planner.start[0], planner.start[1])
+
+
+__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints", "near_on_map",
+           "map_place_target", "map_home_target", "MAP_PLANNER"]
