@@ -338,7 +338,9 @@ def render_map(keyframes: Sequence[Keyframe], poses: Sequence[Pose2], resolution
     origins = [transform_points(np.array([k.sensor_xy]), p)[0] for k, p in zip(keyframes, poses)]
     allxy = np.concatenate(ends + [np.array(origins)])
     res = resolution_m
-    lo = np.floor(allxy.min(axis=0) / res) * res - 2 * res
+    # Cell centres on multiples of the resolution: the map frame's origin (where mapping began) is a cell's centre,
+    # and a wall square to it at a whole number of cells lies along cells, not on their borders.
+    lo = (np.floor(allxy.min(axis=0) / res + 0.5) - 0.5) * res - 2 * res
     hi = allxy.max(axis=0) + 2 * res
     grid = empty_map(hi[0] - lo[0], hi[1] - lo[1], res, float(lo[0]), float(lo[1]))
     rows, cols = grid.rows, grid.cols
