@@ -147,4 +147,6 @@ def contribute(run: Any, summary: dict) -> None:
             summary["waypoints_dropped"] = log.visits.dropped
     tracker = run.ctx.services.nav_truth
     if tracker is not None and run.estimator is not None and "truth" in summary:
-        summary["truth"].update(tracker.metrics())
+        truth = summary["truth"]
+        # An error the GPS fusion never measured (None: indoors, no fix) leaves the map localiser's in place.
+        truth.update({k: v for k, v in tracker.metrics().items() if v is not None or k not in truth})
