@@ -8,6 +8,8 @@ not been localised for 3 s and clears as soon as it is again.
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 
 import py_trees
@@ -130,3 +132,29 @@ def test_a_start_naming_no_place_is_refused(tmp_path):
     with pytest.raises(InvalidInput) as exc:
         load_mission(path)
     assert exc.value.problems[0].position.line == 3 and "kitchen" in exc.value.problems[0].message
+
+
+def test_the_localiser_turns_with_the_gyro_and_travels_with_the_wheels() -> None:
+    from types import SimpleNamespace
+
+    from beastbt.blackboard.types import ImuSample
+    from beastbt.parts.map_localisation import GYRO_STALE_S, MapLocalisationPart
+
+    part = MapLocalisationPart()
+    part._odom = part._last_wheels = part._last_tick_s = None
+    part.gyro_ticks = 0
+    part._gyro_ready = lambda: True
+    run = SimpleNamespace(latest={})
+    assert part._integrate(run, 0.0, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    # the wheels say 0.1 m straight on; the gyro says the base turned at 0.5 rad/s for the 0.05 s tick (a track slid)
+    run.latest[ImuSample] = ImuSample(0.05, (0.0, 0.0, 0.5), (0.0, 0.0, 9.81))
+    x, y, yaw = part._integrate(run, 0.05, (0.1, 0.0, 0.0))
+    assert (round(x, 9), round(y, 9), round(yaw, 9)) == (0.1, 0.0, 0.025) and part.gyro_ticks == 1
+    # a stale IMU sample (the IMU went quiet): the wheels' turn
+    x, y, yaw = part._integrate(run, 0.05 + GYRO_STALE_S + 0.05, (0.1, 0.0, 0.2))
+    assert math.isclose(yaw, 0.225) and part.gyro_ticks == 1
+    # before the driver knows its gyro bias, the wheels' turn too
+    part._gyro_ready = lambda: False
+    run.latest[ImuSample] = ImuSample(0.35, (0.0, 0.0, 3.0), (0.0, 0.0, 9.81))
+    x, y, yaw = part._integrate(run, 0.35, (0.1, 0.0, 0.3))
+    assert math.isclose(yaw, 0.325)

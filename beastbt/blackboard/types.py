@@ -129,9 +129,9 @@ class MapPose:
     poorly); ``match_quality`` in [0, 1], the share of the scan's points that
     agree with the map; ``localized`` false while the quality has stayed below
     the localiser's threshold; ``odom_x``, ``odom_y``, ``odom_yaw`` the
-    transform from the ``odom`` frame (``pose_odom``) to the map frame that
-    this pose implies (ROS's ``map -> odom``), so a consumer can carry the
-    pose forward with odometry between scans.
+    transform from the localiser's odometry frame (the wheels' travel turned
+    by the gyro, starting where ``pose_odom`` starts) to the map frame that
+    this pose implies (ROS's ``map -> odom``).
     """
 
     stamp_s: float

@@ -15,6 +15,11 @@ from typing import Callable, Optional
 from beastbt.blackboard.types import ImuSample
 
 
+MAX_PENDING = 256
+"""Samples kept for the estimator at most (2.5 s at the MPU9250's 100 Hz): while the EKF sleeps and another part
+reads the IMU (the map localiser's gyro), nobody takes them, and a backlog older than that is nothing to fuse."""
+
+
 class ImuTap:
     """The samples one IMU driver produced since the estimator last took them.
 
@@ -34,6 +39,8 @@ class ImuTap:
         if sample is None:
             return []
         self.pending.append(sample)
+        if len(self.pending) > MAX_PENDING:
+            del self.pending[:len(self.pending) - MAX_PENDING]
         self.count += 1
         self.last = sample
         return [sample]

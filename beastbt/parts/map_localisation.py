@@ -8,9 +8,14 @@ profile's ``localisation:`` section; it starts at the mission's ``start:``
 (default: the map frame's origin, where mapping began) spread by
 ``initial_uncertainty:``.
 
-Each tick, after sensing: a new scan (``run.latest[LaserScan]``) updates the
-filter with the odometry pose (``pose_odom``) of that tick; every tick,
-``map_pose`` is the odometry pose carried into the map by the filter's
+Each tick, after sensing, the part integrates its own odometry pose, as
+robot_localization's odometry-plus-IMU EKF does for AMCL: the travel of the
+wheels (``pose_odom``'s step) and the turn of the gyro (the IMU's yaw rate,
+once the driver's standstill bias is known and while its samples are fresh;
+the wheels' turn otherwise, e.g. on a robot without an IMU). A tracked base
+slips most in turns, where its wheels' heading is worst and the gyro's best.
+A new scan (``run.latest[LaserScan]``) updates the filter with that pose;
+every tick, ``map_pose`` is it carried into the map by the filter's
 ``map -> odom`` transform, so it moves smoothly between scans and never waits
 for one. A LiDAR that goes quiet (no scan for :data:`SCAN_STALE_S`) counts as
 no match: the robot is no longer localised after the localiser's
@@ -34,7 +39,7 @@ from typing import Any, Optional
 import numpy as np
 
 from beastbt.blackboard import catalogue
-from beastbt.blackboard.types import LaserScan, MapPose
+from beastbt.blackboard.types import ImuSample, LaserScan, MapPose
 from beastbt.core.errors import InvalidInput
 from beastbt.devices.lidar_scan import LidarConfig, base_points_xy
 from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser, Pose2D, compose, invert
@@ -48,6 +53,9 @@ from beastbt.run.session import Prepared
 LOCALISATION_RNG_STREAM = 0x10CA1
 """Mixed with the run's seed for the filter's own random numbers: the same seed gives the same run, and the
 filter draws from no emulator's stream."""
+
+GYRO_STALE_S = 0.2
+"""An IMU sample older than this (s) is not used for the turn of a tick: the wheels' turn is."""
 
 SCAN_STALE_S = 0.5
 """Once scans have come, none for this long (five LD19 revolutions) counts as no match at all (s)."""
@@ -78,7 +86,7 @@ class MapLocalisationPart(Part):
     section = "localisation"
     schema = "parts/localisation.schema.json"
     fills = ("map_pose",)
-    reads = ("scan", "pose_odom")
+    reads = ("scan", "pose_odom", "imu")
     localiser: Optional[MapLocaliser] = None
     """The particle filter (None until installed)."""
 
@@ -98,6 +106,14 @@ class MapLocalisationPart(Part):
         self.localiser = MapLocaliser(mission.map_grid, config, rng)
         self.writer = catalogue.writer("map_localisation", ("map_pose",))
         self._last_scan: Optional[LaserScan] = None
+        self._odom: Optional[Pose2D] = None
+        """The odometry pose the filter works in: the wheels' travel, the gyro's turn (m, m, rad)."""
+        self._last_wheels: Optional[Pose2D] = None
+        self._last_tick_s: Optional[float] = None
+        self.gyro_ticks = 0
+        """Ticks whose turn came from the gyro."""
+        tap = run.io.imu_tap
+        self._gyro_ready = (tap.ready if tap is not None and tap.ready is not None else (lambda: True))
         self._started = False
         self._prepared = prepared
         world = prepared.world
@@ -122,7 +138,7 @@ class MapLocalisationPart(Part):
         odom_pose = run.bb.pose_odom
         if loc is None or odom_pose is None:
             return
-        odom = (odom_pose.x, odom_pose.y, odom_pose.yaw)
+        odom = self._integrate(run, now_s, (odom_pose.x, odom_pose.y, odom_pose.yaw))
         if not self._started:
             m = self._prepared.mission
             loc.start(self.start, m.initial_uncertainty_xy_m, m.initial_uncertainty_yaw_rad, odom)
@@ -143,6 +159,21 @@ class MapLocalisationPart(Part):
             self.lost_ticks += 1
         if self.map_from_world is not None and run.io.sim is not None:
             self._measure(pose, run.io.sim.truth, now_s)
+
+    def _integrate(self, run: MissionRun, now_s: float, wheels: Pose2D) -> Pose2D:
+        """This tick's odometry pose: the wheels' step since the last tick, turned by the gyro when it can."""
+        if self._odom is None or self._last_wheels is None or self._last_tick_s is None:
+            self._odom, self._last_wheels, self._last_tick_s = wheels, wheels, now_s
+            return wheels
+        dx, dy, dth = compose(invert(self._last_wheels), wheels)
+        dt = now_s - self._last_tick_s
+        imu = run.latest.get(ImuSample)
+        if imu is not None and 0.0 < dt and now_s - imu.stamp_s <= GYRO_STALE_S and self._gyro_ready():
+            dth = float(imu.gyro_rps[2]) * dt
+            self.gyro_ticks += 1
+        self._odom = compose(self._odom, (dx, dy, dth))
+        self._last_wheels, self._last_tick_s = wheels, now_s
+        return self._odom
 
     def _measure(self, pose: MapPose, truth: Any, now_s: float) -> None:
         """The true error of ``pose`` (m), the truth moved into the map frame by the two starts."""
@@ -173,6 +204,7 @@ class MapLocalisationPart(Part):
             "match_quality": round(loc.match_quality, 3),
             "localized": bool(loc.localized),
             "not_localized_ticks": self.lost_ticks,
+            "gyro_ticks": self.gyro_ticks,
         }
         if "truth" in summary and self.error_n:
             summary["truth"]["position_error_rms_m"] = round(math.sqrt(self.error_sq_m2 / self.error_n), 4)
