@@ -55,7 +55,7 @@ from beastbt.vision.camera_model import CameraGeometry  # noqa: E402
 from beastbt.vision.line_detector import LineDetector, LineDetectorConfig  # noqa: E402
 
 sys.path.insert(0, str(REPO / "benchmarks"))
-from naive_line import naive_line_offset  # noqa: E402
+from naive_line import interleaved_passes, spread  # noqa: E402
 
 WORLD = REPO / "worlds" / "line_track.yaml"
 PATROL = REPO / "missions" / "patrol.yaml"
@@ -140,24 +140,7 @@ def detector_cost(floor: FloorMap, frames: int = 300, reps: int = 5) -> None:
         for x, y, yaw in poses:
             cam.update(RobotTruth(x=x, y=y, yaw=yaw, v_mps=SPEED_MPS))
             images.append(cam.read()[1])
-        detect_passes, naive_passes, ratios = [], [], []
-        for _ in range(reps):
-            detect_ms, naive_ms = [], []
-            for i, image in enumerate(images):
-                t0 = time.perf_counter()
-                naive_line_offset(image)
-                t1 = time.perf_counter()
-                det.detect(image, i / 15.0)
-                t2 = time.perf_counter()
-                naive_ms.append((t1 - t0) * 1e3)
-                detect_ms.append((t2 - t1) * 1e3)
-            detect_passes.append(statistics.median(detect_ms))
-            naive_passes.append(statistics.median(naive_ms))
-            ratios.append(detect_passes[-1] / naive_passes[-1])
-
-        def spread(values: list[float]) -> str:
-            return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
-
+        naive_passes, detect_passes, ratios = interleaved_passes(images, det, reps)
         print(f"   {w}x{h:<5} {spread(detect_passes):>20} {spread(naive_passes):>20} {spread(ratios):>17}x")
     print("   (goal: under 3 ms per frame at 320x240)")
 

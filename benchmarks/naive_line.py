@@ -10,7 +10,9 @@ line, so the ratio says what the detector's extra answers cost.
 
 from __future__ import annotations
 
-from typing import Optional
+import statistics
+import time
+from typing import Any, Optional, Sequence
 
 import cv2
 import numpy as np
@@ -30,3 +32,29 @@ def naive_line_offset(image: np.ndarray) -> Optional[float]:
     if moments["m00"] == 0:
         return None
     return moments["m10"] / moments["m00"] / image.shape[1] - 0.5
+
+
+def interleaved_passes(images: Sequence[np.ndarray], detector: Any, reps: int
+                       ) -> tuple[list[float], list[float], list[float]]:
+    """Time the naive pipeline (the anchor) and ``detector.detect`` on the same ``images``, frame by frame
+    interleaved, over ``reps`` passes: per pass, the median ms of each and their ratio (detector / naive)."""
+    naive_passes, detect_passes, ratios = [], [], []
+    for _ in range(reps):
+        naive_ms, detect_ms = [], []
+        for i, image in enumerate(images):
+            t0 = time.perf_counter()
+            naive_line_offset(image)
+            t1 = time.perf_counter()
+            detector.detect(image, i / 15.0)
+            t2 = time.perf_counter()
+            naive_ms.append((t1 - t0) * 1e3)
+            detect_ms.append((t2 - t1) * 1e3)
+        naive_passes.append(statistics.median(naive_ms))
+        detect_passes.append(statistics.median(detect_ms))
+        ratios.append(detect_passes[-1] / naive_passes[-1])
+    return naive_passes, detect_passes, ratios
+
+
+def spread(values: Sequence[float]) -> str:
+    """``median (min-max)`` of per-pass figures."""
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"

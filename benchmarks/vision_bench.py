@@ -39,7 +39,7 @@ from beastbt.vision.line_detector import LineDetector, LineDetectorConfig
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from naive_line import naive_line_offset  # noqa: E402
+from naive_line import interleaved_passes, spread  # noqa: E402
 
 
 def poses_along_track(floor: FloorMap, n: int) -> list[tuple[float, float, float]]:
@@ -55,11 +55,6 @@ def poses_along_track(floor: FloorMap, n: int) -> list[tuple[float, float, float
         p = a + t * (b - a)
         out.append((float(p[0]), float(p[1]), math.atan2(b[1] - a[1], b[0] - a[0])))
     return out
-
-
-def spread(values: list[float]) -> str:
-    """``median (min-max)`` of per-pass figures."""
-    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
 
 
 def main() -> None:
@@ -86,20 +81,7 @@ def main() -> None:
                 ok, img = cam.read()
                 render_ms.append((time.perf_counter() - t0) * 1e3)
                 frames.append(img)
-            naive_passes, detect_passes, ratios = [], [], []
-            for _ in range(args.reps):
-                naive_ms, detect_ms = [], []
-                for i, img in enumerate(frames):
-                    t0 = time.perf_counter()
-                    naive_line_offset(img)
-                    t1 = time.perf_counter()
-                    det.detect(img, i / 15.0)
-                    t2 = time.perf_counter()
-                    naive_ms.append((t1 - t0) * 1e3)
-                    detect_ms.append((t2 - t1) * 1e3)
-                naive_passes.append(statistics.median(naive_ms))
-                detect_passes.append(statistics.median(detect_ms))
-                ratios.append(detect_passes[-1] / naive_passes[-1])
+            naive_passes, detect_passes, ratios = interleaved_passes(frames, det, args.reps)
             print(f"{w}x{h:<5} {effects_name:>8} {spread(naive_passes):>20} {spread(detect_passes):>20} "
                   f"{spread(ratios):>17}x {statistics.median(render_ms):>20.2f}")
 
