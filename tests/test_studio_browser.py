@@ -394,6 +394,30 @@ def test_a_mission_on_a_map_shows_the_map_its_walls_and_rooms_and_a_click_adds_a
         image, dots = measured()
         assert tuple(dots["a"]) == pytest.approx(pixel(float(m.group(1)), float(m.group(2))), abs=1.5)
         expect(page.get_by_test_id("problems").get_by_test_id("problem")).to_have_count(0)
+
+        # dragging the lab 1 m east (x forward) moves it in the text, and only its line changes
+        with_a = editor_text(page)
+        x, y = dots["lab"]
+        page.mouse.move(x, y)
+        page.mouse.down()
+        page.mouse.move(x + per_m / 2, y, steps=5)
+        page.mouse.move(x + per_m, y, steps=5)
+        page.mouse.up()
+        wait_for_page(page, f"studio.editor.getValue() !== {json.dumps(with_a)}")
+        changed = [(a, b) for a, b in zip(with_a.splitlines(), editor_text(page).splitlines()) if a != b]
+        assert len(changed) == 1 and changed[0][1].startswith("  lab: {x: "), changed
+        m = re.match(r"  lab: \{x: (-?[\d.]+) m, y: (-?[\d.]+) m\}  +# south of the corridor", changed[0][1])
+        assert m and (float(m.group(1)), float(m.group(2))) == pytest.approx((7.0, 0.5), abs=2 / per_m + 0.01)
+
+        # a route by clicks on the places: a route step of their names
+        moved = editor_text(page)
+        expect(page.get_by_test_id("place-marker")).to_have_count(3)
+        page.get_by_test_id("make-route").click()
+        for name in ("kitchen", "a"):
+            page.locator(f'[data-testid="place-marker"][data-place="{name}"] .dot').click()
+        page.get_by_test_id("finish").click()
+        wait_for_page(page, f"studio.editor.getValue() !== {json.dumps(moved)}")
+        assert "  - route: {places: [kitchen, a]}" in editor_text(page).splitlines()
         shots(page, "map_frame_added")
         assert page.page_errors == []  # type: ignore[attr-defined]
     finally:
