@@ -380,6 +380,11 @@ def test_a_mission_on_a_map_is_drawn_in_the_map_frame_with_its_grid_and_the_worl
     near = [grid.occupied()[max(0, r - 2):r + 3, max(0, c - 2):c + 3].any()
             for c, r in zip(*grid.to_cells(mids[:, 0], mids[:, 1]))]
     assert sum(near) >= len(near) - 1
+    # a typo elsewhere does not blank the map while it is typed: the grid, the walls and the places stay
+    typo = studio.post("/api/map", {"text": text.replace("go_to: lab", "go_too: lab"), "path": OFFICE})[1]
+    assert typo["problems"] and typo["frame"] == "map" and typo["map"]["bounds"] == shown["bounds"]
+    assert typo["world"]["walls"] == walls.tolist()
+    assert [(p["name"], p["x"], p["y"]) for p in typo["places"]] == [("kitchen", 3.0, 5.5), ("lab", 6.0, 0.5)]
 
 
 def test_places_from_a_file_are_drawn_read_only_and_the_map_cannot_edit_them(studio):

@@ -222,6 +222,7 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
         if doc is not None and isinstance(doc.data, dict):
             if doc.data.get("map") is not None:
                 answer.update(frame="map", datum=None)
+                _raw_map_plan(folder, doc, where(folder, path)[0].parent, answer)
                 _raw_map_places(doc, answer)
             else:
                 _raw_layers(doc, answer)
@@ -363,6 +364,47 @@ def _map_fences(doc: Any, mission: Any, answer: dict) -> None:
             at = doc.position(("fences", name), key=True)
             answer["fences"].append({"name": name, "keep": fence.keep, "polygon": polygon, "line": at.line,
                                      "column": at.column})
+
+
+def _raw_map_plan(folder: StudioFolder, doc: Any, base: Path, answer: dict) -> None:
+    """The grid and the world's plan of a map mission's text that does not load yet, so that a typo elsewhere does
+    not blank the map while it is typed: what of ``map:``, ``world:`` and ``start:`` reads, drawn as when it loads."""
+    import math
+
+    from beastbt.core.units import parse_quantity
+    from beastbt.estimation.map_localiser import compose, invert
+    from beastbt.mapping.occupancy_map import load_map
+    from beastbt.sim.world import load_world
+    data = doc.data
+
+    def file(key: str) -> Optional[Path]:
+        value = data.get(key)
+        if not isinstance(value, str):
+            return None
+        found = base / value
+        return found if found.is_file() else None
+
+    try:
+        map_file = file("map")
+        if map_file is not None:
+            answer["map"] = _grid_json(folder, load_map(map_file), map_file)
+        start = data.get("start")
+        if start is None:
+            pose = (0.0, 0.0, 0.0)
+        elif isinstance(start, dict) and "x" in start and "y" in start:
+            pose = (parse_quantity(start["x"], "distance"), parse_quantity(start["y"], "distance"),
+                    parse_quantity(start["yaw"], "angle") if "yaw" in start else 0.0)
+        else:
+            return  # a start at a named place, or one being typed: the world waits for the mission to load
+        answer["start"] = {"x": round(pose[0], MAP_DECIMALS), "y": round(pose[1], MAP_DECIMALS),
+                           "yaw_deg": round(math.degrees(pose[2]), 3)}
+        world_file = file("world")
+        if world_file is not None:
+            world = load_world(str(world_file))
+            answer["world"] = _world_in_map(world, compose(pose, invert((world.start_x, world.start_y,
+                                                                         world.start_yaw))))
+    except Exception:  # noqa: BLE001 - a half-typed text draws what it can; its problems say the rest
+        return
 
 
 def _raw_map_places(doc: Any, answer: dict) -> None:
