@@ -88,6 +88,7 @@ def studio(tmp_path_factory) -> Iterator[Studio]:
     root = tmp_path_factory.mktemp("studio")
     shutil.copytree(REPO / "missions", root / "missions")
     shutil.copytree(REPO / "worlds", root / "worlds", ignore=shutil.ignore_patterns("__init__.py", "__pycache__"))
+    shutil.copytree(REPO / "maps", root / "maps")
     (root / "missions" / "commented.yaml").write_text(COMMENTED, encoding="utf-8")
     s = Studio(root)
     yield s
@@ -328,6 +329,118 @@ def test_the_map_draws_places_fences_routes_and_the_world(studio):
     # a text with an error still draws what it can read
     typo = studio.post("/api/map", {"text": COMMENTED.replace("say:", "sya:")})[1]
     assert [p["name"] for p in typo["places"]] == ["a", "b"] and typo["problems"]
+
+
+OFFICE = "missions/office_rooms.yaml"
+
+
+def _office(studio: Studio) -> str:
+    return (studio.folder / OFFICE).read_text(encoding="utf-8")
+
+
+def test_a_mission_on_a_map_is_drawn_in_the_map_frame_with_its_grid_and_the_world_moved_onto_it(studio):
+    import base64
+
+    import cv2
+    import numpy as np
+
+    from beastbt.mapping.occupancy_map import load_map
+    from beastbt.sim.world import load_world
+    text = _office(studio)
+    status, drawn = studio.post("/api/map", {"text": text, "path": OFFICE})
+    assert status == 200 and drawn["frame"] == "map" and drawn["problems"] == []
+    assert [(p["name"], p["x"], p["y"], p["line"]) for p in drawn["places"]] == [
+        ("kitchen", 3.0, 5.5, 12), ("lab", 6.0, 0.5, 13)]
+    assert not any(p.get("readonly") for p in drawn["places"])
+    grid = load_map(studio.folder / "maps" / "office.yaml")
+    shown = drawn["map"]
+    assert shown["file"] == "maps/office.yaml" and shown["resolution_m"] == grid.resolution_m
+    assert shown["bounds"] == [[grid.origin_x, grid.origin_y],
+                               [grid.origin_x + grid.width_m, grid.origin_y + grid.height_m]]
+    head, data = shown["image"].split(",", 1)
+    assert head == "data:image/png;base64"
+    image = cv2.imdecode(np.frombuffer(base64.b64decode(data), np.uint8), cv2.IMREAD_UNCHANGED)
+    assert image.shape == (grid.rows, grid.cols)
+    assert ((image[::-1] == 0) == grid.occupied()).all()  # top row first, occupied black
+    # the world's walls in the map frame: the world's start (2.5, 2.0, facing east) is the map's origin here
+    world = load_world(str(studio.folder / "worlds" / "office.yaml"))
+    sx, sy = world.start_x, world.start_y
+    assert drawn["world"]["walls"][0] == [w - o for w, o in zip(
+        [world.walls[0].x1, world.walls[0].y1, world.walls[0].x2, world.walls[0].y2], [sx, sy, sx, sy])]
+    assert drawn["world"]["start"] == {"x": 0.0, "y": 0.0, "yaw_deg": 0.0}
+    # a mission that starts elsewhere on the map, turned: the world turns and moves with it
+    turned = text.replace("places:\n", "start: {x: 1 m, y: 2 m, yaw: 90 deg}\nplaces:\n", 1)
+    drawn = studio.post("/api/map", {"text": turned, "path": OFFICE})[1]
+    assert drawn["start"] == {"x": 1.0, "y": 2.0, "yaw_deg": 90.0}
+    x1, y1 = world.walls[0].x1 - sx, world.walls[0].y1 - sy  # (-2.5, -2.0) from the start, turned by 90 deg
+    assert drawn["world"]["walls"][0][:2] == pytest.approx([1.0 - y1, 2.0 + x1])
+    # the walls drawn lie on the map's occupied cells (the map was built in this world)
+    walls = np.array(studio.post("/api/map", {"text": text, "path": OFFICE})[1]["world"]["walls"])
+    mids = (walls[:, :2] + walls[:, 2:]) / 2
+    near = [grid.occupied()[max(0, r - 2):r + 3, max(0, c - 2):c + 3].any()
+            for c, r in zip(*grid.to_cells(mids[:, 0], mids[:, 1]))]
+    assert sum(near) >= len(near) - 1
+    # a typo elsewhere does not blank the map while it is typed: the grid, the walls and the places stay
+    typo = studio.post("/api/map", {"text": text.replace("go_to: lab", "go_too: lab"), "path": OFFICE})[1]
+    assert typo["problems"] and typo["frame"] == "map" and typo["map"]["bounds"] == shown["bounds"]
+    assert typo["world"]["walls"] == walls.tolist()
+    assert [(p["name"], p["x"], p["y"]) for p in typo["places"]] == [("kitchen", 3.0, 5.5), ("lab", 6.0, 0.5)]
+
+
+def test_places_from_a_file_are_drawn_read_only_and_the_map_cannot_edit_them(studio):
+    (studio.folder / "missions" / "rooms.yaml").write_text("kitchen: {x: 3.0 m, y: 5.5 m}\nlab: {x: 6 m, y: 0.5 m, "
+                                                           "yaw: 90 deg}\n", encoding="utf-8")
+    text = _office(studio)
+    start = text.index("places:")
+    end = text.index("steps:")
+    from_file = text[:start] + "places: {file: rooms.yaml}\n" + text[end:]
+    drawn = studio.post("/api/map", {"text": from_file, "path": OFFICE})[1]
+    assert drawn["problems"] == []
+    assert [(p["name"], p["x"], p["y"], p["yaw_deg"], p["readonly"], p["file"]) for p in drawn["places"]] == [
+        ("kitchen", 3.0, 5.5, None, True, "rooms.yaml"), ("lab", 6.0, 0.5, 90.0, True, "rooms.yaml")]
+    status, refused = studio.post("/api/edit", {"text": from_file, "edit": {"op": "add_place", "x": 1, "y": 1}})
+    assert status == 400 and "rooms.yaml" in refused["error"] and refused["line"] == from_file[:start].count(
+        "\n") + 1
+
+
+def test_places_on_a_map_are_added_and_moved_in_metres_keeping_the_rest_byte_for_byte(studio):
+    text = _office(studio)
+    status, added = studio.post("/api/edit", {"text": text, "edit": {"op": "add_place", "x": 3.254, "y": -1.5}})
+    assert status == 200 and added["name"] == "a"
+    assert only_inserted(text, added["text"]) == ["  a: {x: 3.25 m, y: -1.5 m}"]
+    assert applied(text, added["change"]) == added["text"]
+    status, moved = studio.post("/api/edit", {"text": added["text"], "edit": {
+        "op": "move_place", "name": "kitchen", "x": 2.5, "y": 6.456, "yaw": 90}})
+    assert status == 200
+    before, after = added["text"].splitlines(), moved["text"].splitlines()
+    changed = [(a, b) for a, b in zip(before, after) if a != b]
+    assert len(before) == len(after) and changed == [(
+        "  kitchen: {x: 3.0 m, y: 5.5 m}        # north of the corridor, through the office's and the kitchen's doors",
+        "  kitchen: {x: 2.5 m, y: 6.46 m, yaw: 90.0 deg} # north of the corridor, through the office's and the "
+        "kitchen's doors")]  # the comment kept, pushed along by the longer place
+    status, routed = studio.post("/api/edit", {"text": moved["text"], "edit": {"op": "add_route",
+                                                                               "places": ["a", "kitchen", "lab"]}})
+    assert status == 200 and only_inserted(moved["text"], routed["text"]) == ["  - route: {places: [a, kitchen, lab]}"]
+    drawn = studio.post("/api/map", {"text": routed["text"], "path": OFFICE})[1]
+    assert drawn["problems"] == []
+    assert {p["name"]: (p["x"], p["y"], p["yaw_deg"]) for p in drawn["places"]} == {
+        "kitchen": (2.5, 6.46, 90.0), "lab": (6.0, 0.5, None), "a": (3.25, -1.5, None)}
+    [route] = drawn["routes"]
+    assert route["points"] == [[3.25, -1.5], [2.5, 6.46], [6.0, 0.5]]
+    assert studio.post("/api/validate", {"text": routed["text"], "path": OFFICE})[1]["problems"] == []
+
+
+def test_an_edit_in_the_other_frame_is_refused_with_a_reason(studio):
+    office = _office(studio)
+    for edit in ({"op": "add_place", "lat": 40.4, "lon": -3.7}, {"op": "move_place", "name": "lab", "lat": 40.4,
+                                                                   "lon": -3.7}):
+        status, refused = studio.post("/api/edit", {"text": office, "edit": edit})
+        assert status == 400 and "on a map" in refused["error"] and "x and y" in refused["error"]
+        assert refused["line"] == 10  # at map:
+    status, refused = studio.post("/api/edit", {"text": COMMENTED, "edit": {"op": "add_place", "x": 1, "y": 2}})
+    assert status == 400 and "no 'map:'" in refused["error"] and "lat" in refused["error"]
+    status, refused = studio.post("/api/edit", {"text": office, "edit": {"op": "add_place", "x": "3 m", "y": 2}})
+    assert status == 400 and "'x' must be a number of metres" in refused["error"]
 
 
 def test_the_guard_refuses_other_hosts_pages_and_forms(studio):

@@ -316,3 +316,109 @@ def test_a_save_over_a_file_changed_on_disk_shows_both_and_overwrites_nothing(br
     expect(page.locator("#dirty")).to_be_hidden()
     assert on_disk.read_text(encoding="utf-8") == editor_text(page)
     assert (folder / "missions" / "short.yaml.bak").read_text(encoding="utf-8") == theirs
+
+
+@pytest.fixture
+def office_folder(tmp_path: Path) -> Path:
+    """A folder with the indoor mission on a map: missions/office_rooms.yaml, its world and its map."""
+    root = tmp_path / "office"
+    for sub, names in (("missions", ["office_rooms.yaml"]), ("worlds", ["office.yaml"]),
+                       ("maps", ["office.yaml", "office.pgm"])):
+        (root / sub).mkdir(parents=True)
+        for name in names:
+            shutil.copyfile(REPO / sub / name, root / sub / name)
+    return root
+
+
+def test_a_mission_on_a_map_shows_the_map_its_walls_and_rooms_and_a_click_adds_a_place_in_metres(
+        browser, office_folder, shots):
+    from beastbt.mapping.occupancy_map import load_map
+    from beastbt.sim.world import load_world
+    studio = Studio(office_folder)
+    try:
+        page = open_studio(browser, studio)
+        open_file(page, "missions/office_rooms.yaml")
+        the_map = page.get_by_test_id("map")
+        expect(the_map).to_have_attribute("data-ready", "true")
+        expect(the_map).to_have_attribute("data-frame", "map")
+        expect(page.get_by_test_id("place-marker")).to_have_count(2)
+        world = load_world(str(office_folder / "worlds" / "office.yaml"))
+        expect(page.get_by_test_id("wall")).to_have_count(len(world.walls))
+        grid = load_map(office_folder / "maps" / "office.yaml")
+        x0, y1 = grid.origin_x, grid.origin_y + grid.height_m
+
+        def measured() -> tuple[dict, dict]:
+            """(the map image's box, each place marker's centre), read in one go, once the map stands still
+            (a fit or a resize moves both, and a box read between two frames would not match the other)."""
+            last = None
+            for _ in range(50):
+                now = page.evaluate("""() => {
+                    const box = (el) => { const r = el.getBoundingClientRect();
+                                          return {x: r.x, y: r.y, width: r.width, height: r.height}; };
+                    const dots = {};
+                    for (const m of document.querySelectorAll('[data-testid="place-marker"]')) {
+                      const r = box(m.querySelector('.dot'));
+                      dots[m.dataset.place] = [r.x + r.width / 2, r.y + r.height / 2];
+                    }
+                    return [box(document.querySelector('[data-testid="map-image"]')), dots];
+                }""")
+                if now == last:
+                    return now[0], now[1]
+                last = now
+                page.wait_for_timeout(100)
+            raise AssertionError("the map kept moving")
+
+        image, dots = measured()
+        per_m = image["width"] / grid.width_m
+        assert image["height"] / grid.height_m == pytest.approx(per_m, rel=0.01)  # metres square, y up
+
+        def pixel(x: float, y: float) -> tuple[float, float]:
+            """Where map point (x, y) (m) shows on the page, by the map image's box (y up)."""
+            return image["x"] + (x - x0) * per_m, image["y"] + (y1 - y) * per_m
+
+        for name, (x, y) in {"kitchen": (3.0, 5.5), "lab": (6.0, 0.5)}.items():
+            assert tuple(dots[name]) == pytest.approx(pixel(x, y), abs=1.5), name
+        shots(page, "map_frame")
+
+        # a click in the corridor east of the kitchen's door adds a place there, in metres on the map
+        before = editor_text(page)
+        page.get_by_test_id("add-place").click()
+        image, _ = measured()  # the tool's hint may have resized the map
+        page.mouse.click(*pixel(8.0, 2.75))
+        expect(page.get_by_test_id("place-marker")).to_have_count(3)
+        added = [line for line in editor_text(page).splitlines() if line not in before.splitlines()]
+        assert len(added) == 1, added
+        m = re.fullmatch(r"  a: \{x: (-?\d+\.\d{1,2}) m, y: (-?\d+\.\d{1,2}) m\}", added[0])
+        assert m, added
+        assert (float(m.group(1)), float(m.group(2))) == pytest.approx((8.0, 2.75), abs=2 / per_m + 0.01)
+        image, dots = measured()
+        assert tuple(dots["a"]) == pytest.approx(pixel(float(m.group(1)), float(m.group(2))), abs=1.5)
+        expect(page.get_by_test_id("problems").get_by_test_id("problem")).to_have_count(0)
+
+        # dragging the lab 1 m east (x forward) moves it in the text, and only its line changes
+        with_a = editor_text(page)
+        x, y = dots["lab"]
+        page.mouse.move(x, y)
+        page.mouse.down()
+        page.mouse.move(x + per_m / 2, y, steps=5)
+        page.mouse.move(x + per_m, y, steps=5)
+        page.mouse.up()
+        wait_for_page(page, f"studio.editor.getValue() !== {json.dumps(with_a)}")
+        changed = [(a, b) for a, b in zip(with_a.splitlines(), editor_text(page).splitlines()) if a != b]
+        assert len(changed) == 1 and changed[0][1].startswith("  lab: {x: "), changed
+        m = re.match(r"  lab: \{x: (-?[\d.]+) m, y: (-?[\d.]+) m\}  +# south of the corridor", changed[0][1])
+        assert m and (float(m.group(1)), float(m.group(2))) == pytest.approx((7.0, 0.5), abs=2 / per_m + 0.01)
+
+        # a route by clicks on the places: a route step of their names
+        moved = editor_text(page)
+        expect(page.get_by_test_id("place-marker")).to_have_count(3)
+        page.get_by_test_id("make-route").click()
+        for name in ("kitchen", "a"):
+            page.locator(f'[data-testid="place-marker"][data-place="{name}"] .dot').click()
+        page.get_by_test_id("finish").click()
+        wait_for_page(page, f"studio.editor.getValue() !== {json.dumps(moved)}")
+        assert "  - route: {places: [kitchen, a]}" in editor_text(page).splitlines()
+        shots(page, "map_frame_added")
+        assert page.page_errors == []  # type: ignore[attr-defined]
+    finally:
+        studio.stop()

@@ -208,6 +208,9 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
             world = load_mission_world(mission)
         except InvalidInput:
             world = None
+    if mission is not None and mission.map_file is not None:
+        _map_frame(folder, mission, world, text, path, answer)
+        return answer
     frame = (world or empty_world()).frame
     answer["datum"] = {"lat": frame.lat0_deg, "lon": frame.lon0_deg}
     if world is not None:
@@ -217,8 +220,208 @@ def map_of(folder: StudioFolder, text: str, path: Optional[str] = None, robot: O
     else:
         doc, _ = _raw_mission(folder, text, path)
         if doc is not None and isinstance(doc.data, dict):
-            _raw_layers(doc, answer)
+            if doc.data.get("map") is not None:
+                answer.update(frame="map", datum=None)
+                _raw_map_plan(folder, doc, where(folder, path)[0].parent, answer)
+                _raw_map_places(doc, answer)
+            else:
+                _raw_layers(doc, answer)
     return answer
+
+
+MAP_DECIMALS = 3
+"""Decimals (mm) of the map-frame coordinates the map pane is given."""
+
+
+def _map_frame(folder: StudioFolder, mission: Any, world: Any, text: str, path: Optional[str], answer: dict) -> None:
+    """The map pane of a mission on a map (``map:``): everything in the map frame (x forward, y left of where
+    mapping began, metres), the occupancy grid as a PNG, the world's plan moved onto it (docs/studio.md, Map)."""
+    import math
+    from beastbt.estimation.map_localiser import compose, invert
+    from beastbt.parts.map_localisation import start_pose
+    answer.update(frame="map", datum=None)
+    grid = mission.map_grid
+    if grid is None:
+        from beastbt.mapping.occupancy_map import load_map
+        try:
+            grid = load_map(mission.map_file)
+        except InvalidInput:
+            grid = None
+    if grid is not None:
+        answer["map"] = _grid_json(folder, grid, mission.map_file)
+    try:
+        # start_pose reads only the mission of a prepared run
+        start = start_pose(_MissionOnly(mission))  # type: ignore[arg-type]
+    except InvalidInput:
+        start = mission.map_start
+    answer["start"] = {"x": round(start[0], MAP_DECIMALS), "y": round(start[1], MAP_DECIMALS),
+                       "yaw_deg": round(math.degrees(start[2]), 3)}
+    if world is not None:
+        # the robot starts at the world's start and at the mission's start on the map: that fixes the map frame
+        map_from_world = compose(start, invert((world.start_x, world.start_y, world.start_yaw)))
+        answer["world"] = _world_in_map(world, map_from_world)
+    doc = mission.doc
+    raw, _ = _raw_mission(folder, text, path)
+    raw_places = raw.data.get("places") if raw is not None and isinstance(raw.data, dict) else None
+    places_file = raw_places.get("file") if isinstance(raw_places, dict) and set(raw_places) == {"file"} else None
+    for place in mission.places.values():
+        item: dict[str, Any] = {"name": place.name, "tolerance_m": place.tolerance_m}
+        if place.on_map:
+            item.update(x=round(place.x, MAP_DECIMALS), y=round(place.y, MAP_DECIMALS),
+                        yaw_deg=None if place.yaw is None else round(math.degrees(place.yaw), 3))
+        else:  # a GPS place on a mission with a map: listed, but it has no spot on the map
+            item.update(lat=place.lat, lon=place.lon)
+        if places_file is not None:
+            at = raw.position(("places", "file"))
+            item.update(readonly=True, file=str(places_file))
+        else:
+            at = doc.position(("places", place.name), key=True)
+        item.update(line=at.line, column=at.column)
+        answer["places"].append(item)
+    _map_fences(doc, mission, answer)
+    from beastbt.mission import steps as st
+    from beastbt.mission.warnings import all_steps
+    for step in list(all_steps(mission.steps)) + [s for task in mission.tasks.values() for s in all_steps(task)]:
+        if isinstance(step, st.Route):
+            known = [mission.places[n] for n in step.places if n in mission.places and mission.places[n].on_map]
+            answer["routes"].append({"places": list(step.places), "points": [[p.x, p.y] for p in known],
+                                     "loops": step.loops, "line": step.at.line, "column": step.at.column})
+
+
+class _MissionOnly:
+    """What :func:`beastbt.parts.map_localisation.start_pose` reads of a prepared run: its mission."""
+
+    def __init__(self, mission: Any) -> None:
+        self.mission = mission
+
+
+def _grid_json(folder: StudioFolder, grid: Any, file: Any) -> dict:
+    """The occupancy grid for drawing: a PNG data URL (map_saver's trinary grey: occupied black, free white,
+    unknown grey; top row first) and where it lies in the map frame (metres)."""
+    import base64
+    import math
+
+    import cv2
+    from beastbt.mapping.occupancy_map import map_pixels
+    ok, png = cv2.imencode(".png", map_pixels(grid))
+    try:
+        shown = str(Path(file).resolve().relative_to(folder.root.resolve()))
+    except ValueError:
+        shown = Path(file).name
+    return {"file": shown, "image": "data:image/png;base64," + base64.b64encode(png.tobytes()).decode("ascii")
+            if ok else None,
+            "origin": {"x": grid.origin_x, "y": grid.origin_y, "yaw_deg": round(math.degrees(grid.origin_yaw), 3)},
+            "resolution_m": grid.resolution_m, "cols": grid.cols, "rows": grid.rows,
+            "width_m": round(grid.width_m, 6), "height_m": round(grid.height_m, 6),
+            "bounds": [[grid.origin_x, grid.origin_y],
+                       [round(grid.origin_x + grid.width_m, 6), round(grid.origin_y + grid.height_m, 6)]]}
+
+
+def _world_in_map(world: Any, map_from_world: tuple[float, float, float]) -> dict:
+    """The world's plan (walls, obstacles, floor lines, start) moved into the map frame by ``map_from_world``."""
+    import math
+
+    from beastbt.sim.floor import floor_lines
+    from beastbt.sim.obstacles import obstacle_outline
+    c, s = math.cos(map_from_world[2]), math.sin(map_from_world[2])
+
+    def xy(x: float, y: float) -> list[float]:
+        return [round(map_from_world[0] + c * x - s * y, MAP_DECIMALS),
+                round(map_from_world[1] + s * x + c * y, MAP_DECIMALS)]
+
+    walls = [xy(w.x1, w.y1) + xy(w.x2, w.y2) for w in world.walls]
+    obstacles = []
+    for o in map(obstacle_outline, world.obstacles):
+        if "corners" in o:
+            obstacles.append({"shape": o["shape"], "corners": [xy(*p) for p in o["corners"]]})
+        elif "xy" in o:
+            obstacles.append({"shape": o["shape"], "xy": xy(*o["xy"]), "radius_m": o["radius_m"]})
+        elif "path" in o:
+            obstacles.append({"shape": o["shape"], "path": [xy(p[0], p[1]) for p in o["path"]],
+                              "radius_m": o["radius_m"]})
+    floor = world.section("floor")
+    try:
+        lines = [{"points": [xy(float(x), float(y)) for x, y in line.points], "closed": line.closed}
+                 for line in (floor_lines(floor) if floor else [])]
+    except ValueError:
+        lines = []
+    sx, sy = xy(world.start_x, world.start_y)
+    return {"name": world.name, "file": world.file, "walls": walls, "obstacles": obstacles, "lines": lines,
+            "start": {"x": sx, "y": sy, "yaw_deg": round(math.degrees(world.start_yaw + map_from_world[2]), 3)},
+            "map_from_world": {"x": round(map_from_world[0], 6), "y": round(map_from_world[1], 6),
+                               "yaw_deg": round(math.degrees(map_from_world[2]), 6)}}
+
+
+def _map_fences(doc: Any, mission: Any, answer: dict) -> None:
+    """Fences whose corners are places on the map, as ``[[x, y], ...]`` (a lat/lon corner has no spot here)."""
+    fences = doc.data.get("fences") if isinstance(doc.data.get("fences"), dict) else {}
+    for name, fence in mission.fences.items():
+        raw = fences.get(name) if isinstance(fences.get(name), dict) else {}
+        corners = raw.get("polygon") or raw.get("points") or []
+        polygon = [[mission.places[c].x, mission.places[c].y] for c in corners
+                   if isinstance(c, str) and c in mission.places and mission.places[c].on_map]
+        if len(polygon) >= 3:
+            at = doc.position(("fences", name), key=True)
+            answer["fences"].append({"name": name, "keep": fence.keep, "polygon": polygon, "line": at.line,
+                                     "column": at.column})
+
+
+def _raw_map_plan(folder: StudioFolder, doc: Any, base: Path, answer: dict) -> None:
+    """The grid and the world's plan of a map mission's text that does not load yet, so that a typo elsewhere does
+    not blank the map while it is typed: what of ``map:``, ``world:`` and ``start:`` reads, drawn as when it loads."""
+    import math
+
+    from beastbt.core.units import parse_quantity
+    from beastbt.estimation.map_localiser import compose, invert
+    from beastbt.mapping.occupancy_map import load_map
+    from beastbt.sim.world import load_world
+    data = doc.data
+
+    def file(key: str) -> Optional[Path]:
+        value = data.get(key)
+        if not isinstance(value, str):
+            return None
+        found = base / value
+        return found if found.is_file() else None
+
+    try:
+        map_file = file("map")
+        if map_file is not None:
+            answer["map"] = _grid_json(folder, load_map(map_file), map_file)
+        start = data.get("start")
+        if start is None:
+            pose = (0.0, 0.0, 0.0)
+        elif isinstance(start, dict) and "x" in start and "y" in start:
+            pose = (parse_quantity(start["x"], "distance"), parse_quantity(start["y"], "distance"),
+                    parse_quantity(start["yaw"], "angle") if "yaw" in start else 0.0)
+        else:
+            return  # a start at a named place, or one being typed: the world waits for the mission to load
+        answer["start"] = {"x": round(pose[0], MAP_DECIMALS), "y": round(pose[1], MAP_DECIMALS),
+                           "yaw_deg": round(math.degrees(pose[2]), 3)}
+        world_file = file("world")
+        if world_file is not None:
+            world = load_world(str(world_file))
+            answer["world"] = _world_in_map(world, compose(pose, invert((world.start_x, world.start_y,
+                                                                         world.start_yaw))))
+    except Exception:  # noqa: BLE001 - a half-typed text draws what it can; its problems say the rest
+        return
+
+
+def _raw_map_places(doc: Any, answer: dict) -> None:
+    """The ``{x, y}`` places that can be read of a map mission's text that does not load (units as the language
+    writes them: ``3.0 m``)."""
+    from beastbt.core.units import parse_quantity
+    places = doc.data.get("places") if isinstance(doc.data.get("places"), dict) else {}
+    for pname, value in places.items():
+        if not isinstance(value, dict) or "x" not in value or "y" not in value:
+            continue
+        try:
+            x, y = parse_quantity(value["x"], "distance"), parse_quantity(value["y"], "distance")
+        except Exception:  # noqa: BLE001 - an unreadable number is the problems' business, not the map's
+            continue
+        at = doc.position(("places", pname), key=True)
+        answer["places"].append({"name": str(pname), "x": round(x, MAP_DECIMALS), "y": round(y, MAP_DECIMALS),
+                                 "line": at.line, "column": at.column})
 
 
 def _world_map(real: Path, name: str, text: str) -> dict:

@@ -22,6 +22,10 @@ from ruamel.yaml.tokens import CommentToken
 
 LATLON_DECIMALS = 7
 """Decimals of a latitude or longitude written by an edit (1e-7 deg is about 1 cm)."""
+MAP_DECIMALS = 2
+"""Decimals of a map-frame coordinate (metres) written by an edit: 1 cm."""
+MAX_MAP_M = 100000.0
+"""The largest map-frame coordinate an edit takes (m): beyond is a slip, not a room."""
 INDENTS = ((2, 4, 2), (2, 2, 0), (4, 4, 2), (4, 6, 4), (4, 4, 0), (3, 3, 0), (2, 3, 1))
 """(mapping, sequence, offset) indentations tried, the house style (``steps:`` then ``  - drive``) first."""
 KEY_ORDER = ("mission", "description", "world", "map", "rate", "limits", "places", "fences", "tasks", "steps")
@@ -217,6 +221,44 @@ def _coordinate(edit: dict, key: str, low: float, high: float) -> float:
     return round(float(value), LATLON_DECIMALS)
 
 
+def _metres(edit: dict, key: str) -> str:
+    """A map-frame coordinate of an edit (metres) as the language writes it: ``3.25 m``, two decimals (1 cm)."""
+    value = edit.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not abs(value) <= MAX_MAP_M:
+        raise EditRefused(f"'{key}' must be a number of metres on the map (x forward, y left of where mapping "
+                          f"began), at most {MAX_MAP_M:g} m from it, not {value!r}")
+    return _decimals(float(value), MAP_DECIMALS) + " m"
+
+
+def _decimals(value: float, decimals: int) -> str:
+    """``value`` rounded to ``decimals``, written without trailing zeros but with one decimal (``3.0``, ``-1.5``)."""
+    text = f"{round(value, decimals) + 0.0:.{decimals}f}".rstrip("0")
+    return text + "0" if text.endswith(".") else text
+
+
+def _yaw(edit: dict) -> Optional[str]:
+    """The optional ``yaw`` of an edit (degrees, counter-clockwise from the map's x) as ``90.0 deg``."""
+    value = edit.get("yaw")
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not -360 <= value <= 360:
+        raise EditRefused(f"'yaw' must be a number of degrees from -360 to 360, not {value!r}")
+    return _decimals(float(value), 1) + " deg"
+
+
+def _frame_of(data: CommentedMap, edit: dict) -> str:
+    """``map`` for a mission on a map (``map:``), ``gps`` otherwise; refuses the other frame's coordinates."""
+    on_map = data.get("map") is not None
+    has_xy, has_latlon = "x" in edit or "y" in edit, "lat" in edit or "lon" in edit
+    if on_map and has_latlon:
+        raise EditRefused("this mission is on a map (it has 'map:'): its places are {x, y} in metres on the map, "
+                          "not lat/lon; send x and y", *_position(data, "map"))
+    if not on_map and has_xy:
+        raise EditRefused("this mission has no 'map:': its places are GPS {lat, lon}, not x/y in metres; send lat "
+                          "and lon, or add map: ../maps/NAME.yaml first")
+    return "map" if on_map else "gps"
+
+
 def _name(edit: dict, key: str = "name") -> Optional[str]:
     name = edit.get(key)
     if name is None or name == "":
@@ -357,6 +399,10 @@ def _places(data: CommentedMap, create: bool) -> CommentedMap:
         if not create:
             raise EditRefused("the mission has no 'places:' yet: add a place first")
         return CommentedMap()  # put in place by the caller, with its first place
+    if isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str):
+        line, column = _position(places, "file")
+        raise EditRefused(f"the places come from the file {places['file']}: change them there (the map cannot "
+                          "edit another file), or write places: {name: {x: 1 m, y: 2 m}} here", line, column)
     if not isinstance(places, dict):
         line, column = _position(data, "places")
         raise EditRefused("'places:' is not a list of named places here (it reads them from a file?): the map can "
@@ -376,35 +422,51 @@ def _next_name(taken: Any, prefix: str = "") -> str:
     return f"{prefix}{n}"
 
 
+def _where(data: CommentedMap, edit: dict) -> dict:
+    """The coordinates an add or move writes: ``{lat, lon}`` (GPS) or ``{x: 3.25 m, y: -1.5 m, yaw?}`` (map)."""
+    if _frame_of(data, edit) == "gps":
+        return {"lat": _coordinate(edit, "lat", -90, 90), "lon": _coordinate(edit, "lon", -180, 180)}
+    where = {"x": _metres(edit, "x"), "y": _metres(edit, "y")}
+    yaw = _yaw(edit)
+    if yaw is not None:
+        where["yaw"] = yaw
+    return where
+
+
 def add_place(data: CommentedMap, edit: dict) -> dict:
-    """``{op: add_place, name?, lat, lon}``: a new place in ``places:``."""
-    lat = _coordinate(edit, "lat", -90, 90)
-    lon = _coordinate(edit, "lon", -180, 180)
+    """``{op: add_place, name?, lat, lon}`` (a GPS mission) or ``{op: add_place, name?, x, y, yaw?}`` (metres and
+    degrees, a mission on a map): a new place in ``places:``."""
+    where = _where(data, edit)
     places = _places(data, create=True)
     name = _name(edit) or _next_name(places)
     if name in places:
         line, column = _position(places, name)
         raise EditRefused(f"there is a place called '{name}' already: choose another name, or move that one", line,
                           column)
-    _add_entry(data, "places", places, name, _flow({"lat": lat, "lon": lon}))
+    _add_entry(data, "places", places, name, _flow(where))
     return {"name": name}
 
 
 def move_place(data: CommentedMap, edit: dict) -> dict:
-    """``{op: move_place, name, lat, lon}``: new coordinates for a place, its other keys (tolerance...) kept."""
-    lat = _coordinate(edit, "lat", -90, 90)
-    lon = _coordinate(edit, "lon", -180, 180)
+    """``{op: move_place, name, lat, lon}`` or, on a map, ``{op: move_place, name, x, y, yaw?}``: new coordinates
+    for a place, its other keys (tolerance, a yaw not given...) kept."""
+    where = _where(data, edit)
     name = _name(edit)
     places = _places(data, create=False)
     if name not in places:
         from beastbt.core.errors import did_you_mean
         raise EditRefused(f"no place '{name}' in 'places:'{did_you_mean(str(name), list(places))}")
     place = places[name]
-    if not isinstance(place, dict) or "lat" not in place:
+    need = "x" if "x" in where else "lat"
+    if not isinstance(place, dict) or need not in place:
         line, column = _position(places, name)
-        raise EditRefused(f"place '{name}' is not written as {{lat, lon}}: the map can move only those", line, column)
-    place["lat"] = lat
-    place["lon"] = lon
+        written = "{x, y}" if need == "x" else "{lat, lon}"
+        raise EditRefused(f"place '{name}' is not written as {written}: the map can move only those", line, column)
+    for key, value in where.items():
+        if key in place:
+            place[key] = value
+        else:  # a yaw the place did not have goes after its y
+            place.insert(list(place.keys()).index("y") + 1, key, value)
     return {"name": name}
 
 

@@ -1,23 +1,30 @@
 // The map pane: Leaflet with no tiles by default. A GPS mission is drawn on a latitude/longitude grid drawn here;
-// a world-frame mission (x east, y north, metres) on the world's plan, in Leaflet's flat CRS. Places are draggable
-// markers; "Add place", "Draw fence" and "Make route" turn clicks into edits, which the caller sends to /api/edit.
+// a world-frame mission (x east, y north, metres) on the world's plan, and a mission on a map (`map:`, x forward,
+// y left of where mapping began, metres) on its occupancy grid with the world's plan moved onto it, both in
+// Leaflet's flat CRS (lat = y, lng = x, metres, y up). Places are draggable markers; "Add place", "Draw fence" and
+// "Make route" turn clicks into edits, which the caller sends to /api/edit.
 import L from "leaflet";
 import "leaflet/dist/leaflet.css";
 
-/** A point as the API takes it: {lat, lon} on a GPS map, {x, y} (m) on a world map. */
+/** A point as the API takes it: {lat, lon} on a GPS map, {x, y} (m) on a world or a map-frame map. */
 export type Point = { lat: number; lon: number } | { x: number; y: number };
 
 /** What /api/map answers (docs/studio.md, Map). */
 export interface MapData {
-  frame: "gps" | "world";
+  frame: "gps" | "world" | "map";
   datum?: { lat: number; lon: number } | null;
   places: Array<{ name: string; lat?: number; lon?: number; x?: number; y?: number; line?: number;
-    tolerance_m?: number | null }>;
+    tolerance_m?: number | null; yaw_deg?: number | null; readonly?: boolean; file?: string }>;
+  /** The occupancy grid of a map-frame mission: a PNG and its corners [[x0, y0], [x1, y1]] (m). */
+  map?: { file?: string; image?: string | null; bounds: number[][]; resolution_m?: number } | null;
+  /** The mission's start on the map (map frame). */
+  start?: { x: number; y: number; yaw_deg?: number } | null;
   fences: Array<{ name?: string; keep?: string; polygon?: number[][]; circle?: any; line?: number }>;
   routes?: Array<{ places: string[]; points?: number[][]; line?: number }>;
   world?: {
     name?: string; walls?: number[][]; obstacles?: any[]; lines?: any[];
     start?: { x: number; y: number; yaw_deg?: number } | null; bounds?: any;
+    map_from_world?: { x: number; y: number; yaw_deg: number } | null;
   } | null;
   problems?: unknown[];
 }
@@ -32,11 +39,14 @@ export interface MapEdits {
 }
 
 type Mode = "none" | "place" | "fence" | "route";
+type Frame = "gps" | "world" | "map";
 const TILE_URL = "https://tile.openstreetmap.org/{z}/{x}/{y}.png";
 
 export class StudioMap {
   readonly map: L.Map;
-  private frame: "gps" | "world" | null = null;
+  private frame: Frame | null = null;
+  /** Where the simulator's world frame lies on a map-frame map (a run's robot is drawn through it). */
+  private mapFromWorld: { x: number; y: number; yaw_deg: number } | null = null;
   private layers = L.layerGroup();
   private grid = L.layerGroup();
   private draft = L.layerGroup();
@@ -66,16 +76,20 @@ export class StudioMap {
     this.setMode("none");
   }
 
-  private makeMap(frame: "gps" | "world"): L.Map {
+  /** Whether this map is flat, in metres (a world's plan or a map frame), rather than latitude and longitude. */
+  private get flat(): boolean { return this.frame === "world" || this.frame === "map"; }
+
+  private makeMap(frame: Frame): L.Map {
     if (this.frame === frame && this.map) return this.map;
     if (this.map) this.map.remove();
     this.frame = frame;
+    const flat = frame !== "gps";
     const map = L.map(this.host, {
-      crs: frame === "world" ? L.CRS.Simple : L.CRS.EPSG3857,
+      crs: flat ? L.CRS.Simple : L.CRS.EPSG3857,
       center: [0, 0],
-      zoom: frame === "world" ? 3 : 2,
-      minZoom: frame === "world" ? -3 : 2,
-      maxZoom: frame === "world" ? 8 : 23,
+      zoom: flat ? 3 : 2,
+      minZoom: flat ? -3 : 2,
+      maxZoom: flat ? 8 : 23,
       zoomSnap: 0.25,
       zoomControl: false,
       attributionControl: false,
@@ -87,7 +101,8 @@ export class StudioMap {
     this.layers.addTo(map);
     this.grid.addTo(map);
     this.draft.addTo(map);
-    if (frame === "gps") L.control.scale({ imperial: false, position: "bottomright" }).addTo(map);
+    // CRS.Simple's distance is in its own units, metres here: the same scale bar reads right on every frame
+    L.control.scale({ imperial: false, position: "bottomright" }).addTo(map);
     map.on("click", (e: L.LeafletMouseEvent) => this.clicked(e.latlng));
     map.on("moveend zoomend", () => this.drawGrid());
     this.fitted = false;
@@ -110,15 +125,16 @@ export class StudioMap {
   /** A point of the API (a [a, b] pair in the frame's order, {lat, lon} or {x, y}) on this map. */
   private toLatLng(p: any): L.LatLng | null {
     if (p == null) return null;
-    if (Array.isArray(p)) return this.frame === "world" ? L.latLng(p[1], p[0]) : L.latLng(p[0], p[1]);
+    if (Array.isArray(p)) return this.flat ? L.latLng(p[1], p[0]) : L.latLng(p[0], p[1]);
     if (typeof p.lat === "number" && this.frame === "gps") return L.latLng(p.lat, p.lon ?? p.lng);
     if (typeof p.x === "number") return this.worldToMap(p.x, p.y);
     return null;
   }
 
-  /** A point of the world frame (x east, y north, metres from the datum) on this map. */
+  /** A point of the world frame (x east, y north, metres from the datum) on this map; on a map-frame map the
+   * API gives everything in the map frame already, so this is a point of that frame. */
   worldToMap(x: number, y: number): L.LatLng | null {
-    if (this.frame === "world") return L.latLng(y, x);
+    if (this.flat) return L.latLng(y, x);
     if (!this.datum) return null;
     const R = 6378137;
     const lat = this.datum.lat + (y / R) * 180 / Math.PI;
@@ -128,20 +144,20 @@ export class StudioMap {
 
   private toPoint(ll: L.LatLng): Point {
     const round = (v: number, digits: number) => Number(v.toFixed(digits));
-    return this.frame === "world" ? { x: round(ll.lng, 2), y: round(ll.lat, 2) }
+    return this.flat ? { x: round(ll.lng, 2), y: round(ll.lat, 2) }
       : { lat: round(ll.lat, 7), lon: round(ll.lng, 7) };
   }
 
-  /** A corner for add_fence's polygon: [lat, lon] on a GPS map, [x, y] on a world map. */
+  /** A corner for add_fence's polygon: [lat, lon] on a GPS map, [x, y] on a flat map. */
   private toPair(ll: L.LatLng): number[] {
     const p = this.toPoint(ll) as any;
-    return this.frame === "world" ? [p.x, p.y] : [p.lat, p.lon];
+    return this.flat ? [p.x, p.y] : [p.lat, p.lon];
   }
 
   /** Draw the mission's places, fences and routes (and the world's plan) afresh from /api/map's answer. */
   draw(data: MapData | null): void {
     if (this.dragging) return;  // a redraw under a dragged marker would drop it
-    const frame = data?.frame === "world" ? "world" : "gps";
+    const frame: Frame = data?.frame === "world" || data?.frame === "map" ? data.frame : "gps";
     if (frame !== this.frame) {
       this.makeMap(frame);
       this.setTiles((document.getElementById("tiles") as HTMLInputElement | null)?.checked ?? false);
@@ -150,25 +166,44 @@ export class StudioMap {
     this.placeAt.clear();
     if (!data) return;
     this.datum = data.datum ?? null;
+    this.host.dataset.frame = frame;
     const bounds = L.latLngBounds([]);
     const world = data.world ?? null;
+    this.mapFromWorld = frame === "map" ? world?.map_from_world ?? null : null;
+    const grid = frame === "map" ? data.map ?? null : null;
+    if (grid?.image && grid.bounds?.length === 2) {
+      // The grid's image has its top row at the largest y: Leaflet's flat CRS has y up, as the map frame has.
+      const [[x0, y0], [x1, y1]] = grid.bounds;
+      const corners = L.latLngBounds([y0, x0], [y1, x1]);
+      const overlay = L.imageOverlay(grid.image, corners, { className: "occupancy", interactive: false });
+      overlay.addTo(this.layers);
+      overlay.getElement()?.setAttribute("data-testid", "map-image");
+      bounds.extend(corners);
+    }
     const plan = { color: "#5f6368", weight: 2, fillColor: "#bdc1c6", fillOpacity: 0.6, interactive: false };
     const xy = (p: any) => Array.isArray(p) ? this.worldToMap(p[0], p[1]) : this.worldToMap(p.x, p.y);
     const pts = (list: any[]) => list.map(xy).filter(Boolean) as L.LatLng[];
+    // On a map the world's walls go over the grid's cells, thin and see-through: where they and the map agree
+    // the teacher sees one wall; where the map is off, both.
+    const wallStyle = grid ? { ...plan, weight: 2, color: "#1967d2", opacity: 0.55 }
+      : { ...plan, weight: 4, color: "#3c4043" };
     for (const w of world?.walls ?? []) {
       const line = pts([[w[0], w[1]], [w[2], w[3]]]);
-      L.polyline(line, { ...plan, weight: 4, color: "#3c4043" }).addTo(this.layers);
+      const wall = L.polyline(line, wallStyle).addTo(this.layers);
+      (wall as any).getElement?.()?.setAttribute("data-testid", "wall");
       line.forEach((p) => bounds.extend(p));
     }
+    const thing = grid ? { ...plan, color: "#1967d2", fillColor: "#8ab4f8", fillOpacity: 0.25, weight: 1 } : plan;
     for (const o of world?.obstacles ?? []) {
-      const outline = Array.isArray(o) ? o : (o?.points ?? o?.polygon ?? o?.outline);
+      const outline = Array.isArray(o) ? o : (o?.corners ?? o?.points ?? o?.polygon ?? o?.outline);
+      const centre = Array.isArray(o?.xy) ? o.xy : Array.isArray(o?.path) ? o.path[0] : null;
       if (Array.isArray(outline) && outline.length >= 2) {
         const poly = pts(outline);
-        L.polygon(poly, plan).addTo(this.layers);
+        L.polygon(poly, thing).addTo(this.layers);
         poly.forEach((p) => bounds.extend(p));
-      } else if (o && typeof o.x === "number" && o.radius_m) {
-        const c = xy(o);
-        if (c) L.circle(c, { ...plan, radius: o.radius_m }).addTo(this.layers);
+      } else if (o && (typeof o.x === "number" || centre) && o.radius_m) {
+        const c = centre ? xy(centre) : xy(o);
+        if (c) L.circle(c, { ...thing, radius: o.radius_m }).addTo(this.layers);
       }
     }
     for (const track of world?.lines ?? []) {
@@ -177,14 +212,15 @@ export class StudioMap {
       L.polyline(line, { color: "#202124", weight: 3, opacity: 0.8, interactive: false }).addTo(this.layers);
       line.forEach((p) => bounds.extend(p));
     }
-    const start = world?.start ? xy(world.start) : null;
-    if (start) {
-      L.marker(start, {
+    const start = (frame === "map" ? data.start ?? world?.start : world?.start) ?? null;
+    const startAt = start ? xy(start) : null;
+    if (startAt) {
+      L.marker(startAt, {
         icon: L.divIcon({ className: "home-marker", html: '<span class="pt"></span><span class="lbl">start</span>',
           iconSize: [0, 0] }),
         interactive: false, keyboard: false,
       }).addTo(this.layers);
-      bounds.extend(start);
+      bounds.extend(startAt);
     }
     for (const fence of data.fences ?? []) {
       const keepIn = fence.keep === "in";
@@ -227,19 +263,22 @@ export class StudioMap {
         L.circle(at, { radius: place.tolerance_m, color: "#1a73e8", weight: 1, fillOpacity: 0.08, interactive: false })
           .addTo(this.layers);
       }
+      const fixed = place.readonly === true;  // from a places file: the map does not edit another file
       const marker = L.marker(at, {
-        draggable: this.mode === "none",
+        draggable: this.mode === "none" && !fixed,
         icon: L.divIcon({
           className: "place-marker",
           html: `<span class="dot"></span><span class="label"></span>`,
           iconSize: [0, 0],
         }),
-        title: `place ${place.name}: drag to move it`,
+        title: fixed ? `place ${place.name}, from ${place.file ?? "a places file"}: change it there`
+          : `place ${place.name}: drag to move it`,
         keyboard: false,
       }).addTo(this.layers);
       const el = marker.getElement()!;
       el.setAttribute("data-testid", "place-marker");
       el.setAttribute("data-place", place.name);
+      if (fixed) { el.classList.add("readonly"); (marker as any).options.fixed = true; }
       (el.querySelector(".label") as HTMLElement).textContent = place.name;
       if (this.routeNames.includes(place.name)) el.classList.add("picked");
       marker.on("click", (e: L.LeafletMouseEvent) => {
@@ -256,18 +295,18 @@ export class StudioMap {
       bounds.extend(at);
     }
     if (!this.fitted) {
-      const small = bounds.isValid() && (this.frame === "world"
+      const small = bounds.isValid() && (this.flat
         ? bounds.getNorthEast().distanceTo(bounds.getSouthWest()) < 4
         : this.map.distance(bounds.getNorthEast(), bounds.getSouthWest()) < 5);
       if (small) {
         // one point, or a few close together: show some 100 m round them, room to add places
-        this.map.setView(bounds.getCenter(), this.frame === "world" ? 5 : 19);
+        this.map.setView(bounds.getCenter(), this.flat ? 5 : 19);
       } else if (bounds.isValid()) {
-        this.map.fitBounds(bounds.pad(0.2), { maxZoom: this.frame === "world" ? 7 : 22 });
+        this.map.fitBounds(bounds.pad(this.frame === "map" ? 0.05 : 0.2), { maxZoom: this.flat ? 7 : 22 });
       } else if (this.frame === "gps" && this.datum) {
         this.map.setView([this.datum.lat, this.datum.lon], 18);  // nothing placed yet: the world's datum
       } else {
-        this.map.setView([0, 0], this.frame === "world" ? 3 : 2);
+        this.map.setView([0, 0], this.flat ? 3 : 2);
       }
       this.fitted = true;
     }
@@ -287,7 +326,7 @@ export class StudioMap {
     const mag = Math.pow(10, Math.floor(Math.log10(raw)));
     const step = [1, 2, 5, 10].map((m) => m * mag).find((s) => s >= raw) ?? 10 * mag;
     const digits = Math.max(0, -Math.floor(Math.log10(step)));
-    const fmt = (v: number, axis: "x" | "y") => this.frame === "world"
+    const fmt = (v: number, axis: "x" | "y") => this.flat
       ? `${axis} ${v.toFixed(digits)} m`
       : `${Math.abs(v).toFixed(digits)}°${axis === "y" ? (v >= 0 ? "N" : "S") : (v >= 0 ? "E" : "W")}`;
     const line = { color: "#c7ccd1", weight: 1, interactive: false };
@@ -317,7 +356,9 @@ export class StudioMap {
     this.host.querySelectorAll(".place-marker.picked").forEach((el) => el.classList.remove("picked"));
     this.layers.eachLayer((layer) => {
       const m = layer as L.Marker;
-      if (m.dragging) { if (mode === "none") m.dragging.enable(); else m.dragging.disable(); }
+      if (m.dragging) {
+        if (mode === "none" && !(m.options as any).fixed) m.dragging.enable(); else m.dragging.disable();
+      }
     });
     this.showHint();
     this.updateFinish();
@@ -389,7 +430,14 @@ export class StudioMap {
       this.robot = null; this.trail = null;
       return;
     }
-    const at = this.worldToMap(pose.x, pose.y);
+    let { x, y } = pose;
+    let yawDeg = pose.yaw_deg ?? 90;
+    if (this.mapFromWorld) {  // the simulator's pose is in the world frame: onto the map as the API moved the walls
+      const t = this.mapFromWorld, a = t.yaw_deg * Math.PI / 180;
+      [x, y] = [t.x + Math.cos(a) * pose.x - Math.sin(a) * pose.y, t.y + Math.sin(a) * pose.x + Math.cos(a) * pose.y];
+      yawDeg += t.yaw_deg;
+    }
+    const at = this.worldToMap(x, y);
     if (!at) return;
     if (!this.robot) {
       this.robot = L.marker(at, {
@@ -400,7 +448,7 @@ export class StudioMap {
     }
     this.robot.setLatLng(at);
     const arrow = this.robot.getElement()?.querySelector(".arrow") as HTMLElement | null;
-    if (arrow) arrow.style.transform = `rotate(${90 - (pose.yaw_deg ?? 90)}deg)`;
+    if (arrow) arrow.style.transform = `rotate(${90 - yawDeg}deg)`;
     this.trail!.addLatLng(at);
   }
 
