@@ -14,8 +14,9 @@ Prints:
    tick to ``execute`` returning (so the end of a recorded run, the writer
    process draining its queue and closing the file, counts), recorded and
    unrecorded; their ratio per rep (goal, issue 26: at most 1.5x); beside it
-   the tick loop alone (first tick to last) and the CPU the writer process
-   used per tick (on another core). A third mode, recorded with
+   the tick loop alone (first tick to last), the time spent in the
+   recorder's own code in the loop (``on_tick``: queueing, pickling, the
+   pipe), and the CPU the writer process used per tick (on another core). A third mode, recorded with
    ``--record-sensors`` (every sensor awake and recorded), is measured in the
    same reps for comparison;
 2. at ``--speed realtime``: runs of ``--realtime-s`` seconds (default 20),
@@ -96,6 +97,16 @@ def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_
         return status
 
     run.tick = timed_tick
+    inside = [0.0]
+    if rec is not None:
+        on_tick = rec.on_tick
+
+        def timed_on_tick(record) -> None:
+            t0 = perf()
+            on_tick(record)
+            inside[0] += perf() - t0
+
+        run.recorders[run.recorders.index(on_tick)] = timed_on_tick
     with open(os.devnull, "w") as devnull:
         # Where the window ends: the last tick; read as the loop returns, before the closers (the writer's end).
         closers = p.closers
@@ -103,7 +114,7 @@ def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_
         summary = execute(p, devnull)
     end = perf()
     out = {"ticks": summary["ticks"], "loop_s": marks["last"] - marks["first"], "run_s": end - marks["first"],
-           "writer_cpu_s": rec.writer_cpu_s if rec is not None else 0.0, "summary": summary,
+           "writer_cpu_s": rec.writer_cpu_s if rec is not None else 0.0, "on_tick_s": inside[0], "summary": summary,
            "path": rec.paths[0] if rec is not None and rec.paths else None}
     if "w0" in marks:
         out["window_wall_s"] = marks["w1"] - marks["w0"]
@@ -123,6 +134,7 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
     per_tick: dict[str, list[float]] = {m: [] for m in MODES}
     loop: dict[str, list[float]] = {m: [] for m in MODES}
     writer: dict[str, list[float]] = {m: [] for m in MODES}
+    on_tick: dict[str, list[float]] = {m: [] for m in MODES}
     ticks = 0
     one_run(mission, options("recorded", "max", None, runs_dir, robot))  # warm-up: imports, caches (not counted)
     for rep in range(reps):
@@ -133,13 +145,15 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
             per_tick[mode].append(r["run_s"] / r["ticks"])
             loop[mode].append(r["loop_s"] / r["ticks"])
             writer[mode].append(r["writer_cpu_s"] / r["ticks"])
+            on_tick[mode].append(r["on_tick_s"] / r["ticks"])
     print(f"1. --speed max, {Path(mission).name} on robot {robot}, {reps} reps of each ({ticks} ticks a run), "
           f"median (lowest-highest):")
     for mode, label in (("unrecorded", "unrecorded (anchor)"), ("recorded", "recorded"),
                         ("sensors", "recorded, --record-sensors")):
         print(f"   {label:27s} {spread(per_tick[mode], 1e6)} us per tick, first tick to the end of the run "
-              f"(tick loop alone {spread(loop[mode], 1e6)} us; writer process "
-              f"{spread(writer[mode], 1e6, '{:.0f}')} us of CPU per tick, on another core)")
+              f"(tick loop alone {spread(loop[mode], 1e6)} us, of which the recorder's own code "
+              f"{spread(on_tick[mode], 1e6)} us; writer process {spread(writer[mode], 1e6, '{:.0f}')} us of CPU "
+              f"per tick, on another core)")
     for mode, label in (("recorded", "recorded"), ("sensors", "with --record-sensors")):
         ratios = [b / a for a, b in zip(per_tick["unrecorded"], per_tick[mode])]
         loop_ratios = [b / a for a, b in zip(loop["unrecorded"], loop[mode])]

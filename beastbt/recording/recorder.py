@@ -11,6 +11,11 @@ records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
   :mod:`pickle` (:mod:`beastbt.recording.wire`, a few microseconds)
   and writes them into a pipe, a batch at a time; it never builds JSON,
   compresses or touches the disk;
+* what goes, and how often: the readings the run used (:data:`READING_KEYS`:
+  nothing is woken for the recording, and readings nobody reads are left
+  out, unless ``--record-sensors``), the commands and the tree's changes
+  every tick, the poses and the truth at ``pose_rate_hz`` and every
+  ``still_interval_s`` while nothing moves (:meth:`McapRecorder._pose_due`);
 * the writer process (:mod:`beastbt.recording.writer`, started when
   the recorder is installed) does all of that on another core, under its
   own interpreter lock, so recording does not slow the loop even when the
