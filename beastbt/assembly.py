@@ -66,6 +66,14 @@ class PartEntry:
     needed: Callable[[RobotProfile, RunOptions], bool]
     capability: Optional[str] = None
     real_only: bool = False
+    for_mission: Optional[Callable[[Mission], bool]] = None
+    """When given, the part is needed only by a mission for which this holds (``map:``: the localisation)."""
+
+    def needed_by(self, profile: RobotProfile, options: RunOptions, mission: Optional[Mission]) -> bool:
+        """Whether a run of ``mission`` (None: any) on ``profile`` with ``options`` needs this part."""
+        if not self.needed(profile, options):
+            return False
+        return self.for_mission is None or (mission is not None and self.for_mission(mission))
 
     def load(self) -> Part:
         """Import the part's module and make the part."""
@@ -99,8 +107,12 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("joystick", "beastbt.parts.joystick:JoystickPart", _has("joystick"), "joystick", real_only=True),
     # What the run does with them.
     PartEntry("navigation", "beastbt.parts.navigation:NavigationPart", _always),
+    PartEntry("map_building", "beastbt.parts.map_building:MapBuildingPart",
+              lambda profile, options: options.build_map is not None),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
+    PartEntry("map_localisation", "beastbt.parts.map_localisation:MapLocalisationPart", _always,
+              for_mission=lambda mission: mission.map_file is not None),
     # What the run shows and keeps.
     PartEntry("recording", "beastbt.parts.recording:RecordingPart",
               lambda profile, options: bool(options.record or options.record_path or options.foxglove is not None)),
@@ -108,6 +120,11 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",
               lambda profile, options: options.console is not None),
+    # After the console: the fleet shares its state and controls when both are on. Without --fleet, a check
+    # that refuses a mission requiring the fleet's supervision (it reads nothing, so it wakes no sensor).
+    PartEntry("fleet", "beastbt.parts.fleet:FleetPart", lambda profile, options: options.fleet is not None),
+    PartEntry("fleet_check", "beastbt.parts.fleet:UnsupervisedCheck",
+              lambda profile, options: options.fleet is None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 
@@ -161,9 +178,10 @@ def base_part(profile: RobotProfile, simulated: bool) -> BasePart:
 
 
 def parts_for(profile: RobotProfile, options: RunOptions,
-              builtin: Sequence[PartEntry] = BUILTIN_PARTS) -> list[Part]:
-    """The parts a run of ``profile`` with ``options`` needs: the built-in ones it uses, then the profile's ``parts:``."""
-    parts = [entry.load() for entry in builtin if entry.needed(profile, options)]
+              builtin: Sequence[PartEntry] = BUILTIN_PARTS, mission: Optional[Mission] = None) -> list[Part]:
+    """The parts a run of ``mission`` on ``profile`` with ``options`` needs: the built-in ones it uses, then the
+    profile's ``parts:`` (without a mission, none of the parts only some missions need)."""
+    parts = [entry.load() for entry in builtin if entry.needed_by(profile, options, mission)]
     for name in (profile.section("parts") or {}):
         parts.append(external_part(str(name), profile))
     return parts
@@ -196,7 +214,7 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         clock = WallClock() if mode == REAL else SimClock()
     events = EventLog(clock)
     if parts is None:
-        parts = parts_for(profile, options)
+        parts = parts_for(profile, options, mission=mission)
     build = Build(mode, profile, clock, events)
     if mode not in (REAL, SIM, REPLAY):
         raise ValueError(f"unknown build mode {mode!r}")
@@ -285,11 +303,27 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
             world = load_mission_world(mission)
         else:
             world = empty_world()
+        use_world_map(mission, world)
         return assemble(mission, profile, options, SIM, world=world)
     return assemble(mission, profile, options, REAL)
 
 
-def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True) -> Behaviour:
+def use_world_map(mission: Mission, world: World) -> None:
+    """A mission that names no ``map:`` of its own localises on its world's ``map:``, if the world has one (the
+    path relative to the world file; a missing or bad map is an error at the world's line)."""
+    name = world.data.get("map") if world.doc is not None else None
+    if mission.map_file is not None or not isinstance(name, str) or world.file is None:
+        return
+    from pathlib import Path
+    from beastbt.mission.model import read_map
+
+    path = Path(name)
+    mission.map_file = path if path.is_absolute() else (Path(world.file).parent / path).resolve()
+    read_map(mission, world.doc)
+
+
+def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,
+                        on_step: Optional[Callable[[Any, Behaviour], None]] = None) -> Behaviour:
     """The tree ``mission`` compiles to on ``profile``'s robot, without opening or emulating any device.
 
     The robot's capabilities are those its device parts would give
@@ -298,14 +332,15 @@ def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool
     no OpenCV, no EKF). What ``beastbt tree`` prints.
     """
     options = RunOptions(record=False)
-    entries = [entry for entry in BUILTIN_PARTS if entry.needed(profile, options)]
+    entries = [entry for entry in BUILTIN_PARTS if entry.needed_by(profile, options, mission)]
     capabilities = frozenset(entry.capability for entry in entries
                              if entry.capability is not None and not (simulated and entry.real_only))
     parts = [entry.load() for entry in entries if entry.capability is None]
     parts += [external_part(str(name), profile) for name in (profile.section("parts") or {})]
     clock = SimClock()
     ctx = MissionContext(clock=clock, events=EventLog(clock), params=profile.control, capabilities=capabilities)
-    return compile_mission(mission, ctx, step_builders(parts))
+    # on_step: told each step and the behaviour it became (the studio maps nodes back to their steps' lines)
+    return compile_mission(mission, ctx, step_builders(parts), on_step)
 
 
 def run_file(mission_path: str, options: RunOptions) -> dict:

@@ -37,10 +37,18 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                             "file, the cut one kept as .cut; rebuild a missing summary"),
     "route": ("beastbt.commands.route", "route tools: 'route from-run RUN' writes the path a recorded run drove "
                                         "as a GPX route (teach and repeat)"),
+    "map": ("beastbt.commands.map", "map tools: 'map build RUN --out maps/office.yaml' builds a map_server map from a "
+                                    "recorded run's LiDAR scans"),
     "joystick": ("beastbt.commands.joystick", "gamepad tools: 'joystick test' shows its input live, the preset it "
                                               "gets and what each control does"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "
                                           "joystick, CAN) without moving"),
+    "studio": ("beastbt.commands.studio", "serve the mission studio: write, place on a map, check and try missions "
+                                          "in the browser (docs/studio.md)"),
+    "station": ("beastbt.commands.station", "the fleet's station: a Zenoh router for the robots and an HTTP API "
+                                            "to list them, command them, send missions and stop them all"),
+    "serve": ("beastbt.commands.serve", "a robot on the fleet: wait for missions from the station, run each as "
+                                        "'beastbt run' does, and wait again"),
     "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
                                                             "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })
@@ -125,6 +133,43 @@ def _unknown_options(parser: argparse.ArgumentParser, unknown: Sequence[str]) ->
     return "; ".join(words) + f" (see '{parser.prog} --help')"
 
 
+def joined_units(args: Sequence[str]) -> list[str]:
+    """An option's number and its unit written as two words (``--every 2 m``, ``--max-time 10 min``) made one value
+    (``2 m``), as if quoted; anything else is left as it is.
+
+    Only a word that is a unit (or a unit's common spelling, which then gets its did-you-mean) is taken: a file
+    called ``m.yaml`` after ``--seed 3`` is still a file.
+    """
+    from beastbt.core.units import UNIT_SYNONYMS, UNIT_TO_KIND
+
+    def is_number(word: str) -> bool:
+        try:
+            float(word)
+            return True
+        except ValueError:
+            return False
+
+    out: list[str] = []
+    i = 0
+    while i < len(args):
+        word = args[i]
+        out.append(word)
+        i += 1
+        if not word.startswith("--") or i >= len(args):
+            continue
+        option, eq, value = word.partition("=")
+        number = value if eq else args[i]
+        nxt = i if eq else i + 1
+        if is_number(number) and nxt < len(args) and (args[nxt] in UNIT_TO_KIND or args[nxt] in UNIT_SYNONYMS):
+            if eq:
+                out[-1] = f"{option}={number} {args[nxt]}"
+                i = nxt + 1
+            else:
+                out.append(f"{number} {args[nxt]}")
+                i = nxt + 1
+    return out
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of the ``beastbt`` console script and of ``python -m beastbt``; returns the exit status."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -145,7 +190,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if at:
         top.parse_args(args[:at])  # options before the command: --help, --version, or an error
     parser, module = command_parser(name)
-    parsed, unknown = parser.parse_known_args(args[at + 1:])
+    parsed, unknown = parser.parse_known_args(joined_units(args[at + 1:]))
     if unknown:
         parser.error(_unknown_options(parser, unknown))
     try:

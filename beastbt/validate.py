@@ -28,6 +28,8 @@ def validate_file(path: str, robot: Optional[str] = None) -> list[Problem]:
     With ``robot`` (a profile's name or file), a mission is also checked for
     that robot, as ``beastbt run --robot`` would: its top speed, its devices
     (battery, joystick, LiDAR, odometry) against what the mission uses.
+    Without it, its speeds are checked against the default robot's top speed
+    (``sim``, what ``beastbt run`` uses).
     """
     from beastbt.mission.model import load_mission
     from beastbt.robot.profile import load_profile
@@ -49,8 +51,9 @@ def validate_file(path: str, robot: Optional[str] = None) -> list[Problem]:
         else:
             mission = load_mission(path)
             found = mission_with_world(mission)
-            if robot is not None and not any(p.severity == "error" for p in found):
-                found = found + for_robot(mission, robot)
+            if not any(p.severity == "error" for p in found):
+                found = found + (for_robot(mission, robot) if robot is not None else
+                                 speeds_for_default_robot(mission))
             return found
     except InvalidInput as exc:
         return exc.problems
@@ -73,6 +76,26 @@ def for_robot(mission, robot: str) -> list[Problem]:  # type: ignore[no-untyped-
         return exc.problems
     except DeviceUnavailable as exc:
         return [Problem(robot, Position(), str(exc))]
+
+
+DEFAULT_ROBOT = "sim"
+"""The robot ``beastbt run`` uses without ``--robot``: its top speed is checked without ``--robot`` too."""
+
+
+def speeds_for_default_robot(mission) -> list[Problem]:  # type: ignore[no-untyped-def]
+    """The speeds above the top speed of the robot ``beastbt run`` uses by default (``sim``), as warnings.
+
+    Only the profile is read (no part, no device module): ``beastbt validate`` stays quick.
+    """
+    from beastbt.mission.warnings import speed_warnings
+    from beastbt.robot.profile import load_profile
+    try:
+        profile = load_profile(DEFAULT_ROBOT)
+    except InvalidInput:
+        return []  # the bundled profile is checked by its own tests; a mission is not blamed for it
+    said = {(p.file, p.position, p.message) for p in mission.warnings}
+    return [p for p in speed_warnings(mission, profile.max_speed_mps, profile.name)
+            if (p.file, p.position, p.message) not in said]
 
 
 def internal_error(path: str, exc: BaseException) -> Problem:

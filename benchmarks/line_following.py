@@ -13,8 +13,10 @@ Prints:
    detected against those passed, with false detections (goal: all
    detected, none false) -- all from the run summary's ``truth``.
 2. The line detector's cost per frame at 320x240 and 640x480 (goal < 3 ms at
-   320x240), on frames rendered along the track, against the cost of
-   rendering them (the baseline measured in the same run).
+   320x240), on frames rendered along the track, against the naive tutorial
+   pipeline of ``benchmarks/naive_line.py`` on the same frames (the anchor,
+   timed interleaved frame by frame in the same run; medians of 5 passes
+   with their spread).
 3. The simulator's real-time factor with the camera on (the laps above; goal
    >= 20), against the patrol mission with the camera off (the baseline).
 4. The streaming server at 1280x720, 25 fps, 3 viewers (separate processes on
@@ -51,6 +53,9 @@ from beastbt.sim.floor import FloorMap  # noqa: E402
 from beastbt.sim.truth import RobotTruth  # noqa: E402
 from beastbt.vision.camera_model import CameraGeometry  # noqa: E402
 from beastbt.vision.line_detector import LineDetector, LineDetectorConfig  # noqa: E402
+
+sys.path.insert(0, str(REPO / "benchmarks"))
+from naive_line import naive_line_offset  # noqa: E402
 
 WORLD = REPO / "worlds" / "line_track.yaml"
 PATROL = REPO / "missions" / "patrol.yaml"
@@ -122,26 +127,38 @@ def laps(seeds: int, floor: FloorMap) -> list[dict]:
 
 # -- 2: the detector's cost ------------------------------------------------------------------------
 
-def detector_cost(floor: FloorMap, frames: int = 300) -> None:
-    print(f"\n2. line detector cost per frame (frames rendered along the loop, default camera effects; {frames} frames)")
-    print(f"   {'size':>9} {'detect ms median/p90':>22} {'render ms median (baseline)':>28} {'detect/render':>14}")
+def detector_cost(floor: FloorMap, frames: int = 300, reps: int = 5) -> None:
+    print(f"\n2. line detector cost per frame (frames rendered along the loop, default camera effects; {frames} frames,"
+          f" median of {reps} passes (min-max))")
+    print(f"   {'size':>9} {'detect ms':>20} {'naive ms (anchor)':>20} {'detect/naive':>18}")
     poses = poses_along_loop(floor, frames)
     for w, h in ((320, 240), (640, 480)):
         geom = CameraGeometry(width_px=w, height_px=h)
         cam = SimCamera(floor, geom, np.random.default_rng(1), CameraEffects())
         det = LineDetector(LineDetectorConfig(), geom)
-        render_ms, detect_ms = [], []
-        for i, (x, y, yaw) in enumerate(poses):
+        images = []
+        for x, y, yaw in poses:
             cam.update(RobotTruth(x=x, y=y, yaw=yaw, v_mps=SPEED_MPS))
-            t0 = time.perf_counter()
-            ok, image = cam.read()
-            t1 = time.perf_counter()
-            det.detect(image, i / 15.0)
-            t2 = time.perf_counter()
-            render_ms.append((t1 - t0) * 1e3)
-            detect_ms.append((t2 - t1) * 1e3)
-        med_d, med_r = statistics.median(detect_ms), statistics.median(render_ms)
-        print(f"   {w}x{h:<5} {med_d:>10.2f} / {np.percentile(detect_ms, 90):<9.2f} {med_r:>28.2f} {med_d / med_r:>14.2f}")
+            images.append(cam.read()[1])
+        detect_passes, naive_passes, ratios = [], [], []
+        for _ in range(reps):
+            detect_ms, naive_ms = [], []
+            for i, image in enumerate(images):
+                t0 = time.perf_counter()
+                naive_line_offset(image)
+                t1 = time.perf_counter()
+                det.detect(image, i / 15.0)
+                t2 = time.perf_counter()
+                naive_ms.append((t1 - t0) * 1e3)
+                detect_ms.append((t2 - t1) * 1e3)
+            detect_passes.append(statistics.median(detect_ms))
+            naive_passes.append(statistics.median(naive_ms))
+            ratios.append(detect_passes[-1] / naive_passes[-1])
+
+        def spread(values: list[float]) -> str:
+            return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+        print(f"   {w}x{h:<5} {spread(detect_passes):>20} {spread(naive_passes):>20} {spread(ratios):>17}x")
     print("   (goal: under 3 ms per frame at 320x240)")
 
 

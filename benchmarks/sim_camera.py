@@ -4,7 +4,7 @@ Run from the repository root::
 
     python benchmarks/sim_camera.py
 
-Renders 640x480 (the console's size) and 320x240 (robots/sim.yaml's) frames at poses around worlds/corridor.yaml (walls),
+Renders 640x480 (a larger camera) and 320x240 (robots/sim.yaml's) frames at poses around worlds/corridor.yaml (walls),
 worlds/corridor_person.yaml (a person), worlds/campus_obstacles.yaml (boxes
 and cylinders) and worlds/line_track.yaml (a painted floor, no scenery: the
 control), the camera once at its mounting and once tilted 40 deg up (walls and

@@ -2,12 +2,17 @@
 
 Not a test: runs the real tick loop (``beastbt.run.session.execute``) on
 the wall clock at 20 Hz with the real joystick driver, teleop hook, mux,
-safety gate, watchdog thread and each base adapter (Waveshare serial JSON,
-CAN through python-can's virtual bus, PWM on an emulated PCA9685), and prints:
+safety gate, watchdog thread and each base adapter (Waveshare serial JSON
+through pyserial on a pseudo-terminal to the firmware fake of the tests,
+``tests/fake_waveshare.py``, as on the robot's UART; CAN through python-can's
+virtual bus; PWM on an emulated PCA9685), and prints:
 
 1. the latency from a joystick event (its 8 bytes becoming readable, as the
-   kernel would make them) to the first bytes the adapter writes that carry
-   the new command: p50 / p99 / max, with the joystick watcher waking the
+   kernel would make them) to the first command that carries the new speed
+   where the device sees it (for the Waveshare base: when the firmware fake
+   has read and parsed the JSON line from its end of the pty; for CAN: the
+   frame on the bus; for PWM: the chip's last register written): p50 / p99 /
+   max, with the joystick watcher waking the
    loop on input (as on the robot) and, as the baseline measured in the same
    run, without it (the wait for the next 20 Hz tick, ~U(0, 50 ms)).
    Goal (issue 12): p99 < 10 ms.
@@ -23,6 +28,7 @@ from __future__ import annotations
 import argparse
 import io
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -32,6 +38,10 @@ from typing import Callable, Optional
 import can
 import numpy as np
 
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tests"))
+from fake_waveshare import FakeWaveshare  # noqa: E402  (the firmware fake on a pty, shared with the tests)
+
 from beastbt.actuation.can_base import CanBase, CanBaseConfig
 from beastbt.actuation.pwm_base import PwmBase, PwmBaseConfig
 from beastbt.devices.joystick import JS_EVENT, JS_EVENT_AXIS, JS_EVENT_BUTTON, JS_EVENT_INIT, JoystickDevice, JoystickMapping, JoystickWatcher
@@ -40,6 +50,7 @@ from beastbt.devices.waveshare_base import WaveshareBase
 from beastbt.mission.model import load_mission
 from beastbt.core.clock import WallClock
 from beastbt.core.events import EventLog
+from beastbt.robot.hardware import open_serial
 from beastbt.robot.profile import load_profile
 from beastbt.robot.robot_io import RobotIO
 from beastbt.run.runner import MissionRun
@@ -49,7 +60,6 @@ from beastbt.parts.teleop import TeleopPart
 from beastbt.robot.part import REAL
 from beastbt.sim.i2c_bus import SimI2CBus
 from beastbt.sim.pca9685_emulator import SimPca9685
-from beastbt.sim.serial_port import SimSerialPort
 
 RATE_HZ = 20.0
 PROFILE = """
@@ -70,8 +80,9 @@ class Writes:
         self.items: list[tuple[float, object]] = []
         self.lock = threading.Lock()
 
-    def add(self, payload: object) -> None:
-        t = time.perf_counter()
+    def add(self, payload: object, t: Optional[float] = None) -> None:
+        """Record ``payload`` as written at perf_counter time ``t`` (default: now)."""
+        t = time.perf_counter() if t is None else t
         with self.lock:
             self.items.append((t, payload))
 
@@ -156,11 +167,33 @@ class TimedPca(SimPca9685):
             self.timed.add(bytes(self.registers[0x06:0x0E]))
 
 
-def build_base(kind: str, writes: Writes) -> tuple[object, Callable[[object], bool]]:
-    """(adapter, is_zero(payload)) for one adapter kind, writes timestamped into ``writes``."""
+def build_base(kind: str, writes: Writes, closers: list[Callable[[], object]]) -> tuple[object, Callable[[object], bool]]:
+    """(adapter, is_zero(payload)) for one adapter kind, writes timestamped into ``writes``; what must be closed
+    after the run is appended to ``closers``."""
     if kind == "waveshare":
-        port = SimSerialPort("bench", on_write=lambda data: writes.add(data) if data.startswith(b'{"T":1,') else None)
-        return WaveshareBase(port), lambda p: p == b'{"T":1,"L":0.0,"R":0.0}\n'
+        fake = FakeWaveshare("ros").__enter__()
+        closers.append(lambda: fake.__exit__(None, None, None))
+        port = open_serial("base", fake.port, 115200, "the fake's pty")
+        closers.append(port.close)
+        stop = threading.Event()
+        # The fake stamps each command on time.monotonic when it read it; move them to perf_counter's scale.
+        offset = time.perf_counter() - time.monotonic()
+
+        def collect() -> None:
+            seen = 0
+            while not stop.is_set():
+                with fake._lock:
+                    fresh = fake.received[seen:]
+                seen += len(fresh)
+                for t, command in fresh:
+                    if command.get("T") == 1:
+                        writes.add((command.get("L"), command.get("R")), t + offset)
+                time.sleep(0.001)
+
+        collector = threading.Thread(target=collect, name="bench-collect", daemon=True)
+        collector.start()
+        closers.append(lambda: (stop.set(), collector.join(1.0)))
+        return WaveshareBase(port), lambda p: p == (0.0, 0.0)
     if kind == "can":
         channel = f"beastbt-bench-{os.getpid()}-{time.perf_counter_ns()}"
         cfg = CanBaseConfig(interface="virtual", channel=channel, feedback_kind="none")
@@ -195,7 +228,8 @@ def run_adapter(kind: str, n_events: int, n_freezes: int, seed: int, wake: bool 
     profile = load_profile(tmp / "robot.yaml")
     mission = load_mission(str(tmp / "m.yaml"), text=MISSION)
     writes = Writes()
-    base, is_zero = build_base(kind, writes)
+    closers: list[Callable[[], object]] = []
+    base, is_zero = build_base(kind, writes, closers)
     clock = WallClock()
     events = EventLog(clock)
     mapping = JoystickMapping()
@@ -267,8 +301,12 @@ def run_adapter(kind: str, n_events: int, n_freezes: int, seed: int, wake: bool 
         done.set()
 
     threading.Thread(target=operator, daemon=True).start()
-    execute(prepared, io.StringIO())
-    done.wait(5.0)
+    try:
+        execute(prepared, io.StringIO())
+        done.wait(5.0)
+    finally:
+        for close in reversed(closers):
+            close()
 
     items = writes.snapshot()
     lat, wait, proc = [], [], []

@@ -5,16 +5,27 @@ Run from the repository root::
     python benchmarks/vision_bench.py
 
 Renders the sample track (worlds/line_track.yaml) from poses along the loop
-at 320x240 and 640x480, with and without camera effects, and times
-``SimCamera.read`` and ``LineDetector.detect`` separately (median and 90th
-percentile over the frames, milliseconds).
+at 320x240 and 640x480, with and without camera effects, and times, on the
+same frames and interleaved frame by frame:
+
+* the anchor: the naive tutorial pipeline of :mod:`naive_line` (grey, blur,
+  Otsu, largest contour, centroid);
+* the subject: ``LineDetector.detect`` (bird's-eye view, bands, fit,
+  junctions);
+* for reference, ``SimCamera.read`` (rendering the frame; not a baseline).
+
+Each figure is the median over ``--reps`` passes (default 5) of the median
+per-frame time of a pass, with the spread of the passes (min-max); the ratio
+is the detector's over the naive pipeline's, per pass.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import pathlib
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -27,6 +38,8 @@ from beastbt.vision.camera_model import CameraGeometry
 from beastbt.vision.line_detector import LineDetector, LineDetectorConfig
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from naive_line import naive_line_offset  # noqa: E402
 
 
 def poses_along_track(floor: FloorMap, n: int) -> list[tuple[float, float, float]]:
@@ -44,32 +57,51 @@ def poses_along_track(floor: FloorMap, n: int) -> list[tuple[float, float, float
     return out
 
 
+def spread(values: list[float]) -> str:
+    """``median (min-max)`` of per-pass figures."""
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+
 def main() -> None:
     """Print the timing table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--reps", type=int, default=5, help="passes over the frames (default 5)")
+    parser.add_argument("--frames", type=int, default=200, help="frames along the loop per pass (default 200)")
+    args = parser.parse_args()
     world = yaml.safe_load((ROOT / "worlds" / "line_track.yaml").read_text())
     floor = FloorMap.from_dict(world["floor"], np.random.default_rng(0))
-    poses = poses_along_track(floor, 400)
-    print(f"{'size':>9} {'effects':>8} {'render ms (median/p90)':>24} {'detect ms (median/p90)':>24}")
+    poses = poses_along_track(floor, args.frames)
+    print(f"per-frame ms, median of {args.reps} passes (min-max) of each pass's median over {args.frames} frames")
+    print(f"{'size':>9} {'effects':>8} {'naive (anchor)':>20} {'LineDetector':>20} {'ratio':>18} {'render (ref.)':>20}")
     for w, h in ((320, 240), (640, 480)):
         geom = CameraGeometry(width_px=w, height_px=h)
         for effects_name, effects in (("none", CameraEffects.none()), ("default", CameraEffects())):
             cam = SimCamera(floor, geom, np.random.default_rng(1), effects)
             det = LineDetector(LineDetectorConfig(), geom)
-            render_ms, detect_ms = [], []
+            frames = []
+            render_ms = []
             for x, y, yaw in poses:
                 cam.update(RobotTruth(x=x, y=y, yaw=yaw, v_mps=0.15))
                 t0 = time.perf_counter()
                 ok, img = cam.read()
-                t1 = time.perf_counter()
-                det.detect(img, 0.0)
-                t2 = time.perf_counter()
-                render_ms.append((t1 - t0) * 1e3)
-                detect_ms.append((t2 - t1) * 1e3)
-
-            def fmt(v: list[float]) -> str:
-                return f"{statistics.median(v):.2f} / {np.percentile(v, 90):.2f}"
-
-            print(f"{w}x{h:<5} {effects_name:>8} {fmt(render_ms):>24} {fmt(detect_ms):>24}")
+                render_ms.append((time.perf_counter() - t0) * 1e3)
+                frames.append(img)
+            naive_passes, detect_passes, ratios = [], [], []
+            for _ in range(args.reps):
+                naive_ms, detect_ms = [], []
+                for i, img in enumerate(frames):
+                    t0 = time.perf_counter()
+                    naive_line_offset(img)
+                    t1 = time.perf_counter()
+                    det.detect(img, i / 15.0)
+                    t2 = time.perf_counter()
+                    naive_ms.append((t1 - t0) * 1e3)
+                    detect_ms.append((t2 - t1) * 1e3)
+                naive_passes.append(statistics.median(naive_ms))
+                detect_passes.append(statistics.median(detect_ms))
+                ratios.append(detect_passes[-1] / naive_passes[-1])
+            print(f"{w}x{h:<5} {effects_name:>8} {spread(naive_passes):>20} {spread(detect_passes):>20} "
+                  f"{spread(ratios):>17}x {statistics.median(render_ms):>20.2f}")
 
 
 if __name__ == "__main__":

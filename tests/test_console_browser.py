@@ -184,11 +184,12 @@ def test_the_page_shows_the_final_status_after_the_end(browser, run_console, sho
     ended = page.get_by_test_id("video").get_attribute("data-ended")
     assert ended is not None and ended.startswith("ended: succeeded at t ") and ended.endswith("last step: wait 4 s")
     dark, bright, below = page.get_by_test_id("video").evaluate("""c => {
-        const g = c.getContext('2d'), band = Math.round(c.height / 16 * 3), px = (y, h) => {
-            const d = g.getImageData(0, y, c.width, h).data, out = [];
+        const g = c.getContext('2d'), band = Math.round(c.height / 16 * 3), px = (y, h, x = 0, w = c.width) => {
+            const d = g.getImageData(x, y, w, h).data, out = [];
             for (let i = 0; i < d.length; i += 4) out.push((d[i] + d[i + 1] + d[i + 2]) / 3);
             return out; };
-        const top = px(0, band), under = px(band + 10, 10);
+        // under the band, the middle half: the picture (a 4:3 camera has black bars either side in the 16:9 canvas)
+        const top = px(0, band), under = px(band + 10, 10, c.width / 4, c.width / 2);
         return [top.filter(v => v < 40).length / top.length, top.filter(v => v > 150).length,
                 under.reduce((a, v) => a + v, 0) / under.length]; }""")
     assert dark > 0.7 and bright > 100  # over the last frame: a dark band, with the words on it

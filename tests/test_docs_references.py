@@ -16,8 +16,9 @@ LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 MD_NAME = re.compile(r"(?<![\w./-])([A-Za-z_][\w-]*\.md)\b")
 
 
-PLACEHOLDERS = {"missions/x.yaml"}
-"""Names that stand for the reader's own file ("beastbt run missions/x.yaml")."""
+PLACEHOLDERS = {"missions/x.yaml", "beastbt/fleet/estop", "beastbt/fleet/station"}
+"""Names that stand for the reader's own file ("beastbt run missions/x.yaml"), and the fleet's Zenoh keys
+(docs/fleet.md), which look like paths but are not files."""
 
 
 def _exists(path: str, beside) -> bool:

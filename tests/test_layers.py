@@ -18,17 +18,19 @@ LAYERS: tuple[tuple[int, tuple[str, ...], str], ...] = (
     (0, ("core",), "clock, events, errors with positions, units, YAML with positions, schema loading, config helpers"),
     (1, ("blackboard",), "the reading and command types, the catalogue of blackboard keys"),
     (2, ("devices",), "drivers that speak each device's wire protocol, and the port interfaces they use"),
-    (3, ("estimation", "vision", "actuation", "navigation"), "EKF and geodesy; line detection; mux, gate, watchdog, "
-                                                             "base adapters; local costmap and planner"),
+    (3, ("estimation", "vision", "actuation", "navigation", "mapping"), "EKF and geodesy; line detection; mux, gate, "
+                                                                          "watchdog, base adapters; local costmap and "
+                                                                          "planner; occupancy maps and SLAM"),
     (4, ("sim",), "the world, the dynamics, and an emulator behind every device's port"),
     (5, ("behaviours",), "leaf behaviours and flow decorators, one small class each"),
     (6, ("mission",), "the mission model and the compiler to a tree"),
     (7, ("robot",), "the robot profile, its ports (RobotIO) and the part protocol"),
     (8, ("run",), "the tick loop, safety wiring, failsafes, the session, the summary, run folders"),
     (9, ("recording",), "the recorder and its writer process, the reader, the report, the list of runs"),
-    (10, ("parts", "live"), "each part of a robot (a device on the robot and the simulator, a feature); live video"),
-    (11, ("commands", "<top>"), "the subcommands and the top-level modules: assembly (the composition root), "
-                                "replay, testing, validate, cli"),
+    (10, ("parts", "live", "fleet"), "each part of a robot (a device on the robot and the simulator, a feature); live "
+                                     "video; the fleet (Zenoh)"),
+    (11, ("commands", "studio", "<top>"), "the subcommands and the top-level modules: assembly (the composition "
+                                          "root), replay, testing, validate, cli; the studio (it checks with validate)"),
 )
 """(rank, packages, what they hold): a module may import its own rank (without cycles) and lower ranks only."""
 

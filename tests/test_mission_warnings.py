@@ -36,9 +36,12 @@ def test_warnings_name_their_place_and_strict_refuses_them(tmp_path):
     path = tmp_path / "warned.yaml"
     path.write_text(WARNED)
     done = beastbt("validate", str(path))
-    assert done.returncode == 0 and "ok, with 4 warnings (--strict refuses them)" in done.stdout
+    # validate checks the speed against the default robot's top speed too (sim: 0.35 m/s), as run does
+    assert done.returncode == 0 and "ok, with 5 warnings (--strict refuses them)" in done.stdout
     lines = [line for line in done.stderr.splitlines() if ": warning: " in line]
-    assert [line.split(":")[1:3] for line in lines] == [["2", "14"], ["6", "6"], ["8", "10"], ["9", "37"]]
+    assert [line.split(":")[1:3] for line in lines] == [["2", "14"], ["6", "6"], ["8", "10"], ["9", "37"],
+                                                        ["9", "37"]]
+    assert "top speed of robot 'sim'" in done.stderr
     assert 'say: "step #1 done"' in done.stderr and "lat and lon swapped" in done.stderr
     assert "above the mission's limit 0.2 m/s" in done.stderr
     assert beastbt("validate", "--strict", str(path)).returncode == 2

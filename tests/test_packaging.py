@@ -51,3 +51,18 @@ def test_the_consoles_page_files_are_package_data():
     for name in ["index.html", *PAGE_FILES]:  # the page, its script, style and icon: in the wheel, no CDN
         assert (REPO / "beastbt" / "live" / "console_page" / name).is_file(), name
         assert any(fnmatch.fnmatch(f"console_page/{name}", pattern) for pattern in shipped), name
+
+
+def test_the_studios_page_is_package_data_with_its_nested_folders():
+    import fnmatch
+
+    text = (REPO / "pyproject.toml").read_text()
+    data = re.search(r"^\[tool\.setuptools\.package-data\]\n(.*?)(?:\n\[|\Z)", text, re.S | re.M).group(1)
+    shipped = re.findall(r'"([^"]+)"', re.search(r'^"beastbt\.studio" = \[(.*?)\]', data, re.M).group(1))
+    page = REPO / "beastbt" / "studio" / "page"
+    files = [p.relative_to(page.parent).as_posix() for p in page.rglob("*") if p.is_file()]
+    assert "page/index.html" in files
+    for name in files:
+        assert any(fnmatch.fnmatch(name, pattern) for pattern in shipped), name
+    # the bundle's files however deep the build puts them: setuptools' '*' stops at a '/', '**' does not
+    assert "page/**/*" in shipped

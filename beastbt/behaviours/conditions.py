@@ -23,7 +23,7 @@ from beastbt.blackboard import catalogue
 from beastbt.estimation.geodesy import distance_m
 
 CONDITION_KEYS = ("now_s", "mission_start_s", "line", "gps_fix", "teleop_active", "battery", "pose", "pose_odom",
-                  "scan")
+                  "scan", "map_pose")
 
 
 class ConditionReader:

@@ -182,6 +182,14 @@ class FollowLine(BeastBehaviour):
         self.ready_s = now + self._point_camera()
         self.last_seen_s = self.ready_s
 
+    def terminate(self, new_status: Status) -> None:
+        # Off again when the step ends (whatever else still needs the camera keeps it on: a condition, the
+        # recording, a viewer): a simulated camera renders, and a real one is decoded, only while a step looks.
+        camera = self.ctx.services.camera
+        disable = getattr(camera, "disable", None)
+        if disable is not None:
+            disable("follow_line")
+
     def _point_camera(self) -> float:
         """Ask for pan 0 / tilt 0 (the mounting the detector assumes); return how long to wait for it (s)."""
         angles = self.read("servo_angles") or {}

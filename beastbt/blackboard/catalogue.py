@@ -14,7 +14,7 @@ from typing import Any, Optional
 import py_trees
 
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LaserScan, LineObservation, LocalCostmap, LocalPlan, VelocityCommand,
+                                      LaserScan, LineObservation, LocalCostmap, LocalPlan, MapPose, VelocityCommand,
                                       WheelOdometry)
 
 
@@ -35,6 +35,8 @@ KEYS: dict[str, KeySpec] = {k.name: k for k in (
     KeySpec("odometry", WheelOdometry, "m, m/s", "wheels", "Latest cumulative wheel travel and wheel speeds."),
     KeySpec("pose_odom", FusedPose, "m, rad", "odom (ENU, starts at 0,0)", "Continuous dead-reckoned pose: never jumps; used by drive and turn."),
     KeySpec("pose", FusedPose, "m, rad", "local ENU (world datum or first fix)", "Best estimate of the pose (EKF when GPS/IMU exist); may jump."),
+    KeySpec("map_pose", MapPose, "m, rad", "map (x forward, y left of where mapping began)",
+            "The pose on the mission's map, from the localiser (absent without a map)."),
     KeySpec("gps_fix", GpsFix, "deg, m", "WGS84", "Latest GPS fix with a valid position (absent without a fix)."),
     KeySpec("imu", ImuSample, "rad/s, m/s^2, T", "body (x fwd, y left, z up)", "Latest IMU sample."),
     KeySpec("battery", BatteryState, "V", "-", "Latest battery voltage."),

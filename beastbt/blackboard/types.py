@@ -121,6 +121,32 @@ class FusedPose:
 
 
 @dataclass(frozen=True)
+class MapPose:
+    """The robot's pose on a saved map (``map`` frame: x forward, y left of where mapping began), as AMCL gives it.
+
+    ``x``, ``y`` metres and ``yaw`` rad CCW from the map's x axis; ``covariance``
+    3x3 over (x, y, yaw) in m^2/rad^2, honest (it grows while the scan matches
+    poorly); ``match_quality`` in [0, 1], the share of the scan's points that
+    agree with the map; ``localized`` false while the quality has stayed below
+    the localiser's threshold; ``odom_x``, ``odom_y``, ``odom_yaw`` the
+    transform from the ``odom`` frame (``pose_odom``) to the map frame that
+    this pose implies (ROS's ``map -> odom``), so a consumer can carry the
+    pose forward with odometry between scans.
+    """
+
+    stamp_s: float
+    x: float
+    y: float
+    yaw: float
+    covariance: tuple[tuple[float, float, float], ...]
+    match_quality: float
+    localized: bool
+    odom_x: float = 0.0
+    odom_y: float = 0.0
+    odom_yaw: float = 0.0
+
+
+@dataclass(frozen=True)
 class VelocityCommand:
     """A body velocity command: ``linear_mps`` forward, ``angular_rps`` CCW (rad/s)."""
 
@@ -183,11 +209,13 @@ class JoystickState:
 
 @dataclass(frozen=True)
 class CameraFrame:
-    """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken."""
+    """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken; ``jpeg``: the camera's own JPEG of
+    it when the camera gave one (passed on untouched to the console), else None."""
 
     stamp_s: float
     image: np.ndarray
     seq: int = 0
+    jpeg: Optional[bytes] = None
 
 
 Feedback = Union[WheelOdometry, ImuSample, BatteryState]

@@ -15,6 +15,68 @@ from beastbt.core.units import UnitError, parse_duration
 EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
 
 
+class ReaderSafeStream:
+    """Standard output that a reader who went away cannot break: ``beastbt run m.yaml --summary s.json | head -n 0``.
+
+    The first write or flush that finds the pipe closed (BrokenPipeError)
+    points the file descriptor at /dev/null and drops what was pending; the run
+    carries on to its end and writes its summary and recording, and the exit
+    status is the mission's. Everything else is the wrapped stream's.
+    """
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self.reader_gone = False
+        """True once a write found the reader gone (what was written since went nowhere)."""
+
+    def _gone(self) -> None:
+        import os
+        self.reader_gone = True
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())  # the pending bytes, flushed at exit, go nowhere, quietly
+            os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def write(self, text: str) -> int:
+        """Write ``text``; when the reader is gone, nothing, and no error."""
+        if not self.reader_gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._gone()
+        return len(text)
+
+    def flush(self) -> None:
+        """Flush; when the reader is gone, nothing, and no error."""
+        if not self.reader_gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._gone()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def reader_safe_stdout(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """Run ``command`` with :class:`ReaderSafeStream` as standard output (every print of the run, its threads'
+    included), the stream it replaced put back after."""
+    import functools
+
+    @functools.wraps(command)
+    def guarded(args: argparse.Namespace) -> int:
+        out = ReaderSafeStream(sys.stdout)
+        sys.stdout = out  # type: ignore[assignment]
+        try:
+            return command(args)
+        finally:
+            out.flush()  # what is still buffered goes now, or nowhere: never a broken pipe at exit (status 120)
+            sys.stdout = out._stream
+    return guarded
+
+
 def _duration(text: str) -> float:
     try:
         return parse_duration(text)
@@ -112,6 +174,12 @@ def unknown_answers(mission: Any, answers: Mapping[str, str]) -> Optional[str]:
     return None
 
 
+def _map_resolution(text: str) -> float:
+    """A map cell size such as ``5 cm`` -> metres (1 mm to 1 m)."""
+    from beastbt.mapping.map_files import parse_resolution
+    return parse_resolution(text)
+
+
 def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
     """``[HOST:]PORT`` of ``option`` -> (host, port); errors name the option."""
     def parse(text: str) -> tuple[str, int]:
@@ -123,6 +191,31 @@ def _endpoint(option: str) -> Callable[[str], tuple[str, int]]:
 def _size(text: str) -> tuple[int, int]:
     from beastbt.live.endpoint import parse_size
     return parse_size(text)
+
+
+def add_fleet_arguments(p: argparse.ArgumentParser, required: bool = False) -> None:
+    """``--fleet ENDPOINT``, ``--fleet-config FILE`` and ``--name NAME`` (``beastbt run`` and ``beastbt serve``)."""
+    from beastbt.fleet.config import parse_endpoint
+    p.add_argument("--fleet", metavar="ENDPOINT", type=_checked(parse_endpoint),
+                   help="report to a fleet's station on Zenoh, e.g. tcp/127.0.0.1:7447; the run goes on whatever "
+                        "becomes of the link (docs/fleet.md)")
+    p.add_argument("--fleet-config", metavar="FILE",
+                   help="a standard Zenoh JSON5 configuration for the fleet link (TLS, credentials; see "
+                        "'beastbt station --init-keys')")
+    p.add_argument("--name", help="the robot's name on the fleet (default: the profile's 'robot:' name)")
+
+
+def fleet_options(args: argparse.Namespace, command: str) -> tuple[Optional[Any], Optional[str]]:
+    """The run's :class:`~beastbt.fleet.config.FleetOptions` (None without ``--fleet``), or an error message."""
+    if args.fleet is None and args.fleet_config is None:
+        if args.name is not None:
+            return None, f"beastbt {command}: error: --name names the robot on a fleet: add --fleet ENDPOINT"
+        return None, None
+    from beastbt.fleet.config import FleetOptions
+    from beastbt.fleet.keys import name_problem
+    if args.name is not None and name_problem(args.name):
+        return None, f"beastbt {command}: error: --name: {name_problem(args.name)}"
+    return FleetOptions(endpoint=args.fleet, config_file=args.fleet_config, name=args.name), None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -144,6 +237,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
+    p.add_argument("--build-map", metavar="FILE",
+                   help="build a map with the LiDAR while the mission (or teleop) runs, and write it when the run "
+                        "ends, as a map_server YAML with a PGM beside it, e.g. maps/office.yaml (docs/mapping.md)")
+    p.add_argument("--map-resolution", metavar="SIZE", type=_checked(_map_resolution),
+                   help="cell size of the --build-map map, e.g. '5 cm' (default)")
     p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
                    help="serve the operator console for the run: live video, map, tree, progress, pause/resume/"
                         "abort, e-stop, joystick and questions (page at http://HOST:PORT/); HOST defaults to "
@@ -161,6 +259,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-quality", metavar="Q", type=_quality, help="JPEG quality 1-100 (default 80)")
     p.add_argument("--stream-fps", metavar="FPS", type=_positive_float, help="most frames streamed per second (default 25)")
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
+    add_fleet_arguments(p)
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (0 for none); without it, 2 per second of a "
                         "camera the run uses anyway, or of any camera with --record-sensors")
@@ -169,6 +268,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "keeping them and the estimator awake; by default a recording holds what the run used")
 
 
+@reader_safe_stdout
 def command(args: argparse.Namespace) -> int:
     """Run the mission; print the summary. 0 success, 1 failure or stopped, 2 invalid input."""
     from beastbt.run.session import RunOptions, parse_speed
@@ -178,7 +278,9 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     from beastbt.commands.paths import output_file_problem, output_folder_problem
+    from beastbt.mapping.map_files import map_output_problem
     for problem in (output_file_problem("--summary", args.summary), output_file_problem("--record", args.record),
+                    map_output_problem("--build-map", args.build_map),
                     None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)):
         if problem is not None:
             print(f"beastbt run: error: {problem}", file=sys.stderr)
@@ -192,9 +294,18 @@ def command(args: argparse.Namespace) -> int:
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
                       record_sensors=args.record_sensors, answers=dict(args.answer))
+    opts.fleet, problem = fleet_options(args, "run")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
     if opts.console_token != "auto" and opts.console is None:
         print(f"beastbt run: error: --console-token {opts.console_token} is for the operator console: add "
               f"--console [HOST:]PORT", file=sys.stderr)
+        return EXIT_INVALID
+    opts.build_map, opts.map_resolution_m = args.build_map, args.map_resolution
+    if opts.map_resolution_m is not None and opts.build_map is None:
+        print("beastbt run: error: --map-resolution is the cell size of the map --build-map FILE writes: add "
+              "--build-map", file=sys.stderr)
         return EXIT_INVALID
     if opts.joystick_script is not None and not opts.simulated:
         print(f"beastbt run: error: --joystick plays a scripted joystick on the simulator only, and "
@@ -246,4 +357,11 @@ def command(args: argparse.Namespace) -> int:
               f"layout: beastbt foxglove-layout)", flush=True)
     summary = execute(prepared, sys.stdout)
     print(human_summary(summary))
+    if opts.build_map is not None:
+        built = summary.get("map") or {}
+        if built.get("file"):
+            print(f"map written to {built['file']} (image {built['image']}; {built['keyframes']} keyframes, "
+                  f"{built['loops_closed']} loop closures)")
+        else:
+            print(f"beastbt run: no map written to {opts.build_map}: {built.get('error')}", file=sys.stderr)
     return EXIT_SUCCESS if summary["status"] == "success" else EXIT_FAILURE

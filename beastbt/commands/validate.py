@@ -2,7 +2,9 @@
 
 Exit 0 when every file is valid, else 2 with ``FILE:LINE:COLUMN: error: ...``
 lines on standard error. Warnings (``FILE:LINE:COLUMN: warning: ...``) do not
-change the exit status unless ``--strict`` is given.
+change the exit status unless ``--strict`` is given. A speed above the robot's
+top speed is a warning, as it is when the mission runs: the robot of
+``--robot PROFILE``, or ``sim``, the one ``beastbt run`` uses without it.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--strict", action="store_true", help="count warnings as errors (exit 2)")
     p.add_argument("--robot", metavar="PROFILE",
                    help="also check missions for this robot, as 'beastbt run --robot' would (its top speed; a "
-                        "battery, joystick, LiDAR or odometry the mission needs and the robot lacks)")
+                        "battery, joystick, LiDAR or odometry the mission needs and the robot lacks); without it, "
+                        "speeds are checked against the top speed of 'sim', the robot 'beastbt run' uses")
     p.add_argument("--explain", metavar="STEP", help="print a short help for a step (from the mission schema) and exit")
 
 

@@ -10,6 +10,12 @@ reports ``camera_lost``, releases it and retries ``open_source()`` every
 ``reopen_interval_s``; meanwhile its data is stale. It never raises out of
 :meth:`Camera.poll`.
 
+A camera that hands over its own JPEG frames (``read_jpeg()``: a USB camera's MJPEG through
+:class:`MjpegCapture`, recorded frames through :class:`MjpegReplay`, the simulator's fake
+MJPEG camera) is *compressed*: each :class:`CameraFrame` carries those bytes untouched
+(``jpeg``), for the console (and the ``--stream`` server), and its pixels are decoded only when the caller
+asks (vision), possibly at a fraction of the size (:func:`decode_jpeg`).
+
 :class:`CameraConfig` also carries the camera's mounting on the robot
 (height, pitch, field of view, forward offset), which
 :class:`beastbt.vision.camera_model.CameraGeometry` turns into the
@@ -18,7 +24,9 @@ image <-> floor mapping the line detector needs.
 
 from __future__ import annotations
 
+import io
 import math
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Union
@@ -31,6 +39,22 @@ from beastbt.blackboard.types import CameraFrame
 from beastbt.core.config import dataclass_from_dict
 from beastbt.devices.interfaces import EventSink, FrameSource, ignore_events
 from beastbt.core.clock import Clock
+
+
+FORMATS = ("auto", "mjpeg", "raw")
+"""What a camera may hand over (``camera.format``)."""
+
+JPEG_SOI = b"\xff\xd8"
+"""The two bytes every JPEG starts with."""
+
+
+def decode_jpeg(data: bytes, reduction: int = 1) -> Optional[np.ndarray]:
+    """A JPEG as BGR uint8, decoded at 1/``reduction`` of its size (1, 2, 4 or 8: libjpeg scales while it
+    decodes, which costs a fraction of a full decode); None when it does not decode."""
+    flag = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
+            8: cv2.IMREAD_REDUCED_COLOR_8}[reduction]
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+    return image if image is not None and image.size else None
 
 
 @dataclass
@@ -94,6 +118,11 @@ class CameraConfig:
     lost_after_failures: int
     # Which camera stack reads it: auto (picamera2 when it sees a Pi camera, else V4L2), picamera2 or v4l2.
     backend: str
+    # What the camera hands over: auto (V4L2: the camera's own MJPEG when it offers it, else raw pixels;
+    # picamera2 and the simulator: pixels), mjpeg (the camera's JPEG; a Pi camera's from the Pi's hardware
+    # encoder; on the simulator a fake MJPEG camera) or raw.
+    # The camera's JPEG goes to the console untouched; only the frames vision or the recording needs are decoded.
+    format: str
 
     def __post_init__(self) -> None:
         if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):
@@ -108,6 +137,8 @@ class CameraConfig:
             raise ValueError(f"camera.stale_after_s must be > 0 s, got {self.stale_after_s}")
         if self.lost_after_failures < 1:
             raise ValueError(f"camera.lost_after_failures must be >= 1, got {self.lost_after_failures}")
+        if self.format not in FORMATS:
+            raise ValueError(f"camera.format must be one of {', '.join(FORMATS)}, got {self.format!r}")
 
     @classmethod
     def from_dict(cls, d: Any) -> "CameraConfig":
@@ -121,12 +152,148 @@ class CameraConfig:
         return dataclass_from_dict(cls, d, "camera")
 
 
+class MjpegCapture:
+    """A V4L2 camera that hands over its own MJPEG frames: ``read_jpeg()`` gives each frame's JPEG bytes untouched.
+
+    OpenCV's V4L2 backend with ``CAP_PROP_FOURCC`` MJPG and ``CAP_PROP_CONVERT_RGB`` 0 returns the camera's
+    buffer (a 1 x N uint8 array) instead of decoding it. :meth:`read` decodes, for a caller that wants pixels.
+    """
+
+    def __init__(self, capture: Any) -> None:
+        self._cap = capture
+        self.compressed = True
+        """False once the backend turned out to decode anyway (then :meth:`read` gives its pixels)."""
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True while the device is open."""
+        return bool(self._cap.isOpened())
+
+    def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the newest frame's JPEG bytes), or (False, None) when the read failed or gave no JPEG."""
+        ok, buf = self._cap.read()
+        if not ok or buf is None:
+            return False, None
+        if buf.ndim == 3:  # the backend decoded in spite of CONVERT_RGB 0: pixels from now on
+            self.compressed = False
+            return False, None
+        data = np.asarray(buf, np.uint8).tobytes()
+        return (True, data) if data[:2] == JPEG_SOI else (False, None)
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """(True, the newest frame as BGR), or (False, None)."""
+        if not self.compressed:
+            return self._cap.read()
+        ok, data = self.read_jpeg()
+        image = decode_jpeg(data) if ok and data is not None else None
+        return (image is not None), image
+
+    def release(self) -> None:
+        """Close the device."""
+        self._cap.release()
+
+
+def split_jpegs(data: bytes) -> list[bytes]:
+    """The JPEG frames of an MJPEG file (JPEGs back to back, as ``ffmpeg -c:v copy -f mjpeg`` writes them)."""
+    frames: list[bytes] = []
+    start = data.find(JPEG_SOI + b"\xff")
+    while start >= 0:
+        end = data.find(b"\xff\xd9", start + 2)
+        if end < 0:
+            break
+        # An end marker is followed by the next frame's start (or the file's end): else it was inside a thumbnail.
+        nxt = data.find(JPEG_SOI + b"\xff", end + 2)
+        while nxt > end + 2 and data.find(b"\xff\xd9", end + 2, nxt) >= 0:
+            end = data.find(b"\xff\xd9", end + 2, nxt)
+        frames.append(data[start:end + 2])
+        start = nxt
+    return frames
+
+
+class MjpegReplay:
+    """A fake MJPEG camera: replays JPEG frames (a list, or an MJPEG file's) in a loop through ``read_jpeg()``.
+
+    The frames are real JPEG bytes, handed over untouched as a USB camera's are, so that the camera path of
+    the robot (passed through to the console, decoded only for vision) runs on a machine without a camera.
+    """
+
+    def __init__(self, frames: list[bytes]) -> None:
+        if not frames:
+            raise ValueError("an MJPEG replay needs at least one JPEG frame")
+        self.frames = frames
+        self.index = 0
+        self._open = True
+        self.frames_read = 0
+        """Frames handed over so far."""
+
+    @classmethod
+    def from_file(cls, path: str) -> "MjpegReplay":
+        """The frames of an MJPEG file (``ValueError`` when it holds none)."""
+        with open(path, "rb") as f:
+            frames = split_jpegs(f.read())
+        if not frames:
+            raise ValueError(f"{path}: no JPEG frame in it (expected JPEGs back to back, an .mjpeg file)")
+        return cls(frames)
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True until released."""
+        return self._open
+
+    def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the next frame's JPEG bytes), or (False, None) once released."""
+        if not self._open:
+            return False, None
+        data = self.frames[self.index]
+        self.index = (self.index + 1) % len(self.frames)
+        self.frames_read += 1
+        return True, data
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """(True, the next frame decoded to BGR), or (False, None)."""
+        ok, data = self.read_jpeg()
+        image = decode_jpeg(data) if ok and data is not None else None
+        return (image is not None), image
+
+    def release(self) -> None:
+        """Close it (reads fail)."""
+        self._open = False
+
+
+class _NewestJpeg(io.BufferedIOBase):
+    """picamera2's output for its MJPEG encoder: keeps the newest JPEG and wakes a reader waiting for it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._cond = threading.Condition()
+        self.frame: Optional[bytes] = None
+        self.count = 0
+
+    def writable(self) -> bool:
+        """An output picamera2 writes to."""
+        return True
+
+    def write(self, buf: Any) -> int:  # type: ignore[override]
+        """One encoded frame from the encoder's thread."""
+        with self._cond:
+            self.frame = bytes(buf)
+            self.count += 1
+            self._cond.notify_all()
+        return len(buf)
+
+    def newer(self, count: int, timeout_s: float) -> tuple[int, Optional[bytes]]:
+        """The newest frame once there is one after frame ``count`` (or ``timeout_s`` passed): (count, JPEG)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self.count > count, timeout_s)
+            return self.count, (self.frame if self.count > count else None)
+
+
 class Picamera2Capture:
     """A Raspberry Pi camera (libcamera, through picamera2) behind the ``cv2.VideoCapture`` methods the driver uses.
 
     ``read()`` returns the newest BGR frame of ``width_px`` x ``height_px``.
     Pi cameras on a recent Raspberry Pi OS are libcamera devices, which
-    OpenCV's V4L2 backend cannot read.
+    OpenCV's V4L2 backend cannot read. With ``camera.format: mjpeg`` the Pi's hardware JPEG encoder
+    (picamera2's ``MJPEGEncoder``) encodes every frame and ``read_jpeg()`` hands its bytes over untouched
+    (:attr:`compressed`); ``read()`` then decodes them.
     """
 
     def __init__(self, config: CameraConfig) -> None:
@@ -135,19 +302,41 @@ class Picamera2Capture:
         self._camera = Picamera2()
         size = (int(config.width_px), int(config.height_px))
         frame_us = int(1e6 / config.fps)
+        self._wait_s = 2.0 * frame_us / 1e6
+        self.compressed = config.format == "mjpeg"
+        self._jpeg: Optional[_NewestJpeg] = None
+        self._count = 0
+        # The hardware encoder takes YUV420; the pixel path wants "RGB888" (B, G, R in memory: OpenCV's order).
         video = self._camera.create_video_configuration(
-            main={"size": size, "format": "RGB888"}, buffer_count=2,
+            main={"size": size, "format": "YUV420" if self.compressed else "RGB888"}, buffer_count=2,
             controls={"FrameDurationLimits": (frame_us, frame_us)})
         self._camera.configure(video)
-        self._camera.start()
+        if self.compressed:
+            from picamera2.encoders import MJPEGEncoder
+            from picamera2.outputs import FileOutput
+            self._jpeg = _NewestJpeg()
+            self._camera.start_recording(MJPEGEncoder(), FileOutput(self._jpeg))
+        else:
+            self._camera.start()
         self._open = True
 
     def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
         """True until released."""
         return self._open
 
+    def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the hardware encoder's next JPEG), or (False, None) when none came within two frame periods."""
+        if self._jpeg is None or not self._open:
+            return False, None
+        self._count, data = self._jpeg.newer(self._count, self._wait_s)
+        return (True, data) if data else (False, None)
+
     def read(self) -> tuple[bool, Optional[np.ndarray]]:
         """(True, the newest frame as BGR uint8), or (False, None) when it cannot be had."""
+        if self.compressed:
+            ok, data = self.read_jpeg()
+            image = decode_jpeg(data) if ok and data is not None else None
+            return (image is not None), image
         try:
             # picamera2's "RGB888" is laid out B, G, R in memory: already OpenCV's order.
             return True, self._camera.capture_array("main")
@@ -159,7 +348,10 @@ class Picamera2Capture:
         if self._open:
             self._open = False
             try:
-                self._camera.stop()
+                if self.compressed:
+                    self._camera.stop_recording()
+                else:
+                    self._camera.stop()
                 self._camera.close()
             except Exception:  # noqa: BLE001 - closing a vanished camera may fail; it is gone anyway
                 pass
@@ -200,14 +392,25 @@ def open_video_capture(config: CameraConfig) -> Any:
         except Exception:  # noqa: BLE001 - a missing or busy Pi camera is "lost" for the driver, which retries
             return _Unopened()
     device: Union[str, int] = config.device
+    if isinstance(device, str) and device.lower().endswith((".mjpeg", ".mjpg")):
+        try:  # recorded MJPEG frames, replayed as a camera would give them (tests, a robot without its camera)
+            return MjpegReplay.from_file(device)
+        except (OSError, ValueError):
+            return _Unopened()
     if isinstance(device, str) and device.isdigit():
         device = int(device)
     cap = cv2.VideoCapture(device, cv2.CAP_V4L2)
     if cap.isOpened():
+        if config.format != "raw":
+            # Ask for the camera's own JPEG before the size: a USB camera gives its larger sizes only as MJPEG.
+            cap.set(cv2.CAP_PROP_FOURCC, float(cv2.VideoWriter_fourcc(*"MJPG")))
         cap.set(cv2.CAP_PROP_FRAME_WIDTH, float(config.width_px))
         cap.set(cv2.CAP_PROP_FRAME_HEIGHT, float(config.height_px))
         cap.set(cv2.CAP_PROP_FPS, float(config.fps))
         cap.set(cv2.CAP_PROP_BUFFERSIZE, 1.0)
+        if config.format != "raw" and int(cap.get(cv2.CAP_PROP_FOURCC)) == cv2.VideoWriter_fourcc(*"MJPG"):
+            if cap.set(cv2.CAP_PROP_CONVERT_RGB, 0.0):  # hand over the JPEG bytes, not decoded pixels
+                return MjpegCapture(cap)
     return cap
 
 
@@ -275,8 +478,14 @@ class Camera:
         return self.last_frame_s is None or now_s - self.last_frame_s > self.config.stale_after_s
 
     # --- polling -------------------------------------------------------------------
-    def poll(self) -> Optional[CameraFrame]:
-        """Read the newest frame if one is due (at most ``fps`` per clock second); never raises."""
+    def poll(self, pixels: bool = True, reduction: int = 1) -> Optional[CameraFrame]:
+        """Read the newest frame if one is due (at most ``fps`` per clock second); never raises.
+
+        From a camera that hands over its own JPEG (:attr:`compressed`), the frame carries those bytes
+        (``jpeg``) untouched; its ``image`` is decoded only when ``pixels`` is True, at 1/``reduction`` of the
+        size (1, 2, 4, 8). With ``pixels`` False such a frame's ``image`` is None: :meth:`decode` gives the
+        pixels later. A camera that gives pixels always fills ``image`` (and ``jpeg`` is None).
+        """
         now = self._clock.now()
         if self._source is None:
             if now < self._next_open_s or not self._try_open(now):
@@ -289,34 +498,69 @@ class Camera:
             self._next_due_s = now + self._period_s
         else:
             self._next_due_s += self._period_s
-        image = self._read(now)
-        if image is None:
+        got = self._read(now, pixels, reduction)
+        if got is None:
             return None
         self._failures_in_row = 0
         self.seq += 1
         self.last_frame_s = now
-        return CameraFrame(stamp_s=now, image=image, seq=self.seq)
+        image, jpeg = got
+        return CameraFrame(stamp_s=now, image=image, seq=self.seq, jpeg=jpeg)  # type: ignore[arg-type]
+
+    @property
+    def compressed(self) -> bool:
+        """True while the held source hands over its own JPEG frames (``read_jpeg``)."""
+        source = self._source
+        return source is not None and bool(getattr(source, "compressed", hasattr(source, "read_jpeg")))
+
+    def decode(self, frame: CameraFrame, reduction: int = 1) -> Optional[CameraFrame]:
+        """``frame`` with its pixels (decoded from its JPEG at 1/``reduction`` of the size when it has none
+        yet), or None when its JPEG does not decode; never raises."""
+        if frame.image is not None or frame.jpeg is None:
+            return frame
+        try:
+            image = decode_jpeg(frame.jpeg, reduction)
+        except Exception:  # noqa: BLE001 - a broken frame is a read error, never a crash
+            image = None
+        if image is None:
+            self.read_errors += 1
+            self._events("camera_read_error", f"camera frame {frame.seq} is not a JPEG that decodes")
+            return None
+        return CameraFrame(stamp_s=frame.stamp_s, image=image, seq=frame.seq, jpeg=frame.jpeg)
 
     def close(self) -> None:
         """Release the source (a later poll reopens it)."""
         self._release()
 
     # --- internals -------------------------------------------------------------------
-    def _read(self, now: float) -> Optional[np.ndarray]:
-        """One read from the held source; handles and reports every failure."""
+    def _read(self, now: float, pixels: bool = True,
+              reduction: int = 1) -> Optional[tuple[Optional[np.ndarray], Optional[bytes]]]:
+        """One read from the held source, as (pixels, JPEG); handles and reports every failure."""
         source = self._source
         assert source is not None
+        image: Optional[np.ndarray] = None
+        jpeg: Optional[bytes] = None
         try:
             if not source.isOpened():
                 self._declare_lost(now, "camera source reports it is no longer opened")
                 return None
-            ok, frame = source.read()
+            if self.compressed:
+                ok, data = source.read_jpeg()  # type: ignore[attr-defined]
+                if ok and data:
+                    jpeg = bytes(data)
+                    image = decode_jpeg(jpeg, reduction) if pixels else None
+                    ok = image is not None or not pixels
+                else:
+                    ok = False
+            else:
+                ok, frame = source.read()
+                image = self._as_bgr(frame) if ok else None
+                ok = image is not None
         except Exception as exc:  # cv2.error, OSError...: a fault, never a crash
-            ok, frame = False, None
+            ok = False
             self._events("camera_read_error", f"camera read raised {type(exc).__name__}: {exc}")
-        image = self._as_bgr(frame) if ok else None
-        if image is not None:
-            return image
+        if ok:
+            return image, jpeg
         self.read_errors += 1
         self._failures_in_row += 1
         still_open = True

@@ -108,6 +108,7 @@ class ConsoleLink:
                   "require_token": self.require_token,
                   "video": dataclasses.asdict(self.video), "camera": pipeline is not None,
                   "geometry": pipeline.geometry if pipeline is not None else None,
+                  "camera_fps": pipeline.config.fps if pipeline is not None else None,
                   "viewer_camera": io.viewer_camera,
                   "state": self.state.latest().state, "map": self._map()}  # served from the first request on
         self._outbox.send(("config", config))
@@ -208,18 +209,36 @@ class ConsoleLink:
         return {**self.state.layers(), "trail": list(self.state.trail)}
 
     def feed_video(self, run: Any) -> None:
-        """While someone watches (the tick thread): the newest camera frame, or the viewer camera's pose."""
+        """While someone watches (the tick thread): the camera's own JPEG as it came, else the newest camera
+        frame's pixels, or on the simulator the viewer camera's pose."""
         wall = time.monotonic()
         if wall - self._last_video_wall < 1.0 / self.video.fps:
             return
         pipeline = run.io.camera
         if pipeline is None:
             return
+        if pipeline.threaded:
+            # The robot's camera thread reads for the console too while someone watches: a camera that gives
+            # JPEG is then read but not decoded (decoding is for vision, at its own rate).
+            if "console" not in pipeline.reasons:
+                pipeline.enable("console", pixels=False)
+            jpeg = pipeline.latest_jpeg
+        elif pipeline.config.format == "mjpeg":
+            jpeg = pipeline.read_for_viewer()  # read now when nothing else does: only as often as someone watches
+        else:
+            jpeg = None
+        latest = pipeline.latest
+        if jpeg is not None:
+            if jpeg.seq != self._fed_seq:
+                self._fed_seq = jpeg.seq
+                self._last_video_wall = wall
+                detection = latest[1] if latest is not None else None
+                self._send(("jpeg", jpeg.seq, time.time(), jpeg.jpeg, detection, pipeline.lookahead_m))
+            return
         viewer_renders = run.io.viewer_camera is not None and run.io.sim is not None
         # A camera on only for the recording gives a few frames a second: in the simulator the viewer's own
         # camera renders the full rate instead (on the robot those few frames are all there is).
         if pipeline.enabled and (pipeline.frame_period_s is None or not viewer_renders):
-            latest = pipeline.latest
             if latest is None or latest[0].seq == self._fed_seq:
                 return
             frame, detection = latest
@@ -231,6 +250,12 @@ class ConsoleLink:
             self._last_video_wall = wall
             from beastbt.parts.camera import persons_xy  # the viewer draws the persons where they are now
             self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad, persons_xy(run.io.sim))))
+
+    def stop_video(self, run: Any) -> None:
+        """Nobody watches any more (the tick thread): the robot's camera stops reading for the console."""
+        pipeline = run.io.camera
+        if pipeline is not None and "console" in pipeline.reasons:
+            pipeline.disable("console")
 
     # -- the sender and the reader ---------------------------------------------------
     def _frame_message(self, image: Any, seq: int, detection: Any, lookahead_m: float) -> tuple:
@@ -315,6 +340,7 @@ def install_console(prepared: Any) -> ConsoleLink:
         raise InvalidInput([Problem("--console", Position(), f"cannot listen on {host}:{port}: {exc.strerror or exc}",
                                     hint)]) from None
     pending, apply_pending, feed = controls.pending, controls.apply_pending, link.feed_video
+    camera = run.io.camera
 
     def console_tick(run: Any, now_s: float) -> None:
         # One hook, each part with its cheap test first: most ticks have nothing queued and nobody
@@ -324,6 +350,8 @@ def install_console(prepared: Any) -> ConsoleLink:
         state(run, now_s)
         if link.viewers > 0:
             feed(run)
+        elif camera is not None and "console" in camera.reasons:
+            link.stop_video(run)
 
     run.hooks.insert(0, console_tick)  # before the tree: a pause or an answer counts in the tick that follows it
     run.reactors.append(controls)

@@ -13,8 +13,9 @@ From the run (``inbox``):
 * ``("config", dict)`` first: where to listen, the token, the video settings,
   the camera's geometry and, on the simulator, how to build a viewer camera;
 * ``("state", seq, state)`` a few times a second, ``("map", layers)`` now and then;
-* ``("frame", shm_name, shape, seq, captured_s, detection, lookahead_m)``: a
-  camera frame in shared memory; ``("pose", truth)``: where the simulated
+* ``("jpeg", seq, captured_s, jpeg_bytes, detection, lookahead_m)``: a camera's own JPEG, sent on untouched;
+  ``("frame", shm_name, shape, seq, captured_s, detection, lookahead_m)``: a
+  camera frame (pixels) in shared memory; ``("pose", truth)``: where the simulated
   viewer camera is now; ``("result", request_id, ok, payload)``: a control's outcome;
 * ``("close",)``: send the final state to every viewer and end.
 
@@ -152,6 +153,9 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     if not config.get("camera"):
         blank = np.full((360, 640, 3), 40, np.uint8)  # no camera: the overlay alone, on grey
         video.pull = lambda: blank
+        video.pull_fps = 2.0  # nothing moves in it but the caption
+    elif config.get("camera_fps"):
+        video.pull_fps = float(config["camera_fps"])  # the viewer camera renders no faster than the camera
     pose: list = [None]
     camera_holder: list = []
 
@@ -192,6 +196,10 @@ def serve(inbox: Connection, outbox: Connection) -> int:
                 pose[0] = msg[1]
                 if camera_spec and video.pull is None:
                     video.pull = render
+            elif kind == "jpeg":
+                _, seq, captured, jpeg, detection, lookahead = msg
+                video.pull = None
+                video.raw.put(("jpeg", jpeg, detection, geometry, lookahead, captured))
             elif kind == "frame":
                 _, shm_name, shape, seq, captured, detection, lookahead = msg
                 image = _read_frame(shm_name, shape)

@@ -18,7 +18,7 @@ The contract (tests and other tools rely on it):
   bound to loopback needs none by default.
 
 What a page on another site, open in the same browser, cannot do (the checks
-of :meth:`ConsoleServer._guard`, in order; see docs/console.md, Security):
+of :class:`beastbt.live.web_guard.WebGuard`, shared with the studio, in order; see docs/console.md, Security):
 
 1. ``Host``: a console bound to loopback without a token answers only to
    ``localhost``, ``127.0.0.1``, ``[::1]`` or its bound address (any port);
@@ -49,9 +49,7 @@ any thread.
 from __future__ import annotations
 
 import asyncio
-import hmac
 import json
-import secrets
 import socket
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -62,7 +60,8 @@ from aiohttp import WSMsgType, web
 
 from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
                                           parse_control_body)
-from beastbt.live.endpoint import SECURITY_HEADERS, host_allowed, is_loopback, same_origin
+from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
+from beastbt.live.web_guard import WebGuard
 from beastbt.live.console_video import BudgetGuard, ConsoleVideo
 
 PUSH_PERIOD_S = 0.1
@@ -102,9 +101,11 @@ class ConsoleServer:
         self.map_source = map_source
         self.host = host
         self.requested_port = port
-        self.needs_token = not is_loopback(host) if require_token is None else bool(require_token)
+        self.guard = WebGuard(host, token, require_token, cookie=TOKEN_COOKIE)
+        """The checks of every request (Host, token, Origin, JSON): :mod:`beastbt.live.web_guard`."""
+        self.needs_token = self.guard.needs_token
         """Every request needs the token: off loopback always, on loopback with ``--console-token always``."""
-        self.token = token or secrets.token_urlsafe(18)
+        self.token = self.guard.token
         self.port = port
         self._loop: Optional[asyncio.AbstractEventLoop] = None
         self._thread: Optional[threading.Thread] = None
@@ -222,54 +223,22 @@ class ConsoleServer:
             raise
         except Exception as exc:  # noqa: BLE001 - never a traceback, never the run
             return _error(500, f"the console could not answer: {type(exc).__name__}")
-        if self.needs_token and self._explicit_token(request) and request.path in ("/", "/index.html"):
-            # the page takes the token out of its address at once; from then on this cookie carries it
-            response.set_cookie(TOKEN_COOKIE, self.token, httponly=True, samesite="Strict", path="/")
+        self.guard.set_cookie_if_given(request, response)
         return response
 
     def _refusal(self, request: web.Request) -> Optional[web.Response]:
         """The answer to a request the console must not serve (see the module docstring), or None."""
-        host = request.headers.get("Host")
-        if not self.needs_token and not host_allowed(host, self.host):
-            shown, bound = (host or "")[:80], ("" if self.host in ("127.0.0.1", "localhost", "::1") else
-                                               f", {self.host}")
-            return _error(403, f"this console answers to localhost, 127.0.0.1 or [::1]{bound} only, not Host "
-                               f"'{shown}': "
-                               f"a page that reaches it under another name (DNS rebinding) may not use it; behind "
-                               f"a proxy or a tunnel with another name, run with --console-token always")
-        if self.needs_token and not self._has_token(request):
-            return _error(401, "this console needs its token: open the address printed when the run started "
-                               "(it ends in ?token=...)")
-        if self._explicit_token(request):
-            return None  # no other page has the token: whatever sent it is the operator's
-        origin = request.headers.get("Origin")
-        if origin is not None and not same_origin(origin, host):
-            return _error(403, f"a request from the page '{origin[:80]}' is refused: only the console's own page "
-                               f"(or a client with the token) may use it")
-        site = request.headers.get("Sec-Fetch-Site", "")
-        acts = request.method not in ("GET", "HEAD") or request.headers.get("Upgrade", "").lower() == "websocket"
-        # a plain GET from another page (a link to the console, a bookmark page) may load it: it cannot read it
-        if acts and site in ("cross-site", "same-site"):
-            return _error(403, f"a request from another page ({site}) is refused: only the console's own page "
-                               f"(or a client with the token) may use it")
-        if request.method not in ("GET", "HEAD", "OPTIONS") and request.content_type != "application/json":
-            return _error(403, f"a control needs Content-Type: application/json (this one is "
-                               f"'{request.content_type[:60]}'), as the console's page sends, or the token: a "
-                               f"page on another site can send a form or text/plain, never JSON without asking")
-        return None
+        return self.guard.refusal(request, self.body_types(request))
+
+    def body_types(self, request: web.Request) -> tuple[str, ...]:
+        """The content types a POST to this path may have without the token: JSON only, for every control
+        (each one a browser sends only after asking the server; a server built on this one may add others
+        that are not a form's or ``text/plain``)."""
+        return ("application/json",)
 
     def _explicit_token(self, request: web.Request) -> bool:
         """The token sent in the request itself (``?token=``, ``Authorization: Bearer``), not by the cookie jar."""
-        given = [request.query.get("token", "")]
-        auth = request.headers.get("Authorization", "")
-        if auth.startswith("Bearer "):
-            given.append(auth[7:].strip())
-        return any(g and hmac.compare_digest(g.encode(), self.token.encode()) for g in given)
-
-    def _has_token(self, request: web.Request) -> bool:
-        cookie = request.cookies.get(TOKEN_COOKIE, "")
-        return self._explicit_token(request) or bool(cookie) and hmac.compare_digest(cookie.encode(),
-                                                                                      self.token.encode())
+        return self.guard.explicit_token(request)
 
     async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
         """Every answer, the refusals and the WebSocket upgrades included: see :data:`SECURITY_HEADERS`."""

@@ -1,51 +1,59 @@
-"""The console's live video: the camera with the overlay, as JPEG frames held to a bit budget per viewer.
+"""The console's live video: the camera's own frames, as JPEG held to a bit budget per viewer, with the overlay
+drawn by the page.
 
-How frames flow, so that nobody waits for anybody:
+How frames flow, so that nobody waits for anybody and nothing is done twice:
 
-* it runs in the console's own process (:mod:`beastbt.live.console_process`):
-  the run hands each new camera frame over through shared memory, only while
-  someone watches, into a latest-frame slot (:attr:`ConsoleVideo.raw`). On the
-  simulator, when the mission itself does not use the camera, the run sends
-  only where the robot is, and the encoder renders the view with a camera of
-  its own on the same mounting (:attr:`ConsoleVideo.pull`), so that watching
-  costs the loop nothing;
-* one encoder thread takes the newest frame at most ``fps`` times a second,
-  scales it, draws the overlay (the detected line and the step) and encodes
-  it once for every viewer. Its JPEG quality follows the bytes each frame
-  took, so that a stream of ``fps`` frames fits ``budget_bps`` (an adaptive
-  stream: a busy picture costs quality, not bandwidth);
-* each viewer's WebSocket sender (:mod:`beastbt.live.console_server`) sends
-  the newest frame when its previous one has gone, and skips a frame that
-  would take it over the budget in the last second. A slow viewer skips
-  frames; it never slows the encoder, the loop or the other viewers.
+* it runs in the console's own process (:mod:`beastbt.live.console_process`). A camera that gives its own
+  JPEG (a USB camera's MJPEG, the simulator's fake MJPEG camera) hands its bytes over untouched
+  (:attr:`ConsoleVideo.raw` gets ``("jpeg", bytes, ...)``): they go to the viewers as they are, never
+  decoded or encoded here. A camera that gives pixels hands them over through shared memory; they are
+  JPEG-encoded once, at the camera's own size (smaller only when over ``width_px`` x ``height_px``). On the
+  simulator, when the mission itself does not use the camera, the run sends only where the robot is, and
+  this process renders the view with a camera of its own on the same mounting (:attr:`ConsoleVideo.pull`),
+  only while someone watches, so that watching costs the loop nothing;
+* one thread takes the newest frame at most ``fps`` times a second and makes it one message for every
+  viewer. When it encodes, its JPEG quality follows the bytes each frame took, so that a stream of ``fps``
+  frames fits ``budget_bps`` (a busy picture costs quality, not bandwidth); a camera's own JPEG that is over
+  the budget costs frames instead (:class:`BudgetGuard`);
+* the overlay (the caption, the detected line, the target, a junction or a line end) is not drawn into the
+  picture: it goes with each frame as a small JSON object in image fractions, and the page draws it on its
+  canvas (``console_page/console.js``);
+* each viewer's WebSocket sender (:mod:`beastbt.live.console_server`) sends the newest frame when its
+  previous one has gone, and skips a frame that would take it over the budget in the last second. A slow
+  viewer skips frames; it never slows the encoder, the loop or the other viewers.
 
-Each frame goes out as one binary WebSocket message: a 16-byte header (the
-wall time it was captured, Unix ms as a little-endian float64; its sequence
-number, uint32; the JPEG quality, uint32), then the JPEG. The page uses the
-capture time to show the frame's age.
+Each frame goes out as one binary WebSocket message: a 16-byte header (the wall time it was captured, Unix
+ms as a little-endian float64; its sequence number, uint32; the JPEG quality, uint16, 0 for the camera's
+own JPEG passed through; the overlay's length in bytes, uint16), the overlay (UTF-8 JSON), then the JPEG.
+The page uses the capture time to show the frame's age.
 """
 
 from __future__ import annotations
 
+import json
 import struct
 import sys
 import threading
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
-from beastbt.live.video_stream import LatestSlot, compose_frame, encode_jpeg
+from beastbt.live.video_stream import LatestSlot, encode_jpeg
 
-HEADER = struct.Struct("<dII")
-"""Frame header: capture wall time (Unix ms, float64), sequence number, JPEG quality."""
+HEADER = struct.Struct("<dIHH")
+"""Frame header: capture wall time (Unix ms, float64), sequence number, JPEG quality (0: the camera's own), overlay
+length (bytes)."""
 QUALITY_MIN = 20
 QUALITY_MAX = 90
+PASSED_THROUGH = 0
+"""The header's quality for a camera's own JPEG, sent as it came."""
 
 
 @dataclass(frozen=True)
 class VideoConfig:
-    """The console's video: frame size (px), most frames a second, the bit budget per viewer (bit/s), overlay."""
+    """The console's video: the largest frame sent (px; a camera's own JPEG is sent at its size), most frames a
+    second, the bit budget per viewer (bit/s), whether the page draws the overlay."""
 
     width_px: int = 1280
     height_px: int = 720
@@ -56,7 +64,8 @@ class VideoConfig:
 
 @dataclass(frozen=True)
 class Encoded:
-    """One encoded frame: the message to send (header + JPEG), its raw frame's sequence, capture time (wall s)."""
+    """One frame to send: the message (header + overlay + JPEG), its raw frame's sequence, capture time (wall s),
+    JPEG quality (0: the camera's own)."""
 
     message: bytes
     seq: int
@@ -64,12 +73,41 @@ class Encoded:
     quality: int
 
 
+def overlay_of(caption: Optional[list[str]], detection: Any, geometry: Any, lookahead_m: float) -> dict:
+    """What the page draws over a frame: the ``caption`` lines, and where the detector's line, target, junction
+    and line end are, as fractions of the image's width and height (``geometry``: the camera that took it)."""
+    out: dict[str, Any] = {"caption": list(caption or [])}
+    if geometry is None:
+        return out
+    from beastbt.vision.overlay import describe
+    out["caption"].append(describe(detection))
+    if detection is None:
+        return out
+    w, h = float(geometry.width_px), float(geometry.height_px)
+
+    def frac(points: Any) -> list[list[float]]:
+        uv = geometry.ground_to_pixels(np.asarray(points, float).reshape(-1, 2))
+        uv = uv[np.isfinite(uv).all(axis=1)]
+        return [[round(float(u) / w, 4), round(float(v) / h, 4)] for u, v in uv]
+
+    obs = detection.observation
+    if len(detection.points) >= 2:
+        out["line"] = frac(detection.points)
+    if obs.seen:
+        out["target"] = frac([[lookahead_m, obs.offset_m]])
+    if detection.intersection_xy is not None:
+        out["junction"] = frac([detection.intersection_xy])
+    if detection.end_xy is not None:
+        out["end"] = frac([detection.end_xy])
+    return out
+
+
 class ConsoleVideo:
-    """The encoder of one run's console video (see the module docstring).
+    """The video of one run's console (see the module docstring).
 
     ``wall`` is a monotonic wall clock (s); ``epoch`` the wall time as Unix
     seconds (for the page's frame age); ``caption`` gives the overlay's text
-    lines (the encoder thread calls it).
+    lines (the video thread calls it).
     """
 
     def __init__(self, config: VideoConfig, wall: Callable[[], float], epoch: Callable[[], float],
@@ -83,13 +121,17 @@ class ConsoleVideo:
         self.viewers = 0
         self.quality = 70
         self.frames_encoded = 0
+        """Frames JPEG-encoded here (pixels from the camera, or the simulator's viewer camera)."""
+        self.frames_passed = 0
+        """Camera JPEGs sent on as they came (no decode, no encode)."""
         self.bytes_encoded = 0
         self._closing = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._seq = 0
         self.pull: Optional[Callable[[], np.ndarray]] = None
-        """Renders a frame on demand in the encoder thread (the simulator's viewer camera), when set."""
-
+        """Renders a frame on demand in the video thread (the simulator's viewer camera), when set."""
+        self.pull_fps: Optional[float] = None
+        """Most frames a second :attr:`pull` renders (None: ``fps``): a rendered camera need not beat its model."""
 
     @property
     def target_bytes(self) -> float:
@@ -98,30 +140,31 @@ class ConsoleVideo:
 
     # -- life --------------------------------------------------------------------------
     def start(self) -> "ConsoleVideo":
-        """Start the encoder thread."""
+        """Start the video thread."""
         self._thread = threading.Thread(target=self._encode_loop, name="beastbt-console-video", daemon=True)
         self._thread.start()
         return self
 
     def close(self) -> None:
-        """Stop the encoder; wake every viewer's sender for good."""
+        """Stop the video thread; wake every viewer's sender for good."""
         self._closing.set()
         self.raw.close()
         self.encoded.close()
         if self._thread is not None:
             self._thread.join(2.0)
 
-    # -- the encoder thread ------------------------------------------------------------
+    # -- the video thread --------------------------------------------------------------
     def _encode_loop(self) -> None:
         period = 1.0 / self.config.fps
         next_wall = self.wall()
         done = 0
         while not self._closing.is_set():
             if self.pull is not None and self.viewers > 0:
+                pull_period = 1.0 / min(self.config.fps, self.pull_fps or self.config.fps)
                 delay = next_wall - self.wall()
                 if delay > 0:
                     self._closing.wait(delay)
-                next_wall = max(next_wall + period, self.wall() - 0.5 * period)
+                next_wall = max(next_wall + pull_period, self.wall() - 0.5 * pull_period)
                 self._encode_pulled()
                 continue
             got = self.raw.wait_newer(done, 0.2)
@@ -137,7 +180,7 @@ class ConsoleVideo:
             try:
                 self.encoded.put(self.encode(raw, seq))
             except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
-                print(f"beastbt console: could not encode a frame: {exc!r}", file=sys.stderr)
+                print(f"beastbt console: could not send a frame: {exc!r}", file=sys.stderr)
 
     def _encode_pulled(self) -> None:
         pull = self.pull
@@ -150,18 +193,37 @@ class ConsoleVideo:
         except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
             print(f"beastbt console: could not render a frame: {exc!r}", file=sys.stderr)
 
+    def _overlay_bytes(self, detection: Any, geometry: Any, lookahead_m: float) -> bytes:
+        if not self.config.overlay:
+            return b""
+        data = json.dumps(overlay_of(self.caption(), detection, geometry, lookahead_m), separators=(",", ":"))
+        return data.encode()[:0xFFFF]
+
     def encode(self, raw: tuple, seq: int) -> Encoded:
-        """Scale, draw the overlay and JPEG-encode one frame; then steer the quality toward the budget."""
+        """One frame's message: a camera's own JPEG as it came (``("jpeg", bytes, detection, geometry,
+        lookahead_m, captured)``), or pixels (``(image, detection, geometry, lookahead_m, captured)``) JPEG-encoded
+        at their size (smaller only when over the configured size), the quality then steered toward the budget."""
+        if isinstance(raw[0], str) and raw[0] == "jpeg":
+            _, jpeg, detection, geometry, lookahead_m, captured = raw
+            overlay = self._overlay_bytes(detection, geometry, lookahead_m)
+            self.frames_passed += 1
+            return Encoded(HEADER.pack(captured * 1000.0, seq & 0xFFFFFFFF, PASSED_THROUGH, len(overlay)) + overlay
+                           + jpeg, seq, captured, PASSED_THROUGH)
         image, detection, geometry, lookahead_m, captured = raw
         cfg = self.config
-        out = compose_frame(image, (cfg.width_px, cfg.height_px), self.caption() if cfg.overlay else None,
-                            detection, geometry, lookahead_m)
+        h, w = image.shape[:2]
+        if w > cfg.width_px or h > cfg.height_px:
+            import cv2
+            scale = min(cfg.width_px / w, cfg.height_px / h)
+            image = cv2.resize(image, (max(1, int(w * scale)), max(1, int(h * scale))), interpolation=cv2.INTER_AREA)
         quality = self.quality
-        jpeg = encode_jpeg(out, quality)
+        jpeg = encode_jpeg(image, quality)
         self._steer(len(jpeg))
         self.frames_encoded += 1
         self.bytes_encoded += len(jpeg)
-        return Encoded(HEADER.pack(captured * 1000.0, seq & 0xFFFFFFFF, quality) + jpeg, seq, captured, quality)
+        overlay = self._overlay_bytes(detection, geometry, lookahead_m)
+        return Encoded(HEADER.pack(captured * 1000.0, seq & 0xFFFFFFFF, quality, len(overlay)) + overlay + jpeg,
+                       seq, captured, quality)
 
     def _steer(self, size: int) -> None:
         # JPEG size grows roughly linearly with quality in the useful range: step toward the target,
@@ -190,4 +252,4 @@ class BudgetGuard:
         return True
 
 
-__all__ = ["ConsoleVideo", "VideoConfig", "Encoded", "BudgetGuard", "HEADER"]
+__all__ = ["ConsoleVideo", "VideoConfig", "Encoded", "BudgetGuard", "HEADER", "PASSED_THROUGH", "overlay_of"]

@@ -27,7 +27,9 @@ Options (``RunOptions`` / the command line): ``stream`` (``--stream``),
 ``stream_size`` (``--stream-size 640x480``), ``stream_quality``
 (``--stream-quality 80``), ``stream_fps`` (``--stream-fps 25``),
 ``stream_no_overlay`` (``--stream-no-overlay``). In the simulator the camera
-is switched on for the stream; run with ``--speed realtime`` to watch.
+is switched on for the stream; run with ``--speed realtime`` to watch. A camera
+that gives its own JPEG (``camera.format``) is streamed as it came, with
+``--stream-no-overlay`` at the camera's size: nothing is encoded then.
 """
 
 from __future__ import annotations
@@ -39,19 +41,20 @@ import threading
 import time
 from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any, Callable, Optional
+from typing import TYPE_CHECKING, Any, Callable, Optional
 from urllib.parse import urlsplit
 
-import cv2
 import numpy as np
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.live.endpoint import (SECURITY_HEADERS, host_allowed, host_on_network, is_loopback, parse_endpoint,
                                    parse_size, same_origin)
 from beastbt.core.config import dataclass_from_dict
-from beastbt.vision.camera_model import CameraGeometry
-from beastbt.vision.line_detector import LineDetection
-from beastbt.vision.overlay import describe, draw_caption, draw_detection
+
+if TYPE_CHECKING:  # OpenCV comes with these: imported where a frame is drawn or encoded, not by the console's
+    # process, which passes a camera's own JPEG on without either
+    from beastbt.vision.camera_model import CameraGeometry
+    from beastbt.vision.line_detector import LineDetection
 
 BOUNDARY = "beastbtframe"
 """The multipart boundary of /stream.mjpg."""
@@ -112,6 +115,9 @@ def compose_frame(image: np.ndarray, size: tuple[int, int], caption: Optional[li
                   lookahead_m: float) -> np.ndarray:
     """A camera frame scaled to ``size`` (width, height px) with the overlay: the detected line (when the camera
     has a detector) and the ``caption`` lines; no overlay when ``caption`` is None. ``image`` is not modified."""
+    import cv2
+
+    from beastbt.vision.overlay import describe, draw_caption, draw_detection
     h, w = image.shape[:2]
     if size != (w, h):
         out = cv2.resize(image, size, interpolation=cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR)
@@ -128,6 +134,7 @@ def compose_frame(image: np.ndarray, size: tuple[int, int], caption: Optional[li
 
 def encode_jpeg(image: np.ndarray, quality: int) -> bytes:
     """``image`` as JPEG at ``quality`` (1-100)."""
+    import cv2
     ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise ValueError("cv2.imencode failed")
@@ -190,6 +197,7 @@ class _Raw:
     detection: Optional[LineDetection]
     geometry: Optional[CameraGeometry]
     lookahead_m: float
+    jpeg: Optional[bytes] = None
 
 
 class VideoStreamServer:
@@ -271,9 +279,11 @@ class VideoStreamServer:
 
     # -- the tick loop's side (never blocks) ----------------------------------------------------
     def publish(self, image: np.ndarray, stamp_s: float = 0.0, detection: Optional[LineDetection] = None,
-                geometry: Optional[CameraGeometry] = None, lookahead_m: float = 0.25) -> None:
-        """Offer a new camera frame (BGR uint8; not copied: do not modify it afterwards)."""
-        self.raw.put(_Raw(image, stamp_s, detection, geometry, lookahead_m))
+                geometry: Optional[CameraGeometry] = None, lookahead_m: float = 0.25,
+                jpeg: Optional[bytes] = None) -> None:
+        """Offer a new camera frame (BGR uint8; not copied: do not modify it afterwards); ``jpeg``: the camera's
+        own JPEG of it, streamed as it is when there is no overlay to draw and no size to change."""
+        self.raw.put(_Raw(image, stamp_s, detection, geometry, lookahead_m, jpeg))
         self.frames_published += 1
         self._wake.set()
 
@@ -352,6 +362,8 @@ class VideoStreamServer:
         """Scale, draw the overlay and JPEG-encode one frame (the encoder thread; /snapshot.jpg)."""
         cfg = self.config
         h, w = raw.image.shape[:2]
+        if raw.jpeg is not None and not cfg.overlay and (cfg.width_px == 0 or (cfg.width_px, cfg.height_px) == (w, h)):
+            return raw.jpeg  # the camera's own JPEG: nothing to draw, nothing to scale, so nothing to encode
         caption = None
         if cfg.overlay:
             st = self.status()
@@ -561,6 +573,7 @@ def _feeder(run: Any, server: VideoStreamServer, pipeline: Any) -> Callable[[Any
 
     def feed(rec: Any) -> None:
         latest = pipeline.latest if pipeline is not None else None
+        from beastbt.vision.overlay import describe
         line = describe(latest[1]) if latest is not None and latest[1] is not None else ""
         server.set_status({"mission": mission, "status": run.status or "running", "step": run.current_step(),
                            "time_s": round(run.elapsed_s, 2), "pose": run.pose_text(), "line": line})
@@ -568,7 +581,8 @@ def _feeder(run: Any, server: VideoStreamServer, pipeline: Any) -> Callable[[Any
             frame, detection = latest
             if frame.seq != state["seq"]:
                 state["seq"] = frame.seq
-                server.publish(frame.image, frame.stamp_s, detection, pipeline.geometry, pipeline.lookahead_m)
+                server.publish(frame.image, frame.stamp_s, detection, pipeline.geometry, pipeline.lookahead_m,
+                               frame.jpeg)
         elif pipeline is None and rec.now_s - state["blank_s"] >= NO_CAMERA_PERIOD_S:
             state["blank_s"] = rec.now_s
             server.publish(np.full((240, 320, 3), 40, np.uint8), rec.now_s)

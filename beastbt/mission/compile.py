@@ -22,6 +22,7 @@ import py_trees
 from beastbt.behaviours import drive, stand, turn
 from beastbt.behaviours.conditions import (Condition, ConditionReader, all_of, any_of, battery_below, elapsed, gps_fix,
                                            line_flag, near, not_of, teleop_active)
+from beastbt.behaviours.localized import localized
 from beastbt.behaviours.context import MissionContext
 from beastbt.behaviours.flow import BlockStart, ClockTimeout, GuardedBlock, IfThenElse, RepeatTimes, RetryAttempts, WhileLoop
 from beastbt.behaviours.operator import NotAvailable, Say, Snapshot
@@ -41,6 +42,8 @@ CONDITION_READS: Mapping[type, tuple[str, ...]] = MappingProxyType({
 """Blackboard keys each kind of condition reads (flags read the key they name, or ``line``)."""
 LINE_FLAGS = MappingProxyType({"intersection": "intersection", "line_seen": "seen"})
 """Condition words read from the line observation, and the observation's flag each reads."""
+FLAG_READS = MappingProxyType({"localized": "map_pose"})
+"""The blackboard key a named condition reads, where it is not the word itself."""
 
 
 class ConditionUnavailable(Exception):
@@ -58,8 +61,11 @@ class ConditionUnavailable(Exception):
 class Compiler:
     """Builds the tree of one mission for one robot (its context) with the given step builders."""
 
-    def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None) -> None:
+    def __init__(self, mission: Mission, ctx: MissionContext, builders: Optional[Mapping[str, StepBuilder]] = None,
+                 on_step: Optional[Callable[[st.Step, Behaviour], None]] = None) -> None:
         self.mission = mission
+        self.on_step = on_step
+        """Told each step and the behaviour it became (the studio maps nodes back to their lines)."""
         self.ctx = ctx
         self.builders: Mapping[str, StepBuilder] = CORE_STEPS if builders is None else builders
         self.reader = ConditionReader(ctx)
@@ -82,6 +88,12 @@ class Compiler:
 
     def step(self, s: st.Step) -> Behaviour:
         """The behaviour (or subtree) for one step."""
+        built = self._step(s)
+        if self.on_step is not None:
+            self.on_step(s, built)
+        return built
+
+    def _step(self, s: st.Step) -> Behaviour:
         kind = st.keyword_of(s)
         builder = self.builders.get(kind)
         if builder is None and kind in self.mission.external_steps:
@@ -120,8 +132,8 @@ class Compiler:
         r = self.reader
         self.ctx.condition_reads.update(CONDITION_READS.get(type(c), ()))
         if isinstance(c, st.Flag):
-            self.ctx.condition_reads.add("line" if c.word in LINE_FLAGS else c.word)
-            test = {"gps_fix": gps_fix, "teleop_active": teleop_active}.get(c.word)
+            self.ctx.condition_reads.add("line" if c.word in LINE_FLAGS else FLAG_READS.get(c.word, c.word))
+            test = {"gps_fix": gps_fix, "teleop_active": teleop_active, "localized": localized}.get(c.word)
             return Condition(c.word, test if test is not None else line_flag(LINE_FLAGS[c.word]), r)
         if isinstance(c, st.BatteryBelow):
             return Condition(f"battery below {c.volts:g} V", battery_below(c.volts), r)
@@ -363,9 +375,11 @@ CORE_STEPS: Mapping[str, StepBuilder] = MappingProxyType({
 
 
 def compile_mission(mission: Mission, ctx: MissionContext,
-                    builders: Optional[Mapping[str, StepBuilder]] = None) -> Behaviour:
-    """Compile ``mission`` for the robot described by ``ctx`` with step ``builders`` (default: the core steps)."""
-    return Compiler(mission, ctx, builders).compile()
+                    builders: Optional[Mapping[str, StepBuilder]] = None,
+                    on_step: Optional[Callable[[st.Step, Behaviour], None]] = None) -> Behaviour:
+    """Compile ``mission`` for the robot described by ``ctx`` with step ``builders`` (default: the core steps);
+    ``on_step`` is told each step and the behaviour it became."""
+    return Compiler(mission, ctx, builders, on_step).compile()
 
 
 def tree_to_dot(root: Behaviour) -> str:

@@ -61,7 +61,8 @@ class RawStep:
 
 @dataclass(frozen=True)
 class Failsafe:
-    """A failsafe: ``kind`` (gps_lost, battery_low, geofence), its SI parameters and its action."""
+    """A failsafe: ``kind`` (gps_lost, battery_low, geofence, keepout, localization_lost), its SI parameters and its
+    action."""
 
     kind: str
     then: str
@@ -104,6 +105,20 @@ class Mission:
     """What is valid but probably not meant (:mod:`beastbt.mission.warnings`): it runs, unless ``--strict``."""
     external_steps: dict[str, ExternalStep] = field(default_factory=dict)
     """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
+    map_file: Optional[Path] = None
+    """The saved map to localise on (``map:``), resolved against the mission's folder."""
+    map_grid: Optional[Any] = None
+    """That map, read (a :class:`beastbt.mapping.occupancy_map.OccupancyMap`), or None without ``map:``."""
+    map_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """The start pose on the map (x m, y m, yaw rad; ``start:``): by default the map frame's origin."""
+    map_start_place: Optional[str] = None
+    """The place ``start:`` named, if it named one (resolved by whoever knows map-frame places)."""
+    initial_uncertainty_xy_m: float = field(default_factory=lambda: parse_quantity(mission_default(
+        "/properties/initial_uncertainty/properties", "xy"), "distance"))
+    """Standard deviation of the start position on the map, each axis (m)."""
+    initial_uncertainty_yaw_rad: float = field(default_factory=lambda: parse_quantity(mission_default(
+        "/properties/initial_uncertainty/properties", "yaw"), "angle"))
+    """Standard deviation of the start heading on the map (rad)."""
 
 
 def step_of(value: Any, path: PathKey, extra: Collection[str] = ()) -> RawStep:
@@ -679,6 +694,7 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     if problems:
         raise InvalidInput(problems)
     mission = _build(doc, Path(path), external)
+    _load_map(mission, doc)
     bad_fences = [doc.problem(("fences", name), why, "list the corners in order around the area")
                   for name, fence in mission.fences.items() if (why := fence.valid_problem()) is not None]
     if bad_fences:
@@ -695,6 +711,86 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     return mission
 
 
+def _read_map_keys(m: Mission, d: dict, base: Path) -> None:
+    """``map:``, ``start:`` and ``initial_uncertainty:`` into the mission (the map itself is read by
+    :func:`_load_map`)."""
+    if "map" in d:
+        m.map_file = (base / d["map"]).resolve() if not Path(d["map"]).is_absolute() else Path(d["map"])
+    start = d.get("start")
+    if isinstance(start, str):
+        m.map_start_place = start
+    elif isinstance(start, dict):
+        yaw = parse_quantity(start["yaw"], "angle") if "yaw" in start else 0.0
+        m.map_start = (parse_quantity(start["x"], "distance"), parse_quantity(start["y"], "distance"), yaw)
+    spread = d.get("initial_uncertainty") or {}
+    if "xy" in spread:
+        m.initial_uncertainty_xy_m = parse_quantity(spread["xy"], "distance")
+    if "yaw" in spread:
+        m.initial_uncertainty_yaw_rad = parse_quantity(spread["yaw"], "angle")
+
+
+def _load_map(m: Mission, doc: SourceDoc) -> None:
+    """Read the mission's ``map:`` (positioned problems: a missing file at ``map:``, a bad one in the map's YAML);
+    ``start:`` and ``initial_uncertainty:`` without ``map:`` are refused where they stand."""
+    d = doc.data
+    if m.map_file is None:
+        stray = [doc.problem((key,), f"'{key}' is a pose on a map, but the mission has no 'map:'",
+                             "add map: ../maps/NAME.yaml (a map_server YAML), or remove this key", key=True)
+                 for key in ("start", "initial_uncertainty") if key in d]
+        stray += [doc.problem(f.path, "the failsafe localization_lost watches the localisation on a map, but the "
+                              "mission has no 'map:'", "add map: ../maps/NAME.yaml", key=True)
+                  for f in m.failsafes if f.kind == "localization_lost"]
+        stray += [doc.problem(path, "the condition 'localized' is about the localisation on a map, but the mission "
+                              "has no 'map:' (it would never hold)", "add map: ../maps/NAME.yaml")
+                  for path in _localized_conditions(d.get("steps"), ("steps",))
+                  + _localized_conditions(d.get("tasks"), ("tasks",))]
+        if stray:
+            raise InvalidInput(stray)
+        return
+    for key, value in (("xy", m.initial_uncertainty_xy_m), ("yaw", m.initial_uncertainty_yaw_rad)):
+        if value < 0:
+            raise InvalidInput([doc.problem(("initial_uncertainty", key), "an uncertainty cannot be negative",
+                                            "give a standard deviation such as xy: 0.5 m, yaw: 20 deg")])
+    if m.map_start_place is not None and m.map_start_place not in m.places:
+        raise InvalidInput([doc.problem(("start",), f"'start: {m.map_start_place}' names no place",
+                                        "name a place of places: with x and y on the map, or write "
+                                        "start: {x: 1 m, y: 2 m, yaw: 90 deg}")])
+    read_map(m, doc)
+
+
+_CONDITION_KEYS = ("if", "while", "wait_until", "until", "abort_if", "not", "all", "any")
+
+
+def _localized_conditions(node: Any, path: PathKey) -> list[PathKey]:
+    """Where the raw steps use the condition word ``localized`` (paths into the document)."""
+    found: list[PathKey] = []
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key in _CONDITION_KEYS and value == "localized":
+                found.append(path + (key,))
+            else:
+                found += _localized_conditions(value, path + (key,))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            if value == "localized" and path and path[-1] in ("all", "any"):
+                found.append(path + (i,))
+            else:
+                found += _localized_conditions(value, path + (i,))
+    return found
+
+
+def read_map(m: Mission, doc: SourceDoc) -> None:
+    """Read ``m.map_file`` into ``m.map_grid``: a missing file is a problem at ``doc``'s ``map:`` (the mission's,
+    or the world's that gave it), a bad one at the line of the map's own YAML."""
+    assert m.map_file is not None
+    if not m.map_file.is_file():
+        raise InvalidInput([doc.problem(("map",), f"the map file {str(m.map_file)!r} does not exist",
+                                        "the path is relative to the file that names it; build a map with "
+                                        "beastbt run MISSION --build-map maps/NAME.yaml")])
+    from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
+    m.map_grid = load_map(m.map_file)
+
+
 def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:
     d = doc.data
     limits = d.get("limits") or {}
@@ -703,6 +799,7 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
                 external_steps=external)
     if "world" in d:
         m.world = (base / d["world"]).resolve() if not Path(d["world"]).is_absolute() else Path(d["world"])
+    _read_map_keys(m, d, base)
     m.rate_hz = parse_quantity(d.get("rate", mission_default("/properties", "rate")), "frequency")
     if "speed" in limits:
         m.speed_limit_mps = parse_quantity(limits["speed"], "speed")
@@ -749,6 +846,10 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
         elif kind in ("geofence", "keepout") and "fence" in spec:
             params["fence"] = spec["fence"]
             params["margin_m"] = parse_quantity(spec.get("margin", "0 m"), "distance")
+        elif kind == "localization_lost":
+            after = spec.get("after", mission_default("/properties/failsafes/properties/localization_lost/properties",
+                                                      "after"))
+            params["after_s"] = parse_quantity(after, "duration")
         elif kind == "geofence":
             params["center"] = spec["center"]
             params["radius_m"] = parse_quantity(spec["radius"], "distance")
@@ -756,5 +857,5 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     return m
 
 
-__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "step_of", "steps_of", "condition_of",
+__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "read_map", "step_of", "steps_of", "condition_of",
            "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M", "sector_angle"]

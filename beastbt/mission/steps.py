@@ -213,7 +213,7 @@ class Teleop(Step):
 
 @dataclass(frozen=True, kw_only=True)
 class Flag:
-    """A condition word: ``intersection``, ``line_seen``, ``gps_fix``, ``teleop_active``."""
+    """A condition word: ``intersection``, ``line_seen``, ``gps_fix``, ``teleop_active``, ``localized``."""
 
     word: str
 

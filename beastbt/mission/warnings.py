@@ -215,10 +215,15 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
     return out
 
 
+def speed_warnings(mission: Any, max_speed_mps: float, robot: str) -> list[Problem]:
+    """The speeds the mission asks for above ``robot``'s top speed (m/s), as warnings: they will be capped."""
+    return by_position(_speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'"))
+
+
 def robot_warnings(mission: Any, max_speed_mps: float, robot: str, has_battery: bool,
                    has_joystick: bool = True, has_lidar: bool = True, has_odometry: bool = True) -> list[Problem]:
     """What looks wrong when the mission runs on this robot."""
-    out = _speed_warnings(mission, max_speed_mps, f"the top speed of robot '{robot}'")
+    out = list(speed_warnings(mission, max_speed_mps, robot))
     if not has_odometry:
         for step in _every_step(mission):
             if isinstance(step, (st.DriveDistance, st.TurnBy)):
@@ -257,4 +262,4 @@ def by_position(problems: list[Problem]) -> list[Problem]:
     return sorted(problems, key=lambda p: (p.file, p.position))
 
 
-__all__ = ["mission_warnings", "robot_warnings", "world_warnings", "all_steps", "FAR_PLACE_M"]
+__all__ = ["mission_warnings", "robot_warnings", "speed_warnings", "world_warnings", "all_steps", "FAR_PLACE_M"]

@@ -35,7 +35,7 @@ from beastbt.devices.camera import Camera, CameraConfig, camera_backend, open_vi
 from beastbt.robot.part import REAL, SIM, Build, Part
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
-from beastbt.sim.camera_emulator import CameraEffects, SimCamera
+from beastbt.sim.camera_emulator import CameraEffects, SimCamera, SimMjpegCamera
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.scenery import Scenery
 from beastbt.sim.robot import Simulator, world_problem
@@ -122,6 +122,8 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
         sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects, scenery, lambda: persons_xy(sim))
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
         io.sim_camera = sim_camera
+        if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
+            return Camera(SimMjpegCamera(sim_camera).reopen, events.clock, events.sink("camera"), config)
         return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
 
     pipeline = CameraPipeline(make_camera, config, detector_config, events.sink("camera"))

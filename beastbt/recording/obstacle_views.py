@@ -1,4 +1,5 @@
-"""What people see of obstacles: the local costmap, the local plan, the collision monitor's zones, the persons.
+"""What people see of obstacles: the local costmap, the local plan, the collision monitor's zones, the persons;
+and, on a map, the localiser's particles and match quality.
 
 Two halves, one per process, as for the rest of the recording:
 
@@ -40,6 +41,10 @@ VIEW_PERIOD_S = 0.2
 """The plan, the zones' state and the persons go at most this often (5 Hz), and only when they changed, s."""
 STALE_S = 1.0
 """A costmap or plan whose ``stamp_s`` is older than this is no longer shown, s."""
+LOCALISATION_PERIOD_S = 0.5
+"""The map localiser's particles and match quality go at most this often (2 Hz), s."""
+PARTICLES_SHOWN = 200
+"""At most this many particles are drawn (evenly picked), to keep the recording small."""
 PERSON_HEIGHT_M = 1.7
 """How tall a person is drawn, m."""
 
@@ -114,6 +119,8 @@ class ObstacleSampler:
         self._contact_s = -math.inf
         self._collisions = 0
         self._last_persons: Optional[list] = None
+        self._localiser = run.ctx.services.plugins.get("map_localiser")
+        self._localisation_s = -math.inf
 
     def sample(self, now_s: float) -> Optional[dict]:
         """What changed since the last payload (rate-limited), or None."""
@@ -150,7 +157,31 @@ class ObstacleSampler:
                 out["contact"] = {"t_s": float(truth.t_s), "clearance_m": gap if math.isfinite(gap) else None,
                                   "collisions": int(contact.collisions), "in_contact": bool(contact.in_contact),
                                   "persons": persons, "moved": moved}
+        loc = self._localiser
+        if loc is not None and now_s - self._localisation_s >= LOCALISATION_PERIOD_S - 1e-9:
+            self._localisation_s = now_s
+            out["localisation"] = localisation_sample(loc)
         return out or None
+
+
+def localisation_sample(loc: Any) -> dict:
+    """What the views draw of a :class:`~beastbt.estimation.map_localiser.MapLocaliser`: up to
+    :data:`PARTICLES_SHOWN` particles ``[x, y, yaw]`` moved into the odom frame (m, rad), and the match quality.
+
+    The particles live in the saved map's frame; the recording's ``map`` frame is the estimator's, so they are
+    drawn in ``odom`` through the localiser's own ``map -> odom``: there they lie round the robot whatever
+    ``/tf`` says of ``map``.
+    """
+    n = len(loc.px)
+    pick = np.linspace(0, n - 1, min(n, PARTICLES_SHOWN)).astype(np.int64) if n else np.zeros(0, dtype=np.int64)
+    mx, my, myaw = loc.map_from_odom
+    c, s = math.cos(myaw), math.sin(myaw)
+    dx, dy = loc.px[pick] - mx, loc.py[pick] - my
+    xo, yo = c * dx + s * dy, -s * dx + c * dy
+    yaw = (loc.pth[pick] - myaw + math.pi) % (2 * math.pi) - math.pi
+    particles = np.round(np.column_stack((xo, yo, yaw)), 3).tolist()
+    return {"particles": particles, "match_quality": round(float(loc.match_quality), 3),
+            "localized": bool(loc.localized), "updates": int(loc.updates), "particle_count": int(n)}
 
 
 # -- the writer side: Foxglove messages -----------------------------------------------------------------
@@ -258,6 +289,35 @@ def persons_update(t_ns: int, frame_id: str, persons: list, to_map: Any) -> dict
     return {"deletions": [], "entities": [_entity(t_ns, frame_id, PERSONS_ID, cylinders=cylinders)]}
 
 
+PARTICLES_ID = "particles"
+_PARTICLE = color(0.2, 0.6, 1.0, 0.8)
+_PARTICLE_LOST = color(1.0, 0.3, 0.2, 0.8)
+PARTICLE_TICK_M = 0.12
+"""Length of the stroke that draws a particle from its position along its heading, m."""
+
+
+def particles_update(t_ns: int, frame_id: str, sample: dict) -> dict:
+    """The localiser's particles as a ``foxglove.SceneUpdate`` in ``frame_id`` (odom): one short stroke per
+    particle along its heading (one line list), blue while localised, red while not."""
+    points = []
+    for x, y, yaw in sample["particles"]:
+        points.append(vector3(x, y, 0.02))
+        points.append(vector3(x + PARTICLE_TICK_M * math.cos(yaw), y + PARTICLE_TICK_M * math.sin(yaw), 0.02))
+    line = {"type": 2, "pose": planar_pose(0.0, 0.0, 0.0), "thickness": 0.01, "scale_invariant": False,
+            "points": points, "color": _PARTICLE if sample["localized"] else _PARTICLE_LOST, "colors": [],
+            "indices": []}
+    metadata = [{"key": "match_quality", "value": f"{sample['match_quality']:.3f}"},
+                {"key": "localized", "value": str(sample["localized"]).lower()},
+                {"key": "particles", "value": str(sample["particle_count"])}]
+    return {"deletions": [], "entities": [_entity(t_ns, frame_id, PARTICLES_ID, lines=[line], metadata=metadata)]}
+
+
+def quality_message(sample: dict) -> dict:
+    """The ``/localisation/quality`` message (``beastbt.LocalisationQuality``) of a sample."""
+    return {"match_quality": sample["match_quality"], "localized": sample["localized"],
+            "updates": sample["updates"], "particles": sample["particle_count"]}
+
+
 def contact_message(c: dict) -> dict:
     """The ``/sim/contact`` message (``beastbt.SimContact``) of a sampled contact."""
     return {"t_s": c["t_s"], "clearance_m": c["clearance_m"], "collisions": c["collisions"],
@@ -265,4 +325,5 @@ def contact_message(c: dict) -> dict:
 
 
 __all__ = ["ObstacleSampler", "costmap_grid", "plan_update", "zones_update", "persons_update", "contact_message",
+           "localisation_sample", "particles_update", "quality_message", "LOCALISATION_PERIOD_S", "PARTICLES_SHOWN",
            "board_reader", "fresh", "sim_contact", "zone_active", "COSTMAP_PERIOD_S", "VIEW_PERIOD_S", "STALE_S"]

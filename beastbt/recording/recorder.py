@@ -401,7 +401,7 @@ class McapRecorder:
                                           else r.stamp_s + step)
                 shape = getattr(image, "shape", (0, 0))
                 readings[i] = Frame(r.stamp_s, r.seq, int(shape[1]) if len(shape) > 1 else 0, int(shape[0]),
-                                    image if keep else None)
+                                    image if keep else None, r.jpeg if keep else None)
         self._put(("tick", rec.tick, rec.now_s, readings, pose_odom, pose, rec.cmd_mission, rec.cmd_mux,
                    rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, tags), rec.now_s)
         views = self._views

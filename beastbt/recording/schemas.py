@@ -185,6 +185,15 @@ SIM_CONTACT = _obj("beastbt.SimContact",
                        "persons": {"type": "array", "description": "Each person where it is now: [x, y, radius], m.",
                                    "items": {"type": "array", "items": _NUM, "minItems": 3, "maxItems": 3}}})
 
+LOCALISATION_QUALITY = _obj("beastbt.LocalisationQuality",
+                            "How the localisation on the mission's map matches (2 Hz): docs/localisation.md.", {
+                                "match_quality": {"type": "number", "minimum": 0, "maximum": 1,
+                                                  "description": "Share of the scan's beams ending within "
+                                                                 "match_tolerance_m of an occupied cell."},
+                                "localized": {"type": "boolean", "description": "map_pose.localized."},
+                                "updates": {"type": "integer", "minimum": 0, "description": "Filter updates so far."},
+                                "particles": {"type": "integer", "minimum": 0, "description": "Number of particles."}})
+
 GENERIC_READING = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "beastbt.Reading",
                    "description": "A reading type this version of the recorder has no schema for (its fields).",
                    "type": "object", "required": ["stamp_s"]}
@@ -216,6 +225,8 @@ CHANNELS: dict[str, dict] = {
     "/local_plan": FOXGLOVE_SCENE_UPDATE,  # the local planner's path (odom frame), at most 5 Hz when it changed
     "/collision_monitor/zones": FOXGLOVE_SCENE_UPDATE,  # stop and slow polygons (base_link), bold when acting
     "/sim/persons": FOXGLOVE_SCENE_UPDATE,  # the simulator's persons where they are now (map frame), 5 Hz
+    "/localisation/particles": FOXGLOVE_SCENE_UPDATE,  # on a map: up to 200 particles (odom frame), 2 Hz
+    "/localisation/quality": LOCALISATION_QUALITY,  # on a map: match quality and localized, 2 Hz
     "/log": FOXGLOVE_LOG,
     # estimates
     "/estimate/fused": FUSED_POSE,

@@ -50,7 +50,7 @@ class Frame:
 
     ``stamp_s``: clock seconds; ``seq``: the camera's frame number; ``width``
     and ``height``: pixels; ``image``: the pixels (rows, columns, channels)
-    or None.
+    or None; ``jpeg``: the camera's own JPEG of a recorded frame, when it gave one (recorded as it came).
     """
 
     stamp_s: float
@@ -58,6 +58,7 @@ class Frame:
     width: int
     height: int
     image: Optional[np.ndarray]
+    jpeg: Optional[bytes] = None
 
 
 def frame_bytes(kind: int, payload: bytes) -> bytes:

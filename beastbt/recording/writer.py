@@ -672,7 +672,8 @@ class RunFileWriter:
 
     def _write_views(self, t: int, views: dict) -> None:
         """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
-        /local_plan, /collision_monitor/zones, /sim/persons and /sim/contact."""
+        /local_plan, /collision_monitor/zones, /sim/persons, /sim/contact, /localisation/particles and
+        /localisation/quality."""
         frames = self.frames
         if "costmap" in views:
             self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
@@ -689,6 +690,10 @@ class RunFileWriter:
             self._persons = contact["persons"]
             if contact["moved"] and contact["persons"] and scene is not None:
                 self._emit("/sim/persons", t, ov.persons_update(t, frames.map, contact["persons"], scene.world_point))
+        localisation = views.get("localisation")
+        if localisation is not None:
+            self._emit("/localisation/particles", t, ov.particles_update(t, frames.odom, localisation))
+            self._emit("/localisation/quality", t, ov.quality_message(localisation))
 
     def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
         """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
@@ -696,15 +701,20 @@ class RunFileWriter:
         import cv2  # only runs with a camera need it
         image = frame.image
         max_w = self.config.image_max_width_px
+        data: Optional[bytes] = None
         if max_w and frame.width > max_w:
             h = max(1, int(round(frame.height * max_w / frame.width)))
             image = cv2.resize(image, (max_w, h), interpolation=cv2.INTER_AREA)
-        ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
-        if not ok:
-            self.dropped += 1
-            return None
+        elif frame.jpeg is not None:
+            data = frame.jpeg  # the camera's own JPEG, at a size that needs no scaling: recorded as it came
+        if data is None:
+            ok, jpeg = cv2.imencode(".jpg", image, [int(cv2.IMWRITE_JPEG_QUALITY), self.config.image_jpeg_quality])
+            if not ok:
+                self.dropped += 1
+                return None
+            data = jpeg.tobytes()
         self._emit("/camera/image", t_ns, {"timestamp": fox_time(t_ns), "frame_id": self.frames.camera_optical,
-                                           "data": base64.b64encode(jpeg.tobytes()).decode("ascii"),
+                                           "data": base64.b64encode(data).decode("ascii"),
                                            "format": "jpeg"})
         return frame.width, frame.height, int(image.shape[1]), int(image.shape[0])
 
@@ -765,7 +775,7 @@ def message_count(item: tuple, images: bool) -> int:
     if kind == "views":
         views = item[2]
         contact = views.get("contact")
-        return (("costmap" in views) + ("plan" in views) + ("zones" in views)
+        return (("costmap" in views) + ("plan" in views) + ("zones" in views) + 2 * ("localisation" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-from beastbt.blackboard.types import BatteryState, FusedPose, GpsFix
+from beastbt.blackboard.types import BatteryState, FusedPose, GpsFix, MapPose
 from beastbt.estimation.geodesy import distance_m
 from beastbt.mission.model import HOME, Failsafe, Mission
 
@@ -26,6 +26,8 @@ class Situation:
     battery: Optional[BatteryState]
     pose: Optional[FusedPose]
     home: Optional[tuple[float, float]]
+    map_pose: Optional[MapPose] = None
+    """The pose on the mission's map (None without ``map:``)."""
 
 
 @dataclass
@@ -39,7 +41,8 @@ class FailsafeWatch:
 
 
 FAILSAFE_READS: dict[str, tuple[str, ...]] = {
-    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home"), "keepout": ("pose",)}
+    "gps_lost": ("gps_fix",), "battery_low": ("battery",), "geofence": ("pose", "home"), "keepout": ("pose",),
+    "localization_lost": ("map_pose",)}
 """Blackboard keys (and readings) each failsafe watches."""
 ACTION_READS: dict[str, tuple[str, ...]] = {"return_home": ("pose", "home")}
 """What a ``then:`` or ``on_failure:`` action needs kept up to date."""
@@ -52,6 +55,25 @@ def failsafe_reads(mission: Mission) -> frozenset[str]:
         keys.update(FAILSAFE_READS.get(f.kind, ("pose", "gps_fix", "battery", "home")))
         keys.update(ACTION_READS.get(f.then, ()))
     return frozenset(keys)
+
+
+def absent_for(present: Callable[[], bool], after_s: float) -> Callable[[Situation], bool]:
+    """A failsafe's test: ``present()`` has been False for ``after_s`` (s of the run's clock) or more.
+
+    ``present`` is read once a tick (a link's state, written by its I/O thread);
+    the time it has been absent is counted on the run's clock, from the first
+    tick it was seen absent (from the start when it never was present).
+    """
+    state: dict = {"absent_since": None}
+
+    def absent(s: Situation) -> bool:
+        if present():
+            state["absent_since"] = None
+            return False
+        if state["absent_since"] is None:
+            state["absent_since"] = s.now_s
+        return s.now_s - state["absent_since"] >= after_s
+    return absent
 
 
 class FailsafeMonitor:
@@ -79,6 +101,18 @@ class FailsafeMonitor:
                     state["below_since"] = s.now_s
                 return s.now_s - state["below_since"] >= p["for_s"]
             return battery_low
+        if f.kind == "localization_lost":
+            lost = {"since": None}
+
+            def localization_lost(s: Situation) -> bool:
+                # Without a map pose yet there is nothing to judge; only a localiser saying "lost" counts.
+                if s.map_pose is None or s.map_pose.localized:
+                    lost["since"] = None
+                    return False
+                if lost["since"] is None:
+                    lost["since"] = s.now_s
+                return s.now_s - lost["since"] >= p["after_s"]
+            return localization_lost
         if "fence" in p:
             fence, margin = mission.fences[p["fence"]], p["margin_m"]
 
@@ -101,6 +135,13 @@ class FailsafeMonitor:
                 lat, lon = place.lat, place.lon
             return distance_m(lat, lon, s.pose.lat, s.pose.lon) > p["radius_m"]
         return geofence
+
+    def add(self, spec: Failsafe, test: Callable[[Situation], bool]) -> FailsafeWatch:
+        """Watch one more failsafe that is not in the mission's ``failsafes:`` (a part's, such as the fleet's
+        supervision); it acts as those do (``hold``, ``stop``)."""
+        watch = FailsafeWatch(spec, test)
+        self.watches.append(watch)
+        return watch
 
     def check(self, s: Situation) -> list[tuple[FailsafeWatch, str]]:
         """Update every watch; return (watch, "trigger"|"clear") for those that changed this tick."""

@@ -20,7 +20,7 @@ from beastbt.actuation.mux import CommandMux
 from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
-                                      LaserScan, LineObservation, ServoCommand, VelocityCommand, WheelOdometry)
+                                      LaserScan, LineObservation, MapPose, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
 from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
@@ -312,20 +312,22 @@ class MissionRun:
         if not self.failsafes.watches or self.status is not None:
             return
         s = Situation(now, self.start_s or now, self.latest.get(GpsFix), self.latest.get(BatteryState),
-                      self.bb.pose, self.home)
+                      self.bb.pose, self.home, self.latest.get(MapPose))
         for watch, change in self.failsafes.check(s):
             spec = watch.spec
             if change == "trigger":
                 self.events.add("failsafe", f"{spec.kind} triggered: then {spec.then}")
+                # a fence's failsafe names the fence: with several fences, which one was crossed is the question
+                fence = f" (fence '{spec.params['fence']}')" if "fence" in spec.params else ""
                 if spec.then == "stop":
-                    self.finish("failure", f"failsafe {spec.kind}: stop")
+                    self.finish("failure", f"failsafe {spec.kind}: stop{fence}")
                 elif spec.then == "hold":
                     self.paused_by = f"hold ({spec.kind})"
                 else:
                     handler = self.ctx.services.failsafe.get(spec.then)
                     if handler is None:
                         self.events.add("failsafe", f"'{spec.then}' is not available on this robot: stopping instead")
-                        self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable")
+                        self.finish("failure", f"failsafe {spec.kind}: {spec.then} unavailable{fence}")
                     else:
                         handler(self, spec)
             elif change == "clear":

@@ -76,8 +76,15 @@ class RunOptions:
     record_sensors: bool = False
     """Record every sensor, keeping awake those the run does not read (``--record-sensors``); by default a
     recording holds what the run used, and the parts nothing reads stay asleep."""
+    fleet: Optional[Any] = None
+    """Report to a fleet's station on Zenoh (``--fleet``): a :class:`beastbt.fleet.config.FleetOptions`."""
     recording: Optional[Mapping[str, Any]] = None
     """Recording settings (the fields of ``recording.config.RecordingConfig``), for tests and benchmarks."""
+    build_map: Optional[str] = None
+    """Build a map with the LiDAR while the run goes on and write it here (map_server YAML) at its end
+    (``--build-map``)."""
+    map_resolution_m: Optional[float] = None
+    """The built map's cell size, metres (``--map-resolution``; default 5 cm)."""
 
     @property
     def simulated(self) -> bool:
@@ -176,7 +183,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     restore_sigterm = _sigterm_as_interrupt()
     terminal = TerminalAnswers(run.ctx.services.questions, out, run) if tty and sys.stdin.isatty() else None
     unanswerable = (UnanswerableQuestions(run.ctx.services.questions, p.events)
-                    if terminal is None and opts.console is None else None)
+                    if terminal is None and opts.console is None and opts.fleet is None else None)
     # Everything built so far (modules, the tree, drivers, the simulator) lives for the whole run: move it
     # out of the garbage collector's sight, so that a full collection during the run walks only what the run
     # made since, instead of pausing a tick for tens of milliseconds. Given back when the loop ends.

@@ -72,6 +72,12 @@ def human_summary(summary: dict) -> str:
         f"  time {time_s:.1f} s (wall {summary['wall_time_s']:.2f} s, {summary['ticks']} ticks)",
         f"  distance {summary['distance_m']:.2f} m, top speed {summary['max_speed_mps']:.2f} m/s",
     ]
+    loc = summary.get("localisation")
+    if loc is not None:
+        rms = (summary.get("truth") or {}).get("position_error_rms_m")
+        lines.append(f"  localisation: {'localised' if loc['localized'] else 'NOT localised'} at the end, match "
+                     f"{loc['match_quality']:.0%}, {loc['updates']} updates"
+                     + (f"; true error RMS {rms:.3f} m" if rms is not None else ""))
     for wp in summary.get("waypoints", []):
         err = wp.get("arrival_error_m")
         lines.append(f"  waypoint {wp['name']}: {'reached' if wp['reached'] else 'NOT reached'}"

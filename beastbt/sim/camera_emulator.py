@@ -280,3 +280,47 @@ class SimCamera:
         cv2.line(kernel, (int(round(c - du / 2)), int(round(c - dv / 2))), (int(round(c + du / 2)), int(round(c + dv / 2))), 1.0, 1)
         kernel /= kernel.sum()
         return cv2.filter2D(img, -1, kernel)
+
+
+class SimMjpegCamera:
+    """A fake V4L2 MJPEG camera on the simulator: each frame the :class:`SimCamera` renders, handed over as the
+    JPEG a USB camera's own encoder would give (``read_jpeg``), so that the robot's camera path (the JPEG
+    passed to the console untouched, decoded only for vision) runs end to end on the simulator.
+
+    Encoding stands for the camera's hardware, which does it for free: a benchmark counts it apart from the
+    console. It renders only when read, as the :class:`SimCamera` does. ``quality`` is the JPEG quality (1-100).
+    """
+
+    compressed = True
+
+    def __init__(self, camera: SimCamera, quality: int = 80) -> None:
+        self.camera = camera
+        self.quality = int(quality)
+        self.frames_encoded = 0
+        """Frames handed over as JPEG so far."""
+
+    def reopen(self) -> "SimMjpegCamera":
+        """What the driver's ``open_source`` calls: the simulated camera opens again unless unplugged."""
+        self.camera.reopen()
+        return self
+
+    def isOpened(self) -> bool:  # noqa: N802 - OpenCV's name
+        """True while the simulated camera is connected and not released."""
+        return self.camera.isOpened()
+
+    def release(self) -> None:
+        """Close it (reads fail until :meth:`reopen`)."""
+        self.camera.release()
+
+    def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
+        """Render the current view and give it as JPEG bytes: ``(True, jpeg)``, or ``(False, None)``."""
+        ok, frame = self.camera.read()
+        if not ok or frame is None:
+            return False, None
+        done, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+        self.frames_encoded += int(done)
+        return (True, buf.tobytes()) if done else (False, None)
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """Render the current view as pixels (what :meth:`read_jpeg` would encode)."""
+        return self.camera.read()

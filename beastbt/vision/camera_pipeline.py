@@ -42,6 +42,9 @@ from beastbt.vision.line_detector import LineDetection, LineDetector, LineDetect
 
 Latest = tuple[CameraFrame, Optional[LineDetection]]
 
+LINE_REASONS = frozenset({"follow_line", "intersection", "line_seen"})
+"""Reasons whose frames only the line detector looks at (their JPEG may be decoded smaller)."""
+
 
 class CameraPipeline:
     """A camera read frame by frame with the line detector run on every frame.
@@ -72,6 +75,14 @@ class CameraPipeline:
         """Reason -> the frames per second it needs (None: every frame the camera gives)."""
         self.pictures_only: set[str] = set()
         """Reasons that need the frames but not the line detector's observations (the recording)."""
+        self.jpeg_only: set[str] = set()
+        """Reasons that need the camera's own JPEG only, no pixels (the console's video on the robot)."""
+        self.latest_jpeg: Optional[CameraFrame] = None
+        """The newest frame that came as the camera's own JPEG (``jpeg`` set; ``image`` None when not decoded)."""
+        self.jpeg_frames = 0
+        """Frames that came as the camera's own JPEG."""
+        self.decoded = 0
+        """JPEG frames decoded for vision or the recording."""
         self._next_frame_s = float("-inf")
         self.latest: Optional[Latest] = None
         """The newest frame and what the detector found in it (None before the first frame)."""
@@ -97,13 +108,16 @@ class CameraPipeline:
         self.detector.reset()
         self.detector.last = None
 
-    def enable(self, reason: str, max_rate_hz: Optional[float] = None, lines: bool = True) -> None:
+    def enable(self, reason: str, max_rate_hz: Optional[float] = None, lines: bool = True,
+               pixels: bool = True) -> None:
         """Start reading frames (builds the camera on first use); ``reason`` is kept for the log.
 
         ``max_rate_hz``: the frames per clock second this reason needs (the recording keeps a few), None
         for every frame. While every reason has a rate, frames come at the highest: a simulated camera
         renders only those, and on the robot the others are read and dropped. ``lines`` False: this
         reason needs the pictures only; while no reason needs lines, the line detector does not run.
+        ``pixels`` False: this reason needs the camera's own JPEG only (:attr:`latest_jpeg`): while no reason
+        needs pixels, a camera that gives JPEG is read but nothing is decoded.
         """
         if reason not in self.reasons:
             self.reasons.append(reason)
@@ -112,6 +126,10 @@ class CameraPipeline:
             self.pictures_only.add(reason)
         else:
             self.pictures_only.discard(reason)
+        if not pixels:
+            self.jpeg_only.add(reason)
+        else:
+            self.jpeg_only.discard(reason)
         if self.enabled:
             return
         self.enabled = True
@@ -120,13 +138,54 @@ class CameraPipeline:
         if self.threaded:
             self._start_reader()
 
+    def disable(self, reason: str) -> None:
+        """``reason`` no longer needs frames; with no reason left the camera is not read (it stays open)."""
+        if reason in self.reasons:
+            self.reasons.remove(reason)
+        self.rate_limits.pop(reason, None)
+        self.pictures_only.discard(reason)
+        self.jpeg_only.discard(reason)
+        if not self.reasons:
+            self.enabled = False
+
+    @property
+    def pixel_reasons(self) -> list[str]:
+        """The reasons that need decoded pixels (vision, the recording), not the camera's JPEG alone."""
+        return [r for r in self.reasons if r not in self.jpeg_only]
+
     @property
     def frame_period_s(self) -> Optional[float]:
-        """Seconds between the frames the reasons need (None: every frame the camera gives)."""
-        rates = [self.rate_limits.get(r) for r in self.reasons]
+        """Seconds between the frames with pixels the reasons need (None: every frame the camera gives)."""
+        rates = [self.rate_limits.get(r) for r in self.pixel_reasons]
         if not rates or any(r is None for r in rates):
             return None
         return 1.0 / max(rates)  # type: ignore[type-var, arg-type]
+
+    @property
+    def decode_reduction(self) -> int:
+        """1, 2, 4 or 8: how much smaller a JPEG frame is decoded. Only the line detector needs its pixels:
+        decoded no wider than it works (``process_width_px``, libjpeg scales while decoding); else full size."""
+        reasons = self.pixel_reasons
+        work_w = self.detector.config.process_width_px
+        if not reasons or not work_w or any(r not in LINE_REASONS for r in reasons):
+            return 1
+        reduction = 1
+        while reduction < 8 and self.config.width_px // (2 * reduction) >= work_w:
+            reduction *= 2
+        return reduction
+
+    def read_for_viewer(self) -> Optional[CameraFrame]:
+        """The newest frame with the camera's own JPEG for a viewer (the tick thread, in lockstep): read one now
+        when nothing else reads the camera (builds it on first use), so that a camera nobody else needs is read
+        only as often as someone watches. None from a camera that gives pixels, or before any frame."""
+        if self._thread is None and not self.enabled:
+            if self.camera is None:
+                self.camera = self._make_camera()
+            frame = self.camera.poll(pixels=False)
+            if frame is not None and frame.jpeg is not None:
+                self.latest_jpeg = frame
+                self.jpeg_frames += 1
+        return self.latest_jpeg
 
     def reset_detector(self) -> None:
         """Forget where the line was (a new follow_line step starts looking straight ahead)."""
@@ -135,11 +194,16 @@ class CameraPipeline:
 
     # -- the tick loop's sensor poll -------------------------------------------------------
     def poll(self, now_s: float) -> list:
-        """The new frame and its line observation since the last call (``[]`` when none); never raises."""
+        """The new frame and its line observation since the last call (``[]`` when none); never raises.
+
+        Between the frames the reasons need, the camera is read only when a reason takes every JPEG (the
+        console): a simulated camera then renders only what someone needs."""
         if not self.enabled:
             return []
-        if self._thread is None and now_s >= self._next_frame_s - 1e-9:
+        if self._thread is None and (now_s >= self._next_frame_s - 1e-9 or self.jpeg_only):
             self._read_one()
+        if not self.pixel_reasons:
+            return []  # frames read for a viewer alone are not the run's readings
         latest = self.latest
         if latest is None or latest[0].seq == self._handed_seq:
             return []
@@ -152,9 +216,16 @@ class CameraPipeline:
         camera = self.camera
         if camera is None:
             return False
-        frame = camera.poll()
+        frame = camera.poll(pixels=False)  # a camera's own JPEG is decoded below, and only when needed
         if frame is None:
             return False
+        if frame.jpeg is not None:
+            self.latest_jpeg = frame
+            self.jpeg_frames += 1
+        if not self.pixel_reasons:
+            if frame.image is not None:  # a camera that gives pixels: they are all a viewer can have
+                self.latest = (frame, None)
+            return True
         period = self.frame_period_s
         if period is not None:
             if frame.stamp_s < self._next_frame_s - 1e-9:
@@ -164,8 +235,14 @@ class CameraPipeline:
             self._next_frame_s = self._next_frame_s + period if late < period else frame.stamp_s + period
         else:
             self._next_frame_s = float("-inf")
+        if frame.image is None:
+            decoded = camera.decode(frame, self.decode_reduction)
+            if decoded is None:
+                return False
+            frame = decoded
+            self.decoded += 1
         detection: Optional[LineDetection] = None
-        if self.detect_lines and any(r not in self.pictures_only for r in self.reasons):
+        if self.detect_lines and any(r not in self.pictures_only for r in self.pixel_reasons):
             with self._lock:
                 try:
                     detection = self.detector.detect_full(frame.image, frame.stamp_s)
@@ -192,12 +269,15 @@ class CameraPipeline:
             self.enable("robot")
 
     def _start_reader(self) -> None:
-        if self._thread is not None:
+        if self._thread is not None or self._stop.is_set():
             return
         idle_wait_s = self._idle_wait_s
 
         def loop() -> None:
             while not self._stop.is_set():
+                if not self.enabled:  # nothing needs frames now (the console's viewers left): read none
+                    self._stop.wait(0.05)
+                    continue
                 try:
                     got = self._read_one()
                 except Exception as exc:  # Camera.poll never raises; this is the last guard of the thread

@@ -392,6 +392,7 @@ function connectVideo() {
     const buf = ev.data;
     const view = new DataView(buf);
     const capturedMs = view.getFloat64(0, true);
+    const overlayLength = view.getUint16(14, true);  // header: time f64, seq u32, quality u16, overlay length u16
     const now = Date.now();
     videoStats.frames += 1; videoStats.bytes += buf.byteLength;
     videoStats.window.push([now, buf.byteLength]);
@@ -399,11 +400,20 @@ function connectVideo() {
     if (busy) return;  // still drawing the last one: the newest wins
     busy = true;
     try {
-      const bitmap = await createImageBitmap(new Blob([buf.slice(16)], {type: "image/jpeg"}));
+      const overlay = overlayLength
+        ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
+      const bitmap = await createImageBitmap(new Blob([new Uint8Array(buf, 16 + overlayLength)], {type: "image/jpeg"}));
       const c = $("video");
-      if (c.width !== bitmap.width) { c.width = bitmap.width; c.height = bitmap.height; }
-      c.getContext("2d").drawImage(bitmap, 0, 0);
+      // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
+      // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
+      const g = c.getContext("2d");
+      const fit = Math.min(c.width / bitmap.width, c.height / bitmap.height);
+      const w = bitmap.width * fit, h = bitmap.height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
+      if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
+      g.drawImage(bitmap, x, y, w, h);
       bitmap.close();
+      if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
+      videoStats.overlay = overlay; videoStats.quality = view.getUint16(12, true);  // 0: the camera's own JPEG
       if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
       const age = Date.now() - capturedMs;
       videoStats.ages.push(age);
@@ -416,13 +426,45 @@ function connectVideo() {
   ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
 }
 
+// What the run sends with each frame (beastbt/live/console_video.py overlay_of): a caption, and the detected
+// line, its target, a junction and a line end as fractions of the picture.
+function drawOverlay(g, x0, y0, w, h, o, width) {
+  const unit = Math.max(1, Math.round(w / 320));
+  const at = (p) => [x0 + p[0] * w, y0 + p[1] * h];
+  g.lineCap = "round"; g.lineJoin = "round";
+  if (o.line && o.line.length >= 2) {
+    g.strokeStyle = "rgb(0,220,0)"; g.lineWidth = 2 * unit; g.beginPath();
+    o.line.forEach((p, i) => { const [x, y] = at(p); if (i) g.lineTo(x, y); else g.moveTo(x, y); });
+    g.stroke();
+  }
+  if (o.target && o.target.length) {
+    const [x, y] = at(o.target[0]);
+    g.strokeStyle = "rgb(255,0,0)"; g.lineWidth = 2 * unit;
+    g.beginPath(); g.arc(x, y, 5 * unit, 0, 2 * Math.PI); g.stroke();
+  }
+  const cross = (p, colour, r, tilted) => {
+    const [x, y] = at(p); g.strokeStyle = colour; g.lineWidth = 2 * unit; g.beginPath();
+    if (tilted) { g.moveTo(x - r, y - r); g.lineTo(x + r, y + r); g.moveTo(x - r, y + r); g.lineTo(x + r, y - r); }
+    else { g.moveTo(x - r, y); g.lineTo(x + r, y); g.moveTo(x, y - r); g.lineTo(x, y + r); }
+    g.stroke();
+  };
+  if (o.junction && o.junction.length) cross(o.junction[0], "rgb(255,0,255)", 8 * unit, false);
+  if (o.end && o.end.length) cross(o.end[0], "rgb(255,128,0)", 6 * unit, true);
+  const lines = o.caption || [];
+  if (!lines.length) return;
+  const size = Math.max(12, Math.round(width / 45)), step = Math.round(size * 1.35);
+  g.fillStyle = "rgba(0,0,0,0.5)"; g.fillRect(0, 0, width, step * lines.length + step / 3);
+  g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
+  lines.forEach((text, i) => g.fillText(text, 6, step * (i + 1) - step / 4));
+}
+
 // At the end no frame comes any more: the last one (captioned "running") gets a band that says the run ended.
 function endVideo(s) {
   const c = $("video"), g = c.getContext("2d");
   const lines = [`ended: ${s.status} at t ${s.time_s.toFixed(1)} s`, `last step: ${s.ended_at || "-"}`];
   const text = lines.join(" · ");
   const size = Math.max(14, Math.round(c.height / 16));
-  g.fillStyle = "#101214"; g.fillRect(0, 0, c.width, Math.max(size * 3.2, c.height * 0.2));  // over the caption
+  g.fillStyle = "#101214"; g.fillRect(0, 0, c.width, Math.round(size * 3));  // over the caption (two lines of text)
   g.fillStyle = s.status === "succeeded" ? "#4caf50" : "#e5534b"; g.font = `bold ${size}px sans-serif`;
   g.fillText(lines[0], size * 0.5, size * 1.25);
   g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;

@@ -1,0 +1,194 @@
+"""``beastbt serve --robot PROFILE [--sim] --fleet ENDPOINT``: a robot on the fleet that runs the station's missions.
+
+The robot says it is alive on the fleet and waits (status ``idle``). Each
+mission that comes on ``beastbt/<name>/mission`` (YAML, or a zip with the
+files it names) is checked and assembled exactly as ``beastbt run`` does it
+(:func:`beastbt.assembly.prepare`: recorded, with every safety part): the
+answer is the validation errors as ``beastbt validate`` prints them, or
+``started``; then it runs, and the robot waits again. On the simulator
+(``--sim``, or ``--robot sim``) a mission runs at real time unless ``--speed``
+says otherwise, so that people can watch. The robot keeps working when the
+fleet link drops: a mission under way goes on (unless it requires the
+station's supervision, ``fleet: supervision: required``).
+
+Exit status: 0 when stopped (Ctrl-C, SIGTERM), 2 invalid input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import queue
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import zipfile
+from pathlib import Path, PurePosixPath
+from typing import Any, Optional
+
+EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+ZIP_MAX_FILES = 200
+"""The most files a mission's zip may hold."""
+ZIP_MAX_BYTES = 32 << 20
+"""The most a mission's zip may unpack to (bytes)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``beastbt serve``."""
+    from beastbt.commands.run import _non_negative_int, add_fleet_arguments
+    p.add_argument("--robot", default="sim", help="the robot profile (default: the simulator's, 'sim')")
+    p.add_argument("--sim", action="store_true", help="run the profile on the simulator (same geometry and limits)")
+    p.add_argument("--world", help="simulated world (default: each mission's 'world:')")
+    p.add_argument("--seed", type=_non_negative_int, default=0, help="random seed of the simulator (default 0)")
+    p.add_argument("--speed", default="realtime",
+                   help="on the simulator: realtime (default, so that people can watch), max, or a factor such as 10")
+    p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
+    p.add_argument("--no-record", action="store_true", help="do not write run folders")
+    from beastbt.commands.run import _checked, _endpoint
+    p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
+                   help="serve each mission's operator console there (tree, video, joystick); the station's page "
+                        "links to it")
+    add_fleet_arguments(p)
+
+
+def command(args: argparse.Namespace) -> int:
+    """Serve missions until Ctrl-C or SIGTERM."""
+    from beastbt.commands.paths import output_folder_problem
+    from beastbt.commands.run import fleet_options
+    from beastbt.core.errors import InvalidInput
+    from beastbt.run.session import RunOptions, parse_speed
+    if args.fleet is None and args.fleet_config is None:
+        print("beastbt serve: error: a robot serves a fleet: add --fleet tcp/STATION:7447 (or --fleet-config FILE)",
+              file=sys.stderr)
+        return EXIT_INVALID
+    try:
+        speed = parse_speed(args.speed)
+    except ValueError as exc:
+        print(f"beastbt serve: error: {exc}", file=sys.stderr)
+        return EXIT_INVALID
+    problem = None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)
+    if problem is not None:
+        print(f"beastbt serve: error: {problem}", file=sys.stderr)
+        return EXIT_INVALID
+    fleet, problem = fleet_options(args, "serve")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
+    from beastbt.fleet.agent import FleetAgent
+    from beastbt.fleet.run_link import robot_name
+    from beastbt.robot.profile import load_profile
+    try:
+        profile = load_profile(args.robot)
+        name = robot_name(fleet, profile)
+    except InvalidInput as exc:
+        print(exc.format(), file=sys.stderr)
+        return EXIT_INVALID
+    try:
+        agent = FleetAgent(name, fleet, takes_missions=True).start()
+    except InvalidInput as exc:  # a --fleet-config that is not one
+        print(exc.format(), file=sys.stderr)
+        return EXIT_INVALID
+    from dataclasses import replace
+    options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
+                         record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
+                         console=args.console)
+    print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
+          flush=True)
+    done = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+    try:
+        while not done.is_set():
+            try:
+                request = agent.missions.get(timeout=0.25)
+            except queue.Empty:
+                continue
+            signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
+            try:
+                summary = serve_one(agent, request, options)
+                if summary is not None and interrupted(summary):
+                    done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
+            except Exception as exc:  # noqa: BLE001 - the robot was stopped by the run's end; it serves on
+                request.answer(False, {"status": 500, "error": f"the robot could not run it: {type(exc).__name__}"})
+                print(f"beastbt serve: internal error in a mission: {type(exc).__name__}: {str(exc)[:300]}",
+                      file=sys.stderr, flush=True)
+            finally:
+                agent.mission_done()
+                signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+            if not done.is_set():
+                print(f"robot '{name}': waiting for missions", flush=True)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        agent.close()
+    return EXIT_SUCCESS
+
+
+def interrupted(summary: dict) -> bool:
+    """Whether the run was ended by Ctrl-C or SIGTERM (its ``mission_end`` event says so)."""
+    return any(e.get("kind") == "mission_end" and "interrupted (" in e.get("text", "")
+               for e in summary.get("events", []))
+
+
+def serve_one(agent: Any, request: Any, options: Any) -> Optional[dict]:
+    """Check, answer and run one mission request; the run's summary, or None when it was refused."""
+    from beastbt.assembly import prepare
+    from beastbt.core.errors import InvalidInput
+    from beastbt.robot.hardware import DeviceUnavailable
+    from beastbt.run.run_folder import RunFolderUnavailable
+    from beastbt.run.session import execute
+    folder = Path(tempfile.mkdtemp(prefix="beastbt-mission-"))
+    try:
+        try:
+            path = unpack(request.payload, folder)
+        except ValueError as exc:
+            request.answer(False, {"status": 400, "error": str(exc)})
+            return None
+        try:
+            prepared = prepare(str(path), options)
+        except InvalidInput as exc:
+            text = exc.format().replace(f"{folder}/", "")
+            request.answer(False, {"status": 422, "error": "the mission is not valid: nothing moved",
+                                   "errors": text})
+            return None
+        except (DeviceUnavailable, RunFolderUnavailable) as exc:
+            request.answer(False, {"status": 503, "error": str(exc)})
+            return None
+        warnings = [w.format().replace(f"{folder}/", "") for w in prepared.warnings]
+        request.answer(True, {"started": prepared.mission.name, "warnings": warnings})
+        print(f"mission '{prepared.mission.name}' from the station", flush=True)
+        return execute(prepared, sys.stdout)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def unpack(payload: bytes, folder: Path) -> Path:
+    """Write a mission (YAML, or a zip with its files) into ``folder``; the mission file's path. ValueError when the
+    zip is not one beastbt takes (a path out of the folder, too large, no single mission at its top)."""
+    if not payload.startswith(b"PK\x03\x04"):
+        path = folder / "mission.yaml"
+        path.write_bytes(payload)
+        return path
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(payload))
+    except zipfile.BadZipFile:
+        raise ValueError("the mission looks like a zip but cannot be read as one") from None
+    members = [m for m in archive.infolist() if not m.is_dir()]
+    if len(members) > ZIP_MAX_FILES or sum(m.file_size for m in members) > ZIP_MAX_BYTES:
+        raise ValueError(f"the zip holds more than {ZIP_MAX_FILES} files or {ZIP_MAX_BYTES >> 20} MB unpacked")
+    for m in members:
+        parts = PurePosixPath(m.filename).parts
+        if m.filename.startswith("/") or ".." in parts or "\\" in m.filename:
+            raise ValueError(f"the zip's file '{m.filename[:80]}' would land outside the mission's folder")
+        target = folder.joinpath(*parts)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(archive.read(m))
+    tops = [m.filename for m in members if "/" not in m.filename and m.filename.endswith((".yaml", ".yml"))]
+    if "mission.yaml" in tops:
+        return folder / "mission.yaml"
+    if len(tops) != 1:
+        raise ValueError("the zip must hold its mission at the top as mission.yaml (or as its only .yaml file), "
+                         f"not {', '.join(tops) or 'no YAML file'}")
+    return folder / tops[0]

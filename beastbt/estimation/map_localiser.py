@@ -1,0 +1,460 @@
+"""Localisation on a saved map: a particle filter like ROS's AMCL, on 2D LiDAR scans and the odometry pose.
+
+As in ROS, the odometry pose (``pose_odom``) stays continuous and never jumps;
+this filter estimates where the robot is on the map and, from that, the
+``map -> odom`` correction, so that ``map_pose = (map -> odom) o pose_odom``
+can be carried forward with odometry between scans.
+
+The method is AMCL's (Thrun, Burgard, Fox, *Probabilistic Robotics*, ch. 4, 6, 8):
+
+* **motion model**: each particle moves by the odometry's motion since the
+  last filter update, in the robot's frame, with noise growing with the
+  rotation and the translation (``alpha1..4``, AMCL's ``odom_alpha*``);
+* **measurement model**: the *likelihood field*. The distance from every cell
+  to the nearest occupied cell is computed once (``cv2.distanceTransform``);
+  each of about 60 beams of a scan is scored ``z_hit * exp(-d^2 / 2 sigma^2) +
+  z_rand`` where its end point falls, looked up in a table; a particle's
+  weight is the product over beams, tempered by ``beam_weight`` because
+  neighbouring beams are not independent (AMCL sums the cubes for the same
+  reason);
+* **resampling**: low-variance (systematic) resampling after each update
+  that moved the robot, as AMCL's ``resample_interval: 1``;
+* **a wide start**: the first scan weighs ``candidates_per_injected`` times
+  ``particles`` drawn from the initial uncertainty, then resamples to
+  ``particles``, so that a start known to a metre and 30 degrees is covered
+  densely enough (a fixed-size filter otherwise, not KLD);
+* **recovery**: AMCL's ``recovery_alpha_slow``/``fast`` averages of the
+  particles' mean beam likelihood; when the fast one drops below the slow one,
+  random particles are injected over the free cells (a kidnapped robot is
+  found again); and while the robot is not localised (a start far from where
+  it is: the averages then have nothing better to compare with), a share
+  ``lost_inject_share`` of them at every update. Each injected particle is
+  the best of ``candidates_per_injected`` random poses scored against the
+  current scan (sensor resetting, Lenser and Veloso 2000): plain random
+  particles rarely land near the robot in a building of many rooms.
+
+The filter updates only when the robot has moved ``update_min_d_m`` or turned
+``update_min_angle_deg`` since the last update (AMCL's ``update_min_d``/``a``):
+weighting the same view again while standing still would make the estimate
+overconfident. The reported covariance is the particles' weighted covariance
+(around the estimate), so it is as wide as the cloud, plus the map's own
+quantisation (``resolution^2 / 12`` on x and y); while the robot is not
+localised, that of a pose anywhere on the map (uniform over its extent and
+every heading) is added, since the cloud may be tight around a wrong place.
+``match_quality`` is the share of the scan's beams that end within
+``match_tolerance_m`` of an occupied cell at the estimate; ``localized`` turns false when it has stayed below
+``lost_quality`` for ``lost_after_s``, and true again once it reaches
+``found_quality`` (higher: a place that half fits the scan is not found).
+
+Everything is vectorised with NumPy over particles x beams; random numbers
+come from one seeded generator, so a run is the same for the same seed. Units:
+metres, radians, seconds. Frames: ``map`` (the saved map's), ``odom`` (the
+odometry's), ``base_link`` (x forward, y left).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+
+from beastbt.core.config import dataclass_from_dict
+from beastbt.core.schema_defaults import schema_defaults
+from beastbt.mapping.occupancy_map import OccupancyMap
+
+Pose2D = tuple[float, float, float]
+"""(x m, y m, yaw rad)."""
+
+
+@dataclass(frozen=True)
+@schema_defaults("parts/localisation.schema.json")
+class LocaliserConfig:
+    """The robot profile's ``localisation:`` section (AMCL's knobs, in SI units)."""
+
+    particles: int
+    """Number of particles."""
+    beams: int
+    """Beams of a scan used per update (evenly spread over the returns)."""
+    max_range_m: float
+    """Returns farther than this are left out (m)."""
+    sigma_hit_m: float
+    """Standard deviation of a beam's end point around the nearest wall (m)."""
+    z_hit: float
+    """Weight of the hit part of a beam's likelihood."""
+    z_rand: float
+    """Weight of the random part (what the map does not explain: people, furniture moved)."""
+    beam_weight: float
+    """Exponent of each beam's likelihood (< 1: neighbouring beams are not independent)."""
+    alpha1: float
+    """Rotation noise from rotation (rad per rad)."""
+    alpha2: float
+    """Rotation noise from translation (rad per m)."""
+    alpha3: float
+    """Translation noise from translation (m per m)."""
+    alpha4: float
+    """Translation noise from rotation (m per rad)."""
+    update_min_d_m: float
+    """Translation since the last update before the next (m)."""
+    update_min_angle_deg: float
+    """Rotation since the last update before the next (deg)."""
+    recovery_alpha_slow: float
+    """Smoothing of the slow average of the beam likelihood (0 disables recovery)."""
+    recovery_alpha_fast: float
+    """Smoothing of the fast average of the beam likelihood."""
+    lost_inject_share: float
+    """Share of the particles drawn at random over the free cells at each update while not localised."""
+    candidates_per_injected: int
+    """Random poses scored against the scan for each particle injected (the best are kept); also how many times
+    ``particles`` the first scan weighs, drawn from the initial uncertainty."""
+    match_tolerance_m: float
+    """A beam within this of an occupied cell matches the map (m)."""
+    lost_quality: float
+    """Match quality below which the robot is losing its place (share of beams)."""
+    lost_after_s: float
+    """How long the quality must stay below ``lost_quality`` before ``localized`` turns false (s)."""
+    found_quality: float
+    """Match quality at which a robot that was not localised counts as localised again (share of beams)."""
+
+    def __post_init__(self) -> None:
+        if self.particles < 10 or self.particles > 100_000:
+            raise ValueError(f"localisation: 'particles' must be 10..100000, got {self.particles}")
+        if self.beams < 4 or self.beams > 2000:
+            raise ValueError(f"localisation: 'beams' must be 4..2000, got {self.beams}")
+        for name in ("max_range_m", "sigma_hit_m", "beam_weight", "match_tolerance_m"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"localisation: '{name}' must be > 0, got {getattr(self, name)}")
+        for name in ("alpha1", "alpha2", "alpha3", "alpha4", "update_min_d_m", "update_min_angle_deg",
+                     "recovery_alpha_slow", "recovery_alpha_fast", "lost_after_s", "z_hit", "z_rand"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"localisation: '{name}' must be >= 0, got {getattr(self, name)}")
+        if not self.z_rand > 0.0:
+            raise ValueError("localisation: 'z_rand' must be > 0 (a beam the map cannot explain must not veto a pose)")
+        if not 1 <= self.candidates_per_injected <= 1000:
+            raise ValueError(f"localisation: 'candidates_per_injected' must be 1..1000, got "
+                             f"{self.candidates_per_injected}")
+        if not 0.0 <= self.lost_inject_share <= 1.0:
+            raise ValueError(f"localisation: 'lost_inject_share' must be 0..1, got {self.lost_inject_share}")
+        if not 0.0 <= self.lost_quality <= self.found_quality <= 1.0:
+            raise ValueError(f"localisation: 'lost_quality' ({self.lost_quality}) and 'found_quality' "
+                             f"({self.found_quality}) must be 0..1, lost_quality <= found_quality")
+
+    @classmethod
+    def from_dict(cls, d: Any) -> "LocaliserConfig":
+        """Build from a profile's ``localisation:`` mapping; unknown keys or bad values raise ``ValueError``."""
+        return dataclass_from_dict(cls, d, "localisation")
+
+
+def wrap(a: Any) -> Any:
+    """Angles (rad) wrapped into [-pi, pi)."""
+    return (np.asarray(a) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def compose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """The pose ``a o b``: ``b`` expressed in ``a``'s frame, turned into ``a``'s parent frame."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], float(wrap(a[2] + b[2])))
+
+
+def invert(a: Pose2D) -> Pose2D:
+    """The inverse transform of ``a``."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], float(wrap(-a[2])))
+
+
+class LikelihoodField:
+    """Per-cell log-likelihood of a beam ending there, and the distance to the nearest occupied cell (m).
+
+    Both tables are padded with one cell all round: an end point off the map
+    is clipped onto that border, where it scores as a random return and is
+    far from any wall.
+    """
+
+    def __init__(self, grid: OccupancyMap, config: LocaliserConfig) -> None:
+        import cv2  # the distance transform: OpenCV's is exact (DIST_L2, DIST_MASK_PRECISE) and fast
+
+        self.grid = grid
+        occupied = grid.occupied()
+        free_of_walls = np.where(occupied, 0, 255).astype(np.uint8)
+        if occupied.any():
+            dist_m = cv2.distanceTransform(free_of_walls, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * grid.resolution_m
+        else:
+            dist_m = np.full(occupied.shape, np.inf, dtype=np.float32)
+        far = 1e6
+        d = np.minimum(dist_m.astype(np.float64), far)
+        logp = np.log(config.z_hit * np.exp(-0.5 * (d / config.sigma_hit_m) ** 2) + config.z_rand)
+        self.log_p = np.pad(logp.astype(np.float32), 1, constant_values=math.log(config.z_rand))
+        self.dist_m = np.pad(d.astype(np.float32), 1, constant_values=far)
+        self.free_cells = np.flatnonzero(grid.free().ravel())
+        self._c = math.cos(grid.origin_yaw)
+        self._s = math.sin(grid.origin_yaw)
+
+    def cells(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Map-frame points (m) to (row, col) indices into the padded tables, clipped onto the border."""
+        g = self.grid
+        dx, dy = x - g.origin_x, y - g.origin_y
+        if g.origin_yaw:
+            dx, dy = self._c * dx + self._s * dy, -self._s * dx + self._c * dy
+        inv = 1.0 / g.resolution_m
+        col = np.clip(np.floor(dx * inv).astype(np.int64) + 1, 0, g.cols + 1)
+        row = np.clip(np.floor(dy * inv).astype(np.int64) + 1, 0, g.rows + 1)
+        return row, col
+
+
+class MapLocaliser:
+    """AMCL-like particle filter on an :class:`OccupancyMap` (see the module docstring).
+
+    Call :meth:`start` with the initial pose and its uncertainty, then
+    :meth:`update` with each new scan's points (base_link, m) and the odometry
+    pose at that time. :attr:`map_from_odom` is the current ``map -> odom``
+    transform; :meth:`map_pose_of` turns an odometry pose into the map.
+    """
+
+    def __init__(self, grid: OccupancyMap, config: LocaliserConfig, rng: np.random.Generator) -> None:
+        self.grid = grid
+        self.config = config
+        self.rng = rng
+        self.field = LikelihoodField(grid, config)
+        n = config.particles
+        self.px = np.zeros(n)
+        self.py = np.zeros(n)
+        self.pth = np.zeros(n)
+        self.w = np.full(n, 1.0 / n)
+        self.w_slow = 0.0
+        self.w_fast = 0.0
+        self.map_from_odom: Pose2D = (0.0, 0.0, 0.0)
+        self.last_odom: Optional[Pose2D] = None
+        """The odometry pose at the last filter update (None before the first scan)."""
+        self.covariance = np.zeros((3, 3))
+        self.match_quality = 1.0
+        self.localized = True
+        self._low_since: Optional[float] = None
+        self.updates = 0
+        """Filter updates done (a scan after enough motion)."""
+        self.injected = 0
+        """Random particles injected by recovery so far."""
+
+    # -- set-up -------------------------------------------------------------------------------------------------
+    def start(self, pose: Pose2D, sigma_xy_m: float, sigma_yaw_rad: float, odom: Pose2D) -> None:
+        """Spread the particles around ``pose`` (map) with these standard deviations; ``odom`` is the odometry
+        pose at that moment (the ``map -> odom`` transform follows from the two)."""
+        # The first scan weighs candidates_per_injected times as many particles as the filter keeps (only
+        # once, so it costs little): a wide initial uncertainty is then covered densely enough for some to lie
+        # near the robot; resampling brings the cloud back to its size.
+        n = self.config.particles * self.config.candidates_per_injected
+        self.px = pose[0] + self.rng.normal(0.0, sigma_xy_m, n)
+        self.py = pose[1] + self.rng.normal(0.0, sigma_xy_m, n)
+        self.pth = wrap(pose[2] + self.rng.normal(0.0, sigma_yaw_rad, n))
+        self.w = np.full(n, 1.0 / n)
+        self.covariance = np.diag([sigma_xy_m ** 2, sigma_xy_m ** 2, sigma_yaw_rad ** 2])
+        self.map_from_odom = compose(pose, invert(odom))
+        self.last_odom = None
+        self._start_odom = odom
+
+    @property
+    def pose_covariance(self) -> np.ndarray:
+        """The covariance to report (3x3 over x, y, yaw; m^2, rad^2): the cloud's, and while the robot is not
+        localised that of a pose anywhere on the map (uniform over its extent, any heading) on top, since the
+        cloud may then be tight around a wrong place."""
+        if self.localized:
+            return self.covariance
+        g = self.grid
+        return self.covariance + np.diag([g.width_m ** 2 / 12.0, g.height_m ** 2 / 12.0, math.pi ** 2 / 3.0])
+
+    def map_pose_of(self, odom: Pose2D) -> Pose2D:
+        """The odometry pose ``odom`` carried into the map by the current ``map -> odom`` transform."""
+        return compose(self.map_from_odom, odom)
+
+    # -- one scan -----------------------------------------------------------------------------------------------
+    def select_beams(self, points: np.ndarray) -> np.ndarray:
+        """About ``config.beams`` of the scan's points (base_link, m), evenly spread, within ``max_range_m``."""
+        if len(points) == 0:
+            return points
+        r2 = points[:, 0] ** 2 + points[:, 1] ** 2
+        pts = points[r2 <= self.config.max_range_m ** 2]
+        if len(pts) > self.config.beams:
+            idx = np.linspace(0, len(pts) - 1, self.config.beams).astype(np.int64)
+            pts = pts[idx]
+        return pts
+
+    def update(self, now_s: float, points: np.ndarray, odom: Pose2D) -> bool:
+        """Take one scan: ``points`` its returns (n, 2) in base_link (m), ``odom`` the odometry pose when it was
+        measured. Moves and weighs the particles when the robot has moved enough; always refreshes the match
+        quality and ``localized``. Returns True when the filter updated."""
+        beams = self.select_beams(points)
+        if len(beams) < 4:
+            self._judge(now_s, 0.0)
+            return False
+        cfg = self.config
+        first = self.last_odom is None
+        if first:
+            self._predict(self._start_odom, odom)
+        else:
+            assert self.last_odom is not None
+            step = compose(invert(self.last_odom), odom)
+            moved = math.hypot(step[0], step[1]) >= cfg.update_min_d_m
+            turned = abs(step[2]) >= math.radians(cfg.update_min_angle_deg)
+            if not (moved or turned):
+                self._judge(now_s, self._quality(beams, self.map_pose_of(odom)))
+                return False
+            self._predict(self.last_odom, odom)
+        self.last_odom = odom
+        mean_log_p = self._weigh(beams)
+        est = self._estimate()
+        self.map_from_odom = compose(est, invert(odom))
+        if not first:  # the first update weighs the whole initial spread: its average says nothing of a match
+            self._recover_average(mean_log_p)
+        self._resample(beams)
+        self.updates += 1
+        self._judge(now_s, self._quality(beams, est))
+        return True
+
+    def no_scan(self, now_s: float) -> None:
+        """The LiDAR has gone quiet: nothing matches the map now (``localized`` turns false after
+        ``lost_after_s``, as for a poor match); the pose is carried by odometry alone meanwhile."""
+        self._judge(now_s, 0.0)
+
+    def _predict(self, before: Pose2D, after: Pose2D) -> None:
+        """Move every particle by the odometry's motion from ``before`` to ``after``, with AMCL's noise."""
+        dx, dy, dth = compose(invert(before), after)
+        trans = math.hypot(dx, dy)
+        a = self.config
+        n = len(self.px)
+        sd_rot = a.alpha1 * abs(dth) + a.alpha2 * trans
+        sd_trans = a.alpha3 * trans + a.alpha4 * abs(dth)
+        rng = self.rng
+        ndx = dx + rng.normal(0.0, sd_trans + 1e-9, n)
+        ndy = dy + rng.normal(0.0, sd_trans + 1e-9, n)
+        ndth = dth + rng.normal(0.0, sd_rot + 1e-9, n)
+        c, s = np.cos(self.pth), np.sin(self.pth)
+        self.px = self.px + c * ndx - s * ndy
+        self.py = self.py + s * ndx + c * ndy
+        self.pth = wrap(self.pth + ndth)
+
+    def _weigh(self, beams: np.ndarray) -> np.ndarray:
+        """Multiply each particle's weight by its scan likelihood; the mean log-likelihood per beam of each."""
+        c, s = np.cos(self.pth)[:, None], np.sin(self.pth)[:, None]
+        bx, by = beams[:, 0][None, :], beams[:, 1][None, :]
+        ex = self.px[:, None] + c * bx - s * by
+        ey = self.py[:, None] + s * bx + c * by
+        row, col = self.field.cells(ex, ey)
+        log_p = self.field.log_p[row, col]
+        total = log_p.sum(axis=1, dtype=np.float64)
+        log_w = np.log(np.maximum(self.w, 1e-300)) + self.config.beam_weight * total
+        log_w -= log_w.max()
+        w = np.exp(log_w)
+        self.w = w / w.sum()
+        return total / beams.shape[0]
+
+    def _estimate(self) -> Pose2D:
+        """The weighted mean of the heaviest cluster of particles; the weighted covariance of all around it."""
+        w, px, py, pth = self.w, self.px, self.py, self.pth
+        # The heaviest 0.5 m bin: after recovery a few far particles must not drag the mean between two places.
+        key_x = np.floor(px / 0.5).astype(np.int64)
+        key_y = np.floor(py / 0.5).astype(np.int64)
+        keys = (key_x - key_x.min()) * (int(key_y.max() - key_y.min()) + 1) + (key_y - key_y.min())
+        heaviest = np.bincount(keys, weights=w).argmax()
+        centre = np.flatnonzero(keys == heaviest)
+        cx = float(np.average(px[centre], weights=w[centre] + 1e-300))
+        cy = float(np.average(py[centre], weights=w[centre] + 1e-300))
+        near = (px - cx) ** 2 + (py - cy) ** 2 <= 1.0
+        wn = w[near] + 1e-300
+        x = float(np.average(px[near], weights=wn))
+        y = float(np.average(py[near], weights=wn))
+        yaw = float(math.atan2(np.average(np.sin(pth[near]), weights=wn), np.average(np.cos(pth[near]), weights=wn)))
+        d = np.stack((px - x, py - y, wrap(pth - yaw)))
+        cov = (d * w) @ d.T
+        # The map itself is only known to a cell: add the variance of that quantisation (res^2 / 12) on x and y,
+        # which the particles cannot see (they all weigh the same cells).
+        quantisation = self.grid.resolution_m ** 2 / 12.0
+        self.covariance = 0.5 * (cov + cov.T) + np.diag([quantisation, quantisation, 0.0])
+        return (x, y, yaw)
+
+    def _recover_average(self, mean_log_p: np.ndarray) -> None:
+        """AMCL's slow and fast averages of the particles' beam likelihood (geometric mean per beam)."""
+        cfg = self.config
+        w_avg = float(np.mean(np.exp(mean_log_p)))
+        if self.w_slow == 0.0:
+            self.w_slow, self.w_fast = w_avg, w_avg
+        else:
+            self.w_slow += cfg.recovery_alpha_slow * (w_avg - self.w_slow)
+            self.w_fast += cfg.recovery_alpha_fast * (w_avg - self.w_fast)
+
+    def _random_poses(self, count: int, beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``count`` poses over the free cells that explain this scan best among ``candidates_per_injected`` times
+        as many drawn uniformly (free cells, any heading): sensor resetting (Lenser and Veloso, 2000), so that a
+        handful of random particles has a chance to land where the robot is."""
+        g, rng = self.grid, self.rng
+        m = min(count * self.config.candidates_per_injected, 20_000)
+        cells = rng.choice(self.field.free_cells, m)
+        row, col = np.divmod(cells, g.cols)
+        x, y = g.cell_centres(col + rng.random(m) - 0.5, row + rng.random(m) - 0.5)
+        th = rng.uniform(-math.pi, math.pi, m)
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        ex = x[:, None] + c * beams[:, 0][None, :] - s * beams[:, 1][None, :]
+        ey = y[:, None] + s * beams[:, 0][None, :] + c * beams[:, 1][None, :]
+        row_e, col_e = self.field.cells(ex, ey)
+        score = self.field.log_p[row_e, col_e].sum(axis=1)
+        best = np.argpartition(-score, count - 1)[:count] if count < m else np.arange(m)
+        return np.asarray(x)[best], np.asarray(y)[best], th[best]
+
+    def _resample(self, beams: np.ndarray) -> None:
+        """Low-variance resampling; a share ``1 - w_fast / w_slow`` of the new particles is drawn at random over
+        the free cells (AMCL's recovery)."""
+        cfg = self.config
+        n = cfg.particles  # the first update weighs more (see start); the cloud keeps this many
+        inject = 0
+        if len(self.field.free_cells):
+            share = 0.0
+            if cfg.recovery_alpha_slow > 0.0 and self.w_slow > 0.0:
+                share = max(0.0, 1.0 - self.w_fast / self.w_slow)
+            if not self.localized:
+                # Started lost (or lost for long): the averages have nothing better to compare with, so search.
+                share = max(share, cfg.lost_inject_share)
+            inject = int(self.rng.binomial(n, min(share, 1.0))) if share > 0.0 else 0
+        keep = n - inject
+        positions = (self.rng.random() + np.arange(keep)) / max(keep, 1)
+        idx = np.minimum(np.searchsorted(np.cumsum(self.w), positions), len(self.w) - 1)
+        px, py, pth = self.px[idx], self.py[idx], self.pth[idx]
+        if inject:
+            cx, cy, cth = self._random_poses(inject, beams)
+            px = np.concatenate((px, cx))
+            py = np.concatenate((py, cy))
+            pth = np.concatenate((pth, cth))
+            self.injected += inject
+            # The averages restart from the level reached: otherwise every update would inject again.
+            self.w_fast = self.w_slow
+        self.px, self.py, self.pth = px, py, pth
+        self.w = np.full(n, 1.0 / n)
+
+    def _quality(self, beams: np.ndarray, pose: Pose2D) -> float:
+        """Share of ``beams`` (base_link) that end within ``match_tolerance_m`` of an occupied cell at ``pose``."""
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        ex = pose[0] + c * beams[:, 0] - s * beams[:, 1]
+        ey = pose[1] + s * beams[:, 0] + c * beams[:, 1]
+        row, col = self.field.cells(ex, ey)
+        return float(np.mean(self.field.dist_m[row, col] <= self.config.match_tolerance_m))
+
+    def _judge(self, now_s: float, quality: float) -> None:
+        """Keep the match quality; ``localized`` turns false once it has stayed below ``lost_quality`` for
+        ``lost_after_s``, and true again only at ``found_quality`` (a hysteresis: a place on the map that only
+        half fits the scan does not count as found)."""
+        self.match_quality = quality
+        cfg = self.config
+        if not self.localized:
+            if quality >= cfg.found_quality:
+                self.localized = True
+                self._low_since = None
+            return
+        if quality >= cfg.lost_quality:
+            self._low_since = None
+            return
+        if self._low_since is None:
+            self._low_since = now_s
+        if now_s - self._low_since >= cfg.lost_after_s:
+            self.localized = False
+
+
+__all__ = ["MapLocaliser", "LocaliserConfig", "LikelihoodField", "compose", "invert", "wrap",
+           "Pose2D"]

@@ -1,0 +1,342 @@
+"""The robot's side of the fleet: its Zenoh session, liveliness token, state, events and command queryables.
+
+A :class:`FleetAgent` lives as long as the robot is on the fleet: the length
+of one ``beastbt run --fleet``, or of ``beastbt serve``, across its missions.
+All of it is I/O on Zenoh's threads and one publisher thread of its own; the
+run (when one is attached, :class:`~beastbt.fleet.run_link.FleetRunLink`) is
+only ever touched the way the operator console touches it: controls go
+through :class:`~beastbt.live.console_control.ConsoleControls` (carried out on
+the tick thread) and the e-stop through
+:func:`~beastbt.run.safety.request_estop` (safe from any thread).
+
+The session is opened in the publisher thread, so that a robot whose station
+is not up (yet, or any more) starts and runs all the same: Zenoh connects in
+the background and reconnects by itself, declaring again what was declared.
+
+What it answers (``beastbt/<name>/cmd/<control>``, see :mod:`~beastbt.fleet.keys`):
+a JSON object ``{"ok": true, ...}`` (the console's answer), or an error reply
+``{"ok": false, "status": 409|400|503, "error": "..."}``. The e-stop (and the
+fleet-wide ``beastbt/fleet/estop``) is never refused: with no mission running
+it latches the robot's own e-stop, and no mission starts until ``estop_reset``.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import sys
+import threading
+import time
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+from beastbt.fleet import keys
+from beastbt.fleet.config import FleetOptions, robot_config
+
+PUBLISH_PERIOD_S = 0.175
+"""The state is published this often (wall s): 5.7 times a second, in the contract's 5-10 Hz with a margin, and a
+state of 6 kB (a tree, a LiDAR scan on the map) stays near 35 kB/s, under the 50 kB/s a robot may use."""
+EARLY_EVENTS = 200
+"""Events of the run kept while the session is still opening (the set-up's), published once it is open."""
+CONTROL_TIMEOUT_S = 2.0
+"""How long a control waits for the tick thread before the answer is 503 (s), as the console's."""
+MISSION_MAX_BYTES = 4 << 20
+"""The largest mission a robot takes (bytes): a YAML file, or a zip with the files it names."""
+
+
+@dataclass
+class MissionRequest:
+    """A mission that came on ``beastbt/<name>/mission``: its bytes, and how to answer (once)."""
+
+    payload: bytes
+    answer: Callable[[bool, dict], None]
+
+
+class FleetAgent:
+    """One robot on the fleet (see the module docstring); ``name`` must be a valid robot name.
+
+    ``takes_missions``: a mission on ``beastbt/<name>/mission`` goes to :attr:`missions` (``beastbt serve``);
+    else it is refused (a ``beastbt run`` runs its one mission). ``wall`` is a monotonic clock (s).
+    """
+
+    def __init__(self, name: str, options: FleetOptions, takes_missions: bool = False,
+                 wall: Callable[[], float] = time.monotonic) -> None:
+        self.name = keys.check_name(name)
+        self.options = options
+        self.config = robot_config(options)
+        """The Zenoh configuration, made now: a bad ``--fleet-config`` is said before anything moves."""
+        self.takes_missions = takes_missions
+        self.wall = wall
+        self.missions: "queue.Queue[MissionRequest]" = queue.Queue()
+        """Missions waiting for the serving loop (at most one: another is refused while one waits or runs)."""
+        self.link: Any = None
+        """The run now reporting through this agent (a :class:`~beastbt.fleet.run_link.FleetRunLink`), or None."""
+        self.estop_latched = False
+        """The e-stop came while no mission ran: no mission starts until ``estop_reset``."""
+        self.station_present = False
+        """The station's liveliness token is seen now (written by Zenoh's thread, read by the run's failsafe)."""
+        self.last_run: Optional[dict] = None
+        """``{mission, status}`` of the last run that ended (status as in the summary: success, failure, stopped)."""
+        self.last_state: dict = {}
+        self.published = 0
+        self._pending_mission = False
+        self._lock = threading.Lock()
+        self._session: Any = None
+        self._declared: list[Any] = []
+        self._state_pub: Any = None
+        self._events_pub: Any = None
+        self._early: list[tuple[float, str, str]] = []
+        self._stop = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self.open_error: Optional[str] = None
+
+    # -- life ------------------------------------------------------------------------------
+    def start(self) -> "FleetAgent":
+        """Open the session and start publishing, in a thread of its own (returns at once)."""
+        self._thread = threading.Thread(target=self._serve, name=f"beastbt-fleet-{self.name}", daemon=True)
+        self._thread.start()
+        return self
+
+    def wait_open(self, timeout_s: float) -> bool:
+        """Wait until the session is open (s); False when it is not by then."""
+        end = time.monotonic() + timeout_s
+        while self._session is None and self.open_error is None and time.monotonic() < end:
+            time.sleep(0.01)
+        return self._session is not None
+
+    def close(self) -> None:
+        """Publish the last state, withdraw the liveliness token and close the session."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5.0)
+
+    def _serve(self) -> None:
+        import zenoh
+        try:
+            session = zenoh.open(self.config)
+        except Exception as exc:  # noqa: BLE001 - the run goes on without the fleet, and says so
+            self.open_error = str(exc)[:300]
+            print(f"beastbt: fleet: the robot is not on the fleet (the run goes on): {self.open_error}",
+                  file=sys.stderr, flush=True)
+            return
+        try:
+            events_pub = self._declare(session)
+            with self._lock:  # the set-up's events first, then each as it happens
+                early, self._early = self._early, []
+                self._session = session
+            for event in early:
+                self._put_event(events_pub, *event)
+            self._events_pub = events_pub
+            due = time.monotonic()
+            while True:  # on a fixed schedule: the rate does not drift below the period by the time a put takes
+                due += PUBLISH_PERIOD_S
+                if self._stop.wait(max(0.0, due - time.monotonic())):
+                    break
+                self.publish_state()
+            self.publish_state()
+        finally:
+            self._session = None
+            for entity in reversed(self._declared):
+                try:
+                    entity.undeclare()
+                except Exception:  # noqa: BLE001 - closing whatever happened
+                    pass
+            session.close()
+
+    def _declare(self, session: Any) -> Any:
+        """Declare the robot's keys on ``session``; return the events' publisher (set once early events went)."""
+        name = self.name
+        self._state_pub = session.declare_publisher(keys.state_key(name))
+        events_pub = session.declare_publisher(keys.events_key(name))
+        declared = [self._state_pub, events_pub]
+        for control in keys.CONTROLS:
+            declared.append(session.declare_queryable(keys.cmd_key(name, control),
+                                                      lambda query, c=control: self._on_control(c, query)))
+        declared.append(session.declare_queryable(keys.mission_key(name), self._on_mission))
+        declared.append(session.declare_subscriber(keys.ESTOP_ALL, self._on_estop_all))
+        declared.append(session.liveliness().declare_subscriber(keys.STATION_ALIVE, self._on_station, history=True))
+        declared.append(session.liveliness().declare_token(keys.alive_key(name)))
+        self._declared = declared
+        return events_pub
+
+    # -- what it publishes --------------------------------------------------------------------
+    def idle_state(self) -> dict:
+        """The state of a robot with no mission running: the console's fields, most of them empty."""
+        last = self.last_state
+        return {"mission": None, "status": "idle", "time_s": 0.0, "step": None, "last_step": None, "progress": None,
+                "pose": last.get("pose"), "gps": last.get("gps"), "speed_mps": 0.0, "battery": last.get("battery"),
+                "estop": self.estop_latched, "teleop": False, "question": None, "tree": [], "ended_at": None,
+                "events": [], "command": {"linear_mps": 0.0, "angular_rps": 0.0}, "paused_by": None}
+
+    def current_state(self) -> dict:
+        """What goes on ``beastbt/<name>/state`` now: the run's last state (or the idle one), its ``robot`` and
+        ``last_run``, and whether the station is seen."""
+        link = self.link
+        state = dict(link.latest() if link is not None else self.idle_state())
+        state["robot"] = self.name
+        console = link.run.ctx.services.plugins.get("console") if link is not None else None
+        # where the run's own console is (tree, video, joystick), without its token: the fleet is not the console
+        state["console_url"] = console.url.split("?")[0] if console is not None and console.url else None
+        state["last_run"] = self.last_run
+        state["station"] = self.station_present
+        return state
+
+    def publish_state(self) -> None:
+        """Put the current state (the publisher thread)."""
+        pub = self._state_pub
+        if pub is None:
+            return
+        try:
+            pub.put(json.dumps(self.current_state(), separators=(",", ":")))
+            self.published += 1
+        except Exception:  # noqa: BLE001 - a closed session at the end: nothing more to say
+            pass
+
+    def publish_event(self, time_s: float, kind: str, text: str) -> None:
+        """Put one event (any thread; Zenoh drops rather than blocks when the link is congested)."""
+        pub = self._events_pub
+        if pub is None:
+            with self._lock:
+                if self._session is None and self.open_error is None and len(self._early) < EARLY_EVENTS:
+                    self._early.append((time_s, kind, text))
+            return
+        self._put_event(pub, time_s, kind, text)
+
+    def _put_event(self, pub: Any, time_s: float, kind: str, text: str) -> None:
+        try:
+            pub.put(json.dumps({"robot": self.name, "time_s": round(time_s, 2), "kind": kind, "text": text}))
+        except Exception:  # noqa: BLE001 - the run never fails for the fleet link
+            pass
+
+    # -- runs ---------------------------------------------------------------------------------
+    def attach(self, link: Any) -> None:
+        """A run reports through this agent from now on."""
+        with self._lock:
+            self.link = link
+            self._pending_mission = False
+
+    def detach(self, last_run: Optional[dict]) -> None:
+        """The run has ended (``last_run``: its mission and summary status): the robot is idle again."""
+        with self._lock:
+            if self.link is not None:
+                self.last_state = self.link.latest()
+            self.link = None
+            self.last_run = last_run
+        self.publish_state()
+
+    def mission_done(self) -> None:
+        """The serving loop is done with a mission request (refused or run): the next one may come."""
+        with self._lock:
+            self._pending_mission = False
+
+    # -- what it answers ----------------------------------------------------------------------
+    def _on_station(self, sample: Any) -> None:
+        import zenoh
+        self.station_present = sample.kind == zenoh.SampleKind.PUT
+
+    def _on_estop_all(self, sample: Any) -> None:
+        self.estop("the fleet's stop-all")
+
+    def estop(self, reason: str) -> dict:
+        """Latch the e-stop: the run's (mux and watchdog, any thread), or the idle robot's own. Never refused."""
+        from beastbt.run.safety import request_estop
+        link = self.link
+        self.estop_latched = True
+        if link is not None and link.run.status is None:
+            first = request_estop(link.run, reason)
+            link.run.io.wakeup.set()
+            return {"estop": True, "newly_latched": first, "running": True}
+        return {"estop": True, "running": False}
+
+    def _on_control(self, control: str, query: Any) -> None:
+        try:
+            ok, body = self.control(control, _payload(query))
+        except Exception as exc:  # noqa: BLE001 - never a traceback on Zenoh's thread, always an answer
+            ok, body = False, {"status": 500, "error": f"the robot could not answer: {type(exc).__name__}"}
+        _answer(query, ok, body)
+
+    def control(self, control: str, raw: bytes) -> tuple[bool, dict]:
+        """Carry out one control from the fleet: (True, the console's answer) or (False, {status, error})."""
+        from beastbt.live.console_control import Refused, check_answer_body, check_teleop_body, parse_control_body
+        if control == "estop":
+            return True, self.estop("fleet station")
+        try:
+            body = parse_control_body(raw)
+            if control == "estop_reset":
+                return True, self._estop_reset()
+            link = self.link
+            if link is None or link.run.status is not None:
+                raise Refused(409, f"no mission is running on {self.name}")
+            if control == "teleop":
+                body = check_teleop_body(body)
+            elif control == "answer":
+                body = check_answer_body(body)
+            future = link.controls.submit(control, body)
+            return True, future.result(CONTROL_TIMEOUT_S)
+        except Refused as exc:
+            return False, {"status": exc.status, "error": str(exc)}
+        except FutureTimeout:
+            return False, {"status": 503, "error": f"the run did not take '{control}' within {CONTROL_TIMEOUT_S:g} s"}
+
+    def _estop_reset(self) -> dict:
+        from beastbt.live.console_control import Refused
+        from beastbt.run.safety import reset_estop
+        link = self.link
+        running = link is not None and link.run.status is None
+        if running and link.run.mux.estop_latched:
+            reset_estop(link.run, "fleet station")
+        elif not self.estop_latched:
+            raise Refused(409, "the e-stop is not latched")
+        self.estop_latched = False
+        return {"estop": False}
+
+    def _on_mission(self, query: Any) -> None:
+        payload = _payload(query)
+        with self._lock:
+            refusal = self._mission_refusal(payload)
+            if refusal is None:
+                self._pending_mission = True
+        if refusal is not None:
+            _answer(query, False, refusal)
+            return
+        self.missions.put(MissionRequest(payload, lambda ok, body: _answer(query, ok, body)))
+
+    def _mission_refusal(self, payload: bytes) -> Optional[dict]:
+        if not self.takes_missions:
+            return {"status": 409, "error": f"{self.name} runs one mission ('beastbt run') and takes no other: "
+                                            f"run 'beastbt serve' on it to send it missions"}
+        if self.link is not None or self._pending_mission:
+            mission = self.link.run.mission.name if self.link is not None else "another"
+            return {"status": 409, "error": f"{self.name} is busy with mission '{mission}': abort it first"}
+        if self.estop_latched:
+            return {"status": 409, "error": f"the e-stop of {self.name} is latched: reset it first (estop_reset)"}
+        if not payload.strip():
+            return {"status": 400, "error": "the mission is empty: send the mission's YAML (or a zip with its files)"}
+        if len(payload) > MISSION_MAX_BYTES:
+            return {"status": 413, "error": f"the mission has {len(payload)} bytes: at most {MISSION_MAX_BYTES}"}
+        return None
+
+
+def _payload(query: Any) -> bytes:
+    payload = query.payload
+    return bytes(payload.to_bytes()) if payload is not None else b""
+
+
+def _answer(query: Any, ok: bool, body: dict) -> None:
+    """Reply to ``query`` once (JSON) and finish it; a station gone meanwhile is no error."""
+    try:
+        if ok:
+            query.reply(query.key_expr, json.dumps({"ok": True, **body}))
+        else:
+            query.reply_err(json.dumps({"ok": False, **body}))
+    except Exception:  # noqa: BLE001 - the querier has gone (its timeout passed): nothing to answer
+        pass
+    finally:
+        try:
+            query.drop()
+        except Exception:  # noqa: BLE001
+            pass
+
+
+__all__ = ["FleetAgent", "MissionRequest", "PUBLISH_PERIOD_S", "MISSION_MAX_BYTES"]

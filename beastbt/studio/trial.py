@@ -1,0 +1,270 @@
+""""Try it": a simulated run of the text in the editor, as ``beastbt run`` in a process of its own, with its console.
+
+The run is the command a user types (``python -m beastbt run MISSION
+--console 127.0.0.1:PORT --summary FILE``), so the studio tries exactly what
+``beastbt run`` would do. The text runs as it is in the editor, saved or not:
+from a hidden file beside the one it will be saved as (so ``world:`` and geo
+files resolve from the same folder), removed when the run ends. The run's
+folder, summary and printed output go to a temporary folder of the studio.
+The console's own API is passed through (``/api/try/<id>/console/...``): the
+console refuses to be framed by another page.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+from beastbt.studio.files import FileRefused, StudioFolder
+
+MAX_RUNS = 4
+"""At most this many tries at once (each is a simulator process); older ended ones are forgotten first."""
+KEPT_RUNS = 20
+"""How many ended tries are remembered (their summary and report)."""
+OUTPUT_LINES = 60
+"""The last lines a run printed, kept for ``GET /api/try/<id>``."""
+CONSOLE_PATHS = ("api/state", "api/map", "api/pause", "api/resume", "api/abort", "api/estop", "api/estop/reset",
+                 "api/answer", "api/teleop")
+"""The console's API passed through the studio (docs/console.md)."""
+SPEED_WORDS = ("max", "realtime")
+
+
+@dataclass
+class Trial:
+    """One simulated run the studio started."""
+
+    run_id: str
+    process: subprocess.Popen
+    folder: Path
+    """The run's own temporary folder: summary, output, run folders."""
+    mission_file: Path
+    """The hidden copy of the text, removed when the run ends."""
+    console_port: int
+    output: deque = field(default_factory=lambda: deque(maxlen=OUTPUT_LINES))
+    reader: Optional[threading.Thread] = None
+    report: Optional[Path] = None
+    report_error: Optional[str] = None
+
+    @property
+    def summary_file(self) -> Path:
+        """Where ``--summary`` writes."""
+        return self.folder / "summary.json"
+
+
+def free_loopback_port() -> int:
+    """A TCP port free on 127.0.0.1 now (the console binds it a moment later)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _speed(value: Any) -> str:
+    if value is None:
+        return "realtime"
+    text = str(value).strip()
+    if text in SPEED_WORDS:
+        return text
+    try:
+        if float(text) > 0:
+            return text
+    except ValueError:
+        pass
+    raise FileRefused(400, f"'speed' is max, realtime or a factor of real time such as 4, not {value!r}")
+
+
+class Trials:
+    """The tries the studio started, by run id (see the module docstring)."""
+
+    def __init__(self, folder: StudioFolder) -> None:
+        self.folder = folder
+        self.runs: dict[str, Trial] = {}
+        self._lock = threading.Lock()
+
+    def start(self, text: str, path: Optional[str], body: dict) -> dict:
+        """Start a try of ``text`` (saved or not at ``path``): ``{run_id, console_url}``; raises FileRefused."""
+        from beastbt.core.units import UnitError, parse_duration
+        speed = _speed(body.get("speed"))
+        robot = body.get("robot") or "sim"
+        if not isinstance(robot, str):
+            raise FileRefused(400, "'robot' is a robot profile's name or the path of a robot file")
+        if robot.endswith((".yaml", ".yml")):
+            robot = str(self.folder.resolve(robot))
+        max_time = body.get("max_time") or "10 min"
+        try:
+            parse_duration(str(max_time))
+        except UnitError as exc:
+            raise FileRefused(400, f"'max_time': {exc}") from None
+        seed = body.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise FileRefused(400, "'seed' is a whole number, 0 or more")
+        with self._lock:
+            running = [t for t in self.runs.values() if t.process.poll() is None]
+            if len(running) >= MAX_RUNS:
+                raise FileRefused(409, f"{len(running)} tries are running already: stop one first "
+                                       f"(POST /api/try/RUN_ID/stop)")
+            self._forget_old()
+        target = self.folder.resolve(path, must_exist=False) if path else self.folder.root / "untitled.yaml"
+        here = target.parent if target.parent.is_dir() else self.folder.root
+        run_id = secrets.token_hex(6)
+        mission_file = here / f".{target.stem}.try-{run_id}.yaml"
+        mission_file.write_text(text, encoding="utf-8")
+        run_folder = Path(tempfile.mkdtemp(prefix=f"beastbt-studio-try-{run_id}-"))
+        port = free_loopback_port()
+        command = [sys.executable, "-m", "beastbt", "run", str(mission_file), "--robot", robot,
+                   "--speed", speed, "--max-time", str(max_time), "--seed", str(seed),
+                   "--console", f"127.0.0.1:{port}", "--summary", str(run_folder / "summary.json"),
+                   "--runs-dir", str(run_folder / "runs")]
+        if robot != "sim":
+            command.append("--sim")  # a real robot's profile on the simulator: a try never moves a robot
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        try:
+            process = subprocess.Popen(command, cwd=run_folder, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                       stderr=subprocess.STDOUT, text=True, errors="replace", env=env)
+        except OSError:
+            mission_file.unlink(missing_ok=True)
+            raise
+        trial = Trial(run_id, process, run_folder, mission_file, port)
+        trial.reader = threading.Thread(target=self._read_output, args=(trial,), name=f"beastbt-try-{run_id}",
+                                        daemon=True)
+        trial.reader.start()
+        with self._lock:
+            self.runs[run_id] = trial
+        return {"run_id": run_id, "console_url": f"http://127.0.0.1:{port}/", "state": "running"}
+
+    def _read_output(self, trial: Trial) -> None:
+        """Keep the last lines the run prints; when it ends, remove the hidden copy of the text."""
+        assert trial.process.stdout is not None
+        name = str(trial.mission_file)
+        for line in trial.process.stdout:
+            trial.output.append(line.rstrip("\n").replace(name, "(the text in the studio)"))
+        trial.process.wait()
+        trial.mission_file.unlink(missing_ok=True)
+
+    def _forget_old(self) -> None:
+        ended = [t for t in self.runs.values() if t.process.poll() is not None]
+        for trial in ended[:max(0, len(ended) - KEPT_RUNS)]:
+            del self.runs[trial.run_id]
+            shutil.rmtree(trial.folder, ignore_errors=True)
+
+    def get(self, run_id: str) -> Trial:
+        """The try called ``run_id``; FileRefused 404 when there is none."""
+        trial = self.runs.get(run_id)
+        if trial is None:
+            raise FileRefused(404, f"no try '{run_id[:40]}' (the studio forgets tries when it stops)")
+        return trial
+
+    def state(self, run_id: str) -> dict:
+        """``{run_id, state, exit_code?, summary?, report?, output, console_url}`` of a try."""
+        trial = self.get(run_id)
+        code = trial.process.poll()
+        out: dict[str, Any] = {"run_id": run_id, "state": "running" if code is None else "ended",
+                               "console_url": f"http://127.0.0.1:{trial.console_port}/",
+                               "output": list(trial.output)}
+        if code is not None:
+            if trial.reader is not None:
+                trial.reader.join(2.0)  # the last lines, and the copy removed
+                out["output"] = list(trial.output)
+            out["exit_code"] = code
+            try:
+                out["summary"] = json.loads(trial.summary_file.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                out["summary"] = None
+            if self._run_folder(trial) is not None:
+                out["report"] = f"/api/try/{run_id}/report/"
+        return out
+
+    def stop(self, run_id: str) -> dict:
+        """End a try (as Ctrl-C would: the run stops the robot, writes its summary) and answer its state."""
+        trial = self.get(run_id)
+        if trial.process.poll() is None:
+            import signal
+            trial.process.send_signal(signal.SIGINT)
+            try:
+                trial.process.wait(10.0)
+            except subprocess.TimeoutExpired:
+                trial.process.kill()
+                trial.process.wait(5.0)
+        return self.state(run_id)
+
+    def stop_all(self) -> None:
+        """Stop every try still running (the studio is closing)."""
+        for trial in list(self.runs.values()):
+            if trial.process.poll() is None:
+                trial.process.terminate()
+        for trial in list(self.runs.values()):
+            try:
+                trial.process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                trial.process.kill()
+            trial.mission_file.unlink(missing_ok=True)
+
+    @staticmethod
+    def _run_folder(trial: Trial) -> Optional[Path]:
+        runs = trial.folder / "runs"
+        folders = sorted(p for p in runs.iterdir() if p.is_dir()) if runs.is_dir() else []
+        return folders[-1] if folders else None
+
+    def report_file(self, run_id: str) -> Path:
+        """The HTML report of an ended try, made with ``beastbt report`` the first time it is asked for."""
+        trial = self.get(run_id)
+        if trial.process.poll() is None:
+            raise FileRefused(409, "the try is still running: its report comes when it has ended")
+        if trial.report is not None and trial.report.is_file():
+            return trial.report
+        run_folder = self._run_folder(trial)
+        if run_folder is None:
+            raise FileRefused(404, "this try wrote no run folder (it did not start: see its output)")
+        out = trial.folder / "report"
+        done = subprocess.run([sys.executable, "-m", "beastbt", "report", str(run_folder), "--out", str(out)],
+                              cwd=trial.folder, stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                              timeout=120)
+        html = out / "report.html"
+        if done.returncode != 0 or not html.is_file():
+            raise FileRefused(500 if done.returncode != 2 else 404,
+                              f"the report could not be made: {(done.stderr or done.stdout).strip()[-300:]}")
+        trial.report = html
+        return html
+
+    def report_asset(self, run_id: str, name: str) -> Path:
+        """A file the report refers to (its plots), inside the report's folder only."""
+        html = self.report_file(run_id)
+        root = html.parent.resolve()
+        target = (root / name).resolve()
+        if root not in target.parents or not target.is_file():
+            raise FileRefused(404, f"no file '{name[:80]}' in the report")
+        return target
+
+    async def console(self, run_id: str, method: str, what: str, body: Optional[bytes]) -> tuple[int, Any]:
+        """Pass one request to the try's console: (status, JSON answer)."""
+        import aiohttp
+        trial = self.get(run_id)
+        if what not in CONSOLE_PATHS or (method == "GET") != (what in ("api/state", "api/map")):
+            return 404, {"error": f"the console has no {method} /{what[:60]} (see docs/console.md)"}
+        if trial.process.poll() is not None:
+            return 409, {"error": "the try has ended: its console is closed (see GET /api/try/RUN_ID)"}
+        url = f"http://127.0.0.1:{trial.console_port}/{what}"
+        try:
+            async with aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=5)) as session:
+                async with session.request(method, url, data=body if body is not None else None,
+                                           headers={"Content-Type": "application/json"} if body is not None else {}
+                                           ) as answer:
+                    try:
+                        return answer.status, await answer.json(content_type=None)
+                    except ValueError:
+                        return 502, {"error": "the console answered something that is not JSON"}
+        except (aiohttp.ClientError, OSError, TimeoutError):
+            return 503, {"error": "the try's console does not answer (yet): it starts a moment after the run"}
+
+
+__all__ = ["Trial", "Trials", "free_loopback_port"]

@@ -1,0 +1,177 @@
+"""What localising on a map costs: CPU per second at 10 Hz scans, against decoding the same scans.
+
+Drives a tour of the office world once in the simulator (``worlds/office.yaml``
+on a map drawn from its walls, as tests/test_map_localiser.py does) and keeps
+every scan's points and the odometry pose at it. Then, ``--reps`` times (at
+least 5), a fresh particle filter (the profile defaults: 400 particles, 60
+beams) takes those scans in order, timed with this thread's CPU time
+(``time.thread_time``: on a shared machine the wall clock counts other
+processes). Printed: milliseconds per scan and the share of one core at
+10 Hz scans, as medians with the spread (min..max) over the repetitions, for
+
+* the defaults (the filter updates after 5 cm or 3 deg of motion, as AMCL's
+  ``update_min_d``/``a``; match quality on every scan), and
+* the worst case: an update on every scan (``update_min_d_m: 0``),
+
+and, as the baseline measured in the same run, the LD19 driver decoding one
+10 Hz revolution (benchmarks/lidar_decode.py's stream, 50 ms reads), with the
+ratio. Also the localisation part's whole per-tick hook in the recorded run
+(one run: filter, ``map_pose`` every tick, truth). Goal of issue 21:
+localisation at most 5 % of one core on this machine.
+
+Run: python benchmarks/localisation.py [--reps 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tests"))
+sys.path.insert(0, str(REPO / "benchmarks"))
+
+import numpy as np  # noqa: E402
+
+from beastbt.assembly import prepare  # noqa: E402
+from beastbt.blackboard.types import LaserScan  # noqa: E402
+from beastbt.core.clock import SimClock  # noqa: E402
+from beastbt.devices.ld19 import Ld19Lidar  # noqa: E402
+from beastbt.devices.lidar_scan import LidarConfig, base_points_xy  # noqa: E402
+from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser  # noqa: E402
+from beastbt.run.session import RunOptions, execute  # noqa: E402
+import lidar_decode  # noqa: E402
+from lidar_decode import ld19_stream  # noqa: E402
+from lidar_support import MemorySerial  # noqa: E402
+from localisation_support import mission_text, office_map_file  # noqa: E402
+
+TOUR = """\
+  - drive: {distance: 1.5 m}
+  - turn: {angle: 180 deg}
+  - drive: {distance: 3 m}
+  - turn: {angle: 90 deg}
+  - drive: {distance: 1 m}
+  - turn: {angle: 90 deg}
+  - drive: {distance: 1.5 m}
+"""
+
+
+def record_scans(folder: Path) -> tuple[object, list, float, int]:
+    """Run the tour; the map, (clock s, points in base_link, odometry pose) of every scan, and the CPU seconds
+    the localisation part's per-tick hook took in that run (filter, map_pose, truth), with its number of ticks."""
+    office_map_file(folder)
+    path = folder / "tour.yaml"
+    path.write_text(mission_text("tour", TOUR))
+    prepared = prepare(str(path), RunOptions(record=False, seed=0))
+    scans: list = []
+    mounting = LidarConfig.from_dict({"type": "ld19", "port": "sim"}).mounting
+    last = [None]
+
+    def keep(run, now_s):
+        scan = run.latest.get(LaserScan)
+        odom = run.bb.pose_odom
+        if scan is not None and scan is not last[0] and odom is not None:
+            last[0] = scan
+            scans.append((now_s, np.array(base_points_xy(scan, mounting)), (odom.x, odom.y, odom.yaw)))
+    prepared.run.hooks.append(keep)
+    part_hook = next(h for h in prepared.run.hooks if getattr(h, "__name__", "") == "on_tick")
+    spent = [0.0, 0]
+
+    def timed(run, now_s):
+        t0 = time.thread_time()
+        part_hook(run, now_s)
+        spent[0] += time.thread_time() - t0
+        spent[1] += 1
+    prepared.run.hooks[prepared.run.hooks.index(part_hook)] = timed
+    with open("/dev/null", "w") as quiet:
+        execute(prepared, quiet)
+    return prepared.mission.map_grid, scans, spent[0], spent[1]
+
+
+def time_filter(grid, scans: list, config: LocaliserConfig) -> tuple[float, int]:
+    """CPU seconds for a fresh filter to take every scan; and how many updates it made."""
+    loc = MapLocaliser(grid, config, np.random.default_rng(0))
+    loc.start((0.0, 0.0, 0.0), 0.1, 0.087, scans[0][2])
+    t0 = time.thread_time()
+    for now_s, points, odom in scans:
+        loc.update(now_s, points, odom)
+    return time.thread_time() - t0, loc.updates
+
+
+def time_decode(revolutions: int) -> float:
+    """CPU seconds per revolution for the LD19 driver to decode a 10 Hz stream in 50 ms reads (the 20 Hz tick)."""
+    lidar_decode.TIMER = time.thread_time
+    wire = ld19_stream(revolutions)
+    clock, port = SimClock(), MemorySerial()
+    driver = Ld19Lidar(port, clock, config=LidarConfig.from_dict({"type": "ld19"}))
+    spent, scans = lidar_decode.run(driver, port, clock, wire, chunk=230400 // 10 // 20, dt=0.05)
+    return spent / max(1, scans)
+
+
+def time_field(reps: int) -> list[float]:
+    """Milliseconds to build the likelihood field (distance transform and tables) of a 40 m x 40 m map at 5 cm
+    with walls every 4 m, the start-up cost of a large floor."""
+    from beastbt.estimation.map_localiser import LikelihoodField
+    from beastbt.mapping.occupancy_map import FREE, empty_map
+    from beastbt.mapping.rasterise import mark_outlines
+
+    grid = empty_map(40.0, 40.0, 0.05, 0.0, 0.0, fill=FREE)
+    walls = [(x, 0.0, x, 40.0) for x in range(0, 41, 4)] + [(0.0, y, 40.0, y) for y in range(0, 41, 4)]
+    grid = mark_outlines(grid, walls)
+    config = LocaliserConfig.from_dict({})
+    out = []
+    for _ in range(reps):
+        t0 = time.thread_time()
+        LikelihoodField(grid, config)
+        out.append(1000.0 * (time.thread_time() - t0))
+    return out
+
+
+def spread(values: list[float]) -> str:
+    """Median and min..max."""
+    return f"{statistics.median(values):.3f} ({min(values):.3f}..{max(values):.3f})"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reps", type=int, default=5)
+    args = ap.parse_args()
+    reps = max(5, args.reps)
+    with tempfile.TemporaryDirectory() as tmp:
+        grid, scans, hook_s, ticks = record_scans(Path(tmp))
+    duration_s = scans[-1][0] - scans[0][0]
+    print(f"tour: {len(scans)} scans over {duration_s:.1f} s ({len(scans) / duration_s:.1f} Hz), "
+          f"map {grid.cols} x {grid.rows} cells at {grid.resolution_m} m")
+    defaults = LocaliserConfig.from_dict({})
+    every_scan = replace(defaults, update_min_d_m=0.0, update_min_angle_deg=0.0)
+    results: dict[str, list[float]] = {"defaults": [], "every scan": [], "decode": []}
+    updates = {}
+    for _ in range(reps):
+        for name, config in (("defaults", defaults), ("every scan", every_scan)):
+            cpu_s, n = time_filter(grid, scans, config)
+            results[name].append(1000.0 * cpu_s / len(scans))
+            updates[name] = n
+        results["decode"].append(1000.0 * time_decode(50))
+    decode = statistics.median(results["decode"])
+    print(f"LD19 decode (baseline):       {spread(results['decode'])} ms per revolution, "
+          f"{decode:.2f} % of a core at 10 Hz")
+    for name in ("defaults", "every scan"):
+        ms = results[name]
+        share = list(ms)  # ms per scan x 10 scans/s = ms per s, / 1000 ms x 100 %: the same number
+        print(f"localisation, {name:10s}:    {spread(ms)} ms per scan, {spread(share)} % of a core at 10 Hz "
+              f"({updates[name]} filter updates of {len(scans)} scans; x{statistics.median(ms) / decode:.1f} "
+              f"the decode)")
+    print(f"the whole part in the run (one run, {ticks} ticks at 20 Hz: filter, map_pose every tick, truth): "
+          f"{100.0 * hook_s / duration_s:.2f} % of a core")
+    print(f"likelihood field of a 40 m x 40 m map at 5 cm (once, at the start): {spread(time_field(reps))} ms")
+    print(f"goal: <= 5 % of a core; {reps} repetitions, medians (min..max), thread CPU time")
+
+
+if __name__ == "__main__":
+    main()
