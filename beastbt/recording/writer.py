@@ -894,8 +894,10 @@ def _yield_to_the_loop() -> None:
         pass  # not Linux: the default policy still works
 
 
-POLL_PERIOD_S = 0.02
-"""How long the writer waits when the pipe is empty before it looks again (wall seconds)."""
+POLL_PERIOD_S = 0.1
+"""How long the writer waits when the pipe is empty before it looks again (wall seconds). The run sends a batch
+every ``send_interval_s`` (0.5 s) and rings the doorbell when it waits, so looking more often only costs: at
+0.02 s the idle writer used 0.16 % of a core here, at 0.1 s 0.06 %."""
 
 
 def _polling_reader(fd: int, doorbell: Optional[int]) -> Callable[[int], bytes]:
