@@ -250,7 +250,12 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
             run.ctx.services.save_snapshot = temporary_snapshots(mission.name)
         from beastbt.behaviours.ask import OperatorQuestions
         run.ctx.services.questions = OperatorQuestions(events, options.answers)
-        sleeping = asleep(parts, run.reads())
+        demand = set(run.reads())
+        if options.record_sensors and any(part.name == "recording" for part in parts):
+            # --record-sensors: the recording reads whatever any part fills, so nothing sleeps
+            demand.update(fill for part in parts for fill in part.fills)
+        sleeping = asleep(parts, demand)
+        prepared.reads = frozenset(demand.union(*(part.reads for part in parts if part not in sleeping)))
         for part in sleeping:
             part.sleep(prepared)
         if sleeping:

@@ -1,6 +1,6 @@
 """CPU used by a run at ``--speed realtime``, as a share of one core, measured on this machine.
 
-For the patrol and the line mission, recorded (the default) and with
+For the patrol, the line mission and the GPS route, recorded (the default) and with
 ``--no-record``: each runs as ``python -m beastbt run MISSION --speed realtime
 --max-time T`` in a subprocess. The steady share is read while the mission
 runs: the CPU time (user + system, from ``/proc/PID/stat``) of the run and of
@@ -18,8 +18,9 @@ the baseline, measured in the same run, against which the LiDAR's share
 (emulator, driver, collision monitor, /scan) is the difference and the ratio.
 Goal (issues 11 and 20): the patrol, with the LiDAR, under 5 % of one core.
 
-``--missions`` picks the missions (default ``patrol,line``, the rows above):
-``gps_route`` runs missions/gps_route.yaml with ``--seed 1`` as its comment says;
+``--missions`` picks the missions (default ``patrol,line,gps_route``):
+``gps_route`` runs missions/gps_route.yaml with ``--seed 1`` as its comment says (the one seed mission
+whose tree reads the fused pose: its GPS, IMU and EKF are awake, recorded or not);
 ``teleop`` runs missions/teleop.yaml with a joystick script: the demo's
 (missions/joystick/teleop_demo.yaml) lasts 6.5 s, so a longer one of the same
 kind is written for the run (enable held, the sticks changing every second,
@@ -197,8 +198,8 @@ def steady_share(samples: list[tuple[float, float]], start_s: float, end_s: floa
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="mission seconds per run (default 30)")
-    parser.add_argument("--missions", default="patrol,line",
-                        help="comma-separated, of " + ", ".join(MISSIONS) + " (default patrol,line)")
+    parser.add_argument("--missions", default="patrol,line,gps_route",
+                        help="comma-separated, of " + ", ".join(MISSIONS) + " (default patrol,line,gps_route)")
     parser.add_argument("--console", action="store_true", help="also runs with --console and one viewer")
     parser.add_argument("--json", metavar="FILE", help="also write the rows as JSON to FILE")
     args = parser.parse_args()

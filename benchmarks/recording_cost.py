@@ -1,221 +1,222 @@
-"""What recording a run costs, measured in one run of this script.
+"""What recording a run costs: recorded runs of a mission against unrecorded runs of the same mission.
+
+Anchor: the same mission (default missions/patrol.yaml, on the default
+simulated robot, seed 1) run unrecorded (``RunOptions(record=False)``, what
+``--no-record`` gives), prepared and run by the same code (``prepare``,
+``execute``) in this same process. Anchor and subject runs are interleaved:
+each rep runs one of each, in an order that alternates from rep to rep, so
+that both see the same machine (this machine is shared: compare the ratios,
+not the absolute times, with other runs of the script). Every figure is the
+median over the reps, with the spread (lowest to highest) beside it.
 
 Prints:
-1. the tick-loop cost with and without recording: the time the loop thread
-   spends in ``run.tick()`` per tick (the recorder's tick side included), on
-   the patrol mission paced at FACTOR x real time so that the loop sleeps
-   between ticks as it does on the robot; within that one run, blocks of
-   ticks take turns without recording, with a do-nothing recorder (what any
-   recorder costs the runner) and with recording, so that all see the same
-   machine (goal: recording adds at most 10%). The headline is the mean
-   with the slowest 1% of each mode's ticks left out (a preemption landing
-   in one block moves a plain mean by several per cent); the median and
-   the plain mean are printed beside it;
-2. the same at ``--speed max``, where the loop never sleeps: the wall time
-   per tick of the tick loop (first tick to last) with and without
-   recording, in alternating pairs of runs; what the end of a run takes
-   (the writer's last batch, closing the file), once per run; and the
-   writer process's CPU per tick (it runs on another core);
-3. the size of the MCAP file of a 10-minute simulated patrol (repeat forever,
-   stopped at 10 min) without images (goal: under 20 MB).
+1. at ``--speed max``: the wall time per tick of whole runs, from the first
+   tick to ``execute`` returning (so the end of a recorded run, the writer
+   process draining its queue and closing the file, counts), recorded and
+   unrecorded; their ratio per rep (goal, issue 26: at most 1.5x); beside it
+   the tick loop alone (first tick to last), the time spent in the
+   recorder's own code in the loop (``on_tick``: queueing, pickling, the
+   pipe), and the CPU the writer process used per tick (on another core). A third mode, recorded with
+   ``--record-sensors`` (every sensor awake and recorded), is measured in the
+   same reps for comparison;
+2. at ``--speed realtime``: runs of ``--realtime-s`` seconds (default 20),
+   recorded and unrecorded: the share of one core used while the mission
+   runs (from 3 s into it to its last tick: start-up is left out), counting
+   this process (every thread) and the recording's writer process; the
+   difference in percentage points per rep (goal, issue 26: at most +1 % of
+   a core);
+3. with ``--size``: the size of the MCAP file of a 10-minute simulated patrol
+   (repeated forever, stopped at 10 min; no images), goal under 20 MB.
 
-Run: python benchmarks/recording_cost.py [--factor F] [--paced-s S] [--pairs N] [--max-s S]
-
-The sim robot's camera is on, with images recorded at the default 2 Hz, in
-sections 1 and 2; the corridor world of the patrol is left out in section
-2 and 3 (a long run must not end against a wall).
+Run: python benchmarks/recording_cost.py [--reps N] [--realtime-s S] [--mission FILE] [--robot PROFILE] [--size]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import random
 import statistics
 import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Optional
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from beastbt.recording.recorder import recorder_of  # noqa: E402
 from beastbt.assembly import prepare  # noqa: E402
+from beastbt.recording.recorder import recorder_of  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 
 PATROL = REPO / "missions" / "patrol.yaml"
+TICKS_PER_S = os.sysconf("SC_CLK_TCK")
+MODES = ("unrecorded", "recorded", "sensors")
+"""Anchor, subject, and (speed max only) the subject with --record-sensors."""
 
 
-def patrol_forever_text() -> str:
-    """The patrol mission, repeated forever (for long runs)."""
-    text = PATROL.read_text(encoding="utf-8")
-    if "times: 3" not in text:
-        raise SystemExit("missions/patrol.yaml changed: 'times: 3' not found")
-    return text.replace("times: 3", "times: forever")
+def options(mode: str, speed: object, max_time_s: Optional[float], runs_dir: str, robot: str) -> RunOptions:
+    """The run options of one ``mode``; everything else the same."""
+    return RunOptions(robot=robot, seed=1, speed=speed, max_time_s=max_time_s, record=mode != "unrecorded",
+                      runs_dir=runs_dir, record_sensors=mode == "sensors", simulate=robot != "sim")
 
 
-def prepared_run(record: bool, speed: object, max_time_s: float, runs_dir: str, images_hz: float = 2.0,
-                 open_world: bool = False):
-    """A patrol (repeated forever) prepared with or without recording."""
-    opts = RunOptions(seed=1, speed=speed, max_time_s=max_time_s, record=record, runs_dir=runs_dir,
-                      record_images_hz=images_hz)
-    text = patrol_forever_text()
-    if open_world:
-        # Without the corridor's walls: odometry drift cannot end a long run against a wall.
-        text = "\n".join(line for line in text.splitlines() if not line.startswith("world:")) + "\n"
-    return prepare(str(PATROL), opts, mission_text=text)
+def _proc_cpu_s(pid: int) -> float:
+    """User + system CPU seconds of process ``pid`` so far (0 once it is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except (FileNotFoundError, ProcessLookupError):
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / TICKS_PER_S
 
 
-def one_run(record: bool, speed: object, max_time_s: float, runs_dir: str, images_hz: float = 2.0,
-            open_world: bool = False) -> dict:
-    """One patrol run through the real loop (``execute``): wall time of the whole run and of its tick loop
-    (first tick's start to last tick's end), ticks, summary, recording path."""
-    p = prepared_run(record, speed, max_time_s, runs_dir, images_hz, open_world)
-    rec = recorder_of(p.run)
-    run = p.run
-    tick = run.tick
-    span = [0.0, 0.0]
-
-    def timed_tick():
-        t = time.perf_counter()
-        if not span[0]:
-            span[0] = t
-        status = tick()
-        span[1] = time.perf_counter()
-        return status
-
-    run.tick = timed_tick
-    t0 = time.perf_counter()
-    with open(os.devnull, "w") as devnull:
-        summary = execute(p, devnull)
-    t1 = time.perf_counter()
-    out = {"wall_s": t1 - t0, "loop_s": span[1] - span[0], "end_s": t1 - span[1], "ticks": summary["ticks"],
-           "summary": summary}
-    if rec is not None:
-        out["path"] = rec.paths[0]
-        out["writer_cpu_s"] = rec.writer_cpu_s
-    return out
-
-
-def paced(factor: float, sim_s: float, block_ticks: int, runs_dir: str) -> None:
-    """Section 1: loop-thread time per tick on a paced loop; recording on, off, and a do-nothing recorder, in turn."""
-    p = prepared_run(True, factor, sim_s, runs_dir)
+def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_text: Optional[str] = None) -> dict:
+    """One run through the real loop. Returns: ticks; ``loop_s`` (first tick's start to last tick's end) and
+    ``run_s`` (first tick's start to ``execute`` returning), wall seconds; ``writer_cpu_s``; and, over the window
+    from the first tick at or after ``window_from_s`` of mission time to the last tick, ``window_wall_s`` and
+    ``window_cpu_s`` (this process, every thread, plus the writer process)."""
+    p = prepare(mission, opts, mission_text=mission_text)
     run = p.run
     rec = recorder_of(run)
     tick = run.tick
-    perf = time.perf_counter
-    modes = ("off", "noop", "on")
-    costs: dict[str, list[float]] = {m: [] for m in modes}
-    cpu: dict[str, list[float]] = {m: [] for m in modes}
-    inside: list[float] = []
+    marks: dict[str, float] = {}
+    perf, cpu = time.perf_counter, time.process_time
 
-    def recording(record) -> None:
-        t = perf()
-        rec.on_tick(record)
-        inside.append(perf() - t)
-
-    recorders = {"off": [], "noop": [lambda r: None], "on": [recording]}
-    thread_time = time.thread_time
-    # Each round of three blocks visits the three modes in a random order (seeded): a fixed rotation can
-    # line up with the mission's own rhythm (a drive leg, a turn) and favour one mode.
-    rng = random.Random(1)
-    schedule: list[str] = []
-    for _ in range(4096):
-        schedule.extend(rng.sample(modes, 3))
+    def writer_cpu() -> float:
+        proc = getattr(rec, "_proc", None) if rec is not None else None
+        return _proc_cpu_s(proc.pid) if proc is not None else 0.0
 
     def timed_tick():
-        # Blocks of ticks take turns: no recorder at all (the loop then skips building the TickRecord),
-        # a recorder that does nothing (what any recorder costs the runner), and the MCAP recorder; so all
-        # three are measured under the same machine conditions, in one run.
-        mode = schedule[(run.ticks // block_ticks) % len(schedule)]
-        run.recorders[:] = recorders[mode]
-        c0 = thread_time()
-        t0 = perf()
+        if "first" not in marks:
+            marks["first"] = perf()
+        if "w0" not in marks and run.elapsed_s >= window_from_s:
+            marks["w0"], marks["c0"], marks["k0"] = perf(), cpu() + writer_cpu(), run.ticks
         status = tick()
-        costs[mode].append(perf() - t0)
-        cpu[mode].append(thread_time() - c0)
+        marks["last"] = perf()
         return status
 
-    run.tick = timed_tick  # execute() calls run.tick(): time exactly what the loop pays
+    run.tick = timed_tick
+    inside = [0.0]
+    if rec is not None:
+        on_tick = rec.on_tick
+
+        def timed_on_tick(record) -> None:
+            t0 = perf()
+            on_tick(record)
+            inside[0] += perf() - t0
+
+        run.recorders[run.recorders.index(on_tick)] = timed_on_tick
     with open(os.devnull, "w") as devnull:
-        execute(p, devnull)
-    trimmed = {m: trimmed_mean(costs[m]) for m in modes}
-    mean = {m: statistics.fmean(costs[m]) for m in modes}
-    median = {m: statistics.median(costs[m]) for m in modes}
-    cpu_trimmed = {m: trimmed_mean(cpu[m]) for m in modes}
-    print(f"1. tick-loop cost, one run paced at {factor:g}x real time, {sim_s:g} s simulated, in turns of "
-          f"{block_ticks} ticks ({len(costs['off'])}/{len(costs['noop'])}/{len(costs['on'])} ticks):")
-    for m, label in (("off", "without recording:     "), ("noop", "a do-nothing recorder: "),
-                     ("on", "with recording:        ")):
-        print(f"   {label} {trimmed[m] * 1e6:7.1f} us per tick (mean without the slowest 1%; median "
-              f"{median[m] * 1e6:.1f}, mean {mean[m] * 1e6:.1f})")
-    print(f"   recording adds {100 * (trimmed['on'] / trimmed['off'] - 1):+.1f}%  [goal: at most +10%]  "
-          f"(median {100 * (median['on'] / median['off'] - 1):+.1f}%, mean {100 * (mean['on'] / mean['off'] - 1):+.1f}%)")
-    print(f"   CPU time of the loop's thread per tick (other processes do not count): without "
-          f"{cpu_trimmed['off'] * 1e6:.1f} us, do-nothing recorder {cpu_trimmed['noop'] * 1e6:.1f} us, with recording "
-          f"{cpu_trimmed['on'] * 1e6:.1f} us ({100 * (cpu_trimmed['on'] / cpu_trimmed['off'] - 1):+.1f}%)")
-    print(f"   of which the recorder's own code in the loop (queueing; one pickle and one pipe write per batch): "
-          f"{trimmed_mean(inside) * 1e6:.1f} us per tick (mean without the slowest 1%; median "
-          f"{statistics.median(inside) * 1e6:.1f})")
-    print(f"   the writer process used {rec.writer_cpu_s / max(1, len(costs['on'])) * 1e6:.0f} us of CPU per recorded "
-          "tick, on another core")
+        # Where the window ends: the last tick; read as the loop returns, before the closers (the writer's end).
+        closers = p.closers
+        closers.insert(0, lambda: marks.update(w1=perf(), c1=cpu() + writer_cpu(), k1=run.ticks))
+        summary = execute(p, devnull)
+    end = perf()
+    out = {"ticks": summary["ticks"], "loop_s": marks["last"] - marks["first"], "run_s": end - marks["first"],
+           "writer_cpu_s": rec.writer_cpu_s if rec is not None else 0.0, "on_tick_s": inside[0], "summary": summary,
+           "path": rec.paths[0] if rec is not None and rec.paths else None}
+    if "w0" in marks:
+        out["window_wall_s"] = marks["w1"] - marks["w0"]
+        out["window_cpu_s"] = marks["c1"] - marks["c0"]
+        out["window_ticks"] = marks["k1"] - marks["k0"]
+    return out
 
 
-def trimmed_mean(values: list[float], cut: float = 0.01) -> float:
-    """The mean without the largest ``cut`` fraction of the values."""
-    ordered = sorted(values)
-    keep = max(1, int(round(len(ordered) * (1.0 - cut))))
-    return statistics.fmean(ordered[:keep])
+def spread(values: list[float], scale: float = 1.0, fmt: str = "{:.1f}") -> str:
+    """``median (lowest-highest)`` of ``values`` times ``scale``."""
+    return (fmt.format(statistics.median(values) * scale) + " (" + fmt.format(min(values) * scale) + "-"
+            + fmt.format(max(values) * scale) + ")")
 
 
-def flat_out(pairs: int, segment_s: float, runs_dir: str) -> None:
-    """Section 2: at --speed max, with and without recording in pairs: wall time per tick of the tick loop,
-    and what the end of the run (the writer draining, the file closed) adds once."""
-    loops: dict[bool, list[float]] = {False: [], True: []}
-    ends: dict[bool, list[float]] = {False: [], True: []}
-    writer_cpu: list[float] = []
-    for _ in range(pairs):
-        for record in (False, True):
-            r = one_run(record, "max", segment_s, runs_dir, open_world=True)
-            loops[record].append(r["loop_s"] / r["ticks"])
-            ends[record].append(r["end_s"])
-            if record:
-                writer_cpu.append(r["writer_cpu_s"] / r["ticks"])
-    off, on = statistics.median(loops[False]), statistics.median(loops[True])
-    ratios = [b / a - 1 for a, b in zip(loops[False], loops[True])]
-    print(f"2. at --speed max (no sleep between ticks), {pairs} pairs of {segment_s:g} s simulated runs, median:")
-    print(f"   without recording: {off * 1e6:7.1f} us per tick of wall time")
-    print(f"   with recording:    {on * 1e6:7.1f} us per tick of wall time")
-    print(f"   recording adds {100 * statistics.median(ratios):+.1f}% (median of the pairs: "
-          + ", ".join(f"{100 * r:+.0f}%" for r in ratios) + ")  [goal: at most +10%]")
-    print(f"   the end of a run (summary, files; with recording the writer's last batch and closing the file): "
-          f"{statistics.median(ends[False]) * 1e3:.0f} ms without, {statistics.median(ends[True]) * 1e3:.0f} ms with")
-    print(f"   the writer process used {statistics.median(writer_cpu) * 1e6:.0f} us of CPU per tick, on another core")
+def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
+    """Section 1: per tick at --speed max, the three modes interleaved."""
+    per_tick: dict[str, list[float]] = {m: [] for m in MODES}
+    loop: dict[str, list[float]] = {m: [] for m in MODES}
+    writer: dict[str, list[float]] = {m: [] for m in MODES}
+    on_tick: dict[str, list[float]] = {m: [] for m in MODES}
+    ticks = 0
+    one_run(mission, options("recorded", "max", None, runs_dir, robot))  # warm-up: imports, caches (not counted)
+    for rep in range(reps):
+        order = MODES if rep % 2 == 0 else tuple(reversed(MODES))
+        for mode in order:
+            r = one_run(mission, options(mode, "max", None, runs_dir, robot))
+            ticks = r["ticks"]
+            per_tick[mode].append(r["run_s"] / r["ticks"])
+            loop[mode].append(r["loop_s"] / r["ticks"])
+            writer[mode].append(r["writer_cpu_s"] / r["ticks"])
+            on_tick[mode].append(r["on_tick_s"] / r["ticks"])
+    print(f"1. --speed max, {Path(mission).name} on robot {robot}, {reps} reps of each ({ticks} ticks a run), "
+          f"median (lowest-highest):")
+    for mode, label in (("unrecorded", "unrecorded (anchor)"), ("recorded", "recorded"),
+                        ("sensors", "recorded, --record-sensors")):
+        print(f"   {label:27s} {spread(per_tick[mode], 1e6)} us per tick, first tick to the end of the run "
+              f"(tick loop alone {spread(loop[mode], 1e6)} us, of which the recorder's own code "
+              f"{spread(on_tick[mode], 1e6)} us; writer process {spread(writer[mode], 1e6, '{:.0f}')} us of CPU "
+              f"per tick, on another core)")
+    for mode, label in (("recorded", "recorded"), ("sensors", "with --record-sensors")):
+        ratios = [b / a for a, b in zip(per_tick["unrecorded"], per_tick[mode])]
+        loop_ratios = [b / a for a, b in zip(loop["unrecorded"], loop[mode])]
+        goal = "  [goal: at most 1.5x]" if mode == "recorded" else ""
+        print(f"   {label}: {spread(ratios, fmt='{:.2f}')}x the unrecorded run per tick{goal} "
+              f"(tick loop alone {spread(loop_ratios, fmt='{:.2f}')}x)")
+
+
+def real_time(mission: str, robot: str, reps: int, seconds: float, runs_dir: str) -> None:
+    """Section 2: share of one core at --speed realtime, recorded and not, interleaved."""
+    share: dict[str, list[float]] = {"unrecorded": [], "recorded": []}
+    for rep in range(reps):
+        order = ("unrecorded", "recorded") if rep % 2 == 0 else ("recorded", "unrecorded")
+        for mode in order:
+            r = one_run(mission, options(mode, "realtime", seconds, runs_dir, robot), window_from_s=3.0)
+            share[mode].append(r["window_cpu_s"] / r["window_wall_s"])
+    diffs = [b - a for a, b in zip(share["unrecorded"], share["recorded"])]
+    print(f"2. --speed realtime, {seconds:g} s runs, {reps} reps of each; share of one core from 3 s into the mission "
+          f"to its last tick (this process and the writer process), median (lowest-highest):")
+    print(f"   unrecorded (anchor): {spread(share['unrecorded'], 100, '{:.2f}')} %")
+    print(f"   recorded:            {spread(share['recorded'], 100, '{:.2f}')} %")
+    print(f"   recording adds {spread(diffs, 100, '{:+.2f}')} % of one core  [goal: at most +1 %]")
+
+
+def patrol_forever_text() -> str:
+    """The patrol mission, repeated forever, without its corridor (a long run must not end against a wall)."""
+    text = PATROL.read_text(encoding="utf-8")
+    if "times: 3" not in text:
+        raise SystemExit("missions/patrol.yaml changed: 'times: 3' not found")
+    text = text.replace("times: 3", "times: forever")
+    return "\n".join(line for line in text.splitlines() if not line.startswith("world:")) + "\n"
 
 
 def ten_minutes(runs_dir: str) -> None:
     """Section 3: file size of 10 simulated minutes of patrol, no images."""
-    r = one_run(True, "max", 600.0, runs_dir, images_hz=0.0, open_world=True)
+    opts = RunOptions(seed=1, speed="max", max_time_s=600.0, record=True, runs_dir=runs_dir, record_images_hz=0.0)
+    r = one_run(str(PATROL), opts, mission_text=patrol_forever_text())
     size = Path(r["path"]).stat().st_size
     rec = r["summary"].get("recording", {})
-    print(f"3. 10-minute simulated patrol, no images: {size / 1e6:.2f} MB "
-          f"({rec.get('messages')} messages, {rec.get('dropped')} dropped, {r['ticks']} ticks; "
-          f"{size / r['ticks']:.0f} bytes per tick)  [goal: under 20 MB]")
+    print(f"3. 10-minute simulated patrol, no images: {size / 1e6:.2f} MB ({rec.get('messages')} messages, "
+          f"{rec.get('dropped')} dropped, {r['ticks']} ticks; {size / r['ticks']:.0f} bytes per tick)  "
+          f"[goal: under 20 MB]")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--factor", type=float, default=10.0, help="pace of section 1, x real time (default 10)")
-    ap.add_argument("--paced-s", type=float, default=180.0, help="simulated seconds of section 1 (default 180)")
-    ap.add_argument("--block-ticks", type=int, default=10, help="ticks per on/off block in section 1 (default 10)")
-    ap.add_argument("--pairs", type=int, default=7, help="section 2: runs with and without recording (default 7)")
-    ap.add_argument("--max-s", type=float, default=300.0, help="simulated seconds per section-2 run (default 300)")
+    ap.add_argument("--reps", type=int, default=7, help="runs of each mode per section (default 7, at least 5)")
+    ap.add_argument("--realtime-s", type=float, default=20.0, help="mission seconds of a real-time run (default 20)")
+    ap.add_argument("--mission", default=str(PATROL), help="mission file (default missions/patrol.yaml)")
+    ap.add_argument("--robot", default="sim", help="robot profile, run on the simulator (default sim)")
+    ap.add_argument("--skip-realtime", action="store_true", help="section 1 only")
+    ap.add_argument("--size", action="store_true", help="also section 3 (the size of a 10-minute recording)")
     args = ap.parse_args()
+    if args.reps < 5:
+        ap.error("--reps: at least 5 (medians over fewer say little)")
+    print(f"load before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)", flush=True)
     with tempfile.TemporaryDirectory() as runs_dir:
-        paced(args.factor, args.paced_s, args.block_ticks, runs_dir)
-        flat_out(args.pairs, args.max_s, runs_dir)
-        ten_minutes(runs_dir)
+        flat_out(args.mission, args.robot, args.reps, runs_dir)
+        if not args.skip_realtime:
+            real_time(args.mission, args.robot, args.reps, args.realtime_s, runs_dir)
+        if args.size:
+            ten_minutes(runs_dir)
+    print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
 
 
 if __name__ == "__main__":

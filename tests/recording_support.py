@@ -62,7 +62,8 @@ def shared_run(name: str) -> tuple[Path, dict]:
     ``patrol`` (seed 1, 40 s: drives, looks around, turns), ``gps`` (the GPS
     route, seed 1, 55 s: reaches its first place), ``teleop`` (scripted
     joystick), ``failsafe`` (battery_low stops it after 1 s), ``camera``
-    (looks at the tape of the line track and takes a snapshot).
+    (looks at the tape of the line track and takes a snapshot; recorded with
+    ``--record-sensors``, so every sensor is in it).
     """
     global _SHARED_DIR
     if _SHARED_DIR is None:
@@ -79,7 +80,7 @@ def shared_run(name: str) -> tuple[Path, dict]:
         runs.mkdir(parents=True)
         mission = runs / "camera.yaml"
         mission.write_text(CAMERA_MISSION.replace("WORLD", str(REPO / "worlds" / "line_track.yaml")), encoding="utf-8")
-        return record_run(mission, runs, seed=4)
+        return record_run(mission, runs, seed=4, record_sensors=True)  # every sensor: GPS, IMU, EKF awake too
     if name == "failsafe":
         runs.mkdir(parents=True)
         mission = runs / "failsafe.yaml"

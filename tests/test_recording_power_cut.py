@@ -83,7 +83,8 @@ def test_a_sigkill_of_the_whole_run_leaves_a_file_mcaps_readers_read_and_recover
 
     # As it is: both of mcap's readers read the file to its end, every message our own reader finds.
     on_disk = read_recording(path, keep_order=True)
-    assert not on_disk.complete and on_disk.message_count() >= 40 * 10
+    # At least the 40 ticks' odometry and three commands each (poses go at 10 Hz, the LiDAR at its own rate).
+    assert not on_disk.complete and on_disk.message_count() >= 40 * 4
     as_cut = _official(path)
     assert len(as_cut) == on_disk.message_count() == _official_linear(path)
 
@@ -104,7 +105,9 @@ def test_a_sigkill_of_the_whole_run_leaves_a_file_mcaps_readers_read_and_recover
     ticks = len(on_disk.topic("/cmd/gate"))
     assert summary["status"] == "stopped" and summary["mission"] == "corridor_patrol"
     assert summary["ticks"] == ticks and abs(summary["sim_time_s"] - (ticks - 1) * 0.05) < 1e-6
-    assert summary["events"][0]["kind"] == "mission_start" and summary["recovered"]["from"] == "run.mcap.cut"
+    kinds = [e["kind"] for e in summary["events"]]
+    # As in a summary of a run that ended well: what the assembly said (which parts sleep), then the start.
+    assert set(kinds[:kinds.index("mission_start")]) <= {"asleep"} and summary["recovered"]["from"] == "run.mcap.cut"
     assert "mission_start" in (folder / "events.log").read_text(encoding="utf-8")
     listed = _cli("runs", "--runs-dir", str(runs), cwd=tmp_path)
     assert "cut short (stopped, recovered)" in listed.stdout

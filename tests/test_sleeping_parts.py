@@ -2,7 +2,8 @@
 
 The GPS, the IMU and the EKF sleep when nothing in the run reads what they
 fill: not the tree's leaves, not its conditions, not the failsafes or
-``on_failure``, not another awake part (the recording reads them all).
+``on_failure``, not another awake part (a recording reads nothing itself:
+``--record-sensors`` keeps them all awake).
 Sleeping parts are neither polled, nor emulated, nor fused; the mission
 itself runs exactly as it would with them awake.
 """
@@ -53,12 +54,25 @@ def test_a_mission_that_only_drives_leaves_gps_imu_and_ekf_asleep():
     assert h.blackboard("pose").position_valid is False
 
 
-def test_a_recorded_run_keeps_them_awake(tmp_path):
+def test_a_recorded_run_lets_them_sleep(tmp_path):
     h = harness(PATROL_LIKE, record_path=str(tmp_path / "run.mcap"))
-    assert awake(h) == {"gps": True, "imu": True, "ekf": True}
-    assert lidar_awake(h)  # /scan is recorded
+    assert awake(h) == {"gps": False, "imu": False, "ekf": False}  # the recording holds what the run used
+    assert lidar_awake(h)  # the collision monitor reads it (and /scan is recorded)
     h.run_to_end()
     close(h)
+
+
+def test_record_sensors_keeps_them_awake(tmp_path):
+    h = harness(PATROL_LIKE, record_path=str(tmp_path / "run.mcap"), record_sensors=True)
+    assert awake(h) == {"gps": True, "imu": True, "ekf": True}
+    assert not any(e.kind == "asleep" for e in h.events)
+    h.run_to_end()
+    close(h)
+
+
+def test_record_sensors_without_a_recording_wakes_nothing():
+    h = harness(PATROL_LIKE, record_sensors=True)  # the harness records nothing
+    assert awake(h) == {"gps": False, "imu": False, "ekf": False}
 
 
 @pytest.mark.parametrize("steps, expected", [

@@ -21,7 +21,13 @@ def test_a_driven_run_becomes_a_route_that_a_mission_repeats(tmp_path):
     taught.write_text(f"mission: teach\nworld: {REPO / 'worlds' / 'campus.yaml'}\nsteps:\n"
                       f"  - wait: 3 s\n  - drive: {{distance: 8 m, speed: 0.3 m/s}}\n  - turn: {{angle: 90 deg}}\n"
                       f"  - drive: {{distance: 6 m, speed: 0.3 m/s}}\n")
-    assert beastbt("run", str(taught), "--runs-dir", str(tmp_path / "runs"), "--seed", "3").returncode == 0
+    # The drive never reads the position: without --record-sensors its GPS and EKF sleep, and nothing is taught.
+    assert beastbt("run", str(taught), "--runs-dir", str(tmp_path / "asleep"), "--seed", "3").returncode == 0
+    [asleep] = (tmp_path / "asleep").iterdir()
+    refused = beastbt("route", "from-run", str(asleep), "--out", str(tmp_path / "none.gpx"))
+    assert refused.returncode == 2 and "--record-sensors" in refused.stderr and "Traceback" not in refused.stderr
+    assert beastbt("run", str(taught), "--runs-dir", str(tmp_path / "runs"), "--seed", "3",
+                   "--record-sensors", "--record-images", "0").returncode == 0
     [run] = (tmp_path / "runs").iterdir()
     done = beastbt("route", "from-run", str(run), "--every", "2 m", "--out", str(tmp_path / "path.gpx"))
     assert done.returncode == 0, done.stderr

@@ -261,7 +261,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
     add_fleet_arguments(p)
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
-                   help="camera images recorded per second as JPEG (default 2; 0 for none)")
+                   help="camera images recorded per second as JPEG (0 for none); without it, 2 per second of a "
+                        "camera the run uses anyway, or of any camera with --record-sensors")
+    p.add_argument("--record-sensors", action="store_true",
+                   help="record every sensor (GPS, IMU, LiDAR, camera images...) even those the run does not read, "
+                        "keeping them and the estimator awake; by default a recording holds what the run used")
 
 
 @reader_safe_stdout
@@ -289,7 +293,7 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      answers=dict(args.answer))
+                      record_sensors=args.record_sensors, answers=dict(args.answer))
     opts.fleet, problem = fleet_options(args, "run")
     if problem is not None:
         print(problem, file=sys.stderr)

@@ -22,11 +22,14 @@ def foxglove_endpoint(value: Any) -> Optional[tuple[str, int]]:
 
 class RecordingPart(Part):
     """Every run recorded (``<run folder>/run.mcap``, ``--record FILE``) and/or served to Foxglove live
-    (``--foxglove [HOST:]PORT``); nothing when the run does neither."""
+    (``--foxglove [HOST:]PORT``); nothing when the run does neither. It reads nothing itself: the recording
+    holds what the run used, and only ``--record-sensors`` wakes the parts that would sleep."""
 
     name = "recording"
     schema = "parts/recording.schema.json"
-    reads = ("odometry", "imu", "gps_fix", "pose", "battery", "joystick", "scan")
+    # Nothing: a recording holds what the run used, and wakes no part the run lets sleep (the GPS, the IMU and
+    # the EKF of a patrol). ``--record-sensors`` (RunOptions.record_sensors) keeps every part awake instead.
+    reads = ()
 
     def install(self, prepared: Prepared) -> None:
         """Attach the recorder (it adds ``recording`` to the summary itself), with the live server if asked."""

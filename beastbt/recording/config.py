@@ -27,6 +27,13 @@ class RecordingConfig:
     image_jpeg_quality: int
     # Images wider than this are scaled down before encoding (pixels); 0 keeps the camera's size.
     image_max_width_px: int
+    # The poses and what is drawn from them (/odom, /estimate/*, /pose/fused, /gps/fused, /tf) and the
+    # simulator's /truth are recorded at most this often (Hz); commands, events and the readings the run used
+    # go every tick (replay needs them). 0 records the poses every tick too.
+    pose_rate_hz: float
+    # While the poses, the true pose and the gimbal stay the same (the robot stands still), they are recorded
+    # only this often (s). 0 records them at pose_rate_hz all the same.
+    still_interval_s: float
     # Ticks, events and servo commands waiting for the writer process (items), beyond what the pipe to it
     # holds (up to 1 MiB, ~1000 ticks). ~200 s at 20 Hz; on the robot an overflow drops items (counted in
     # the summary), in the simulator the loop waits instead.
@@ -56,6 +63,10 @@ class RecordingConfig:
             raise ValueError(f"image_jpeg_quality must be 1-100, got {self.image_jpeg_quality}")
         if self.image_max_width_px < 0:
             raise ValueError(f"image_max_width_px must be zero or positive, got {self.image_max_width_px}")
+        if not (math.isfinite(self.pose_rate_hz) and self.pose_rate_hz >= 0):
+            raise ValueError(f"pose_rate_hz must be zero or positive, got {self.pose_rate_hz}")
+        if not (math.isfinite(self.still_interval_s) and self.still_interval_s >= 0):
+            raise ValueError(f"still_interval_s must be zero or positive, got {self.still_interval_s}")
         if self.queue_max_items < 1:
             raise ValueError(f"queue_max_items must be at least 1, got {self.queue_max_items}")
         if self.overflow not in ("auto", "block", "drop"):

@@ -111,6 +111,8 @@ class ObstacleSampler:
         self._costmap_s = -math.inf
         self._plan: Any = None
         self._plan_s = -math.inf
+        self._board_s = -math.inf
+        """Clock time (s) the blackboard's costmap and plan were last looked at."""
         self._zones_action: Optional[str] = None
         self._zones_s = -math.inf
         self._contact = sim_contact(run)
@@ -127,14 +129,19 @@ class ObstacleSampler:
     def sample(self, now_s: float) -> Optional[dict]:
         """What changed since the last payload (rate-limited), or None."""
         out: dict = {}
-        costmap = fresh(catalogue.get(self._board, "costmap"), now_s)
-        if costmap is not self._costmap and (costmap is None or now_s - self._costmap_s >= COSTMAP_PERIOD_S - 1e-9):
-            self._costmap, self._costmap_s = costmap, now_s
-            out["costmap"] = costmap
-        plan = fresh(catalogue.get(self._board, "local_plan"), now_s)
-        if plan is not self._plan and (plan is None or now_s - self._plan_s >= VIEW_PERIOD_S - 1e-9):
-            self._plan, self._plan_s = plan, now_s
-            out["plan"] = plan
+        if now_s - self._board_s >= VIEW_PERIOD_S - 1e-9:
+            # The blackboard is looked at only as often as the views may change (a py_trees read costs
+            # microseconds, every tick); what the monitor and the contacts say is cheaper, and looked at each tick.
+            self._board_s = now_s
+            costmap = fresh(catalogue.get(self._board, "costmap"), now_s)
+            if costmap is not self._costmap and (costmap is None
+                                                 or now_s - self._costmap_s >= COSTMAP_PERIOD_S - 1e-9):
+                self._costmap, self._costmap_s = costmap, now_s
+                out["costmap"] = costmap
+            plan = fresh(catalogue.get(self._board, "local_plan"), now_s)
+            if plan is not self._plan and (plan is None or now_s - self._plan_s >= VIEW_PERIOD_S - 1e-9):
+                self._plan, self._plan_s = plan, now_s
+                out["plan"] = plan
         monitor = self.run.collision_monitor
         if (monitor is not None and monitor.action != self._zones_action
                 and now_s - self._zones_s >= VIEW_PERIOD_S - 1e-9):

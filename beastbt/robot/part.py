@@ -14,8 +14,8 @@ order and for every part:
 2. :meth:`Part.estimator` until one part gives an estimator (the EKF).
 3. :meth:`Part.sleep` for a part that can sleep and fills nothing the run
    reads (:func:`asleep`): the GPS, the IMU and the EKF of a mission that
-   never looks at the fused pose cost nothing per tick. A recording reads
-   them all, so a recorded run keeps them awake.
+   never looks at the fused pose cost nothing per tick. A recording wakes
+   none of them (it holds what the run used) unless ``--record-sensors``.
 4. :meth:`Part.install` once the run (tree, mux, gate, watchdog) exists:
    services for behaviours, recorders (``run.recorders``), summary fields
    (``run.summary_contributors``).

@@ -73,6 +73,9 @@ class RunOptions:
     """Draw the detected line and the step on the streamed frames (``--stream-no-overlay`` clears it)."""
     record_images_hz: Optional[float] = None
     """Camera images recorded per second as JPEG (``--record-images``); None: the recording's default."""
+    record_sensors: bool = False
+    """Record every sensor, keeping awake those the run does not read (``--record-sensors``); by default a
+    recording holds what the run used, and the parts nothing reads stay asleep."""
     fleet: Optional[Any] = None
     """Report to a fleet's station on Zenoh (``--fleet``): a :class:`beastbt.fleet.config.FleetOptions`."""
     recording: Optional[Mapping[str, Any]] = None
@@ -104,6 +107,9 @@ class Prepared:
     closers: list[Callable[[], None]] = field(default_factory=list)
     warnings: list = field(default_factory=list)
     """Problems (severity ``warning``) of the mission on this robot: printed before the run; ``--strict`` refuses."""
+    reads: Optional[frozenset] = None
+    """What the run and its awake parts read (blackboard keys and readings): the recording keeps those
+    readings only, unless ``--record-sensors``. None: not known (everything is kept)."""
 
     def abandon(self) -> None:
         """Release what was opened without running (the base sends its stop) and remove the unused run folder."""
