@@ -45,3 +45,53 @@ def test_a_recorded_tour_on_a_map_has_the_particles_and_the_match_quality(tmp_pa
     # In odom, round the robot: the cloud's middle (the median: recovery may have drawn a few particles anywhere
     # on the map) within a few centimetres of the odometry pose.
     assert math.hypot(cx - odom["x"], cy - odom["y"]) <= 0.1
+
+
+def _planar(transform: dict) -> tuple[float, float, float]:
+    p, q = transform["translation"], transform["rotation"]
+    return float(p["x"]), float(p["y"]), 2.0 * math.atan2(float(q["z"]), float(q["w"]))
+
+
+def _then(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]
+
+
+def test_on_a_map_tf_puts_the_robot_where_the_localiser_says(tmp_path):
+    """/tf's map -> odom is the localiser's (as AMCL publishes it), so base_link lands on /map/pose, on /map.
+
+    Compared while the robot stands (after the drive and after the turn): /tf's period and /map/pose's differ,
+    and a moving robot is elsewhere a tick later. The fused estimate's map -> odom put it metres away."""
+    office_map_file(tmp_path)
+    mission = tmp_path / "tour.yaml"
+    mission.write_text(mission_text("tour", "  - drive: {distance: 1.5 m}\n  - wait: 1.5 s\n"
+                                            "  - turn: {angle: 90 deg}\n  - wait: 1.5 s\n"))
+    folder, summary = record_run(mission, tmp_path / "runs", seed=1)
+    assert summary["status"] == "success"
+    rec = read_recording(folder / "run.mcap", topics=["/tf", "/map/pose"])
+
+    def stamp(t: dict) -> float:
+        return t["sec"] + t["nsec"] * 1e-9
+
+    def planar_pose(msg: dict) -> tuple[float, float, float]:
+        p, q = msg["pose"]["position"], msg["pose"]["orientation"]
+        return float(p["x"]), float(p["y"]), 2.0 * math.atan2(float(q["z"]), float(q["w"]))
+
+    tfs = [(stamp(m["transforms"][0]["timestamp"]), m["transforms"]) for m in rec.topic("/tf")]
+    poses = [(stamp(m["timestamp"]), planar_pose(m)) for m in rec.topic("/map/pose")]
+    checked = 0
+    def same(a: tuple[float, float, float], b: tuple[float, float, float]) -> bool:
+        return math.hypot(a[0] - b[0], a[1] - b[1]) < 0.002 and abs(a[2] - b[2]) < 0.002
+
+    for (_, before), (t1, pose), (_, later) in zip(poses, poses[1:], poses[2:]):
+        still = same(before, pose) and same(pose, later)
+        after = [tf for t, tf in tfs if t > t1 + 1e-6]
+        if not still or not after:
+            continue
+        by_child = {t["child_frame_id"]: t for t in after[0]}
+        assert by_child["odom"]["parent_frame_id"] == "map"
+        x, y, yaw = _then(_planar(by_child["odom"]), _planar(by_child["base_link"]))
+        assert math.hypot(x - pose[0], y - pose[1]) < 0.01, (x, y, pose)
+        assert abs(math.remainder(yaw - pose[2], math.tau)) < math.radians(0.5)
+        checked += 1
+    assert checked >= 6

@@ -180,7 +180,8 @@ class CameraMount:
 
 def frame_transforms(t_ns: int, frames: FramesConfig, pose: Optional[FusedPose], odom: Optional[FusedPose],
                      mount: Optional[CameraMount], pan_rad: float, tilt_rad: float,
-                     lidar: Optional[dict] = None) -> dict:
+                     lidar: Optional[dict] = None,
+                     map_from_odom: Optional[tuple[float, float, float]] = None) -> dict:
     """A tick's ``foxglove.FrameTransforms``: map -> odom -> base_link -> camera_link -> camera_optical, and
     base_link -> gps.
 
@@ -190,10 +191,15 @@ def frame_transforms(t_ns: int, frames: FramesConfig, pose: Optional[FusedPose],
     positive): the gimbal's last commanded angles. Without a camera
     (``mount`` None) the tree ends at base_link. ``lidar``: the profile's
     ``lidar.mounting`` (``x_m``, ``y_m``, ``z_m``, ``yaw_deg``), which adds base_link -> lidar.
+    ``map_from_odom``: on a saved map, the localiser's map -> odom (x, y metres, yaw rad), as AMCL publishes it;
+    it takes the place of the fused estimate's, so the map, the planned path and the robot line up.
     """
     out = []
     body = odom if odom is not None else pose
-    if pose is not None and odom is not None:
+    if map_from_odom is not None and odom is not None:
+        x, y, yaw = map_from_odom
+        out.append(_transform(t_ns, frames.map, frames.odom, vector3(x, y, 0.0), quaternion(yaw_rad=yaw)))
+    elif pose is not None and odom is not None:
         x, y, yaw = map_to_odom(pose, odom)
         out.append(_transform(t_ns, frames.map, frames.odom, vector3(x, y, 0.0), quaternion(yaw_rad=yaw)))
     else:

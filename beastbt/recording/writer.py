@@ -441,6 +441,10 @@ class RunFileWriter:
         gets it again, live only."""
         self._servo_rad: dict[str, float] = {}
         """Last commanded angle of each servo by name (rad): the gimbal's pan and tilt move camera_link."""
+        self._pose_odom: Optional[FusedPose] = None
+        """The last tick's odometry pose (for the map -> odom of a pose on a saved map)."""
+        self._map_from_odom: Optional[tuple[float, float, float]] = None
+        """On a saved map: the localiser's map -> odom (x m, y m, yaw rad) for /tf, from the latest /map/pose."""
         self._live = live
         self._stream: Any = _RecordStream([Path(p) for p in paths]) if paths else _NoFile()
         w: Any = (Writer(self._stream, chunk_size=config.chunk_max_bytes,
@@ -649,7 +653,9 @@ class RunFileWriter:
         if pose is not None or pose_odom is not None:
             servo = self._servo_rad
             emit("/tf", t, fx.frame_transforms(t, frames, pose, pose_odom, self._mount, servo.get("pan", 0.0),
-                                               servo.get("tilt", 0.0), self._lidar))
+                                               servo.get("tilt", 0.0), self._lidar, self._map_from_odom))
+        if pose_odom is not None:
+            self._pose_odom = pose_odom
         if cmd_mission is not None:
             emit("/cmd/mission", t, stage_dict(tick, now_s, cmd_mission, mux_source))
         if mux_source == "teleop":
@@ -694,6 +700,10 @@ class RunFileWriter:
         if "map_pose" in views:
             from beastbt.recording.map_views import map_pose_message
             self._emit("/map/pose", t, map_pose_message(t, frames.map, views["map_pose"]))
+            if self._pose_odom is not None:  # the views come after their tick: that tick's odometry pose
+                x, y, yaw = views["map_pose"][:3]
+                on_map = FusedPose(self._pose_odom.stamp_s, x, y, yaw)
+                self._map_from_odom = fx.map_to_odom(on_map, self._pose_odom)
         contact = views.get("contact")
         if contact is not None:
             self._emit("/sim/contact", t, ov.contact_message(contact))
