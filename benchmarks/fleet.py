@@ -23,7 +23,6 @@ import argparse
 import json
 import os
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -31,27 +30,13 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
-from typing import Any, Optional
+from typing import Any
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(REPO, "tests"))
+from fleet_support import free_port, http  # noqa: E402  (the tests' loopback helpers)
 
 LONG = "mission: long_drive\nsteps:\n  - drive: {distance: 50 m, speed: 0.3 m/s}\n"
-
-
-def free_port() -> int:
-    """A TCP port free on loopback now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def http(method: str, url: str, body: Optional[bytes] = None, content_type: str = "application/json"
-         ) -> tuple[int, Any]:
-    """(status, JSON)."""
-    request = urllib.request.Request(url, data=body, method=method, headers={"Content-Type": content_type})
-    try:
-        with urllib.request.urlopen(request, timeout=30) as response:
-            return response.status, json.loads(response.read())
-    except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
 
 
 def cpu_s(pid: int) -> float:

@@ -12,49 +12,20 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
 import urllib.error
-import urllib.request
-from typing import Any, Callable, Optional
+from typing import Any
 
 import pytest
+
+from fleet_support import free_port, http, wait_for  # noqa: E402
 
 zenoh = pytest.importorskip("zenoh")
 
 SHORT = "mission: short_hop\nsteps:\n  - drive: {distance: 0.3 m, speed: 0.3 m/s}\n"
 LONG = "mission: long_drive\nsteps:\n  - drive: {distance: 20 m, speed: 0.3 m/s}\n"
-
-
-def free_port() -> int:
-    """A TCP port free on loopback now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def http(method: str, url: str, body: Optional[bytes] = None, content_type: str = "application/json"
-         ) -> tuple[int, Any]:
-    """(status, JSON) of one request to the station."""
-    request = urllib.request.Request(url, data=body, method=method, headers={"Content-Type": content_type})
-    try:
-        with urllib.request.urlopen(request, timeout=40) as response:
-            return response.status, json.loads(response.read())
-    except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
-
-
-def wait_for(check: Callable[[], Any], timeout_s: float, what: str) -> Any:
-    """Poll ``check`` every 50 ms until it returns something true; fail naming ``what``."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"not within {timeout_s} s: {what}")
 
 
 def robots(base: str) -> dict[str, dict]:

@@ -8,15 +8,12 @@ applied to the station (Host, JSON-only controls, a mission as YAML).
 from __future__ import annotations
 
 import io
-import json
-import socket
 import time
-import urllib.error
-import urllib.request
 import zipfile
-from typing import Any, Optional
 
 import pytest
+
+from fleet_support import free_port, http, wait_for  # noqa: E402
 
 pytest.importorskip("zenoh")
 
@@ -25,35 +22,6 @@ from beastbt.fleet import keys  # noqa: E402
 from beastbt.fleet.agent import FleetAgent  # noqa: E402
 from beastbt.fleet.config import FleetOptions, parse_endpoint  # noqa: E402
 from beastbt.fleet.station import Station, StationServer  # noqa: E402
-
-
-def free_port() -> int:
-    """A TCP port free on loopback now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(check, timeout_s: float, what: str):
-    """Poll ``check`` until it returns something true; fail naming ``what``."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"not within {timeout_s} s: {what}")
-
-
-def http(method: str, url: str, body: Optional[bytes] = None, headers: Optional[dict] = None) -> tuple[int, Any]:
-    """(status, JSON) of one request."""
-    request = urllib.request.Request(url, data=body, method=method,
-                                     headers=headers if headers is not None else {"Content-Type": "application/json"})
-    try:
-        with urllib.request.urlopen(request, timeout=10) as response:
-            return response.status, json.loads(response.read())
-    except urllib.error.HTTPError as exc:
-        return exc.code, json.loads(exc.read())
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +58,7 @@ def test_controls_without_a_mission_are_refused_with_the_reason_but_the_estop_ne
     assert status == 200 and body["estop"] is True and body["running"] is False
     assert station["agents"]["serving"].estop_latched
     status, body = http("POST", f"{base}/api/robots/serving/mission", b"mission: m\nsteps: [stop]\n",
-                        {"Content-Type": "application/yaml"})
+                        content_type="application/yaml")
     assert status == 409 and "e-stop" in body["error"]
     status, body = http("POST", f"{base}/api/robots/serving/estop_reset", b"{}")
     assert status == 200 and body["estop"] is False
@@ -100,7 +68,7 @@ def test_controls_without_a_mission_are_refused_with_the_reason_but_the_estop_ne
 
 def test_estop_all_is_a_put_every_robot_hears_whatever_the_content_type(station):
     agents = station["agents"]
-    status, body = http("POST", f"{station['base']}/api/estop-all", b"stop!", {"Content-Type": "text/plain"})
+    status, body = http("POST", f"{station['base']}/api/estop-all", b"stop!", content_type="text/plain")
     assert status == 200 and {"serving", "running"} <= set(body["robots"])
     wait_for(lambda: all(a.estop_latched for a in agents.values()), 2.0, "every agent latched")
     for name in agents:
@@ -109,7 +77,7 @@ def test_estop_all_is_a_put_every_robot_hears_whatever_the_content_type(station)
 
 def test_a_run_that_is_not_served_takes_no_mission(station):
     status, body = http("POST", f"{station['base']}/api/robots/running/mission", b"mission: m\nsteps: [stop]\n",
-                        {"Content-Type": "application/yaml"})
+                        content_type="application/yaml")
     assert status == 409 and "beastbt serve" in body["error"]
 
 
@@ -128,12 +96,12 @@ def test_the_consoles_guard_applies(station):
     base = station["base"]
     status, body = http("GET", f"{base}/api/robots", headers={"Host": "evil.example"})
     assert status == 403 and "DNS rebinding" in body["error"]
-    status, body = http("POST", f"{base}/api/robots/serving/pause", b"{}", {"Content-Type": "text/plain"})
+    status, body = http("POST", f"{base}/api/robots/serving/pause", b"{}", content_type="text/plain")
     assert status == 403 and "application/json" in body["error"]
-    status, body = http("POST", f"{base}/api/robots/serving/mission", b"mission: m", {"Content-Type": "text/plain"})
+    status, body = http("POST", f"{base}/api/robots/serving/mission", b"mission: m", content_type="text/plain")
     assert status == 403
     status, body = http("POST", f"{base}/api/robots/serving/pause", b"{}",
-                        {"Content-Type": "application/json", "Origin": "http://evil.example"})
+                        headers={"Content-Type": "application/json", "Origin": "http://evil.example"})
     assert status == 403
 
 

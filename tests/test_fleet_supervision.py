@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
 
 import pytest
+
+from fleet_support import free_port, wait_for  # noqa: E402
 
 pytest.importorskip("zenoh")
 
@@ -25,24 +26,6 @@ fleet: {supervision: required, lost_after: 0.5 s, then: hold}
 steps:
   - drive: {distance: 1.5 m, speed: 0.5 m/s}
 """
-
-
-def free_port() -> int:
-    """A TCP port free on loopback now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(check, timeout_s: float, what: str):
-    """Poll ``check`` until it returns something true; fail naming ``what``."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"not within {timeout_s} s: {what}")
 
 
 def test_a_supervised_robot_holds_while_the_station_is_gone_and_goes_on_when_it_returns(tmp_path):

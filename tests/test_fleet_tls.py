@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import json
 import shutil
-import socket
 import subprocess
 import sys
 import time
 
 import pytest
+
+from fleet_support import free_port, wait_for  # noqa: E402
 
 zenoh = pytest.importorskip("zenoh")
 pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="--init-keys needs the openssl command")
@@ -19,24 +20,6 @@ pytestmark = pytest.mark.skipif(shutil.which("openssl") is None, reason="--init-
 from beastbt.fleet.agent import FleetAgent  # noqa: E402
 from beastbt.fleet.config import FleetOptions  # noqa: E402
 from beastbt.fleet.station import Station  # noqa: E402
-
-
-def free_port() -> int:
-    """A TCP port free on loopback now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(check, timeout_s: float, what: str):
-    """Poll ``check`` until it returns something true; fail naming ``what``."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"not within {timeout_s} s: {what}")
 
 
 @pytest.fixture(scope="module")
