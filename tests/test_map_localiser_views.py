@@ -95,3 +95,20 @@ def test_on_a_map_tf_puts_the_robot_where_the_localiser_says(tmp_path):
         assert abs(math.remainder(yaw - pose[2], math.tau)) < math.radians(0.5)
         checked += 1
     assert checked >= 6
+
+
+def test_the_reports_error_plot_has_the_localisers_error_on_the_map(tmp_path):
+    from beastbt.recording.report import RunData, position_errors
+
+    office_map_file(tmp_path)
+    mission = tmp_path / "tour.yaml"
+    mission.write_text(mission_text("tour", "  - drive: {distance: 1.5 m}\n  - turn: {angle: 90 deg}\n"))
+    folder, summary = record_run(mission, tmp_path / "runs", seed=2)
+    assert summary["truth"]["map_from_world"] is not None
+    errors = position_errors(RunData.load(str(folder)))
+    times, errs = errors["localiser on the map"]
+    assert len(errs) > 10 and times == sorted(times)
+    rms = math.sqrt(sum(e * e for e in errs) / len(errs))
+    # the same error the run measured every tick (the report has it at 5 Hz): centimetres, not the map's offset
+    assert abs(rms - summary["truth"]["position_error_rms_m"]) < 0.02
+    assert max(errs) < 0.2

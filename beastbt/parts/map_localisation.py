@@ -206,6 +206,9 @@ class MapLocalisationPart(Part):
             "not_localized_ticks": self.lost_ticks,
             "gyro_ticks": self.gyro_ticks,
         }
+        if "truth" in summary and self.map_from_world is not None:
+            # how the map frame sits on the world (aligned by the two starts): the report draws the localiser's error
+            summary["truth"]["map_from_world"] = [round(float(v), 6) for v in self.map_from_world]
         if "truth" in summary and self.error_n:
             summary["truth"]["position_error_rms_m"] = round(math.sqrt(self.error_sq_m2 / self.error_n), 4)
             summary["truth"]["position_error_max_m"] = round(self.error_max_m, 4)

@@ -793,7 +793,8 @@ def _truth_at(truth: list[dict], stamps: list[float]) -> list[tuple[float, float
 
 
 def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
-    """Label -> (times s, distances to the truth m) of the fused estimate, odometry and the raw GPS fixes.
+    """Label -> (times s, distances to the truth m) of the fused estimate, odometry, the raw GPS fixes and, on a
+    saved map, the localiser's pose (``/map/pose`` moved onto the world by the summary's ``truth.map_from_world``).
 
     Estimates are compared with the truth of their own tick; a GPS fix with
     the truth at the moment it was measured (its ``stamp_s``), one per epoch.
@@ -808,6 +809,21 @@ def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
         pts = [((t - t0) * 1e-9, d.to_world(p), by_time[t]) for t, p in d.rec.messages.get(topic, []) if t in by_time]
         if pts:
             out[label] = ([t for t, _, _ in pts], [math.hypot(p[0] - tr["x"], p[1] - tr["y"]) for _, p, tr in pts])
+    aligned = ((d.summary or {}).get("truth") or {}).get("map_from_world")
+    on_map = d.rec.messages.get("/map/pose", [])
+    if aligned is not None and on_map:
+        # the localiser's pose on the saved map, moved onto the world by the starts (truth.map_from_world)
+        world_from_map = _invert(tuple(aligned))
+        import numpy as np
+        log_ns = np.array([t for t, _ in truth], dtype=float)
+        at = np.array([t for t, _ in on_map], dtype=float)  # both stamped with their tick's log time
+        true = zip(np.interp(at, log_ns, [m["x"] for _, m in truth]).tolist(),
+                   np.interp(at, log_ns, [m["y"] for _, m in truth]).tolist())
+        errs = []
+        for (_, m), (tx, ty) in zip(on_map, true):
+            x, y, _ = _then(world_from_map, (m["pose"]["position"]["x"], m["pose"]["position"]["y"], 0.0))
+            errs.append(math.hypot(x - tx, y - ty))
+        out["localiser on the map"] = ([(t - t0) * 1e-9 for t, _ in on_map], errs)
     frame = d.local_frame()
     fixes = d.gps_fixes() if frame is not None and d.datum is not None else []
     if fixes:
@@ -820,6 +836,18 @@ def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
     return out
 
 
+def _invert(a: tuple) -> tuple[float, float, float]:
+    """The inverse of a planar pose (x m, y m, yaw rad)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return -(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]
+
+
+def _then(a: tuple, b: tuple) -> tuple[float, float, float]:
+    """Planar pose ``b`` given in ``a``'s frame, in the frame ``a`` is given in."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]
+
+
 def plot_position_error(d: RunData, out: Path) -> Optional[str]:
     """Distance between the estimates (and the raw GPS fixes) and the truth over time."""
     if not d.rec.topic("/truth"):
@@ -829,10 +857,11 @@ def plot_position_error(d: RunData, out: Path) -> Optional[str]:
         return "no pose estimate recorded"
     styles = {"raw GPS fix": dict(color=GPS_COLOUR, linewidth=0.8, marker=".", markersize=3, zorder=1),
               "fused estimate": dict(color="tab:blue", linewidth=1.3, zorder=3),
-              "odometry": dict(color="tab:green", linewidth=1, linestyle="--", zorder=2)}
+              "odometry": dict(color="tab:green", linewidth=1, linestyle="--", zorder=2),
+              "localiser on the map": dict(color="tab:purple", linewidth=1.3, zorder=4)}
     plt = _plt()
     fig, ax = plt.subplots(figsize=FIG_SIZE_IN, dpi=DPI)
-    for label in ("raw GPS fix", "odometry", "fused estimate"):
+    for label in ("raw GPS fix", "odometry", "fused estimate", "localiser on the map"):
         if label in errors:
             times, errs = errors[label]
             rms = math.sqrt(sum(e * e for e in errs) / len(errs))
