@@ -1,0 +1,204 @@
+"""Issue 22, item 5: simulated robots in one world meet each other.
+
+Units: the other-robot obstacle (handed over from another thread, dropped when stale), seen by the LiDAR's ray
+caster, met and counted by the contact world, placed by the simulator between ticks; the fleet's relay format.
+End to end on loopback: a station and two ``beastbt serve --sim`` robots in one world, one standing in the other's
+way: the moving one's LiDAR sees it and its collision monitor stops it short (``truth.collisions == 0``), where
+without the other robot it drives on through that spot.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import time
+import urllib.error
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from beastbt.fleet.shared_world import check_sim_field, others_of, poses_payload
+from beastbt.robot.profile import load_profile
+from beastbt.sim.contact import ContactWorld
+from beastbt.sim.lidar_emulator import RayCaster, cast_circles
+from beastbt.sim.obstacles import OtherRobot, OtherRobots
+from beastbt.sim.robot import build_simulator
+from beastbt.sim.world import empty_world
+
+
+class FakeWall:
+    """A monotonic clock the test moves (s)."""
+
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_other_robots_are_handed_over_in_name_order_and_dropped_once_stale():
+    wall = FakeWall()
+    others = OtherRobots(wall, max_age_s=1.0)
+    assert others.take() == ()
+    b, a = OtherRobot("b", 1.0, 0.0, 0.0, 0.2), OtherRobot("a", 0.0, 2.0, 0.0, 0.25)
+    others.put([(b, 0.0), (a, 0.6)])
+    assert [r.name for r in others.take()] == ["a", "b"]
+    wall.now += 0.5  # a was heard 0.6 s before it came: now 1.1 s old, b 0.5 s
+    assert [r.name for r in others.take()] == ["b"]
+    moved = OtherRobot("b", 1.5, 0.0, 0.0, 0.2)
+    others.put([(moved, 0.0)])
+    assert others.take() == (moved,)  # the newest pose replaces the last
+    wall.now += 1.01
+    assert others.take() == ()  # a robot that went away is no longer an obstacle
+
+
+def test_contact_meets_another_robot_counts_the_collision_and_forgets_it_when_it_goes():
+    world = ContactWorld([], [], 0.2)
+    assert world.empty and world.clearance(0.0, 0.0) == math.inf
+    world.set_others([OtherRobot("b", 1.0, 0.0, 0.0, 0.3)])
+    assert not world.empty
+    assert world.clearance(0.0, 0.0) == pytest.approx(0.5)
+    assert world.free_fraction(0.0, 0.0, 1.0, 0.0) == pytest.approx(0.5)  # stops at the touch, 0.5 m along
+    assert world.free_fraction(0.5, 0.0, 0.0, 0.0) == 1.0  # backing away from it is free
+    world.observe(0.0, 0.0)
+    assert world.collisions == 0 and world.min_clearance_m == pytest.approx(0.5)
+    world.observe(0.5, 0.0)
+    assert world.collisions == 1 and world.in_contact
+    # it drives off (its own simulator moved it): the bound follows it, the episode ends, nothing is left to touch
+    world.set_others([OtherRobot("b", 3.0, 0.0, 0.0, 0.3)])
+    world.observe(0.5, 0.0)
+    assert not world.in_contact and world.clearance(0.5, 0.0) == pytest.approx(2.0)
+    world.set_others([])
+    assert world.empty and world.free_fraction(0.0, 0.0, 5.0, 0.0) == 1.0
+
+
+def test_another_robot_that_comes_to_a_robot_standing_still_is_a_contact():
+    world = ContactWorld([], [], 0.2)
+    world.set_others([OtherRobot("b", 2.0, 0.0, 0.0, 0.2)])
+    world.observe(0.0, 0.0)  # a look far away: the bound now says "1.6 m clear"
+    world.set_others([OtherRobot("b", 0.3, 0.0, 0.0, 0.2)])  # it drove into us: the bound must not hide it
+    world.observe(0.0, 0.0)
+    assert world.collisions == 1
+
+
+def test_the_lidar_ray_caster_sees_another_robot_as_a_circle_of_its_footprint():
+    angles = np.radians([0.0, 5.0, 90.0, 180.0])
+    hits = cast_circles(0.0, 0.0, angles, np.array([[2.0, 0.0]]), np.array([0.25]))
+    assert hits[0] == pytest.approx(1.75)
+    assert 1.75 < hits[1] < 2.25  # the slanted ray meets its rim farther away
+    assert math.isinf(hits[2]) and math.isinf(hits[3])
+    # nearer of two, behind a wall it is hidden
+    hits = cast_circles(0.0, 0.0, angles[:1], np.array([[2.0, 0.0], [1.0, 0.0]]), np.array([0.25, 0.1]))
+    assert hits[0] == pytest.approx(0.9)
+
+
+def test_the_simulator_places_the_others_between_ticks_and_its_lidar_sees_them():
+    profile = load_profile("sim")
+    sim = build_simulator(profile, empty_world(), 0, shared=True)
+    assert sim.drive.contact is not None
+    from beastbt.sim.lidar_emulator import make_emulator
+    lidar = make_emulator("ld19", RayCaster([], []), sim.truth, sim.drive.contact, (0.0, 0.0, 0.0),
+                          np.random.default_rng(0))
+    deg, mm = lidar.measure(0, 450)  # a whole turn: nothing in an empty world
+    assert not mm.any()
+    handed = OtherRobots(FakeWall())
+    handed.put([(OtherRobot("b", 1.5, 0.0, 0.0, 0.25), 0.0)])
+    sim.others = handed.take
+    sim.advance(0.05)
+    deg, mm = lidar.measure(0, 450)
+    ahead = mm[(deg < 3.0) | (deg > 357.0)]  # straight ahead (the device counts clockwise)
+    assert ahead.size and np.all(np.abs(ahead - 1250.0) < 60.0)
+    assert not mm[(deg > 30.0) & (deg < 330.0)].any()  # only there
+    # drive into it: the footprint stops at the touch, and the truth counts one collision
+    sim.drive.set_body_targets(0.5, 0.0)
+    sim.advance(6.0)
+    radius = sim.drive.model.footprint_radius_m
+    assert sim.truth.x == pytest.approx(1.5 - 0.25 - radius, abs=1e-3)
+    assert sim.drive.contact.collisions == 1
+
+
+def test_the_relay_takes_the_others_of_the_same_world_only():
+    sim = {"world": "campus", "x": 1.0, "y": 2.0, "yaw": 0.5, "radius_m": 0.2}
+    raw = poses_payload([("me", sim, 0.1), ("b", sim, 0.2), ("c", {**sim, "world": "office"}, 0.0),
+                         ("old", sim, 1.5)]).encode()
+    got = others_of(raw, "me", "campus")
+    assert [(r.name, r.x, r.y, r.radius_m, age) for r, age in got] == [("b", 1.0, 2.0, 0.2, 0.2)]
+    assert others_of(raw, "me", None) == []  # not simulated: nobody to meet
+    assert others_of(b"not json", "me", "campus") == []
+    bad = json.dumps({"robots": [{"name": "x/y", **sim}, {"name": "z", **sim, "radius_m": -1},
+                                 {"name": "n", **sim, "x": "nan"}, "junk"]}).encode()
+    assert others_of(bad, "me", "campus") == []
+    assert check_sim_field({**sim, "radius_m": 1e9}) is None and check_sim_field(sim) == sim
+
+
+# -- end to end: a station and two serve --sim robots --------------------------------------------------------------
+
+def world_at(folder: Path, name: str, x: float) -> Path:
+    """An empty world ``shared`` (the same for both robots) with its start at (x, 0) facing east."""
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump({"world": "shared", "start": {"x": x, "y": 0.0, "yaw_deg": 0.0}}))
+    return path
+
+
+def summary_of(runs: Path) -> dict:
+    found = sorted(runs.glob("*/summary.json"))
+    assert len(found) == 1, found
+    return json.loads(found[0].read_text())
+
+
+@pytest.mark.parametrize("other", [True, False], ids=["other-in-the-way", "nobody-in-the-way"])
+def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_path, other):
+    pytest.importorskip("zenoh")
+    from tests.test_fleet_done import beastbt, free_port, http, robots, wait_for
+    zport, hport = free_port(), free_port()
+    endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
+    runs = tmp_path / "runs-mover"
+    procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
+                                cwd=str(tmp_path)),
+             "mover": beastbt("serve", "--sim", "--name", "mover", "--fleet", endpoint, "--speed", "4",
+                              "--world", str(world_at(tmp_path, "mover", 0.0)), "--runs-dir", str(runs),
+                              cwd=str(tmp_path))}
+    if other:
+        procs["stander"] = beastbt("serve", "--sim", "--name", "stander", "--fleet", endpoint, "--world",
+                                   str(world_at(tmp_path, "stander", 2.0)), "--no-record", cwd=str(tmp_path))
+    try:
+        names = set(procs) - {"station"}
+
+        def listed() -> bool:
+            try:
+                return names <= {n for n, r in robots(base).items() if r["alive"]}
+            except (urllib.error.URLError, ConnectionError):
+                return False  # the station is still starting
+        wait_for(listed, 12.0, "the robots listed")
+        if other:
+            time.sleep(0.6)  # a few relays of the stander's pose reach the mover
+        mission = "mission: through\nsteps:\n  - drive: {distance: 3 m, speed: 0.3 m/s, stuck_after: 3 s}\n"
+        status, answer = http("POST", f"{base}/api/robots/mover/mission", mission.encode(), "application/yaml")
+        assert status == 200, answer
+        wait_for(lambda: (robots(base)["mover"]["last_run"] or {}).get("status"), 15.0, "the mover's run ends")
+        summary = summary_of(runs)
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+        for proc in procs.values():
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+    truth: Any = summary["truth"]
+    x = truth["final_pose"]["x"]
+    seen = [e for e in summary["events"] if e["kind"] == "collision_monitor" and "zone" in e["text"]]
+    if other:
+        # the stander (its footprint at 2 m) was seen: stopped short of it, never touched it
+        assert truth["collisions"] == 0, summary["events"][-5:]
+        assert 0.8 < x < 2.0 - 0.35, x
+        assert seen, summary["events"]  # the LiDAR's points of it in the monitor's zones
+        assert truth["min_clearance_m"] is not None and truth["min_clearance_m"] > 0.0
+    else:
+        assert x > 2.6 and not seen  # the same mission alone drives on through where the stander stood
