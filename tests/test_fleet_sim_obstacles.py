@@ -136,6 +136,49 @@ def test_the_relay_takes_the_others_of_the_same_world_only():
     assert check_sim_field({**sim, "radius_m": 1e9}) is None and check_sim_field(sim) == sim
 
 
+def test_the_station_relays_only_simulated_robots_heard_within_a_second():
+    from beastbt.fleet.station import FleetTable
+    wall = FakeWall()
+    table = FleetTable(wall)
+    sim = {"world": "campus", "x": 1.0, "y": 2.0, "yaw": 0.5, "radius_m": 0.2}
+    table.state("b", {"status": "idle", "sim": sim})
+    table.state("real", {"status": "idle"})  # a real robot has no 'sim': never relayed
+    table.state("broken", {"status": "idle", "sim": {**sim, "radius_m": "big"}})
+    wall.now += 0.4
+    table.state("a", {"status": "running", "sim": {**sim, "x": 3.0}})
+    assert [(n, s["x"], round(age, 3)) for n, s, age in table.sim_poses()] == [("a", 3.0, 0.0), ("b", 1.0, 0.4)]
+    wall.now += 0.7  # b was last heard 1.1 s ago
+    assert [n for n, _, _ in table.sim_poses()] == ["a"]
+
+
+def test_the_agent_puts_its_true_pose_in_its_state_and_hands_the_others_of_its_world_to_its_simulator():
+    from beastbt.fleet.agent import FleetAgent
+    from beastbt.fleet.config import FleetOptions
+    wall = FakeWall()
+    agent = FleetAgent("me", FleetOptions(endpoint="tcp/127.0.0.1:7447"), wall=wall)
+    assert "sim" not in agent.current_state()  # not simulated (or not in a shared world): no truth on the fleet
+    world = empty_world()
+    sim = build_simulator(load_profile("sim"), world, 0, shared=True)
+    sim.truth.x, sim.truth.y = 1.25, -0.5
+    agent.attach_sim(sim)
+    assert agent.current_state()["sim"] == {"world": world.name, "x": 1.25, "y": -0.5, "yaw": 0.0,
+                                            "radius_m": sim.drive.model.footprint_radius_m}
+
+    class Sample:
+        def __init__(self, raw: bytes) -> None:
+            self.payload = type("P", (), {"to_bytes": lambda _self: raw})()
+    near = {"world": world.name, "x": 2.0, "y": -0.5, "yaw": 0.0, "radius_m": 0.2}
+    agent._on_sim_poses(Sample(poses_payload([("me", near, 0.0), ("b", near, 0.1)]).encode()))
+    sim.advance(0.02)
+    assert [o.name for o in sim.drive.contact.others] == ["b"]
+    wall.now += 1.0  # no relay since: b is dropped at the next tick
+    sim.advance(0.04)
+    assert sim.drive.contact.others == ()
+    sim.truth.x = 4.0
+    agent.detach_sim()  # the run ended: it stands where it stopped, its simulator no longer asks
+    assert agent.current_state()["sim"]["x"] == 4.0 and sim.others is None
+
+
 # -- end to end: a station and two serve --sim robots --------------------------------------------------------------
 
 def world_at(folder: Path, name: str, x: float) -> Path:
