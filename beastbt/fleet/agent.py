@@ -87,7 +87,7 @@ class FleetAgent:
         """The ``sim`` field (:func:`~beastbt.fleet.shared_world.sim_field`) of a simulated robot standing idle:
         where its last run left it, or where it starts (None on a real robot)."""
         self.others = OtherRobots(wall)
-        """The other simulated robots of this robot's world, as the station relays them (``beastbt/fleet/sim/poses``)."""
+        """The other simulated robots of this robot's world, as the station relays them (``keys.SIM_POSES``)."""
         self.published = 0
         self._pending_mission = False
         self._lock = threading.Lock()

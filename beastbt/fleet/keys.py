@@ -100,5 +100,6 @@ def robot_of(key: str) -> Optional[str]:
     return parts[1]
 
 
-__all__ = ["PREFIX", "ESTOP_ALL", "STATION_ALIVE", "SIM_POSES", "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "CONTROLS", "NAME_MAX",
+__all__ = ["PREFIX", "ESTOP_ALL", "STATION_ALIVE", "SIM_POSES",
+           "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "CONTROLS", "NAME_MAX",
            "name_problem", "check_name", "alive_key", "state_key", "events_key", "mission_key", "cmd_key", "robot_of"]

@@ -91,4 +91,5 @@ def others_of(raw: bytes, own_name: str, world: Optional[str]) -> list[tuple[Oth
     return out
 
 
-__all__ = ["sim_field", "start_field", "check_sim_field", "poses_payload", "others_of", "RELAY_PERIOD_S", "RADIUS_MAX_M"]
+__all__ = ["sim_field", "start_field", "check_sim_field", "poses_payload", "others_of", "RELAY_PERIOD_S",
+           "RADIUS_MAX_M"]
