@@ -181,11 +181,30 @@ def test_the_agent_puts_its_true_pose_in_its_state_and_hands_the_others_of_its_w
 
 # -- end to end: a station and two serve --sim robots --------------------------------------------------------------
 
-def world_at(folder: Path, name: str, x: float) -> Path:
-    """An empty world ``shared`` (the same for both robots) with its start at (x, 0) facing east."""
+def world_at(folder: Path, name: str, x: float, yaw_deg: float = 0.0) -> Path:
+    """An empty world ``shared`` (the same for both robots) with its start at (x, 0) facing ``yaw_deg``."""
     path = folder / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({"world": "shared", "start": {"x": x, "y": 0.0, "yaw_deg": 0.0}}))
+    path.write_text(yaml.safe_dump({"world": "shared", "start": {"x": x, "y": 0.0, "yaw_deg": yaw_deg}}))
     return path
+
+
+def stop(procs: dict) -> None:
+    for proc in procs.values():
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+    for proc in procs.values():
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def listed(base: str, names: set) -> bool:
+    from tests.test_fleet_done import robots
+    try:
+        return names <= {n for n, r in robots(base).items() if r["alive"]}
+    except (urllib.error.URLError, ConnectionError):
+        return False  # the station is still starting
 
 
 def summary_of(runs: Path) -> dict:
@@ -210,14 +229,7 @@ def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_
         procs["stander"] = beastbt("serve", "--sim", "--name", "stander", "--fleet", endpoint, "--world",
                                    str(world_at(tmp_path, "stander", 2.0)), "--no-record", cwd=str(tmp_path))
     try:
-        names = set(procs) - {"station"}
-
-        def listed() -> bool:
-            try:
-                return names <= {n for n, r in robots(base).items() if r["alive"]}
-            except (urllib.error.URLError, ConnectionError):
-                return False  # the station is still starting
-        wait_for(listed, 12.0, "the robots listed")
+        wait_for(lambda: listed(base, set(procs) - {"station"}), 12.0, "the robots listed")
         if other:
             time.sleep(0.6)  # a few relays of the stander's pose reach the mover
         mission = "mission: through\nsteps:\n  - drive: {distance: 3 m, speed: 0.3 m/s, stuck_after: 3 s}\n"
@@ -226,14 +238,7 @@ def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_
         wait_for(lambda: (robots(base)["mover"]["last_run"] or {}).get("status"), 15.0, "the mover's run ends")
         summary = summary_of(runs)
     finally:
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-        for proc in procs.values():
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        stop(procs)
     truth: Any = summary["truth"]
     x = truth["final_pose"]["x"]
     seen = [e for e in summary["events"] if e["kind"] == "collision_monitor" and "zone" in e["text"]]
@@ -245,3 +250,32 @@ def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_
         assert truth["min_clearance_m"] is not None and truth["min_clearance_m"] > 0.0
     else:
         assert x > 2.6 and not seen  # the same mission alone drives on through where the stander stood
+
+
+def test_two_robots_driving_at_each_other_both_stop_without_touching(tmp_path):
+    pytest.importorskip("zenoh")
+    from tests.test_fleet_done import beastbt, free_port, http, robots, wait_for
+    zport, hport = free_port(), free_port()
+    endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
+    procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
+                                cwd=str(tmp_path))}
+    for name, x, yaw in (("west", 0.0, 0.0), ("east", 2.4, 180.0)):  # facing each other, 2.4 m apart
+        procs[name] = beastbt("serve", "--sim", "--name", name, "--fleet", endpoint, "--world",
+                              str(world_at(tmp_path, name, x, yaw)), "--runs-dir", str(tmp_path / f"runs-{name}"),
+                              cwd=str(tmp_path))
+    try:
+        wait_for(lambda: listed(base, {"west", "east"}), 12.0, "both robots listed")
+        time.sleep(0.6)  # each has the other's pose
+        mission = "mission: head_on\nsteps:\n  - drive: {distance: 3 m, speed: 0.2 m/s, stuck_after: 2 s}\n"
+        for name in ("west", "east"):  # at real time: each sees the other at most about 0.35 s late
+            status, answer = http("POST", f"{base}/api/robots/{name}/mission", mission.encode(), "application/yaml")
+            assert status == 200, answer
+        for name in ("west", "east"):
+            wait_for(lambda: (robots(base)[name]["last_run"] or {}).get("status"), 20.0, f"{name}'s run ends")
+        west, east = (summary_of(tmp_path / f"runs-{n}")["truth"] for n in ("west", "east"))
+    finally:
+        stop(procs)
+    assert west["collisions"] == 0 and east["collisions"] == 0, (west, east)
+    gap = east["final_pose"]["x"] - west["final_pose"]["x"]
+    assert west["final_pose"]["x"] > 0.2 and east["final_pose"]["x"] < 2.2  # both drove towards the other
+    assert 0.3 < gap < 1.4, gap  # and both stopped short of the other's footprint (0.15 m each)
