@@ -279,3 +279,41 @@ def test_two_robots_driving_at_each_other_both_stop_without_touching(tmp_path):
     gap = east["final_pose"]["x"] - west["final_pose"]["x"]
     assert west["final_pose"]["x"] > 0.2 and east["final_pose"]["x"] < 2.2  # both drove towards the other
     assert 0.3 < gap < 1.4, gap  # and both stopped short of the other's footprint (0.15 m each)
+
+
+def test_on_tls_the_station_relays_the_poses_to_a_robot_and_another_robots_put_does_not_reach_it(tmp_path_factory):
+    zenoh = pytest.importorskip("zenoh")
+    from tests.test_fleet_tls import tls_fleet, wait_for
+    fleet = tls_fleet.__wrapped__(tmp_path_factory)  # the TLS fleet of test_fleet_tls: station, robot 'tls-1'
+    setup = next(fleet)
+    try:
+        station, agent, keys_dir = setup["station"], setup["agent"], setup["keys"]
+        sim = {"world": "shared", "x": 1.0, "y": 0.0, "yaw": 0.0, "radius_m": 0.2}
+        agent.stand(sim)  # tls-1 is a simulated robot of 'shared'
+        heard: list = []
+        take = agent.others.put
+        agent.others.put = lambda robots: (heard.extend(r.name for r, _ in robots), take(robots))
+        # the station's relay of two simulated robots reaches it, on TLS
+        station.table.state("b", {"sim": {**sim, "x": 2.0}})
+        station.table.state("c", {"sim": {**sim, "x": 3.0}})
+        wait_for(lambda: [r.name for r in agent.others.take()] == ["b", "c"], 2.0, "the relay reaches tls-1")
+        # another robot (the robots' certificate), once it hears the relay too, tries to plant a robot in tls-1's
+        # world: its put does not reach tls-1 (robots do not hear each other, and the access control lets a robot
+        # put only its state and events)
+        robot = json.loads((keys_dir / "robot.json5").read_text())
+        robot["connect"]["endpoints"] = [setup["endpoint"]]
+        session = zenoh.open(zenoh.Config.from_json5(json.dumps(robot)))
+        try:
+            relays: list = []
+            sub = session.declare_subscriber("beastbt/fleet/sim/poses", lambda sample: relays.append(sample))
+            station.table.state("b", {"sim": {**sim, "x": 2.0}})
+            wait_for(lambda: relays, 2.0, "the other robot hears the relay")
+            for _ in range(5):
+                session.put("beastbt/fleet/sim/poses", poses_payload([("ghost", sim, 0.0)]))
+                time.sleep(0.1)
+            sub.undeclare()
+            assert "b" in heard and "ghost" not in heard
+        finally:
+            session.close()
+    finally:
+        next(fleet, None)
