@@ -222,7 +222,9 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
         build.io, build.sim = io, io.sim  # a robot opened by the caller (a replay's recording, a test's fakes)
     elif mode == SIM:
         from beastbt.sim.robot import build_simulator
-        build.sim = build_simulator(profile, world if world is not None else empty_world(), options.seed)
+        # --world on a fleet: a world shared with the fleet's other simulated robots (docs/fleet.md)
+        build.sim = build_simulator(profile, world if world is not None else empty_world(), options.seed,
+                                    shared=options.fleet is not None and bool(options.world))
         build.io = base_part(profile, simulated=True).open_sim(build)
     elif mode == REAL:
         build.io = base_part(profile, simulated=False).open_real(build)

@@ -16,7 +16,7 @@ LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
 MD_NAME = re.compile(r"(?<![\w./-])([A-Za-z_][\w-]*\.md)\b")
 
 
-PLACEHOLDERS = {"missions/x.yaml", "beastbt/fleet/estop", "beastbt/fleet/station"}
+PLACEHOLDERS = {"missions/x.yaml", "beastbt/fleet/estop", "beastbt/fleet/station", "beastbt/fleet/sim/poses"}
 """Names that stand for the reader's own file ("beastbt run missions/x.yaml"), and the fleet's Zenoh keys
 (docs/fleet.md), which look like paths but are not files."""
 

@@ -90,6 +90,14 @@ def command(args: argparse.Namespace) -> int:
     except InvalidInput as exc:  # a --fleet-config that is not one
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
+    if (args.sim or args.robot == "sim") and args.world:  # it stands at its world's start, where others see it
+        from beastbt.fleet.shared_world import start_field
+        try:
+            agent.stand(start_field(profile, args.world))
+        except InvalidInput as exc:
+            agent.close()
+            print(exc.format(), file=sys.stderr)
+            return EXIT_INVALID
     from dataclasses import replace
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),

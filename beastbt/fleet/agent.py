@@ -33,6 +33,8 @@ from typing import Any, Callable, Optional
 
 from beastbt.fleet import keys
 from beastbt.fleet.config import FleetOptions, robot_config
+from beastbt.fleet.shared_world import others_of, sim_field
+from beastbt.sim.obstacles import OtherRobots
 
 PUBLISH_PERIOD_S = 0.175
 """The state is published this often (wall s): 5.7 times a second, in the contract's 5-10 Hz with a margin, and a
@@ -79,6 +81,13 @@ class FleetAgent:
         self.last_run: Optional[dict] = None
         """``{mission, status}`` of the last run that ended (status as in the summary: success, failure, stopped)."""
         self.last_state: dict = {}
+        self.sim: Any = None
+        """The simulator of the run now reporting through this agent (None on a robot, or with no run)."""
+        self.sim_pose: Optional[dict] = None
+        """The ``sim`` field (:func:`~beastbt.fleet.shared_world.sim_field`) of a simulated robot standing idle:
+        where its last run left it, or where it starts (None on a real robot)."""
+        self.others = OtherRobots(wall)
+        """The other simulated robots of this robot's world, as the station relays them (``keys.SIM_POSES``)."""
         self.published = 0
         self._pending_mission = False
         self._lock = threading.Lock()
@@ -155,6 +164,7 @@ class FleetAgent:
                                                       lambda query, c=control: self._on_control(c, query)))
         declared.append(session.declare_queryable(keys.mission_key(name), self._on_mission))
         declared.append(session.declare_subscriber(keys.ESTOP_ALL, self._on_estop_all))
+        declared.append(session.declare_subscriber(keys.SIM_POSES, self._on_sim_poses))
         declared.append(session.liveliness().declare_subscriber(keys.STATION_ALIVE, self._on_station, history=True))
         declared.append(session.liveliness().declare_token(keys.alive_key(name)))
         self._declared = declared
@@ -180,7 +190,34 @@ class FleetAgent:
         state["console_url"] = console.url.split("?")[0] if console is not None and console.url else None
         state["last_run"] = self.last_run
         state["station"] = self.station_present
+        sim = self.sim
+        pose = sim_field(sim) if sim is not None else self.sim_pose
+        if pose is not None:  # only a simulated robot: its true pose, for the other simulators of its world
+            state["sim"] = pose
         return state
+
+    # -- a shared simulated world -------------------------------------------------------------
+    def attach_sim(self, sim: Any) -> None:
+        """A simulated run reports through this agent: its true pose goes in the state, and its simulator takes
+        the other robots of its world from :attr:`others`, between ticks."""
+        self.sim_pose = sim_field(sim)
+        self.sim = sim
+        sim.others = self.others.take
+
+    def detach_sim(self) -> None:
+        """The simulated run has ended: the robot stands where it stopped, still an obstacle to the others."""
+        sim, self.sim = self.sim, None
+        if sim is not None:
+            self.sim_pose = sim_field(sim)
+            sim.others = None
+
+    def stand(self, pose: dict) -> None:
+        """A simulated robot stands idle at ``pose`` (a ``sim`` field) before its first run."""
+        self.sim_pose = dict(pose)
+
+    def _on_sim_poses(self, sample: Any) -> None:
+        pose = self.sim_pose
+        self.others.put(others_of(sample.payload.to_bytes(), self.name, pose["world"] if pose else None))
 
     def publish_state(self) -> None:
         """Put the current state (the publisher thread)."""
@@ -223,6 +260,7 @@ class FleetAgent:
                 self.last_state = self.link.latest()
             self.link = None
             self.last_run = last_run
+            self.detach_sim()
         self.publish_state()
 
     def mission_done(self) -> None:

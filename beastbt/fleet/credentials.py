@@ -9,7 +9,8 @@ once): ``ca.crt``/``ca.key`` (the fleet's certificate authority; keep
 mutual TLS (each side proves itself with a certificate of this CA; no other
 transport is accepted) with Zenoh's access control on the router: a robot
 may publish its state and events, declare its liveliness token and its
-queryables, answer queries and hear the stop-all, and nothing else; only the
+queryables, answer queries, hear the stop-all and the simulated robots' poses the station relays, and
+nothing else; only the
 station queries (commands, missions) and puts the stop-all. ``README.txt``
 says how to use them.
 """
@@ -27,7 +28,7 @@ ROBOT_INGRESS = [
     (["put"], ["beastbt/*/state", "beastbt/*/events"]),
     (["declare_queryable"], ["beastbt/*/cmd/*", "beastbt/*/mission"]),
     (["reply"], ["beastbt/**"]),
-    (["declare_subscriber"], ["beastbt/fleet/estop"]),
+    (["declare_subscriber"], ["beastbt/fleet/estop", "beastbt/fleet/sim/poses"]),
     (["liveliness_token"], ["beastbt/*/alive"]),
     (["declare_liveliness_subscriber", "liveliness_query"], ["beastbt/fleet/station"]),
 ]

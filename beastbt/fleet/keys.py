@@ -11,7 +11,8 @@ or a verbatim chunk (``$*``). ``fleet`` is taken by the fleet's own keys.
 * ``beastbt/<name>/cmd/<control>``: a queryable per control (:data:`CONTROLS`), JSON in, JSON out;
 * ``beastbt/<name>/mission``: a queryable that takes a mission (YAML, or a zip with its files);
 * ``beastbt/fleet/estop``: a put that e-stops every robot that hears it;
-* ``beastbt/fleet/station``: the station's liveliness token (what a supervised mission waits for).
+* ``beastbt/fleet/station``: the station's liveliness token (what a supervised mission waits for);
+* ``beastbt/fleet/sim/poses``: the simulated robots' true poses, put by the station (each simulator's other robots).
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ ESTOP_ALL = f"{PREFIX}/{FLEET}/estop"
 """A put here e-stops every robot that hears it, whatever its state, mission or name."""
 STATION_ALIVE = f"{PREFIX}/{FLEET}/station"
 """The station's liveliness token."""
+SIM_POSES = f"{PREFIX}/{FLEET}/sim/poses"
+"""The station puts the simulated robots' true poses here; each simulated robot adds the others to its world."""
 ALL_ALIVE = f"{PREFIX}/*/alive"
 """Every robot's liveliness token."""
 ALL_STATES = f"{PREFIX}/*/state"
@@ -97,5 +100,6 @@ def robot_of(key: str) -> Optional[str]:
     return parts[1]
 
 
-__all__ = ["PREFIX", "ESTOP_ALL", "STATION_ALIVE", "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "CONTROLS", "NAME_MAX",
+__all__ = ["PREFIX", "ESTOP_ALL", "STATION_ALIVE", "SIM_POSES",
+           "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "CONTROLS", "NAME_MAX",
            "name_problem", "check_name", "alive_key", "state_key", "events_key", "mission_key", "cmd_key", "robot_of"]

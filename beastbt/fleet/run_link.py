@@ -61,6 +61,10 @@ class FleetRunLink:
             run.reactors.append(controls)
         run.events.listeners.append(self._event)
         agent.attach(self)
+        if run.io.sim is not None and prepared.options.world:
+            # a world given on the command line is shared with the fleet's other simulated robots in it (each
+            # mission's own world would put every robot on the same start)
+            agent.attach_sim(run.io.sim)
         if agent.estop_latched:  # it came between the mission's answer and now: the run starts stopped
             from beastbt.run.safety import request_estop
             request_estop(run, "the fleet's e-stop (latched before the run)")

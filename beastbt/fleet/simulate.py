@@ -3,7 +3,8 @@
 Each robot is a ``beastbt serve --sim`` process of its own (``sim-1`` ... ``sim-N``), as a real robot
 would be, connected to the station's router. They share the world (``--world``, else an empty plain),
 each with its start moved sideways (to the robot's left, :data:`SPACING_M` apart), so that none starts
-inside another. Each simulator sees its own robot only: the others are not obstacles in it.
+inside another. Each simulator adds the others as moving obstacles, from the poses the station relays
+(:mod:`beastbt.fleet.shared_world`).
 """
 
 from __future__ import annotations

@@ -34,6 +34,8 @@ from aiohttp import web
 from beastbt.fleet import keys
 from beastbt.fleet.agent import MISSION_MAX_BYTES
 from beastbt.fleet.config import station_config
+from beastbt.fleet.shared_world import RELAY_PERIOD_S, check_sim_field, poses_payload
+from beastbt.sim.obstacles import OTHERS_MAX_AGE_S
 from beastbt.live.console_control import CONTROL_MAX_BYTES, Refused, parse_control_body
 from beastbt.live.console_server import ConsoleServer
 
@@ -132,6 +134,19 @@ class FleetTable:
             return ATTENTION["estop"]
         return ATTENTION.get(robot["status"])
 
+    def sim_poses(self) -> list[tuple[str, dict, float]]:
+        """The simulated robots heard within :data:`~beastbt.sim.obstacles.OTHERS_MAX_AGE_S`: (name, their ``sim``
+        field, how long ago, s), by name; what the station relays on ``beastbt/fleet/sim/poses``."""
+        now = self.wall()
+        with self._lock:
+            entries = [(e.name, e.state.get("sim"), e.seen_wall) for e in self._robots.values()]
+        out = []
+        for name, value, seen in sorted(entries, key=lambda e: e[0]):
+            sim = check_sim_field(value)
+            if sim is not None and seen is not None and now - seen <= OTHERS_MAX_AGE_S:
+                out.append((name, sim, now - seen))
+        return out
+
     def known_alive(self, name: str) -> bool:
         """Whether ``name`` is on the fleet now."""
         with self._lock:
@@ -148,6 +163,10 @@ class Station:
         self.table = FleetTable()
         self._session: Any = None
         self._declared: list[Any] = []
+        self._relay_stop = threading.Event()
+        self._relay: Optional[threading.Thread] = None
+        self.relayed = 0
+        """Puts on ``beastbt/fleet/sim/poses`` so far."""
 
     def open(self) -> "Station":
         """Open the router (raises zenoh's error when it cannot listen) and start hearing the robots."""
@@ -161,13 +180,38 @@ class Station:
             session.declare_subscriber(keys.ALL_EVENTS, self._on_event),
             live.declare_token(keys.STATION_ALIVE),
         ]
+        poses = session.declare_publisher(keys.SIM_POSES)
+        self._declared.append(poses)
+        self._relay = threading.Thread(target=self._relay_poses, args=(poses,), name="beastbt-station-sim-poses",
+                                       daemon=True)
+        self._relay.start()
         return self
+
+    def _relay_poses(self, publisher: Any) -> None:
+        """Put the simulated robots' poses every :data:`RELAY_PERIOD_S` while there are any (a thread of its own):
+        robots do not hear each other, the station hears them all (see :mod:`beastbt.fleet.shared_world`)."""
+        due = time.monotonic()
+        while True:
+            due += RELAY_PERIOD_S
+            if self._relay_stop.wait(max(0.0, due - time.monotonic())):
+                return
+            robots = self.table.sim_poses()
+            if len(robots) < 2:
+                continue  # one simulated robot has no other to meet
+            try:
+                publisher.put(poses_payload(robots))
+                self.relayed += 1
+            except Exception:  # noqa: BLE001 - the router is closing: nothing more to relay
+                return
 
     def close(self) -> None:
         """Withdraw the station's token and close the router."""
         session, self._session = self._session, None
         if session is None:
             return
+        self._relay_stop.set()
+        if self._relay is not None:
+            self._relay.join(2.0)
         for entity in reversed(self._declared):
             try:
                 entity.undeclare()

@@ -1,4 +1,4 @@
-"""Contact between the robot's footprint and the world: walls, boxes, cylinders and walking persons.
+"""Contact between the robot's footprint and the world: walls, boxes, cylinders, walking persons and other robots.
 
 The footprint is a circle of ``radius_m`` around the robot's centre (the
 profile's ``footprint_radius_m``; a circle also stays the same shape when the
@@ -15,6 +15,9 @@ that radius: a wall becomes a capsule, a cylinder or a person a larger circle.
 - :meth:`ContactWorld.observe` keeps the run's truth: ``collisions`` (contact
   episodes, each counted once until the footprint is :data:`CLEAR_AFTER_M`
   clear of everything again) and ``min_clearance_m``.
+- :meth:`ContactWorld.set_others` places the other robots of a shared world (circles of their footprints,
+  where their own simulators last put them): the robot meets them as it meets a person; the persons here do
+  not know them (they give way to this robot only).
 - :meth:`ContactWorld.advance_persons` walks the persons. A person who gives
   way (the default) keeps its ``keeps_m`` from the robot's footprint, waits,
   and after ``patience_s`` steps around the robot on the side with room (walls
@@ -53,7 +56,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle, Obstacle, Person
+from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle, Obstacle, OtherRobot, Person
 
 CONTACT_M: float = 1e-4
 """A gap at most this is a contact, m (the swept test leaves a touching robot at a gap of about 1e-12 m)."""
@@ -150,7 +153,13 @@ class ContactWorld:
         """Smallest gap between the footprint and anything so far, m (None before the first look, or with nothing)."""
         self.in_contact = False
         """True from a contact until the footprint is CLEAR_AFTER_M clear again."""
-        self.empty = not (len(self.wall_segments) or boxes or cyl or self.persons)
+        self.others: tuple[OtherRobot, ...] = ()
+        """The other robots in the world now (:meth:`set_others`): circles the robot meets, moved from outside."""
+        self.others_xy = np.zeros((0, 2))
+        """Where each other robot is now (m, world frame), in the order of :attr:`others`."""
+        self._others_r = np.zeros(0)  # each other robot's radius plus the footprint's, m
+        self._fixed_empty = not (len(self.wall_segments) or boxes or cyl or self.persons)
+        self.empty = self._fixed_empty
         self._walls_py = [(float(a[0]), float(a[1]), float(d[0]), float(d[1]), float(l2))
                           for a, d, l2 in zip(self._wall_a, self._wall_d, self._wall_l2)]
         self._cyl_py = [(o.x, o.y, o.radius_m) for o in cyl]
@@ -158,8 +167,31 @@ class ContactWorld:
         self._circ_py = [(float(c[0]), float(c[1]), float(r)) for c, r in zip(self._circ_c, self._circ_r)]
         self._seg_py = [(float(a[0]), float(a[1]), float(u[0]), float(u[1]), float(n))
                         for a, u, n in zip(self._seg_a, self._seg_u, self._seg_len)]
-        self._small = len(self.wall_segments) + len(boxes) + len(cyl) + len(self.persons) <= SMALL_WORLD
+        self._n_things = len(self.wall_segments) + len(boxes) + len(cyl) + len(self.persons)
+        self._small = self._n_things <= SMALL_WORLD
         self._ref: Optional[tuple[float, float, float]] = None  # (x, y, exact clearance) of the last look
+
+    # -- other robots ------------------------------------------------------------
+    def set_others(self, robots: Sequence[OtherRobot]) -> None:
+        """The other robots are now ``robots`` (poses handed over between two physics steps, m and rad).
+
+        The bound of the clearance stays valid when the same robots only moved (by the farthest any moved);
+        another set of robots, or another footprint, asks for an exact look.
+        """
+        robots = tuple(robots)
+        if robots == self.others:
+            return
+        before = {r.name: r for r in self.others}
+        if (self._ref is not None and len(before) == len(robots)
+                and all(r.name in before and before[r.name].radius_m == r.radius_m for r in robots)):
+            self._persons_moved_m += max(math.hypot(r.x - before[r.name].x, r.y - before[r.name].y) for r in robots)
+        else:
+            self._ref = None
+        self.others = robots
+        self.others_xy = np.array([[r.x, r.y] for r in robots], dtype=float).reshape(-1, 2)
+        self._others_r = np.array([r.radius_m for r in robots], dtype=float) + self.radius_m
+        self.empty = self._fixed_empty and not robots
+        self._small = self._n_things + len(robots) <= SMALL_WORLD
 
     # -- geometry -----------------------------------------------------------------
     def clearance(self, x: float, y: float) -> float:
@@ -186,6 +218,8 @@ class ContactWorld:
         best = self._fixed_small(x, y)
         for (px, py), person in zip(self.person_xy.tolist(), self.persons):
             best = min(best, math.hypot(x - px, y - py) - person.radius_m)
+        for other in self.others:
+            best = min(best, math.hypot(x - other.x, y - other.y) - other.radius_m)
         return best - self.radius_m
 
     def _fixed_small(self, x: float, y: float) -> float:
@@ -208,6 +242,9 @@ class ContactWorld:
         best = self._fixed_numpy(x, y)
         if len(self.persons):
             d = np.hypot(self.person_xy[:, 0] - x, self.person_xy[:, 1] - y) - self._person_r
+            best = min(best, float(d.min()) + self.radius_m)
+        if self.others:
+            d = np.hypot(self.others_xy[:, 0] - x, self.others_xy[:, 1] - y) - self._others_r
             best = min(best, float(d.min()) + self.radius_m)
         return best - self.radius_m
 
@@ -254,6 +291,8 @@ class ContactWorld:
             s = min(s, _sweep_circle(x0, y0, dx, dy, cx, cy, r))
         for (px, py), r in zip(self.person_xy.tolist(), self._person_r.tolist()):
             s = min(s, _sweep_circle(x0, y0, dx, dy, px, py, r))
+        for (px, py), r in zip(self.others_xy.tolist(), self._others_r.tolist()):
+            s = min(s, _sweep_circle(x0, y0, dx, dy, px, py, r))
         radius = self.radius_m
         for ax, ay, ux, uy, length in self._seg_py:
             rx, ry = x0 - ax, y0 - ay
@@ -280,6 +319,8 @@ class ContactWorld:
             s = min(s, float(_sweep_slabs(p0, d, self._seg_a, self._seg_u, self._seg_len, self.radius_m).min()))
         if len(self.persons):
             s = min(s, float(_sweep_circles(p0, d, self.person_xy, self._person_r).min()))
+        if self.others:
+            s = min(s, float(_sweep_circles(p0, d, self.others_xy, self._others_r).min()))
         return s
 
     # -- persons ------------------------------------------------------------------

@@ -8,7 +8,8 @@ What a LiDAR sees is cast by :class:`RayCaster` from the LiDAR's pose
 (the robot's true pose composed with the profile's ``lidar.mounting``):
 walls and box sides as segments, cylinders and persons as circles, persons
 where they are at the time of the cast (:attr:`ContactWorld.person_xy`, so a
-person stopped by the robot is seen stopped). All of it is vectorised
+person stopped by the robot is seen stopped), other robots of a shared world
+as circles where the fleet last put them (:attr:`ContactWorld.others_xy`). All of it is vectorised
 (rays x segments, rays x circles: one matrix product per cast). Rays are cast in chunks (half a revolution's
 points at once, :data:`CHUNKS_PER_REVOLUTION`, with the pose at the chunk's start) and the chunk's bytes are
 fed to the port as their points' times come, so the driver reads them at the
@@ -162,6 +163,20 @@ class RayCaster:
         return hit.min(axis=1)
 
 
+def cast_circles(ox: float, oy: float, angles: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Distance from (``ox``, ``oy``) along each world angle (rad) to the first of the circles (centres m, radii m)
+    hit; inf where none is (from inside a circle: its far side, as :meth:`RayCaster.cast`)."""
+    d = np.stack((np.cos(angles), np.sin(angles)), axis=1)
+    c = centres - (ox, oy)
+    b = d @ c.T
+    disc = b * b - ((c * c).sum(axis=1) - radii * radii)
+    with np.errstate(invalid="ignore"):
+        root = np.sqrt(disc)
+    near = b - root
+    t = np.where(near > 0.0, near, b + root)
+    return np.where((disc >= 0.0) & (t > 0.0), t, NO_HIT).min(axis=1)
+
+
 class LidarEmulator:
     """What both models share: the world, the mounting, the noise and the chunked casting on the sim clock.
 
@@ -207,6 +222,10 @@ class LidarEmulator:
         angles = t.yaw + self.mount_yaw - np.radians(deg_cw)
         persons = self.contact.person_xy if self.contact is not None and len(self.caster.person_r) else None
         r = self.caster.cast(ox, oy, angles, persons)
+        others = self.contact.others if self.contact is not None else ()
+        if others:  # other robots of a shared world, where the fleet last said they were
+            r = np.minimum(r, cast_circles(ox, oy, angles, self.contact.others_xy,
+                                           np.array([o.radius_m for o in others])))
         self.casts += 1
         lo, hi = m.range_m
         noise = self.rng.standard_normal(count)
@@ -555,4 +574,5 @@ def make_emulator(kind: str, caster: RayCaster, truth: Any, contact: Any, mounti
 
 
 __all__ = ["RayCaster", "LidarModel", "LidarEmulator", "SimLd19", "PacedPort", "SimRplidarA1", "A1Port",
-           "make_emulator", "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION"]
+           "make_emulator", "LD19_MODEL", "A1_MODEL", "MODELS", "ld19_crc8", "a1_descriptor", "CHUNKS_PER_REVOLUTION",
+           "cast_circles"]

@@ -1,4 +1,4 @@
-"""Obstacles of a simulated world: fixed boxes and cylinders, and persons who walk a path.
+"""Obstacles of a simulated world: fixed boxes and cylinders, persons who walk a path, and other robots.
 
 A world's ``obstacles:`` list (``schemas/world.schema.json``) becomes these
 plain records; positions are metres in the world's local east-north-up frame,
@@ -21,6 +21,11 @@ touches the robot (a test of the robot's own collision monitor). What a person
 does from step to step is in :class:`beastbt.sim.contact.ContactWorld`, which
 knows the robot, the walls and the fixed obstacles; here are only the records
 and the geometry of the path.
+
+Other robots (:class:`OtherRobot`) share the world when robots are simulated
+side by side on a fleet: each robot's simulator is told where the others are
+(:class:`OtherRobots`, the hand-over from the fleet's thread), and sees them
+as circles of their footprint that its LiDAR draws and its robot can touch.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, Union
+import threading
+import time
+from typing import Any, Callable, Iterable, Union
 
 from beastbt.core.schema_defaults import schema_default
 
@@ -151,6 +158,55 @@ class Person:
 Obstacle = Union[BoxObstacle, CylinderObstacle, Person]
 """Any obstacle of a world."""
 
+OTHERS_MAX_AGE_S: float = 1.0
+"""Another robot's pose older than this (wall s) is dropped: a robot that went away is no longer an obstacle."""
+
+
+@dataclass(frozen=True)
+class OtherRobot:
+    """Another robot in the same simulated world, as its own simulator last published it: an upright circle of
+    ``radius_m`` (its footprint, m) at ``x``, ``y`` (m, world frame) facing ``yaw`` (rad).
+
+    Its pose is set from outside (the fleet): it is neither a fixed obstacle nor a person that walks a path, and the
+    simulator that sees it does not move it (its own simulator does).
+    """
+
+    name: str
+    x: float
+    y: float
+    yaw: float
+    radius_m: float
+
+
+class OtherRobots:
+    """The hand-over of other robots' poses from the thread that hears them to the simulator's loop.
+
+    :meth:`put` (any thread: the fleet's) replaces what is known of the robots it names; :meth:`take` (the sim loop,
+    between ticks) is a snapshot of those heard within :data:`OTHERS_MAX_AGE_S`, in name order, so that what the
+    simulator does with it depends only on the poses handed over. ``wall`` is a monotonic clock (s).
+    """
+
+    def __init__(self, wall: Callable[[], float] = time.monotonic, max_age_s: float = OTHERS_MAX_AGE_S) -> None:
+        self.wall = wall
+        self.max_age_s = float(max_age_s)
+        self._lock = threading.Lock()
+        self._heard: dict[str, tuple[float, OtherRobot]] = {}
+
+    def put(self, robots: Iterable[tuple[OtherRobot, float]]) -> None:
+        """Each ``(robot, age_s)``: its pose, heard ``age_s`` ago (s, as the sender counts it)."""
+        now = self.wall()
+        with self._lock:
+            for robot, age_s in robots:
+                self._heard[robot.name] = (now - max(0.0, float(age_s)), robot)
+
+    def take(self) -> tuple[OtherRobot, ...]:
+        """The robots heard within the last :data:`OTHERS_MAX_AGE_S`, by name (older ones are forgotten)."""
+        oldest = self.wall() - self.max_age_s
+        with self._lock:
+            for name in [n for n, (t, _) in self._heard.items() if t < oldest]:
+                del self._heard[name]
+            return tuple(r for _, (_, r) in sorted(self._heard.items()))
+
 
 def _default(shape: str, name: str) -> Any:
     """The world schema's default for field ``name`` of a ``shape`` obstacle."""
@@ -187,5 +243,5 @@ def obstacle_outline(o: Obstacle) -> dict:
     return {"shape": "person", "path": [list(p) for p in o.path], "radius_m": o.radius_m}
 
 
-__all__ = ["BoxObstacle", "CylinderObstacle", "Person", "Obstacle", "obstacle_of", "obstacle_outline",
-           "CLOSED_PATH_TOLERANCE_M"]
+__all__ = ["BoxObstacle", "CylinderObstacle", "Person", "Obstacle", "OtherRobot", "OtherRobots", "OTHERS_MAX_AGE_S",
+           "obstacle_of", "obstacle_outline", "CLOSED_PATH_TOLERANCE_M"]

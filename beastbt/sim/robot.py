@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_defaults import schema_default
 from beastbt.sim.contact import ContactWorld
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
+from beastbt.sim.obstacles import OtherRobot
 from beastbt.sim.truth import RobotTruth
 from beastbt.sim.world import World
 
@@ -45,9 +46,18 @@ class Simulator:
     emulators: list[Emulator] = field(default_factory=list)
     """Each called as ``update(now_s, dt_s)`` after every physics step."""
     t_s: float = 0.0
+    others: Optional[Callable[[], Sequence[OtherRobot]]] = None
+    """Where the other robots of a shared world are now (the fleet's hand-over), asked once per :meth:`advance`;
+    None: this robot is alone in its world."""
 
     def advance(self, now_s: float) -> None:
-        """Step physics and emulators until the simulated time reaches ``now_s``."""
+        """Step physics and emulators until the simulated time reaches ``now_s``.
+
+        The other robots (:attr:`others`) are placed first and stand there for the whole advance (between two
+        ticks), so the steps depend only on the poses handed over.
+        """
+        if self.others is not None and self.drive.contact is not None:
+            self.drive.contact.set_others(self.others())
         while self.t_s + 1e-9 < now_s:
             dt = min(self.physics_dt_s, now_s - self.t_s)
             self.drive.step(dt)
@@ -86,8 +96,12 @@ def world_problem(world: World, section: str, exc: Exception) -> InvalidInput:
                                            "see the schema in schemas/parts/ for the knobs this section takes")])
 
 
-def build_simulator(profile: "RobotProfile", world: World, seed: int) -> Simulator:
-    """The simulated robot of ``profile`` in ``world`` (dynamics only, no emulators yet), deterministic for ``seed``."""
+def build_simulator(profile: "RobotProfile", world: World, seed: int, shared: bool = False) -> Simulator:
+    """The simulated robot of ``profile`` in ``world`` (dynamics only, no emulators yet), deterministic for ``seed``.
+
+    ``shared``: other robots may join the world (a fleet's), so the robot has a contact world even when its own
+    world has nothing to touch (the LiDAR and the contact then see the others once :attr:`Simulator.others` is set).
+    """
     rng = np.random.default_rng(seed)
     sim_cfg = dict(profile.section("sim") or {})
     physics_hz = float(sim_cfg.pop("physics_rate_hz", DEFAULT_PHYSICS_RATE_HZ))
@@ -97,7 +111,8 @@ def build_simulator(profile: "RobotProfile", world: World, seed: int) -> Simulat
         sim_cfg.setdefault("footprint_radius_m", geometry["footprint_radius_m"])
     model = DriveModel.from_dict(sim_cfg)
     truth = RobotTruth(x=world.start_x, y=world.start_y, yaw=world.start_yaw, battery_v=world.battery_start_v)
-    contact = ContactWorld(world.walls, world.obstacles, model.footprint_radius_m) if world.walls or world.obstacles else None
+    contact = (ContactWorld(world.walls, world.obstacles, model.footprint_radius_m)
+               if world.walls or world.obstacles or shared else None)
     drive = DiffDriveSim(model, truth, np.random.default_rng(rng.integers(2**63)), walls=list(world.walls),
                          contact=contact)
     return Simulator(world, truth, drive, rng, physics_dt_s=1.0 / physics_hz)
