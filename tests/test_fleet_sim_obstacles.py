@@ -216,7 +216,8 @@ def summary_of(runs: Path) -> dict:
 @pytest.mark.parametrize("other", [True, False], ids=["other-in-the-way", "nobody-in-the-way"])
 def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_path, other):
     pytest.importorskip("zenoh")
-    from tests.test_fleet_done import beastbt, free_port, http, robots, wait_for
+    from fleet_support import free_port, http, wait_for
+    from tests.test_fleet_done import beastbt, robots
     zport, hport = free_port(), free_port()
     endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
     runs = tmp_path / "runs-mover"
@@ -254,7 +255,8 @@ def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_
 
 def test_two_robots_driving_at_each_other_both_stop_without_touching(tmp_path):
     pytest.importorskip("zenoh")
-    from tests.test_fleet_done import beastbt, free_port, http, robots, wait_for
+    from fleet_support import free_port, http, wait_for
+    from tests.test_fleet_done import beastbt, robots
     zport, hport = free_port(), free_port()
     endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
     procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
