@@ -43,7 +43,8 @@ def test_a_run_whose_reader_is_gone_still_writes_its_summary_and_recording_and_e
     drive.write_text(f"mission: drive\nworld: {CAMPUS}\nsteps:\n  - wait: 2 s\n"
                      f"  - drive: {{distance: 5 m, speed: 0.3 m/s}}\n", encoding="utf-8")
     done = run_into_a_closed_pipe(str(drive), "--summary", str(tmp_path / "s.json"), "--runs-dir",
-                                  str(tmp_path / "runs"), "--seed", "1", "--max-time", "10", "min")
+                                  str(tmp_path / "runs"), "--seed", "1", "--max-time", "10", "min",
+                                  "--record-sensors")  # the route below is taught from its GPS positions
     assert done.returncode == 0, done.stderr
     assert "BrokenPipe" not in done.stderr and "Traceback" not in done.stderr
     summary = json.loads((tmp_path / "s.json").read_text(encoding="utf-8"))
