@@ -49,17 +49,7 @@ from beastbt.run.session import RunOptions, execute  # noqa: E402
 import lidar_decode  # noqa: E402
 from lidar_decode import ld19_stream  # noqa: E402
 from lidar_support import MemorySerial  # noqa: E402
-from localisation_support import mission_text, office_map_file  # noqa: E402
-
-TOUR = """\
-  - drive: {distance: 1.5 m}
-  - turn: {angle: 180 deg}
-  - drive: {distance: 3 m}
-  - turn: {angle: 90 deg}
-  - drive: {distance: 1 m}
-  - turn: {angle: 90 deg}
-  - drive: {distance: 1.5 m}
-"""
+from localisation_support import TOUR, mission_text, office_map_file  # noqa: E402
 
 
 def record_scans(folder: Path) -> tuple[object, list, float, int]:

@@ -14,6 +14,17 @@ from conftest import REPO
 
 OFFICE = REPO / "worlds" / "office.yaml"
 
+TOUR = """\
+  - drive: {distance: 1.5 m}
+  - turn: {angle: 180 deg}
+  - drive: {distance: 3 m}
+  - turn: {angle: 90 deg}
+  - drive: {distance: 1 m}
+  - turn: {angle: 90 deg}
+  - drive: {distance: 1.5 m}
+"""
+"""A tour of the office world's office and corridor (the steps of a mission): drives, a U-turn and two turns."""
+
 
 def truth_map(world: World, map_start: tuple[float, float, float] = (0.0, 0.0, 0.0),
               resolution_m: float = 0.05, margin_m: float = 0.5) -> OccupancyMap:

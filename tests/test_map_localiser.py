@@ -23,17 +23,7 @@ from beastbt.run.session import RunOptions, execute
 from beastbt.run.summary import human_summary
 from beastbt.sim.world import load_world
 from conftest import REPO
-from localisation_support import OFFICE, mission_text, office_map_file
-
-TOUR = """\
-  - drive: {distance: 1.5 m}
-  - turn: {angle: 180 deg}
-  - drive: {distance: 3 m}
-  - turn: {angle: 90 deg}
-  - drive: {distance: 1 m}
-  - turn: {angle: 90 deg}
-  - drive: {distance: 1.5 m}
-"""
+from localisation_support import OFFICE, TOUR, mission_text, office_map_file
 
 SMALL_ROOM = """\
 world: small_room

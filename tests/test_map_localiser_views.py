@@ -13,6 +13,7 @@ import statistics
 
 import jsonschema
 
+from beastbt.estimation.map_localiser import compose
 from beastbt.recording import schemas as rs
 from beastbt.recording.reader import read_recording
 from localisation_support import mission_text, office_map_file
@@ -52,11 +53,6 @@ def _planar(transform: dict) -> tuple[float, float, float]:
     return float(p["x"]), float(p["y"]), 2.0 * math.atan2(float(q["z"]), float(q["w"]))
 
 
-def _then(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]
-
-
 def test_on_a_map_tf_puts_the_robot_where_the_localiser_says(tmp_path):
     """/tf's map -> odom is the localiser's (as AMCL publishes it), so base_link lands on /map/pose, on /map.
 
@@ -90,7 +86,7 @@ def test_on_a_map_tf_puts_the_robot_where_the_localiser_says(tmp_path):
             continue
         by_child = {t["child_frame_id"]: t for t in after[0]}
         assert by_child["odom"]["parent_frame_id"] == "map"
-        x, y, yaw = _then(_planar(by_child["odom"]), _planar(by_child["base_link"]))
+        x, y, yaw = compose(_planar(by_child["odom"]), _planar(by_child["base_link"]))
         assert math.hypot(x - pose[0], y - pose[1]) < 0.01, (x, y, pose)
         assert abs(math.remainder(yaw - pose[2], math.tau)) < math.radians(0.5)
         checked += 1

@@ -61,6 +61,7 @@ from aiohttp import WSMsgType, web
 from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
                                           parse_control_body)
 from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
+from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.web_guard import WebGuard
 from beastbt.live.console_video import BudgetGuard, ConsoleVideo
 
@@ -119,29 +120,7 @@ class ConsoleServer:
     # -- life ------------------------------------------------------------------------
     def start(self) -> "ConsoleServer":
         """Bind and serve in a daemon thread; raises OSError when the address cannot be bound."""
-        ready = threading.Event()
-        failure: list[BaseException] = []
-
-        def serve() -> None:
-            loop = asyncio.new_event_loop()
-            self._loop = loop
-            asyncio.set_event_loop(loop)
-            try:
-                loop.run_until_complete(self._bind())
-            except BaseException as exc:  # noqa: BLE001 - handed to the caller of start()
-                failure.append(exc)
-                ready.set()
-                loop.close()
-                return
-            ready.set()
-            loop.run_forever()
-            loop.close()
-
-        self._thread = threading.Thread(target=serve, name="beastbt-console", daemon=True)
-        self._thread.start()
-        ready.wait(10.0)
-        if failure:
-            raise failure[0]
+        self._thread, self._loop = start_loop_thread(self._bind, "beastbt-console")
         return self
 
     async def _bind(self) -> None:

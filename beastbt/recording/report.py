@@ -813,7 +813,8 @@ def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
     on_map = d.rec.messages.get("/map/pose", [])
     if aligned is not None and on_map:
         # the localiser's pose on the saved map, moved onto the world by the starts (truth.map_from_world)
-        world_from_map = _invert(tuple(aligned))
+        from beastbt.estimation.map_localiser import compose, invert
+        world_from_map = invert(tuple(aligned))
         import numpy as np
         log_ns = np.array([t for t, _ in truth], dtype=float)
         at = np.array([t for t, _ in on_map], dtype=float)  # both stamped with their tick's log time
@@ -821,7 +822,7 @@ def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
                    np.interp(at, log_ns, [m["y"] for _, m in truth]).tolist())
         errs = []
         for (_, m), (tx, ty) in zip(on_map, true):
-            x, y, _ = _then(world_from_map, (m["pose"]["position"]["x"], m["pose"]["position"]["y"], 0.0))
+            x, y, _ = compose(world_from_map, (m["pose"]["position"]["x"], m["pose"]["position"]["y"], 0.0))
             errs.append(math.hypot(x - tx, y - ty))
         out["localiser on the map"] = ([(t - t0) * 1e-9 for t, _ in on_map], errs)
     frame = d.local_frame()
@@ -834,18 +835,6 @@ def position_errors(d: RunData) -> dict[str, tuple[list[float], list[float]]]:
             errs.append(math.hypot(e - tx, n - ty))
         out["raw GPS fix"] = ([t for t, _ in fixes], errs)
     return out
-
-
-def _invert(a: tuple) -> tuple[float, float, float]:
-    """The inverse of a planar pose (x m, y m, yaw rad)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return -(c * a[0] + s * a[1]), s * a[0] - c * a[1], -a[2]
-
-
-def _then(a: tuple, b: tuple) -> tuple[float, float, float]:
-    """Planar pose ``b`` given in ``a``'s frame, in the frame ``a`` is given in."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]
 
 
 def plot_position_error(d: RunData, out: Path) -> Optional[str]:

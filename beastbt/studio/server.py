@@ -25,6 +25,7 @@ from aiohttp import web
 
 from beastbt.core.resources import data_dir
 from beastbt.live.endpoint import SECURITY_HEADERS
+from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.web_guard import GuardWords, WebGuard
 from beastbt.studio.files import FileRefused, StudioFolder
 
@@ -109,30 +110,11 @@ class StudioServer:
 
     def start(self) -> "StudioServer":
         """Bind and serve in a daemon thread; raises OSError when the address cannot be bound."""
-        ready = threading.Event()
-        failure: list[BaseException] = []
+        async def clean_up() -> None:
+            if self._runner is not None:
+                await self._runner.cleanup()
 
-        def serve() -> None:
-            loop = asyncio.new_event_loop()
-            self._loop = loop
-            asyncio.set_event_loop(loop)
-            try:
-                loop.run_until_complete(self._bind())
-            except BaseException as exc:  # noqa: BLE001 - handed to the caller of start()
-                failure.append(exc)
-                ready.set()
-                loop.close()
-                return
-            ready.set()
-            loop.run_forever()
-            loop.run_until_complete(self._runner.cleanup() if self._runner else asyncio.sleep(0))
-            loop.close()
-
-        self._thread = threading.Thread(target=serve, name="beastbt-studio", daemon=True)
-        self._thread.start()
-        ready.wait(10.0)
-        if failure:
-            raise failure[0]
+        self._thread, self._loop = start_loop_thread(self._bind, "beastbt-studio", after=clean_up)
         return self
 
     def _warm_up(self) -> None:
