@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import statistics
 import sys
 import tempfile
@@ -40,6 +41,7 @@ import yaml  # noqa: E402
 
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap  # noqa: E402
 from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 
 LIMITS = Limits(max_speed_mps=0.35, max_turn_rate_rps=math.radians(120), max_accel_mps2=1.0,
                 max_angular_accel_rps2=math.radians(360))
@@ -101,6 +103,16 @@ def per_tick(repeats: int) -> None:
     per_s = (results["DWA + navigation function, new scan"] * 10 + results["DWA + navigation function, same scan"] * 10)
     print(f"  while going round (10 Hz scans, 20 Hz ticks): {per_s / 1e4:.2f} % of a core; in the open "
           f"{results['open (preference unchanged)'] * 20 / 1e4:.3f} %")
+    for name, us in results.items():
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower().replace("(preference unchanged)", "")).strip("_")
+        FIGURES.put(f"tick.{key}_us", us)
+        FIGURES.put(f"tick.{key}_ratio", us / base)
+    FIGURES.put("going_round_pct", per_s / 1e4)
+    FIGURES.put("open_pct", results["open (preference unchanged)"] * 20 / 1e4)
+
+
+FIGURES = Figures("local_planner")
+"""The figures this run prints, saved at its end for benchmarks/check_docs.py (benchmarks/figures.py)."""
 
 
 def drive(planner: DwaPlanner, cm: RollingCostmap, points: np.ndarray, goal: tuple[float, float], seconds: float = 60.0,
@@ -179,6 +191,7 @@ def main() -> None:
     per_tick(args.repeats)
     benches()
     campus(args.seeds)
+    FIGURES.save()
 
 
 if __name__ == "__main__":
