@@ -62,6 +62,17 @@ def command_line() -> str:
     return shlex.join(["python", script_text, *sys.argv[1:]])
 
 
+def dumps(data: dict) -> str:
+    """A results file's text: one line per run and per figure, so that a diff shows which figures changed."""
+    def one(value: object) -> str:
+        return json.dumps(value, ensure_ascii=False)  # on one line, no indentation
+
+    runs = ",\n".join(f"  {one(run)}" for run in data["runs"])
+    figures = ",\n".join(f"  {one(key)}: {one(fig)}" for key, fig in data["figures"].items())
+    return (f'{{\n "benchmark": {one(data["benchmark"])},\n "runs": [\n{runs}\n ],\n'
+            f' "figures": {{\n{figures}\n }}\n}}\n')
+
+
 class Figures:
     """The named figures one benchmark run printed; ``save`` writes them to its results file.
 
@@ -117,7 +128,7 @@ class Figures:
         renumber = {old_i: new_i for new_i, old_i in enumerate(used)}
         data = {"benchmark": self.benchmark, "runs": [runs[i] for i in used],
                 "figures": {k: {"value": f["value"], "run": renumber[f["run"]]} for k, f in sorted(figures.items())}}
-        path.write_text(json.dumps(data, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+        path.write_text(dumps(data), encoding="utf-8")
         stream = out or sys.stdout
         try:
             shown = path.resolve().relative_to(REPO)

@@ -72,7 +72,9 @@ def main() -> None:
         mode = "recorded" if record else "unrecorded"
         figures.put(f"{mode}.us_per_tick", us)
         for name, seconds in inside:
-            stage = "rest" if name.startswith("(") else re.sub(r"[^a-z0-9]+", "_", name.split(":")[-1].lower())
+            where, _, func = name.rpartition(":")  # sim/robot.py:advance -> robot_advance
+            stage = "rest" if name.startswith("(") else re.sub(r"[^a-z0-9]+", "_", f"{Path(where).stem}_{func}".lower())
+            stage = stage.strip("_")
             figures.put(f"{mode}.{stage}_pct", 100 * seconds / (sum(s for _, s in inside) or 1))
     figures.save()
 
