@@ -255,8 +255,10 @@ def unmarked(name: str, lines: list[str], raw: list[str]) -> list[Failure]:
             around = clause(text, m.start(), m.end())
             if unit == "cm" and not RMS.search(around):
                 continue  # a length is a setting or a size unless it is an error's RMS
-            if unit in ("times", "x") and "." not in (m.group(2) or m.group(1)):
-                continue  # "3 times", "4 x 4": a count; a measured ratio has decimals (2.5 times)
+            if unit == "times" and "." not in (m.group(2) or m.group(1)):
+                continue  # "3 times": a count; a measured ratio has decimals (2.5 times)
+            if unit == "x" and text[m.end() - 2].isspace() and "." not in (m.group(2) or m.group(1)):
+                continue  # "4 x 4", "9 x 25 arcs": a size; a ratio is written 31x or 2.5 x
             if unit.startswith("point") and not re.search(r"[.+±−-]", (m.group(2) or m.group(1))):
                 continue  # points of a scan (450 points per scan); percentage points have decimals or a sign
             if unit == "ms" and re.match(r"\s*(reads?|steps?|windows?|ticks?)\b", text[m.end():]):

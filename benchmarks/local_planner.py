@@ -150,6 +150,10 @@ def benches() -> None:
         median = statistics.median(times) if times else 0.0
         print(f"  {name:26s} reached {reached}/{len(cases)}, median time {median:.1f} s, "
               f"closest approach {min(least):.2f} m (inscribed {inscribed:.2f} m)")
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+        FIGURES.put(f"benches.{key}.reached", reached)
+        FIGURES.put(f"benches.{key}.median_s", median)
+        FIGURES.put(f"benches.{key}.closest_m", min(least))
 
 
 def campus(seeds: int) -> None:
@@ -181,6 +185,13 @@ def campus(seeds: int) -> None:
             if s["status"] != "success":
                 fails = [e["text"] for e in s["events"] if e["kind"] == "step_failed"]
                 print(f"      {fails[:1]}")
+            key = f"campus.seed{seed}.{re.sub(r'[^a-z0-9]+', '_', name.lower()).strip('_')}"
+            FIGURES.put(f"{key}.sim_s", s["sim_time_s"])
+            FIGURES.put(f"{key}.ratio", s["sim_time_s"] / ref)
+            FIGURES.put(f"{key}.success", int(s["status"] == "success"))
+            FIGURES.put(f"{key}.collisions", truth.get("collisions") or 0)
+            if truth.get("min_clearance_m") is not None:
+                FIGURES.put(f"{key}.min_clearance_m", truth["min_clearance_m"])
 
 
 def main() -> None:

@@ -52,6 +52,13 @@ def check(tmp_path, results, text: str) -> tuple[int, str]:
     return out.returncode, out.stdout + out.stderr
 
 
+def test_the_repository_docs_quote_the_committed_results():
+    out = subprocess.run([sys.executable, str(SCRIPT)], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stdout[-3000:]
+    checked = int(out.stdout.split("check_docs: ")[1].split()[0])
+    assert checked >= 100, out.stdout[-500:]  # the docs do quote the benchmarks
+
+
 def test_a_figure_31_percent_off_fails_naming_where_and_29_percent_passes(tmp_path, results):
     code, out = check(tmp_path, results, "# T\n\nIt takes 13.1<!--fig:demo.cpu_pct--> % of a core.\n")
     assert code == 1
