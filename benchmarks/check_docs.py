@@ -9,12 +9,15 @@ The check fails (exit 1) when:
 
 - a quoted figure is more than ``--tolerance`` (default 30 %) off the benchmark's value, relative to it;
 - a marker's key, or its benchmark's results file, does not exist, or a marker has no number right before it;
-- a number with a unit of measurement (``%``, points, µs, ms, s of CPU, a ratio such as ``2.1×`` or ``2.1x``,
-  MB, MiB, kB, Mbit/s, fps, times, ``cm`` in a clause about an RMS) has no marker, outside code spans and
-  code blocks, unless its clause states a goal, a limit or a setting: it says goal, ≤, <, at most, at least,
-  under, budget, limit, default, target, bound, aim, asked, over, or names a parameter (a ``snake_case`` word).
-  A figure that is not beastbt's measurement (a device's datasheet, a third party's figure) takes
-  ``<!--nofig: the reason-->`` right after the number instead, with a reason of at least two words.
+- a number with a unit of measurement (``%``, percentage points with decimals or a sign, µs, ms, s of CPU, a
+  ratio such as ``2.1×``, ``31x`` or ``2.5 times``, MB, MiB, kB, GB, Mbit/s, fps, ``cm`` in a clause about an
+  RMS error, or any number in a table column whose header names such a unit) has no marker, outside code spans
+  and code blocks, unless its clause (between commas, semicolons, brackets, sentence ends or table bars) states
+  a goal, a limit or a setting: goal, ≤, <, at most, at least, under or over a number, budget, limit, default,
+  target, bound, timeout, period, resolution, debounce, a parameter's ``snake_case`` name in a code span; or
+  its table column's header does. A figure that is not beastbt's measurement (a device's datasheet, a
+  firmware's constant) takes ``<!--nofig: the reason-->`` right after the number instead, with a reason of at
+  least two words.
 
 Every failure names file:line:column, the quoted figure, the benchmark's value and the command that measured it.
 Run: python benchmarks/check_docs.py [--tolerance 0.3] [--results DIR] [FILE ...]
@@ -113,9 +116,12 @@ def lookup(key: str, results: dict[str, Optional[dict]]) -> tuple[Optional[float
         known = ", ".join(sorted(data.get("figures", {}))[:8])
         return None, rerun, (f"{bench} saves no figure {figure!r} (some it saves: {known}); hint: check the key, "
                              f"or make {rerun} print and save it")
-    runs = data.get("runs", [])
-    run = runs[fig["run"]] if 0 <= fig.get("run", -1) < len(runs) else {}
-    return float(fig["value"]), run.get("command", rerun), ""
+    try:
+        runs = data.get("runs", [])
+        run = runs[fig["run"]] if 0 <= fig.get("run", -1) < len(runs) else {}
+        return float(fig["value"]), str(run.get("command", rerun)), ""
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return None, rerun, f"benchmarks/results/{bench}.json: figure {figure!r} is not a number (run {rerun} again)"
 
 
 def clause(text: str, start: int, end: int) -> str:
