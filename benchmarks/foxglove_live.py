@@ -164,6 +164,8 @@ def main() -> None:
         figures.put(f"{key}.writer_us", statistics.median(writer_cpu[mode]) * 1e6)
     figures.put("client_vs_none_pct", 100 * client_vs_none)
     figures.put("live_vs_recorded_pct", 100 * (trimmed["live, no client"] / trimmed["recorded"] - 1))
+    if received:  # a client that got nothing measured nothing: the figure says so
+        figures.put("client_messages_per_run", statistics.median(m for m, _ in received))
     figures.save()
 
 
