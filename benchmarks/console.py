@@ -312,6 +312,10 @@ def video_at_browser(seconds: float, mission: str) -> None:
         print(f"   frame age capture->canvas: p50 {ages[len(ages) // 2]:.0f} ms  p95 {ages[int(len(ages) * 0.95)]:.0f} ms  "
               f"max {ages[-1]:.0f} ms")
         print(f"   mission time after {span:.1f} s of watching: {state['time_s']:.1f} s (realtime: it kept pace)")
+        key = f"browser.{Path(mission).stem}"
+        FIGURES.put(f"{key}.fps", fps)
+        FIGURES.put(f"{key}.mbps", mbps)
+        FIGURES.put(f"{key}.age_p95_ms", ages[int(len(ages) * 0.95)])
 
 
 def main() -> None:
