@@ -20,7 +20,10 @@ The check fails (exit 1) when:
   least two words.
 
 Every failure names file:line:column, the quoted figure, the benchmark's value and the command that measured it.
-Run: python benchmarks/check_docs.py [--tolerance 0.3] [--results DIR] [FILE ...]
+``--update`` first rewrites each marked figure that is off to the saved value (as many decimals as it had);
+the sentence around it (a goal met or missed) is still the reader's to check.
+
+Run: python benchmarks/check_docs.py [--tolerance 0.3] [--results DIR] [--update] [FILE ...]
 """
 
 from __future__ import annotations
@@ -299,6 +302,37 @@ def unmarked(name: str, lines: list[str], raw: list[str]) -> list[Failure]:
     return failures
 
 
+QUOTED = re.compile(rf"({NUM})(\**)(<!--\s*fig\s*:\s*([a-z0-9_.]+)\s*-->)")
+
+
+def update_file(path: Path, results: dict[str, Optional[dict]], tolerance: float) -> list[str]:
+    """Rewrite the marked figures of ``path`` that are more than ``tolerance`` off to their saved value, with as
+    many decimals as the quoted figure had; the changes made, one line each. The prose around a figure (a goal
+    met or not) is the reader's to check."""
+    text = path.read_text(encoding="utf-8")
+    changes: list[str] = []
+
+    def quote(m: re.Match) -> str:
+        value, _, _ = lookup(m.group(4), results)
+        quoted = m.group(1)
+        if value is None:
+            return m.group(0)
+        old = parse_number(quoted)
+        if (abs(old - value) / abs(value) if value != 0 else abs(old)) <= tolerance:
+            return m.group(0)
+        decimals = len(quoted.split(".")[1]) if "." in quoted else 0
+        sign = "+" if quoted.startswith("+") and value >= 0 else ""
+        new = f"{sign}{value:{',' if ',' in quoted else ''}.{decimals}f}"
+        line = text.count("\n", 0, m.start()) + 1
+        changes.append(f"{path}:{line}: {quoted} -> {new} ({m.group(4)})")
+        return new + m.group(2) + m.group(3)
+
+    updated = QUOTED.sub(quote, text)
+    if updated != text:
+        path.write_text(updated, encoding="utf-8")
+    return changes
+
+
 def doc_files(root: Path) -> list[Path]:
     """README.md and every Markdown file under docs/."""
     return [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
@@ -311,10 +345,18 @@ def main(argv: Optional[list[str]] = None) -> int:
     ap.add_argument("--tolerance", type=float, default=0.30, help="relative difference allowed (default 0.30)")
     ap.add_argument("--results", default=str(RESULTS), help="folder of results files (default benchmarks/results)")
     ap.add_argument("--root", default=str(REPO), help="repository root (default this one)")
+    ap.add_argument("--update", action="store_true",
+                    help="first rewrite each marked figure that is off to the benchmark's value (then read the "
+                         "sentence around it: a goal met or missed is not rewritten)")
     args = ap.parse_args(argv)
     root = Path(args.root)
     files = [Path(f) for f in args.files] or doc_files(root)
     results = load_results(Path(args.results))
+    if args.update:
+        for path in files:
+            if path.exists():
+                for change in update_file(path, results, args.tolerance):
+                    print(f"updated {change}")
     total, failures = 0, []
     for path in files:
         if not path.exists():

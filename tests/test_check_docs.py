@@ -139,3 +139,15 @@ def test_a_run_saves_its_figures_merged_with_the_parts_it_left_out(tmp_path, res
     assert data["figures"]["tick_us.max"]["value"] == 120.0  # kept from the run that measured it
     assert len(data["runs"]) == 2
     assert data["figures"]["cpu_pct"]["run"] != data["figures"]["tick_us.max"]["run"]
+
+
+def test_update_rewrites_only_figures_that_are_off_keeping_their_decimals(tmp_path, results):
+    text = "A: 13.1<!--fig:demo.cpu_pct--> %, B: 95<!--fig:demo.tick_us.min--> µs, C: +20<!--fig:demo.cpu_pct--> %.\n"
+    doc = tmp_path / "doc.md"
+    doc.write_text(text, encoding="utf-8")
+    out = subprocess.run([sys.executable, str(SCRIPT), "--update", "--results", str(results), "--root", str(tmp_path),
+                          str(doc)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stdout
+    assert doc.read_text(encoding="utf-8") == ("A: 10.0<!--fig:demo.cpu_pct--> %, B: 95<!--fig:demo.tick_us.min--> µs, "
+                                               "C: +10<!--fig:demo.cpu_pct--> %.\n")
+    assert "13.1 -> 10.0 (demo.cpu_pct)" in out.stdout and "+20 -> +10" in out.stdout
