@@ -124,6 +124,10 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
         io.sim_camera = sim_camera
         if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
             return Camera(SimMjpegCamera(sim_camera).reopen, events.clock, events.sink("camera"), config)
+        if config.format == "h264":  # a fake H.264 camera: the rendered frames come as its own access units
+            from beastbt.devices.camera import EncodingH264Camera
+            return Camera(EncodingH264Camera(sim_camera, config.fps).reopen, events.clock, events.sink("camera"),
+                          config)
         return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
 
     pipeline = CameraPipeline(make_camera, config, detector_config, events.sink("camera"))

@@ -1,5 +1,6 @@
 // beastbt operator console: the page's script. No framework, no CDN: it works offline in a field.
-// Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG frames), POST /api/<control>.
+// Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG or H.264 frames),
+// POST /api/<control>.
 "use strict";
 
 // The token (a console off loopback, or --console-token always) comes once in the address. The server has set
@@ -413,48 +414,128 @@ function drawObstacles(g, ob, poly, ring, px, canvas) {
 }
 
 // ---- video -------------------------------------------------------------------------------------
-const videoStats = {frames: 0, bytes: 0, ages: [], window: []};
+// JPEG frames are drawn as they come, the newest winning. H.264 (beastbt/live/console_video.py: header quality
+// 0xFF01 keyframe, 0xFF02 delta) is decoded in order by WebCodecs' VideoDecoder, from a keyframe on; the page
+// says on opening whether it decodes H.264, and a page that cannot (no WebCodecs: an http page that is not
+// localhost, an old browser; the codec missing) gets JPEG. videoStats.codec says which came last.
+const videoStats = {frames: 0, bytes: 0, ages: [], window: [], codec: "", drawn: 0, h264: ""};
 window.beastbtVideoStats = videoStats;  // read by the benchmark and the tests
+const H264_KEY = 0xFF01, H264_DELTA = 0xFF02;
+let h264Support = null;
+function h264Supported() {
+  if (typeof VideoDecoder === "undefined") {
+    return Promise.resolve([false, window.isSecureContext ? "this browser has no WebCodecs"
+      : "WebCodecs needs a secure page (https, or the console on localhost)"]);
+  }
+  return VideoDecoder.isConfigSupported({codec: "avc1.42E01F", optimizeForLatency: true})
+    .then((r) => (r.supported ? [true, ""] : [false, "this browser does not decode H.264"]), (e) => [false, String(e)]);
+}
+// The codec string WebCodecs wants (avc1.PPCCLL) from the keyframe's sequence parameter set.
+function avc1Codec(data) {
+  for (let i = 0; i + 6 < data.length; i++) {
+    if (data[i] === 0 && data[i + 1] === 0 && data[i + 2] === 1 && (data[i + 3] & 0x1f) === 7) {
+      const hex = (b) => b.toString(16).padStart(2, "0").toUpperCase();
+      return "avc1." + hex(data[i + 4]) + hex(data[i + 5]) + hex(data[i + 6]);
+    }
+  }
+  return null;
+}
+// One decoded frame (an ImageBitmap or a VideoFrame) on the canvas, with its overlay; the stats for the tests.
+function showFrame(image, width, height, overlay, capturedMs, quality, codec) {
+  const c = $("video");
+  // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
+  // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
+  const g = c.getContext("2d");
+  const fit = Math.min(c.width / width, c.height / height);
+  const w = width * fit, h = height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
+  if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
+  g.drawImage(image, x, y, w, h);
+  if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
+  videoStats.overlay = overlay; videoStats.quality = quality;  // 0: the camera's own JPEG; 0xFF01/2: H.264
+  videoStats.codec = codec; videoStats.drawn += 1; videoStats.size = [width, height];
+  if (state && ENDED.has(state.status)) { endVideo(state); return; }  // a frame sent before the end
+  const age = Date.now() - capturedMs;
+  videoStats.ages.push(age);
+  if (videoStats.ages.length > 500) videoStats.ages.shift();
+  const kbps = videoStats.window.reduce((a, w) => a + w[1], 0) * 8 / 1000;
+  $("video-info").textContent = `${videoStats.window.length} fps · ${(kbps / 1000).toFixed(2)} Mbit/s · ` +
+    `${Math.round(age)} ms old` + (codec === "h264" ? " · H.264" : "");
+}
 function connectVideo() {
   const ws = new WebSocket(wsUrl("/api/video"));
   ws.binaryType = "arraybuffer";
   let busy = false;
+  const h264 = {decoder: null, codec: "", meta: new Map(), failed: false};
+  const refuseH264 = (why) => {  // from now on this viewer gets JPEG
+    h264.failed = true; videoStats.h264 = why;
+    if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+    if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({accept: ["jpeg"], why}));
+  };
+  ws.onopen = async () => {
+    const [ok, why] = await (h264Support || (h264Support = h264Supported()));
+    videoStats.h264 = ok ? "" : why;
+    const said = ok ? {accept: ["h264", "jpeg"]} : {accept: ["jpeg"], why};
+    if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(said));
+  };
+  const decodeH264 = (buf, view, overlayLength, capturedMs, quality) => {
+    const data = new Uint8Array(buf, 16 + overlayLength);
+    const key = quality === H264_KEY;
+    if (h264.failed) return;
+    if (key) {
+      const codec = avc1Codec(data);
+      if (codec && (codec !== h264.codec || !h264.decoder || h264.decoder.state === "closed")) {
+        if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+        h264.codec = codec;
+        h264.decoder = new VideoDecoder({
+          output: (frame) => {
+            const m = h264.meta.get(frame.timestamp) || {overlay: null, capturedMs: Date.now()};
+            h264.meta.delete(frame.timestamp);
+            try {
+              showFrame(frame, frame.displayWidth, frame.displayHeight, m.overlay, m.capturedMs, H264_KEY, "h264");
+            } finally { frame.close(); }
+          },
+          error: (e) => refuseH264(`this browser cannot decode ${codec}: ${e.message || e}`),
+        });
+        h264.decoder.configure({codec, optimizeForLatency: true});
+      }
+    }
+    if (!h264.decoder || h264.decoder.state !== "configured") return;  // waits for a keyframe
+    const seq = view.getUint32(8, true);
+    const overlay = overlayLength ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
+    h264.meta.set(seq, {overlay, capturedMs});
+    if (h264.meta.size > 100) h264.meta.delete(h264.meta.keys().next().value);
+    h264.decoder.decode(new EncodedVideoChunk({type: key ? "key" : "delta", timestamp: seq, data}));
+  };
   ws.onmessage = async (ev) => {
+    if (typeof ev.data === "string") { $("video-info").textContent = ev.data; return; }  // why there is no video
     const buf = ev.data;
     const view = new DataView(buf);
     const capturedMs = view.getFloat64(0, true);
+    const quality = view.getUint16(12, true);
     const overlayLength = view.getUint16(14, true);  // header: time f64, seq u32, quality u16, overlay length u16
     const now = Date.now();
     videoStats.frames += 1; videoStats.bytes += buf.byteLength;
     videoStats.window.push([now, buf.byteLength]);
     while (videoStats.window.length && now - videoStats.window[0][0] > 1000) videoStats.window.shift();
+    if (quality >= 0xFF00) {  // H.264: every unit is decoded, in order (a skipped one breaks the ones after it)
+      try { decodeH264(buf, view, overlayLength, capturedMs, quality); } catch (e) { refuseH264(String(e)); }
+      return;
+    }
     if (busy) return;  // still drawing the last one: the newest wins
     busy = true;
     try {
       const overlay = overlayLength
         ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
       const bitmap = await createImageBitmap(new Blob([new Uint8Array(buf, 16 + overlayLength)], {type: "image/jpeg"}));
-      const c = $("video");
-      // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
-      // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
-      const g = c.getContext("2d");
-      const fit = Math.min(c.width / bitmap.width, c.height / bitmap.height);
-      const w = bitmap.width * fit, h = bitmap.height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
-      if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
-      g.drawImage(bitmap, x, y, w, h);
+      showFrame(bitmap, bitmap.width, bitmap.height, overlay, capturedMs, quality, "jpeg");
       bitmap.close();
-      if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
-      videoStats.overlay = overlay; videoStats.quality = view.getUint16(12, true);  // 0: the camera's own JPEG
-      if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
-      const age = Date.now() - capturedMs;
-      videoStats.ages.push(age);
-      if (videoStats.ages.length > 500) videoStats.ages.shift();
-      const kbps = videoStats.window.reduce((a, w) => a + w[1], 0) * 8 / 1000;
-      $("video-info").textContent = `${videoStats.window.length} fps · ${(kbps / 1000).toFixed(2)} Mbit/s · ${Math.round(age)} ms old`;
     } catch (e) { /* a frame that does not decode is skipped */ }
     busy = false;
   };
-  ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
+  ws.onclose = () => {
+    if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+    if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000);
+  };
 }
 
 // What the run sends with each frame (beastbt/live/console_video.py overlay_of): a caption, and the detected
