@@ -258,3 +258,83 @@ def test_the_fake_h264_cameras_units_arrive_at_api_video_byte_identical(tmp_path
     start = made.index(units[0][1])
     assert [u for _, u in units] == made[start:start + len(units)]  # every unit, in order, as the camera gave it
     assert prepared.run.io.camera.decoded == 0  # nothing decoded in the run for the console
+
+
+# -- the camera driver with an H.264 camera -----------------------------------------------------------------------
+
+@needs_software
+def test_the_driver_hands_over_units_untouched_and_decodes_only_in_order(tmp_path: Path) -> None:
+    from beastbt.core.clock import SimClock
+    from beastbt.devices.camera import Camera, CameraConfig, open_video_capture
+    units = encoded_stream(8, gop=4)
+    path = tmp_path / "camera.h264"
+    path.write_bytes(b"".join(units))
+    config = CameraConfig(device=str(path), fps=10.0)
+    clock = SimClock()
+    camera = Camera(lambda: open_video_capture(config), clock, config=config)
+    frames = []
+    for _ in range(3):
+        frames.append(camera.poll(pixels=False))
+        clock.advance(0.1)
+    assert camera.h264 and [f.h264 for f in frames] == units[:3] and all(f.image is None for f in frames)
+    assert camera.decode(frames[2]) is None  # units 0 and 1 were never decoded: no right picture for unit 2
+    assert camera.read_errors == 1
+    later = []
+    for _ in range(3):  # units 3, 4 (a keyframe), 5: from here on every unit is decoded as it is read
+        later.append(camera.poll(pixels=False))
+        clock.advance(0.1)
+    assert later[0].image is None and later[1].image is not None and later[2].image is not None
+    assert later[2].image.shape == (240, 320, 3) and later[2].h264 == units[5]
+    assert camera.decode(later[2]) is later[2]  # already decoded
+
+
+def test_a_pi_camera_with_format_h264_hands_over_the_hardware_encoders_units(monkeypatch: pytest.MonkeyPatch) -> None:
+    """picamera2 is on a Pi only: a stand-in with its API checks the glue (H264Encoder with SPS/PPS on every
+    keyframe, into an output that keeps every unit in order)."""
+    import sys
+    import types
+
+    from beastbt.devices.camera import CameraConfig, Picamera2Capture
+    calls: list[Any] = []
+
+    class FakePicamera2:
+        def create_video_configuration(self, main: dict, **kw: Any) -> dict:
+            return {"main": main, **kw}
+
+        def configure(self, config: dict) -> None:
+            calls.append(("configure", config["main"]["format"]))
+
+        def start_recording(self, encoder: Any, output: Any) -> None:
+            calls.append(("start_recording", type(encoder).__name__, encoder.kw))
+            self.output = output.fileoutput
+
+        def stop_recording(self) -> None:
+            calls.append(("stop_recording",))
+
+        def close(self) -> None:
+            calls.append(("close",))
+
+    class H264Encoder:
+        def __init__(self, **kw: Any) -> None:
+            self.kw = kw
+
+    camera = FakePicamera2()
+    fake = types.ModuleType("picamera2")
+    fake.Picamera2 = lambda: camera  # type: ignore[attr-defined]
+    encoders = types.ModuleType("picamera2.encoders")
+    encoders.H264Encoder = H264Encoder  # type: ignore[attr-defined]
+    outputs = types.ModuleType("picamera2.outputs")
+    outputs.FileOutput = lambda f: types.SimpleNamespace(fileoutput=f)  # type: ignore[attr-defined]
+    for name, module in (("picamera2", fake), ("picamera2.encoders", encoders), ("picamera2.outputs", outputs)):
+        monkeypatch.setitem(sys.modules, name, module)
+    capture = Picamera2Capture(CameraConfig(format="h264", fps=30.0))
+    assert calls[0] == ("configure", "YUV420") and calls[1][:2] == ("start_recording", "H264Encoder")
+    assert calls[1][2]["repeat"] is True and calls[1][2]["iperiod"] == 30  # SPS/PPS with a keyframe every second
+    assert capture.compressed and capture.read_h264() == (False, None)  # nothing encoded yet
+    units = [b"\x00\x00\x00\x01\x67unit%d" % i for i in range(3)]
+    for unit in units:
+        camera.output.write(unit)
+    assert [capture.read_h264() for _ in range(3)] == [(True, u) for u in units]  # every one, in order, untouched
+    assert capture.read_h264() == (False, None)
+    capture.release()
+    assert calls[-2:] == [("stop_recording",), ("close",)]
