@@ -143,12 +143,13 @@ def encoder_available(name: str = HARDWARE_ENCODER) -> tuple[bool, str]:
 
 
 def _detect(name: str) -> tuple[bool, str]:
+    # The device first: a machine without it (most) does not pay for importing FFmpeg.
+    if name == HARDWARE_ENCODER and sys.platform.startswith("linux") and not os.path.exists(HARDWARE_DEVICE):
+        return False, f"no V4L2 H.264 encoder device ({HARDWARE_DEVICE}: the Raspberry Pi's bcm2835-codec)"
     try:
         import av
     except ImportError:
         return False, "PyAV is not installed (pip install 'beastbt[video]')"
-    if name == HARDWARE_ENCODER and sys.platform.startswith("linux") and not os.path.exists(HARDWARE_DEVICE):
-        return False, f"no V4L2 H.264 encoder device ({HARDWARE_DEVICE}: the Raspberry Pi's bcm2835-codec)"
     try:
         context = av.CodecContext.create(name, "w")
     except Exception as exc:  # noqa: BLE001 - not in this FFmpeg build
