@@ -338,3 +338,23 @@ def test_a_pi_camera_with_format_h264_hands_over_the_hardware_encoders_units(mon
     assert capture.read_h264() == (False, None)
     capture.release()
     assert calls[-2:] == [("stop_recording",), ("close",)]
+
+
+@needs_software
+def test_vision_on_an_h264_camera_gets_every_frame_it_asks_for(tmp_path: Path) -> None:
+    from beastbt.core.clock import SimClock
+    from beastbt.devices.camera import Camera, CameraConfig, H264Replay
+    from beastbt.vision.camera_pipeline import CameraPipeline
+    units = encoded_stream(10, gop=10)
+    clock = SimClock()
+    config = CameraConfig(fps=10.0)
+    pipeline = CameraPipeline(lambda: Camera(lambda: H264Replay(units), clock, config=config), config, detect=False)
+    pipeline.enable("console", pixels=False)
+    pipeline.enable("recording", max_rate_hz=5.0, lines=False)
+    got = []
+    for _ in range(10):
+        got += pipeline.poll(clock.now())
+        clock.advance(0.1)
+    assert len(got) == 5 and all(f.image is not None for f in got)  # the recording's 5 a second, each decoded
+    assert pipeline.camera.read_errors == 0
+    assert [f.h264 for f in pipeline.h264_units] == units  # and every unit for the console, untouched

@@ -223,7 +223,9 @@ class CameraPipeline:
         camera = self.camera
         if camera is None:
             return False
-        frame = camera.poll(pixels=False)  # a camera's own JPEG is decoded below, and only when needed
+        # A camera's own JPEG is decoded below, and only when needed. An H.264 camera's units are decoded as they
+        # are read while a reason needs pixels: each picture needs the one before it.
+        frame = camera.poll(pixels=camera.h264 and bool(self.pixel_reasons))
         if frame is None:
             return False
         if frame.jpeg is not None:
