@@ -358,3 +358,19 @@ def test_vision_on_an_h264_camera_gets_every_frame_it_asks_for(tmp_path: Path) -
     assert len(got) == 5 and all(f.image is not None for f in got)  # the recording's 5 a second, each decoded
     assert pipeline.camera.read_errors == 0
     assert [f.h264 for f in pipeline.h264_units] == units  # and every unit for the console, untouched
+
+
+@needs_software
+def test_after_a_unit_lost_on_the_way_the_console_sends_nothing_until_the_next_keyframe() -> None:
+    units = encoded_stream(10, gop=5)
+    v = video()
+    feed = v.feed()
+    feed.hello('{"accept": ["h264"]}')
+    got: list[bytes] = []
+    for seq, unit in enumerate(units, 1):
+        if seq == 3:
+            continue  # dropped between the run and the console's process (the pipe was full)
+        v.pass_h264(unit, is_keyframe(unit), None, None, 0.25, 1_700_000_000.0, camera_seq=seq)
+        got += [payload(m)[1] for m in take(feed, 2)]
+    v.close()
+    assert got == units[:2] + units[5:] and v.units_dropped == 2  # units 4 and 5 (seq) needed the lost one

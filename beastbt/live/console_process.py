@@ -204,7 +204,7 @@ def serve(inbox: Connection, outbox: Connection) -> int:
             elif kind == "h264":  # a camera's own H.264 access unit: every one, in order, to the H.264 viewers
                 _, seq, captured, unit, key, detection, lookahead = msg
                 video.pull = None
-                video.pass_h264(unit, key, detection, geometry, lookahead, captured)
+                video.pass_h264(unit, key, detection, geometry, lookahead, captured, seq)
             elif kind == "frame":
                 _, shm_name, shape, seq, captured, detection, lookahead = msg
                 image = _read_frame(shm_name, shape)

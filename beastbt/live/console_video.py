@@ -176,6 +176,10 @@ class ConsoleVideo:
         self._unit_seq = 0
         self._last_key_request = -1e9
         self._lock = threading.Lock()
+        self._camera_seq: Optional[int] = None
+        self._broken = False
+        self.units_dropped = 0
+        """A camera's H.264 units not sent: after one that never reached this process, until the next keyframe."""
 
     @property
     def target_bytes(self) -> float:
@@ -212,11 +216,19 @@ class ConsoleVideo:
             self._h264.request_keyframe()
 
     def pass_h264(self, access_unit: bytes, key: bool, detection: Any, geometry: Any, lookahead_m: float,
-                  captured: float) -> None:
+                  captured: float, camera_seq: Optional[int] = None) -> None:
         """A camera's own H.264 access unit (Annex B, SPS/PPS before a keyframe): to the H.264 viewers as it came
-        (called for every unit, in order). A viewer that cannot decode H.264 gets it decoded and JPEG-encoded,
-        only while there is one."""
+        (called for every unit, in order; ``camera_seq`` its number from the camera, when known: after a unit
+        that never came, the ones up to the next keyframe would not decode, and are not sent). A viewer that
+        cannot decode H.264 gets it decoded and JPEG-encoded, only while there is one."""
         self.source = "h264"
+        if camera_seq is not None:
+            gap = self._camera_seq is not None and camera_seq != self._camera_seq + 1
+            self._camera_seq = camera_seq
+            self._broken = (self._broken or gap) and not key
+            if self._broken:
+                self.units_dropped += 1
+                return
         self._put_unit(access_unit, key, self._overlay_bytes(detection, geometry, lookahead_m), captured)
         jpeg_wanted, _ = self._wants()
         if not jpeg_wanted or not self.feeds:
