@@ -71,10 +71,11 @@ CONTROL_TIMEOUT_S = 2.0
 """How long a control waits for the tick thread before the answer is 503 (s)."""
 TOKEN_COOKIE = "beastbt_console_token"
 CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; img-src 'self' data: blob:; "
-                           "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
-                           "frame-ancestors 'none'")
+                           "media-src blob:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
+                           "form-action 'none'; frame-ancestors 'none'")
 """The page loads only its own files and talks only to its own server; no other page may frame it (the e-stop
-and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code."""
+and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code. Media only from
+the page's own blobs: the H.264 it plays through MSE (console_page/console.js)."""
 WS_PATHS = ("/api/ws", "/api/video")
 PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css", "favicon.svg": "image/svg+xml"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
