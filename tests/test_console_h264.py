@@ -374,3 +374,18 @@ def test_after_a_unit_lost_on_the_way_the_console_sends_nothing_until_the_next_k
         got += [payload(m)[1] for m in take(feed, 2)]
     v.close()
     assert got == units[:2] + units[5:] and v.units_dropped == 2  # units 4 and 5 (seq) needed the lost one
+
+
+def test_format_h264_on_the_simulator_without_a_software_encoder_stops_at_its_key(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    import beastbt.devices.h264 as h264
+    from beastbt.cli import main
+    monkeypatch.setattr(h264, "software_encoder", lambda: None)  # a PyAV wheel without libx264 or libopenh264
+    text = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
+    profile = tmp_path / "robot.yaml"
+    profile.write_text(text.replace("  device: sim\n", "  device: sim\n  format: h264\n"), encoding="utf-8")
+    line = profile.read_text(encoding="utf-8").splitlines().index("  format: h264") + 1
+    code = main(["run", str(REPO / "missions" / "patrol.yaml"), "--robot", str(profile), "--sim",
+                 "--max-time", "1 s", "--runs-dir", str(tmp_path / "runs")])
+    err = capsys.readouterr().err
+    assert code == 2 and f"{profile}:{line}:" in err and "software H.264 encoder" in err and "Traceback" not in err

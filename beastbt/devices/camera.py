@@ -345,10 +345,11 @@ class EncodingH264Camera:
 
     compressed = True
 
-    def __init__(self, camera: Any, fps: float = 15.0, encoder: str = "libx264", bit_rate: float = 1_500_000.0) -> None:
-        from beastbt.devices.h264 import H264Encoder
+    def __init__(self, camera: Any, fps: float = 15.0, encoder: Optional[str] = None,
+                 bit_rate: float = 1_000_000.0) -> None:
+        from beastbt.devices.h264 import H264Encoder, software_encoder
         self.camera = camera
-        self.encoder = H264Encoder(encoder, bit_rate, fps)
+        self.encoder = H264Encoder(encoder or software_encoder() or "libx264", bit_rate, fps)
         self._queue: list[bytes] = []
         self.frames_encoded = 0
         """Access units handed over so far."""
@@ -585,6 +586,25 @@ class Picamera2Capture:
                 self._camera.close()
             except Exception:  # noqa: BLE001 - closing a vanished camera may fail; it is gone anyway
                 pass
+
+
+def h264_problem(config: CameraConfig, simulated: bool) -> Optional[str]:
+    """Why ``camera.format: h264`` cannot work here (None when it can): the simulator's fake H.264 camera needs a
+    software encoder in PyAV; a V4L2 H.264 camera needs PyAV to read it (a Pi camera through picamera2 does not)."""
+    from beastbt.devices.h264 import pyav_installed, software_encoder
+    if config.format != "h264":
+        return None
+    if simulated:
+        if software_encoder() is None:
+            return ("h264 on the simulator needs PyAV with a software H.264 encoder (libx264 or libopenh264) for "
+                    "its fake H.264 camera, and this machine has none")
+        return None
+    device = config.device
+    if isinstance(device, str) and device.lower().endswith(H264_SUFFIXES):
+        return None
+    if camera_backend(config) == "v4l2" and not pyav_installed():
+        return "h264 from a V4L2 camera is read through PyAV, which is not installed"
+    return None
 
 
 def picamera2_cameras() -> int:

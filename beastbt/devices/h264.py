@@ -167,6 +167,21 @@ def _detect(name: str) -> tuple[bool, str]:
     return True, ""
 
 
+SOFTWARE_ENCODERS = ("libx264", "libopenh264")
+"""Software H.264 encoders a PyAV wheel may carry: for the simulator's fake H.264 camera and tests, never ``auto``."""
+
+
+def software_encoder() -> Optional[str]:
+    """The first software H.264 encoder PyAV opens here (``libx264``, ``libopenh264``), or None."""
+    return next((name for name in SOFTWARE_ENCODERS if encoder_available(name)[0]), None)
+
+
+def pyav_installed() -> bool:
+    """True when PyAV (``av``) can be imported (without importing it)."""
+    import importlib.util
+    return importlib.util.find_spec("av") is not None
+
+
 def resolve_codec(requested: str, encoder: str = HARDWARE_ENCODER) -> tuple[str, str]:
     """What the console's video encodes, for ``requested`` (auto, jpeg, h264): ("jpeg" or "h264", why).
 
@@ -326,6 +341,6 @@ class UnitRing:
             self._cond.notify_all()
 
 
-__all__ = ["CODECS", "HARDWARE_ENCODER", "HARDWARE_DEVICE", "H264Encoder", "H264Decoder", "ParameterSets",
+__all__ = ["CODECS", "HARDWARE_ENCODER", "HARDWARE_DEVICE", "SOFTWARE_ENCODERS", "software_encoder", "pyav_installed", "H264Encoder", "H264Decoder", "ParameterSets",
            "UnitRing", "avc1_codec", "encoder_available", "is_keyframe", "nal_units", "resolve_codec",
            "split_access_units"]
