@@ -28,8 +28,8 @@ own JPEG passed through; the overlay's length in bytes, uint16), the overlay (UT
 The page uses the capture time to show the frame's age.
 
 H.264 (:mod:`beastbt.devices.h264`) goes only to a viewer that said it decodes it: the page sends
-``{"accept": ["h264", "jpeg"]}`` as a text message when it opens the socket (WebCodecs ``VideoDecoder``
-present and the codec supported); a page that says nothing, or ``{"accept": ["jpeg"], "why": ...}``, gets
+``{"accept": ["h264", "jpeg"]}`` as a text message when it opens the socket (WebCodecs ``VideoDecoder``, or
+else Media Source Extensions, that play H.264); a page that says nothing, or ``{"accept": ["jpeg"], "why": ...}``, gets
 JPEG, byte for byte as before. An H.264 message has the same header with the quality field
 :data:`H264_KEY` (a keyframe, SPS and PPS in front) or :data:`H264_DELTA`, then the overlay, then one access unit
 (Annex B). H.264 is sent when the camera gives its own (passed on untouched), or when the console encodes
@@ -392,7 +392,7 @@ class ViewerFeed:
         self.video = video
         self.guard = BudgetGuard(video.config.budget_bps, video.wall)
         self.accepts_h264 = False
-        """The page said it decodes H.264 (WebCodecs, and the codec supported)."""
+        """The page said it decodes H.264 (WebCodecs or MSE, with the codec supported)."""
         self.why_not_h264 = ""
         """What the page said when it cannot decode H.264."""
         self._last_jpeg = 0
