@@ -43,7 +43,7 @@ is involved, in the run's ``mux`` events.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional
+from typing import TYPE_CHECKING, Any, Mapping, Optional
 
 import py_trees
 
@@ -58,9 +58,11 @@ from beastbt.core.units import format_quantity
 from beastbt.devices.gamepad_presets import SIMULATED_PAD_NAME
 from beastbt.robot.actuator_profile import joystick_mapping, teleop_config
 from beastbt.robot.part import Part
-from beastbt.run.runner import MissionRun
 from beastbt.run.safety import request_estop, reset_estop, watchdog_of
 from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # annotations only: `beastbt tree` loads this part (for its steps) without a run
+    from beastbt.run.runner import MissionRun
 
 Status = py_trees.common.Status
 
