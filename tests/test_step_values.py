@@ -1,0 +1,77 @@
+"""The steps and conditions compare, hash and print as ``@dataclass(frozen=True)`` would make them.
+
+:class:`beastbt.mission.steps.Value` writes those three once instead of letting
+``@dataclass`` compile them for each of the ~45 classes (start-up time). Each
+class is checked here against a twin made by the standard library's
+``@dataclass(frozen=True, kw_only=True)`` with the same fields and values.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from beastbt.core.errors import Position
+from beastbt.mission import steps as st
+
+CLASSES = sorted((c for c in vars(st).values() if isinstance(c, type) and issubclass(c, st.Value)
+                  and c is not st.Value and dataclasses.is_dataclass(c)), key=lambda c: c.__name__)
+
+
+def _twin(cls: type) -> type:
+    """A standard frozen, keyword-only dataclass with ``cls``'s name and fields (no defaults: all are given)."""
+    namespace = {"__annotations__": {f.name: f.type for f in dataclasses.fields(cls)},
+                 "__qualname__": cls.__qualname__}
+    return dataclasses.dataclass(frozen=True, kw_only=True)(type(cls.__name__, (), namespace))
+
+
+def _values(cls: type, salt: int) -> dict:
+    """A value for every field of ``cls`` (``salt`` makes a different set), nested values included."""
+    out: dict = {}
+    for i, f in enumerate(dataclasses.fields(cls)):
+        if f.name == "at":
+            out[f.name] = Position(3 + salt, 4)
+        elif f.name == "path":
+            out[f.name] = ("steps", salt, "repeat")
+        elif i % 3 == 0:
+            out[f.name] = st.Flag(word=f"w{salt}")
+        elif i % 3 == 1:
+            out[f.name] = 1.5 + salt
+        else:
+            out[f.name] = (f"text '{salt}'", None)
+    return out
+
+
+def test_every_step_and_condition_class_is_checked() -> None:
+    names = {c.__name__ for c in CLASSES}
+    assert {"Step", "DriveDistance", "GoToPlace", "Flag", "AnyOf", "PluginStep", "NavOptions"} <= names
+    assert set(c.__name__ for c in st.CORE_STEP_CLASSES) <= names
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
+def test_eq_hash_repr_as_a_frozen_dataclass(cls: type) -> None:
+    twin = _twin(cls)
+    one, same, other = _values(cls, 0), _values(cls, 0), _values(cls, 1)
+    assert repr(cls(**one)) == repr(twin(**one))
+    assert hash(cls(**one)) == hash(twin(**one)) == hash(cls(**same))
+    assert cls(**one) == cls(**same) and not cls(**one) != cls(**same)
+    if other != one:
+        assert cls(**one) != cls(**other)
+    assert cls(**one) != twin(**one)  # another class with the same fields is not equal, as with dataclasses
+    assert len({cls(**one), cls(**same)}) == 1
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        setattr(cls(**one), dataclasses.fields(cls)[0].name, 2.0)
+
+
+def test_a_recursive_value_prints_without_recursing() -> None:
+    inner: list = []
+    step = st.PluginStep(keyword="x", value=inner)
+    inner.append(step)
+    assert repr(step) == "PluginStep(at=Position(line=1, column=1), path=(), keyword='x', value=[...])"
+
+
+def test_steps_of_different_classes_with_the_same_fields_differ() -> None:
+    assert st.TurnBy(angle_rad=1.0) != st.TurnToHeading(heading_rad=1.0)
+    assert st.Flag(word="gps_fix") != st.Not(condition=st.Flag(word="gps_fix"))
+    assert dataclasses.replace(st.Wait(duration_s=2.0), duration_s=3.0) == st.Wait(duration_s=3.0)
