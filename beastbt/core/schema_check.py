@@ -18,10 +18,10 @@ from typing import Any, Iterable, Optional
 
 import jsonschema
 from referencing import Registry, Resource
-from referencing.exceptions import NoSuchResource
 from referencing.jsonschema import DRAFT202012
 
 from beastbt.core.errors import Position, Problem, did_you_mean, value_in_words
+from beastbt.core.resources import data_dir
 from beastbt.core.schema_defaults import schema_document
 from beastbt.core.units import DECIMAL_COMMA, KINDS, UNIT_TO_KIND, UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
@@ -32,42 +32,37 @@ _TYPE_WORDS = {
 }
 
 
-def load_schema(name: str) -> dict:
-    """Return the schema ``name`` (e.g. ``mission.schema.json``) as a dict (KeyError when there is none).
+@lru_cache(maxsize=None)
+def _schema_texts() -> dict[str, dict]:
+    # Parsed through schema_document: the config dataclasses' defaults have read several of these files already.
+    root = data_dir("schemas")
+    out: dict[str, dict] = {}
+    for entry in root.iterdir():
+        if entry.name.endswith(".json"):
+            out[entry.name] = schema_document(entry.name)
+    parts = root / "parts"
+    if parts.is_dir():
+        for entry in parts.iterdir():
+            if entry.name.endswith(".json"):
+                out["parts/" + entry.name] = schema_document("parts/" + entry.name)
+    return out
 
-    Read once per process, and only when needed: the same parsed document serves the config dataclasses'
-    defaults (:func:`beastbt.core.schema_defaults.schema_document`) and the validators.
-    """
-    if not name.endswith(".json"):
-        raise KeyError(name)
-    try:
-        return schema_document(name)
-    except (FileNotFoundError, NotADirectoryError):
-        raise KeyError(name) from None
+
+def load_schema(name: str) -> dict:
+    """Return the schema ``name`` (e.g. ``mission.schema.json``) as a dict."""
+    return _schema_texts()[name]
 
 
 _BASE_URI = "https://beastbt.dev/schemas/"
 
 
 @lru_cache(maxsize=None)
-def _retrieve(uri: str) -> Resource:
-    """The schema at ``uri`` (``https://beastbt.dev/schemas/parts/ekf.schema.json``), read when a ``$ref`` first needs
-    it: a mission's check does not parse the world's or every part's schema."""
-    name = uri[len(_BASE_URI):] if uri.startswith(_BASE_URI) else None
-    try:
-        doc = load_schema(name) if name else None
-    except KeyError:
-        doc = None
-    if doc is None:
-        raise NoSuchResource(ref=uri)
-    return Resource.from_contents(_without_dialect(doc), default_specification=DRAFT202012)
-
-
-@lru_cache(maxsize=None)
 def _registry() -> Registry:
     # Without their "$schema": jsonschema would validate a referenced part with the plain Draft 2020-12 class that
     # names, not with the extended one (the range keywords below); every schema here is 2020-12.
-    return Registry(retrieve=_retrieve)  # type: ignore[call-arg]
+    resources_ = [(_BASE_URI + key, Resource.from_contents(_without_dialect(doc), default_specification=DRAFT202012))
+                  for key, doc in _schema_texts().items()]
+    return Registry().with_resources(resources_)
 
 
 def _unit_in_range(validator: Any, kind: Any, instance: Any, schema: dict) -> Iterable[jsonschema.ValidationError]:
