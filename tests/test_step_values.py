@@ -1,6 +1,6 @@
-"""The steps and conditions compare, hash and print as ``@dataclass(frozen=True)`` would make them.
+"""The steps and conditions compare, hash, print and stay frozen as ``@dataclass(frozen=True)`` would make them.
 
-:class:`beastbt.mission.steps.Value` writes those three once instead of letting
+:class:`beastbt.mission.steps.Value` writes those methods once instead of letting
 ``@dataclass`` compile them for each of the ~45 classes (start-up time). Each
 class is checked here against a twin made by the standard library's
 ``@dataclass(frozen=True, kw_only=True)`` with the same fields and values.
@@ -60,8 +60,16 @@ def test_eq_hash_repr_as_a_frozen_dataclass(cls: type) -> None:
         assert cls(**one) != cls(**other)
     assert cls(**one) != twin(**one)  # another class with the same fields is not equal, as with dataclasses
     assert len({cls(**one), cls(**same)}) == 1
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        setattr(cls(**one), dataclasses.fields(cls)[0].name, 2.0)
+    first = dataclasses.fields(cls)[0].name
+    for value in (cls(**one), twin(**one)):
+        with pytest.raises(dataclasses.FrozenInstanceError, match=f"cannot assign to field '{first}'"):
+            setattr(value, first, 2.0)
+        with pytest.raises(dataclasses.FrozenInstanceError, match="cannot assign to field 'extra'"):
+            value.extra = 1  # type: ignore[attr-defined]
+        with pytest.raises(dataclasses.FrozenInstanceError, match=f"cannot delete field '{first}'"):
+            delattr(value, first)
+    assert dataclasses.replace(cls(**one), **{first: one[first]}) == cls(**one)
+    assert dataclasses.astuple(cls(**one)) == dataclasses.astuple(twin(**one))
 
 
 def test_a_recursive_value_prints_without_recursing() -> None:

@@ -1,5 +1,7 @@
 """The steps and conditions of the mission language as typed values: one frozen dataclass each, SI units.
 
+Frozen, compared, hashed and printed as ``@dataclass(frozen=True)`` would make them, by :class:`Value`.
+
 The loader (:mod:`beastbt.mission.model`) turns what the author wrote into
 these; the compiler (:mod:`beastbt.mission.compile`) turns each into a
 behaviour. Every step knows where it was written (``at``: line and column in
@@ -11,7 +13,7 @@ the robot's default. Nested steps are tuples.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import FrozenInstanceError, dataclass, fields
 from reprlib import recursive_repr
 from typing import Any, ClassVar, Optional, Union
 
@@ -23,12 +25,15 @@ FOREVER = -1
 
 
 class Value:
-    """``==``, ``hash()`` and ``repr()`` of the steps and conditions, the same as ``@dataclass(frozen=True)`` gives.
+    """What ``@dataclass(frozen=True)`` gives the steps and conditions, written once for all of them.
 
-    Every class here is ``@dataclass(frozen=True, kw_only=True, eq=False, repr=False)`` and inherits these three:
-    what ``@dataclass`` would generate and compile once per class (about 130 small functions, some 5 ms of every
-    command's start-up on a desktop, more on a Pi) is written once. As a dataclass's: equal when of the same class
-    with equal fields, in order; the hash of the fields' tuple; ``Name(field=value, ...)``.
+    Every class here is ``@dataclass(kw_only=True, eq=False, repr=False)`` and inherits from this class its
+    ``==``, ``hash()``, ``repr()`` and its being frozen. ``@dataclass`` would generate and compile those five
+    methods once per class (about 220 small functions: some 10 ms of every command that loads a mission on a
+    desktop, more on a Pi); they behave as a frozen dataclass's: equal when of the same class with equal fields
+    in order; the hash of the fields' tuple; ``Name(field=value, ...)``; and
+    :class:`~dataclasses.FrozenInstanceError` on setting or deleting any attribute once ``__init__`` has set each
+    field (``dataclasses.replace`` makes a changed copy, as for any dataclass).
     """
 
     __slots__ = ()
@@ -49,8 +54,28 @@ class Value:
         shown = ", ".join(f"{f.name}={getattr(self, f.name)!r}" for f in fields(self) if f.repr)  # type: ignore[arg-type]
         return f"{self.__class__.__qualname__}({shown})"
 
+    def __setattr__(self, name: str, value: Any) -> None:
+        # The dataclass's own __init__ sets each field once; nothing else may set anything, ever.
+        if name in self.__dict__ or name not in _field_names(type(self)):
+            raise FrozenInstanceError(f"cannot assign to field {name!r}")
+        object.__setattr__(self, name, value)
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+    def __delattr__(self, name: str) -> None:
+        raise FrozenInstanceError(f"cannot delete field {name!r}")
+
+
+_FIELD_NAMES: dict[type, frozenset[str]] = {}
+
+
+def _field_names(cls: type) -> frozenset[str]:
+    """The names of the fields of the dataclass ``cls`` (computed once per class)."""
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = frozenset(f.name for f in fields(cls))  # type: ignore[arg-type]
+    return names
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
 class Step(Value):
     """What every step has: where it was written."""
 
@@ -63,7 +88,7 @@ class Step(Value):
 
 # -- motion -----------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class DriveDistance(Step):
     """``drive: {distance: 3 m}``: drive straight for a distance (negative: backwards), by odometry."""
 
@@ -73,7 +98,7 @@ class DriveDistance(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class DriveTime(Step):
     """``drive: {time: 2 s}``: drive straight for a time."""
 
@@ -82,7 +107,7 @@ class DriveTime(Step):
     speed_mps: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class TurnBy(Step):
     """``turn: {angle: 90 deg}``: turn in place by an angle (positive: left)."""
 
@@ -92,7 +117,7 @@ class TurnBy(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class TurnToHeading(Step):
     """``turn: {heading: 90 deg}``: turn in place to a compass heading (0 north, 90 east)."""
 
@@ -102,7 +127,7 @@ class TurnToHeading(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Wait(Step):
     """``wait: 2 s``: stand still for a time."""
 
@@ -110,14 +135,14 @@ class Wait(Step):
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Stop(Step):
     """``stop``: command zero and wait until the robot is still."""
 
     KEYWORD: ClassVar[str] = "stop"
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class NavOptions(Value):
     """What go_to, route and return_home share; None: the robot's navigation defaults."""
 
@@ -129,7 +154,7 @@ class NavOptions(Value):
     """With a LiDAR: fail after this long kept from progress by obstacles (s); None: the robot's default."""
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class GoToPlace(Step, NavOptions):
     """``go_to: gate``: drive to a named place (``home`` included)."""
 
@@ -137,7 +162,7 @@ class GoToPlace(Step, NavOptions):
     place: str
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class GoToPoint(Step, NavOptions):
     """``go_to: {lat: 40.4168, lon: -3.7038}``: drive to a WGS84 point (degrees)."""
 
@@ -146,7 +171,7 @@ class GoToPoint(Step, NavOptions):
     lon_deg: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Route(Step, NavOptions):
     """``route: {places: [a, b, c], loops: 2}``: go to each place in order, ``loops`` times (-1: forever)."""
 
@@ -157,7 +182,7 @@ class Route(Step, NavOptions):
     """After a pause: ``current`` place, or the ``nearest`` remaining one."""
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ReturnHome(Step, NavOptions):
     """``return_home``: drive back to where the mission started (its first good GPS fix)."""
 
@@ -166,7 +191,7 @@ class ReturnHome(Step, NavOptions):
     """``straight`` home, or ``path``: back along the path driven so far."""
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class FollowLine(Step):
     """``follow_line: {until: intersection}``: follow the line on the floor until something happens.
 
@@ -183,7 +208,7 @@ class FollowLine(Step):
 
 # -- the camera, servos, the operator ---------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Look(Step):
     """``look: {pan: -45 deg, tilt: 10 deg}``: point the camera's gimbal."""
 
@@ -193,7 +218,7 @@ class Look(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ServoAngle(Step):
     """``servo: {name: arm, angle: 30 deg}``: move a named servo to an angle."""
 
@@ -203,7 +228,7 @@ class ServoAngle(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ServoPulse(Step):
     """``servo: {channel: 1, pulse: 1.5 ms}``: send a raw pulse width to a PWM channel."""
 
@@ -213,7 +238,7 @@ class ServoPulse(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Snapshot(Step):
     """``snapshot: {name: gate}``: save a camera frame into the run folder."""
 
@@ -221,7 +246,7 @@ class Snapshot(Step):
     name: str
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Say(Step):
     """``say: text``: log a message (and show it to the operator)."""
 
@@ -229,7 +254,7 @@ class Say(Step):
     text: str
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Teleop(Step):
     """``teleop: {for: 30 s}`` or ``teleop: {until: released}``: hand the robot to the joystick's operator."""
 
@@ -240,21 +265,21 @@ class Teleop(Step):
 
 # -- conditions --------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Flag(Value):
     """A condition word: ``intersection``, ``line_seen``, ``gps_fix``, ``teleop_active``, ``localized``."""
 
     word: str
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class BatteryBelow(Value):
     """``{battery_below: 11 V}``."""
 
     volts: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Near(Value):
     """``{near: gate, within: 3 m}``: the fused position is within ``within_m`` of a place (``home`` included)."""
 
@@ -262,49 +287,49 @@ class Near(Value):
     within_m: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Elapsed(Value):
     """``{elapsed: 10 min}``: mission time since the start, s."""
 
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Not(Value):
     """``{not: CONDITION}``."""
 
     condition: "Condition"
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class AllOf(Value):
     """``{all: [CONDITION, ...]}``."""
 
     conditions: tuple["Condition", ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class AnyOf(Value):
     """``{any: [CONDITION, ...]}``."""
 
     conditions: tuple["Condition", ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class DistanceTravelled(Value):
     """``{distance_travelled: 5 m}``: odometry distance since the enclosing guard block started, m."""
 
     distance_m: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class TimeInBlock(Value):
     """``{time_in_block: 30 s}``: time since the enclosing guard block started, s."""
 
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Answered(Value):
     """``{answered: ID, is: yes|no}``: the question ``ID`` was answered so."""
 
@@ -312,7 +337,7 @@ class Answered(Value):
     choice: str
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class InFence(Value):
     """``{inside: FENCE}`` / ``{outside: FENCE}``: where the fused position is with respect to a fence."""
 
@@ -320,7 +345,7 @@ class InFence(Value):
     inside: bool
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ObstacleWithin(Value):
     """``{obstacle_within: 0.5 m, sector_deg: [-30, 30]}``: the LiDAR sees something within ``gap_m`` of the
     footprint (free space, m), in the sector from ``sector_rad[0]`` counterclockwise to ``sector_rad[1]`` (base_link,
@@ -337,7 +362,7 @@ Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, Distance
 
 # -- flow ---------------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Repeat(Step):
     """``repeat: {times: 3, steps: [...]}``: run the steps ``times`` times (-1: forever); fails when they fail."""
 
@@ -346,7 +371,7 @@ class Repeat(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Retry(Step):
     """``retry: {times: 3, steps: [...]}``: run the steps until they succeed, at most ``times`` attempts."""
 
@@ -355,7 +380,7 @@ class Retry(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Timeout(Step):
     """``timeout: {after: 2 min, steps: [...]}``: the steps fail when they take longer than ``after_s``."""
 
@@ -364,7 +389,7 @@ class Timeout(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Parallel(Step):
     """``parallel: {steps: [...], succeed_on: all|one}``: run the steps together."""
 
@@ -373,7 +398,7 @@ class Parallel(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class FirstOf(Step):
     """``first_of: [[...], [...]]``: try each list of steps in turn until one succeeds."""
 
@@ -381,7 +406,7 @@ class FirstOf(Step):
     alternatives: tuple[tuple[Step, ...], ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Do(Step):
     """``do: task``: run a task of the mission by name."""
 
@@ -391,7 +416,7 @@ class Do(Step):
     """``(parameter, value as written)`` pairs of ``do: {task, ...}``, sorted; empty: the task's defaults."""
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class If(Step):
     """``if: CONDITION, then: [...], else: [...]``: choose once, when the step starts."""
 
@@ -401,7 +426,7 @@ class If(Step):
     otherwise: Optional[tuple[Step, ...]] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class While(Step):
     """``while: CONDITION, steps: [...]``: run the steps again and again while the condition holds."""
 
@@ -410,7 +435,7 @@ class While(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class UntilBlock(Step):
     """``until: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and succeed."""
 
@@ -419,7 +444,7 @@ class UntilBlock(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class AbortIf(Step):
     """``abort_if: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and fail."""
 
@@ -428,7 +453,7 @@ class AbortIf(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Ask(Step):
     """``ask: {id, question, timeout, default}, then: [...], else: [...]``: ask the operator yes or no, then choose."""
 
@@ -442,7 +467,7 @@ class Ask(Step):
     otherwise: tuple[Step, ...] = ()
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class WaitUntil(Step):
     """``wait_until: CONDITION, timeout: 30 s``: stand still until the condition holds (fails after the timeout)."""
 
@@ -451,7 +476,7 @@ class WaitUntil(Step):
     timeout_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True, eq=False, repr=False)
+@dataclass(kw_only=True, eq=False, repr=False)
 class PluginStep(Step):
     """A step of an installed package (``beastbt.steps`` entry points): its keyword and its value as written."""
 
