@@ -14,9 +14,12 @@ import pytest
 
 from beastbt.core.errors import Position
 from beastbt.mission import steps as st
+from beastbt.mission.external_steps import ExternalStep
+from beastbt.mission.model import Failsafe, Place, RawStep
 
-CLASSES = sorted((c for c in vars(st).values() if isinstance(c, type) and issubclass(c, st.Value)
-                  and c is not st.Value and dataclasses.is_dataclass(c)), key=lambda c: c.__name__)
+CLASSES = sorted([c for c in vars(st).values() if isinstance(c, type) and issubclass(c, st.Value)
+                  and c is not st.Value and dataclasses.is_dataclass(c)] + [Place, RawStep, Failsafe, ExternalStep],
+                 key=lambda c: c.__name__)
 
 
 def _twin(cls: type) -> type:
@@ -45,7 +48,7 @@ def _values(cls: type, salt: int) -> dict:
 
 def test_every_step_and_condition_class_is_checked() -> None:
     names = {c.__name__ for c in CLASSES}
-    assert {"Step", "DriveDistance", "GoToPlace", "Flag", "AnyOf", "PluginStep", "NavOptions"} <= names
+    assert {"Step", "DriveDistance", "GoToPlace", "Flag", "AnyOf", "PluginStep", "NavOptions", "Place"} <= names
     assert set(c.__name__ for c in st.CORE_STEP_CLASSES) <= names
 
 

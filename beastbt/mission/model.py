@@ -40,8 +40,8 @@ def mission_default(pointer: str, name: str) -> Any:
     return schema_default(f"mission.schema.json#{pointer}", name)
 
 
-@dataclass(frozen=True)
-class Place:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by steps.Value (start-up time)
+class Place(st.Value):
     """A named place: a GPS place (``lat``, ``lon``: WGS84 degrees) or a place on the mission's map (``x``, ``y``:
     metres in the map frame, ``yaw`` rad or None), and an arrival tolerance in metres."""
 
@@ -59,8 +59,8 @@ class Place:
         return self.x is not None
 
 
-@dataclass(frozen=True)
-class RawStep:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by steps.Value (start-up time)
+class RawStep(st.Value):
     """One step as written, for the loader's own checks: its keyword, its raw value, where it sits."""
 
     kind: str
@@ -68,8 +68,8 @@ class RawStep:
     path: PathKey
 
 
-@dataclass(frozen=True)
-class Failsafe:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by steps.Value (start-up time)
+class Failsafe(st.Value):
     """A failsafe: ``kind`` (gps_lost, battery_low, geofence, keepout, localization_lost), its SI parameters and its
     action."""
 

@@ -27,7 +27,8 @@ FOREVER = -1
 class Value:
     """What ``@dataclass(frozen=True)`` gives the steps and conditions, written once for all of them.
 
-    Every class here is ``@dataclass(kw_only=True, eq=False, repr=False)`` and inherits from this class its
+    Every class here is ``@dataclass(kw_only=True, eq=False, repr=False)`` (the mission's places, failsafes and
+    external steps ``@dataclass(eq=False, repr=False)``) and inherits from this class its
     ``==``, ``hash()``, ``repr()`` and its being frozen. ``@dataclass`` would generate and compile those five
     methods once per class (about 220 small functions: some 10 ms of every command that loads a mission on a
     desktop, more on a Pi); they behave as a frozen dataclass's: equal when of the same class with equal fields
