@@ -49,7 +49,6 @@ import py_trees
 
 from beastbt.behaviours.teleop import JOYSTICK_MAX_AGE_S, TeleopStep
 from beastbt.blackboard.types import JoystickState
-from beastbt.devices.joystick import BUTTON_ENABLE
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.mission import steps as st
@@ -83,9 +82,12 @@ class TeleopOverride:
 
     def __init__(self, run: MissionRun, config: Optional[TeleopConfig] = None) -> None:
         from beastbt.actuation.teleop import TeleopTwistJoy
+        from beastbt.devices.joystick import BUTTON_ENABLE
 
         self.run = run
         self.teleop = TeleopTwistJoy(config)
+        self._button_enable = BUTTON_ENABLE
+        """The ``JoystickState.buttons`` key of the enable (dead-man) button (``devices.joystick.BUTTON_ENABLE``)."""
         self.handovers: set[int] = set()
         """Teleop steps running now (the operator drives without pausing the mission)."""
         self.operator_control: Optional[str] = None
@@ -156,7 +158,7 @@ class TeleopOverride:
         if js is None or not js.connected or now_s - js.stamp_s > JOYSTICK_MAX_AGE_S:
             js = None
         remote = self.remote
-        if remote is not None and (js is None or remote.buttons.get(BUTTON_ENABLE, False)):
+        if remote is not None and (js is None or remote.buttons.get(self._button_enable, False)):
             return remote
         return js
 
@@ -188,7 +190,8 @@ class TeleopOverride:
             self._on_release(run, now_s)
         # As the catalogue says: the operator holds enable (even where teleop may not drive, so that a
         # teleop: false mission can wait for it).
-        run.bb.teleop_active = self.teleop.active or (js is not None and bool(js.buttons.get(BUTTON_ENABLE, False)))
+        held = js is not None and bool(js.buttons.get(self._button_enable, False))
+        run.bb.teleop_active = self.teleop.active or held
 
     def _report_mux(self, run: MissionRun) -> None:
         source = run.mux.source
