@@ -40,10 +40,10 @@ from beastbt.mission.compile import CORE_STEPS, Behaviour, StepBuilder, compile_
 from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
 from beastbt.robot.profile import RobotProfile, load_profile
-from beastbt.robot.robot_io import RobotIO
 from beastbt.run.session import Prepared, RunOptions
 
 if TYPE_CHECKING:
+    from beastbt.robot.robot_io import RobotIO
     from beastbt.sim.world import World
 # The tick loop, the run folder and the world are imported where a run is assembled: `beastbt tree` (which only
 # compiles) starts without them.
