@@ -193,9 +193,11 @@ def joined_units(args: Sequence[str]) -> list[str]:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of the ``beastbt`` console script and of ``python -m beastbt``; returns the exit status."""
     args = list(sys.argv[1:] if argv is None else argv)
-    top = overview_parser()
+    # The overview parser (every subcommand's help line) is built only when it is used: a command that is
+    # given does not pay for it (a few milliseconds of argparse and gettext lookups).
     at = _first_command(args)
     if at is None:
+        top = overview_parser()
         if args:
             top.parse_args(args)  # --help and --version exit here; anything else is an error
         top.print_help()
@@ -205,11 +207,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         import difflib  # only for a mistyped command
         close = difflib.get_close_matches(name, list(COMMANDS), n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else f"; the commands are: {', '.join(COMMANDS)}"
-        top.print_usage(sys.stderr)
+        overview_parser().print_usage(sys.stderr)
         print(f"{PROG}: error: unknown command '{name}'{hint}", file=sys.stderr)
         return EXIT_INVALID
     if at:
-        top.parse_args(args[:at])  # options before the command: --help, --version, or an error
+        overview_parser().parse_args(args[:at])  # options before the command: --help, --version, or an error
     parser, module = command_parser(name)
     parsed, unknown = parser.parse_known_args(joined_units(args[at + 1:]))
     if unknown:
