@@ -20,13 +20,13 @@ import copy
 from dataclasses import dataclass
 from typing import Any, Callable, Collection, Iterable, Mapping
 
-from beastbt.mission.steps import Value
+from beastbt.core.values import Value
 
 STEP_ENTRY_POINTS = "beastbt.steps"
 """Entry-point group of steps from other packages: ``keyword = "package.module:StepClass"``."""
 
 
-@dataclass(eq=False, repr=False)  # frozen, compared and printed by steps.Value (start-up time)
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by core.values.Value
 class ExternalStep(Value):
     """A step keyword provided by an installed package: its value's schema and its builder."""
 

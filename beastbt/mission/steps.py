@@ -1,6 +1,7 @@
 """The steps and conditions of the mission language as typed values: one frozen dataclass each, SI units.
 
-Frozen, compared, hashed and printed as ``@dataclass(frozen=True)`` would make them, by :class:`Value`.
+Each is ``@dataclass(kw_only=True, eq=False, repr=False)`` on :class:`beastbt.core.values.Value`, which freezes,
+compares, hashes and prints it as ``@dataclass(frozen=True)`` would, with fewer methods compiled at start-up.
 
 The loader (:mod:`beastbt.mission.model`) turns what the author wrote into
 these; the compiler (:mod:`beastbt.mission.compile`) turns each into a
@@ -13,68 +14,15 @@ the robot's default. Nested steps are tuples.
 
 from __future__ import annotations
 
-from dataclasses import FrozenInstanceError, dataclass, fields
-from reprlib import recursive_repr
+from dataclasses import dataclass
 from typing import Any, ClassVar, Optional, Union
 
 from beastbt.core.errors import Position
+from beastbt.core.values import Value
 from beastbt.core.yaml_source import PathKey
 
 FOREVER = -1
 """``times``/``loops`` of ``forever``."""
-
-
-class Value:
-    """What ``@dataclass(frozen=True)`` gives the steps and conditions, written once for all of them.
-
-    Every class here is ``@dataclass(kw_only=True, eq=False, repr=False)`` (the mission's places, failsafes and
-    external steps ``@dataclass(eq=False, repr=False)``) and inherits from this class its
-    ``==``, ``hash()``, ``repr()`` and its being frozen. ``@dataclass`` would generate and compile those five
-    methods once per class (about 220 small functions: some 10 ms of every command that loads a mission on a
-    desktop, more on a Pi); they behave as a frozen dataclass's: equal when of the same class with equal fields
-    in order; the hash of the fields' tuple; ``Name(field=value, ...)``; and
-    :class:`~dataclasses.FrozenInstanceError` on setting or deleting any attribute once ``__init__`` has set each
-    field (``dataclasses.replace`` makes a changed copy, as for any dataclass).
-    """
-
-    __slots__ = ()
-
-    def _fields(self) -> tuple:
-        return tuple(getattr(self, f.name) for f in fields(self) if f.compare)  # type: ignore[arg-type]
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is self.__class__:
-            return self._fields() == other._fields()  # type: ignore[attr-defined]
-        return NotImplemented
-
-    def __hash__(self) -> int:
-        return hash(self._fields())
-
-    @recursive_repr()
-    def __repr__(self) -> str:
-        shown = ", ".join(f"{f.name}={getattr(self, f.name)!r}"
-                          for f in fields(self) if f.repr)  # type: ignore[arg-type]
-        return f"{self.__class__.__qualname__}({shown})"
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        # The dataclass's own __init__ sets each field once; nothing else may set anything, ever.
-        if name in self.__dict__ or name not in _field_names(type(self)):
-            raise FrozenInstanceError(f"cannot assign to field {name!r}")
-        object.__setattr__(self, name, value)
-
-    def __delattr__(self, name: str) -> None:
-        raise FrozenInstanceError(f"cannot delete field {name!r}")
-
-
-_FIELD_NAMES: dict[type, frozenset[str]] = {}
-
-
-def _field_names(cls: type) -> frozenset[str]:
-    """The names of the fields of the dataclass ``cls`` (computed once per class)."""
-    names = _FIELD_NAMES.get(cls)
-    if names is None:
-        names = _FIELD_NAMES[cls] = frozenset(f.name for f in fields(cls))  # type: ignore[arg-type]
-    return names
 
 
 @dataclass(kw_only=True, eq=False, repr=False)

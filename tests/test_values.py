@@ -1,9 +1,10 @@
-"""The steps and conditions compare, hash, print and stay frozen as ``@dataclass(frozen=True)`` would make them.
+"""The mission's values and the blackboard's readings compare, hash, print and stay frozen as ``@dataclass(frozen=True)``
+would make them.
 
-:class:`beastbt.mission.steps.Value` writes those methods once instead of letting
-``@dataclass`` compile them for each of the ~45 classes (start-up time). Each
-class is checked here against a twin made by the standard library's
-``@dataclass(frozen=True, kw_only=True)`` with the same fields and values.
+:class:`beastbt.core.values.Value` and :class:`~beastbt.core.values.Compared` write those
+methods once instead of letting ``@dataclass`` compile them for each of ~65 classes
+(start-up time). Each class is checked here against a twin made by the standard
+library's ``@dataclass(frozen=True, kw_only=True)`` with the same fields and values.
 """
 
 from __future__ import annotations
@@ -12,13 +13,16 @@ import dataclasses
 
 import pytest
 
+from beastbt.blackboard import types as bb
 from beastbt.core.errors import Position
+from beastbt.core.values import Compared, Value
 from beastbt.mission import steps as st
 from beastbt.mission.external_steps import ExternalStep
 from beastbt.mission.model import Failsafe, Place, RawStep
 
-CLASSES = sorted([c for c in vars(st).values() if isinstance(c, type) and issubclass(c, st.Value)
-                  and c is not st.Value and dataclasses.is_dataclass(c)] + [Place, RawStep, Failsafe, ExternalStep],
+CLASSES = sorted([c for module in (st, bb) for c in vars(module).values()
+                  if isinstance(c, type) and issubclass(c, Compared) and c not in (Compared, Value)
+                  and dataclasses.is_dataclass(c)] + [Place, RawStep, Failsafe, ExternalStep],
                  key=lambda c: c.__name__)
 
 
@@ -50,6 +54,7 @@ def test_every_step_and_condition_class_is_checked() -> None:
     names = {c.__name__ for c in CLASSES}
     assert {"Step", "DriveDistance", "GoToPlace", "Flag", "AnyOf", "PluginStep", "NavOptions", "Place"} <= names
     assert set(c.__name__ for c in st.CORE_STEP_CLASSES) <= names
+    assert {"GpsFix", "ImuSample", "JoystickState", "LaserScan", "VelocityCommand", "LocalPlan"} <= names
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
@@ -86,3 +91,26 @@ def test_steps_of_different_classes_with_the_same_fields_differ() -> None:
     assert st.TurnBy(angle_rad=1.0) != st.TurnToHeading(heading_rad=1.0)
     assert st.Flag(word="gps_fix") != st.Not(condition=st.Flag(word="gps_fix"))
     assert dataclasses.replace(st.Wait(duration_s=2.0), duration_s=3.0) == st.Wait(duration_s=3.0)
+
+
+def test_classes_with_no_field_or_one_field_hash_as_dataclasses() -> None:
+    @dataclasses.dataclass(frozen=True, eq=False, repr=False)
+    class Empty(Compared):
+        pass
+
+    @dataclasses.dataclass(eq=False, repr=False)
+    class One(Value):
+        x: float
+
+    @dataclasses.dataclass(frozen=True)
+    class EmptyTwin:
+        pass
+
+    @dataclasses.dataclass(frozen=True)
+    class OneTwin:
+        x: float
+
+    assert hash(Empty()) == hash(EmptyTwin()) and Empty() == Empty()
+    assert repr(Empty()) == repr(EmptyTwin()).replace("EmptyTwin", "Empty")  # the qualified name, as a dataclass
+    assert hash(One(2.5)) == hash(OneTwin(2.5)) and One(2.5) != One(3.0)
+    assert repr(One(2.5)) == repr(OneTwin(2.5)).replace("OneTwin", "One")
