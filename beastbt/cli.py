@@ -70,10 +70,11 @@ def version() -> str:
 def collector_paused() -> Iterator[None]:
     """Run the block with Python's cyclic garbage collector paused; it is resumed (if it was on) when the block ends.
 
-    For a short command that only loads and checks (``tree``, ``validate``): nearly everything it allocates is
-    imported code, schemas and the mission, all kept until the process exits, so collecting them while they are
-    built is work thrown away (about a tenth of ``beastbt tree``'s start-up). Reference counting still frees what
-    is dropped; only cycles wait for the block's end. Never around a run or a server.
+    Around loading and checking only (``tree``, ``validate``, and ``run`` while it prepares the run): nearly
+    everything allocated then is imported code, schemas, the mission and the assembled robot, all kept until the
+    process exits, so collecting them while they are built is work thrown away (about a tenth of ``beastbt
+    tree``'s start-up). Reference counting still frees what is dropped; only cycles wait for the block's end.
+    Never around the running of a mission or a server: the block must end.
     """
     was_enabled = gc.isenabled()
     gc.disable()
