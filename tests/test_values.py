@@ -1,5 +1,5 @@
-"""The mission's values and the blackboard's readings compare, hash, print and stay frozen as ``@dataclass(frozen=True)``
-would make them.
+"""The mission's values and the blackboard's readings compare, hash, print and stay frozen as
+``@dataclass(frozen=True)`` would make them.
 
 :class:`beastbt.core.values.Value` and :class:`~beastbt.core.values.Compared` write those
 methods once instead of letting ``@dataclass`` compile them for each of ~65 classes
