@@ -64,3 +64,27 @@ def test_collector_paused_leaves_a_disabled_collector_disabled() -> None:
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+FROZEN = """
+import contextlib, gc, io, sys
+from beastbt.cli import main
+sys.argv = ["beastbt", *sys.argv[1:]]
+with contextlib.redirect_stdout(io.StringIO()):
+    status = main() if sys.argv[1] != "--with-argv" else main(sys.argv[2:])
+print(status, gc.get_freeze_count() > 0, gc.isenabled())
+"""
+
+
+@pytest.mark.parametrize("words, frozen", [
+    (["tree", "missions/patrol.yaml"], True),  # the command of the process: nothing left for the exit's collection
+    (["validate", "missions/patrol.yaml"], True),
+    (["--with-argv", "tree", "missions/patrol.yaml"], False),  # main(argv), as the tests call it: the process goes on
+    (["runs", "--runs-dir", "no-such-folder"], False),  # not a load-only command
+])
+def test_a_load_only_command_freezes_what_it_loaded_when_it_is_the_process(words: list[str], frozen: bool) -> None:
+    out = subprocess.run([sys.executable, "-c", FROZEN, *words], cwd=REPO, capture_output=True, text=True,
+                         check=True, timeout=60)
+    status, was_frozen, enabled = out.stdout.split()
+    assert was_frozen == str(frozen) and enabled == "True"
+    assert status == "0" or words[0] == "runs"
