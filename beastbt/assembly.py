@@ -30,22 +30,23 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, Sequence
 
 from beastbt.behaviours.context import MissionContext, RunServices
 from beastbt.core.clock import Clock, SimClock, WallClock
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.events import EventLog
-from beastbt.mission.mission_world import load_mission_world
 from beastbt.mission.compile import CORE_STEPS, Behaviour, StepBuilder, compile_mission
 from beastbt.mission.model import Mission, load_mission
 from beastbt.robot.part import REAL, REPLAY, SIM, BasePart, Build, Part, asleep
 from beastbt.robot.profile import RobotProfile, load_profile
-from beastbt.robot.robot_io import RobotIO
-from beastbt.run.run_folder import RunFolder, RunFolderUnavailable, temporary_snapshots
-from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared, RunOptions
-from beastbt.sim.world import World, empty_world, load_world
+
+if TYPE_CHECKING:
+    from beastbt.robot.robot_io import RobotIO
+    from beastbt.sim.world import World
+# The tick loop, the run folder and the world are imported where a run is assembled: `beastbt tree` (which only
+# compiles) starts without them.
 
 PART_ENTRY_POINTS = "beastbt.parts"
 """Entry-point group of parts from other packages: ``name = "package.module:PartClass"``."""
@@ -210,6 +211,10 @@ def assemble(mission: Mission, profile: RobotProfile, options: RunOptions, mode:
     the parts the profile and options call for. Nothing moves before the run
     is executed.
     """
+    from beastbt.run.run_folder import RunFolder, RunFolderUnavailable, temporary_snapshots
+    from beastbt.run.runner import MissionRun
+    from beastbt.sim.world import empty_world
+
     if clock is None:
         clock = WallClock() if mode == REAL else SimClock()
     events = EventLog(clock)
@@ -296,6 +301,9 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
 
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
     """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves."""
+    from beastbt.mission.mission_world import load_mission_world
+    from beastbt.sim.world import empty_world, load_world
+
     mission = load_mission(mission_path, text=mission_text)
     profile = load_profile(options.robot)
     if options.simulated:

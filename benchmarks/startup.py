@@ -13,6 +13,12 @@ at most 1 s), read from the wall clock in the child (a wrapper around
 ``MissionRun.tick`` that the command itself never sees) against the wall
 clock just before the child was started.
 
+Each command's CPU time (user + system of the child process, from the
+kernel's accounting) is printed as well, with its ratio to the baseline's
+CPU time from the same interleaved runs: on a machine shared with other
+work, wall times stretch with whatever else runs, CPU times much less so.
+The load average is printed with the figures.
+
 Every command, the baseline included, runs with Python's bytecode cache
 written and warm (``PYTHONDONTWRITEBYTECODE`` is removed from the children's
 environment and each command runs once before timing), as after an
@@ -27,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -54,11 +61,25 @@ sys.exit(main(sys.argv[1:]))
 ENV: dict[str, str] = dict(os.environ)
 
 
-def wall_s(cmd: list[str]) -> float:
-    """Wall time of one run of ``cmd`` (s); output discarded."""
+CPU_S: dict[str, list[float]] = {}
+"""CPU time (s, user + system) of each timed run, by the name its wall time is kept under."""
+
+
+def children_cpu_s() -> float:
+    """CPU time (s, user + system) of every child process waited for so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def wall_s(cmd: list[str], name: str = "") -> float:
+    """Wall time of one run of ``cmd`` (s); output discarded. With ``name``, its CPU time is kept in ``CPU_S``."""
+    cpu0 = children_cpu_s()
     t0 = time.perf_counter()
     subprocess.run(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False, env=ENV)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    if name:
+        CPU_S.setdefault(name, []).append(children_cpu_s() - cpu0)
+    return wall
 
 
 def first_tick_s(words: list[str]) -> float:
@@ -96,12 +117,14 @@ def main() -> None:
     for words in commands.values():
         wall_s([sys.executable, "-m", "beastbt", *words])
     first_tick_s(first_tick_words)
+    load_before = os.getloadavg()
     for _ in range(args.repeats):
         for name, words in commands.items():
-            baseline.append(wall_s(BASELINE))
-            times[name].append(wall_s([sys.executable, "-m", "beastbt", *words]))
-        baseline.append(wall_s(BASELINE))
+            baseline.append(wall_s(BASELINE, "baseline"))
+            times[name].append(wall_s([sys.executable, "-m", "beastbt", *words], name))
+        baseline.append(wall_s(BASELINE, "baseline"))
         first_ticks.append(first_tick_s(first_tick_words))
+    load_after = os.getloadavg()
     base = statistics.median(baseline)
     print(f"bytecode caches: {'as the caller has them' if args.cold else 'written and warm'}")
     print(f"baseline python -c 'import yaml, jsonschema': {base * 1000:7.1f} ms (median of {len(baseline)}, "
@@ -113,6 +136,15 @@ def main() -> None:
     med = statistics.median(first_ticks)
     print(f"beastbt run patrol: first tick after  {med * 1000:7.1f} ms ({min(first_ticks) * 1000:.0f}-"
           f"{max(first_ticks) * 1000:.0f})  = {med / base:4.2f}x baseline  (goal <= 1000 ms)")
+    cpu_base = statistics.median(CPU_S["baseline"])
+    print(f"CPU time (user + system of each child, same runs): baseline {cpu_base * 1000:7.1f} ms CPU "
+          f"({min(CPU_S['baseline']) * 1000:.1f}-{max(CPU_S['baseline']) * 1000:.1f})")
+    for name in commands:
+        values = CPU_S[name]
+        med = statistics.median(values)
+        print(f"CPU beastbt {name:28s} {med * 1000:7.1f} ms ({min(values) * 1000:.0f}-{max(values) * 1000:.0f})"
+              f"  = {med / cpu_base:4.2f}x baseline CPU{goals.get(name.split()[0], '')}")
+    print(f"load average (1 min) {load_before[0]:.2f} before, {load_after[0]:.2f} after, on {os.cpu_count()} CPUs")
     # Saved for benchmarks/check_docs.py (benchmarks/figures.py prints them), for the docs that quote them.
     from figures import Figures
     figures = Figures("startup")
@@ -121,6 +153,8 @@ def main() -> None:
         key = name.split()[0].strip("-") if name.split()[0] != "run" else "run_1s"
         figures.spread(f"{key}_ms", values, 1000)
         figures.put(f"{key}_ratio", statistics.median(values) / base)
+        if name in CPU_S:
+            figures.put(f"{key}_cpu_ratio", statistics.median(CPU_S[name]) / cpu_base)
     figures.spread("first_tick_ms", first_ticks, 1000)
     figures.save()
 

@@ -4,6 +4,10 @@ Units are SI and frames follow ROS conventions: the local world frame is
 east-north-up (x east, y north, yaw counter-clockwise from east, radians); the
 body frame is x forward, y left. Every reading has ``stamp_s``: the clock time
 at which it was measured (or received, when the device gives no better time).
+
+Each is a frozen dataclass whose ``==``, ``hash()`` and ``repr()`` come from
+:class:`beastbt.core.values.Compared` (the same results, fewer methods compiled
+at start-up).
 """
 
 from __future__ import annotations
@@ -12,12 +16,14 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Optional, Union
 
+from beastbt.core.values import Compared
+
 if TYPE_CHECKING:  # NumPy is imported by the methods that compute: 'beastbt tree' and 'validate' never need it
     import numpy as np
 
 
-@dataclass(frozen=True)
-class GpsFix:
+@dataclass(frozen=True, eq=False, repr=False)
+class GpsFix(Compared):
     """One GPS position with a valid fix (no fix means no GpsFix at all).
 
     Latitude and longitude in decimal degrees (WGS84), altitude above mean sea
@@ -42,8 +48,8 @@ class GpsFix:
     covariance_enu: tuple[tuple[float, float, float], ...] = ((9.0, 0, 0), (0, 9.0, 0), (0, 0, 36.0))
 
 
-@dataclass(frozen=True)
-class ImuSample:
+@dataclass(frozen=True, eq=False, repr=False)
+class ImuSample(Compared):
     """One IMU sample in the body frame (x forward, y left, z up).
 
     ``gyro_rps`` in rad/s (bias already removed when the driver estimated it),
@@ -59,8 +65,8 @@ class ImuSample:
     temperature_c: Optional[float] = None
 
 
-@dataclass(frozen=True)
-class WheelOdometry:
+@dataclass(frozen=True, eq=False, repr=False)
+class WheelOdometry(Compared):
     """Cumulative wheel travel from the base controller.
 
     ``left_m``/``right_m``: distance each side has rolled since the base
@@ -75,16 +81,16 @@ class WheelOdometry:
     right_mps: float = 0.0
 
 
-@dataclass(frozen=True)
-class BatteryState:
+@dataclass(frozen=True, eq=False, repr=False)
+class BatteryState(Compared):
     """Battery voltage in volts."""
 
     stamp_s: float
     voltage_v: float
 
 
-@dataclass(frozen=True)
-class Pose2D:
+@dataclass(frozen=True, eq=False, repr=False)
+class Pose2D(Compared):
     """A planar pose in the local ENU frame: metres and radians (yaw CCW from east)."""
 
     x: float
@@ -92,8 +98,8 @@ class Pose2D:
     yaw: float
 
 
-@dataclass(frozen=True)
-class FusedPose:
+@dataclass(frozen=True, eq=False, repr=False)
+class FusedPose(Compared):
     """The estimator's output.
 
     ``x``, ``y`` metres east/north of the local origin; ``yaw`` rad CCW from
@@ -120,8 +126,8 @@ class FusedPose:
     lon: Optional[float] = None
 
 
-@dataclass(frozen=True)
-class MapPose:
+@dataclass(frozen=True, eq=False, repr=False)
+class MapPose(Compared):
     """The robot's pose on a saved map (``map`` frame: x forward, y left of where mapping began), as AMCL gives it.
 
     ``x``, ``y`` metres and ``yaw`` rad CCW from the map's x axis; ``covariance``
@@ -146,8 +152,8 @@ class MapPose:
     odom_yaw: float = 0.0
 
 
-@dataclass(frozen=True)
-class VelocityCommand:
+@dataclass(frozen=True, eq=False, repr=False)
+class VelocityCommand(Compared):
     """A body velocity command: ``linear_mps`` forward, ``angular_rps`` CCW (rad/s)."""
 
     linear_mps: float = 0.0
@@ -160,8 +166,8 @@ class VelocityCommand:
         return self.linear_mps == 0.0 and self.angular_rps == 0.0
 
 
-@dataclass(frozen=True)
-class ServoCommand:
+@dataclass(frozen=True, eq=False, repr=False)
+class ServoCommand(Compared):
     """Point a named servo (``pan``, ``tilt``, ``gripper``...) at ``angle_rad``.
 
     Alternatively ``channel`` and ``pulse_s`` address a PWM channel directly.
@@ -174,8 +180,8 @@ class ServoCommand:
     stamp_s: float = 0.0
 
 
-@dataclass(frozen=True)
-class LineObservation:
+@dataclass(frozen=True, eq=False, repr=False)
+class LineObservation(Compared):
     """What the line detector saw in one camera frame (body frame, metres/radians).
 
     ``offset_m``: lateral offset of the line from the robot's centreline at the
@@ -197,8 +203,8 @@ class LineObservation:
     line_end: bool = False
 
 
-@dataclass(frozen=True)
-class JoystickState:
+@dataclass(frozen=True, eq=False, repr=False)
+class JoystickState(Compared):
     """The joystick as the teleop logic sees it: named axes (-1..1) and buttons."""
 
     stamp_s: float
@@ -207,8 +213,8 @@ class JoystickState:
     connected: bool = True
 
 
-@dataclass(frozen=True)
-class CameraFrame:
+@dataclass(frozen=True, eq=False, repr=False)
+class CameraFrame(Compared):
     """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken; ``jpeg``: the camera's own JPEG of
     it when the camera gave one (passed on untouched to the console), else None; ``h264``: likewise the camera's
     own H.264 access unit (Annex B)."""
@@ -224,8 +230,8 @@ Feedback = Union[WheelOdometry, ImuSample, BatteryState]
 """What a drive base reports on the wire it is commanded over (wheel odometry, its IMU, the battery)."""
 
 
-@dataclass(frozen=True)
-class LaserScan:
+@dataclass(frozen=True, eq=False, repr=False)
+class LaserScan(Compared):
     """One revolution of a 2D LiDAR, in the LiDAR's own frame (``lidar``: the profile's ``lidar.mounting`` on
     base_link). Given by the drivers in :mod:`beastbt.devices.lidar_scan` (which re-exports it).
 
@@ -278,8 +284,8 @@ COST_UNKNOWN = 255
 """A cell nothing has been seen in or through (Nav2's NO_INFORMATION)."""
 
 
-@dataclass(frozen=True)
-class LocalCostmap:
+@dataclass(frozen=True, eq=False, repr=False)
+class LocalCostmap(Compared):
     """The rolling local costmap around the robot, in the ``odom`` frame (Nav2's local costmap).
 
     ``cost`` is a (rows, cols) uint8 array, row 0 the southernmost: cell
@@ -307,8 +313,8 @@ class LocalCostmap:
         return float(self.cost.shape[0] * self.resolution_m)
 
 
-@dataclass(frozen=True)
-class GlobalPlan:
+@dataclass(frozen=True, eq=False, repr=False)
+class GlobalPlan(Compared):
     """The path go_to follows on the mission's map, in the ``map`` frame.
 
     ``points_xy`` is an (n, 2) array of metres from where the robot was when
@@ -322,8 +328,8 @@ class GlobalPlan:
     length_m: float = 0.0
 
 
-@dataclass(frozen=True)
-class LocalPlan:
+@dataclass(frozen=True, eq=False, repr=False)
+class LocalPlan(Compared):
     """What the local planner chose this tick, in the ``odom`` frame.
 
     ``points_xy`` is an (n, 2) array of metres: the path the chosen command

@@ -327,12 +327,16 @@ def command(args: argparse.Namespace) -> int:
         except (OSError, UnicodeDecodeError):
             pass  # said with its reason when the script is loaded with the robot
     from beastbt.assembly import prepare
+    from beastbt.cli import collector_paused
     from beastbt.robot.hardware import DeviceUnavailable
     from beastbt.run.run_folder import RunFolderUnavailable
     from beastbt.run.session import execute
     from beastbt.run.summary import human_summary
     try:
-        prepared = prepare(args.mission, opts)
+        # Loading, checking and assembling build what lives for the whole run (modules, the tree, the simulator):
+        # the cyclic collector is paused while they are built, and back on before anything runs.
+        with collector_paused():
+            prepared = prepare(args.mission, opts)
     except InvalidInput as exc:
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID

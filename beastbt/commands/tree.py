@@ -19,6 +19,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def command(args: argparse.Namespace) -> int:
     """Print the tree; 2 for an invalid mission or profile."""
+    from beastbt.cli import collector_paused
+    with collector_paused():  # it only loads and compiles: what it builds lives until it exits
+        return _print_tree(args)
+
+
+def _print_tree(args: argparse.Namespace) -> int:
+    """Load, compile and print (the body of :func:`command`)."""
     import py_trees
 
     from beastbt.commands.paths import output_file_problem

@@ -38,6 +38,13 @@ def command(args: argparse.Namespace) -> int:
     if not args.files:
         print("beastbt validate: error: give the files to check (or --explain STEP)", file=sys.stderr)
         return 2
+    from beastbt.cli import collector_paused
+    with collector_paused():  # it only reads and checks: the schemas and code it loads live until it exits
+        return _validate_files(args)
+
+
+def _validate_files(args: argparse.Namespace) -> int:
+    """Check each of ``args.files`` and print what was found (the body of :func:`command`)."""
     from beastbt.validate import validate_file
     bad = 0
     for f in args.files:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import dataclasses
-import difflib
 import typing
 from collections.abc import Mapping
 from typing import Any, Optional, TypeVar
@@ -83,6 +82,8 @@ def dataclass_from_dict(cls: type[T], data: Any, what: str) -> T:
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
         if key not in fields:
+            import difflib  # only for a misspelt key
+
             close = difflib.get_close_matches(str(key), list(fields), n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             raise ValueError(f"{what}: unknown key '{key}'{hint} (known keys: {', '.join(sorted(fields))})")

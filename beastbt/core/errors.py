@@ -8,7 +8,6 @@ file are reported in one run.
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from typing import Iterable, Optional
 
@@ -111,6 +110,8 @@ def value_in_words(value: object) -> str:
 
 def closest(word: str, choices: Iterable[str]) -> Optional[str]:
     """The valid word closest to a misspelt ``word``, or None when nothing is close."""
+    import difflib  # only when a word is misspelt: it costs every start-up otherwise
+
     matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return matches[0] if matches else None
 

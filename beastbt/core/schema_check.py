@@ -11,7 +11,6 @@ the ``anyOf`` of steps and conditions it picks the branch the author meant
 from __future__ import annotations
 
 import copy
-import json
 import math
 import re
 from functools import lru_cache
@@ -23,6 +22,7 @@ from referencing.jsonschema import DRAFT202012
 
 from beastbt.core.errors import Position, Problem, did_you_mean, value_in_words
 from beastbt.core.resources import data_dir
+from beastbt.core.schema_defaults import schema_document
 from beastbt.core.units import DECIMAL_COMMA, KINDS, UNIT_TO_KIND, UnitError, parse_quantity
 from beastbt.core.yaml_source import SourceDoc
 
@@ -34,16 +34,17 @@ _TYPE_WORDS = {
 
 @lru_cache(maxsize=None)
 def _schema_texts() -> dict[str, dict]:
+    # Parsed through schema_document: the config dataclasses' defaults have read several of these files already.
     root = data_dir("schemas")
     out: dict[str, dict] = {}
     for entry in root.iterdir():
         if entry.name.endswith(".json"):
-            out[entry.name] = json.loads(entry.read_text(encoding="utf-8"))
+            out[entry.name] = schema_document(entry.name)
     parts = root / "parts"
     if parts.is_dir():
         for entry in parts.iterdir():
             if entry.name.endswith(".json"):
-                out["parts/" + entry.name] = json.loads(entry.read_text(encoding="utf-8"))
+                out["parts/" + entry.name] = schema_document("parts/" + entry.name)
     return out
 
 

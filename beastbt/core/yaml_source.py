@@ -332,8 +332,53 @@ class _TooDeep(Exception):
         self.mark = mark
 
 
+_FAST_REFUSED = re.compile(r"[*&!\\\t\ufeff\x85\u2028\u2029]|^%", re.MULTILINE)
+"""What sends a document to PyYAML's own composer even when libyaml is there: aliases and anchors (counted and
+bounded by :class:`_CountingLoader`), tags, escapes, tabs, a byte-order mark, Unicode line breaks, directives."""
+
+_FAST_MAX_DEPTH = 200
+"""libyaml composes a document only when it cannot nest deeper than this (brackets, plus the longest line for the
+levels that indentation and '- ' can add): deeper ones go to PyYAML's composer, which says where it gave up."""
+
+
+def _compose_fast(text: str) -> Optional[yaml.Node]:
+    """The node graph of a plain document composed by libyaml (PyYAML's C binding, some ten times faster than
+    its Python composer: most of loading a mission or a profile), or None to compose it with :func:`_compose`.
+
+    Only a document without anything in :data:`_FAST_REFUSED` or a character PyYAML refuses, that cannot nest
+    beyond :data:`_FAST_MAX_DEPTH` and that libyaml reads without an error: every error, with its message and
+    position, is PyYAML's own. The nodes are those PyYAML composes (a plain scalar's style is None, as there).
+    """
+    if not getattr(yaml, "__with_libyaml__", False) or _FAST_REFUSED.search(text) \
+            or yaml.reader.Reader.NON_PRINTABLE.search(text):
+        return None
+    if text.count("[") + text.count("{") + max(map(len, text.splitlines()), default=0) >= _FAST_MAX_DEPTH:
+        return None
+    try:
+        root = yaml.compose(text, Loader=yaml.CSafeLoader)
+    except Exception:  # noqa: BLE001 - whatever libyaml refuses, PyYAML's composer says why, as before
+        return None
+    if root is None:
+        return None
+    stack: list[yaml.Node] = [root]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, yaml.ScalarNode):
+            if node.style == "":
+                node.style = None  # libyaml marks a plain scalar '', PyYAML None (which _Builder reads)
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
+        elif isinstance(node, yaml.MappingNode):
+            stack.extend(n for pair in node.value for n in pair)
+    return root
+
+
 def _compose(text: str) -> tuple[Optional[yaml.Node], list[tuple[str, yaml.Mark, yaml.Node]]]:
-    """The document's node graph and its alias uses (``yaml.compose`` with :class:`_CountingLoader`)."""
+    """The document's node graph and its alias uses (``yaml.compose`` with :class:`_CountingLoader`, or libyaml's
+    composer for a plain document: :func:`_compose_fast`)."""
+    fast = _compose_fast(text)
+    if fast is not None:
+        return fast, []  # no '*' in it: no alias to count
     loader = _CountingLoader(text)
     try:
         return loader.get_single_node(), loader.alias_uses

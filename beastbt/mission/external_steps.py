@@ -20,12 +20,14 @@ import copy
 from dataclasses import dataclass
 from typing import Any, Callable, Collection, Iterable, Mapping
 
+from beastbt.core.values import Value
+
 STEP_ENTRY_POINTS = "beastbt.steps"
 """Entry-point group of steps from other packages: ``keyword = "package.module:StepClass"``."""
 
 
-@dataclass(frozen=True)
-class ExternalStep:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by core.values.Value
+class ExternalStep(Value):
     """A step keyword provided by an installed package: its value's schema and its builder."""
 
     keyword: str

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import re
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -74,6 +73,8 @@ def _gpx(path: Path, want: str) -> GeoPoints:
 
 
 def _kml(path: Path, want: str) -> GeoPoints:
+    import xml.etree.ElementTree as ET  # only for a mission with a KML file: it costs every start-up otherwise
+
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:

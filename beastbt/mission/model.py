@@ -23,6 +23,7 @@ from beastbt.core.schema_defaults import schema_default
 from beastbt.mission import steps as st
 from beastbt.mission.external_steps import ExternalStep, load_external_steps, step_keywords_in, with_external_steps
 from beastbt.core.units import parse_count, parse_quantity
+from beastbt.core.values import Value
 from beastbt.core.yaml_source import MAX_NESTING, PathKey, SourceDoc, load_yaml
 
 HOME = "home"
@@ -40,8 +41,8 @@ def mission_default(pointer: str, name: str) -> Any:
     return schema_default(f"mission.schema.json#{pointer}", name)
 
 
-@dataclass(frozen=True)
-class Place:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by core.values.Value
+class Place(Value):
     """A named place: a GPS place (``lat``, ``lon``: WGS84 degrees) or a place on the mission's map (``x``, ``y``:
     metres in the map frame, ``yaw`` rad or None), and an arrival tolerance in metres."""
 
@@ -59,8 +60,8 @@ class Place:
         return self.x is not None
 
 
-@dataclass(frozen=True)
-class RawStep:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by core.values.Value
+class RawStep(Value):
     """One step as written, for the loader's own checks: its keyword, its raw value, where it sits."""
 
     kind: str
@@ -68,8 +69,8 @@ class RawStep:
     path: PathKey
 
 
-@dataclass(frozen=True)
-class Failsafe:
+@dataclass(eq=False, repr=False)  # frozen, compared and printed by core.values.Value
+class Failsafe(Value):
     """A failsafe: ``kind`` (gps_lost, battery_low, geofence, keepout, localization_lost), its SI parameters and its
     action."""
 

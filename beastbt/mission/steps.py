@@ -1,5 +1,8 @@
 """The steps and conditions of the mission language as typed values: one frozen dataclass each, SI units.
 
+Each is ``@dataclass(kw_only=True, eq=False, repr=False)`` on :class:`beastbt.core.values.Value`, which freezes,
+compares, hashes and prints it as ``@dataclass(frozen=True)`` would, with fewer methods compiled at start-up.
+
 The loader (:mod:`beastbt.mission.model`) turns what the author wrote into
 these; the compiler (:mod:`beastbt.mission.compile`) turns each into a
 behaviour. Every step knows where it was written (``at``: line and column in
@@ -15,14 +18,15 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Optional, Union
 
 from beastbt.core.errors import Position
+from beastbt.core.values import Value
 from beastbt.core.yaml_source import PathKey
 
 FOREVER = -1
 """``times``/``loops`` of ``forever``."""
 
 
-@dataclass(frozen=True, kw_only=True)
-class Step:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Step(Value):
     """What every step has: where it was written."""
 
     KEYWORD: ClassVar[str] = ""
@@ -34,7 +38,7 @@ class Step:
 
 # -- motion -----------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class DriveDistance(Step):
     """``drive: {distance: 3 m}``: drive straight for a distance (negative: backwards), by odometry."""
 
@@ -44,7 +48,7 @@ class DriveDistance(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class DriveTime(Step):
     """``drive: {time: 2 s}``: drive straight for a time."""
 
@@ -53,7 +57,7 @@ class DriveTime(Step):
     speed_mps: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class TurnBy(Step):
     """``turn: {angle: 90 deg}``: turn in place by an angle (positive: left)."""
 
@@ -63,7 +67,7 @@ class TurnBy(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class TurnToHeading(Step):
     """``turn: {heading: 90 deg}``: turn in place to a compass heading (0 north, 90 east)."""
 
@@ -73,7 +77,7 @@ class TurnToHeading(Step):
     stuck_after_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Wait(Step):
     """``wait: 2 s``: stand still for a time."""
 
@@ -81,15 +85,15 @@ class Wait(Step):
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Stop(Step):
     """``stop``: command zero and wait until the robot is still."""
 
     KEYWORD: ClassVar[str] = "stop"
 
 
-@dataclass(frozen=True, kw_only=True)
-class NavOptions:
+@dataclass(kw_only=True, eq=False, repr=False)
+class NavOptions(Value):
     """What go_to, route and return_home share; None: the robot's navigation defaults."""
 
     tolerance_m: Optional[float] = None
@@ -100,7 +104,7 @@ class NavOptions:
     """With a LiDAR: fail after this long kept from progress by obstacles (s); None: the robot's default."""
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class GoToPlace(Step, NavOptions):
     """``go_to: gate``: drive to a named place (``home`` included)."""
 
@@ -108,7 +112,7 @@ class GoToPlace(Step, NavOptions):
     place: str
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class GoToPoint(Step, NavOptions):
     """``go_to: {lat: 40.4168, lon: -3.7038}``: drive to a WGS84 point (degrees)."""
 
@@ -117,7 +121,7 @@ class GoToPoint(Step, NavOptions):
     lon_deg: float
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Route(Step, NavOptions):
     """``route: {places: [a, b, c], loops: 2}``: go to each place in order, ``loops`` times (-1: forever)."""
 
@@ -128,7 +132,7 @@ class Route(Step, NavOptions):
     """After a pause: ``current`` place, or the ``nearest`` remaining one."""
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ReturnHome(Step, NavOptions):
     """``return_home``: drive back to where the mission started (its first good GPS fix)."""
 
@@ -137,7 +141,7 @@ class ReturnHome(Step, NavOptions):
     """``straight`` home, or ``path``: back along the path driven so far."""
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class FollowLine(Step):
     """``follow_line: {until: intersection}``: follow the line on the floor until something happens.
 
@@ -154,7 +158,7 @@ class FollowLine(Step):
 
 # -- the camera, servos, the operator ---------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Look(Step):
     """``look: {pan: -45 deg, tilt: 10 deg}``: point the camera's gimbal."""
 
@@ -164,7 +168,7 @@ class Look(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ServoAngle(Step):
     """``servo: {name: arm, angle: 30 deg}``: move a named servo to an angle."""
 
@@ -174,7 +178,7 @@ class ServoAngle(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class ServoPulse(Step):
     """``servo: {channel: 1, pulse: 1.5 ms}``: send a raw pulse width to a PWM channel."""
 
@@ -184,7 +188,7 @@ class ServoPulse(Step):
     settle_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Snapshot(Step):
     """``snapshot: {name: gate}``: save a camera frame into the run folder."""
 
@@ -192,7 +196,7 @@ class Snapshot(Step):
     name: str
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Say(Step):
     """``say: text``: log a message (and show it to the operator)."""
 
@@ -200,7 +204,7 @@ class Say(Step):
     text: str
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Teleop(Step):
     """``teleop: {for: 30 s}`` or ``teleop: {until: released}``: hand the robot to the joystick's operator."""
 
@@ -211,88 +215,88 @@ class Teleop(Step):
 
 # -- conditions --------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True)
-class Flag:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Flag(Value):
     """A condition word: ``intersection``, ``line_seen``, ``gps_fix``, ``teleop_active``, ``localized``."""
 
     word: str
 
 
-@dataclass(frozen=True, kw_only=True)
-class BatteryBelow:
+@dataclass(kw_only=True, eq=False, repr=False)
+class BatteryBelow(Value):
     """``{battery_below: 11 V}``."""
 
     volts: float
 
 
-@dataclass(frozen=True, kw_only=True)
-class Near:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Near(Value):
     """``{near: gate, within: 3 m}``: the fused position is within ``within_m`` of a place (``home`` included)."""
 
     place: str
     within_m: float
 
 
-@dataclass(frozen=True, kw_only=True)
-class Elapsed:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Elapsed(Value):
     """``{elapsed: 10 min}``: mission time since the start, s."""
 
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True)
-class Not:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Not(Value):
     """``{not: CONDITION}``."""
 
     condition: "Condition"
 
 
-@dataclass(frozen=True, kw_only=True)
-class AllOf:
+@dataclass(kw_only=True, eq=False, repr=False)
+class AllOf(Value):
     """``{all: [CONDITION, ...]}``."""
 
     conditions: tuple["Condition", ...]
 
 
-@dataclass(frozen=True, kw_only=True)
-class AnyOf:
+@dataclass(kw_only=True, eq=False, repr=False)
+class AnyOf(Value):
     """``{any: [CONDITION, ...]}``."""
 
     conditions: tuple["Condition", ...]
 
 
-@dataclass(frozen=True, kw_only=True)
-class DistanceTravelled:
+@dataclass(kw_only=True, eq=False, repr=False)
+class DistanceTravelled(Value):
     """``{distance_travelled: 5 m}``: odometry distance since the enclosing guard block started, m."""
 
     distance_m: float
 
 
-@dataclass(frozen=True, kw_only=True)
-class TimeInBlock:
+@dataclass(kw_only=True, eq=False, repr=False)
+class TimeInBlock(Value):
     """``{time_in_block: 30 s}``: time since the enclosing guard block started, s."""
 
     duration_s: float
 
 
-@dataclass(frozen=True, kw_only=True)
-class Answered:
+@dataclass(kw_only=True, eq=False, repr=False)
+class Answered(Value):
     """``{answered: ID, is: yes|no}``: the question ``ID`` was answered so."""
 
     question_id: str
     choice: str
 
 
-@dataclass(frozen=True, kw_only=True)
-class InFence:
+@dataclass(kw_only=True, eq=False, repr=False)
+class InFence(Value):
     """``{inside: FENCE}`` / ``{outside: FENCE}``: where the fused position is with respect to a fence."""
 
     fence: str
     inside: bool
 
 
-@dataclass(frozen=True, kw_only=True)
-class ObstacleWithin:
+@dataclass(kw_only=True, eq=False, repr=False)
+class ObstacleWithin(Value):
     """``{obstacle_within: 0.5 m, sector_deg: [-30, 30]}``: the LiDAR sees something within ``gap_m`` of the
     footprint (free space, m), in the sector from ``sector_rad[0]`` counterclockwise to ``sector_rad[1]`` (base_link,
     rad, 0 ahead) or all around (None)."""
@@ -308,7 +312,7 @@ Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, Distance
 
 # -- flow ---------------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Repeat(Step):
     """``repeat: {times: 3, steps: [...]}``: run the steps ``times`` times (-1: forever); fails when they fail."""
 
@@ -317,7 +321,7 @@ class Repeat(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Retry(Step):
     """``retry: {times: 3, steps: [...]}``: run the steps until they succeed, at most ``times`` attempts."""
 
@@ -326,7 +330,7 @@ class Retry(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Timeout(Step):
     """``timeout: {after: 2 min, steps: [...]}``: the steps fail when they take longer than ``after_s``."""
 
@@ -335,7 +339,7 @@ class Timeout(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Parallel(Step):
     """``parallel: {steps: [...], succeed_on: all|one}``: run the steps together."""
 
@@ -344,7 +348,7 @@ class Parallel(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class FirstOf(Step):
     """``first_of: [[...], [...]]``: try each list of steps in turn until one succeeds."""
 
@@ -352,7 +356,7 @@ class FirstOf(Step):
     alternatives: tuple[tuple[Step, ...], ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Do(Step):
     """``do: task``: run a task of the mission by name."""
 
@@ -362,7 +366,7 @@ class Do(Step):
     """``(parameter, value as written)`` pairs of ``do: {task, ...}``, sorted; empty: the task's defaults."""
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class If(Step):
     """``if: CONDITION, then: [...], else: [...]``: choose once, when the step starts."""
 
@@ -372,7 +376,7 @@ class If(Step):
     otherwise: Optional[tuple[Step, ...]] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class While(Step):
     """``while: CONDITION, steps: [...]``: run the steps again and again while the condition holds."""
 
@@ -381,7 +385,7 @@ class While(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class UntilBlock(Step):
     """``until: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and succeed."""
 
@@ -390,7 +394,7 @@ class UntilBlock(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class AbortIf(Step):
     """``abort_if: CONDITION, steps: [...]``: run the steps; when the condition holds, halt them and fail."""
 
@@ -399,7 +403,7 @@ class AbortIf(Step):
     steps: tuple[Step, ...]
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class Ask(Step):
     """``ask: {id, question, timeout, default}, then: [...], else: [...]``: ask the operator yes or no, then choose."""
 
@@ -413,7 +417,7 @@ class Ask(Step):
     otherwise: tuple[Step, ...] = ()
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class WaitUntil(Step):
     """``wait_until: CONDITION, timeout: 30 s``: stand still until the condition holds (fails after the timeout)."""
 
@@ -422,7 +426,7 @@ class WaitUntil(Step):
     timeout_s: Optional[float] = None
 
 
-@dataclass(frozen=True, kw_only=True)
+@dataclass(kw_only=True, eq=False, repr=False)
 class PluginStep(Step):
     """A step of an installed package (``beastbt.steps`` entry points): its keyword and its value as written."""
 
@@ -444,5 +448,5 @@ def keyword_of(step: Step) -> str:
 
 
 __all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
-    "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
+    "Value", "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
     "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "InFence", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]

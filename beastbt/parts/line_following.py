@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Any, Mapping, Optional
 
 import py_trees
 
-from beastbt.behaviours.follow_line import FollowLine, FollowLineConfig
 from beastbt.behaviours.operator import NotAvailable
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.mission import steps as st
@@ -29,7 +28,10 @@ from beastbt.robot.part import Part
 from beastbt.robot.profile import section_config
 from beastbt.run.session import Prepared
 
-if TYPE_CHECKING:  # OpenCV comes with these: imported only for a run that has a camera
+if TYPE_CHECKING:
+    # OpenCV comes with the camera pipeline: imported only for a run that has a camera. The follow_line behaviour
+    # is imported where a leaf is made or a run installed: `beastbt tree` loads this part (for its step) without it.
+    from beastbt.behaviours.follow_line import FollowLine
     from beastbt.vision.camera_pipeline import CameraPipeline
 
 CAMERA_STEPS = frozenset({"follow_line", "snapshot"})
@@ -50,6 +52,7 @@ def _follow_line(c: Compiler, s: st.FollowLine) -> py_trees.behaviour.Behaviour:
     name = f"follow line {label}" + (f" at {format_quantity(s.speed_mps, 'speed')}" if s.speed_mps is not None else "")
     if "camera" not in c.ctx.capabilities:
         return NotAvailable(name, c.ctx, "follow_line needs a camera, and this robot has none (add a camera: section)")
+    from beastbt.behaviours.follow_line import FollowLine
     return FollowLine(name, c.ctx, s.until, s.amount, s.speed_mps, s.lost_after_s)
 
 
@@ -79,6 +82,7 @@ def camera_uses(data: Any) -> list[str]:
 
 def follow_nodes(root: py_trees.behaviour.Behaviour) -> list[FollowLine]:
     """Every follow_line leaf of a compiled tree."""
+    from beastbt.behaviours.follow_line import FollowLine
     return [n for n in root.iterate() if isinstance(n, FollowLine)]
 
 
@@ -86,6 +90,7 @@ def install_vision(prepared: Prepared) -> None:
     """The camera and follower services; the camera on if the mission uses it; in the simulator, score it."""
     run = prepared.run
     profile = prepared.profile
+    from beastbt.behaviours.follow_line import FollowLineConfig
     follower: FollowLineConfig = section_config(profile, "line_follower", FollowLineConfig)
     run.ctx.services.line_follower = follower
     pipeline: Optional["CameraPipeline"] = run.io.camera

@@ -24,14 +24,16 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any, Deque, Optional
+from typing import TYPE_CHECKING, Any, Deque, Optional
 
 from beastbt.behaviours.navigation import Visit, visit_log
 from beastbt.blackboard.types import GpsFix
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import distance_m
-from beastbt.run.runner import TickRecord
 from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # annotations only: `beastbt tree` loads the navigation part without a run
+    from beastbt.run.runner import TickRecord
 
 
 ERRORS_KEPT = 12000

@@ -36,14 +36,14 @@ from beastbt.mission.model import HOME
 from beastbt.core.events import EventLog
 from beastbt.core.schema_defaults import schema_default
 from beastbt.robot.profile import RobotProfile, section_config
-from beastbt.robot.robot_io import RobotIO
 from beastbt.parts.nav_summary import contribute, install_truth
 from beastbt.parts.navigation_steps import NAVIGATION_STEPS
 from beastbt.robot.part import Build, Part
-from beastbt.run.runner import MissionRun
 from beastbt.run.session import Prepared
 
 if TYPE_CHECKING:  # the EKF (filterpy, scipy) is imported only for a robot that fuses GPS or IMU
+    from beastbt.robot.robot_io import RobotIO
+    from beastbt.run.runner import MissionRun  # annotations only: `beastbt tree` loads this part without a run
     from beastbt.estimation.ekf import EkfEstimator
     from beastbt.navigation.local_navigator import LocalNavigator
 

@@ -43,24 +43,24 @@ is involved, in the run's ``mux`` events.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional
+from typing import TYPE_CHECKING, Any, Mapping, Optional
 
 import py_trees
 
-from beastbt.actuation.teleop import TeleopConfig, TeleopTwistJoy
 from beastbt.behaviours.teleop import JOYSTICK_MAX_AGE_S, TeleopStep
 from beastbt.blackboard.types import JoystickState
-from beastbt.devices.joystick import BUTTON_ENABLE
 from beastbt.mission.compile import Compiler, StepBuilder
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.mission import steps as st
 from beastbt.core.units import format_quantity
-from beastbt.devices.gamepad_presets import SIMULATED_PAD_NAME
-from beastbt.robot.actuator_profile import joystick_mapping, teleop_config
 from beastbt.robot.part import Part
-from beastbt.run.runner import MissionRun
-from beastbt.run.safety import request_estop, reset_estop, watchdog_of
 from beastbt.run.session import Prepared
+
+if TYPE_CHECKING:  # annotations only: `beastbt tree` loads this part (for its steps) without a run
+    from beastbt.actuation.teleop import TeleopConfig
+    from beastbt.run.runner import MissionRun
+# The teleop mapping, the gamepad presets and the e-stop wiring are imported by the run's own code below (the
+# override, the scripted joystick, the summary), not here: `beastbt tree` loads this part for its step only.
 
 Status = py_trees.common.Status
 
@@ -81,8 +81,13 @@ class TeleopOverride:
     """
 
     def __init__(self, run: MissionRun, config: Optional[TeleopConfig] = None) -> None:
+        from beastbt.actuation.teleop import TeleopTwistJoy
+        from beastbt.devices.joystick import BUTTON_ENABLE
+
         self.run = run
         self.teleop = TeleopTwistJoy(config)
+        self._button_enable = BUTTON_ENABLE
+        """The ``JoystickState.buttons`` key of the enable (dead-man) button (``devices.joystick.BUTTON_ENABLE``)."""
         self.handovers: set[int] = set()
         """Teleop steps running now (the operator drives without pausing the mission)."""
         self.operator_control: Optional[str] = None
@@ -153,7 +158,7 @@ class TeleopOverride:
         if js is None or not js.connected or now_s - js.stamp_s > JOYSTICK_MAX_AGE_S:
             js = None
         remote = self.remote
-        if remote is not None and (js is None or remote.buttons.get(BUTTON_ENABLE, False)):
+        if remote is not None and (js is None or remote.buttons.get(self._button_enable, False)):
             return remote
         return js
 
@@ -185,7 +190,8 @@ class TeleopOverride:
             self._on_release(run, now_s)
         # As the catalogue says: the operator holds enable (even where teleop may not drive, so that a
         # teleop: false mission can wait for it).
-        run.bb.teleop_active = self.teleop.active or (js is not None and bool(js.buttons.get(BUTTON_ENABLE, False)))
+        held = js is not None and bool(js.buttons.get(self._button_enable, False))
+        run.bb.teleop_active = self.teleop.active or held
 
     def _report_mux(self, run: MissionRun) -> None:
         source = run.mux.source
@@ -195,11 +201,13 @@ class TeleopOverride:
             self.last_source = source
 
     def _estop_buttons(self, run: MissionRun, js: Optional[JoystickState]) -> None:
-        pressed = TeleopTwistJoy.estop_pressed(js)
+        pressed = self.teleop.estop_pressed(js)
         if pressed and not run.mux.estop_latched:
+            from beastbt.run.safety import request_estop
             request_estop(run, "joystick e-stop button")
-        reset = TeleopTwistJoy.estop_reset_pressed(js)
+        reset = self.teleop.estop_reset_pressed(js)
         if reset and not self.reset_was_pressed and not pressed and run.mux.estop_latched:
+            from beastbt.run.safety import reset_estop
             reset_estop(run, "joystick reset button")
         self.reset_was_pressed = reset
 
@@ -279,7 +287,9 @@ def attach_joystick_script(prepared: Prepared) -> None:
         raise InvalidInput([Problem(str(spec), Position(), "--joystick plays a scripted joystick on the simulator only",
                                     "add --sim to run this robot profile on the simulator, or drop --joystick "
                                     "to drive with the real gamepad")])
+    from beastbt.devices.gamepad_presets import SIMULATED_PAD_NAME
     from beastbt.parts.sim_joystick import attach_scripted_joystick, load_joystick_script
+    from beastbt.robot.actuator_profile import joystick_mapping
     mapping = joystick_mapping(prepared.profile).for_device(SIMULATED_PAD_NAME)[0]  # the sim's pad: an Xbox layout
     script = load_joystick_script(spec, mapping)
     attach_scripted_joystick(io.sim, io, prepared.clock, prepared.events, script, mapping)
@@ -288,6 +298,8 @@ def attach_joystick_script(prepared: Prepared) -> None:
 
 def teleop_summary(run: Any, summary: dict) -> None:
     """``teleop: {joystick, takeovers, teleop_time_s, estop_latched, watchdog_trips}``."""
+    from beastbt.run.safety import watchdog_of
+
     override = run.ctx.services.teleop
     dog = watchdog_of(run)
     if not isinstance(override, TeleopOverride):
@@ -320,6 +332,8 @@ class TeleopPart(Part):
 
     def install(self, prepared: Prepared) -> None:
         """A scripted joystick if asked for; the override and its handlers as services; the summary."""
+        from beastbt.robot.actuator_profile import teleop_config
+
         attach_joystick_script(prepared)
         run = prepared.run
         override = self.override = TeleopOverride(run, teleop_config(run.profile))

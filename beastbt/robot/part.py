@@ -43,9 +43,9 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Mapping, Op
 from beastbt.core.clock import Clock
 from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
-from beastbt.robot.robot_io import RobotIO
 
-if TYPE_CHECKING:  # only for annotations: the run and the simulator are built elsewhere
+if TYPE_CHECKING:  # only for annotations: the run, the robot's ports and the simulator are built elsewhere
+    from beastbt.robot.robot_io import RobotIO
     from beastbt.estimation.estimator import Estimator
     from beastbt.mission.compile import StepBuilder
     from beastbt.run.runner import MissionRun

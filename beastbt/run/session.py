@@ -15,7 +15,7 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Optional, TextIO, Union
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Optional, TextIO, Union
 
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock, SimClock, WallClock
@@ -23,9 +23,11 @@ from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
 from beastbt.run.run_folder import RunFolder, save_text
 from beastbt.run.operator_inputs import TERMINAL
-from beastbt.run.runner import MissionRun
 from beastbt.run.summary import build_summary
-from beastbt.sim.world import World
+
+if TYPE_CHECKING:  # annotations only: the parts import Prepared, and `beastbt tree` needs no tick loop nor world
+    from beastbt.run.runner import MissionRun
+    from beastbt.sim.world import World
 
 DEFAULT_SIM_MAX_TIME_S = 3600.0
 """A simulated run with no --max-time ends after this much simulated time (s)."""
