@@ -37,6 +37,7 @@ import os
 import select
 import shutil
 import signal
+import struct
 import sys
 import time
 from pathlib import Path
@@ -345,9 +346,78 @@ class _RecordStream:
         self._buffer = bytearray()
 
 
-# -- the recorder -----------------------------------------------------------------------------
-
 # -- the writer -----------------------------------------------------------------------------------------
+
+_MESSAGE_RECORD = struct.Struct("<BQHIQQ")
+"""An MCAP Message record's opcode (0x05), length (22 + data) and fields before the data, as ``mcap`` writes them."""
+
+_MCAP_WRITER_PARTS = ("_Writer__statistics", "_Writer__chunk_builder", "_Writer__chunk_size", "_Writer__finalize_chunk")
+
+_fast_writer: Optional[type] = None
+
+
+def mcap_writer_class() -> type:
+    """``mcap.writer.Writer`` with a cheaper ``add_message`` for chunked files (built at the first call).
+
+    ``mcap``'s own ``add_message`` costs about 3.3 us a message here (a
+    Message object, then six writes and two seeks into the chunk's buffer),
+    a third of the writer process's time. This one updates the same
+    statistics, chunk bounds and message indexes and writes the same record
+    bytes in two writes (``tests/test_recording_writer.py`` compares whole
+    files byte for byte with ``mcap``'s). It uses the writer's private
+    parts; when they are not there (another ``mcap`` version) or the file is
+    not chunked, ``mcap``'s own ``add_message`` runs.
+    """
+    global _fast_writer
+    if _fast_writer is not None:
+        return _fast_writer
+    from mcap.records import MessageIndex
+    from mcap.writer import Writer
+
+    class FastWriter(Writer):  # type: ignore[misc, valid-type]
+        """``mcap.writer.Writer`` whose chunked ``add_message`` writes the record in one go (same bytes)."""
+
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            chunks = getattr(self, "_Writer__chunk_builder", None)
+            self._fast = (all(hasattr(self, name) for name in _MCAP_WRITER_PARTS) and chunks is not None
+                          and all(hasattr(chunks, a) for a in ("message_indices", "num_messages", "record_writer",
+                                                                 "message_start_time", "message_end_time"))
+                          and hasattr(chunks.record_writer, "_buffer"))
+
+        def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
+                        sequence: int = 0) -> None:
+            """Add a message to the current chunk (as ``mcap``'s ``add_message`` does, in fewer steps)."""
+            if not self._fast:
+                return super().add_message(channel_id=channel_id, log_time=log_time, data=data,
+                                           publish_time=publish_time, sequence=sequence)
+            stats = self._Writer__statistics
+            if stats.message_count == 0 or log_time < stats.message_start_time:
+                stats.message_start_time = log_time
+            if log_time > stats.message_end_time:
+                stats.message_end_time = log_time
+            stats.channel_message_counts[channel_id] += 1
+            stats.message_count += 1
+            chunk = self._Writer__chunk_builder
+            if chunk.num_messages == 0 or log_time < chunk.message_start_time:
+                chunk.message_start_time = log_time
+            if log_time > chunk.message_end_time:
+                chunk.message_end_time = log_time
+            buffer = chunk.record_writer._buffer  # a new one after each chunk
+            index = chunk.message_indices.get(channel_id)
+            if not index:
+                index = chunk.message_indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+            index.records.append((log_time, buffer.tell()))
+            chunk.num_messages += 1
+            buffer.write(_MESSAGE_RECORD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time))
+            buffer.write(data)
+            if buffer.tell() > self._Writer__chunk_size:
+                self._Writer__finalize_chunk()
+            return None
+
+    _fast_writer = FastWriter
+    return FastWriter
+
 
 
 class _NoFile:
@@ -405,7 +475,7 @@ class RunFileWriter:
 
     def __init__(self, paths: list[Path], config: RecordingConfig, info: dict,
                  attachments: list[tuple[str, str, bytes]], live: Optional[LiveServer] = None) -> None:
-        from mcap.writer import Writer
+        Writer = mcap_writer_class()
         self.config = config
         self.messages = 0
         self.dropped = 0
