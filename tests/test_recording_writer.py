@@ -210,3 +210,42 @@ def test_the_faster_mcap_message_writer_writes_the_same_bytes_as_mcaps_own():
     assert fast(io.BytesIO(), chunk_size=1000)._fast  # the fast path is the one compared (not mcap's fallback)
     for chunk_size in (1 << 20, 2000):
         assert write(fast, chunk_size) == write(Writer, chunk_size)
+
+
+def _reference_scan_json(scan) -> bytes:
+    """/scan as it was written before the writer skipped np.unwrap and the lists: the reference text."""
+    from beastbt.recording import foxglove as fx
+    from beastbt.recording.writer import encode_json
+    angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
+    ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
+    n = len(angles)
+    return encode_json({"timestamp": fx.fox_time(7), "frame_id": fx.LIDAR_FRAME, "pose": fx.planar_pose(0.0, 0.0, 0.0),
+                        "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
+                        "ranges": np.round(ranges, 5).tolist(),
+                        "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist(),
+                        "stamp_s": float(scan.stamp_s), "scan_rate_hz": float(scan.scan_rate_hz),
+                        "model": str(scan.model), "source": "lidar"})
+
+
+def test_the_scan_message_is_the_same_text_as_np_unwrap_and_lists_give():
+    from beastbt.blackboard.types import LaserScan
+    from beastbt.recording import foxglove as fx
+    from beastbt.recording.writer import encode_json
+    rng = np.random.default_rng(3)
+    cases = []
+    for k in range(40):  # LD19-like revolutions (clockwise, wrapping at -pi) and A1-like ones, jittered
+        n = int(rng.integers(2, 500))
+        step = rng.choice([-1.0, 1.0]) * 2 * np.pi / n * rng.uniform(0.9, 1.1)
+        raw = rng.uniform(-np.pi, np.pi) + step * np.arange(n) + rng.normal(0.0, 1e-3, n)
+        cases.append((raw + np.pi) % (2 * np.pi) - np.pi)
+    cases += [np.array([]), np.array([-0.0]), np.array([0.5, -0.0]), np.array([-np.pi, np.pi, -np.pi]),
+              np.array([3.0, -3.0, 3.0, -3.0]), np.array([0.1, np.nan, 0.3]), np.array([np.pi, 0.0]),
+              np.array([1.0, 1.0 + np.pi, 1.0]), np.linspace(0, 6, 7, dtype=np.float32)]
+    for angles in cases:
+        n = len(angles)
+        ranges = rng.uniform(0.02, 12.0, n).round(3)
+        ranges[rng.random(n) < 0.1] = np.nan
+        if n > 2:
+            ranges[1], ranges[2] = np.inf, -np.inf
+        scan = LaserScan(1.5, angles, ranges, rng.integers(0, 256, n).astype(float), 10.0, "ld19")
+        assert encode_json(fx.laser_scan(7, scan, "lidar")) == _reference_scan_json(scan), angles

@@ -666,7 +666,23 @@ class McapRecorder:
 
 def _used_only(readings: list, tags: tuple, skip: frozenset) -> tuple[list, tuple]:
     """``readings`` without those of a type in ``skip``, and the (base tagged, tags) that go with what is left."""
-    sources = reading_sources(tags[0], tags[1], len(readings))
+    polls = tags[1]
+    if polls and sum(k for _, k in polls) == len(readings):
+        # Every reading's poll is known (each tick, when the base is tagged): keep poll by poll.
+        kept: list = []
+        runs: list[tuple[str, int]] = []
+        i = 0
+        for name, k in polls:
+            part = [r for r in readings[i:i + k] if r.__class__ not in skip]
+            i += k
+            if part:
+                kept += part
+                if runs and runs[-1][0] == name:
+                    runs[-1] = (name, runs[-1][1] + len(part))
+                else:
+                    runs.append((name, len(part)))
+        return kept, (True, tuple(runs))
+    sources = reading_sources(tags[0], polls, len(readings))
     kept = [(r, src) for r, src in zip(readings, sources or [None] * len(readings)) if r.__class__ not in skip]
     if sources is None:
         return [r for r, _ in kept], (tags[0], ())  # sources unknown before, unknown still

@@ -32,6 +32,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import errno
+import itertools
 import json
 import os
 import select
@@ -363,7 +364,8 @@ def mcap_writer_class() -> type:
     Message object, then six writes and two seeks into the chunk's buffer),
     a third of the writer process's time. This one updates the same
     statistics, chunk bounds and message indexes and writes the same record
-    bytes in two writes (``tests/test_recording_writer.py`` compares whole
+    bytes in two writes, and each chunk's message indexes in one pack a
+    channel (``tests/test_recording_writer.py`` compares whole
     files byte for byte with ``mcap``'s). It uses the writer's private
     parts; when they are not there (another ``mcap`` version) or the file is
     not chunked, ``mcap``'s own ``add_message`` runs.
@@ -373,6 +375,18 @@ def mcap_writer_class() -> type:
         return _fast_writer
     from mcap.records import MessageIndex
     from mcap.writer import Writer
+
+    class FastMessageIndex(MessageIndex):  # type: ignore[misc, valid-type]
+        """A chunk's index of one channel's messages, written in one pack (``mcap``'s writes two per message)."""
+
+        def write(self, stream: Any) -> None:
+            """Write the MessageIndex record (the same bytes as ``mcap``'s)."""
+            records = self.records
+            stream.start_record(0x07)  # Opcode.MESSAGE_INDEX
+            stream.write2(self.channel_id)
+            stream.write4(len(records) * 16)
+            stream.write(struct.pack(f"<{2 * len(records)}Q", *itertools.chain.from_iterable(records)))
+            stream.finish_record()
 
     class FastWriter(Writer):  # type: ignore[misc, valid-type]
         """``mcap.writer.Writer`` whose chunked ``add_message`` writes the record in one go (same bytes)."""
@@ -406,7 +420,7 @@ def mcap_writer_class() -> type:
             buffer = chunk.record_writer._buffer  # a new one after each chunk
             index = chunk.message_indices.get(channel_id)
             if not index:
-                index = chunk.message_indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+                index = chunk.message_indices[channel_id] = FastMessageIndex(channel_id=channel_id, records=[])
             index.records.append((log_time, buffer.tell()))
             chunk.num_messages += 1
             buffer.write(_MESSAGE_RECORD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time))
