@@ -400,7 +400,7 @@ class McapRecorder:
         readings = rec.readings
         tags = self._take_tags()
         skip = self._unused
-        if skip and readings and any(r.__class__ in skip for r in readings):
+        if skip and readings:
             readings, tags = _used_only(readings, tags, skip)
         for i, r in enumerate(readings):
             if r.__class__ is CameraFrame:
