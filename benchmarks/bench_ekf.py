@@ -49,6 +49,10 @@ def main(ticks: int = 20000, gps_hz: float = 1.0, imu_per_tick: int = 2) -> None
     elapsed = time.perf_counter() - start
     print(f"EkfEstimator.update: {elapsed / ticks * 1e6:.1f} us per call "
           f"({ticks} calls, GPS {gps_hz:g} Hz, {imu_per_tick} IMU samples per call)")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("bench_ekf")
+    figures.put(f"gps_{gps_hz:g}hz".replace(".", "_") + ".update_us", elapsed / ticks * 1e6)
+    figures.save()
 
 
 if __name__ == "__main__":

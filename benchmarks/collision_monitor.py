@@ -51,6 +51,7 @@ from beastbt.devices.lidar_scan import LidarConfig, LidarMounting  # noqa: E402
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap  # noqa: E402
 from fake_ld19 import SyntheticRoom, ld19_packet  # noqa: E402
 
+from figures import Figures  # noqa: E402  (benchmarks/figures.py)
 from lidar_decode import Port  # noqa: E402  (benchmarks/ is on the path as the script's own folder)
 
 
@@ -210,6 +211,16 @@ def main() -> None:
           f"{us(zones_shapely):5.0f} us; baselines: numpy even-odd {us(zones_ours):5.0f} us (ratio "
           f"{us(zones_ours) / us(zones_shapely):.1f}), matplotlib contains_points {us(zones_mpl):5.0f} us "
           f"(ratio {us(zones_mpl) / us(zones_shapely):.1f})")
+    figures = Figures("collision_monitor")  # saved for benchmarks/check_docs.py (benchmarks/figures.py prints them)
+    for key, value in (("decode_us", us(decode)), ("decode_50ms_reads_us", us(decode20)),
+                       ("monitor_new_scan_us", us(fresh)), ("monitor_same_scan_us", us(cached)),
+                       ("costmap_us", us(costmap_us)), ("costmap_scipy_us", us(costmap_scipy)),
+                       ("costmap_scipy_ratio", us(costmap_scipy) / us(costmap_us)), ("total_us", total),
+                       ("total_50ms_reads_us", tick), ("total_pct", total * 10 / 1e4),
+                       ("total_50ms_reads_pct", tick * 10 / 1e4), ("zones_shapely_us", us(zones_shapely)),
+                       ("zones_even_odd_us", us(zones_ours)), ("zones_matplotlib_us", us(zones_mpl))):
+        figures.put(key, value)
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -49,6 +49,8 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Optional
 
+from figures import Figures  # benchmarks/figures.py, beside this script
+
 REPO = Path(__file__).resolve().parent.parent
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
@@ -159,6 +161,10 @@ def run_once(mission: Path, console: bool, speed: str = "max", max_time_s: Optio
     return out
 
 
+FIGURES = Figures("console")
+"""The figures this run prints, saved at its end for benchmarks/check_docs.py (benchmarks/figures.py)."""
+
+
 def spread(values: list[float], fmt: str = "{:.1f}") -> str:
     """Median with the spread: ``median (min..max)``."""
     return f"{fmt.format(statistics.median(values))} ({fmt.format(min(values))}..{fmt.format(max(values))})"
@@ -203,6 +209,12 @@ def realtime_cpu(reps: int, seconds: float, mjpeg: bool = True) -> None:
             print(f"   {'':10s}  viewer got {spread(row['fps'])} fps, {spread(row['mbps'], '{:.2f}')} Mbit/s, "
                   f"{statistics.median(row['passed']) * 100:.0f} % of frames the camera's own JPEG untouched; "
                   f"the console process's start-up {spread(row['startup'], '{:.2f}')} s of CPU (not in the shares)")
+        FIGURES.spread("anchor_pct", anchor, 100)
+        for name, _ in subjects:
+            key = name.replace(" ", "_").lower()
+            for part, scale in (("console", 100), ("run", 100), ("total", 100), ("fps", 1), ("mbps", 1),
+                                ("startup", 1)):
+                FIGURES.spread(f"{key}.{part}{'_pct' if scale == 100 else ''}", rows[name][part], scale)
         print("   goals: console process <= 5 % (fake MJPEG, the robot's camera path), <= 10 % (sim camera); the fake "
               "MJPEG camera's rendering and encoding stand for the camera's hardware and are in 'the run's process'")
 
@@ -231,6 +243,12 @@ def tick_cost(reps: int, passes: int) -> None:
         print(f"   wall time per tick: ratio {spread(wall_ratio, '{:.3f}')} (the console's process and the viewer "
               f"share the machine's cores with the loop)")
         print(f"   the loop thread's own CPU per tick: ratio {spread(cpu_ratio, '{:.3f}')}")
+        FIGURES.spread("tick.anchor_us", base_us)
+        FIGURES.spread("tick.console_us", with_us)
+        FIGURES.spread("tick.wall_ratio", wall_ratio)
+        FIGURES.spread("tick.loop_cpu_ratio", cpu_ratio)
+        FIGURES.spread("api.p50_ms", p50)
+        FIGURES.spread("api.p99_ms", p99)
         if p99:
             print(f"3. GET /api/state polled back to back during full-speed runs: p50 {spread(p50, '{:.2f}')} ms, "
                   f"p99 {spread(p99, '{:.2f}')} ms per rep (goal p99 < 20 ms)")
@@ -294,6 +312,10 @@ def video_at_browser(seconds: float, mission: str) -> None:
         print(f"   frame age capture->canvas: p50 {ages[len(ages) // 2]:.0f} ms  p95 {ages[int(len(ages) * 0.95)]:.0f} ms  "
               f"max {ages[-1]:.0f} ms")
         print(f"   mission time after {span:.1f} s of watching: {state['time_s']:.1f} s (realtime: it kept pace)")
+        key = f"browser.{Path(mission).stem}"
+        FIGURES.put(f"{key}.fps", fps)
+        FIGURES.put(f"{key}.mbps", mbps)
+        FIGURES.put(f"{key}.age_p95_ms", ages[int(len(ages) * 0.95)])
 
 
 def main() -> None:
@@ -320,6 +342,7 @@ def main() -> None:
         # the camera, so the console's process renders the simulated view itself, at the camera's rate.
         for mission in ("line_to_intersection.yaml", "patrol.yaml"):
             video_at_browser(args.video_seconds, mission)
+    FIGURES.save()  # benchmarks/results/console.json, quoted by docs/console.md and docs/performance.md
 
 
 if __name__ == "__main__":

@@ -149,6 +149,14 @@ def main() -> None:
           f"(an upper bound: states go out every 0.175 s); target wheels at zero < 500 ms")
     print(f"bandwidth of one robot (state + events, no video): idle {idle_bw:.1f} kB/s, running {running_bw:.1f} "
           f"kB/s; target < 50")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("fleet")
+    for key, value in (("station_baseline_pct", baseline), ("station_idle_pct", idle),
+                       ("station_running_pct", running), ("command_p50_ms", p50), ("command_p99_ms", p99),
+                       ("estop_all_ms", 1000 * stop_s), ("idle_kbps", idle_bw), ("running_kbps", running_bw)):
+        figures.put(key, value)
+    figures.put("robots", n)
+    figures.save()
 
 
 def _up(base: str) -> bool:

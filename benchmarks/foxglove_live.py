@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import socket
 import statistics
 import subprocess
@@ -155,6 +156,17 @@ def main() -> None:
         ticks = args.sim_s * 20
         m, b = (statistics.median(v) for v in zip(*received))
         print(f"   the client got {m:.0f} messages ({b / 1e6:.1f} MB) per run, {m / ticks:.0f} per tick")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("foxglove_live")
+    for mode in MODES:
+        key = re.sub(r"[^a-z0-9]+", "_", mode.lower()).strip("_")
+        figures.put(f"{key}.tick_us", trimmed[mode] * 1e6)
+        figures.put(f"{key}.writer_us", statistics.median(writer_cpu[mode]) * 1e6)
+    figures.put("client_vs_none_pct", 100 * client_vs_none)
+    figures.put("live_vs_recorded_pct", 100 * (trimmed["live, no client"] / trimmed["recorded"] - 1))
+    if received:  # a client that got nothing measured nothing: the figure says so
+        figures.put("client_messages_per_run", statistics.median(m for m, _ in received))
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ import numpy as np  # noqa: E402
 from beastbt.mapping.occupancy_map import FREE, UNKNOWN, OccupancyMap, empty_map  # noqa: E402
 from beastbt.mapping.rasterise import mark_outlines  # noqa: E402
 from beastbt.navigation.global_planner import GlobalCostmap, GlobalPlannerConfig, plan_path  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 
 FOOTPRINT_M = 0.15
 
@@ -143,6 +144,9 @@ def main() -> None:
     t_costmap, costmap = median_s(lambda: GlobalCostmap(grid, cfg, FOOTPRINT_M), args.reps)
     t_graph, _ = median_s(lambda: costmap.graph().set_costs(costmap.cost, cfg.cost_weight), args.reps)
     print(f"costmap (once per map): inflation {t_costmap * 1000:.0f} ms, step costs {t_graph * 1000:.0f} ms")
+    figures = Figures("global_planner")  # saved for benchmarks/check_docs.py (benchmarks/figures.py prints them)
+    figures.put("inflation_ms", t_costmap * 1000)
+    figures.put("step_costs_ms", t_graph * 1000)
     start = (2.5, 2.5)
     for label, goal in (("corner to corner", (37.5, 37.5)), ("along one side", (37.5, 2.5)),
                         ("half way", (22.5, 17.5))):
@@ -156,7 +160,15 @@ def main() -> None:
               f"({t_py / t_astar:.0f}x slower); path {path.length_m:.2f} m shortened, "
               f"{raw.length_m:.2f} m 8-connected, straight line "
               f"{np.hypot(goal[0] - start[0], goal[1] - start[1]):.2f} m")
+        key = label.replace(" ", "_")
+        figures.put(f"{key}.astar_ms", t_astar * 1000)
+        figures.put(f"{key}.settled_k", path.expanded / 1000)
+        figures.put(f"{key}.dijkstra_ms", t_base * 1000)
+        figures.put(f"{key}.python_astar_ms", t_py * 1000)
+        figures.put(f"{key}.python_astar_ratio", t_py / t_astar)
+        figures.put(f"{key}.path_m", path.length_m)
     print(f"(median CPU times over {args.reps} runs)")
+    figures.save()
 
 
 if __name__ == "__main__":

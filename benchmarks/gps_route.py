@@ -197,6 +197,20 @@ def main() -> None:
     # 4: speed
     print(f"4. real-time factor on the route: median {statistics.median(factors):.0f}x, "
           f"min {min(factors):.0f}x (goal >= 100x; wall time of the loop, loading excluded)")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("gps_route")
+    figures.put("fused_rms_m", fused)
+    figures.put("raw_gps_rms_m", raw)
+    figures.put("fused_raw_ratio", fused / raw)
+    figures.put("all_reached", int(all_reached))
+    figures.put("dropout.heading_after_mean_deg", statistics.mean(at_end))
+    figures.put("dropout.heading_after_worst_deg", max(at_end))
+    figures.put("jump.worst_move_m", max(moves))
+    figures.put("jump.mean_move_m", statistics.mean(moves))
+    figures.put("realtime_factor.median", statistics.median(factors))
+    figures.put("realtime_factor.min", min(factors))
+    figures.put("seeds", len(seeds))
+    figures.save()
 
 
 if __name__ == "__main__":

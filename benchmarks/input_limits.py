@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -84,6 +85,10 @@ def main() -> None:
     base_mb = statistics.median(b[1] for b in baseline)
     print(f"baseline python -c 'import yaml': {base_s * 1000:7.1f} ms, {base_mb:6.1f} MB peak RSS "
           f"(median of {len(baseline)})")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("input_limits")
+    figures.put("baseline_ms", base_s * 1000)
+    figures.put("baseline_mb", base_mb)
     for name, runs in results.items():
         wall = statistics.median(r[0] for r in runs)
         rss = statistics.median(r[1] for r in runs)
@@ -92,6 +97,10 @@ def main() -> None:
         verdict = ("  ok" if wall < 1.0 and rss < 100 and exits == [2] else "  MISSED") if bomb else ""
         print(f"validate {name:42s} {wall * 1000:7.1f} ms = {wall / base_s:4.1f}x  {rss:6.1f} MB = "
               f"{rss / base_mb:4.1f}x  exit {','.join(map(str, exits))}{verdict}")
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+        figures.put(f"{key}.ms", wall * 1000)
+        figures.put(f"{key}.mb", rss)
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -89,6 +89,8 @@ def main() -> None:
     args = parser.parse_args()
     global TIMER
     TIMER = time.thread_time if args.cpu else time.perf_counter
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("lidar_decode")
     n = args.revolutions
 
     wire = ld19_stream(n)
@@ -100,12 +102,17 @@ def main() -> None:
     print(f"LD19 at 10 Hz, 10 ms reads: {scans} scans of {driver.stats.points_per_scan} points; {per * 1e6:.0f} us "
           f"per revolution ({per * 10 * 100:.2f} % of a core); bare struct.unpack {base / max(1, scans) * 1e6:.0f} us "
           f"(ratio {spent / base:.1f})")
+    figures.put("ld19.us", per * 1e6)
+    figures.put("ld19.pct", per * 10 * 100)
+    figures.put("ld19.unpack_ratio", spent / base)
     clock, port = SimClock(), Port()
     driver = Ld19Lidar(port, clock, config=LidarConfig.from_dict({"type": "ld19"}))
     spent, scans = run(driver, port, clock, wire, chunk=230400 // 10 // 20, dt=0.05)  # a 20 Hz tick's bytes
     per = spent / max(1, scans)
     print(f"LD19 at 10 Hz, 50 ms reads (the 20 Hz tick): {per * 1e6:.0f} us per revolution "
           f"({per * 10 * 100:.2f} % of a core); ratio to bare struct.unpack {spent / base:.1f}")
+    figures.put("ld19_50ms_reads.us", per * 1e6)
+    figures.put("ld19_50ms_reads.pct", per * 10 * 100)
 
     wire = a1_stream(n)
     clock, port = SimClock(), Port()
@@ -119,6 +126,9 @@ def main() -> None:
     print(f"RPLIDAR A1 at 5.5 Hz: {scans} scans of {driver.stats.points_per_scan} points; {per * 1e6:.0f} us per "
           f"revolution ({per * 5.5 * 100:.2f} % of a core); bare struct.unpack {base / max(1, scans) * 1e6:.0f} us "
           f"(ratio {spent / base:.1f})")
+    figures.put("a1.us", per * 1e6)
+    figures.put("a1.pct", per * 5.5 * 100)
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ Run: python benchmarks/lidar_sim.py [--seconds 20] [--seeds 2] [--repeats 5] [--
 from __future__ import annotations
 
 import argparse
+import re
 import resource
 import statistics
 import sys
@@ -138,6 +139,8 @@ def main() -> None:
     args = ap.parse_args()
     global TIMER, CPU
     TIMER, CPU = (time.thread_time, True) if args.cpu else (time.perf_counter, False)
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("lidar_sim")
     print("1. LiDAR emulator, per revolution (ray casting + noise + bytes), stepped at the physics rate")
     for world in WORLDS:
         for kind in ("ld19", "rplidar_a1"):
@@ -146,6 +149,7 @@ def main() -> None:
             print(f"   {kind:10s} {world:22s} {ms:6.3f} ms/scan over {revs:.0f} scans | bare NumPy intersection "
                   f"{bare:6.3f} ms (x{ms / bare:4.1f}) | physics steps of one revolution {physics:6.3f} ms "
                   f"(x{ms / physics:4.2f})   goal <= 0.3 ms: {'OK' if ms <= 0.3 else 'MISSED'}")
+            figures.put(f"emulator.{kind}.{Path(world).stem}_ms", ms)
     print(f"2. Patrol real-time factor (sim s per {'CPU' if CPU else 'wall'} s)")
     data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
     with tempfile.TemporaryDirectory() as tmp:
@@ -168,6 +172,10 @@ def main() -> None:
     for label, value in results.items():
         print(f"   {label:34s} {value:7.0f}x real time  ({value / base:4.2f} of the profile without LiDAR)"
               f"   goal >= 100x: {'OK' if value >= 100 else 'MISSED'}")
+        key = re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
+        figures.put(f"rtf.{key}", value)
+        figures.put(f"rtf.{key}_of_no_lidar", value / base)
+    figures.save()
 
 
 if __name__ == "__main__":

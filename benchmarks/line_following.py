@@ -55,6 +55,7 @@ from beastbt.vision.camera_model import CameraGeometry  # noqa: E402
 from beastbt.vision.line_detector import LineDetector, LineDetectorConfig  # noqa: E402
 
 sys.path.insert(0, str(REPO / "benchmarks"))
+from figures import Figures  # noqa: E402  (benchmarks/figures.py)
 from naive_line import interleaved_passes, spread  # noqa: E402
 
 WORLD = REPO / "worlds" / "line_track.yaml"
@@ -122,10 +123,21 @@ def laps(seeds: int, floor: FloorMap) -> list[dict]:
           f"{max(p95) * 100:.2f} cm")
     print(f"   => intersections: {detected} detected of {passed} passed, {false} false detections "
           f"(goal: all detected, none false); true path length per lap {statistics.mean(r['true_distance_m'] for r in out):.2f} m")
+    FIGURES.put("laps.completed", ok)
+    FIGURES.put("laps.within_5cm_mean", statistics.mean(within))
+    FIGURES.put("laps.within_5cm_worst", min(within))
+    FIGURES.put("laps.p95_cm_mean", statistics.mean(p95) * 100)
+    FIGURES.put("laps.p95_cm_worst", max(p95) * 100)
+    FIGURES.put("laps.intersections_missed", passed - detected)
+    FIGURES.put("laps.false_intersections", false)
     return out
 
 
 # -- 2: the detector's cost ------------------------------------------------------------------------
+
+FIGURES = Figures("line_following")
+"""The figures this run prints, saved at its end for benchmarks/check_docs.py (benchmarks/figures.py)."""
+
 
 def detector_cost(floor: FloorMap, frames: int = 300, reps: int = 5) -> None:
     print(f"\n2. line detector cost per frame (frames rendered along the loop, default camera effects; {frames} frames,"
@@ -142,6 +154,9 @@ def detector_cost(floor: FloorMap, frames: int = 300, reps: int = 5) -> None:
             images.append(cam.read()[1])
         naive_passes, detect_passes, ratios = interleaved_passes(images, det, reps)
         print(f"   {w}x{h:<5} {spread(detect_passes):>20} {spread(naive_passes):>20} {spread(ratios):>17}x")
+        FIGURES.spread(f"detector.size{w}x{h}.detect_ms", detect_passes)
+        FIGURES.spread(f"detector.size{w}x{h}.naive_ms", naive_passes)
+        FIGURES.spread(f"detector.size{w}x{h}.ratio", ratios)
     print("   (goal: under 3 ms per frame at 320x240)")
 
 
@@ -155,6 +170,9 @@ def real_time_factor(lap_runs: list[dict], seeds: int) -> None:
     print(f"   camera on (15 fps 320x240 rendered + detected, line_track laps): median {cam_rtf:.1f}x, "
           f"worst {min(r['rtf'] for r in lap_runs):.1f}x (goal >= 20)")
     print(f"   camera off (patrol mission, the baseline): median {base_rtf:.1f}x; ratio on/off {cam_rtf / base_rtf:.2f}")
+    FIGURES.put("rtf.camera_on", cam_rtf)
+    FIGURES.put("rtf.camera_off", base_rtf)
+    FIGURES.put("rtf.ratio", cam_rtf / base_rtf)
 
 
 # -- 4: the streaming server -------------------------------------------------------------------------------
@@ -260,6 +278,7 @@ def main() -> None:
     detector_cost(floor)
     real_time_factor(lap_runs, args.seeds)
     stream_benchmark(floor, args.stream_seconds)
+    FIGURES.save()
 
 
 if __name__ == "__main__":

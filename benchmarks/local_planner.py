@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import statistics
 import sys
 import tempfile
@@ -40,6 +41,7 @@ import yaml  # noqa: E402
 
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap  # noqa: E402
 from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 
 LIMITS = Limits(max_speed_mps=0.35, max_turn_rate_rps=math.radians(120), max_accel_mps2=1.0,
                 max_angular_accel_rps2=math.radians(360))
@@ -101,6 +103,16 @@ def per_tick(repeats: int) -> None:
     per_s = (results["DWA + navigation function, new scan"] * 10 + results["DWA + navigation function, same scan"] * 10)
     print(f"  while going round (10 Hz scans, 20 Hz ticks): {per_s / 1e4:.2f} % of a core; in the open "
           f"{results['open (preference unchanged)'] * 20 / 1e4:.3f} %")
+    for name, us in results.items():
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower().replace("(preference unchanged)", "")).strip("_")
+        FIGURES.put(f"tick.{key}_us", us)
+        FIGURES.put(f"tick.{key}_ratio", us / base)
+    FIGURES.put("going_round_pct", per_s / 1e4)
+    FIGURES.put("open_pct", results["open (preference unchanged)"] * 20 / 1e4)
+
+
+FIGURES = Figures("local_planner")
+"""The figures this run prints, saved at its end for benchmarks/check_docs.py (benchmarks/figures.py)."""
 
 
 def drive(planner: DwaPlanner, cm: RollingCostmap, points: np.ndarray, goal: tuple[float, float], seconds: float = 60.0,
@@ -138,6 +150,10 @@ def benches() -> None:
         median = statistics.median(times) if times else 0.0
         print(f"  {name:26s} reached {reached}/{len(cases)}, median time {median:.1f} s, "
               f"closest approach {min(least):.2f} m (inscribed {inscribed:.2f} m)")
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+        FIGURES.put(f"benches.{key}.reached", reached)
+        FIGURES.put(f"benches.{key}.median_s", median)
+        FIGURES.put(f"benches.{key}.closest_m", min(least))
 
 
 def campus(seeds: int) -> None:
@@ -169,6 +185,13 @@ def campus(seeds: int) -> None:
             if s["status"] != "success":
                 fails = [e["text"] for e in s["events"] if e["kind"] == "step_failed"]
                 print(f"      {fails[:1]}")
+            key = f"campus.seed{seed}.{re.sub(r'[^a-z0-9]+', '_', name.lower()).strip('_')}"
+            FIGURES.put(f"{key}.sim_s", s["sim_time_s"])
+            FIGURES.put(f"{key}.ratio", s["sim_time_s"] / ref)
+            FIGURES.put(f"{key}.success", int(s["status"] == "success"))
+            FIGURES.put(f"{key}.collisions", truth.get("collisions") or 0)
+            if truth.get("min_clearance_m") is not None:
+                FIGURES.put(f"{key}.min_clearance_m", truth["min_clearance_m"])
 
 
 def main() -> None:
@@ -179,6 +202,7 @@ def main() -> None:
     per_tick(args.repeats)
     benches()
     campus(args.seeds)
+    FIGURES.save()
 
 
 if __name__ == "__main__":

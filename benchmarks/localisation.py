@@ -47,14 +47,16 @@ from beastbt.devices.lidar_scan import LidarConfig, base_points_xy  # noqa: E402
 from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
 import lidar_decode  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 from lidar_decode import ld19_stream  # noqa: E402
 from lidar_support import MemorySerial  # noqa: E402
 from localisation_support import TOUR, mission_text, office_map_file  # noqa: E402
 
 
-def record_scans(folder: Path) -> tuple[object, list, float, int]:
+def record_scans(folder: Path) -> tuple[object, list, float, int, dict]:
     """Run the tour; the map, (clock s, points in base_link, odometry pose) of every scan, and the CPU seconds
-    the localisation part's per-tick hook took in that run (filter, map_pose, truth), with its number of ticks."""
+    the localisation part's per-tick hook took in that run (filter, map_pose, truth), with its number of ticks;
+    and the run's summary ``truth`` (the localisation's error against the simulator's truth)."""
     office_map_file(folder)
     path = folder / "tour.yaml"
     path.write_text(mission_text("tour", TOUR))
@@ -80,8 +82,8 @@ def record_scans(folder: Path) -> tuple[object, list, float, int]:
         spent[1] += 1
     prepared.run.hooks[prepared.run.hooks.index(part_hook)] = timed
     with open("/dev/null", "w") as quiet:
-        execute(prepared, quiet)
-    return prepared.mission.map_grid, scans, spent[0], spent[1]
+        summary = execute(prepared, quiet)
+    return prepared.mission.map_grid, scans, spent[0], spent[1], summary.get("truth", {})
 
 
 def time_filter(grid, scans: list, config: LocaliserConfig) -> tuple[float, int]:
@@ -134,7 +136,7 @@ def main() -> None:
     args = ap.parse_args()
     reps = max(5, args.reps)
     with tempfile.TemporaryDirectory() as tmp:
-        grid, scans, hook_s, ticks = record_scans(Path(tmp))
+        grid, scans, hook_s, ticks, truth = record_scans(Path(tmp))
     duration_s = scans[-1][0] - scans[0][0]
     print(f"tour: {len(scans)} scans over {duration_s:.1f} s ({len(scans) / duration_s:.1f} Hz), "
           f"map {grid.cols} x {grid.rows} cells at {grid.resolution_m} m")
@@ -159,8 +161,24 @@ def main() -> None:
               f"the decode)")
     print(f"the whole part in the run (one run, {ticks} ticks at 20 Hz: filter, map_pose every tick, truth): "
           f"{100.0 * hook_s / duration_s:.2f} % of a core")
-    print(f"likelihood field of a 40 m x 40 m map at 5 cm (once, at the start): {spread(time_field(reps))} ms")
+    field = time_field(reps)
+    print(f"likelihood field of a 40 m x 40 m map at 5 cm (once, at the start): {spread(field)} ms")
+    figures = Figures("localisation")  # saved for benchmarks/check_docs.py (benchmarks/figures.py prints them)
+    figures.spread("decode_pct", results["decode"])
+    for name in ("defaults", "every scan"):
+        key = name.replace(" ", "_")
+        figures.spread(f"{key}_pct", results[name])
+        figures.put(f"{key}_decode_ratio", statistics.median(results[name]) / decode)
+    figures.put("whole_part_pct", 100.0 * hook_s / duration_s)
+    print(f"the run's error against the truth (seed 0): RMS {100 * truth['position_error_rms_m']:.1f} cm, largest "
+          f"{100 * truth['position_error_max_m']:.1f} cm, within 3 sigma on "
+          f"{100 * truth['position_error_within_3sigma_frac']:.0f} % of the ticks")
+    figures.put("error_rms_cm", 100 * truth["position_error_rms_m"])
+    figures.put("error_max_cm", 100 * truth["position_error_max_m"])
+    figures.put("within_3sigma_pct", 100 * truth["position_error_within_3sigma_frac"])
+    figures.spread("field_ms", field)
     print(f"goal: <= 5 % of a core; {reps} repetitions, medians (min..max), thread CPU time")
+    figures.save()
 
 
 if __name__ == "__main__":

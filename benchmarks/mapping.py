@@ -46,6 +46,7 @@ sys.path.insert(0, str(REPO))
 from beastbt.assembly import prepare  # noqa: E402
 from beastbt.parts.map_building import MapBuildingPart  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 
 if TYPE_CHECKING:
     from beastbt.mapping.pose_graph import PoseGraph
@@ -93,6 +94,19 @@ def one_run(seed: int, out_dir: Path) -> dict:
     return {"sim_s": summary["sim_time_s"], "total": total, **spent, "keyframes": summary["map"]["keyframes"],
             "loops": summary["map"]["loops_closed"], "scans": summary["map"]["scans"], "mapper": part.mapper,
             "truth": truth}
+
+
+def keyframe_errors(run: dict) -> tuple[float, float, float, float]:
+    """(RMS, worst) position error in m of the map's keyframes against the truth, then of dead reckoning's."""
+    import numpy as np
+
+    truth = np.array(run["truth"])[:, :2]
+    out = []
+    for poses in (run["mapper"].graph.poses, run["mapper"].odometry_poses()):
+        n = min(len(truth), len(poses))
+        d = np.hypot(*(np.array(poses)[:n, :2] - truth[:n]).T)
+        out += [float(np.sqrt(np.mean(d ** 2))), float(d.max())]
+    return out[0], out[1], out[2], out[3]
 
 
 def lap_graph(laps: int = 10, per_lap: int = 100) -> tuple["PoseGraph", list, list]:
@@ -201,6 +215,19 @@ def main() -> None:
           f"{spread([1000 * r['worst_tick'] for r in runs], '.0f')} ms")
     print(f"at the end (last optimisation, ray casting, writing the map): "
           f"{spread([r['close'] for r in runs], '.2f')} s")
+    errors = [keyframe_errors(r) for r in runs]
+    print(f"keyframes' error against the truth: RMS {spread([100 * e[0] for e in errors], '.1f')} cm, worst "
+          f"{spread([100 * e[1] for e in errors], '.1f')} cm; dead reckoning RMS "
+          f"{spread([100 * e[2] for e in errors], '.1f')} cm, worst {spread([100 * e[3] for e in errors], '.1f')} cm")
+    figures = Figures("mapping")  # saved for benchmarks/check_docs.py (benchmarks/figures.py prints them)
+    figures.spread("mapping_pct", mapping, 100)
+    figures.spread("baseline_pct", baseline, 100)
+    figures.spread("ratio", ratio)
+    figures.spread("per_scan_ms", per_scan)
+    figures.spread("worst_tick_ms", [1000 * r["worst_tick"] for r in runs])
+    figures.spread("close_s", [r["close"] for r in runs])
+    for i, key in enumerate(("keyframe_rms_cm", "keyframe_worst_cm", "odometry_rms_cm", "odometry_worst_cm")):
+        figures.spread(key, [100 * e[i] for e in errors])
     mapper = runs[0]["mapper"]
     print(f"pose graph of the tour ({len(mapper.graph.poses)} keyframes, {len(mapper.graph.edges)} edges), "
           f"solved from dead reckoning, CPU over {args.reps} solves:")
@@ -210,6 +237,7 @@ def main() -> None:
     print(f"synthetic pose graph ({len(graph.poses)} keyframes, {len(graph.edges)} edges), from dead reckoning:")
     for line in solve_both(graph.edges, odo, truth, args.reps):
         print("  " + line)
+    figures.save()
 
 
 if __name__ == "__main__":

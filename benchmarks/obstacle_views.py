@@ -121,6 +121,14 @@ def main() -> None:
     total = sum(sizes.values())
     print(f"3. new channels: {new / 1024:.0f} kB of {total / 1024:.0f} kB of JSON ({new / total:.1%}); "
           + ", ".join(f"{t} {sizes.get(t, 0) / 1024:.0f} kB" for t in NEW) + f"; the file {mcap_bytes / 1024:.0f} kB")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("obstacle_views")
+    figures.put("sampler_median_us", np.median(sampler_s) * us)
+    figures.put("sampler_mean_us", np.mean(sampler_s) * us)
+    figures.put("layers_median_ms", np.median(layers_s) * 1000)
+    figures.put("layers_pct_at_most", 1000 * np.mean(layers_s))
+    figures.put("new_channels_pct", 100 * new / total)
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -77,12 +77,15 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--minutes", type=float, default=10.0)
     args = parser.parse_args()
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("patrol_drift")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         mission = forever_mission(folder)
         for label, profile in (("turn tolerance 3 deg (shipped)", []),
                                ("turn tolerance 1 deg", ["--robot", str(tight_profile(folder)), "--sim"])):
             print(label)
+            rows: list[dict] = []
             for seed in range(1, args.seeds + 1):
                 sub = folder / f"{len(profile)}_{seed}"
                 sub.mkdir()
@@ -91,6 +94,19 @@ def main() -> None:
                 per_loop = (f"{r['headings_deg'][-1] / n:+.2f} deg and {100 * r['offsets_m'][-1] / n:+.1f} cm per loop"
                             if n else "no loop completed")
                 print(f"  seed {seed}: {n} loops, {per_loop}; ended {r['status']} at {r['time_s']:.0f} s", flush=True)
+                if n:
+                    rows.append({"deg": abs(r["headings_deg"][-1] / n), "cm": abs(100 * r["offsets_m"][-1] / n),
+                                 "loops": n, "end_s": r["time_s"], "blocked": r["status"] == "failure"})
+            key = "shipped" if not profile else "tight"
+            for name in ("deg", "cm", "loops", "end_s"):
+                values = [row[name] for row in rows]
+                if values:
+                    figures.put(f"{key}.{name}_per_loop.min" if name in ("deg", "cm") else f"{key}.{name}.min",
+                                min(values))
+                    figures.put(f"{key}.{name}_per_loop.max" if name in ("deg", "cm") else f"{key}.{name}.max",
+                                max(values))
+            figures.put(f"{key}.blocked_runs", sum(row["blocked"] for row in rows))
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -184,6 +184,13 @@ def main() -> None:
               "score_us": score}
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1), encoding="utf-8")
+    if not args.quick:  # a smoke run is not a figure; saved for benchmarks/check_docs.py (benchmarks/figures.py)
+        from figures import Figures
+        figures = Figures("pi_factor")
+        for name, v in items.items():
+            figures.put(f"{name}_us", v["median_us"])
+        figures.put("score_us", score)
+        figures.save()
     if args.compare:
         other = json.loads(Path(args.compare).read_text(encoding="utf-8"))
         print(f"against {other['machine']} (its score {other['score_us']:.1f} µs):")

@@ -94,17 +94,25 @@ def main() -> None:
     ap.add_argument("--kills", type=int, default=3)
     ap.add_argument("--events", type=int, default=80)
     args = ap.parse_args()
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("real_robot_safety")
     print(f"kill -9 while driving -> wheels zero on the fake base (s); goal <= heartbeat_s + 0.2 = {HEARTBEAT_S + 0.2:g} s")
     for firmware in ("ros", "general"):
         times = [kill_stop_s(firmware, beastbt=True) for _ in range(args.kills)]
         base = kill_stop_s(firmware, beastbt=False)
         print(f"  ugv_base_{firmware:8s} beastbt: median {statistics.median(times):.3f} max {max(times):.3f} "
               f"(n={len(times)}) | a T:13 driver, killed: {'still driving after 5 s' if base == float('inf') else f'{base:.3f}'}")
+        figures.put(f"kill.{firmware}.median_s", statistics.median(times))
+        figures.put(f"kill.{firmware}.max_s", max(times))
     print("joystick event -> serial bytes with the new command (ms); goal p99 < 10 ms")
     for wake in (True, False):
         r = run_adapter("waveshare", args.events, 0, 1, wake=wake)
         print(f"  {'joystick wakes the loop' if wake else 'next 20 Hz tick (baseline)':28s} "
               f"p50 {1000 * percentile(r['lat'], 50):6.1f}  p99 {1000 * percentile(r['lat'], 99):6.1f}  n={len(r['lat'])}")
+        key = "joystick.wake" if wake else "joystick.tick_only"
+        figures.put(f"{key}.p50_ms", 1000 * percentile(r["lat"], 50))
+        figures.put(f"{key}.p99_ms", 1000 * percentile(r["lat"], 99))
+    figures.save()
 
 
 if __name__ == "__main__":

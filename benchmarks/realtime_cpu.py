@@ -255,6 +255,25 @@ def main() -> None:
     if args.json:
         Path(args.json).write_text(json.dumps({"seconds": args.seconds, "rows": out_rows, "load_after": load},
                                               indent=1), encoding="utf-8")
+    # The rows, saved for benchmarks/check_docs.py (benchmarks/figures.py prints them): docs/performance.md quotes
+    # them, and a Pi 4 estimate at x5 and x8 (its section "The factor").
+    from figures import Figures
+    figures = Figures("realtime_cpu")
+    for r in out_rows:
+        key = (f"{r['mission']}.{'recorded' if r['recorded'] else 'unrecorded'}_{'lidar' if r['lidar'] else 'no_lidar'}"
+               f"{'_console' if r['console'] else ''}")
+        figures.put(f"{key}.pct", 100 * r["steady_share"])
+        figures.put(f"{key}.pi4_x5_pct", 500 * r["steady_share"], 3)
+        figures.put(f"{key}.pi4_x8_pct", 800 * r["steady_share"], 3)
+        figures.put(f"{key}.rss_mib", r["peak_rss_mib"])
+        figures.put(f"{key}.startup_cpu_s", r["startup_cpu_s"])
+    if "patrol" in names:
+        for record in (True, False):
+            with_lidar, without = steady[("patrol", True, record)], steady[("patrol", False, record)]
+            mode = "recorded" if record else "unrecorded"
+            figures.put(f"patrol.{mode}.lidar_added_points", 100 * (with_lidar - without))
+            figures.put(f"patrol.{mode}.lidar_ratio", with_lidar / without)
+    figures.save()
 
 
 if __name__ == "__main__":

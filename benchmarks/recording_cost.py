@@ -52,6 +52,7 @@ sys.path.insert(0, str(REPO))
 from beastbt.assembly import prepare  # noqa: E402
 from beastbt.recording.recorder import recorder_of  # noqa: E402
 from beastbt.run.session import RunOptions, execute  # noqa: E402
+from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
 
 PATROL = REPO / "missions" / "patrol.yaml"
 TICKS_PER_S = os.sysconf("SC_CLK_TCK")
@@ -138,6 +139,10 @@ def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_
     return out
 
 
+FIGURES = Figures("recording_cost")
+"""The figures this run prints, saved at its end for benchmarks/check_docs.py (benchmarks/figures.py)."""
+
+
 def spread(values: list[float], scale: float = 1.0, fmt: str = "{:.1f}") -> str:
     """``median (lowest-highest)`` of ``values`` times ``scale``."""
     return (fmt.format(statistics.median(values) * scale) + " (" + fmt.format(min(values) * scale) + "-"
@@ -171,10 +176,15 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
               f"(tick loop alone {spread(loop[mode], 1e6)} us, of which the recorder's own code "
               f"{spread(on_tick[mode], 1e6)} us; writer process {spread(writer[mode], 1e6, '{:.0f}')} us of CPU "
               f"per tick, on another core)")
+    for mode in MODES:
+        FIGURES.spread(f"max.{mode}_us", per_tick[mode], 1e6)
+        FIGURES.spread(f"max.{mode}_writer_us", writer[mode], 1e6)
+        FIGURES.spread(f"max.{mode}_recorder_us", on_tick[mode], 1e6)
     for mode, label in (("recorded", "recorded"), ("sensors", "with --record-sensors")):
         ratios = [b / a for a, b in zip(per_tick["unrecorded"], per_tick[mode])]
         loop_ratios = [b / a for a, b in zip(loop["unrecorded"], loop[mode])]
         goal = "  [goal: at most 1.5x]" if mode == "recorded" else ""
+        FIGURES.spread(f"max.{mode}_ratio", ratios)
         print(f"   {label}: {spread(ratios, fmt='{:.2f}')}x the unrecorded run per tick{goal} "
               f"(tick loop alone {spread(loop_ratios, fmt='{:.2f}')}x)")
     # What a busy machine sees: there the writer's CPU is taken from the loop (the kernel shares a core between
@@ -201,6 +211,9 @@ def real_time(mission: str, robot: str, reps: int, seconds: float, runs_dir: str
     print(f"   unrecorded (anchor): {spread(share['unrecorded'], 100, '{:.2f}')} %")
     print(f"   recorded:            {spread(share['recorded'], 100, '{:.2f}')} %")
     print(f"   recording adds {spread(diffs, 100, '{:+.2f}')} % of one core  [goal: at most +1 %]")
+    FIGURES.spread("realtime.unrecorded_pct", share["unrecorded"], 100)
+    FIGURES.spread("realtime.recorded_pct", share["recorded"], 100)
+    FIGURES.spread("realtime.added_points", diffs, 100)
 
 
 def patrol_forever_text() -> str:
@@ -221,6 +234,8 @@ def ten_minutes(runs_dir: str) -> None:
     print(f"3. 10-minute simulated patrol, no images: {size / 1e6:.2f} MB ({rec.get('messages')} messages, "
           f"{rec.get('dropped')} dropped, {r['ticks']} ticks; {size / r['ticks']:.0f} bytes per tick)  "
           f"[goal: under 20 MB]")
+    FIGURES.put("ten_minutes.mb", size / 1e6)
+    FIGURES.put("ten_minutes.bytes_per_tick", size / r["ticks"])
 
 
 def main() -> None:
@@ -242,6 +257,7 @@ def main() -> None:
         if args.size:
             ten_minutes(runs_dir)
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
+    FIGURES.save()  # benchmarks/results/recording_cost.json, quoted by docs/recording.md
 
 
 if __name__ == "__main__":

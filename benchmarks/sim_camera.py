@@ -79,6 +79,8 @@ def median_ms(old: SimCamera, new: SimCamera, poses: list[tuple[float, float, fl
 def main() -> None:
     """Print the table: size, world, tilt, baseline ms, with scenery ms, ratio."""
     cv2.setNumThreads(1)
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("sim_camera")
     print("default camera effects, OpenCV on one thread; ms per frame (median over poses of the best of 3)")
     print(f"{'size':>8} {'world':<18} {'tilt':>5} {'baseline ms':>12} {'scenery ms':>11} {'ratio':>6}")
     for w, h in ((640, 480), (320, 240)):
@@ -98,6 +100,11 @@ def main() -> None:
                 base, with_scenery = median_ms(old, new, poses, tilt, persons)
                 print(f"{w}x{h:<4} {name:<18} {tilt_deg:>5.0f} {base:>12.2f} {with_scenery:>11.2f} "
                       f"{with_scenery / base:>6.2f}")
+                key = f"size{w}x{h}.{name}.tilt{tilt_deg:.0f}"
+                figures.put(f"{key}.baseline_ms", base)
+                figures.put(f"{key}.scenery_ms", with_scenery)
+                figures.put(f"{key}.ratio", with_scenery / base)
+    figures.save()
 
 
 if __name__ == "__main__":

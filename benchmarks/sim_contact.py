@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import tempfile
 import time
@@ -128,8 +129,11 @@ def main() -> None:
     person = load_world(REPO / "worlds" / "corridor_person.yaml")
     yard = crowded_yard()
     per_step_us([], [], 2000)  # warm up
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("sim_contact")
     base = per_step_us([], [], steps)
     print(f"physics step, nothing to touch:        {base:7.2f} us")
+    figures.put("step.nothing_us", base)
     for name, (walls, obstacles, start) in {
         "corridor (4 walls)": (corridor.walls, corridor.obstacles, (1.0, 0.0)),
         "campus_obstacles (9)": (campus.walls, campus.obstacles, (0.0, -3.0)),
@@ -138,6 +142,9 @@ def main() -> None:
     }.items():
         cost = per_step_us(list(walls), list(obstacles), steps, start)
         print(f"physics step, {name + ':':38s} {cost:7.2f} us  = {cost / base:5.2f}x")
+        key = re.sub(r"[^a-z0-9]+", "_", name.split(" (")[0].lower()).strip("_")
+        figures.put(f"step.{key}_us", cost)
+        figures.put(f"step.{key}_ratio", cost / base)
     for n in (4, 8, 16, 32, 64):  # where plain floats stop beating NumPy (SMALL_WORLD in beastbt/sim/contact.py)
         world = ContactWorld(yard[0][:n // 2], [o for o in yard[1] if not isinstance(o, Person)][:n - n // 2], 0.15)
         plain, vector = (min(timed(f, 2000) for _ in range(3)) for f in (world._clearance_small, world._clearance_numpy))
@@ -154,6 +161,12 @@ def main() -> None:
     print(f"patrol real-time factor (best of 3): corridor without walls {rtf_bare:5.0f}x, with its walls "
           f"{rtf_walls:5.0f}x (ratio {rtf_walls / rtf_bare:.2f}), with the pacing person giving way "
           f"{rtf_person:5.0f}x (ratio {rtf_person / rtf_bare:.2f})")
+    figures.put("clearance_crowded_us", clear)
+    figures.put("swept_crowded_us", sweep)
+    figures.put("rtf.corridor_bare", rtf_bare)
+    figures.put("rtf.corridor", rtf_walls)
+    figures.put("rtf.corridor_person", rtf_person)
+    figures.save()
 
 
 if __name__ == "__main__":

@@ -275,6 +275,15 @@ def main() -> None:
     factors = [patrol(seed=seed)[2] for seed in range(1, args.seeds + 1)]
     print(f"5. patrol real-time factor over {len(factors)} seeds: {spread(factors, fmt='{:.0f}')}x "
           f"(goal >= 100x)")
+    # Saved for benchmarks/check_docs.py (benchmarks/figures.py prints them): docs/performance.md quotes them.
+    from figures import Figures
+    figures = Figures("sim_speed")
+    for key in ("hand", "ekf", "compiled", "asleep", "awake", "bare"):
+        figures.spread(f"{key}_us", m[key], us)
+    for key, values in ratio.items():
+        figures.spread(f"{key}_ratio", values)
+    figures.spread("realtime_factor", factors)
+    figures.save()
 
 
 if __name__ == "__main__":

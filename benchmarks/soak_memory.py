@@ -190,6 +190,13 @@ def main(argv: Optional[list[str]] = None) -> int:
     print(f"  goal: patrol growth < {GOAL_MB:g} MB over the soak: {'FLAT' if flat else 'GROWS'} "
           f"(before the fix: about 20.7 MB per simulated hour)")
     print(f"  benchmark wall time: {time.perf_counter() - t0:.0f} s")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    saved = Figures("soak_memory")
+    for name, f in figs.items():
+        saved.put(f"{name}.growth_mb", f["growth_mb"])
+        saved.put(f"{name}.per_hour_mb", f["per_hour_mb"])
+    saved.put("hours", args.hours)
+    saved.save()
     return 0 if flat else 1
 
 

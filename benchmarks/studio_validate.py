@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import http.client
 import json
+import re
 import statistics
 import sys
 import time
@@ -48,6 +49,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=20)
     args = parser.parse_args()
     server = StudioServer(REPO, "127.0.0.1", 0).start()
+    medians: dict[str, list[float]] = {}
+    worst: dict[str, float] = {}
     try:
         port = server.port
         print(f"{'mission':28} {'request':14} {'median ms':>10} {'worst ms':>9} {'x read':>7}")
@@ -75,8 +78,18 @@ def main() -> int:
                 median = statistics.median(values)
                 print(f"{mission.name:28} {name:14} {median * 1000:10.1f} {max(values) * 1000:9.1f} "
                       f"{median / base:7.1f}")
+                medians.setdefault(name, []).append(median * 1000)
+                worst[name] = max(worst.get(name, 0.0), max(values) * 1000)
     finally:
         server.close()
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("studio_validate")
+    for name, values in medians.items():  # over the missions: the lowest and highest median, the worst request
+        key = re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+        figures.put(f"{key}.median_lowest_ms", min(values))
+        figures.put(f"{key}.median_highest_ms", max(values))
+        figures.put(f"{key}.worst_ms", worst[name])
+    figures.save()
     return 0
 
 

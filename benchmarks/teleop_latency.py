@@ -340,6 +340,8 @@ def main() -> None:
     print("joystick event -> first adapter bytes carrying the new command (ms); goal (issue 12): p99 < 10 ms with the")
     print("joystick watcher waking the loop; 'tick only' is the same run without it (the baseline: the next 20 Hz tick)")
     print(f"{'adapter':10s} {'mode':10s} {'n':>4s} {'p50':>7s} {'p99':>7s} {'max':>7s} | p99/period")
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("teleop_latency")
     results = []
     for kind in args.adapters.split(","):
         for wake in (True, False):
@@ -350,6 +352,9 @@ def main() -> None:
             print(f"{r['kind']:10s} {'wake' if wake else 'tick only':10s} {len(r['lat']):4d} {ms(r['lat'], 50):7.1f} "
                   f"{ms(r['lat'], 99):7.1f} {1000 * max(r['lat'], default=float('nan')):7.1f} | "
                   f"{ms(r['lat'], 99) / period_ms:.2f}")
+            key = f"{r['kind']}.{'wake' if wake else 'tick_only'}"
+            figures.put(f"{key}.p50_ms", ms(r["lat"], 50))
+            figures.put(f"{key}.p99_ms", ms(r["lat"], 99))
     print()
     print("frozen tick loop -> watchdog zero on the wire (s); goal <= 0.55 s")
     print(f"{'adapter':10s} {'n':>4s} {'from last cmd: mean':>20s} {'max':>6s} | {'from freeze: mean':>18s} {'max':>6s} | trips")
@@ -359,6 +364,9 @@ def main() -> None:
         from_freeze = [z - b for _, b, z in fz]
         print(f"{r['kind']:10s} {len(fz):4d} {np.mean(from_cmd):20.3f} {np.max(from_cmd):6.3f} | "
               f"{np.mean(from_freeze):18.3f} {np.max(from_freeze):6.3f} | {r['trips']}")
+        figures.put(f"{r['kind']}.freeze.from_cmd_max_s", float(np.max(from_cmd)))
+        figures.put(f"{r['kind']}.freeze.from_freeze_max_s", float(np.max(from_freeze)))
+    figures.save()
 
 
 if __name__ == "__main__":

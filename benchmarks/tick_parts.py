@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import pstats
+import re
 import subprocess
 import sys
 import tempfile
@@ -51,6 +52,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="mission seconds per run (default 60)")
     args = parser.parse_args()
     folder = Path(tempfile.mkdtemp(prefix="beastbt-tick-parts-"))
+    shares: dict[bool, tuple[float, list[tuple[str, float]]]] = {}
     for record in (False, True):
         profile = folder / f"{'recorded' if record else 'unrecorded'}.prof"
         command = [sys.executable, "-m", "cProfile", "-o", str(profile), "-m", "beastbt", "run", args.mission,
@@ -62,6 +64,19 @@ def main() -> None:
               f"{tick_s / ticks * 1e6:.0f} µs per tick under cProfile")
         for name, seconds in inside:
             print(f"  {name:45s} {seconds / ticks * 1e6:7.0f} µs  {seconds / tick_s:6.1%}")
+        shares[record] = (tick_s / ticks * 1e6, inside)
+    # Saved for benchmarks/check_docs.py (benchmarks/figures.py prints them): docs/performance.md quotes them.
+    from figures import Figures
+    figures = Figures("tick_parts")
+    for record, (us, inside) in shares.items():
+        mode = "recorded" if record else "unrecorded"
+        figures.put(f"{mode}.us_per_tick", us)
+        for name, seconds in inside:
+            where, _, func = name.rpartition(":")  # sim/robot.py:advance -> robot_advance
+            stage = "rest" if name.startswith("(") else re.sub(r"[^a-z0-9]+", "_", f"{Path(where).stem}_{func}".lower())
+            stage = stage.strip("_")
+            figures.put(f"{mode}.{stage}_pct", 100 * seconds / (sum(s for _, s in inside) or 1))
+    figures.save()
 
 
 if __name__ == "__main__":

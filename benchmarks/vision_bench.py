@@ -66,6 +66,8 @@ def main() -> None:
     world = yaml.safe_load((ROOT / "worlds" / "line_track.yaml").read_text())
     floor = FloorMap.from_dict(world["floor"], np.random.default_rng(0))
     poses = poses_along_track(floor, args.frames)
+    from figures import Figures  # benchmarks/figures.py: saved for benchmarks/check_docs.py, printed
+    figures = Figures("vision_bench")
     print(f"per-frame ms, median of {args.reps} passes (min-max) of each pass's median over {args.frames} frames")
     print(f"{'size':>9} {'effects':>8} {'naive (anchor)':>20} {'LineDetector':>20} {'ratio':>18} {'render (ref.)':>20}")
     for w, h in ((320, 240), (640, 480)):
@@ -84,6 +86,12 @@ def main() -> None:
             naive_passes, detect_passes, ratios = interleaved_passes(frames, det, args.reps)
             print(f"{w}x{h:<5} {effects_name:>8} {spread(naive_passes):>20} {spread(detect_passes):>20} "
                   f"{spread(ratios):>17}x {statistics.median(render_ms):>20.2f}")
+            key = f"size{w}x{h}.{effects_name}"
+            figures.put(f"{key}.naive_ms", statistics.median(naive_passes))
+            figures.put(f"{key}.detector_ms", statistics.median(detect_passes))
+            figures.put(f"{key}.ratio", statistics.median(ratios))
+            figures.put(f"{key}.render_ms", statistics.median(render_ms))
+    figures.save()
 
 
 if __name__ == "__main__":

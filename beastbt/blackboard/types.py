@@ -210,12 +210,14 @@ class JoystickState:
 @dataclass(frozen=True)
 class CameraFrame:
     """One camera image (BGR uint8, shape (h, w, 3)) and when it was taken; ``jpeg``: the camera's own JPEG of
-    it when the camera gave one (passed on untouched to the console), else None."""
+    it when the camera gave one (passed on untouched to the console), else None; ``h264``: likewise the camera's
+    own H.264 access unit (Annex B)."""
 
     stamp_s: float
     image: np.ndarray
     seq: int = 0
     jpeg: Optional[bytes] = None
+    h264: Optional[bytes] = None
 
 
 Feedback = Union[WheelOdometry, ImuSample, BatteryState]

@@ -16,6 +16,12 @@ MJPEG camera) is *compressed*: each :class:`CameraFrame` carries those bytes unt
 (``jpeg``), for the console (and the ``--stream`` server), and its pixels are decoded only when the caller
 asks (vision), possibly at a fraction of the size (:func:`decode_jpeg`).
 
+A camera that hands over its own H.264 (``read_h264()``: the Pi camera through picamera2's ``H264Encoder``, a
+V4L2 camera with H.264 through PyAV (:class:`V4l2H264Capture`), recorded access units through
+:class:`H264Replay`, the simulator's fake H.264 camera :class:`EncodingH264Camera`) gives one access unit
+(Annex B) per frame (``h264``), for the console to pass on untouched. H.264 pictures depend on the ones before
+them: once vision has asked for pixels, every access unit is decoded (PyAV), not only the frames it uses.
+
 :class:`CameraConfig` also carries the camera's mounting on the robot
 (height, pitch, field of view, forward offset), which
 :class:`beastbt.vision.camera_model.CameraGeometry` turns into the
@@ -41,7 +47,7 @@ from beastbt.devices.interfaces import EventSink, FrameSource, ignore_events
 from beastbt.core.clock import Clock
 
 
-FORMATS = ("auto", "mjpeg", "raw")
+FORMATS = ("auto", "mjpeg", "h264", "raw")
 """What a camera may hand over (``camera.format``)."""
 
 JPEG_SOI = b"\xff\xd8"
@@ -120,9 +126,14 @@ class CameraConfig:
     backend: str
     # What the camera hands over: auto (V4L2: the camera's own MJPEG when it offers it, else raw pixels;
     # picamera2 and the simulator: pixels), mjpeg (the camera's JPEG; a Pi camera's from the Pi's hardware
-    # encoder; on the simulator a fake MJPEG camera) or raw.
+    # encoder; on the simulator a fake MJPEG camera), h264 (the camera's H.264: a Pi camera's from the Pi's
+    # hardware encoder, a V4L2 camera's through PyAV, a .h264 file; on the simulator a fake H.264 camera)
+    # or raw.
     # The camera's JPEG goes to the console untouched; only the frames vision or the recording needs are decoded.
     format: str
+    # What the console encodes pixels to: auto (the Pi's hardware H.264 encoder when present, else JPEG), jpeg
+    # or h264 (the hardware encoder; an error where there is none). A camera's own JPEG or H.264 goes as it came.
+    console_codec: str
 
     def __post_init__(self) -> None:
         if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):
@@ -139,6 +150,8 @@ class CameraConfig:
             raise ValueError(f"camera.lost_after_failures must be >= 1, got {self.lost_after_failures}")
         if self.format not in FORMATS:
             raise ValueError(f"camera.format must be one of {', '.join(FORMATS)}, got {self.format!r}")
+        if self.console_codec not in ("auto", "jpeg", "h264"):
+            raise ValueError(f"camera.console_codec must be one of auto, jpeg, h264, got {self.console_codec!r}")
 
     @classmethod
     def from_dict(cls, d: Any) -> "CameraConfig":
@@ -258,6 +271,195 @@ class MjpegReplay:
         self._open = False
 
 
+H264_SUFFIXES = (".h264", ".264")
+"""A ``device`` with one of these suffixes is an H.264 elementary stream (Annex B) replayed as a camera."""
+
+
+class H264Replay:
+    """A fake H.264 camera: replays the access units of an H.264 file (Annex B, as ``ffmpeg -c:v copy -f h264``
+    writes it; or a list of units) in a loop through ``read_h264()``, untouched, as a camera's encoder gives them.
+    The first unit must be a keyframe (with SPS and PPS), so that every round decodes from its start."""
+
+    compressed = True
+
+    def __init__(self, units: list[bytes]) -> None:
+        from beastbt.devices.h264 import is_keyframe
+        if not units:
+            raise ValueError("an H.264 replay needs at least one access unit")
+        if not is_keyframe(units[0]):
+            raise ValueError("an H.264 replay must start at a keyframe (an IDR picture with its SPS and PPS)")
+        self.units = units
+        self.index = 0
+        self._open = True
+        self.frames_read = 0
+        """Access units handed over so far."""
+        self._decoder: Any = None
+
+    @classmethod
+    def from_file(cls, path: str) -> "H264Replay":
+        """The access units of an H.264 file (``ValueError`` when it holds none, or does not start at a keyframe)."""
+        from beastbt.devices.h264 import split_access_units
+        with open(path, "rb") as f:
+            units = split_access_units(f.read())
+        if not units:
+            raise ValueError(f"{path}: no H.264 access unit in it (expected an Annex B elementary stream, .h264)")
+        try:
+            return cls(units)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True until released."""
+        return self._open
+
+    def read_h264(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the next access unit's bytes), or (False, None) once released."""
+        if not self._open:
+            return False, None
+        data = self.units[self.index]
+        self.index = (self.index + 1) % len(self.units)
+        self.frames_read += 1
+        return True, data
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """(True, the next picture decoded to BGR), or (False, None) (PyAV decodes every unit in order)."""
+        from beastbt.devices.h264 import H264Decoder
+        ok, data = self.read_h264()
+        if not ok or data is None:
+            return False, None
+        if self._decoder is None:
+            self._decoder = H264Decoder()
+        image = self._decoder.decode(data)
+        return (image is not None), image
+
+    def release(self) -> None:
+        """Close it (reads fail)."""
+        self._open = False
+
+
+class EncodingH264Camera:
+    """A fake H.264 camera on the simulator: each frame a pixel source (a :class:`SimCamera`) renders, handed over
+    as the access unit a camera's own encoder would give (``read_h264``), so that the H.264 camera path (passed to
+    the console untouched) runs end to end. It encodes with PyAV's software ``encoder`` (the wheel's libx264):
+    that stands for a camera's hardware, which does it for free, and costs this process, not the console's."""
+
+    compressed = True
+
+    def __init__(self, camera: Any, fps: float = 15.0, encoder: Optional[str] = None,
+                 bit_rate: float = 1_000_000.0) -> None:
+        from beastbt.devices.h264 import H264Encoder, software_encoder
+        self.camera = camera
+        self.encoder = H264Encoder(encoder or software_encoder() or "libx264", bit_rate, fps)
+        self._queue: list[bytes] = []
+        self.frames_encoded = 0
+        """Access units handed over so far."""
+
+    def reopen(self) -> "EncodingH264Camera":
+        """What the driver's ``open_source`` calls: the simulated camera opens again unless unplugged."""
+        self.camera.reopen()
+        return self
+
+    def isOpened(self) -> bool:  # noqa: N802 - OpenCV's name
+        """True while the pixel source is open."""
+        return bool(self.camera.isOpened())
+
+    def release(self) -> None:
+        """Close it (reads fail until :meth:`reopen`)."""
+        self.camera.release()
+
+    def read_h264(self) -> tuple[bool, Optional[bytes]]:
+        """Render the current view and give its access unit: ``(True, unit)``, or ``(False, None)``."""
+        ok, frame = self.camera.read()
+        if not ok or frame is None:
+            return False, None
+        units = self.encoder.encode(frame)
+        if not units:
+            return False, None
+        self.frames_encoded += 1
+        return True, b"".join(unit for unit, _ in units)
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """Render the current view as pixels."""
+        return self.camera.read()
+
+
+class V4l2H264Capture:
+    """A V4L2 camera that gives H.264 (a UVC H.264 camera; the Pi camera through the V4L2 compatibility layer),
+    read with PyAV's demuxer: ``read_h264()`` hands over each packet (one access unit) untouched, with the SPS and
+    PPS put in front of a keyframe that came without them. Needs PyAV (``pip install 'beastbt[video]'``)."""
+
+    compressed = True
+
+    def __init__(self, config: "CameraConfig") -> None:
+        import av
+
+        from beastbt.devices.h264 import ParameterSets
+        device = config.device if isinstance(config.device, str) else f"/dev/video{config.device}"
+        if isinstance(device, str) and device.isdigit():
+            device = f"/dev/video{device}"
+        self._container = av.open(device, format="v4l2", options={
+            "input_format": "h264", "video_size": f"{config.width_px}x{config.height_px}",
+            "framerate": f"{config.fps:g}"})
+        self._packets = self._container.demux(video=0)
+        self._sets = ParameterSets()
+        self._open = True
+        self._decoder: Any = None
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True until released or the device fails."""
+        return self._open
+
+    def read_h264(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the next access unit), or (False, None) when the device gave none."""
+        try:
+            for packet in self._packets:
+                if packet.size:
+                    return True, self._sets.complete(bytes(packet))
+        except Exception:  # noqa: BLE001 - an unplugged camera is "lost" for the driver
+            pass
+        self._open = False
+        return False, None
+
+    def read(self) -> tuple[bool, Optional[np.ndarray]]:
+        """(True, the next picture as BGR), or (False, None)."""
+        from beastbt.devices.h264 import H264Decoder
+        ok, data = self.read_h264()
+        if not ok or data is None:
+            return False, None
+        if self._decoder is None:
+            self._decoder = H264Decoder()
+        image = self._decoder.decode(data)
+        return (image is not None), image
+
+    def release(self) -> None:
+        """Close the device."""
+        if self._open:
+            self._open = False
+        try:
+            self._container.close()
+        except Exception:  # noqa: BLE001 - a vanished device may fail to close; it is gone anyway
+            pass
+
+
+class _NewestUnits(io.BufferedIOBase):
+    """picamera2's output for its H.264 encoder: keeps the last access units in order (a viewer needs every one)
+    and wakes a reader waiting for the next."""
+
+    def __init__(self, length: int = 64) -> None:
+        super().__init__()
+        from beastbt.devices.h264 import UnitRing
+        self.ring = UnitRing(length)
+
+    def writable(self) -> bool:
+        """An output picamera2 writes to."""
+        return True
+
+    def write(self, buf: Any) -> int:  # type: ignore[override]
+        """One access unit from the encoder's thread."""
+        self.ring.put(bytes(buf))
+        return len(buf)
+
+
 class _NewestJpeg(io.BufferedIOBase):
     """picamera2's output for its MJPEG encoder: keeps the newest JPEG and wakes a reader waiting for it."""
 
@@ -303,15 +505,24 @@ class Picamera2Capture:
         size = (int(config.width_px), int(config.height_px))
         frame_us = int(1e6 / config.fps)
         self._wait_s = 2.0 * frame_us / 1e6
-        self.compressed = config.format == "mjpeg"
+        self.compressed = config.format in ("mjpeg", "h264")
         self._jpeg: Optional[_NewestJpeg] = None
+        self._units: Optional[_NewestUnits] = None
+        self._decoder: Any = None
         self._count = 0
         # The hardware encoder takes YUV420; the pixel path wants "RGB888" (B, G, R in memory: OpenCV's order).
         video = self._camera.create_video_configuration(
             main={"size": size, "format": "YUV420" if self.compressed else "RGB888"}, buffer_count=2,
             controls={"FrameDurationLimits": (frame_us, frame_us)})
         self._camera.configure(video)
-        if self.compressed:
+        if config.format == "h264":
+            from picamera2.encoders import H264Encoder
+            from picamera2.outputs import FileOutput
+            self._units = _NewestUnits(max(8, int(4 * config.fps)))
+            # SPS and PPS with every keyframe (repeat), a keyframe a second (iperiod): a viewer may join any time.
+            encoder = H264Encoder(bitrate=2_000_000, repeat=True, iperiod=max(1, int(round(config.fps))))
+            self._camera.start_recording(encoder, FileOutput(self._units))
+        elif self.compressed:
             from picamera2.encoders import MJPEGEncoder
             from picamera2.outputs import FileOutput
             self._jpeg = _NewestJpeg()
@@ -331,8 +542,28 @@ class Picamera2Capture:
         self._count, data = self._jpeg.newer(self._count, self._wait_s)
         return (True, data) if data else (False, None)
 
+    def read_h264(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the hardware encoder's next access unit, in order), or (False, None) when none came within two
+        frame periods. A reader more than the output's length behind skips to the oldest unit it still has."""
+        if self._units is None or not self._open:
+            return False, None
+        got = self._units.ring.next_after(self._count, self._wait_s)
+        if got is None:
+            return False, None
+        self._count, data, _ = got
+        return True, data
+
     def read(self) -> tuple[bool, Optional[np.ndarray]]:
         """(True, the newest frame as BGR uint8), or (False, None) when it cannot be had."""
+        if self._units is not None:
+            from beastbt.devices.h264 import H264Decoder
+            ok, data = self.read_h264()
+            if not ok or data is None:
+                return False, None
+            if self._decoder is None:
+                self._decoder = H264Decoder()
+            image = self._decoder.decode(data)
+            return (image is not None), image
         if self.compressed:
             ok, data = self.read_jpeg()
             image = decode_jpeg(data) if ok and data is not None else None
@@ -355,6 +586,25 @@ class Picamera2Capture:
                 self._camera.close()
             except Exception:  # noqa: BLE001 - closing a vanished camera may fail; it is gone anyway
                 pass
+
+
+def h264_problem(config: CameraConfig, simulated: bool) -> Optional[str]:
+    """Why ``camera.format: h264`` cannot work here (None when it can): the simulator's fake H.264 camera needs a
+    software encoder in PyAV; a V4L2 H.264 camera needs PyAV to read it (a Pi camera through picamera2 does not)."""
+    from beastbt.devices.h264 import pyav_installed, software_encoder
+    if config.format != "h264":
+        return None
+    if simulated:
+        if software_encoder() is None:
+            return ("h264 on the simulator needs PyAV with a software H.264 encoder (libx264 or libopenh264) for "
+                    "its fake H.264 camera, and this machine has none")
+        return None
+    device = config.device
+    if isinstance(device, str) and device.lower().endswith(H264_SUFFIXES):
+        return None
+    if camera_backend(config) == "v4l2" and not pyav_installed():
+        return "h264 from a V4L2 camera is read through PyAV, which is not installed"
+    return None
 
 
 def picamera2_cameras() -> int:
@@ -392,6 +642,16 @@ def open_video_capture(config: CameraConfig) -> Any:
         except Exception:  # noqa: BLE001 - a missing or busy Pi camera is "lost" for the driver, which retries
             return _Unopened()
     device: Union[str, int] = config.device
+    if isinstance(device, str) and device.lower().endswith(H264_SUFFIXES):
+        try:  # recorded H.264 access units, replayed as a camera's encoder gives them (tests, a robot without it)
+            return H264Replay.from_file(device)
+        except (OSError, ValueError):
+            return _Unopened()
+    if config.format == "h264":
+        try:
+            return V4l2H264Capture(config)
+        except Exception:  # noqa: BLE001 - no PyAV, no such device, no H.264 on it: "lost" for the driver
+            return _Unopened()
     if isinstance(device, str) and device.lower().endswith((".mjpeg", ".mjpg")):
         try:  # recorded MJPEG frames, replayed as a camera would give them (tests, a robot without its camera)
             return MjpegReplay.from_file(device)
@@ -465,6 +725,11 @@ class Camera:
         """Reads that failed (returned no frame or raised) since construction."""
         self.reopens = 0
         """Times the source was reopened after being lost."""
+        self._h264_decoder: Any = None
+        self._h264_fed = -1
+        """The seq of the last H.264 unit the decoder took (-1: none): pictures decode only in order."""
+        self.decode_every_h264 = False
+        """Set once pixels were asked of an H.264 camera: from then on every unit is decoded as it is read."""
         self._try_open(self._clock.now())
 
     # --- state -------------------------------------------------------------------
@@ -505,6 +770,12 @@ class Camera:
         self.seq += 1
         self.last_frame_s = now
         image, jpeg = got
+        if self.h264:
+            unit = jpeg
+            if pixels or self.decode_every_h264:
+                self.decode_every_h264 = True
+                image = self._decode_h264(unit, self.seq)  # type: ignore[arg-type]
+            return CameraFrame(stamp_s=now, image=image, seq=self.seq, h264=unit)  # type: ignore[arg-type]
         return CameraFrame(stamp_s=now, image=image, seq=self.seq, jpeg=jpeg)  # type: ignore[arg-type]
 
     @property
@@ -513,9 +784,35 @@ class Camera:
         source = self._source
         return source is not None and bool(getattr(source, "compressed", hasattr(source, "read_jpeg")))
 
+    @property
+    def h264(self) -> bool:
+        """True while the held source hands over its own H.264 access units (``read_h264``)."""
+        return self._source is not None and hasattr(self._source, "read_h264")
+
+    def _decode_h264(self, unit: bytes, seq: int) -> Optional[np.ndarray]:
+        """The picture of H.264 unit ``seq`` (BGR), or None: not in order after the last one decoded, it waits
+        for the next keyframe (a picture decoded from a missing one would be wrong)."""
+        from beastbt.devices.h264 import H264Decoder
+        try:
+            if self._h264_decoder is None or seq != self._h264_fed + 1:
+                self._h264_decoder = H264Decoder()
+            self._h264_fed = seq
+            return self._h264_decoder.decode(unit)
+        except Exception:  # noqa: BLE001 - no PyAV, a broken unit: no pixels, never a crash
+            return None
+
     def decode(self, frame: CameraFrame, reduction: int = 1) -> Optional[CameraFrame]:
         """``frame`` with its pixels (decoded from its JPEG at 1/``reduction`` of the size when it has none
-        yet), or None when its JPEG does not decode; never raises."""
+        yet; from its H.264 unit at full size, in order only), or None when it does not decode; never raises."""
+        if frame.image is None and frame.h264 is not None:
+            self.decode_every_h264 = True  # the units after this one are decoded as they are read
+            image = self._decode_h264(frame.h264, frame.seq) if frame.seq == self._h264_fed + 1 else None
+            if image is None:
+                self.read_errors += 1
+                self._events("camera_read_error", f"camera frame {frame.seq}: no H.264 picture yet (it waits for "
+                                                  "a keyframe)")
+                return None
+            return CameraFrame(stamp_s=frame.stamp_s, image=image, seq=frame.seq, h264=frame.h264)
         if frame.image is not None or frame.jpeg is None:
             return frame
         try:
@@ -544,7 +841,11 @@ class Camera:
             if not source.isOpened():
                 self._declare_lost(now, "camera source reports it is no longer opened")
                 return None
-            if self.compressed:
+            if self.h264:
+                ok, data = source.read_h264()  # type: ignore[attr-defined]
+                jpeg = bytes(data) if ok and data else None  # the unit: poll() files it under h264
+                ok = jpeg is not None
+            elif self.compressed:
                 ok, data = source.read_jpeg()  # type: ignore[attr-defined]
                 if ok and data:
                     jpeg = bytes(data)

@@ -217,6 +217,9 @@ class ConsoleLink:
         pipeline = run.io.camera
         if pipeline is None:
             return
+        if pipeline.config.format == "h264":
+            self._feed_h264(pipeline, wall)
+            return
         if pipeline.threaded:
             # The robot's camera thread reads for the console too while someone watches: a camera that gives
             # JPEG is then read but not decoded (decoding is for vision, at its own rate).
@@ -250,6 +253,26 @@ class ConsoleLink:
             self._last_video_wall = wall
             from beastbt.parts.camera import persons_xy  # the viewer draws the persons where they are now
             self._send(("pose", (t.x, t.y, t.yaw, t.v_mps, t.w_rps, t.pan_rad, t.tilt_rad, persons_xy(run.io.sim))))
+
+    def _feed_h264(self, pipeline: Any, wall: float) -> None:
+        """The camera's own H.264: every access unit read since the last call, in order and untouched (a viewer
+        decodes each from the one before it). After a pause (nobody fed for a second) the old ones are dropped."""
+        from beastbt.devices.h264 import is_keyframe
+        if wall - self._last_video_wall > 1.0:
+            pipeline.h264_units.clear()
+        if pipeline.threaded:
+            if "console" not in pipeline.reasons:
+                pipeline.enable("console", pixels=False)
+        else:
+            pipeline.read_for_viewer()  # read now when nothing else does: only as often as someone watches
+        self._last_video_wall = wall
+        latest = pipeline.latest
+        detection = latest[1] if latest is not None else None
+        units = pipeline.h264_units
+        while units:
+            frame = units.popleft()
+            self._send(("h264", frame.seq, time.time(), frame.h264, is_keyframe(frame.h264), detection,
+                        pipeline.lookahead_m))
 
     def stop_video(self, run: Any) -> None:
         """Nobody watches any more (the tick thread): the robot's camera stops reading for the console."""
@@ -317,6 +340,23 @@ class ConsoleLink:
         self._send(("result", request, ok, payload), block=block, keep=True)
 
 
+def console_codec(prepared: Any) -> str:
+    """The console's video codec from the profile (``camera.console_codec``: auto, jpeg, h264); ``h264`` on a
+    machine without the hardware H.264 encoder is an error at that key (auto would give JPEG here)."""
+    pipeline = prepared.run.io.camera
+    codec = pipeline.config.console_codec if pipeline is not None else "auto"
+    if codec != "h264" or pipeline.config.format == "h264":  # a camera's own H.264 needs no encoder here
+        return codec
+    from beastbt.devices.h264 import resolve_codec
+    try:
+        resolve_codec(codec)
+    except ValueError as exc:
+        raise InvalidInput([prepared.profile.doc.problem(
+            ("camera", "console_codec"), f"camera.console_codec: {exc}",
+            "use auto (the hardware encoder where there is one, JPEG elsewhere) or jpeg")]) from None
+    return codec
+
+
 def install_console(prepared: Any) -> ConsoleLink:
     """Start the console for ``prepared``'s run: its process, its tick hook and reactor; print its address."""
     spec = prepared.options.console
@@ -328,7 +368,7 @@ def install_console(prepared: Any) -> ConsoleLink:
     wall = time.monotonic  # the console paces itself for people, in wall time; the run's clock is untouched
     state = ConsoleState(run, prepared.world, wall)
     controls = ConsoleControls(run, wall)
-    link = ConsoleLink(run, state, controls, host, port, VideoConfig(),
+    link = ConsoleLink(run, state, controls, host, port, VideoConfig(codec=console_codec(prepared)),
                        token_always=getattr(prepared.options, "console_token", "auto") == "always")
     state.on_publish = link.on_publish
     try:

@@ -14,6 +14,7 @@ From the run (``inbox``):
   the camera's geometry and, on the simulator, how to build a viewer camera;
 * ``("state", seq, state)`` a few times a second, ``("map", layers)`` now and then;
 * ``("jpeg", seq, captured_s, jpeg_bytes, detection, lookahead_m)``: a camera's own JPEG, sent on untouched;
+  ``("h264", seq, captured_s, access_unit, keyframe, detection, lookahead_m)``: a camera's own H.264, likewise;
   ``("frame", shm_name, shape, seq, captured_s, detection, lookahead_m)``: a
   camera frame (pixels) in shared memory; ``("pose", truth)``: where the simulated
   viewer camera is now; ``("result", request_id, ok, payload)``: a control's outcome;
@@ -200,6 +201,10 @@ def serve(inbox: Connection, outbox: Connection) -> int:
                 _, seq, captured, jpeg, detection, lookahead = msg
                 video.pull = None
                 video.raw.put(("jpeg", jpeg, detection, geometry, lookahead, captured))
+            elif kind == "h264":  # a camera's own H.264 access unit: every one, in order, to the H.264 viewers
+                _, seq, captured, unit, key, detection, lookahead = msg
+                video.pull = None
+                video.pass_h264(unit, key, detection, geometry, lookahead, captured, seq)
             elif kind == "frame":
                 _, shm_name, shape, seq, captured, detection, lookahead = msg
                 image = _read_frame(shm_name, shape)

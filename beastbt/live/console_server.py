@@ -6,8 +6,8 @@ The contract (tests and other tools rely on it):
   ``GET /api/map``: the map's fixed layers and the trail so far.
 * ``WS /api/ws``: the state, pushed at least 5 times a second; the final state
   is always sent before the socket closes at the end of the run.
-* ``WS /api/video``: the camera as binary JPEG messages
-  (:mod:`beastbt.live.console_video`).
+* ``WS /api/video``: the camera as binary JPEG messages, or H.264 to a page that
+  says it decodes it (:mod:`beastbt.live.console_video`).
 * ``POST /api/pause``, ``/api/resume``, ``/api/abort``, ``/api/estop``,
   ``/api/estop/reset``, ``/api/answer`` (``{id, choice}``), ``/api/teleop``
   (``{linear, angular, deadman}``). Each answers ``{ok: true, ...}``, or a 4xx
@@ -63,7 +63,7 @@ from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answ
 from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
 from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.web_guard import WebGuard
-from beastbt.live.console_video import BudgetGuard, ConsoleVideo
+from beastbt.live.console_video import ConsoleVideo
 
 PUSH_PERIOD_S = 0.1
 """The state is pushed to every WebSocket at least this often (s): 10 a second."""
@@ -71,10 +71,11 @@ CONTROL_TIMEOUT_S = 2.0
 """How long a control waits for the tick thread before the answer is 503 (s)."""
 TOKEN_COOKIE = "beastbt_console_token"
 CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; img-src 'self' data: blob:; "
-                           "connect-src 'self'; object-src 'none'; base-uri 'none'; form-action 'none'; "
-                           "frame-ancestors 'none'")
+                           "media-src blob:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
+                           "form-action 'none'; frame-ancestors 'none'")
 """The page loads only its own files and talks only to its own server; no other page may frame it (the e-stop
-and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code."""
+and the stick cannot be clickjacked). No inline script runs and no string is evaluated as code. Media only from
+the page's own blobs: the H.264 it plays through MSE (console_page/console.js)."""
 WS_PATHS = ("/api/ws", "/api/video")
 PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css", "favicon.svg": "image/svg+xml"}
 """The page's own files, shipped in the package (no CDN: it works offline in a field)."""
@@ -281,10 +282,12 @@ class ConsoleServer:
             self._handlers.discard(task)
         return ws
 
-    async def _drain(self, ws: web.WebSocketResponse) -> None:
+    async def _drain(self, ws: web.WebSocketResponse, told: Optional[Callable[[str], None]] = None) -> None:
         async for msg in ws:  # the page sends nothing it needs answered; this notices a closed tab
             if msg.type in (WSMsgType.CLOSE, WSMsgType.ERROR):
                 break
+            if told is not None and msg.type == WSMsgType.TEXT and len(msg.data) <= 1024:
+                told(msg.data)  # the video page's word on what it decodes
 
     async def _ws_video(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=10.0)
@@ -293,24 +296,21 @@ class ConsoleServer:
         assert task is not None
         self._handlers.add(task)
         video = self.video
-        guard = BudgetGuard(video.config.budget_bps, video.wall)
+        feed = video.feed()  # JPEG, or H.264 once the page says it decodes it (console_video.ViewerFeed)
         loop = asyncio.get_running_loop()
         video.viewers += 1
         assert self._ending is not None
-        reader = asyncio.ensure_future(self._drain(ws))
-        last = 0
+        reader = asyncio.ensure_future(self._drain(ws, feed.hello))
         try:
             while not self._ending.is_set() and not ws.closed and not reader.done():
-                got = await loop.run_in_executor(self._waiters, video.encoded.wait_newer, last, 0.5)
-                if got is None:
-                    continue
-                last, encoded = got
-                if guard.allows(len(encoded.message)):
-                    await ws.send_bytes(encoded.message)
+                message = await loop.run_in_executor(self._waiters, feed.next_message, 0.5)
+                if message is not None:
+                    await ws.send_bytes(message)
         except (ConnectionResetError, RuntimeError):
             pass
         finally:
             reader.cancel()
+            feed.close()
             video.viewers -= 1
             self._handlers.discard(task)
             if not ws.closed:

@@ -26,6 +26,18 @@ Each frame goes out as one binary WebSocket message: a 16-byte header (the wall 
 ms as a little-endian float64; its sequence number, uint32; the JPEG quality, uint16, 0 for the camera's
 own JPEG passed through; the overlay's length in bytes, uint16), the overlay (UTF-8 JSON), then the JPEG.
 The page uses the capture time to show the frame's age.
+
+H.264 (:mod:`beastbt.devices.h264`) goes only to a viewer that said it decodes it: the page sends
+``{"accept": ["h264", "jpeg"]}`` as a text message when it opens the socket (WebCodecs ``VideoDecoder``, or
+else Media Source Extensions, that play H.264); a page that says nothing, or ``{"accept": ["jpeg"], "why": ...}``, gets
+JPEG, byte for byte as before. An H.264 message has the same header with the quality field
+:data:`H264_KEY` (a keyframe, SPS and PPS in front) or :data:`H264_DELTA`, then the overlay, then one access unit
+(Annex B). H.264 is sent when the camera gives its own (passed on untouched), or when the console encodes
+pixels and the codec (``VideoConfig.codec``: auto, jpeg, h264) resolved to the hardware encoder; a camera's own
+JPEG always goes as it came. Every viewer reads every access unit in order (:class:`~beastbt.devices.h264.UnitRing`);
+a new viewer starts at the newest keyframe still held (at most a second or two back), and one that had to skip a
+unit (slow, or over its budget) waits for the next keyframe and asks the encoder for one (at most once a second;
+a camera's own H.264 has one every second or so).
 """
 
 from __future__ import annotations
@@ -39,6 +51,7 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
+from beastbt.devices.h264 import HARDWARE_ENCODER, H264Decoder, H264Encoder, UnitRing, resolve_codec
 from beastbt.live.video_stream import LatestSlot, encode_jpeg
 
 HEADER = struct.Struct("<dIHH")
@@ -48,6 +61,12 @@ QUALITY_MIN = 20
 QUALITY_MAX = 90
 PASSED_THROUGH = 0
 """The header's quality for a camera's own JPEG, sent as it came."""
+H264_KEY = 0xFF01
+"""The header's quality field for an H.264 keyframe (not a JPEG: every value from 0xFF00 up is another codec)."""
+H264_DELTA = 0xFF02
+"""The header's quality field for an H.264 access unit that needs the ones before it."""
+KEYFRAME_REQUEST_S = 1.0
+"""A viewer waiting for a keyframe asks the encoder for one at most this often (s): keyframes are large."""
 
 
 @dataclass(frozen=True)
@@ -60,17 +79,26 @@ class VideoConfig:
     fps: float = 25.0
     budget_bps: float = 4_500_000.0
     overlay: bool = True
+    codec: str = "auto"
+    """What the console encodes pixels to: auto (H.264 with the hardware encoder, else JPEG), jpeg or h264."""
+    h264_encoder: str = HARDWARE_ENCODER
+    """PyAV's encoder for ``h264`` and ``auto`` (tests may name a software one; never a default)."""
 
 
 @dataclass(frozen=True)
 class Encoded:
-    """One frame to send: the message (header + overlay + JPEG), its raw frame's sequence, capture time (wall s),
-    JPEG quality (0: the camera's own)."""
+    """One frame to send: the message (header + overlay + JPEG or H.264), its raw frame's sequence, capture time
+    (wall s), JPEG quality (0: the camera's own; :data:`H264_KEY`, :data:`H264_DELTA`: H.264)."""
 
     message: bytes
     seq: int
     captured_wall_s: float
     quality: int
+
+    @property
+    def key(self) -> bool:
+        """True for a frame that decodes alone (every JPEG, an H.264 keyframe)."""
+        return self.quality != H264_DELTA
 
 
 def overlay_of(caption: Optional[list[str]], detection: Any, geometry: Any, lookahead_m: float) -> dict:
@@ -132,6 +160,26 @@ class ConsoleVideo:
         """Renders a frame on demand in the video thread (the simulator's viewer camera), when set."""
         self.pull_fps: Optional[float] = None
         """Most frames a second :attr:`pull` renders (None: ``fps``): a rendered camera need not beat its model."""
+        self.units = UnitRing(max(8, int(2 * config.fps)))
+        """The H.264 access units (:class:`Encoded`), every one in order, for the viewers that take H.264."""
+        self.codec = "jpeg"
+        """What pixels are encoded to: "h264" or "jpeg" (``config.codec`` resolved at :meth:`start`)."""
+        self.codec_why = ""
+        """Why :attr:`codec` is what it is (the encoder found, or why none was)."""
+        self.source = "none"
+        """What the last frame came as: "jpeg" (the camera's own), "h264" (the camera's own), "pixels"."""
+        self.feeds: set["ViewerFeed"] = set()
+        self.frames_h264 = 0
+        """H.264 access units sent on: the camera's own, or encoded here."""
+        self._h264: Optional[H264Encoder] = None
+        self._decoder: Optional[H264Decoder] = None
+        self._unit_seq = 0
+        self._last_key_request = -1e9
+        self._lock = threading.Lock()
+        self._camera_seq: Optional[int] = None
+        self._broken = False
+        self.units_dropped = 0
+        """A camera's H.264 units not sent: after one that never reached this process, until the next keyframe."""
 
     @property
     def target_bytes(self) -> float:
@@ -139,8 +187,79 @@ class ConsoleVideo:
         return 0.9 * self.config.budget_bps / 8.0 / self.config.fps
 
     # -- life --------------------------------------------------------------------------
+    @property
+    def h264_active(self) -> bool:
+        """True while the frames go out as H.264 to the viewers that take it (the camera's own H.264, or pixels
+        with the H.264 encoder); a camera's own JPEG always goes as JPEG."""
+        return self.source == "h264" or (self.source in ("pixels", "none") and self.codec == "h264")
+
+    def feed(self) -> "ViewerFeed":
+        """A new viewer's feed (JPEG until its page says it decodes H.264); :meth:`ViewerFeed.close` at its end."""
+        feed = ViewerFeed(self)
+        with self._lock:
+            self.feeds.add(feed)
+        return feed
+
+    def _wants(self) -> tuple[bool, bool]:
+        """(JPEG wanted, H.264 wanted) by the viewers now (JPEG when nobody said: an old page, a test)."""
+        with self._lock:
+            feeds = list(self.feeds)
+        if not feeds:
+            return True, False
+        return any(f.codec == "jpeg" for f in feeds), any(f.codec == "h264" for f in feeds)
+
+    def want_keyframe(self) -> None:
+        """A viewer waits for a keyframe: the encoder makes the next frame one (at most once a second)."""
+        now = self.wall()
+        if now - self._last_key_request >= KEYFRAME_REQUEST_S and self._h264 is not None:
+            self._last_key_request = now
+            self._h264.request_keyframe()
+
+    def pass_h264(self, access_unit: bytes, key: bool, detection: Any, geometry: Any, lookahead_m: float,
+                  captured: float, camera_seq: Optional[int] = None) -> None:
+        """A camera's own H.264 access unit (Annex B, SPS/PPS before a keyframe): to the H.264 viewers as it came
+        (called for every unit, in order; ``camera_seq`` its number from the camera, when known: after a unit
+        that never came, the ones up to the next keyframe would not decode, and are not sent). A viewer that
+        cannot decode H.264 gets it decoded and JPEG-encoded, only while there is one."""
+        self.source = "h264"
+        if camera_seq is not None:
+            gap = self._camera_seq is not None and camera_seq != self._camera_seq + 1
+            self._camera_seq = camera_seq
+            self._broken = (self._broken or gap) and not key
+            if self._broken:
+                self.units_dropped += 1
+                return
+        self._put_unit(access_unit, key, self._overlay_bytes(detection, geometry, lookahead_m), captured)
+        jpeg_wanted, _ = self._wants()
+        if not jpeg_wanted or not self.feeds:
+            self._decoder = None  # a later JPEG viewer starts again at a keyframe
+            return
+        try:
+            if self._decoder is None:
+                self._decoder = H264Decoder()
+            image = self._decoder.decode(access_unit)
+        except Exception as exc:  # noqa: BLE001 - PyAV missing or a broken unit: the H.264 viewers go on
+            self._decoder = None
+            self.codec_why = f"the camera's H.264 cannot be decoded here: {exc}"
+            return
+        if image is not None:
+            self.raw.put((image, detection, geometry, lookahead_m, captured, "decoded"))
+
+    def _put_unit(self, access_unit: bytes, key: bool, overlay: bytes, captured: float) -> None:
+        self._unit_seq += 1
+        quality = H264_KEY if key else H264_DELTA
+        message = HEADER.pack(captured * 1000.0, self._unit_seq & 0xFFFFFFFF, quality, len(overlay)) + overlay
+        self.units.put(Encoded(message + access_unit, self._unit_seq, captured, quality))
+        self.frames_h264 += 1
+
     def start(self) -> "ConsoleVideo":
-        """Start the video thread."""
+        """Resolve the codec (``auto``: the hardware H.264 encoder when present, else JPEG; ``h264`` without it
+        falls back to JPEG with a warning: the run checked it first) and start the video thread."""
+        try:
+            self.codec, self.codec_why = resolve_codec(self.config.codec, self.config.h264_encoder)
+        except ValueError as exc:
+            self.codec, self.codec_why = "jpeg", str(exc)
+            print(f"beastbt console: {exc}; sending JPEG", file=sys.stderr)
         self._thread = threading.Thread(target=self._encode_loop, name="beastbt-console-video", daemon=True)
         self._thread.start()
         return self
@@ -150,8 +269,11 @@ class ConsoleVideo:
         self._closing.set()
         self.raw.close()
         self.encoded.close()
+        self.units.close()
         if self._thread is not None:
             self._thread.join(2.0)
+        if self._h264 is not None:
+            self._h264.close()
 
     # -- the video thread --------------------------------------------------------------
     def _encode_loop(self) -> None:
@@ -178,7 +300,7 @@ class ConsoleVideo:
             done = seq
             next_wall = max(next_wall + period, self.wall() - 0.5 * period)  # keep the rate; no burst after a stall
             try:
-                self.encoded.put(self.encode(raw, seq))
+                self._send(raw, seq)
             except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
                 print(f"beastbt console: could not send a frame: {exc!r}", file=sys.stderr)
 
@@ -189,9 +311,38 @@ class ConsoleVideo:
         try:
             image = pull()
             self._seq += 1
-            self.encoded.put(self.encode((image, None, None, 0.25, self.epoch()), self._seq))
+            self._send((image, None, None, 0.25, self.epoch()), self._seq)
         except Exception as exc:  # noqa: BLE001 - a bad frame must not end the video
             print(f"beastbt console: could not render a frame: {exc!r}", file=sys.stderr)
+
+    def _send(self, raw: tuple, seq: int) -> None:
+        """One raw frame to the viewers: JPEG for those that take JPEG, H.264 for those that take it."""
+        if isinstance(raw[0], str) and raw[0] == "jpeg":
+            self.source = "jpeg"
+            self.encoded.put(self.encode(raw, seq))
+            return
+        if len(raw) == 5:
+            self.source = "pixels"
+        jpeg_wanted, h264_wanted = self._wants()
+        if h264_wanted and self.codec == "h264" and self.source == "pixels":
+            self._encode_h264(raw)
+        if jpeg_wanted:
+            self.encoded.put(self.encode(raw[:5], seq))
+
+    def _encode_h264(self, raw: tuple) -> None:
+        image, detection, geometry, lookahead_m, captured = raw[:5]
+        cfg = self.config
+        h, w = image.shape[:2]
+        if w > cfg.width_px or h > cfg.height_px:
+            import cv2
+            scale = min(cfg.width_px / w, cfg.height_px / h)
+            image = cv2.resize(image, (max(2, int(w * scale)), max(2, int(h * scale))), interpolation=cv2.INTER_AREA)
+        if self._h264 is None:
+            # Half the budget: H.264 at 2-3 Mbit/s looks as good as JPEG at twice that.
+            self._h264 = H264Encoder(cfg.h264_encoder, 0.5 * cfg.budget_bps, cfg.fps)
+        overlay = self._overlay_bytes(detection, geometry, lookahead_m)
+        for unit, key in self._h264.encode(image):
+            self._put_unit(unit, key, overlay, captured)
 
     def _overlay_bytes(self, detection: Any, geometry: Any, lookahead_m: float) -> bytes:
         if not self.config.overlay:
@@ -233,6 +384,92 @@ class ConsoleVideo:
         self.quality = int(max(QUALITY_MIN, min(QUALITY_MAX, round(self.quality + max(-25, min(8, step))))))
 
 
+class ViewerFeed:
+    """What one viewer gets (its WebSocket sender calls :meth:`next_message`): JPEG frames, newest first, or
+    every H.264 access unit in order from a keyframe on, within its bit budget (:class:`BudgetGuard`)."""
+
+    def __init__(self, video: ConsoleVideo) -> None:
+        self.video = video
+        self.guard = BudgetGuard(video.config.budget_bps, video.wall)
+        self.accepts_h264 = False
+        """The page said it decodes H.264 (WebCodecs or MSE, with the codec supported)."""
+        self.why_not_h264 = ""
+        """What the page said when it cannot decode H.264."""
+        self._last_jpeg = 0
+        self._last_unit = video.units.seq
+        self._need_key = True
+        self._was = "jpeg"
+        self.skipped = 0
+        """Messages not sent to this viewer: over its budget, or H.264 units before its next keyframe."""
+
+    @property
+    def codec(self) -> str:
+        """What this viewer gets now: "h264" or "jpeg"."""
+        return "h264" if self.accepts_h264 and self.video.h264_active else "jpeg"
+
+    def hello(self, text: str) -> None:
+        """The page's word on what it decodes: ``{"accept": ["h264", "jpeg"]}`` (``why``: why not H.264)."""
+        try:
+            said = json.loads(text)
+        except ValueError:
+            return
+        if not isinstance(said, dict) or not isinstance(said.get("accept"), list):
+            return
+        self.accepts_h264 = "h264" in said["accept"]
+        self.why_not_h264 = str(said.get("why", ""))[:200]
+        self._switch()
+
+    def _switch(self) -> str:
+        """The codec now; on a change, this viewer goes on from the new stream's newest frame (H.264: from the
+        newest keyframe still held, at most a second or two old, so that the picture comes at once; a camera's
+        own H.264 cannot be asked for a keyframe)."""
+        codec = self.codec
+        if codec != self._was:
+            self._was = codec
+            key = self.video.units.newest_where(lambda encoded: encoded.key)
+            self._last_unit = key - 1 if key is not None else max(0, self.video.units.seq - 1)
+            self._last_jpeg = max(0, self.video.encoded.seq - 1)
+            self._need_key = True
+        return codec
+
+    def next_message(self, timeout_s: float) -> Optional[bytes]:
+        """The next message for this viewer once there is one (None: nothing to send within ``timeout_s``)."""
+        codec = self._switch()
+        if codec == "h264":
+            return self._next_unit(timeout_s)
+        got = self.video.encoded.wait_newer(self._last_jpeg, timeout_s)
+        if got is None:
+            return None
+        self._last_jpeg, encoded = got
+        if self.guard.allows(len(encoded.message)):
+            return encoded.message
+        self.skipped += 1
+        return None
+
+    def _next_unit(self, timeout_s: float) -> Optional[bytes]:
+        got = self.video.units.next_after(self._last_unit, timeout_s)
+        if got is None:
+            return None
+        self._last_unit, encoded, missed = got
+        if missed:
+            self._need_key = True
+        if self._need_key and not encoded.key:
+            self.skipped += 1
+            self.video.want_keyframe()
+            return None
+        if not self.guard.allows(len(encoded.message)):
+            self.skipped += 1
+            self._need_key = True  # the next unit would not decode without this one
+            return None
+        self._need_key = False
+        return encoded.message
+
+    def close(self) -> None:
+        """The viewer has gone."""
+        with self.video._lock:  # noqa: SLF001 - the video's own bookkeeping
+            self.video.feeds.discard(self)
+
+
 class BudgetGuard:
     """A viewer's bit budget over a sliding second: may this message go now? (wall clock in s)"""
 
@@ -252,4 +489,5 @@ class BudgetGuard:
         return True
 
 
-__all__ = ["ConsoleVideo", "VideoConfig", "Encoded", "BudgetGuard", "HEADER", "PASSED_THROUGH", "overlay_of"]
+__all__ = ["ConsoleVideo", "VideoConfig", "Encoded", "BudgetGuard", "ViewerFeed", "HEADER", "PASSED_THROUGH",
+           "H264_KEY", "H264_DELTA", "overlay_of"]

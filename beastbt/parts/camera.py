@@ -61,6 +61,15 @@ def build_floor(floor: dict, seed: int) -> FloorMap:
     return _floor_cached(json.dumps(floor, sort_keys=True), int(seed))
 
 
+def _check_h264(profile: RobotProfile, config: CameraConfig, simulated: bool) -> None:
+    """``camera.format: h264`` where it cannot work is an error at that key, before anything moves."""
+    from beastbt.devices.camera import h264_problem
+    why = h264_problem(config, simulated)
+    if why is not None:
+        raise InvalidInput([profile.doc.problem(("camera", "format"), f"camera.format: {why}",
+                                                "pip install 'beastbt[video]' (PyAV), or use format mjpeg")])
+
+
 def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog) -> None:
     """The profile's camera on V4L2, read and run through the line detector in a thread (``io.sensors['camera']``)."""
     if profile.section("camera") is None:
@@ -68,6 +77,7 @@ def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: Even
     config: CameraConfig = section_config(profile, "camera", CameraConfig)
     detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
     sink = events.sink("camera")
+    _check_h264(profile, config, simulated=False)
 
     def make_camera() -> Camera:
         return Camera(lambda: open_video_capture(config), clock, sink, config)
@@ -96,6 +106,7 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
         return
     config: CameraConfig = section_config(profile, "camera", CameraConfig)
     detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
+    _check_h264(profile, config, simulated=True)
     world = sim.world
     raw_floor = world.section("floor")
     raw_effects = world.section("camera") or {}
@@ -124,6 +135,10 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
         io.sim_camera = sim_camera
         if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
             return Camera(SimMjpegCamera(sim_camera).reopen, events.clock, events.sink("camera"), config)
+        if config.format == "h264":  # a fake H.264 camera: the rendered frames come as its own access units
+            from beastbt.devices.camera import EncodingH264Camera
+            return Camera(EncodingH264Camera(sim_camera, config.fps).reopen, events.clock, events.sink("camera"),
+                          config)
         return Camera(sim_camera.reopen, events.clock, events.sink("camera"), config)
 
     pipeline = CameraPipeline(make_camera, config, detector_config, events.sink("camera"))

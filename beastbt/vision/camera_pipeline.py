@@ -29,6 +29,8 @@ the video stream's overlay.
 
 from __future__ import annotations
 
+from collections import deque
+
 import threading
 from typing import Callable, Optional
 
@@ -81,6 +83,9 @@ class CameraPipeline:
         """The newest frame that came as the camera's own JPEG (``jpeg`` set; ``image`` None when not decoded)."""
         self.jpeg_frames = 0
         """Frames that came as the camera's own JPEG."""
+        self.h264_units: deque[CameraFrame] = deque(maxlen=64)
+        """The camera's own H.264 frames (``h264`` set) not yet taken by the console, oldest first: a viewer needs
+        every one in order (the console's link drains it)."""
         self.decoded = 0
         """JPEG frames decoded for vision or the recording."""
         self._next_frame_s = float("-inf")
@@ -185,6 +190,8 @@ class CameraPipeline:
             if frame is not None and frame.jpeg is not None:
                 self.latest_jpeg = frame
                 self.jpeg_frames += 1
+            elif frame is not None and frame.h264 is not None:
+                self.h264_units.append(frame)
         return self.latest_jpeg
 
     def reset_detector(self) -> None:
@@ -216,12 +223,16 @@ class CameraPipeline:
         camera = self.camera
         if camera is None:
             return False
-        frame = camera.poll(pixels=False)  # a camera's own JPEG is decoded below, and only when needed
+        # A camera's own JPEG is decoded below, and only when needed. An H.264 camera's units are decoded as they
+        # are read while a reason needs pixels: each picture needs the one before it.
+        frame = camera.poll(pixels=camera.h264 and bool(self.pixel_reasons))
         if frame is None:
             return False
         if frame.jpeg is not None:
             self.latest_jpeg = frame
             self.jpeg_frames += 1
+        elif frame.h264 is not None:
+            self.h264_units.append(frame)
         if not self.pixel_reasons:
             if frame.image is not None:  # a camera that gives pixels: they are all a viewer can have
                 self.latest = (frame, None)

@@ -1,5 +1,6 @@
 // beastbt operator console: the page's script. No framework, no CDN: it works offline in a field.
-// Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG frames), POST /api/<control>.
+// Contract: GET /api/state, GET /api/map, WS /api/ws (state), WS /api/video (JPEG or H.264 frames),
+// POST /api/<control>.
 "use strict";
 
 // The token (a console off loopback, or --console-token always) comes once in the address. The server has set
@@ -413,48 +414,295 @@ function drawObstacles(g, ob, poly, ring, px, canvas) {
 }
 
 // ---- video -------------------------------------------------------------------------------------
-const videoStats = {frames: 0, bytes: 0, ages: [], window: []};
+// JPEG frames are drawn as they come, the newest winning. H.264 (beastbt/live/console_video.py: header quality
+// 0xFF01 keyframe, 0xFF02 delta) is decoded in order, from a keyframe on, by WebCodecs' VideoDecoder, or where
+// there is none (WebCodecs needs a secure page: https, or localhost) by Media Source Extensions (each unit a
+// fragment of an MP4, played by a hidden <video> whose frames are drawn here). The page says on opening whether
+// it decodes H.264; one that cannot gets JPEG. videoStats.codec says which came last, .player how H.264 played.
+const videoStats = {frames: 0, bytes: 0, ages: [], window: [], codec: "", drawn: 0, h264: "", player: ""};
 window.beastbtVideoStats = videoStats;  // read by the benchmark and the tests
+const H264_KEY = 0xFF01, H264_DELTA = 0xFF02;
+const MSE_PROBE = 'video/mp4; codecs="avc1.42E01F"';
+let h264Support = null;
+// [true, "", "webcodecs" or "mse"], or [false, why].
+async function h264Supported() {
+  let why = window.isSecureContext ? "this browser has no WebCodecs"
+    : "WebCodecs needs a secure page (https, or the console on localhost)";
+  if (typeof VideoDecoder !== "undefined") {
+    try {
+      if ((await VideoDecoder.isConfigSupported({codec: "avc1.42E01F", optimizeForLatency: true})).supported) {
+        return [true, "", "webcodecs"];
+      }
+      why = "WebCodecs here does not decode H.264";
+    } catch (e) { why = String(e); }
+  }
+  if (window.MediaSource && MediaSource.isTypeSupported(MSE_PROBE)) return [true, "", "mse"];
+  return [false, why + (window.MediaSource ? "; its MSE does not play H.264" : "; no MSE either")];
+}
+// The codec string WebCodecs wants (avc1.PPCCLL) from the keyframe's sequence parameter set.
+function avc1Codec(data) {
+  for (let i = 0; i + 6 < data.length; i++) {
+    if (data[i] === 0 && data[i + 1] === 0 && data[i + 2] === 1 && (data[i + 3] & 0x1f) === 7) {
+      const hex = (b) => b.toString(16).padStart(2, "0").toUpperCase();
+      return "avc1." + hex(data[i + 4]) + hex(data[i + 5]) + hex(data[i + 6]);
+    }
+  }
+  return null;
+}
+// The NAL units of an Annex B access unit, without their start codes.
+function nalUnits(data) {
+  const starts = [];
+  for (let i = 0; i + 2 < data.length; i++) {
+    if (data[i] === 0 && data[i + 1] === 0 && data[i + 2] === 1) { starts.push(i + 3); i += 2; }
+  }
+  return starts.map((s, k) => {
+    let end = k + 1 < starts.length ? starts[k + 1] - 3 : data.length;
+    while (k + 1 < starts.length && end > s && data[end - 1] === 0) end -= 1;  // a 4-byte start code's zero
+    return data.subarray(s, end);
+  });
+}
+// The picture's size from a sequence parameter set (ITU-T H.264 7.3.2.1.1), for the MP4's sample entry.
+function spsSize(sps) {
+  const r = []; let zeros = 0;
+  for (const byte of sps) {  // the raw bits: without the emulation-prevention bytes
+    if (zeros >= 2 && byte === 3) { zeros = 0; continue; }
+    r.push(byte); zeros = byte === 0 ? zeros + 1 : 0;
+  }
+  let pos = 8;
+  const bit = () => (r[pos >> 3] >> (7 - (pos++ & 7))) & 1;
+  const bits = (n) => { let v = 0; for (let i = 0; i < n; i++) v = v * 2 + bit(); return v; };
+  const ue = () => { let z = 0; while (!bit() && z < 32) z++; return 2 ** z - 1 + bits(z); };
+  const se = () => { const k = ue(); return k & 1 ? (k + 1) / 2 : -k / 2; };
+  const profile = bits(8); bits(16); ue();
+  let chroma = 1;
+  if ([100, 110, 122, 244, 44, 83, 86, 118, 128, 138, 139, 134, 135].includes(profile)) {
+    chroma = ue(); if (chroma === 3) bit();
+    ue(); ue(); bit();
+    if (bit()) {
+      for (let i = 0; i < (chroma !== 3 ? 8 : 12); i++) {
+        if (!bit()) continue;
+        let last = 8, next = 8;
+        for (let j = 0; j < (i < 6 ? 16 : 64); j++) { if (next) next = (last + se() + 256) % 256; last = next || last; }
+      }
+    }
+  }
+  ue();
+  const poc = ue();
+  if (poc === 0) ue(); else if (poc === 1) { bit(); se(); se(); const n = ue(); for (let i = 0; i < n; i++) se(); }
+  ue(); bit();
+  const wMbs = ue() + 1, hUnits = ue() + 1, frameMbsOnly = bit();
+  if (!frameMbsOnly) bit();
+  bit();
+  let crop = [0, 0, 0, 0];
+  if (bit()) crop = [ue(), ue(), ue(), ue()];
+  const cx = chroma === 0 || chroma === 3 ? 1 : 2, cy = (chroma === 1 ? 2 : 1) * (2 - frameMbsOnly);
+  return [wMbs * 16 - cx * (crop[0] + crop[1]), (2 - frameMbsOnly) * hUnits * 16 - cy * (crop[2] + crop[3])];
+}
+// A fragmented MP4, just enough for MSE: an initialisation segment, then one fragment (moof + mdat) per picture.
+function be(v, n) {  // v as n bytes, big-endian (up to 2^53)
+  const a = new Uint8Array(n);
+  for (let i = n - 1; i >= 0; i--) { a[i] = v % 256; v = Math.floor(v / 256); }
+  return a;
+}
+const ascii = (t) => Uint8Array.from(t, (ch) => ch.charCodeAt(0));
+function cat(...parts) {
+  const out = new Uint8Array(parts.reduce((a, p) => a + p.length, 0));
+  let o = 0;
+  for (const p of parts) { out.set(p, o); o += p.length; }
+  return out;
+}
+const box = (type, ...parts) => cat(be(8 + parts.reduce((a, p) => a + p.length, 0), 4), ascii(type), ...parts);
+const fullBox = (type, version, flags, ...parts) => box(type, be(version, 1), be(flags, 3), ...parts);
+function mp4Init(sps, pps, width, height) {
+  const matrix = cat(be(0x10000, 4), be(0, 12), be(0x10000, 4), be(0, 12), be(0x40000000, 4));
+  const avcC = box("avcC", Uint8Array.of(1, sps[1], sps[2], sps[3], 0xff, 0xe1), be(sps.length, 2), sps,
+                   Uint8Array.of(1), be(pps.length, 2), pps);
+  const avc1 = box("avc1", be(0, 6), be(1, 2), be(0, 16), be(width, 2), be(height, 2), be(0x480000, 4),
+                   be(0x480000, 4), be(0, 4), be(1, 2), be(0, 32), be(0x18, 2), be(0xffff, 2), avcC);
+  const stbl = box("stbl", fullBox("stsd", 0, 0, be(1, 4), avc1), fullBox("stts", 0, 0, be(0, 4)),
+                   fullBox("stsc", 0, 0, be(0, 4)), fullBox("stsz", 0, 0, be(0, 8)), fullBox("stco", 0, 0, be(0, 4)));
+  const minf = box("minf", fullBox("vmhd", 0, 1, be(0, 8)),
+                   box("dinf", fullBox("dref", 0, 0, be(1, 4), fullBox("url ", 0, 1))), stbl);
+  const mdia = box("mdia", fullBox("mdhd", 0, 0, be(0, 8), be(90000, 4), be(0, 4), be(0x55c4, 2), be(0, 2)),
+                   fullBox("hdlr", 0, 0, be(0, 4), ascii("vide"), be(0, 12), ascii("video"), be(0, 1)), minf);
+  const tkhd = fullBox("tkhd", 0, 3, be(0, 8), be(1, 4), be(0, 8), be(0, 8), be(0, 8), matrix,
+                       be(width * 65536, 4), be(height * 65536, 4));
+  const mvhd = fullBox("mvhd", 0, 0, be(0, 8), be(1000, 4), be(0, 4), be(0x10000, 4), be(0x100, 2), be(0, 10),
+                       matrix, be(0, 24), be(2, 4));
+  const mvex = box("mvex", fullBox("trex", 0, 0, be(1, 4), be(1, 4), be(0, 12)));
+  return cat(box("ftyp", ascii("isom"), be(512, 4), ascii("isomiso2avc1mp41")),
+             box("moov", mvhd, box("trak", tkhd, mdia), mvex));
+}
+function mp4Fragment(seq, time, duration, sample, key) {
+  const moof = (offset) => box("moof", fullBox("mfhd", 0, 0, be(seq, 4)), box("traf",
+    fullBox("tfhd", 0, 0x020000, be(1, 4)), fullBox("tfdt", 1, 0, be(time, 8)),
+    fullBox("trun", 0, 0x000701, be(1, 4), be(offset, 4), be(duration, 4), be(sample.length, 4),
+            be(key ? 0x02000000 : 0x01010000, 4))));
+  return cat(moof(moof(0).length + 8), box("mdat", sample));
+}
+// Plays H.264 units through MSE; each frame the <video> shows is drawn on the canvas with its overlay.
+function msePlayer(refuse) {
+  const video = document.createElement("video");
+  video.muted = true; video.playsInline = true; video.autoplay = true;
+  video.style.cssText = "position:fixed;left:0;top:0;width:2px;height:2px;opacity:0;pointer-events:none";
+  document.body.appendChild(video);
+  const ms = new MediaSource();
+  video.addEventListener("error", () => refuse(`MSE could not play the H.264: ${video.error && video.error.message}`));
+  video.src = URL.createObjectURL(ms);
+  const p = {sb: null, queue: [], seq: 0, time: 0, lastMs: null, meta: [], codec: "", open: false};
+  const pump = () => {
+    if (!p.sb || p.sb.updating || ms.readyState !== "open") return;
+    const b = video.buffered;
+    if (b.length && video.currentTime - b.start(0) > 10) { p.sb.remove(0, video.currentTime - 5); return; }
+    if (p.queue.length) p.sb.appendBuffer(p.queue.shift());
+    if (b.length && b.end(b.length - 1) - video.currentTime > 0.5) video.currentTime = b.end(b.length - 1) - 0.05;
+  };
+  ms.addEventListener("sourceopen", () => { p.open = true; pump(); });
+  const draw = (now, md) => {
+    const t = Math.round(md.mediaTime * 90000);
+    let m = null;
+    for (const [ticks, meta] of p.meta) { if (ticks <= t + 1) m = meta; else break; }
+    if (m) showFrame(video, video.videoWidth, video.videoHeight, m.overlay, m.capturedMs, H264_KEY, "h264");
+    video.requestVideoFrameCallback(draw);
+  };
+  video.requestVideoFrameCallback(draw);
+  return {
+    push(data, key, overlay, capturedMs) {
+      const units = nalUnits(data);
+      if (!p.sb) {
+        if (!key || !p.open) return;  // waits for a keyframe, with its SPS and PPS
+        const sps = units.find((u) => (u[0] & 0x1f) === 7), pps = units.find((u) => (u[0] & 0x1f) === 8);
+        if (!sps || !pps) return;
+        p.codec = avc1Codec(data);
+        const type = `video/mp4; codecs="${p.codec}"`;
+        if (!MediaSource.isTypeSupported(type)) { refuse(`this browser's MSE does not play ${p.codec}`); return; }
+        const [w, h] = spsSize(sps);
+        p.sb = ms.addSourceBuffer(type);
+        p.sb.mode = "segments";
+        p.sb.addEventListener("updateend", pump);
+        p.sb.addEventListener("error", () => refuse("MSE could not play the H.264"));
+        p.queue.push(mp4Init(sps, pps, w, h));
+      }
+      const duration = Math.round(90 * (p.lastMs === null ? 66 : Math.min(500, Math.max(5, capturedMs - p.lastMs))));
+      p.lastMs = capturedMs;
+      const sample = cat(...units.filter((u) => ![7, 8, 9].includes(u[0] & 0x1f)).flatMap((u) => [be(u.length, 4), u]));
+      p.meta.push([p.time, {overlay, capturedMs}]);
+      if (p.meta.length > 200) p.meta.shift();
+      p.seq += 1;
+      p.queue.push(mp4Fragment(p.seq, p.time, duration, sample, key));
+      p.time += duration;
+      pump();
+      video.play().catch(() => {});
+    },
+    close() { try { video.pause(); video.remove(); URL.revokeObjectURL(video.src); } catch (e) { /* gone */ } },
+  };
+}
+// One decoded frame (an ImageBitmap or a VideoFrame) on the canvas, with its overlay; the stats for the tests.
+function showFrame(image, width, height, overlay, capturedMs, quality, codec) {
+  const c = $("video");
+  // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
+  // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
+  const g = c.getContext("2d");
+  const fit = Math.min(c.width / width, c.height / height);
+  const w = width * fit, h = height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
+  if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
+  g.drawImage(image, x, y, w, h);
+  if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
+  videoStats.overlay = overlay; videoStats.quality = quality;  // 0: the camera's own JPEG; 0xFF01/2: H.264
+  videoStats.codec = codec; videoStats.drawn += 1; videoStats.size = [width, height];
+  if (state && ENDED.has(state.status)) { endVideo(state); return; }  // a frame sent before the end
+  const age = Date.now() - capturedMs;
+  videoStats.ages.push(age);
+  if (videoStats.ages.length > 500) videoStats.ages.shift();
+  const kbps = videoStats.window.reduce((a, w) => a + w[1], 0) * 8 / 1000;
+  $("video-info").textContent = `${videoStats.window.length} fps · ${(kbps / 1000).toFixed(2)} Mbit/s · ` +
+    `${Math.round(age)} ms old` + (codec === "h264" ? " · H.264" : "");
+}
 function connectVideo() {
   const ws = new WebSocket(wsUrl("/api/video"));
   ws.binaryType = "arraybuffer";
   let busy = false;
+  const h264 = {decoder: null, codec: "", meta: new Map(), failed: false, player: "", mse: null};
+  const refuseH264 = (why) => {  // from now on this viewer gets JPEG
+    h264.failed = true; videoStats.h264 = why;
+    if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+    if (h264.mse) h264.mse.close();
+    if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify({accept: ["jpeg"], why}));
+  };
+  ws.onopen = async () => {
+    const [ok, why, player] = await (h264Support || (h264Support = h264Supported()));
+    videoStats.h264 = ok ? "" : why;
+    h264.player = videoStats.player = ok ? player : "";
+    const said = ok ? {accept: ["h264", "jpeg"]} : {accept: ["jpeg"], why};
+    if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(said));
+  };
+  const decodeH264 = (buf, view, overlayLength, capturedMs, quality) => {
+    const data = new Uint8Array(buf, 16 + overlayLength);
+    const key = quality === H264_KEY;
+    if (h264.failed) return;
+    if (h264.player === "mse") {
+      const text = overlayLength ? new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength)) : "";
+      const overlay = text ? JSON.parse(text) : null;
+      if (!h264.mse) h264.mse = msePlayer(refuseH264);
+      h264.mse.push(data, key, overlay, capturedMs);
+      return;
+    }
+    if (key) {
+      const codec = avc1Codec(data);
+      if (codec && (codec !== h264.codec || !h264.decoder || h264.decoder.state === "closed")) {
+        if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+        h264.codec = codec;
+        h264.decoder = new VideoDecoder({
+          output: (frame) => {
+            const m = h264.meta.get(frame.timestamp) || {overlay: null, capturedMs: Date.now()};
+            h264.meta.delete(frame.timestamp);
+            try {
+              showFrame(frame, frame.displayWidth, frame.displayHeight, m.overlay, m.capturedMs, H264_KEY, "h264");
+            } finally { frame.close(); }
+          },
+          error: (e) => refuseH264(`this browser cannot decode ${codec}: ${e.message || e}`),
+        });
+        h264.decoder.configure({codec, optimizeForLatency: true});
+      }
+    }
+    if (!h264.decoder || h264.decoder.state !== "configured") return;  // waits for a keyframe
+    const seq = view.getUint32(8, true);
+    const overlay = overlayLength ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
+    h264.meta.set(seq, {overlay, capturedMs});
+    if (h264.meta.size > 100) h264.meta.delete(h264.meta.keys().next().value);
+    h264.decoder.decode(new EncodedVideoChunk({type: key ? "key" : "delta", timestamp: seq, data}));
+  };
   ws.onmessage = async (ev) => {
+    if (typeof ev.data === "string") { $("video-info").textContent = ev.data; return; }  // why there is no video
     const buf = ev.data;
     const view = new DataView(buf);
     const capturedMs = view.getFloat64(0, true);
+    const quality = view.getUint16(12, true);
     const overlayLength = view.getUint16(14, true);  // header: time f64, seq u32, quality u16, overlay length u16
     const now = Date.now();
     videoStats.frames += 1; videoStats.bytes += buf.byteLength;
     videoStats.window.push([now, buf.byteLength]);
     while (videoStats.window.length && now - videoStats.window[0][0] > 1000) videoStats.window.shift();
+    if (quality >= 0xFF00) {  // H.264: every unit is decoded, in order (a skipped one breaks the ones after it)
+      try { decodeH264(buf, view, overlayLength, capturedMs, quality); } catch (e) { refuseH264(String(e)); }
+      return;
+    }
     if (busy) return;  // still drawing the last one: the newest wins
     busy = true;
     try {
       const overlay = overlayLength
         ? JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 16, overlayLength))) : null;
       const bitmap = await createImageBitmap(new Blob([new Uint8Array(buf, 16 + overlayLength)], {type: "image/jpeg"}));
-      const c = $("video");
-      // The camera's own frame, as large as the canvas (16:9, 1280 wide) holds it with its own shape: a 4:3
-      // camera gets black bars. The overlay is drawn at the canvas's size, so it stays sharp on a small picture.
-      const g = c.getContext("2d");
-      const fit = Math.min(c.width / bitmap.width, c.height / bitmap.height);
-      const w = bitmap.width * fit, h = bitmap.height * fit, x = (c.width - w) / 2, y = (c.height - h) / 2;
-      if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
-      g.drawImage(bitmap, x, y, w, h);
+      showFrame(bitmap, bitmap.width, bitmap.height, overlay, capturedMs, quality, "jpeg");
       bitmap.close();
-      if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
-      videoStats.overlay = overlay; videoStats.quality = view.getUint16(12, true);  // 0: the camera's own JPEG
-      if (state && ENDED.has(state.status)) { endVideo(state); busy = false; return; }  // a frame sent before the end
-      const age = Date.now() - capturedMs;
-      videoStats.ages.push(age);
-      if (videoStats.ages.length > 500) videoStats.ages.shift();
-      const kbps = videoStats.window.reduce((a, w) => a + w[1], 0) * 8 / 1000;
-      $("video-info").textContent = `${videoStats.window.length} fps · ${(kbps / 1000).toFixed(2)} Mbit/s · ${Math.round(age)} ms old`;
     } catch (e) { /* a frame that does not decode is skipped */ }
     busy = false;
   };
-  ws.onclose = () => { if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000); };
+  ws.onclose = () => {
+    if (h264.decoder && h264.decoder.state !== "closed") h264.decoder.close();
+    if (h264.mse) h264.mse.close();
+    if (!(state && ENDED.has(state.status))) setTimeout(connectVideo, 1000);
+  };
 }
 
 // What the run sends with each frame (beastbt/live/console_video.py overlay_of): a caption, and the detected
