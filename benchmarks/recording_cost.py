@@ -192,8 +192,11 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
     print(f"   CPU per tick from the first tick to the end (this process, and the writer process's whole life, "
           f"its start-up included): unrecorded {spread(cpu['unrecorded'], 1e6)} us, recorded "
           f"{spread(cpu['recorded'], 1e6)} us, --record-sensors {spread(cpu['sensors'], 1e6)} us")
+    for mode in MODES:
+        FIGURES.spread(f"max.{mode}_cpu_us", cpu[mode], 1e6)
     for mode, label in (("recorded", "recorded"), ("sensors", "with --record-sensors")):
         cpu_ratios = [b / a for a, b in zip(cpu["unrecorded"], cpu[mode])]
+        FIGURES.spread(f"max.{mode}_cpu_ratio", cpu_ratios)
         print(f"   {label}: {spread(cpu_ratios, fmt='{:.2f}')}x the unrecorded run's CPU per tick")
 
 
