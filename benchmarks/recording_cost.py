@@ -32,6 +32,7 @@ Prints:
    (repeated forever, stopped at 10 min; no images), goal under 20 MB.
 
 Run: python benchmarks/recording_cost.py [--reps N] [--realtime-s S] [--mission FILE] [--robot PROFILE] [--size]
+[--skip-max] [--skip-realtime]
 """
 
 from __future__ import annotations
@@ -247,14 +248,16 @@ def main() -> None:
     ap.add_argument("--realtime-s", type=float, default=20.0, help="mission seconds of a real-time run (default 20)")
     ap.add_argument("--mission", default=str(PATROL), help="mission file (default missions/patrol.yaml)")
     ap.add_argument("--robot", default="sim", help="robot profile, run on the simulator (default sim)")
-    ap.add_argument("--skip-realtime", action="store_true", help="section 1 only")
+    ap.add_argument("--skip-realtime", action="store_true", help="leave out section 2 (real time)")
+    ap.add_argument("--skip-max", action="store_true", help="leave out section 1 (--speed max)")
     ap.add_argument("--size", action="store_true", help="also section 3 (the size of a 10-minute recording)")
     args = ap.parse_args()
     if args.reps < 5:
         ap.error("--reps: at least 5 (medians over fewer say little)")
     print(f"load before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)", flush=True)
     with tempfile.TemporaryDirectory() as runs_dir:
-        flat_out(args.mission, args.robot, args.reps, runs_dir)
+        if not args.skip_max:
+            flat_out(args.mission, args.robot, args.reps, runs_dir)
         if not args.skip_realtime:
             real_time(args.mission, args.robot, args.reps, args.realtime_s, runs_dir)
         if args.size:
