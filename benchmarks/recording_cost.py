@@ -18,7 +18,10 @@ Prints:
    recorder's own code in the loop (``on_tick``: queueing, pickling, the
    pipe), and the CPU the writer process used per tick (on another core). A third mode, recorded with
    ``--record-sensors`` (every sensor awake and recorded), is measured in the
-   same reps for comparison;
+   same reps for comparison. Then the CPU per tick of each mode, from the
+   first tick to the end: this process and the writer process's whole life
+   (its start-up too), and its ratio per rep: what the wall-time ratio tends
+   to on a busy machine, where the writer's CPU is taken from the loop;
 2. at ``--speed realtime``: runs of ``--realtime-s`` seconds (default 20),
    recorded and unrecorded: the share of one core used while the mission
    runs (from 3 s into it to its last tick: start-up is left out), counting
@@ -29,12 +32,14 @@ Prints:
    (repeated forever, stopped at 10 min; no images), goal under 20 MB.
 
 Run: python benchmarks/recording_cost.py [--reps N] [--realtime-s S] [--mission FILE] [--robot PROFILE] [--size]
+[--skip-max] [--skip-realtime]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import sys
 import tempfile
@@ -72,11 +77,18 @@ def _proc_cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / TICKS_PER_S
 
 
+def _children_cpu_s() -> float:
+    """User + system CPU seconds of this process's children that have ended (the writer processes)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_text: Optional[str] = None) -> dict:
     """One run through the real loop. Returns: ticks; ``loop_s`` (first tick's start to last tick's end) and
     ``run_s`` (first tick's start to ``execute`` returning), wall seconds; ``writer_cpu_s``; and, over the window
     from the first tick at or after ``window_from_s`` of mission time to the last tick, ``window_wall_s`` and
     ``window_cpu_s`` (this process, every thread, plus the writer process)."""
+    children0 = _children_cpu_s()
     p = prepare(mission, opts, mission_text=mission_text)
     run = p.run
     rec = recorder_of(run)
@@ -90,7 +102,7 @@ def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_
 
     def timed_tick():
         if "first" not in marks:
-            marks["first"] = perf()
+            marks["first"], marks["cpu_first"] = perf(), cpu()
         if "w0" not in marks and run.elapsed_s >= window_from_s:
             marks["w0"], marks["c0"], marks["k0"] = perf(), cpu() + writer_cpu(), run.ticks
         status = tick()
@@ -113,8 +125,12 @@ def one_run(mission: str, opts: RunOptions, window_from_s: float = 0.0, mission_
         closers = p.closers
         closers.insert(0, lambda: marks.update(w1=perf(), c1=cpu() + writer_cpu(), k1=run.ticks))
         summary = execute(p, devnull)
-    end = perf()
+    end, cpu_end = perf(), cpu()
+    # CPU from the first tick to the end: this process (every thread), and the writer process's whole life
+    # (reaped by the end of the run: its start-up, before the first tick too, and its end count).
+    cpu_s = cpu_end - marks["cpu_first"] + _children_cpu_s() - children0
     out = {"ticks": summary["ticks"], "loop_s": marks["last"] - marks["first"], "run_s": end - marks["first"],
+           "cpu_s": cpu_s,
            "writer_cpu_s": rec.writer_cpu_s if rec is not None else 0.0, "on_tick_s": inside[0], "summary": summary,
            "path": rec.paths[0] if rec is not None and rec.paths else None}
     if "w0" in marks:
@@ -140,6 +156,7 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
     loop: dict[str, list[float]] = {m: [] for m in MODES}
     writer: dict[str, list[float]] = {m: [] for m in MODES}
     on_tick: dict[str, list[float]] = {m: [] for m in MODES}
+    cpu: dict[str, list[float]] = {m: [] for m in MODES}
     ticks = 0
     one_run(mission, options("recorded", "max", None, runs_dir, robot))  # warm-up: imports, caches (not counted)
     for rep in range(reps):
@@ -151,6 +168,7 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
             loop[mode].append(r["loop_s"] / r["ticks"])
             writer[mode].append(r["writer_cpu_s"] / r["ticks"])
             on_tick[mode].append(r["on_tick_s"] / r["ticks"])
+            cpu[mode].append(r["cpu_s"] / r["ticks"])
     print(f"1. --speed max, {Path(mission).name} on robot {robot}, {reps} reps of each ({ticks} ticks a run), "
           f"median (lowest-highest):")
     for mode, label in (("unrecorded", "unrecorded (anchor)"), ("recorded", "recorded"),
@@ -170,6 +188,17 @@ def flat_out(mission: str, robot: str, reps: int, runs_dir: str) -> None:
         FIGURES.spread(f"max.{mode}_ratio", ratios)
         print(f"   {label}: {spread(ratios, fmt='{:.2f}')}x the unrecorded run per tick{goal} "
               f"(tick loop alone {spread(loop_ratios, fmt='{:.2f}')}x)")
+    # What a busy machine sees: there the writer's CPU is taken from the loop (the kernel shares a core between
+    # the processes of one session), so the wall-time ratio tends to this one as the load grows.
+    print(f"   CPU per tick from the first tick to the end (this process, and the writer process's whole life, "
+          f"its start-up included): unrecorded {spread(cpu['unrecorded'], 1e6)} us, recorded "
+          f"{spread(cpu['recorded'], 1e6)} us, --record-sensors {spread(cpu['sensors'], 1e6)} us")
+    for mode in MODES:
+        FIGURES.spread(f"max.{mode}_cpu_us", cpu[mode], 1e6)
+    for mode, label in (("recorded", "recorded"), ("sensors", "with --record-sensors")):
+        cpu_ratios = [b / a for a, b in zip(cpu["unrecorded"], cpu[mode])]
+        FIGURES.spread(f"max.{mode}_cpu_ratio", cpu_ratios)
+        print(f"   {label}: {spread(cpu_ratios, fmt='{:.2f}')}x the unrecorded run's CPU per tick")
 
 
 def real_time(mission: str, robot: str, reps: int, seconds: float, runs_dir: str) -> None:
@@ -219,14 +248,16 @@ def main() -> None:
     ap.add_argument("--realtime-s", type=float, default=20.0, help="mission seconds of a real-time run (default 20)")
     ap.add_argument("--mission", default=str(PATROL), help="mission file (default missions/patrol.yaml)")
     ap.add_argument("--robot", default="sim", help="robot profile, run on the simulator (default sim)")
-    ap.add_argument("--skip-realtime", action="store_true", help="section 1 only")
+    ap.add_argument("--skip-realtime", action="store_true", help="leave out section 2 (real time)")
+    ap.add_argument("--skip-max", action="store_true", help="leave out section 1 (--speed max)")
     ap.add_argument("--size", action="store_true", help="also section 3 (the size of a 10-minute recording)")
     args = ap.parse_args()
     if args.reps < 5:
         ap.error("--reps: at least 5 (medians over fewer say little)")
     print(f"load before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)", flush=True)
     with tempfile.TemporaryDirectory() as runs_dir:
-        flat_out(args.mission, args.robot, args.reps, runs_dir)
+        if not args.skip_max:
+            flat_out(args.mission, args.robot, args.reps, runs_dir)
         if not args.skip_realtime:
             real_time(args.mission, args.robot, args.reps, args.realtime_s, runs_dir)
         if args.size:

@@ -164,3 +164,88 @@ def test_messages_are_strict_json_even_when_a_value_is_not_a_number():
     assert json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in {text!r}")) == {
         "x": None, "cov": [[1.0, None], [None, 2.0]], "text": "NaN is kept in a string", "n": 3}
     assert encode_json({"x": 1.5}) == b'{"x":1.5}'
+
+
+def test_arrays_cross_the_wire_as_raw_bytes_with_their_dtype_shape_and_values():
+    from beastbt.blackboard.types import LaserScan
+    angles = np.linspace(0.0, -3.0, 5)
+    ranges = np.array([1.0, np.nan, 2.5, np.inf, 0.001])
+    scan = LaserScan(0.1, angles, ranges, np.arange(5, dtype=np.uint8), 10.0, "ld19")
+    pixels = np.arange(24, dtype=np.uint8).reshape(2, 4, 3)[:, ::2]  # not contiguous: sent as its values
+    enc = ItemEncoder()
+    flat = enc._flatten(_tick(1, [scan]))
+    assert len(flat[3][0]) == 3 and flat[3][0][1]["ranges_m"] is None  # raw bytes, not numpy's pickling
+    back = _round_trip([_tick(1, [scan, Frame(0.1, 4, 2, 2, pixels), Frame(0.15, 5, 2, 2, None)])])[0][3]
+    got, frame, bare = back
+    assert type(got) is LaserScan and got.stamp_s == 0.1 and got.model == "ld19" and got.scan_rate_hz == 10.0
+    for mine, theirs in ((angles, got.angles_rad), (ranges, got.ranges_m), (scan.intensities, got.intensities),
+                         (pixels, frame.image)):
+        assert theirs.dtype == mine.dtype and theirs.shape == mine.shape
+        assert np.array_equal(theirs, mine, equal_nan=True)
+    assert bare.image is None and bare.seq == 5
+
+
+def test_the_faster_mcap_message_writer_writes_the_same_bytes_as_mcaps_own():
+    from mcap.writer import CompressionType, Writer
+
+    from beastbt.recording.writer import mcap_writer_class
+
+    def write(cls: type, chunk_size: int) -> bytes:
+        out = io.BytesIO()
+        w = cls(out, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        w.start(profile="beastbt", library="test")
+        sid = w.register_schema(name="s", encoding="jsonschema", data=b"{}")
+        channels = [w.register_channel(topic=f"/c{i}", message_encoding="json", schema_id=sid) for i in range(3)]
+        for k in range(300):
+            # out of order now and then (a late event), several channels, sizes that close chunks midway
+            t = 1_000_000 * k - (5_000_000 if k % 37 == 5 else 0)
+            w.add_message(channel_id=channels[k % 3], log_time=t, data=b'{"k":%d}' % k + b" " * (k % 50),
+                          publish_time=t + 1, sequence=k)
+            if k == 150:
+                w.flush()
+        w.finish()
+        return out.getvalue()
+
+    fast = mcap_writer_class()
+    assert fast(io.BytesIO(), chunk_size=1000)._fast  # the fast path is the one compared (not mcap's fallback)
+    for chunk_size in (1 << 20, 2000):
+        assert write(fast, chunk_size) == write(Writer, chunk_size)
+
+
+def _reference_scan_json(scan) -> bytes:
+    """/scan as it was written before the writer skipped np.unwrap and the lists: the reference text."""
+    from beastbt.recording import foxglove as fx
+    from beastbt.recording.writer import encode_json
+    angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
+    ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
+    n = len(angles)
+    return encode_json({"timestamp": fx.fox_time(7), "frame_id": fx.LIDAR_FRAME, "pose": fx.planar_pose(0.0, 0.0, 0.0),
+                        "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
+                        "ranges": np.round(ranges, 5).tolist(),
+                        "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist(),
+                        "stamp_s": float(scan.stamp_s), "scan_rate_hz": float(scan.scan_rate_hz),
+                        "model": str(scan.model), "source": "lidar"})
+
+
+def test_the_scan_message_is_the_same_text_as_np_unwrap_and_lists_give():
+    from beastbt.blackboard.types import LaserScan
+    from beastbt.recording import foxglove as fx
+    from beastbt.recording.writer import encode_json
+    rng = np.random.default_rng(3)
+    cases = []
+    for k in range(40):  # LD19-like revolutions (clockwise, wrapping at -pi) and A1-like ones, jittered
+        n = int(rng.integers(2, 500))
+        step = rng.choice([-1.0, 1.0]) * 2 * np.pi / n * rng.uniform(0.9, 1.1)
+        raw = rng.uniform(-np.pi, np.pi) + step * np.arange(n) + rng.normal(0.0, 1e-3, n)
+        cases.append((raw + np.pi) % (2 * np.pi) - np.pi)
+    cases += [np.array([]), np.array([-0.0]), np.array([0.5, -0.0]), np.array([-np.pi, np.pi, -np.pi]),
+              np.array([3.0, -3.0, 3.0, -3.0]), np.array([0.1, np.nan, 0.3]), np.array([np.pi, 0.0]),
+              np.array([1.0, 1.0 + np.pi, 1.0]), np.linspace(0, 6, 7, dtype=np.float32)]
+    for angles in cases:
+        n = len(angles)
+        ranges = rng.uniform(0.02, 12.0, n).round(3)
+        ranges[rng.random(n) < 0.1] = np.nan
+        if n > 2:
+            ranges[1], ranges[2] = np.inf, -np.inf
+        scan = LaserScan(1.5, angles, ranges, rng.integers(0, 256, n).astype(float), 10.0, "ld19")
+        assert encode_json(fx.laser_scan(7, scan, "lidar")) == _reference_scan_json(scan), angles

@@ -265,15 +265,36 @@ def laser_scan(t_ns: int, scan: Any, source: Optional[str] = None) -> dict:
     ignores them) it carries what a replay needs to rebuild the reading (:func:`scan_of`): ``stamp_s``,
     ``scan_rate_hz``, ``model`` and ``source`` (the sensor that gave it).
     """
-    angles = np.unwrap(np.asarray(scan.angles_rad, dtype=float))
-    ranges = np.nan_to_num(np.asarray(scan.ranges_m, dtype=float), nan=0.0, posinf=0.0, neginf=0.0)
-    n = len(angles)
+    start, end = unwrapped_ends(scan.angles_rad)
+    ranges = np.asarray(scan.ranges_m, dtype=float)
+    ranges = np.where(np.isfinite(ranges), ranges, 0.0)
+    # The arrays go to JSON as they are (orjson writes numpy arrays itself, the same text as their lists, in
+    # half the time): ranges rounded to 0.01 mm, intensities as integers.
     return {"timestamp": fox_time(t_ns), "frame_id": LIDAR_FRAME, "pose": planar_pose(0.0, 0.0, 0.0),
-            "start_angle": float(angles[0]) if n else 0.0, "end_angle": float(angles[-1]) if n else 0.0,
-            "ranges": np.round(ranges, 5).tolist(),
-            "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(int).tolist(),
+            "start_angle": start, "end_angle": end, "ranges": np.round(ranges, 5),
+            "intensities": np.rint(np.asarray(scan.intensities, dtype=float)).astype(np.int64),
             "stamp_s": float(scan.stamp_s), "scan_rate_hz": float(scan.scan_rate_hz), "model": str(scan.model),
             "source": source}
+
+
+def unwrapped_ends(angles: Any) -> tuple[float, float]:
+    """The first and last of ``np.unwrap(angles)`` (radians; 0, 0 when empty), the same floats, bit for bit.
+
+    A scan's angles wrap once or twice a revolution: this adds up only the
+    corrections at the jumps, in the order ``np.unwrap`` adds them all (the
+    others are zeros, which change no sum), instead of building the whole
+    unwrapped array (8 us of the writer's time a scan).
+    """
+    p = np.asarray(angles, dtype=float)
+    if len(p) < 2:
+        return (float(p[0]), float(p[0])) if len(p) else (0.0, 0.0)
+    dd = p[1:] - p[:-1]
+    jumps = dd[~(np.abs(dd) < math.pi)]  # np.unwrap's corrections are zero where |step| < pi (NaN kept)
+    if not len(jumps):
+        return float(p[0]), float(p[-1] + 0.0)
+    ddmod = np.mod(jumps + math.pi, 2.0 * math.pi) - math.pi
+    np.copyto(ddmod, math.pi, where=(ddmod == -math.pi) & (jumps > 0))
+    return float(p[0]), float(p[-1] + np.cumsum(ddmod - jumps)[-1])
 
 
 def scan_of(m: dict) -> Any:

@@ -95,6 +95,20 @@ _WRITER_START = ("import sys; root = sys.argv[1]; root in sys.path or sys.path.i
 """How the writer process starts: this very beastbt (a checkout on ``sys.path`` too), its ``main()``."""
 
 
+WRITER_THREADS_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""Thread-pool sizes set to 1 for the writer process: it does no linear algebra, and numpy's import starts an
+OpenBLAS pool of one thread per core that spins as it starts (about 0.1 s of CPU here, taken from the tick loop
+on a busy machine: a third of the writer's whole cost in a 3500-tick run)."""
+
+
+def writer_environment() -> dict[str, str]:
+    """The environment of the writer process: this process's, with the thread pools of :data:`WRITER_THREADS_ENV`
+    at one thread."""
+    env = dict(os.environ)
+    env.update({name: "1" for name in WRITER_THREADS_ENV})
+    return env
+
+
 def low_space_warnings(paths: list[Path], min_free_mb: float) -> list[str]:
     """A warning for each folder of ``paths`` with less than ``min_free_mb`` megabytes (10^6 bytes) free."""
     out = []
@@ -256,7 +270,7 @@ class McapRecorder:
             try:
                 self._proc = subprocess.Popen([sys.executable, "-c", _WRITER_START, root, str(bell_r)],
                                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, close_fds=True,
-                                              pass_fds=(bell_r,))
+                                              pass_fds=(bell_r,), env=writer_environment())
             finally:
                 os.close(bell_r)
             fd = self._proc.stdin.fileno()
@@ -386,7 +400,7 @@ class McapRecorder:
         readings = rec.readings
         tags = self._take_tags()
         skip = self._unused
-        if skip and readings and any(r.__class__ in skip for r in readings):
+        if skip and readings:
             readings, tags = _used_only(readings, tags, skip)
         for i, r in enumerate(readings):
             if r.__class__ is CameraFrame:
@@ -652,7 +666,23 @@ class McapRecorder:
 
 def _used_only(readings: list, tags: tuple, skip: frozenset) -> tuple[list, tuple]:
     """``readings`` without those of a type in ``skip``, and the (base tagged, tags) that go with what is left."""
-    sources = reading_sources(tags[0], tags[1], len(readings))
+    polls = tags[1]
+    if polls and sum(k for _, k in polls) == len(readings):
+        # Every reading's poll is known (each tick, when the base is tagged): keep poll by poll.
+        kept: list = []
+        runs: list[tuple[str, int]] = []
+        i = 0
+        for name, k in polls:
+            part = [r for r in readings[i:i + k] if r.__class__ not in skip]
+            i += k
+            if part:
+                kept += part
+                if runs and runs[-1][0] == name:
+                    runs[-1] = (name, runs[-1][1] + len(part))
+                else:
+                    runs.append((name, len(part)))
+        return kept, (True, tuple(runs))
+    sources = reading_sources(tags[0], polls, len(readings))
     kept = [(r, src) for r, src in zip(readings, sources or [None] * len(readings)) if r.__class__ not in skip]
     if sources is None:
         return [r for r, _ in kept], (tags[0], ())  # sources unknown before, unknown still
