@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import io
 import json
 import os
 import re
 import shutil
 import subprocess
 import sys
+import threading
 import time
 import urllib.error
 import urllib.request
@@ -138,3 +142,62 @@ def moved_m(a: dict, b: dict) -> float:
     """How far apart two poses of the console's state are, in x plus y (m)."""
     return abs(a["x"] - b["x"]) + abs(a["y"] - b["y"])
 
+
+def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watch: bool,
+                     accept: Optional[list[str]] = None, max_time_s: float = 120.0) -> tuple[Any, list]:
+    """Run ``mission`` on the simulator with ``profile`` and the console; with ``watch``, a viewer follows
+    /api/video from before the start to the end (the video messages it got), first saying the codecs it
+    ``accept``s when given (``{"accept": [...]}``, as the page does)."""
+    import aiohttp
+
+    from beastbt.assembly import prepare
+    from beastbt.run.session import RunOptions, execute
+    (folder / "m.yaml").write_text(mission, encoding="utf-8")
+    opts = RunOptions(robot=str(profile), simulate=True, record=False, speed=speed, console=("127.0.0.1", 0),
+                      max_time_s=max_time_s)
+    with contextlib.redirect_stdout(io.StringIO()):
+        prepared = prepare(str(folder / "m.yaml"), opts)
+    link = prepared.run.ctx.services.plugins["console"]
+    messages: list = []
+    done = threading.Event()
+
+    async def follow() -> None:
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
+                if accept is not None:
+                    await ws.send_str(json.dumps({"accept": accept}))
+                while not done.is_set():
+                    try:
+                        msg = await ws.receive(timeout=0.2)
+                    except asyncio.TimeoutError:
+                        continue
+                    if msg.type != aiohttp.WSMsgType.BINARY:
+                        return
+                    messages.append(msg.data)
+
+    viewer = threading.Thread(target=lambda: asyncio.run(follow()))
+    if watch:
+        viewer.start()
+        deadline = time.monotonic() + 20
+        while link.viewers < 1 and time.monotonic() < deadline:  # watching before the start
+            time.sleep(0.02)
+    execute(prepared, out=io.StringIO())
+    done.set()
+    if watch:
+        viewer.join(10)
+    return prepared, messages
+
+
+def capture_reads(monkeypatch: Any, cls: type, method: str) -> list[bytes]:
+    """Patch ``cls.method`` (a camera's ``read_jpeg``/``read_h264``) to note every frame it hands over; the list."""
+    made: list[bytes] = []
+    real = getattr(cls, method)
+
+    def noted(self: Any) -> tuple[bool, Any]:
+        ok, data = real(self)
+        if ok:
+            made.append(data)
+        return ok, data
+
+    monkeypatch.setattr(cls, method, noted)
+    return made

@@ -4,19 +4,15 @@ gets JPEG as before."""
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
-import io
 import json
 import os
-import threading
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from console_support import capture_reads, run_with_console
 from beastbt.live.console_video import H264_DELTA, H264_KEY, HEADER, ConsoleVideo, VideoConfig
 from beastbt.devices.h264 import (HARDWARE_DEVICE, HARDWARE_ENCODER, ParameterSets, avc1_codec, encoder_available,
                                is_keyframe, nal_units, resolve_codec, split_access_units)
@@ -204,54 +200,13 @@ def test_a_page_that_says_nothing_gets_jpeg_and_one_that_decodes_h264_gets_h264(
 @needs_software
 def test_the_fake_h264_cameras_units_arrive_at_api_video_byte_identical(tmp_path: Path,
                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    import aiohttp
-
-    from beastbt.assembly import prepare
     from beastbt.devices.camera import EncodingH264Camera
-    from beastbt.run.session import RunOptions, execute
-    made: list[bytes] = []
-    real_read = EncodingH264Camera.read_h264
-
-    def read_h264(self: EncodingH264Camera) -> tuple[bool, Any]:
-        ok, data = real_read(self)
-        if ok:
-            made.append(data)
-        return ok, data
-
-    monkeypatch.setattr(EncodingH264Camera, "read_h264", read_h264)
+    made = capture_reads(monkeypatch, EncodingH264Camera, "read_h264")
     text = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
     profile = tmp_path / "robot.yaml"
     profile.write_text(text.replace("  device: sim\n", "  device: sim\n  format: h264\n"), encoding="utf-8")
-    (tmp_path / "m.yaml").write_text("mission: m\nsteps:\n  - wait: 2 s\n", encoding="utf-8")
-    opts = RunOptions(robot=str(profile), simulate=True, record=False, speed="realtime", console=("127.0.0.1", 0),
-                      max_time_s=30.0)
-    with contextlib.redirect_stdout(io.StringIO()):
-        prepared = prepare(str(tmp_path / "m.yaml"), opts)
-    link = prepared.run.ctx.services.plugins["console"]
-    messages: list[bytes] = []
-    done = threading.Event()
-
-    async def follow() -> None:
-        async with aiohttp.ClientSession() as session:
-            async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
-                await ws.send_str(json.dumps({"accept": ["h264", "jpeg"]}))
-                while not done.is_set():
-                    try:
-                        msg = await ws.receive(timeout=0.2)
-                    except asyncio.TimeoutError:
-                        continue
-                    if msg.type != aiohttp.WSMsgType.BINARY:
-                        return
-                    messages.append(msg.data)
-
-    viewer = threading.Thread(target=lambda: asyncio.run(follow()))
-    viewer.start()
-    deadline = time.monotonic() + 20
-    while link.viewers < 1 and time.monotonic() < deadline:
-        time.sleep(0.02)
-    execute(prepared, out=io.StringIO())
-    done.set()
-    viewer.join(10)
+    prepared, messages = run_with_console(tmp_path, profile, "mission: m\nsteps:\n  - wait: 2 s\n", "realtime", True,
+                                          accept=["h264", "jpeg"], max_time_s=30.0)
     units = [payload(m) for m in messages if payload(m)[0] in (H264_KEY, H264_DELTA)]
     assert len(units) >= 8  # about 15 a second for 2 s, from the first keyframe on
     assert units[0][0] == H264_KEY and all((q == H264_KEY) == is_keyframe(u) for q, u in units)

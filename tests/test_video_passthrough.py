@@ -3,11 +3,8 @@ rendered (issue 26, item 1)."""
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import io
-import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +17,7 @@ from beastbt.devices.camera import Camera, CameraConfig, MjpegCapture, MjpegRepl
 from beastbt.live.console_video import HEADER, PASSED_THROUGH
 from beastbt.sim.camera_emulator import SimMjpegCamera
 from beastbt.vision.camera_pipeline import CameraPipeline
+from console_support import capture_reads, run_with_console
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -143,59 +141,9 @@ def mjpeg_profile(folder: Path, fmt: str = "mjpeg") -> Path:
     return path
 
 
-def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watch: bool) -> tuple[Any, list]:
-    """Run ``mission`` with the console; with ``watch``, a viewer follows /api/video from before the start to the
-    end (the video messages it got)."""
-    import aiohttp
-
-    from beastbt.assembly import prepare
-    from beastbt.run.session import RunOptions, execute
-    (folder / "m.yaml").write_text(mission, encoding="utf-8")
-    opts = RunOptions(robot=str(profile), simulate=True, record=False, speed=speed, console=("127.0.0.1", 0),
-                      max_time_s=120.0)
-    with contextlib.redirect_stdout(io.StringIO()):
-        prepared = prepare(str(folder / "m.yaml"), opts)
-    link = prepared.run.ctx.services.plugins["console"]
-    messages: list = []
-    done = threading.Event()
-
-    async def follow() -> None:
-        async with aiohttp.ClientSession() as session:
-            async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
-                while not done.is_set():
-                    try:
-                        msg = await ws.receive(timeout=0.2)
-                    except asyncio.TimeoutError:
-                        continue
-                    if msg.type != aiohttp.WSMsgType.BINARY:
-                        return
-                    messages.append(msg.data)
-
-    viewer = threading.Thread(target=lambda: asyncio.run(follow()))
-    if watch:
-        viewer.start()
-        deadline = time.monotonic() + 20
-        while link.viewers < 1 and time.monotonic() < deadline:  # watching before the start
-            time.sleep(0.02)
-    execute(prepared, out=io.StringIO())
-    done.set()
-    if watch:
-        viewer.join(10)
-    return prepared, messages
-
-
 def test_jpeg_from_the_fake_mjpeg_camera_arrives_at_api_video_byte_identical(tmp_path: Path,
                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    made: list[bytes] = []
-    real_read = SimMjpegCamera.read_jpeg
-
-    def read_jpeg(self: SimMjpegCamera) -> tuple[bool, Any]:
-        ok, data = real_read(self)
-        if ok:
-            made.append(data)
-        return ok, data
-
-    monkeypatch.setattr(SimMjpegCamera, "read_jpeg", read_jpeg)
+    made = capture_reads(monkeypatch, SimMjpegCamera, "read_jpeg")
     prepared, messages = run_with_console(tmp_path, mjpeg_profile(tmp_path), "mission: m\nsteps:\n  - wait: 1.5 s\n",
                                           "realtime", True)
     assert len(messages) >= 8  # about 15 a second (the camera's rate)
@@ -270,16 +218,7 @@ def test_the_recording_keeps_the_cameras_own_jpeg(tmp_path: Path, monkeypatch: p
 
     from beastbt.cli import main
     from beastbt.recording.reader import read_recording
-    made: list[bytes] = []
-    real_read = SimMjpegCamera.read_jpeg
-
-    def read_jpeg(self: SimMjpegCamera) -> tuple[bool, Any]:
-        ok, data = real_read(self)
-        if ok:
-            made.append(data)
-        return ok, data
-
-    monkeypatch.setattr(SimMjpegCamera, "read_jpeg", read_jpeg)
+    made = capture_reads(monkeypatch, SimMjpegCamera, "read_jpeg")
     code = main(["run", str(REPO / "missions" / "patrol.yaml"), "--robot", str(mjpeg_profile(tmp_path)), "--sim",
                  "--max-time", "3 s", "--runs-dir", str(tmp_path / "runs"), "--record-images", "2"])
     assert code == 1  # stopped by --max-time, as asked

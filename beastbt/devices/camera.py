@@ -222,7 +222,38 @@ def split_jpegs(data: bytes) -> list[bytes]:
     return frames
 
 
-class MjpegReplay:
+class _LoopedReplay:
+    """A fake camera's common part: hands over recorded compressed frames (bytes) in a loop, untouched, until
+    released. Subclasses name the read (``read_jpeg``, ``read_h264``) and decode for ``read()``."""
+
+    compressed = True
+
+    def __init__(self, items: list[bytes]) -> None:
+        self.items = items
+        self.index = 0
+        self._open = True
+        self.frames_read = 0
+        """Frames (access units) handed over so far."""
+
+    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
+        """True until released."""
+        return self._open
+
+    def _next(self) -> tuple[bool, Optional[bytes]]:
+        """(True, the next frame's bytes), or (False, None) once released."""
+        if not self._open:
+            return False, None
+        data = self.items[self.index]
+        self.index = (self.index + 1) % len(self.items)
+        self.frames_read += 1
+        return True, data
+
+    def release(self) -> None:
+        """Close it (reads fail)."""
+        self._open = False
+
+
+class MjpegReplay(_LoopedReplay):
     """A fake MJPEG camera: replays JPEG frames (a list, or an MJPEG file's) in a loop through ``read_jpeg()``.
 
     The frames are real JPEG bytes, handed over untouched as a USB camera's are, so that the camera path of
@@ -232,11 +263,12 @@ class MjpegReplay:
     def __init__(self, frames: list[bytes]) -> None:
         if not frames:
             raise ValueError("an MJPEG replay needs at least one JPEG frame")
-        self.frames = frames
-        self.index = 0
-        self._open = True
-        self.frames_read = 0
-        """Frames handed over so far."""
+        super().__init__(frames)
+
+    @property
+    def frames(self) -> list[bytes]:
+        """The JPEG frames it replays."""
+        return self.items
 
     @classmethod
     def from_file(cls, path: str) -> "MjpegReplay":
@@ -247,18 +279,9 @@ class MjpegReplay:
             raise ValueError(f"{path}: no JPEG frame in it (expected JPEGs back to back, an .mjpeg file)")
         return cls(frames)
 
-    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
-        """True until released."""
-        return self._open
-
     def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
         """(True, the next frame's JPEG bytes), or (False, None) once released."""
-        if not self._open:
-            return False, None
-        data = self.frames[self.index]
-        self.index = (self.index + 1) % len(self.frames)
-        self.frames_read += 1
-        return True, data
+        return self._next()
 
     def read(self) -> tuple[bool, Optional[np.ndarray]]:
         """(True, the next frame decoded to BGR), or (False, None)."""
@@ -266,21 +289,15 @@ class MjpegReplay:
         image = decode_jpeg(data) if ok and data is not None else None
         return (image is not None), image
 
-    def release(self) -> None:
-        """Close it (reads fail)."""
-        self._open = False
-
 
 H264_SUFFIXES = (".h264", ".264")
 """A ``device`` with one of these suffixes is an H.264 elementary stream (Annex B) replayed as a camera."""
 
 
-class H264Replay:
+class H264Replay(_LoopedReplay):
     """A fake H.264 camera: replays the access units of an H.264 file (Annex B, as ``ffmpeg -c:v copy -f h264``
     writes it; or a list of units) in a loop through ``read_h264()``, untouched, as a camera's encoder gives them.
     The first unit must be a keyframe (with SPS and PPS), so that every round decodes from its start."""
-
-    compressed = True
 
     def __init__(self, units: list[bytes]) -> None:
         from beastbt.devices.h264 import is_keyframe
@@ -288,12 +305,13 @@ class H264Replay:
             raise ValueError("an H.264 replay needs at least one access unit")
         if not is_keyframe(units[0]):
             raise ValueError("an H.264 replay must start at a keyframe (an IDR picture with its SPS and PPS)")
-        self.units = units
-        self.index = 0
-        self._open = True
-        self.frames_read = 0
-        """Access units handed over so far."""
+        super().__init__(units)
         self._decoder: Any = None
+
+    @property
+    def units(self) -> list[bytes]:
+        """The access units it replays."""
+        return self.items
 
     @classmethod
     def from_file(cls, path: str) -> "H264Replay":
@@ -308,18 +326,9 @@ class H264Replay:
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
 
-    def isOpened(self) -> bool:  # noqa: N802 - the cv2.VideoCapture name
-        """True until released."""
-        return self._open
-
     def read_h264(self) -> tuple[bool, Optional[bytes]]:
         """(True, the next access unit's bytes), or (False, None) once released."""
-        if not self._open:
-            return False, None
-        data = self.units[self.index]
-        self.index = (self.index + 1) % len(self.units)
-        self.frames_read += 1
-        return True, data
+        return self._next()
 
     def read(self) -> tuple[bool, Optional[np.ndarray]]:
         """(True, the next picture decoded to BGR), or (False, None) (PyAV decodes every unit in order)."""
@@ -331,10 +340,6 @@ class H264Replay:
             self._decoder = H264Decoder()
         image = self._decoder.decode(data)
         return (image is not None), image
-
-    def release(self) -> None:
-        """Close it (reads fail)."""
-        self._open = False
 
 
 class EncodingH264Camera:
