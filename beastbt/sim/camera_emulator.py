@@ -28,6 +28,7 @@ import numpy as np
 
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
+from beastbt.sim.cpu_account import CAMERA, SIM_CPU
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.scenery import FINE_GROUND_M, Scenery, SceneryRenderer, ground_canvas, ground_world_from_canvas
 from beastbt.sim.truth import RobotTruth
@@ -188,7 +189,16 @@ class SimCamera:
         """The camera image (BGR uint8, a new array) for the robot at (x, y metres, yaw rad) with all effects.
 
         ``persons_xy``: where the scenery's persons stand ((N, 2) m, world frame); None draws no person.
+        Its CPU time is the simulator's (:mod:`beastbt.sim.cpu_account`), in whichever process it renders.
         """
+        outer = SIM_CPU.enter(CAMERA)
+        try:
+            return self._render(x_m, y_m, yaw_rad, v_mps, w_rps, pan_rad, tilt_rad, persons_xy)
+        finally:
+            SIM_CPU.leave(outer)
+
+    def _render(self, x_m: float, y_m: float, yaw_rad: float, v_mps: float, w_rps: float, pan_rad: float,
+                tilt_rad: float, persons_xy: Optional[Any]) -> np.ndarray:
         geom = self._geometry_for(pan_rad, tilt_rad)
         h, w = geom.height_px, geom.width_px
         out = self._out
@@ -317,7 +327,11 @@ class SimMjpegCamera:
         ok, frame = self.camera.read()
         if not ok or frame is None:
             return False, None
-        done, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+        outer = SIM_CPU.enter(CAMERA)  # the camera's hardware encodes: the simulator's work
+        try:
+            done, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+        finally:
+            SIM_CPU.leave(outer)
         self.frames_encoded += int(done)
         return (True, buf.tobytes()) if done else (False, None)
 
