@@ -116,6 +116,8 @@ class ConsoleServer:
         self._json_cache: tuple[int, str] = (-1, "")
         self._waiters = ThreadPoolExecutor(max_workers=8, thread_name_prefix="beastbt-console-wait")
         self.requests = 0
+        self.on_viewers: Optional[Callable[[int], None]] = None
+        """Called with the number of video viewers each time it changes (on the server's thread), or None."""
 
     # -- life ------------------------------------------------------------------------
     def start(self) -> "ConsoleServer":
@@ -296,6 +298,7 @@ class ConsoleServer:
         guard = BudgetGuard(video.config.budget_bps, video.wall)
         loop = asyncio.get_running_loop()
         video.viewers += 1
+        self._viewers_changed()
         assert self._ending is not None
         reader = asyncio.ensure_future(self._drain(ws))
         last = 0
@@ -312,10 +315,20 @@ class ConsoleServer:
         finally:
             reader.cancel()
             video.viewers -= 1
+            self._viewers_changed()
             self._handlers.discard(task)
             if not ws.closed:
                 await ws.close(message=b"the run has ended")
         return ws
+
+    def _viewers_changed(self) -> None:
+        """Tell :attr:`on_viewers` the number of video viewers now (a failing listener never breaks the video)."""
+        listener = self.on_viewers
+        if listener is not None:
+            try:
+                listener(self.video.viewers)
+            except Exception:  # noqa: BLE001 - the run's end closes the pipe it writes to
+                pass
 
     # -- controls ------------------------------------------------------------------------
     async def _body(self, request: web.Request) -> dict:
