@@ -124,11 +124,15 @@ class SimCamera:
         self._sky = np.array([self.effects.sky_grey] * 3, np.uint8)
         self._border = tuple(float(c) for c in floor.background_bgr)
         e = self.effects
-        self._noise_bank: Optional[np.ndarray] = None
+        self._noise_bank: Optional[tuple[np.ndarray, np.ndarray]] = None
+        """The noise fields as (up, down): each pixel's noise is up - down, one of them zero (uint8 both)."""
         if e.noise_std > 0:
             m = NOISE_BANK_MARGIN_PX
             bank = rng.standard_normal((NOISE_BANK_SIZE, h + m, w + m, 3), dtype=np.float32) * np.float32(e.noise_std)
-            self._noise_bank = np.clip(np.rint(bank), -127, 127).astype(np.int16)
+            noise = np.clip(np.rint(bank), -127, 127).astype(np.int16)
+            # Two saturating uint8 operations (add the positive part, subtract the negative one) give exactly
+            # the saturated sum with the signed noise, several times faster than one add of uint8 and int16.
+            self._noise_bank = (np.clip(noise, 0, None).astype(np.uint8), np.clip(-noise, 0, None).astype(np.uint8))
         self._vignette: Optional[np.ndarray] = None
         if e.vignetting > 0:
             yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
@@ -244,8 +248,9 @@ class SimCamera:
         if self._noise_bank is not None:
             k = int(self.rng.integers(NOISE_BANK_SIZE))
             oy, ox = (int(v) for v in self.rng.integers(NOISE_BANK_MARGIN_PX + 1, size=2))
-            noise = self._noise_bank[k, oy : oy + h, ox : ox + w]
-            img = cv2.add(img, noise, dtype=cv2.CV_8U)
+            up, down = self._noise_bank
+            img = cv2.add(img, up[k, oy : oy + h, ox : ox + w], dst=None if img is out else img)
+            img = cv2.subtract(img, down[k, oy : oy + h, ox : ox + w], dst=img)
         return img.copy() if img is out else img
 
     def _draw_ground(self, out: np.ndarray, geom: CameraGeometry, x_m: float, y_m: float, yaw_rad: float,
