@@ -160,8 +160,9 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     camera_holder: list = []
 
     def render() -> np.ndarray:
-        if not camera_holder:
-            camera_holder.append(_viewer_camera(camera_spec))
+        if not camera_holder:  # built when first watched: its floor and ground textures are the simulator's work
+            from beastbt.sim.cpu_account import CAMERA, SIM_CPU
+            camera_holder.append(SIM_CPU.call(CAMERA, _viewer_camera, camera_spec))
         t = pose[0]
         return camera_holder[0].render(*t)
 

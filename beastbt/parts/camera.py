@@ -36,6 +36,7 @@ from beastbt.robot.part import REAL, SIM, Build, Part
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera, SimMjpegCamera
+from beastbt.sim.cpu_account import CAMERA, SIM_CPU
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.scenery import Scenery
 from beastbt.sim.robot import Simulator, world_problem
@@ -134,7 +135,9 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     scenery = Scenery.of_world(world.walls, world.obstacles, raw_floor is not None, floor_seed)
 
     def make_camera() -> Camera:
-        sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects, scenery, lambda: persons_xy(sim))
+        # Built when first used: its floor and ground textures are the simulator's work (cpu_account).
+        sim_camera = SIM_CPU.call(CAMERA, lambda: SimCamera(floor_map(), pipeline.geometry, camera_rng, effects,
+                                                            scenery, lambda: persons_xy(sim)))
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
         io.sim_camera = sim_camera
         if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
