@@ -56,6 +56,7 @@ from concurrent.futures import ThreadPoolExecutor
 from importlib import resources
 from typing import Any, Awaitable, Callable, Optional
 
+import orjson
 from aiohttp import WSMsgType, web
 
 from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
@@ -86,6 +87,15 @@ def _page(name: str) -> bytes:
 
 def _error(status: int, message: str) -> web.Response:
     return web.json_response({"error": message}, status=status)
+
+
+def state_json(state: dict) -> str:
+    """A state as JSON text: with orjson (a tenth of ``json.dumps``'s time for a state with its scan, ten times a
+    second), or ``json.dumps`` for what orjson does not take. A NaN is ``null`` (``JSON.parse`` rejects NaN)."""
+    try:
+        return orjson.dumps(state, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS).decode()
+    except TypeError:
+        return json.dumps(state)
 
 
 class ConsoleServer:
@@ -250,7 +260,7 @@ class ConsoleServer:
         published = self.state.latest()
         cached = self._json_cache
         if cached[0] != published.seq:
-            cached = self._json_cache = (published.seq, json.dumps(published.state))
+            cached = self._json_cache = (published.seq, state_json(published.state))
         return cached[1]
 
     async def _get_state(self, request: web.Request) -> web.Response:
@@ -364,4 +374,4 @@ class ConsoleServer:
         return web.json_response({"ok": True, **outcome})
 
 
-__all__ = ["ConsoleServer", "is_loopback", "PUSH_PERIOD_S"]
+__all__ = ["ConsoleServer", "is_loopback", "state_json", "PUSH_PERIOD_S"]
