@@ -25,14 +25,27 @@ whose tree reads the fused pose: its GPS, IMU and EKF are awake, recorded or not
 (missions/joystick/teleop_demo.yaml) lasts 6.5 s, so a longer one of the same
 kind is written for the run (enable held, the sticks changing every second,
 released 0.5 s before the end). ``--console`` adds, for the patrol with the
-LiDAR, recorded and not, and for the other missions recorded, a run with
-``--console`` and one viewer: a client
+LiDAR, recorded and not, and for the other missions recorded, runs with
+``--console`` and one viewer, on the simulated camera and on the fake MJPEG camera (below): a client
 process following ``WS /api/ws`` and ``WS /api/video`` as the page does (the
 one of benchmarks/console.py); the viewer's own CPU is not counted (it is the
 browser's), the console's server and encoder processes are (all the run's
 descendants are). Each row also prints the run's peak resident memory (the
 largest VmRSS sampled of the run and its descendants together). ``--json FILE``
 writes the rows for docs/performance.md.
+
+**Without the simulator.** On the robot the Pi runs the drivers, the estimator, the tree, safety, the
+recording and the console, not the physics, the device emulators (the ESP32 base, the GPS, the IMU, the
+LiDAR's ray-casting) nor the camera's rendering and JPEG encoding (a camera does that in hardware). Every
+process of a run charges the thread CPU time of that work to the simulator (``beastbt.sim.cpu_account``,
+read here through ``BEASTBT_SIM_CPU_DIR`` at the same moments as ``/proc``), so each row also prints the
+simulator's share over the same window and **beastbt without the simulator**, the row's share less it:
+what the robot would spend, and what a Pi 4 table should scale for the robot (the whole share is for
+someone running the simulator on a Pi). With ``--console`` the console rows also run on the robot's
+camera path (``camera.format: mjpeg``: the simulator's fake USB camera renders and encodes in the run's
+process, charged to the simulator, and its JPEG goes to the viewer untouched); on the simulated camera
+the console's process renders the viewer's picture (the simulator's) and JPEG-encodes it (the console's,
+though a robot with a JPEG camera would not).
 
 Run: python benchmarks/realtime_cpu.py [--seconds T] [--missions patrol,line,gps_route,teleop] [--console]
       [--json FILE]
@@ -44,6 +57,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import socket
 import subprocess
 import sys
@@ -55,6 +69,8 @@ from typing import Optional
 import yaml
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+from beastbt.sim.cpu_account import ENV_DIR, KINDS, SIMULATOR_KINDS, read_totals  # noqa: E402
 MISSIONS = {"patrol": "missions/patrol.yaml", "line": "missions/line_to_intersection.yaml",
             "gps_route": "missions/gps_route.yaml", "teleop": "missions/teleop.yaml"}
 EXTRA_ARGS = {"gps_route": ["--seed", "1"]}  # as the mission's own comment runs it
@@ -141,13 +157,27 @@ def joystick_script(path: Path, seconds: float) -> Path:
     return path
 
 
+def sim_totals(folder: Path) -> list[float]:
+    """Seconds per kind (:data:`KINDS` order) the run's processes charged to the simulator so far, summed over
+    the totals files in ``folder`` (a process's file stays when it ends)."""
+    out = [0.0] * len(KINDS)
+    for path in folder.iterdir():
+        totals = read_totals(path)
+        if totals is not None:
+            out = [a + b for a, b in zip(out, totals)]
+    return out
+
+
+Sample = tuple[float, float, list[float]]
+"""(wall s since start, cpu s of the run and its descendants, simulator seconds per kind so far)."""
+
+
 def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Optional[str] = None,
         extra: Optional[list[str]] = None,
-        console: bool = False) -> tuple[float, float, dict, list[tuple[float, float]]]:
-    """(cpu s, wall s, summary, [(wall s since start, cpu s of the run and its descendants)]) of one realtime run of
-    ``mission`` lasting at most ``seconds`` of mission time; ``extra`` arguments are added to the command, and
-    ``console`` serves the console with one viewer. The summary gets ``peak_rss_mib`` (the run and its descendants'
-    largest resident memory sampled)."""
+        console: bool = False) -> tuple[float, float, dict, list[Sample]]:
+    """(cpu s, wall s, summary, samples) of one realtime run of ``mission`` lasting at most ``seconds`` of mission
+    time; ``extra`` arguments are added to the command, and ``console`` serves the console with one viewer. The
+    summary gets ``peak_rss_mib`` (the run and its descendants' largest resident memory sampled)."""
     summary = Path(runs_dir) / "summary.json"
     args = [sys.executable, "-m", "beastbt", "run", mission, "--speed", "realtime", "--max-time", f"{seconds} s",
             "--summary", str(summary)] + (["--runs-dir", runs_dir] if record else ["--no-record"])
@@ -155,10 +185,12 @@ def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Option
     args += extra or []
     port = _free_port() if console else 0
     args += ["--console", f"127.0.0.1:{port}"] if console else []
+    sim_dir = Path(tempfile.mkdtemp(prefix="beastbt-simcpu-"))
+    env = dict(os.environ, **{ENV_DIR: str(sim_dir)})
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    samples: list[tuple[float, float]] = []
+    proc = subprocess.Popen(args, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    samples: list[Sample] = []
     children: dict[int, float] = {}  # the latest CPU seen of each child (kept once it has ended)
     viewer = _start_viewer(port, proc) if console else None
     peak_rss = 0
@@ -170,7 +202,7 @@ def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Option
         peak_rss = max(peak_rss, rss)
         own = _cpu_s(proc.pid)
         if own is not None:
-            samples.append((time.perf_counter() - t0, own + sum(children.values())))
+            samples.append((time.perf_counter() - t0, own + sum(children.values()), sim_totals(sim_dir)))
         time.sleep(0.25)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -183,16 +215,27 @@ def run(mission: str, seconds: float, record: bool, runs_dir: str, robot: Option
             viewer.wait()
     result = json.loads(summary.read_text())
     result["peak_rss_mib"] = peak_rss / 1024
+    shutil.rmtree(sim_dir, ignore_errors=True)
     return cpu, wall, result, samples
 
 
-def steady_share(samples: list[tuple[float, float]], start_s: float, end_s: float) -> float:
+def steady_share(samples: list[Sample], start_s: float, end_s: float) -> float:
     """CPU seconds per wall second between the samples nearest to ``start_s`` and ``end_s`` (wall s)."""
     inside = [s for s in samples if start_s <= s[0] <= end_s]
     if len(inside) < 2:
         return float("nan")
-    (t0, c0), (t1, c1) = inside[0], inside[-1]
+    (t0, c0, _), (t1, c1, _) = inside[0], inside[-1]
     return (c1 - c0) / max(t1 - t0, 1e-9)
+
+
+def simulator_shares(samples: list[Sample], start_s: float, end_s: float) -> dict[str, float]:
+    """The simulator's CPU seconds per wall second, per kind of :data:`SIMULATOR_KINDS`, over the same samples as
+    :func:`steady_share` (NaN without two samples)."""
+    inside = [s for s in samples if start_s <= s[0] <= end_s]
+    if len(inside) < 2:
+        return {kind: float("nan") for kind in SIMULATOR_KINDS}
+    (t0, _, k0), (t1, _, k1) = inside[0], inside[-1]
+    return {kind: (k1[i] - k0[i]) / max(t1 - t0, 1e-9) for i, kind in enumerate(KINDS) if kind in SIMULATOR_KINDS}
 
 
 def main() -> None:
@@ -209,47 +252,65 @@ def main() -> None:
         parser.error(f"--missions: unknown {', '.join(unknown)}; expected some of {', '.join(MISSIONS)}")
     runs_dir = tempfile.mkdtemp(prefix="beastbt-realtime-")
     data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
-    bare_robot = Path(runs_dir) / "sim_no_lidar.yaml"
-    bare_robot.write_text(yaml.safe_dump({k: v for k, v in data.items() if k != "lidar"}, sort_keys=False),
-                          encoding="utf-8")
-    rows: list[tuple[str, Optional[str], bool, bool]] = []  # (mission, robot profile, recorded, console)
+    profiles = {"sim": None}  # robot profile -> the --robot file (None: robots/sim.yaml as it is)
+    for key, variant in (("no_lidar", {k: v for k, v in data.items() if k != "lidar"}),
+                         ("mjpeg", dict(data, camera=dict(data["camera"], format="mjpeg")))):
+        path = Path(runs_dir) / f"sim_{key}.yaml"
+        path.write_text(yaml.safe_dump(variant, sort_keys=False), encoding="utf-8")
+        profiles[key] = str(path)
+    rows: list[tuple[str, str, bool, bool]] = []  # (mission, profile key, recorded, console)
     for name in names:
         if name == "patrol":
-            rows += [("patrol", None, True, False), ("patrol", str(bare_robot), True, False),
-                     ("patrol", None, False, False), ("patrol", str(bare_robot), False, False)]
-            rows += [("patrol", None, True, True), ("patrol", None, False, True)] if args.console else []
+            rows += [("patrol", "sim", True, False), ("patrol", "no_lidar", True, False),
+                     ("patrol", "sim", False, False), ("patrol", "no_lidar", False, False)]
+            rows += [("patrol", camera, record, True) for camera in ("sim", "mjpeg")
+                     for record in (True, False)] if args.console else []
         else:
-            rows += [(name, None, True, False), (name, None, False, False)]
-            rows += [(name, None, True, True)] if args.console else []
+            rows += [(name, "sim", True, False), (name, "sim", False, False)]
+            rows += [(name, "sim", True, True), (name, "mjpeg", True, True)] if args.console else []
     joystick = joystick_script(Path(runs_dir) / "joystick.yaml", args.seconds)
     print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (1, 5, 15 min)")
-    steady: dict[tuple, float] = {}
+    print("each row: the whole run's share of one core, the simulator's part of it (physics, emulators, the "
+          "camera's rendering and encoding), and beastbt without the simulator (what the robot would spend)")
+    steady: dict[tuple, tuple[float, float]] = {}
     out_rows = []
-    for name, robot, record, console in rows:
+    for name, profile, record, console in rows:
+        robot = profiles[profile]
         extra = EXTRA_ARGS.get(name, []) + (["--joystick", str(joystick)] if name == "teleop" else [])
         start_cpu, start_wall, _, _ = run(MISSIONS[name], 0.05, record, runs_dir, robot, extra, console)
         cpu, wall, summary, samples = run(MISSIONS[name], args.seconds, record, runs_dir, robot, extra, console)
         # The mission runs from about start_wall to start_wall + its seconds (realtime): its middle part.
-        share = steady_share(samples, start_wall + 3.0, start_wall + summary["sim_time_s"] - 0.5)
+        window = (start_wall + 3.0, start_wall + summary["sim_time_s"] - 0.5)
+        share = steady_share(samples, *window)
+        kinds = simulator_shares(samples, *window)
+        simulator = sum(kinds.values())
+        without = share - simulator
         older = (cpu - start_cpu) / max(wall - start_wall, 1e-9)
         if not console:
-            steady[(name, robot is None, record)] = share
-        label = (("recorded" if record else "--no-record") + ("" if robot is None else ", no LiDAR")
-                 + (", console+viewer" if console else ""))
-        goal = "  (goal < 5 %)" if name == "patrol" and robot is None and not console else ""
-        print(f"{name:7s} {label:23s} {summary['sim_time_s']:6.1f} s of mission in {wall:6.1f} s: cpu {cpu:5.2f} s, "
-              f"start-up {start_cpu:4.2f} s; steady {100 * share:5.2f} % of one core{goal} "
-              f"(whole run minus start-up: {100 * older:4.1f} %); peak RSS {summary['peak_rss_mib']:5.1f} MiB",
-              flush=True)
-        out_rows.append({"mission": name, "recorded": record, "lidar": robot is None, "console": console,
+            steady[(name, profile, record)] = (share, without)
+        label = (("recorded" if record else "--no-record") + (", no LiDAR" if profile == "no_lidar" else "")
+                 + (", console+viewer" if console else "") + (", mjpeg camera" if profile == "mjpeg" else ""))
+        goal = "  (goal < 5 %)" if name == "patrol" and profile == "sim" and not console else ""
+        parts = ", ".join(f"{kind} {100 * v:.2f}" for kind, v in kinds.items() if v >= 0.00005)
+        print(f"{name:7s} {label:38s} {summary['sim_time_s']:6.1f} s of mission in {wall:6.1f} s: cpu {cpu:5.2f} s, "
+              f"start-up {start_cpu:4.2f} s; steady {100 * share:5.2f} % of one core{goal}, simulator "
+              f"{100 * simulator:5.2f} %, without the simulator {100 * without:5.2f} % "
+              f"(whole run minus start-up: {100 * older:4.1f} %); peak RSS {summary['peak_rss_mib']:5.1f} MiB"
+              f"\n        simulator by kind, % of one core: {parts or '-'}", flush=True)
+        out_rows.append({"mission": name, "recorded": record, "lidar": profile != "no_lidar", "console": console,
+                         "camera": "mjpeg" if profile == "mjpeg" else "sim",
                          "sim_time_s": summary["sim_time_s"], "steady_share": share, "whole_run_share": older,
+                         "simulator_share": simulator, "without_simulator_share": without,
+                         "simulator_by_kind": kinds,
                          "startup_cpu_s": start_cpu, "peak_rss_mib": summary["peak_rss_mib"]})
     if "patrol" in names:
         for record in (True, False):
-            with_lidar, without = steady[("patrol", True, record)], steady[("patrol", False, record)]
+            (with_lidar, with_lidar_own), (without, without_own) = (steady[("patrol", "sim", record)],
+                                                                    steady[("patrol", "no_lidar", record)])
             print(f"patrol {'recorded' if record else '--no-record'}: the LiDAR adds "
                   f"{100 * (with_lidar - without):4.2f} % of one core (x{with_lidar / without:4.2f} the profile "
-                  f"without it, measured in this run)")
+                  f"without it, measured in this run); without the simulator "
+                  f"{100 * (with_lidar_own - without_own):4.2f} %")
     load = os.getloadavg()
     print(f"load after: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
     if args.json:

@@ -161,25 +161,20 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     camera_holder: list = []
 
     def render() -> np.ndarray:
-        if not camera_holder:
-            camera_holder.append(_viewer_camera(camera_spec))
+        if not camera_holder:  # built when first watched: its floor and ground textures are the simulator's work
+            from beastbt.sim.cpu_account import CAMERA, SIM_CPU
+            camera_holder.append(SIM_CPU.call(CAMERA, _viewer_camera, camera_spec))
         t = pose[0]
         return camera_holder[0].render(*t)
 
-    stop = threading.Event()
+    def tell_viewers(count: int) -> None:
+        # The run renders or reads the camera for the console only while someone watches: told at each change,
+        # on the server's thread, instead of a thread looking 20 times a second.
+        with lock:
+            outbox.send(("viewers", count))
 
-    def count_viewers() -> None:
-        last = -1
-        while not stop.wait(0.05):
-            if video.viewers != last:
-                last = video.viewers
-                try:
-                    with lock:
-                        outbox.send(("viewers", last))
-                except (OSError, ValueError):
-                    return
-
-    threading.Thread(target=count_viewers, name="beastbt-console-viewers", daemon=True).start()
+    tell_viewers(0)
+    server.on_viewers = tell_viewers
     try:
         while True:
             try:
@@ -214,7 +209,7 @@ def serve(inbox: Connection, outbox: Connection) -> int:
             elif kind == "close":
                 break
     finally:
-        stop.set()
+        server.on_viewers = None
         controls.close()
         server.close()
         video.close()
@@ -244,6 +239,10 @@ def _read_frame(name: str, shape: tuple) -> Optional[np.ndarray]:
 
 def main(argv: list[str]) -> int:
     """``python -m beastbt.live.console_process READ_FD WRITE_FD``."""
+    import cv2
+    # The viewer camera's rendering and the JPEG encoder run on their own thread: OpenCV's worker pool would
+    # spin between frames for nothing (see beastbt.parts.camera.OPENCV_THREADS).
+    cv2.setNumThreads(1)
     inbox = Connection(int(argv[0]), writable=False)
     outbox = Connection(int(argv[1]), readable=False)
     try:

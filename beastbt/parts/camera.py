@@ -36,6 +36,7 @@ from beastbt.robot.part import REAL, SIM, Build, Part
 from beastbt.robot.profile import RobotProfile, section_config
 from beastbt.robot.robot_io import RobotIO
 from beastbt.sim.camera_emulator import CameraEffects, SimCamera, SimMjpegCamera
+from beastbt.sim.cpu_account import CAMERA, SIM_CPU
 from beastbt.sim.floor import FloorMap
 from beastbt.sim.scenery import Scenery
 from beastbt.sim.robot import Simulator, world_problem
@@ -70,10 +71,24 @@ def _check_h264(profile: RobotProfile, config: CameraConfig, simulated: bool) ->
                                                 "pip install 'beastbt[video]' (PyAV), or use format mjpeg")])
 
 
+OPENCV_THREADS = 1
+"""OpenCV threads in a process that has a camera: one. Its worker pool spins between calls, and on frames this
+size (320x240 at 15 fps) the spinning costs more CPU than the split work saves: a warp and a JPEG encode took
+2.5 times the process's CPU with the default pool (two threads here) than with one. Every watt counts on a
+battery; the frames are not late for it (a few ms each)."""
+
+
+def one_opencv_thread() -> None:
+    """Run this process's OpenCV calls on the calling thread (:data:`OPENCV_THREADS`)."""
+    import cv2
+    cv2.setNumThreads(OPENCV_THREADS)
+
+
 def attach_camera(profile: RobotProfile, io: RobotIO, clock: Clock, events: EventLog) -> None:
     """The profile's camera on V4L2, read and run through the line detector in a thread (``io.sensors['camera']``)."""
     if profile.section("camera") is None:
         return
+    one_opencv_thread()
     config: CameraConfig = section_config(profile, "camera", CameraConfig)
     detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
     sink = events.sink("camera")
@@ -104,6 +119,7 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     """A simulated camera and the line detector for a profile with ``camera:`` (``io.sensors['camera']``)."""
     if profile.section("camera") is None:
         return
+    one_opencv_thread()
     config: CameraConfig = section_config(profile, "camera", CameraConfig)
     detector_config: LineDetectorConfig = section_config(profile, "line_detector", LineDetectorConfig)
     _check_h264(profile, config, simulated=True)
@@ -130,7 +146,9 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     scenery = Scenery.of_world(world.walls, world.obstacles, raw_floor is not None, floor_seed)
 
     def make_camera() -> Camera:
-        sim_camera = SimCamera(floor_map(), pipeline.geometry, camera_rng, effects, scenery, lambda: persons_xy(sim))
+        # Built when first used: its floor and ground textures are the simulator's work (cpu_account).
+        sim_camera = SIM_CPU.call(CAMERA, lambda: SimCamera(floor_map(), pipeline.geometry, camera_rng, effects,
+                                                            scenery, lambda: persons_xy(sim)))
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
         io.sim_camera = sim_camera
         if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
@@ -191,4 +209,5 @@ class CameraPart(Part):
             attach_sim_camera(build.sim, build.profile, build.io, build.events)
 
 
-__all__ = ["CameraPart", "attach_camera", "attach_sim_camera", "build_floor", "floor_of", "persons_xy", "PLAIN_FLOOR"]
+__all__ = ["CameraPart", "attach_camera", "attach_sim_camera", "build_floor", "floor_of", "persons_xy", "PLAIN_FLOOR",
+           "one_opencv_thread", "OPENCV_THREADS"]

@@ -12,6 +12,7 @@ import errno
 from typing import Optional, Sequence
 
 from beastbt.core.bounded import trim_front
+from beastbt.sim.cpu_account import SIM_CPU, kind_of
 
 WRITES_KEPT = 4096
 """A device's ``writes`` keeps at least its last this many writes (at most twice as many): a PWM base is
@@ -84,29 +85,47 @@ class SimI2CBus:
 
     def read_byte_data(self, i2c_addr: int, register: int) -> int:
         """Read one byte from ``register`` of the device at ``i2c_addr``."""
-        return self._device(i2c_addr).on_read(register & 0xFF)
+        dev = self._device(i2c_addr)
+        outer = SIM_CPU.enter(kind_of(dev))  # the device answering is the simulator's work
+        try:
+            return dev.on_read(register & 0xFF)
+        finally:
+            SIM_CPU.leave(outer)
 
     def write_byte_data(self, i2c_addr: int, register: int, value: int) -> None:
         """Write one byte to ``register`` of the device at ``i2c_addr``."""
-        self._device(i2c_addr).write(register, value)
+        dev = self._device(i2c_addr)
+        outer = SIM_CPU.enter(kind_of(dev))
+        try:
+            dev.write(register, value)
+        finally:
+            SIM_CPU.leave(outer)
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int) -> list[int]:
         """Read ``length`` bytes from ``register`` on in one transaction."""
         dev = self._device(i2c_addr)
-        out = []
-        reg = register & 0xFF
-        for _ in range(length):
-            out.append(dev.on_read(reg))
-            reg = dev.next_register(reg)
-        return out
+        outer = SIM_CPU.enter(kind_of(dev))
+        try:
+            out = []
+            reg = register & 0xFF
+            for _ in range(length):
+                out.append(dev.on_read(reg))
+                reg = dev.next_register(reg)
+            return out
+        finally:
+            SIM_CPU.leave(outer)
 
     def write_i2c_block_data(self, i2c_addr: int, register: int, data: Sequence[int]) -> None:
         """Write bytes from ``register`` on in one transaction."""
         dev = self._device(i2c_addr)
-        reg = register & 0xFF
-        for value in data:
-            dev.write(reg, value)
-            reg = dev.next_register(reg)
+        outer = SIM_CPU.enter(kind_of(dev))
+        try:
+            reg = register & 0xFF
+            for value in data:
+                dev.write(reg, value)
+                reg = dev.next_register(reg)
+        finally:
+            SIM_CPU.leave(outer)
 
     def close(self) -> None:
         """Nothing to release; present for smbus2 compatibility."""

@@ -42,6 +42,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
+from beastbt.sim.cpu_account import LIDAR, SIM_CPU
 from beastbt.sim.obstacles import BoxObstacle, CylinderObstacle, Person
 from beastbt.sim.serial_port import SimSerialPort
 
@@ -243,6 +244,11 @@ class LidarEmulator:
         times = times_s.tolist() if isinstance(times_s, np.ndarray) else list(times_s)
         self._pending.append([times, data, len(data) // len(times), 0])
 
+    def due(self, now_s: float) -> bool:
+        """True when some queued item's time has come by ``now_s`` (what :meth:`flush` would feed)."""
+        pending = self._pending
+        return bool(pending) and pending[0][0][pending[0][3]] <= now_s + 1e-9
+
     def flush(self, now_s: float) -> None:
         """Feed the port every queued item whose time has come."""
         pending = self._pending
@@ -325,7 +331,15 @@ class PacedPort(SimSerialPort):
         self._device = device
 
     def _catch_up(self) -> None:
-        self._device.flush(self._device.now_s)
+        device = self._device
+        if not SIM_CPU.enabled or not device.due(device.now_s):
+            device.flush(device.now_s)
+            return
+        outer = SIM_CPU.enter(LIDAR)  # feeding the port is the emulator's work, done when the driver looks
+        try:
+            device.flush(device.now_s)
+        finally:
+            SIM_CPU.leave(outer)
 
     @property
     def in_waiting(self) -> int:

@@ -9,6 +9,7 @@ robot.
 
 from __future__ import annotations
 
+import time
 import zlib
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
@@ -18,6 +19,7 @@ import numpy as np
 from beastbt.core.errors import InvalidInput
 from beastbt.core.schema_defaults import schema_default
 from beastbt.sim.contact import ContactWorld
+from beastbt.sim.cpu_account import KINDS, PHYSICS, SIM_CPU, SPLIT, kind_of
 from beastbt.sim.dynamics import DiffDriveSim, DriveModel
 from beastbt.sim.obstacles import OtherRobot
 from beastbt.sim.truth import RobotTruth
@@ -49,21 +51,53 @@ class Simulator:
     others: Optional[Callable[[], Sequence[OtherRobot]]] = None
     """Where the other robots of a shared world are now (the fleet's hand-over), asked once per :meth:`advance`;
     None: this robot is alone in its world."""
+    _plan: Optional[list[tuple[Emulator, int]]] = field(default=None, repr=False, compare=False)
+    """The emulators with the kind their CPU time is charged to (made again when :attr:`emulators` changes)."""
 
     def advance(self, now_s: float) -> None:
         """Step physics and emulators until the simulated time reaches ``now_s``.
 
         The other robots (:attr:`others`) are placed first and stand there for the whole advance (between two
-        ticks), so the steps depend only on the poses handed over.
+        ticks), so the steps depend only on the poses handed over. When the simulator's CPU is accounted
+        (:mod:`beastbt.sim.cpu_account`), the thread's CPU time is charged to the physics and to each emulator's
+        kind (the watchdog's is the robot's); nothing else changes.
         """
         if self.others is not None and self.drive.contact is not None:
             self.drive.contact.set_others(self.others())
+        if SIM_CPU.enabled:
+            self._advance_accounted(now_s)
+            return
         while self.t_s + 1e-9 < now_s:
             dt = min(self.physics_dt_s, now_s - self.t_s)
             self.drive.step(dt)
             self.t_s += dt
             for update in self.emulators:
                 update(self.t_s, dt)
+
+    def _advance_accounted(self, now_s: float) -> None:
+        """:meth:`advance`'s steps, each piece's wall time noted to split the advance's CPU time by kind."""
+        plan = self._plan
+        if plan is None or len(plan) != len(self.emulators) or any(p[0] is not u for p, u in zip(plan, self.emulators)):
+            plan = self._plan = [(u, kind_of(u)) for u in self.emulators]
+        weights = [0.0] * len(KINDS)
+        wall = time.perf_counter  # for the split only: the CPU clock, read at both ends, gives the total
+        outer = SIM_CPU.enter(SPLIT)
+        try:
+            t = wall()
+            while self.t_s + 1e-9 < now_s:
+                dt = min(self.physics_dt_s, now_s - self.t_s)
+                self.drive.step(dt)
+                self.t_s += dt
+                t1 = wall()
+                weights[PHYSICS] += t1 - t
+                t = t1
+                for update, kind in plan:
+                    update(self.t_s, dt)
+                    t1 = wall()
+                    weights[kind] += t1 - t
+                    t = t1
+        finally:
+            SIM_CPU.leave_split(outer, weights)
 
     def child_rng(self) -> np.random.Generator:
         """A generator of its own for one emulator, drawn from the simulator's (deterministic per seed and order)."""

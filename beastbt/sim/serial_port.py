@@ -14,6 +14,7 @@ from typing import Callable, Optional
 import serial
 
 from beastbt.core.bounded import trim_front
+from beastbt.sim.cpu_account import SIM_CPU, kind_of
 
 WRITTEN_KEPT_BYTES = 64 * 1024
 """``written`` keeps at least the last this many bytes (at most twice as many): a run on the simulator writes
@@ -35,6 +36,8 @@ class SimSerialPort:
         """How many bytes the driver wrote in all."""
         self.on_write = on_write
         self.unplugged = False
+        self._write_kind: tuple[Optional[Callable[[bytes], None]], int] = (None, 0)
+        """``on_write`` and the kind its work is charged to (:mod:`beastbt.sim.cpu_account`)."""
 
     # --- the device side -------------------------------------------------
     def feed(self, data: bytes) -> None:
@@ -84,8 +87,12 @@ class SimSerialPort:
         self.written += data
         self.written_total += len(data)
         trim_front(self.written, WRITTEN_KEPT_BYTES)
-        if self.on_write is not None:
-            self.on_write(bytes(data))
+        on_write = self.on_write
+        if on_write is not None:
+            # The device answering is the simulator's work; the driver's writing is the robot's.
+            if self._write_kind[0] is not on_write:
+                self._write_kind = (on_write, kind_of(on_write))
+            SIM_CPU.call(self._write_kind[1], on_write, bytes(data))
         return len(data)
 
     def flush(self) -> None:

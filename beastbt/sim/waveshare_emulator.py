@@ -233,6 +233,8 @@ class SimWaveshareBase:
 
     def _move_gimbal(self, dt: float) -> None:
         g = self.gimbal
+        if g.pan_deg == g.target_pan_deg and g.tilt_deg == g.target_tilt_deg:
+            return  # at rest, as it is between looks (this runs at every physics step)
         step = GIMBAL_RATE_DPS * dt
         for axis in ("pan", "tilt"):
             cur = getattr(g, f"{axis}_deg")
