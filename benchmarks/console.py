@@ -14,7 +14,10 @@ process, so that a busy machine slows them alike; figures are medians over ``--r
      renders the view and JPEG-encodes it;
    * ``fake MJPEG``: the same profile with ``camera.format: mjpeg``: the simulator's fake USB camera renders
      and encodes each frame (what a camera's hardware does for free), and its JPEG goes to the viewer
-     untouched: the robot's camera path.
+     untouched: the robot's camera path;
+   * ``fake H.264`` (when PyAV's wheel has a software H.264 encoder): ``camera.format: h264``, the simulator's
+     fake camera encodes each frame to H.264 (what a Pi camera's hardware encoder does for free) and the viewer,
+     saying it plays H.264 as the page does, gets its access units untouched.
 
    Printed: the console process's own CPU (from /proc, from the start of the run to its end, % of one core;
    its start-up, before the run, apart in CPU seconds);
@@ -73,9 +76,12 @@ VIEWER = textwrap.dedent('''
                 nonlocal vbytes, frames, passed
                 try:
                     async with s.ws_connect(base + "/api/video", max_msg_size=0) as ws:
+                        if "h264" in sys.argv[2:]:  # as the page does where it can play H.264
+                            await ws.send_str(json.dumps({"accept": ["h264", "jpeg"]}))
                         async for m in ws:
                             vbytes += len(m.data); frames += 1
-                            passed += struct.unpack_from("<H", m.data, 12)[0] == 0
+                            q = struct.unpack_from("<H", m.data, 12)[0]
+                            passed += q == 0 or q >= 0xFF00  # the camera's own JPEG, or an H.264 unit
                 except Exception:
                     pass
             async def poll():
@@ -87,7 +93,7 @@ VIEWER = textwrap.dedent('''
                     except Exception:
                         return
                     lat.append(time.perf_counter() - t)
-            poll_too = len(sys.argv) > 2 and sys.argv[2] == "poll"
+            poll_too = "poll" in sys.argv[2:]
             tasks = [asyncio.ensure_future(c()) for c in (follow_state, follow_video) + ((poll,) if poll_too else ())]
             await tasks[0]
             for t in tasks[1:]:
@@ -115,17 +121,18 @@ def long_patrol(folder: Path, passes: int) -> Path:
     return path
 
 
-def mjpeg_profile(folder: Path) -> Path:
-    """robots/sim.yaml with ``camera.format: mjpeg``: the simulator's fake USB camera that gives its own JPEG."""
+def mjpeg_profile(folder: Path, fmt: str = "mjpeg") -> Path:
+    """robots/sim.yaml with ``camera.format: FMT``: the simulator's fake camera that gives its own JPEG (mjpeg) or
+    its own H.264 (h264, encoded by PyAV's software encoder, standing for a Pi camera's hardware encoder)."""
     text = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
     assert "  device: sim\n" in text
-    path = folder / "sim_mjpeg.yaml"
-    path.write_text(text.replace("  device: sim\n", "  device: sim\n  format: mjpeg\n"), encoding="utf-8")
+    path = folder / f"sim_{fmt}.yaml"
+    path.write_text(text.replace("  device: sim\n", f"  device: sim\n  format: {fmt}\n"), encoding="utf-8")
     return path
 
 
 def run_once(mission: Path, console: bool, speed: str = "max", max_time_s: Optional[float] = None,
-             profile: Optional[Path] = None, poll: bool = False) -> dict:
+             profile: Optional[Path] = None, poll: bool = False, h264: bool = False) -> dict:
     """One run in this process, with a viewer process when ``console``; CPU of this process, of its loop thread
     and of the console's process over ``execute``."""
     from beastbt.assembly import prepare
@@ -138,7 +145,8 @@ def run_once(mission: Path, console: bool, speed: str = "max", max_time_s: Optio
     out: dict[str, Any] = {}
     if console:
         link = prepared.run.ctx.services.plugins["console"]
-        viewer = subprocess.Popen([sys.executable, "-c", VIEWER, link.url.rstrip("/")] + (["poll"] if poll else []),
+        viewer = subprocess.Popen([sys.executable, "-c", VIEWER, link.url.rstrip("/")] + (["poll"] if poll else [])
+                                  + (["h264"] if h264 else []),
                                   stdout=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 20
         while link.viewers < 1 and time.monotonic() < deadline:  # the viewer is watching before the start
@@ -182,6 +190,9 @@ def realtime_cpu(reps: int, seconds: float, mjpeg: bool = True) -> None:
         subjects: list[tuple[str, Optional[Path]]] = [("sim camera", None)]
         if mjpeg:
             subjects.append(("fake MJPEG", mjpeg_profile(folder)))
+            from beastbt.devices.h264 import software_encoder
+            if software_encoder() is not None:  # a PyAV wheel with an H.264 encoder: the fake H.264 camera
+                subjects.append(("fake H.264", mjpeg_profile(folder, "h264")))
         anchor: list[float] = []
         rows: dict[str, dict[str, list[float]]] = {name: {"console": [], "run": [], "total": [], "fps": [],
                                                           "mbps": [], "passed": [], "startup": []}
@@ -190,7 +201,7 @@ def realtime_cpu(reps: int, seconds: float, mjpeg: bool = True) -> None:
             base = run_once(mission, False, "realtime", seconds)
             anchor.append(base["cpu_s"] / base["wall_s"])
             for name, profile in subjects:
-                r = run_once(mission, True, "realtime", seconds, profile)
+                r = run_once(mission, True, "realtime", seconds, profile, h264=name == "fake H.264")
                 row, wall = rows[name], r["wall_s"]
                 row["console"].append(r["console_cpu_s"] / wall)
                 row["startup"].append(r["console_startup_cpu_s"])
@@ -207,11 +218,11 @@ def realtime_cpu(reps: int, seconds: float, mjpeg: bool = True) -> None:
             print(f"   {name:10s}: console process {percent(row['console'])}, the run's process +{percent(row['run'])}"
                   f" over the anchor, together {percent(row['total'])}")
             print(f"   {'':10s}  viewer got {spread(row['fps'])} fps, {spread(row['mbps'], '{:.2f}')} Mbit/s, "
-                  f"{statistics.median(row['passed']) * 100:.0f} % of frames the camera's own JPEG untouched; "
+                  f"{statistics.median(row['passed']) * 100:.0f} % of frames the camera's own (JPEG or H.264) untouched; "
                   f"the console process's start-up {spread(row['startup'], '{:.2f}')} s of CPU (not in the shares)")
         FIGURES.spread("anchor_pct", anchor, 100)
         for name, _ in subjects:
-            key = name.replace(" ", "_").lower()
+            key = name.replace(" ", "_").replace(".", "").lower()
             for part, scale in (("console", 100), ("run", 100), ("total", 100), ("fps", 1), ("mbps", 1),
                                 ("startup", 1)):
                 FIGURES.spread(f"{key}.{part}{'_pct' if scale == 100 else ''}", rows[name][part], scale)

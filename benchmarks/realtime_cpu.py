@@ -34,6 +34,10 @@ descendants are). Each row also prints the run's peak resident memory (the
 largest VmRSS sampled of the run and its descendants together). ``--json FILE``
 writes the rows for docs/performance.md.
 
+**Reps.** Every row runs ``--reps`` times (default 5), interleaved: each rep runs every row once in turn, so
+that a machine that gets busier slows all rows alike; each figure is the median with the spread (lowest to
+highest). The start-up is measured once per row (a run that ends at once).
+
 **Without the simulator.** On the robot the Pi runs the drivers, the estimator, the tree, safety, the
 recording and the console, not the physics, the device emulators (the ESP32 base, the GPS, the IMU, the
 LiDAR's ray-casting) nor the camera's rendering and JPEG encoding (a camera does that in hardware). Every
@@ -47,7 +51,7 @@ process, charged to the simulator, and its JPEG goes to the viewer untouched); o
 the console's process renders the viewer's picture (the simulator's) and JPEG-encodes it (the console's,
 though a robot with a JPEG camera would not).
 
-Run: python benchmarks/realtime_cpu.py [--seconds T] [--missions patrol,line,gps_route,teleop] [--console]
+Run: python benchmarks/realtime_cpu.py [--reps N] [--seconds T] [--missions patrol,line,gps_route,teleop] [--console]
       [--json FILE]
 """
 
@@ -59,6 +63,7 @@ import os
 import resource
 import shutil
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -244,6 +249,7 @@ def main() -> None:
     parser.add_argument("--missions", default="patrol,line,gps_route",
                         help="comma-separated, of " + ", ".join(MISSIONS) + " (default patrol,line,gps_route)")
     parser.add_argument("--console", action="store_true", help="also runs with --console and one viewer")
+    parser.add_argument("--reps", type=int, default=5, help="runs of every row, interleaved (default 5)")
     parser.add_argument("--json", metavar="FILE", help="also write the rows as JSON to FILE")
     args = parser.parse_args()
     names = [n.strip() for n in args.missions.split(",") if n.strip()]
@@ -270,46 +276,70 @@ def main() -> None:
             rows += [(name, "sim", True, True), (name, "mjpeg", True, True)] if args.console else []
     joystick = joystick_script(Path(runs_dir) / "joystick.yaml", args.seconds)
     print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (1, 5, 15 min)")
-    print("each row: the whole run's share of one core, the simulator's part of it (physics, emulators, the "
-          "camera's rendering and encoding), and beastbt without the simulator (what the robot would spend)")
-    steady: dict[tuple, tuple[float, float]] = {}
+    print(f"each row: the whole run's share of one core, the simulator's part of it (physics, emulators, the "
+          f"camera's rendering and encoding), and beastbt without the simulator (what the robot would spend); "
+          f"{args.reps} reps, every rep runs every row once in turn; median (lowest-highest)")
+    measured: dict[tuple, list[dict]] = {row: [] for row in rows}
+    startup: dict[tuple, float] = {}
+    startup_wall: dict[tuple, float] = {}
+    for rep in range(args.reps):
+        for row in rows:
+            name, profile, record, console = row
+            robot = profiles[profile]
+            extra = EXTRA_ARGS.get(name, []) + (["--joystick", str(joystick)] if name == "teleop" else [])
+            if rep == 0:  # the start-up (CPU and wall time of a run that ends at once), once per row
+                startup[row], startup_wall[row] = run(MISSIONS[name], 0.05, record, runs_dir, robot, extra,
+                                                      console)[:2]
+            cpu, wall, summary, samples = run(MISSIONS[name], args.seconds, record, runs_dir, robot, extra, console)
+            # The mission runs from about the start-up's wall time to that plus its seconds (realtime): its middle
+            # part, 3 s in (the recording writer starts then too) to 0.5 s before its end.
+            window = (startup_wall[row] + 3.0, startup_wall[row] + summary["sim_time_s"] - 0.5)
+            share = steady_share(samples, *window)
+            kinds = simulator_shares(samples, *window)
+            measured[row].append({"share": share, "simulator": sum(kinds.values()), "kinds": kinds,
+                                  "rss": summary["peak_rss_mib"], "sim_time_s": summary["sim_time_s"]})
+
+    def med(row: tuple, key: str) -> float:
+        return statistics.median(m[key] for m in measured[row])
+
+    def spread(row: tuple, key: str, scale: float = 100.0, fmt: str = "{:5.2f}") -> str:
+        values = [scale * m[key] for m in measured[row]]
+        return (f"{fmt.format(statistics.median(values))} ({fmt.format(min(values)).strip()}-"
+                f"{fmt.format(max(values)).strip()})")
+
+    for m in measured.values():
+        for x in m:
+            x["without"] = x["share"] - x["simulator"]
     out_rows = []
-    for name, profile, record, console in rows:
-        robot = profiles[profile]
-        extra = EXTRA_ARGS.get(name, []) + (["--joystick", str(joystick)] if name == "teleop" else [])
-        start_cpu, start_wall, _, _ = run(MISSIONS[name], 0.05, record, runs_dir, robot, extra, console)
-        cpu, wall, summary, samples = run(MISSIONS[name], args.seconds, record, runs_dir, robot, extra, console)
-        # The mission runs from about start_wall to start_wall + its seconds (realtime): its middle part.
-        window = (start_wall + 3.0, start_wall + summary["sim_time_s"] - 0.5)
-        share = steady_share(samples, *window)
-        kinds = simulator_shares(samples, *window)
-        simulator = sum(kinds.values())
-        without = share - simulator
-        older = (cpu - start_cpu) / max(wall - start_wall, 1e-9)
-        if not console:
-            steady[(name, profile, record)] = (share, without)
+    for row in rows:
+        name, profile, record, console = row
         label = (("recorded" if record else "--no-record") + (", no LiDAR" if profile == "no_lidar" else "")
                  + (", console+viewer" if console else "") + (", mjpeg camera" if profile == "mjpeg" else ""))
         goal = "  (goal < 5 %)" if name == "patrol" and profile == "sim" and not console else ""
+        kinds = {kind: statistics.median(x["kinds"][kind] for x in measured[row]) for kind in measured[row][0]["kinds"]}
         parts = ", ".join(f"{kind} {100 * v:.2f}" for kind, v in kinds.items() if v >= 0.00005)
-        print(f"{name:7s} {label:38s} {summary['sim_time_s']:6.1f} s of mission in {wall:6.1f} s: cpu {cpu:5.2f} s, "
-              f"start-up {start_cpu:4.2f} s; steady {100 * share:5.2f} % of one core{goal}, simulator "
-              f"{100 * simulator:5.2f} %, without the simulator {100 * without:5.2f} % "
-              f"(whole run minus start-up: {100 * older:4.1f} %); peak RSS {summary['peak_rss_mib']:5.1f} MiB"
-              f"\n        simulator by kind, % of one core: {parts or '-'}", flush=True)
+        print(f"{name:7s} {label:38s} steady {spread(row, 'share')} % of one core{goal}, simulator "
+              f"{spread(row, 'simulator')} %, without the simulator {spread(row, 'without')} %; start-up "
+              f"{startup[row]:4.2f} s of CPU; peak RSS {spread(row, 'rss', 1.0, '{:5.1f}')} MiB"
+              f"\n        simulator by kind, % of one core (medians): {parts or '-'}", flush=True)
         out_rows.append({"mission": name, "recorded": record, "lidar": profile != "no_lidar", "console": console,
-                         "camera": "mjpeg" if profile == "mjpeg" else "sim",
-                         "sim_time_s": summary["sim_time_s"], "steady_share": share, "whole_run_share": older,
-                         "simulator_share": simulator, "without_simulator_share": without,
-                         "simulator_by_kind": kinds,
-                         "startup_cpu_s": start_cpu, "peak_rss_mib": summary["peak_rss_mib"]})
+                         "camera": "mjpeg" if profile == "mjpeg" else "sim", "reps": args.reps,
+                         "sim_time_s": med(row, "sim_time_s"), "steady_share": med(row, "share"),
+                         "steady_share_min": min(x["share"] for x in measured[row]),
+                         "steady_share_max": max(x["share"] for x in measured[row]),
+                         "simulator_share": med(row, "simulator"), "without_simulator_share": med(row, "without"),
+                         "without_simulator_share_min": min(x["without"] for x in measured[row]),
+                         "without_simulator_share_max": max(x["without"] for x in measured[row]),
+                         "simulator_by_kind": kinds, "startup_cpu_s": startup[row], "peak_rss_mib": med(row, "rss")})
+    steady = {(r["mission"], r["lidar"], r["recorded"]): (r["steady_share"], r["without_simulator_share"])
+              for r in out_rows if not r["console"]}
     if "patrol" in names:
         for record in (True, False):
-            (with_lidar, with_lidar_own), (without, without_own) = (steady[("patrol", "sim", record)],
-                                                                    steady[("patrol", "no_lidar", record)])
+            (with_lidar, with_lidar_own), (without, without_own) = (steady[("patrol", True, record)],
+                                                                    steady[("patrol", False, record)])
             print(f"patrol {'recorded' if record else '--no-record'}: the LiDAR adds "
                   f"{100 * (with_lidar - without):4.2f} % of one core (x{with_lidar / without:4.2f} the profile "
-                  f"without it, measured in this run); without the simulator "
+                  f"without it, medians of this run); without the simulator "
                   f"{100 * (with_lidar_own - without_own):4.2f} %")
     load = os.getloadavg()
     print(f"load after: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
@@ -322,18 +352,28 @@ def main() -> None:
     figures = Figures("realtime_cpu")
     for r in out_rows:
         key = (f"{r['mission']}.{'recorded' if r['recorded'] else 'unrecorded'}_{'lidar' if r['lidar'] else 'no_lidar'}"
-               f"{'_console' if r['console'] else ''}")
+               f"{'_console' if r['console'] else ''}{'_mjpeg' if r['camera'] == 'mjpeg' else ''}")
         figures.put(f"{key}.pct", 100 * r["steady_share"])
+        figures.put(f"{key}.pct_min", 100 * r["steady_share_min"])
+        figures.put(f"{key}.pct_max", 100 * r["steady_share_max"])
+        figures.put(f"{key}.without_simulator_pct_min", 100 * r["without_simulator_share_min"])
+        figures.put(f"{key}.without_simulator_pct_max", 100 * r["without_simulator_share_max"])
         figures.put(f"{key}.pi4_x5_pct", 500 * r["steady_share"], 3)
         figures.put(f"{key}.pi4_x8_pct", 800 * r["steady_share"], 3)
+        figures.put(f"{key}.simulator_pct", 100 * r["simulator_share"])
+        figures.put(f"{key}.without_simulator_pct", 100 * r["without_simulator_share"])
+        figures.put(f"{key}.without_simulator_pi4_x5_pct", 500 * r["without_simulator_share"], 3)
+        figures.put(f"{key}.without_simulator_pi4_x8_pct", 800 * r["without_simulator_share"], 3)
         figures.put(f"{key}.rss_mib", r["peak_rss_mib"])
         figures.put(f"{key}.startup_cpu_s", r["startup_cpu_s"])
     if "patrol" in names:
         for record in (True, False):
-            with_lidar, without = steady[("patrol", True, record)], steady[("patrol", False, record)]
+            (with_lidar, with_own), (without, without_own) = (steady[("patrol", True, record)],
+                                                              steady[("patrol", False, record)])
             mode = "recorded" if record else "unrecorded"
             figures.put(f"patrol.{mode}.lidar_added_points", 100 * (with_lidar - without))
             figures.put(f"patrol.{mode}.lidar_ratio", with_lidar / without)
+            figures.put(f"patrol.{mode}.lidar_added_without_simulator_points", 100 * (with_own - without_own))
     figures.save()
 
 
