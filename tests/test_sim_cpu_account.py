@@ -10,8 +10,8 @@ import time
 from conftest import REPO
 
 from beastbt.sim import cpu_account
-from beastbt.sim.cpu_account import (BASE, CAMERA, GPS, KINDS, LIDAR, PHYSICS, ROBOT, SIM_CPU, SPLIT, SimCpu, kind_of,
-                                     read_totals)
+from beastbt.sim.cpu_account import (BASE, CAMERA, GPS, IMU, KINDS, LIDAR, PHYSICS, ROBOT, SIM_CPU, SPLIT, SimCpu,
+                                     kind_of, read_totals)
 
 
 def burn(seconds: float) -> None:
@@ -73,6 +73,19 @@ def test_the_totals_file_holds_what_the_process_charged(tmp_path):
     totals = read_totals(path)
     assert totals == [account.seconds()[kind] for kind in cpu_account.KINDS]
     assert totals[GPS] >= 0.009 and totals[CAMERA] >= 0.009
+
+
+def test_the_environment_opens_the_totals_file_only_where_the_simulator_is_built(tmp_path, monkeypatch):
+    monkeypatch.delenv(cpu_account.ENV_DIR, raising=False)
+    account = SimCpu()
+    account.open_from_environment()
+    assert not account.enabled and not list(tmp_path.iterdir())  # no folder named: it stays off
+    monkeypatch.setenv(cpu_account.ENV_DIR, str(tmp_path))
+    account.open_from_environment()
+    account.open_from_environment()  # the second call keeps the file the first opened
+    account.call(IMU, burn, 0.01)
+    (path,) = tmp_path.iterdir()
+    assert account.enabled and read_totals(path)[IMU] >= 0.009
 
 
 def test_kinds_of_emulators_and_of_the_robots_own_work():

@@ -119,6 +119,8 @@ def _viewer_camera(spec: Optional[dict]) -> Optional[Any]:
         return None
     from beastbt.parts.camera import PLAIN_FLOOR, build_floor
     from beastbt.sim.camera_emulator import SimCamera
+    from beastbt.sim.cpu_account import SIM_CPU
+    SIM_CPU.open_from_environment()  # rendering the viewer's picture is the simulator's work (benchmarks)
     floor = build_floor(spec["floor"] if spec["floor"] is not None else PLAIN_FLOOR, spec["floor_seed"])
     return SimCamera(floor, spec["geometry"], np.random.default_rng(spec["floor_seed"] + 1), spec["effects"],
                      spec.get("scenery"))

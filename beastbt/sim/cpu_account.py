@@ -19,7 +19,7 @@ not run on (a library's worker pool) is not seen.
 Nothing here decides anything, and nothing of the simulation depends on it:
 the figures are read by benchmarks (``benchmarks/realtime_cpu.py``) and
 tests. It is off unless turned on (:meth:`SimCpu.enable`, or the variable
-below), and then costs about 10-15 µs a tick of the patrol (3-5 % of its tick
+below, read when a process builds the simulator or its viewer camera), and then costs about 10-15 µs a tick of the patrol (3-5 % of its tick
 at ``--speed max``, about 0.03 % of a core at real time). In this process:
 :meth:`SimCpu.seconds`. Across processes (the run and the console's
 process, which renders the simulated viewer camera): when the environment
@@ -106,6 +106,8 @@ class SimCpu:
         """Whether brackets read the clock and charge (benchmarks and tests turn it on)."""
         self.totals: Any = [0.0] * len(KINDS)
         """Seconds per kind, :data:`KINDS` order: a list, or a float64 view of the totals file."""
+        self._pid: Optional[int] = None
+        """The process that opened the totals file (None: none opened)."""
         if folder:
             self.open_file(folder)
 
@@ -125,7 +127,20 @@ class SimCpu:
         for i, value in enumerate(self.totals):
             view[i] = value
         self.totals = view
+        self._pid = os.getpid()
         self.enabled = True
+
+    def open_from_environment(self) -> None:
+        """Keep this process's totals in ``BEASTBT_SIM_CPU_DIR/PID`` when the variable names a folder (a benchmark
+        set it), else stay as it is. Called where a process builds simulator work (the simulator, the console's
+        viewer camera); a second call in the same process keeps the file it opened, and one in a process forked
+        after it opens a file of its own, from nothing."""
+        folder = os.environ.get(ENV_DIR)
+        if not folder or self._pid == os.getpid():
+            return
+        if self._pid is not None:  # forked from a process that had opened its own: its totals are not ours
+            self.__init__()  # type: ignore[misc]
+        self.open_file(folder)
 
     def _state(self) -> list:
         try:
@@ -213,17 +228,8 @@ class SimCpu:
         return float(sum(self.totals[i] for i in range(ROBOT)))
 
 
-SIM_CPU = SimCpu(os.environ.get(ENV_DIR))
-"""This process's accounting (its totals file opened when ``BEASTBT_SIM_CPU_DIR`` is set)."""
-
-
-def _after_fork() -> None:
-    """A forked child keeps no parent's bracket, totals or file: it starts its own (in place, for those who hold
-    :data:`SIM_CPU`)."""
-    SIM_CPU.__init__(os.environ.get(ENV_DIR))  # type: ignore[misc]
-
-
-os.register_at_fork(after_in_child=_after_fork)
+SIM_CPU = SimCpu()
+"""This process's accounting: off until the simulator is built (:meth:`SimCpu.open_from_environment`)."""
 
 
 def read_totals(path: Path) -> Optional[list[float]]:

@@ -136,6 +136,7 @@ def build_simulator(profile: "RobotProfile", world: World, seed: int, shared: bo
     ``shared``: other robots may join the world (a fleet's), so the robot has a contact world even when its own
     world has nothing to touch (the LiDAR and the contact then see the others once :attr:`Simulator.others` is set).
     """
+    SIM_CPU.open_from_environment()  # a benchmark that asked for the simulator's CPU apart gets it
     rng = np.random.default_rng(seed)
     sim_cfg = dict(profile.section("sim") or {})
     physics_hz = float(sim_cfg.pop("physics_rate_hz", DEFAULT_PHYSICS_RATE_HZ))
