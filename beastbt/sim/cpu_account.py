@@ -19,8 +19,9 @@ not run on (a library's worker pool) is not seen.
 Nothing here decides anything, and nothing of the simulation depends on it:
 the figures are read by benchmarks (``benchmarks/realtime_cpu.py``) and
 tests. It is off unless turned on (:meth:`SimCpu.enable`, or the variable
-below, read when a process builds the simulator or its viewer camera), and then costs about 10-15 µs a tick of the patrol (3-5 % of its tick
-at ``--speed max``, about 0.03 % of a core at real time). In this process:
+below, read when a process builds the simulator or its viewer camera), and
+then costs about 10-15 µs a tick of the patrol (3-5 % of its tick at
+``--speed max``, about 0.03 % of a core at real time). In this process:
 :meth:`SimCpu.seconds`. Across processes (the run and the console's
 process, which renders the simulated viewer camera): when the environment
 variable ``BEASTBT_SIM_CPU_DIR`` names a folder, each process keeps its
