@@ -9,7 +9,7 @@ talk to this bus exactly as to ``smbus2.SMBus``; a missing address raises
 from __future__ import annotations
 
 import errno
-from typing import Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 from beastbt.core.bounded import trim_front
 from beastbt.sim.cpu_account import SIM_CPU, kind_of
@@ -83,49 +83,33 @@ class SimI2CBus:
             raise OSError(errno.EREMOTEIO, f"no device answers at I2C address 0x{i2c_addr:02x}")
         return dev
 
+    @staticmethod
+    def _answer(dev: Any, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)``: the device answering, which is the simulator's work (:mod:`beastbt.sim.cpu_account`; its
+        kind is looked up only while the accounting is on)."""
+        if not SIM_CPU.enabled:
+            return fn(*args)
+        return SIM_CPU.call(kind_of(dev), fn, *args)
+
     def read_byte_data(self, i2c_addr: int, register: int) -> int:
         """Read one byte from ``register`` of the device at ``i2c_addr``."""
         dev = self._device(i2c_addr)
-        outer = SIM_CPU.enter(kind_of(dev))  # the device answering is the simulator's work
-        try:
-            return dev.on_read(register & 0xFF)
-        finally:
-            SIM_CPU.leave(outer)
+        return self._answer(dev, dev.on_read, register & 0xFF)
 
     def write_byte_data(self, i2c_addr: int, register: int, value: int) -> None:
         """Write one byte to ``register`` of the device at ``i2c_addr``."""
         dev = self._device(i2c_addr)
-        outer = SIM_CPU.enter(kind_of(dev))
-        try:
-            dev.write(register, value)
-        finally:
-            SIM_CPU.leave(outer)
+        self._answer(dev, dev.write, register, value)
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int) -> list[int]:
         """Read ``length`` bytes from ``register`` on in one transaction."""
         dev = self._device(i2c_addr)
-        outer = SIM_CPU.enter(kind_of(dev))
-        try:
-            out = []
-            reg = register & 0xFF
-            for _ in range(length):
-                out.append(dev.on_read(reg))
-                reg = dev.next_register(reg)
-            return out
-        finally:
-            SIM_CPU.leave(outer)
+        return self._answer(dev, _read_block, dev, register & 0xFF, length)
 
     def write_i2c_block_data(self, i2c_addr: int, register: int, data: Sequence[int]) -> None:
         """Write bytes from ``register`` on in one transaction."""
         dev = self._device(i2c_addr)
-        outer = SIM_CPU.enter(kind_of(dev))
-        try:
-            reg = register & 0xFF
-            for value in data:
-                dev.write(reg, value)
-                reg = dev.next_register(reg)
-        finally:
-            SIM_CPU.leave(outer)
+        self._answer(dev, _write_block, dev, register & 0xFF, data)
 
     def close(self) -> None:
         """Nothing to release; present for smbus2 compatibility."""
@@ -133,3 +117,19 @@ class SimI2CBus:
     def device(self, i2c_addr: int) -> Optional[RegisterDevice]:
         """The emulated device at ``i2c_addr`` (for tests), or None."""
         return self.devices.get(i2c_addr)
+
+
+def _read_block(dev: Any, reg: int, length: int) -> list[int]:
+    """``length`` bytes from ``reg`` on, the device's register pointer advancing as a block read does."""
+    out = []
+    for _ in range(length):
+        out.append(dev.on_read(reg))
+        reg = dev.next_register(reg)
+    return out
+
+
+def _write_block(dev: Any, reg: int, data: Sequence[int]) -> None:
+    """Write ``data`` from ``reg`` on, the device's register pointer advancing as a block write does."""
+    for value in data:
+        dev.write(reg, value)
+        reg = dev.next_register(reg)
