@@ -29,9 +29,8 @@ the video stream's overlay.
 
 from __future__ import annotations
 
-from collections import deque
-
 import threading
+from collections import deque
 from typing import Callable, Optional
 
 import numpy as np
@@ -187,12 +186,17 @@ class CameraPipeline:
             if self.camera is None:
                 self.camera = self._make_camera()
             frame = self.camera.poll(pixels=False)
-            if frame is not None and frame.jpeg is not None:
-                self.latest_jpeg = frame
-                self.jpeg_frames += 1
-            elif frame is not None and frame.h264 is not None:
-                self.h264_units.append(frame)
+            if frame is not None:
+                self._keep_compressed(frame)
         return self.latest_jpeg
+
+    def _keep_compressed(self, frame: CameraFrame) -> None:
+        """Keep a frame's camera-compressed bytes for the viewers: the newest JPEG, or the H.264 unit in order."""
+        if frame.jpeg is not None:
+            self.latest_jpeg = frame
+            self.jpeg_frames += 1
+        elif frame.h264 is not None:
+            self.h264_units.append(frame)
 
     def reset_detector(self) -> None:
         """Forget where the line was (a new follow_line step starts looking straight ahead)."""
@@ -228,11 +232,7 @@ class CameraPipeline:
         frame = camera.poll(pixels=camera.h264 and bool(self.pixel_reasons))
         if frame is None:
             return False
-        if frame.jpeg is not None:
-            self.latest_jpeg = frame
-            self.jpeg_frames += 1
-        elif frame.h264 is not None:
-            self.h264_units.append(frame)
+        self._keep_compressed(frame)
         if not self.pixel_reasons:
             if frame.image is not None:  # a camera that gives pixels: they are all a viewer can have
                 self.latest = (frame, None)
