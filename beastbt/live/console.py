@@ -220,14 +220,8 @@ class ConsoleLink:
         if pipeline.config.format == "h264":
             self._feed_h264(pipeline, wall)
             return
-        if pipeline.threaded:
-            # The robot's camera thread reads for the console too while someone watches: a camera that gives
-            # JPEG is then read but not decoded (decoding is for vision, at its own rate).
-            if "console" not in pipeline.reasons:
-                pipeline.enable("console", pixels=False)
-            jpeg = pipeline.latest_jpeg
-        elif pipeline.config.format == "mjpeg":
-            jpeg = pipeline.read_for_viewer()  # read now when nothing else does: only as often as someone watches
+        if pipeline.threaded or pipeline.config.format == "mjpeg":
+            jpeg = self._read_for_viewer(pipeline)
         else:
             jpeg = None
         latest = pipeline.latest
@@ -260,11 +254,7 @@ class ConsoleLink:
         from beastbt.devices.h264 import is_keyframe
         if wall - self._last_video_wall > 1.0:
             pipeline.h264_units.clear()
-        if pipeline.threaded:
-            if "console" not in pipeline.reasons:
-                pipeline.enable("console", pixels=False)
-        else:
-            pipeline.read_for_viewer()  # read now when nothing else does: only as often as someone watches
+        self._read_for_viewer(pipeline)
         self._last_video_wall = wall
         latest = pipeline.latest
         detection = latest[1] if latest is not None else None
@@ -273,6 +263,17 @@ class ConsoleLink:
             frame = units.popleft()
             self._send(("h264", frame.seq, time.time(), frame.h264, is_keyframe(frame.h264), detection,
                         pipeline.lookahead_m))
+
+    @staticmethod
+    def _read_for_viewer(pipeline: Any) -> Any:
+        """The camera read for a viewer: the robot's camera thread reads for the console too while someone watches
+        (a camera that gives JPEG or H.264 is then read but not decoded: decoding is for vision, at its own rate);
+        a camera nobody else reads is read now, only as often as someone watches. The newest own JPEG frame."""
+        if pipeline.threaded:
+            if "console" not in pipeline.reasons:
+                pipeline.enable("console", pixels=False)
+            return pipeline.latest_jpeg
+        return pipeline.read_for_viewer()
 
     def stop_video(self, run: Any) -> None:
         """Nobody watches any more (the tick thread): the robot's camera stops reading for the console."""
