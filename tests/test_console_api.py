@@ -287,3 +287,29 @@ def test_a_paused_run_shows_the_step_it_is_paused_in_and_that_it_is_paused(conso
     assert video_caption(paused)[1] == "step: wait 60 s (paused)"
     assert run.api("/api/resume", {})[0] == 200
     assert run.wait_state(lambda s: s["status"] == "running", 5)["step"] == "wait 60 s"
+
+
+def test_the_video_declines_deflate_that_a_browser_offers_and_frames_keep_coming(console):
+    # Every browser offers permessage-deflate. JPEG and H.264 do not shrink, and aiohttp deflates a large message
+    # on an executor thread: the video socket must not take it. The state's small JSON keeps it.
+    run = console(WAIT, "--speed", "realtime")
+
+    async def watch() -> tuple[int, int, int]:
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(run.base + "/api/ws", compress=15) as state_ws:
+                state_deflate = state_ws.compress
+            async with session.ws_connect(run.base + "/api/video", max_msg_size=0, compress=15) as ws:
+                frames = 0
+                end = time.monotonic() + 2.0
+                while time.monotonic() < end:
+                    try:
+                        msg = await asyncio.wait_for(ws.receive(), 1.0)
+                    except asyncio.TimeoutError:
+                        continue
+                    frames += msg.type == aiohttp.WSMsgType.BINARY
+                return state_deflate, ws.compress, frames
+
+    state_deflate, video_deflate, frames = asyncio.run(watch())
+    assert state_deflate == 15
+    assert video_deflate == 0
+    assert frames >= 2 * 8  # woken on the server's loop for each frame, no thread in between

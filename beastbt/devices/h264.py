@@ -318,7 +318,7 @@ class UnitRing:
         """The first item after ``seq`` once there is one (or ``timeout_s`` passed, or closed: None), as
         (seq, item, missed): ``missed`` True when items after ``seq`` are gone from the ring."""
         with self._cond:
-            if self.seq <= seq and not self.closed:
+            if self.seq <= seq and not self.closed and timeout_s > 0:
                 self._cond.wait_for(lambda: self.seq > seq or self.closed, timeout_s)
             if self.closed or self.seq <= seq or not self._items:
                 return None

@@ -197,7 +197,7 @@ def serve(inbox: Connection, outbox: Connection) -> int:
             elif kind == "jpeg":
                 _, seq, captured, jpeg, detection, lookahead = msg
                 video.pull = None
-                video.raw.put(("jpeg", jpeg, detection, geometry, lookahead, captured))
+                video.pass_jpeg(jpeg, detection, geometry, lookahead, captured)
             elif kind == "h264":  # a camera's own H.264 access unit: every one, in order, to the H.264 viewers
                 _, seq, captured, unit, key, detection, lookahead = msg
                 video.pull = None

@@ -52,7 +52,6 @@ import asyncio
 import json
 import socket
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from importlib import resources
 from typing import Any, Awaitable, Callable, Optional
 
@@ -125,7 +124,8 @@ class ConsoleServer:
         self._ending: Optional[asyncio.Event] = None
         self._handlers: set[asyncio.Task] = set()
         self._json_cache: tuple[int, str] = (-1, "")
-        self._waiters = ThreadPoolExecutor(max_workers=8, thread_name_prefix="beastbt-console-wait")
+        self._video_wakes: set[asyncio.Event] = set()
+        """Each video viewer's event, set when a frame is ready for it, or at the end."""
         self.requests = 0
         self.on_viewers: Optional[Callable[[int], None]] = None
         """Called with the number of video viewers each time it changes (on the server's thread), or None."""
@@ -184,11 +184,12 @@ class ConsoleServer:
         loop.call_soon_threadsafe(loop.stop)
         if self._thread is not None:
             self._thread.join(timeout_s)
-        self._waiters.shutdown(wait=False, cancel_futures=True)
 
     async def _shutdown(self) -> None:
         assert self._ending is not None
         self._ending.set()  # every socket's handler sends what it owes (the final state) and closes
+        for wake in self._video_wakes:
+            wake.set()
         handlers = [t for t in self._handlers if not t.done()]
         if handlers:
             await asyncio.wait(handlers, timeout=2.0)
@@ -280,10 +281,9 @@ class ConsoleServer:
         try:
             while not self._ending.is_set() and not ws.closed and not reader.done():
                 await ws.send_str(self._state_json())
-                try:
-                    await asyncio.wait_for(self._ending.wait(), PUSH_PERIOD_S)
-                except asyncio.TimeoutError:
-                    pass
+                # A plain timer: the end is noticed within one period (waiting on the end's event with a timeout
+                # made a task and a timer ten times a second).
+                await asyncio.sleep(PUSH_PERIOD_S)
             if self._ending.is_set() and not ws.closed:
                 await ws.send_str(self._state_json())  # the final state, always, before the close
                 await ws.close(message=b"the run has ended")
@@ -302,7 +302,9 @@ class ConsoleServer:
                 told(msg.data)  # the video page's word on what it decodes
 
     async def _ws_video(self, request: web.Request) -> web.WebSocketResponse:
-        ws = web.WebSocketResponse(heartbeat=10.0)
+        # No permessage-deflate, though every browser offers it: JPEG and H.264 do not shrink, and aiohttp would
+        # deflate each frame on an executor thread (a thread woken per frame, for nothing).
+        ws = web.WebSocketResponse(heartbeat=10.0, compress=False)
         await ws.prepare(request)
         task = asyncio.current_task()
         assert task is not None
@@ -314,14 +316,33 @@ class ConsoleServer:
         self._viewers_changed()
         assert self._ending is not None
         reader = asyncio.ensure_future(self._drain(ws, feed.hello))
+        # Woken on this loop when a frame is ready (from the thread that made it), when the page goes, at the end.
+        wake = asyncio.Event()
+        self._video_wakes.add(wake)
+
+        def waker() -> None:
+            # Set (and not yet cleared below) means the sender will look again anyway: no second wake-up.
+            if not wake.is_set():
+                try:
+                    loop.call_soon_threadsafe(wake.set)
+                except RuntimeError:  # the loop has stopped: nobody waits any more
+                    pass
+
+        video.add_waker(waker)
+        reader.add_done_callback(lambda _: wake.set())
         try:
             while not self._ending.is_set() and not ws.closed and not reader.done():
-                message = await loop.run_in_executor(self._waiters, feed.next_message, 0.5)
+                wake.clear()  # before looking: a frame made after this line wakes the wait below
+                message = feed.next_message(0.0)
                 if message is not None:
                     await ws.send_bytes(message)
+                elif not feed.has_newer():  # (a unit skipped while waiting for a keyframe: the next may be in)
+                    await wake.wait()
         except (ConnectionResetError, RuntimeError):
             pass
         finally:
+            video.remove_waker(waker)
+            self._video_wakes.discard(wake)
             reader.cancel()
             feed.close()
             video.viewers -= 1

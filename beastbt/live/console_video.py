@@ -5,8 +5,8 @@ How frames flow, so that nobody waits for anybody and nothing is done twice:
 
 * it runs in the console's own process (:mod:`beastbt.live.console_process`). A camera that gives its own
   JPEG (a USB camera's MJPEG, the simulator's fake MJPEG camera) hands its bytes over untouched
-  (:attr:`ConsoleVideo.raw` gets ``("jpeg", bytes, ...)``): they go to the viewers as they are, never
-  decoded or encoded here. A camera that gives pixels hands them over through shared memory; they are
+  (:meth:`ConsoleVideo.pass_jpeg`, on the thread that read them from the run): they go to the viewers as they
+  are, never decoded or encoded here, and never handed to another thread of ours. A camera that gives pixels hands them over through shared memory; they are
   JPEG-encoded once, at the camera's own size (smaller only when over ``width_px`` x ``height_px``). On the
   simulator, when the mission itself does not use the camera, the run sends only where the robot is, and
   this process renders the view with a camera of its own on the same mounting (:attr:`ConsoleVideo.pull`),
@@ -20,7 +20,9 @@ How frames flow, so that nobody waits for anybody and nothing is done twice:
   canvas (``console_page/console.js``);
 * each viewer's WebSocket sender (:mod:`beastbt.live.console_server`) sends the newest frame when its
   previous one has gone, and skips a frame that would take it over the budget in the last second. A slow
-  viewer skips frames; it never slows the encoder, the loop or the other viewers.
+  viewer skips frames; it never slows the encoder, the loop or the other viewers. The senders are woken
+  on the server's event loop when a frame is ready (:meth:`ConsoleVideo.add_waker`), not by a thread that
+  waits for frames: each frame costs one wake-up of the loop, whatever the number of viewers.
 
 Each frame goes out as one binary WebSocket message: a 16-byte header (the wall time it was captured, Unix
 ms as a little-endian float64; its sequence number, uint32; the JPEG quality, uint16, 0 for the camera's
@@ -180,6 +182,8 @@ class ConsoleVideo:
         self._broken = False
         self.units_dropped = 0
         """A camera's H.264 units not sent: after one that never reached this process, until the next keyframe."""
+        self._wakers: tuple[Callable[[], None], ...] = ()
+        self._overlay_cache: tuple[Any, bytes] = (None, b"")
 
     @property
     def target_bytes(self) -> float:
@@ -207,6 +211,28 @@ class ConsoleVideo:
         if not feeds:
             return True, False
         return any(f.codec == "jpeg" for f in feeds), any(f.codec == "h264" for f in feeds)
+
+    def add_waker(self, waker: Callable[[], None]) -> None:
+        """Call ``waker`` (from whichever thread made it) each time a frame or an H.264 unit is ready, and at
+        :meth:`close`: a viewer's sender waits on its own event loop instead of in a thread."""
+        with self._lock:
+            self._wakers = self._wakers + (waker,)
+
+    def remove_waker(self, waker: Callable[[], None]) -> None:
+        """Stop calling ``waker``."""
+        with self._lock:
+            self._wakers = tuple(w for w in self._wakers if w is not waker)
+
+    def _wake(self) -> None:
+        for waker in self._wakers:  # a tuple replaced whole: safe to walk while a viewer comes or goes
+            waker()
+
+    def pass_jpeg(self, jpeg: bytes, detection: Any, geometry: Any, lookahead_m: float, captured: float) -> None:
+        """A camera's own JPEG (the run paces them to ``fps``): to the viewers as it came, from the caller's
+        thread (there is nothing to encode, so no hand-over to the video thread)."""
+        self.source = "jpeg"
+        self.encoded.put(self.encode(("jpeg", jpeg, detection, geometry, lookahead_m, captured), self.frames_passed + 1))
+        self._wake()
 
     def want_keyframe(self) -> None:
         """A viewer waits for a keyframe: the encoder makes the next frame one (at most once a second)."""
@@ -251,6 +277,7 @@ class ConsoleVideo:
         message = HEADER.pack(captured * 1000.0, self._unit_seq & 0xFFFFFFFF, quality, len(overlay)) + overlay
         self.units.put(Encoded(message + access_unit, self._unit_seq, captured, quality))
         self.frames_h264 += 1
+        self._wake()
 
     def start(self) -> "ConsoleVideo":
         """Resolve the codec (``auto``: the hardware H.264 encoder when present, else JPEG; ``h264`` without it
@@ -270,6 +297,7 @@ class ConsoleVideo:
         self.raw.close()
         self.encoded.close()
         self.units.close()
+        self._wake()
         if self._thread is not None:
             self._thread.join(2.0)
         if self._h264 is not None:
@@ -317,10 +345,6 @@ class ConsoleVideo:
 
     def _send(self, raw: tuple, seq: int) -> None:
         """One raw frame to the viewers: JPEG for those that take JPEG, H.264 for those that take it."""
-        if isinstance(raw[0], str) and raw[0] == "jpeg":
-            self.source = "jpeg"
-            self.encoded.put(self.encode(raw, seq))
-            return
         if len(raw) == 5:
             self.source = "pixels"
         jpeg_wanted, h264_wanted = self._wants()
@@ -328,6 +352,7 @@ class ConsoleVideo:
             self._encode_h264(raw)
         if jpeg_wanted:
             self.encoded.put(self.encode(raw[:5], seq))
+            self._wake()
 
     def _encode_h264(self, raw: tuple) -> None:
         image, detection, geometry, lookahead_m, captured = raw[:5]
@@ -347,8 +372,20 @@ class ConsoleVideo:
     def _overlay_bytes(self, detection: Any, geometry: Any, lookahead_m: float) -> bytes:
         if not self.config.overlay:
             return b""
-        data = json.dumps(overlay_of(self.caption(), detection, geometry, lookahead_m), separators=(",", ":"))
-        return data.encode()[:0xFFFF]
+        caption = self.caption()
+        # The caption changes a few times a second and the detection with each frame it was made on: frames
+        # between (a camera faster than the state, or no line detector) reuse the last overlay.
+        # The key holds the detection and geometry themselves (compared by identity): a freed object's id could
+        # be taken by a new one.
+        key = (caption, detection, geometry, lookahead_m)
+        cached_key, cached = self._overlay_cache
+        if (cached_key is not None and cached_key[0] == caption and cached_key[1] is detection
+                and cached_key[2] is geometry and cached_key[3] == lookahead_m):
+            return cached
+        data = json.dumps(overlay_of(caption, detection, geometry, lookahead_m), separators=(",", ":"))
+        out = data.encode()[:0xFFFF]
+        self._overlay_cache = (key, out)
+        return out
 
     def encode(self, raw: tuple, seq: int) -> Encoded:
         """One frame's message: a camera's own JPEG as it came (``("jpeg", bytes, detection, geometry,
@@ -445,6 +482,14 @@ class ViewerFeed:
             return encoded.message
         self.skipped += 1
         return None
+
+    def has_newer(self) -> bool:
+        """True when a frame or unit newer than the last one :meth:`next_message` took is ready."""
+        if self.codec == "h264":
+            units = self.video.units
+            return not units.closed and units.seq > self._last_unit
+        encoded = self.video.encoded
+        return not encoded.closed and encoded.seq > self._last_jpeg
 
     def _next_unit(self, timeout_s: float) -> Optional[bytes]:
         got = self.video.units.next_after(self._last_unit, timeout_s)

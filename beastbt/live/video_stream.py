@@ -166,7 +166,7 @@ class LatestSlot:
     def wait_newer(self, seq: int, timeout_s: float) -> Optional[tuple[int, Any]]:
         """Wait up to ``timeout_s`` for an item newer than ``seq``: (seq, item), or None (timeout or closed)."""
         with self._cond:
-            if self.seq <= seq and not self.closed:
+            if self.seq <= seq and not self.closed and timeout_s > 0:
                 self._cond.wait_for(lambda: self.seq > seq or self.closed, timeout_s)
             if self.closed or self.seq <= seq:
                 return None
