@@ -41,7 +41,7 @@ from typing import Any, Optional
 
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.live.console_control import ConsoleControls, Refused
-from beastbt.live.console_state import ConsoleState
+from beastbt.live.console_state import ConsoleState, state_json, video_caption
 from beastbt.live.console_video import VideoConfig
 from beastbt.live.endpoint import is_loopback, parse_endpoint
 
@@ -110,7 +110,8 @@ class ConsoleLink:
                   "geometry": pipeline.geometry if pipeline is not None else None,
                   "camera_fps": pipeline.config.fps if pipeline is not None else None,
                   "viewer_camera": io.viewer_camera,
-                  "state": self.state.latest().state, "map": self._map()}  # served from the first request on
+                  **self._state_fields(self.state.latest().state),
+                  "map": self._map()}  # served from the first request on
         self._outbox.send(("config", config))
         if not self._inbox.poll(START_TIMEOUT_S):
             self._proc.kill()
@@ -203,7 +204,13 @@ class ConsoleLink:
             self._last_map_wall = wall
             self._sent_map_version = state["map_version"]
             self._send(("map", self._map()), block)
-        self._send(("state", seq, state), block)
+        fields = self._state_fields(state)
+        self._send(("state", seq, fields["state"], fields["caption"]), block)
+
+    @staticmethod
+    def _state_fields(state: dict) -> dict:
+        # The state goes as the JSON text the page gets: the console's process passes it on and never parses it.
+        return {"state": state_json(state), "caption": video_caption(state)}
 
     def _map(self) -> dict:
         return {**self.state.layers(), "trail": list(self.state.trail)}

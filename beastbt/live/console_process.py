@@ -12,7 +12,8 @@ From the run (``inbox``):
 
 * ``("config", dict)`` first: where to listen, the token, the video settings,
   the camera's geometry and, on the simulator, how to build a viewer camera;
-* ``("state", seq, state)`` a few times a second, ``("map", layers)`` now and then;
+* ``("state", seq, json_text, caption)`` a few times a second (the state as the page gets it, and the video
+  caption's lines), ``("map", layers)`` now and then;
 * ``("jpeg", seq, captured_s, jpeg_bytes, detection, lookahead_m)``: a camera's own JPEG, sent on untouched;
   ``("h264", seq, captured_s, access_unit, keyframe, detection, lookahead_m)``: a camera's own H.264, likewise;
   ``("frame", shm_name, shape, seq, captured_s, detection, lookahead_m)``: a
@@ -41,27 +42,31 @@ import numpy as np
 
 from beastbt.live.console_control import Refused
 from beastbt.live.console_server import ConsoleServer
-from beastbt.live.console_state import Published, video_caption
 from beastbt.live.console_video import ConsoleVideo, VideoConfig
 
 
 class RemoteState:
-    """The run's last state and map as they came over the pipe (the server's ``state`` and ``map_source``)."""
+    """The run's last state and map as they came over the pipe (the server's ``state`` and ``map_source``).
 
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._published = Published(0, {})
+    The state comes as JSON text, made by the run, with the video caption worked out of it: this process
+    passes the text on to every page as it came and never parses it."""
+
+    def __init__(self, seq: int = 0, text: str = "{}", caption: Optional[list[str]] = None) -> None:
+        self._latest: tuple[int, str, list[str]] = (seq, text, caption or [])
         self.layers: dict = {}
 
-    def put(self, seq: int, state: dict) -> None:
-        """A new state from the run."""
-        with self._lock:
-            self._published = Published(seq, state)
+    def put(self, seq: int, text: str, caption: list[str]) -> None:
+        """A new state from the run: its number, its JSON text, its video caption."""
+        self._latest = (seq, text, caption)  # one tuple, replaced whole: readers on other threads see old or new
 
-    def latest(self) -> Published:
-        """The last state."""
-        with self._lock:
-            return self._published
+    def latest_json(self) -> tuple[int, str]:
+        """The last state: (its number, its JSON text)."""
+        seq, text, _ = self._latest
+        return seq, text
+
+    def caption(self) -> list[str]:
+        """The video caption of the last state."""
+        return self._latest[2]
 
     def map(self) -> dict:
         """The map's layers and trail, as last sent."""
@@ -131,15 +136,10 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     kind, config = inbox.recv()
     assert kind == "config"
     lock = threading.Lock()
-    state = RemoteState()
-    state.put(0, config["state"])
+    state = RemoteState(0, config["state"], config["caption"])
     state.layers = config["map"]
     controls = RemoteControls(outbox, lock)
-
-    def caption() -> list[str]:
-        return video_caption(state.latest().state)
-
-    video = ConsoleVideo(VideoConfig(**config["video"]), time.monotonic, time.time, caption)
+    video = ConsoleVideo(VideoConfig(**config["video"]), time.monotonic, time.time, state.caption)
     server = ConsoleServer(state, controls, video, state.map, config["host"], config["port"], config["token"],
                            require_token=config.get("require_token"))
     try:
@@ -185,7 +185,7 @@ def serve(inbox: Connection, outbox: Connection) -> int:
                 break
             kind = msg[0]
             if kind == "state":
-                state.put(msg[1], msg[2])
+                state.put(msg[1], msg[2], msg[3])
             elif kind == "map":
                 state.layers = msg[1]
             elif kind == "result":

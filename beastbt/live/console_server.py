@@ -49,13 +49,11 @@ any thread.
 from __future__ import annotations
 
 import asyncio
-import json
 import socket
 import threading
 from importlib import resources
 from typing import Any, Awaitable, Callable, Optional
 
-import orjson
 from aiohttp import WSMsgType, web
 
 from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
@@ -63,6 +61,7 @@ from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answ
 from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
 from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.web_guard import WebGuard
+from beastbt.live.console_state import state_json  # noqa: F401 - part of this module's names
 from beastbt.live.console_video import ConsoleVideo
 
 PUSH_PERIOD_S = 0.1
@@ -89,15 +88,6 @@ def _error(status: int, message: str) -> web.Response:
     return web.json_response({"error": message}, status=status)
 
 
-def state_json(state: dict) -> str:
-    """A state as JSON text: with orjson (a tenth of ``json.dumps``'s time for a state with its scan, ten times a
-    second), or ``json.dumps`` for what orjson does not take. A NaN is ``null`` (``JSON.parse`` rejects NaN)."""
-    try:
-        return orjson.dumps(state, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS).decode()
-    except TypeError:
-        return json.dumps(state)
-
-
 class ConsoleServer:
     """The console of one run, served on ``host:port`` until :meth:`close` (see the module docstring)."""
 
@@ -105,7 +95,7 @@ class ConsoleServer:
                  host: str = "127.0.0.1", port: int = 0, token: Optional[str] = None,
                  require_token: Optional[bool] = None) -> None:
         self.state = state
-        """Gives the last state: ``latest()`` -> an object with ``seq`` and ``state``."""
+        """Gives the last state as JSON text: ``latest_json()`` -> ``(seq, text)`` (the run serialised it)."""
         self.controls = controls
         """Takes the controls: ``submit(name, body)`` -> a Future of the result (raises Refused)."""
         self.video = video
@@ -123,7 +113,6 @@ class ConsoleServer:
         self._runner: Optional[web.AppRunner] = None
         self._ending: Optional[asyncio.Event] = None
         self._handlers: set[asyncio.Task] = set()
-        self._json_cache: tuple[int, str] = (-1, "")
         self._video_wakes: set[asyncio.Event] = set()
         """Each video viewer's event, set when a frame is ready for it, or at the end."""
         self.requests = 0
@@ -258,12 +247,8 @@ class ConsoleServer:
 
     # -- state -----------------------------------------------------------------------------
     def _state_json(self) -> str:
-        """The last state as JSON text, serialised once per hand-over whoever asks (the GIL is shared with the loop)."""
-        published = self.state.latest()
-        cached = self._json_cache
-        if cached[0] != published.seq:
-            cached = self._json_cache = (published.seq, state_json(published.state))
-        return cached[1]
+        """The last state as JSON text, as the run serialised it (this process never parses it)."""
+        return self.state.latest_json()[1]
 
     async def _get_state(self, request: web.Request) -> web.Response:
         return web.Response(text=self._state_json(), content_type="application/json")

@@ -479,6 +479,17 @@ class ConsoleState:
         return self._layers
 
 
+def state_json(state: dict) -> str:
+    """A state as JSON text: with orjson (a tenth of ``json.dumps``'s time for a state with its scan, ten times a
+    second), or ``json.dumps`` for what orjson does not take. A NaN is ``null`` (``JSON.parse`` rejects NaN)."""
+    import orjson
+    try:
+        return orjson.dumps(state, option=orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS).decode()
+    except TypeError:
+        import json
+        return json.dumps(state)
+
+
 def video_caption(state: dict) -> list[str]:
     """The lines the console's video overlay shows for a state: the mission, status and time; the step (at the
     end, that it ended, and the last step)."""
@@ -499,5 +510,5 @@ def _accuracy_m(fix: GpsFix) -> float:
     return (fix.hdop or 1.0) * GPS_UERE_M
 
 
-__all__ = ["ConsoleState", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
+__all__ = ["ConsoleState", "state_json", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
            "video_caption", "STATUS_NAMES", "MAX_SCAN_POINTS", "MAX_COSTMAP_CELLS"]
