@@ -26,6 +26,7 @@ import json
 import threading
 import time
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
@@ -277,6 +278,13 @@ class StationServer(ConsoleServer):
                  require_token: Optional[bool] = None) -> None:
         super().__init__(None, None, None, dict, host, port, token, require_token)  # no run: no state, video, map
         self.station = station
+        self._waiters = ThreadPoolExecutor(max_workers=8, thread_name_prefix="beastbt-station-wait")
+        """Threads that wait for the robots' answers (a query over Zenoh blocks), off the event loop."""
+
+    def close(self, timeout_s: float = 3.0) -> None:
+        """Stop serving (as the console's server does) and the threads that wait for answers."""
+        super().close(timeout_s)
+        self._waiters.shutdown(wait=False, cancel_futures=True)
 
     def body_types(self, request: web.Request) -> tuple[str, ...]:
         """JSON for the controls; a mission may also be YAML or a zip (see :data:`MISSION_TYPES`); the stop-all
