@@ -35,7 +35,7 @@ import math
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional, Union
+from typing import Any, Callable, Optional, TypeVar, Union
 
 import cv2
 import numpy as np
@@ -222,6 +222,9 @@ def split_jpegs(data: bytes) -> list[bytes]:
     return frames
 
 
+_Replay = TypeVar("_Replay", bound="_LoopedReplay")
+
+
 class _LoopedReplay:
     """A fake camera's common part: hands over recorded compressed frames (bytes) in a loop, untouched, until
     released. Subclasses name the read (``read_jpeg``, ``read_h264``) and decode for ``read()``."""
@@ -252,6 +255,27 @@ class _LoopedReplay:
         """Close it (reads fail)."""
         self._open = False
 
+    EMPTY_FILE = "nothing to replay in it"
+    """What a file with no frame of this kind is told (after its path)."""
+
+    @staticmethod
+    def split(data: bytes) -> list[bytes]:
+        """A file's bytes cut into the frames (access units) this kind of camera hands over."""
+        raise NotImplementedError
+
+    @classmethod
+    def from_file(cls: type[_Replay], path: str) -> _Replay:
+        """The replay of a file's frames (``ValueError`` naming the file when it holds none, or they cannot be
+        replayed)."""
+        with open(path, "rb") as f:
+            items = cls.split(f.read())
+        if not items:
+            raise ValueError(f"{path}: {cls.EMPTY_FILE}")
+        try:
+            return cls(items)
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
 
 class MjpegReplay(_LoopedReplay):
     """A fake MJPEG camera: replays JPEG frames (a list, or an MJPEG file's) in a loop through ``read_jpeg()``.
@@ -270,14 +294,12 @@ class MjpegReplay(_LoopedReplay):
         """The JPEG frames it replays."""
         return self.items
 
-    @classmethod
-    def from_file(cls, path: str) -> "MjpegReplay":
-        """The frames of an MJPEG file (``ValueError`` when it holds none)."""
-        with open(path, "rb") as f:
-            frames = split_jpegs(f.read())
-        if not frames:
-            raise ValueError(f"{path}: no JPEG frame in it (expected JPEGs back to back, an .mjpeg file)")
-        return cls(frames)
+    EMPTY_FILE = "no JPEG frame in it (expected JPEGs back to back, an .mjpeg file)"
+
+    @staticmethod
+    def split(data: bytes) -> list[bytes]:
+        """An MJPEG file's JPEG frames."""
+        return split_jpegs(data)
 
     def read_jpeg(self) -> tuple[bool, Optional[bytes]]:
         """(True, the next frame's JPEG bytes), or (False, None) once released."""
@@ -313,18 +335,13 @@ class H264Replay(_LoopedReplay):
         """The access units it replays."""
         return self.items
 
-    @classmethod
-    def from_file(cls, path: str) -> "H264Replay":
-        """The access units of an H.264 file (``ValueError`` when it holds none, or does not start at a keyframe)."""
+    EMPTY_FILE = "no H.264 access unit in it (expected an Annex B elementary stream, .h264)"
+
+    @staticmethod
+    def split(data: bytes) -> list[bytes]:
+        """An H.264 file's access units (it must start at a keyframe: the constructor checks)."""
         from beastbt.devices.h264 import split_access_units
-        with open(path, "rb") as f:
-            units = split_access_units(f.read())
-        if not units:
-            raise ValueError(f"{path}: no H.264 access unit in it (expected an Annex B elementary stream, .h264)")
-        try:
-            return cls(units)
-        except ValueError as exc:
-            raise ValueError(f"{path}: {exc}") from None
+        return split_access_units(data)
 
     def read_h264(self) -> tuple[bool, Optional[bytes]]:
         """(True, the next access unit's bytes), or (False, None) once released."""
