@@ -113,8 +113,6 @@ class ConsoleServer:
         self._runner: Optional[web.AppRunner] = None
         self._ending: Optional[asyncio.Event] = None
         self._handlers: set[asyncio.Task] = set()
-        self._video_wakes: set[asyncio.Event] = set()
-        """Each video viewer's event, set when a frame is ready for it, or at the end."""
         self.requests = 0
         self.on_viewers: Optional[Callable[[int], None]] = None
         """Called with the number of video viewers each time it changes (on the server's thread), or None."""
@@ -177,8 +175,8 @@ class ConsoleServer:
     async def _shutdown(self) -> None:
         assert self._ending is not None
         self._ending.set()  # every socket's handler sends what it owes (the final state) and closes
-        for wake in self._video_wakes:
-            wake.set()
+        if self.video is not None:
+            self.video.wake_viewers()  # the video senders wait for a frame: they look at the end now
         handlers = [t for t in self._handlers if not t.done()]
         if handlers:
             await asyncio.wait(handlers, timeout=2.0)
@@ -303,7 +301,6 @@ class ConsoleServer:
         reader = asyncio.ensure_future(self._drain(ws, feed.hello))
         # Woken on this loop when a frame is ready (from the thread that made it), when the page goes, at the end.
         wake = asyncio.Event()
-        self._video_wakes.add(wake)
 
         def waker() -> None:
             # Set (and not yet cleared below) means the sender will look again anyway: no second wake-up.
@@ -327,7 +324,6 @@ class ConsoleServer:
             pass
         finally:
             video.remove_waker(waker)
-            self._video_wakes.discard(wake)
             reader.cancel()
             feed.close()
             video.viewers -= 1

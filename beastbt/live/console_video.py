@@ -223,7 +223,8 @@ class ConsoleVideo:
         with self._lock:
             self._wakers = tuple(w for w in self._wakers if w is not waker)
 
-    def _wake(self) -> None:
+    def wake_viewers(self) -> None:
+        """Call every waker (a frame is ready, or the end has come): from any thread."""
         for waker in self._wakers:  # a tuple replaced whole: safe to walk while a viewer comes or goes
             waker()
 
@@ -232,7 +233,7 @@ class ConsoleVideo:
         thread (there is nothing to encode, so no hand-over to the video thread)."""
         self.source = "jpeg"
         self.encoded.put(self.encode(("jpeg", jpeg, detection, geometry, lookahead_m, captured), self.frames_passed + 1))
-        self._wake()
+        self.wake_viewers()
 
     def want_keyframe(self) -> None:
         """A viewer waits for a keyframe: the encoder makes the next frame one (at most once a second)."""
@@ -277,7 +278,7 @@ class ConsoleVideo:
         message = HEADER.pack(captured * 1000.0, self._unit_seq & 0xFFFFFFFF, quality, len(overlay)) + overlay
         self.units.put(Encoded(message + access_unit, self._unit_seq, captured, quality))
         self.frames_h264 += 1
-        self._wake()
+        self.wake_viewers()
 
     def start(self) -> "ConsoleVideo":
         """Resolve the codec (``auto``: the hardware H.264 encoder when present, else JPEG; ``h264`` without it
@@ -297,7 +298,7 @@ class ConsoleVideo:
         self.raw.close()
         self.encoded.close()
         self.units.close()
-        self._wake()
+        self.wake_viewers()
         if self._thread is not None:
             self._thread.join(2.0)
         if self._h264 is not None:
@@ -352,7 +353,7 @@ class ConsoleVideo:
             self._encode_h264(raw)
         if jpeg_wanted:
             self.encoded.put(self.encode(raw[:5], seq))
-            self._wake()
+            self.wake_viewers()
 
     def _encode_h264(self, raw: tuple) -> None:
         image, detection, geometry, lookahead_m, captured = raw[:5]
