@@ -104,14 +104,14 @@ class ConsoleLink:
         self._inbox = Connection(from_child_r, writable=False)
         io = self.run.io
         pipeline = io.camera
+        text, caption = self._state_fields(self.state.latest().state)  # served from the first request on
         config = {"host": self.host, "port": self.port, "token": self.token or None,
                   "require_token": self.require_token,
                   "video": dataclasses.asdict(self.video), "camera": pipeline is not None,
                   "geometry": pipeline.geometry if pipeline is not None else None,
                   "camera_fps": pipeline.config.fps if pipeline is not None else None,
                   "viewer_camera": io.viewer_camera,
-                  **self._state_fields(self.state.latest().state),
-                  "map": self._map()}  # served from the first request on
+                  "state": text, "caption": caption, "map": self._map()}
         self._outbox.send(("config", config))
         if not self._inbox.poll(START_TIMEOUT_S):
             self._proc.kill()
@@ -204,13 +204,13 @@ class ConsoleLink:
             self._last_map_wall = wall
             self._sent_map_version = state["map_version"]
             self._send(("map", self._map()), block)
-        fields = self._state_fields(state)
-        self._send(("state", seq, fields["state"], fields["caption"]), block)
+        self._send(("state", seq, *self._state_fields(state)), block)
 
     @staticmethod
-    def _state_fields(state: dict) -> dict:
-        # The state goes as the JSON text the page gets: the console's process passes it on and never parses it.
-        return {"state": state_json(state), "caption": video_caption(state)}
+    def _state_fields(state: dict) -> tuple[str, list[str]]:
+        """(the state's JSON text, its video caption): the console's process passes the text on and never parses
+        it."""
+        return state_json(state), video_caption(state)
 
     def _map(self) -> dict:
         return {**self.state.layers(), "trail": list(self.state.trail)}

@@ -510,5 +510,6 @@ def _accuracy_m(fix: GpsFix) -> float:
     return (fix.hdop or 1.0) * GPS_UERE_M
 
 
-__all__ = ["ConsoleState", "state_json", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints", "battery_percent",
+__all__ = ["ConsoleState", "state_json", "MapFrame", "map_layers", "obstacle_layers", "route_waypoints",
+           "battery_percent",
            "video_caption", "STATUS_NAMES", "MAX_SCAN_POINTS", "MAX_COSTMAP_CELLS"]

@@ -6,8 +6,9 @@ How frames flow, so that nobody waits for anybody and nothing is done twice:
 * it runs in the console's own process (:mod:`beastbt.live.console_process`). A camera that gives its own
   JPEG (a USB camera's MJPEG, the simulator's fake MJPEG camera) hands its bytes over untouched
   (:meth:`ConsoleVideo.pass_jpeg`, on the thread that read them from the run): they go to the viewers as they
-  are, never decoded or encoded here, and never handed to another thread of ours. A camera that gives pixels hands them over through shared memory; they are
-  JPEG-encoded once, at the camera's own size (smaller only when over ``width_px`` x ``height_px``). On the
+  are, never decoded or encoded here, and never handed to another thread of ours. A camera that gives
+  pixels hands them over through shared memory; they are JPEG-encoded once, at the camera's own size
+  (smaller only when over ``width_px`` x ``height_px``). On the
   simulator, when the mission itself does not use the camera, the run sends only where the robot is, and
   this process renders the view with a camera of its own on the same mounting (:attr:`ConsoleVideo.pull`),
   only while someone watches, so that watching costs the loop nothing;
@@ -232,7 +233,8 @@ class ConsoleVideo:
         """A camera's own JPEG (the run paces them to ``fps``): to the viewers as it came, from the caller's
         thread (there is nothing to encode, so no hand-over to the video thread)."""
         self.source = "jpeg"
-        self.encoded.put(self.encode(("jpeg", jpeg, detection, geometry, lookahead_m, captured), self.frames_passed + 1))
+        raw = ("jpeg", jpeg, detection, geometry, lookahead_m, captured)
+        self.encoded.put(self.encode(raw, self.frames_passed + 1))  # encode counts it in frames_passed
         self.wake_viewers()
 
     def want_keyframe(self) -> None:
