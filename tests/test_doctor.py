@@ -25,7 +25,7 @@ MT3339 = REPO / "tests" / "data" / "nmea" / "mt3339.log"
 def profile_file(tmp_path: Path, keep: tuple[str, ...], **sections) -> Path:
     """robots/ugv_beast.yaml with only the device sections in ``keep``, each updated with ``sections``."""
     data = yaml.safe_load((REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8"))
-    for name in ("gps", "imu", "camera", "joystick", "servos"):
+    for name in ("gps", "imu", "camera", "lidar", "joystick", "servos"):
         if name not in keep:
             data.pop(name, None)
     for name, values in sections.items():

@@ -92,3 +92,15 @@ def test_the_cli_prints_the_lidar_line_and_lists_its_port(tmp_path):
     assert done.returncode == 1
     [line] = lines(done.stdout, "lidar")  # the missing port, said once
     assert line.startswith("FAIL") and "does not exist" in line and "Fix:" in line
+
+
+def test_the_shipped_beast_profile_has_waveshares_lidar_and_doctor_checks_it(tmp_path):
+    """robots/ugv_beast.yaml as shipped carries the kit's LD19 (only its port is pointed at the fake here), so
+    ``doctor`` checks it and the collision monitor protects the Beast."""
+    data = yaml.safe_load((REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8"))
+    assert data["lidar"]["type"] == "ld19" and data["lidar"]["port"] == "/dev/ttyACM0"
+    assert data["lidar"]["mounting"]["yaw_deg"] == 90  # ugv_beast.urdf turns base_lidar_link by +pi/2
+    assert load_profile("ugv_beast").section("lidar")["port"] == "/dev/ttyACM0"  # the shipped copy, by name
+    with FakeLd19(rate_hz=10.0) as fake:
+        [finding] = check(tmp_path, **dict(data["lidar"], port=fake.port))
+    assert finding.level == OK and "10.0 Hz" in finding.text, finding.line()

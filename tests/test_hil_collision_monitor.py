@@ -27,7 +27,7 @@ STOP_ZONE = [[0.4, 0.25], [-0.25, 0.25], [-0.25, -0.25], [0.4, -0.25]]
 
 def profile(tmp_path: Path, base_port: str, lidar_port: str) -> Path:
     data = yaml.safe_load((REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8"))
-    for section in ("gps", "imu", "camera", "joystick", "servos"):
+    for section in ("gps", "imu", "camera", "lidar", "joystick", "servos"):
         data.pop(section, None)
     data["base"].update(port=base_port, firmware="ros")
     data["lidar"] = {"type": "ld19", "port": lidar_port}

@@ -33,7 +33,7 @@ HEARTBEAT_S = 0.5
 def beast_profile(tmp_path: Path, port: str, firmware: str, joystick: str | None = None) -> Path:
     """robots/ugv_beast.yaml with only its base (on ``port``, running ``firmware``) and maybe a joystick."""
     data = yaml.safe_load((REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8"))
-    for section in ("gps", "imu", "camera", "joystick", "servos"):
+    for section in ("gps", "imu", "camera", "lidar", "joystick", "servos"):
         data.pop(section, None)
     data["base"].update(port=port, firmware=firmware)
     if joystick is not None:

@@ -109,7 +109,7 @@ def zero_after_last_motion(sent: list[tuple[float, str, float, float]]) -> Optio
 def real_profile(tmp_path: Path, port: str) -> Path:
     """robots/ugv_beast.yaml with only its base, on ``port``."""
     data = yaml.safe_load((REPO / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8"))
-    for section in ("gps", "imu", "camera", "joystick", "servos"):
+    for section in ("gps", "imu", "camera", "lidar", "joystick", "servos"):
         data.pop(section, None)
     data["base"]["port"] = port
     path = tmp_path / "beast_on_a_pty.yaml"
