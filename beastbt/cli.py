@@ -50,6 +50,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                             "to list them, command them, send missions and stop them all"),
     "serve": ("beastbt.commands.serve", "a robot on the fleet: wait for missions from the station, run each as "
                                         "'beastbt run' does, and wait again"),
+    "service": ("beastbt.commands.service", "run beastbt at boot as a systemd service: 'service install --fleet "
+                                            "ENDPOINT' (or --mission FILE), then status, logs, remove"),
     "foxglove-layout": ("beastbt.commands.foxglove_layout", "print a Foxglove layout for recorded and live runs "
                                                             "(beastbt foxglove-layout > beastbt.json, then import it)"),
 })

@@ -104,10 +104,14 @@ def command(args: argparse.Namespace) -> int:
                          console=args.console)
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
           flush=True)
+    from beastbt.run.sd_notify import process_notifier
+    notifier = process_notifier()
+    notifier.ready(f"robot {name}: waiting for missions")
     done = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
     try:
         while not done.is_set():
+            notifier.watchdog()  # under systemd: fed while idle too, so a hung wait is restarted
             try:
                 request = agent.missions.get(timeout=0.25)
             except queue.Empty:
@@ -126,9 +130,11 @@ def command(args: argparse.Namespace) -> int:
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
             if not done.is_set():
                 print(f"robot '{name}': waiting for missions", flush=True)
+                notifier.status(f"robot {name}: waiting for missions")
     except KeyboardInterrupt:
         pass
     finally:
+        notifier.stopping()
         signal.signal(signal.SIGTERM, previous)
         agent.close()
     return EXIT_SUCCESS

@@ -23,6 +23,7 @@ from beastbt.core.events import EventLog
 from beastbt.robot.profile import RobotProfile
 from beastbt.run.run_folder import RunFolder, save_text
 from beastbt.run.operator_inputs import TERMINAL
+from beastbt.run.sd_notify import process_notifier
 from beastbt.run.summary import build_summary
 
 if TYPE_CHECKING:  # annotations only: the parts import Prepared, and `beastbt tree` needs no tick loop nor world
@@ -192,9 +193,12 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     gc.freeze()
     pacing: Optional[float] = factor
     anchor = wall0
+    notifier = process_notifier()
+    notifier.ready(f"running mission {p.mission.name}")
     try:
         while run.status is None:
             run.tick()
+            notifier.watchdog()  # under systemd: a tick that never returns stops this, and the unit is restarted
             if run.status is not None:
                 break
             if max_time is not None and run.elapsed_s + dt > max_time + 1e-9:
@@ -232,6 +236,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     finally:
         gc.unfreeze()
         restore_sigterm()
+        notifier.status(f"mission {p.mission.name} ended: {run.status}")
         run.stop_robot(clock.now())
         for close in p.closers:
             try:
