@@ -117,6 +117,7 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     # What the run shows and keeps.
     PartEntry("recording", "beastbt.parts.recording:RecordingPart",
               lambda profile, options: bool(options.record or options.record_path or options.foxglove is not None)),
+    PartEntry("runs", "beastbt.parts.runs:RunsRetentionPart", lambda profile, options: bool(options.record)),
     PartEntry("video_stream", "beastbt.parts.video_stream:VideoStreamPart",
               lambda profile, options: options.stream is not None),
     PartEntry("console", "beastbt.parts.console:ConsolePart",

@@ -79,6 +79,13 @@ def _fill(folder: Path) -> None:
 
 
 def _run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    if args[0] == "run":
+        # These runs are about a disk that really fills: the simulator's profile with the runs' free-space
+        # floor off (the floor, which stops a recording before the disk is full, is tests/test_runs_retention.py's).
+        profile = cwd / "sim_no_floor.yaml"
+        profile.write_text((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8") + "\nruns: {min_free_mb: 0}\n",
+                           encoding="utf-8")
+        args = (*args, "--robot", str(profile), "--sim")
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     return subprocess.run([sys.executable, "-m", "beastbt.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=120)

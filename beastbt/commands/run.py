@@ -100,6 +100,13 @@ def _positive_duration(text: str) -> float:
     return seconds
 
 
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("give 1 or more")
+    return value
+
+
 def _non_negative_int(text: str) -> int:
     try:
         value = int(text)
@@ -230,6 +237,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--record", metavar="FILE", help="also write the run's recording to FILE")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
     p.add_argument("--no-record", action="store_true", help="do not write a run folder")
+    p.add_argument("--keep-runs", type=_positive_int, metavar="N",
+                   help="keep the newest N finished runs in --runs-dir, pruning older ones as this run starts "
+                        "(over the profile's runs: keep; runs marked with 'beastbt runs keep' always stay)")
     p.add_argument("--strict", action="store_true", help="refuse to start when the mission has warnings (exit 2)")
     p.add_argument("--answer", action="append", type=_answer, metavar="ID=yes|no", default=[],
                    help="answer the mission's question ID in advance (repeatable): --answer door=yes")
@@ -293,7 +303,7 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      record_sensors=args.record_sensors, answers=dict(args.answer))
+                      record_sensors=args.record_sensors, answers=dict(args.answer), keep_runs=args.keep_runs)
     opts.fleet, problem = fleet_options(args, "run")
     if problem is not None:
         print(problem, file=sys.stderr)

@@ -46,6 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="on the simulator: realtime (default, so that people can watch), max, or a factor such as 10")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
     p.add_argument("--no-record", action="store_true", help="do not write run folders")
+    from beastbt.commands.run import _positive_int
+    p.add_argument("--keep-runs", type=_positive_int, metavar="N",
+                   help="keep the newest N finished runs in --runs-dir, pruning older ones as each run starts")
     from beastbt.commands.run import _checked, _endpoint
     p.add_argument("--console", metavar="[HOST:]PORT", type=_checked(_endpoint("--console")),
                    help="serve each mission's operator console there (tree, video, joystick); the station's page "
@@ -101,6 +104,7 @@ def command(args: argparse.Namespace) -> int:
     from dataclasses import replace
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
+                         keep_runs=args.keep_runs,
                          console=args.console)
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
           flush=True)

@@ -55,6 +55,10 @@ class RecordingConfig:
     # Less free space than this where the recording goes, at the start of a run, is warned about (megabytes,
     # 10^6 bytes); 0 never warns. Should the disk fill, the recording stops (with an event), the mission goes on.
     min_free_mb: float
+    # The recording stops cleanly (an event; the mission goes on) rather than leave less free space than this
+    # on its disk (megabytes, 10^6 bytes); 0: only a full disk stops it. A run folder's recording takes the
+    # profile's runs: min_free_mb.
+    floor_free_mb: float
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.image_rate_hz) and self.image_rate_hz >= 0):

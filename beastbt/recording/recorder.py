@@ -838,6 +838,9 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     if not paths and live is None:
         return None
     config = config_from_options(opts)
+    if prepared.folder is not None and "floor_free_mb" not in (opts.recording or {}):
+        from beastbt.run.retention import RunsPolicy  # the runs folder's floor (profile runs:) holds for its recording
+        config.floor_free_mb = RunsPolicy.from_section(prepared.profile.section("runs")).min_free_mb
     block = config.overflow == "block" or (config.overflow == "auto" and isinstance(prepared.clock, SimClock))
     info, attachments = run_info(prepared)
     rec = McapRecorder(paths, config, block_when_full=block, info=info, attachments=attachments, live=live)

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
+from beastbt.run.retention import KEEP_MARKER, is_running
+
 
 NO_SUMMARY = "no summary (disk full?)"
 """The status of a run whose ``summary.json`` is empty: it ended, but the summary could not be written."""
@@ -90,9 +92,11 @@ def list_runs(runs_dir: str) -> list[RunEntry]:
             except (OSError, ValueError):
                 summary = {"status": "unreadable"}
         mission = summary.get("mission") or _mission_from_name(folder.name)
-        status = summary.get("status") or "unfinished"
+        status = summary.get("status") or ("running" if is_running(folder) else "unfinished")
         if summary.get("recovered"):
             status = f"cut short ({status}, recovered)"  # rebuilt by ``beastbt recover`` from the recording
+        if (folder / KEEP_MARKER).exists():
+            status += " [kept]"  # ``beastbt runs keep``: never pruned
         out.append(RunEntry(folder, mission, status, summary.get("sim_time_s"), summary.get("distance_m"),
                             mcap.stat().st_size if mcap.exists() else None,
                             (summary.get("recording") or {}).get("dropped")))

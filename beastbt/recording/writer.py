@@ -202,8 +202,26 @@ def _valid_end() -> bytes:
     return builder.end() + MCAP0_MAGIC
 
 
+FLOOR_RESERVE_BYTES = 1_000_000
+"""Room the recording leaves above the free-space floor (bytes) for what the run writes after it: the summary,
+the event log, the recording's own end and the prune log, so that the disk stays above the floor."""
+
+
+class FreeSpaceFloor(OSError):
+    """A commit that would take the disk below the runs' free-space floor (profile ``runs: min_free_mb``): the
+    recording stops there as if the disk were full, leaving the floor free for the system and the next runs."""
+
+    def __init__(self, floor_bytes: int, free_bytes: int) -> None:
+        super().__init__(errno.ENOSPC, "free-space floor reached")
+        self.floor_bytes = floor_bytes
+        self.free_bytes = free_bytes
+
+
 def describe_write_error(path: Path, exc: OSError) -> str:
     """Why writing ``path`` failed, for a person: a full disk with the space left (MB), or the OS's words."""
+    if isinstance(exc, FreeSpaceFloor):
+        return (f"the disk at {path} is down to its free-space floor ({exc.free_bytes / 1e6:.1f} MB free, "
+                f"runs: min_free_mb {exc.floor_bytes / 1e6:g})")
     if exc.errno in DISK_FULL_ERRNOS:
         try:
             free_mb = shutil.disk_usage(path.parent).free / 1e6
@@ -216,8 +234,10 @@ def describe_write_error(path: Path, exc: OSError) -> str:
 class _McapFile:
     """One file the recording goes to, kept a valid MCAP file after every commit (see :class:`_RecordStream`)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, floor_bytes: int = 0) -> None:
         self.path = path
+        self.floor_bytes = floor_bytes
+        """Free bytes a commit must leave on the file's disk (0: none): below it the file is given up on."""
         path.parent.mkdir(parents=True, exist_ok=True)
         self.fd: Optional[int] = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self.end = 0
@@ -226,8 +246,17 @@ class _McapFile:
         """What follows them in the file now (the valid end, or nothing)."""
 
     def commit(self, data: bytes) -> None:
-        """Write ``data`` (whole records, then an end) at :attr:`end` in one call; raises OSError when it fails."""
+        """Write ``data`` (whole records, then an end) at :attr:`end` in one call; raises OSError when it fails,
+        :class:`FreeSpaceFloor` when it would leave less than :attr:`floor_bytes` free."""
+        if self.floor_bytes > 0 and self.fd is not None:
+            st = os.fstatvfs(self.fd)  # once per chunk (about a second), a few microseconds
+            free = st.f_bavail * st.f_frsize
+            if free - max(0, self.end + len(data) - self._size()) < self.floor_bytes + FLOOR_RESERVE_BYTES:
+                raise FreeSpaceFloor(self.floor_bytes, free)
         self._write_at(data, self.end)
+
+    def _size(self) -> int:
+        return os.fstat(self.fd).st_size if self.fd is not None else 0
 
     def rollback(self) -> None:
         """After a failed commit: cut what it wrote and put the valid end back (it fits where it was)."""
@@ -275,8 +304,8 @@ class _RecordStream:
     offset the ``mcap`` writer indexes by: the same in every file.
     """
 
-    def __init__(self, paths: list[Path]) -> None:
-        self._files = [_McapFile(p) for p in paths]
+    def __init__(self, paths: list[Path], floor_bytes: int = 0) -> None:
+        self._files = [_McapFile(p, floor_bytes) for p in paths]
         self._buffer = bytearray()
         self._end = 0
         self._tail = _valid_end()
@@ -531,7 +560,8 @@ class RunFileWriter:
         self._map_from_odom: Optional[tuple[float, float, float]] = None
         """On a saved map: the localiser's map -> odom (x m, y m, yaw rad) for /tf, from the latest /map/pose."""
         self._live = live
-        self._stream: Any = _RecordStream([Path(p) for p in paths]) if paths else _NoFile()
+        self._stream: Any = (_RecordStream([Path(p) for p in paths], int(config.floor_free_mb * 1e6)) if paths
+                             else _NoFile())
         w: Any = (Writer(self._stream, chunk_size=config.chunk_max_bytes,
                          compression=compression_type(config.compression)) if paths else _NoFile())
         w.start(profile=MCAP_PROFILE, library=f"beastbt ({RECORDING_FORMAT})")

@@ -71,6 +71,8 @@ class RunFolder:
     finishers: list[Callable[[dict], None]] = field(default_factory=list)
     summary_written: bool = False
     """``summary.json`` was written whole by :meth:`finish`."""
+    lock_fd: Optional[int] = None
+    """Holds the folder's ``.running`` lock while the run runs (:mod:`beastbt.run.retention`: never pruned)."""
 
     @classmethod
     def create(cls, runs_dir: str, mission: str, clock: Any,
@@ -92,7 +94,12 @@ class RunFolder:
         except OSError as exc:
             raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
                                        f"space, give --runs-dir on another disk, or run with --no-record") from None
-        return cls(path)
+        from beastbt.run.retention import hold_running_lock
+        try:
+            lock_fd: Optional[int] = hold_running_lock(path)
+        except OSError:
+            lock_fd = None  # a file system without locks: the run is still recorded, only not guarded from pruning
+        return cls(path, lock_fd=lock_fd)
 
     def save_snapshot(self, name: str, frame: Any) -> str:
         """Save a :class:`~beastbt.blackboard.types.CameraFrame` as ``<name>.jpg``; return its path."""
@@ -118,7 +125,14 @@ class RunFolder:
                 fin(summary)
             except Exception as exc:  # noqa: BLE001 - the summary is kept whatever a writer does
                 problems.append(f"could not finish the recording in {self.path}: {exc!r}")
+        self.release()
         return problems
+
+    def release(self) -> None:
+        """Let go of the ``.running`` lock: the run is finished, and may be pruned like any other."""
+        if self.lock_fd is not None:
+            os.close(self.lock_fd)
+            self.lock_fd = None
 
 
 def events_log_text(events: list[dict]) -> str:

@@ -76,6 +76,9 @@ class RunOptions:
     """Draw the detected line and the step on the streamed frames (``--stream-no-overlay`` clears it)."""
     record_images_hz: Optional[float] = None
     """Camera images recorded per second as JPEG (``--record-images``); None: the recording's default."""
+    keep_runs: Optional[int] = None
+    """Keep the newest N finished runs in ``runs_dir``, pruning older ones when this run starts
+    (``--keep-runs``; over the profile's ``runs: keep``)."""
     record_sensors: bool = False
     """Record every sensor, keeping awake those the run does not read (``--record-sensors``); by default a
     recording holds what the run used, and the parts nothing reads stay asleep."""
