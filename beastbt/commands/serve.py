@@ -60,8 +60,8 @@ def command(args: argparse.Namespace) -> int:
     from beastbt.core.errors import InvalidInput
     from beastbt.run.session import RunOptions, parse_speed
     if args.fleet is None and args.fleet_config is None:
-        print("beastbt serve: error: a robot serves a fleet: add --fleet tcp/STATION:7447 (or --fleet-config FILE)",
-              file=sys.stderr)
+        print("beastbt serve: error: a robot serves a fleet: add --fleet tls/STATION:7447 (with the station's "
+              "enrolment; or --fleet-config FILE)", file=sys.stderr)
         return EXIT_INVALID
     try:
         speed = parse_speed(args.speed)
@@ -90,10 +90,13 @@ def command(args: argparse.Namespace) -> int:
     except InvalidInput as exc:  # a --fleet-config that is not one
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
-    if (args.sim or args.robot == "sim") and args.world:  # it stands at its world's start, where others see it
-        from beastbt.fleet.shared_world import start_field
+    if args.sim or args.robot == "sim":  # it stands at its world's start (where others see it) with a full battery
+        from beastbt.fleet.shared_world import sim_field
+        from beastbt.sim.robot import build_simulator
+        from beastbt.sim.world import empty_world, load_world
         try:
-            agent.stand(start_field(profile, args.world))
+            sim = build_simulator(profile, load_world(args.world) if args.world else empty_world(), args.seed)
+            agent.stand(sim_field(sim), sim.truth.battery_v, shared=bool(args.world))
         except InvalidInput as exc:
             agent.close()
             print(exc.format(), file=sys.stderr)
