@@ -195,3 +195,22 @@ def _listening(port: int) -> bool:
     with socket.socket() as s:
         s.settimeout(0.2)
         return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+def test_a_new_host_remakes_only_the_stations_certificate_and_a_robots_folder_is_never_taken(tmp_path):
+    from beastbt.fleet.credentials import ensure_keys, station_names
+    keys = tmp_path / "keys"
+    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (True, [])
+    robot_cert = (keys / "robot" / "robot.crt").read_bytes()
+    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (False, [])  # kept as they are
+    assert ensure_keys(keys, ["vm", "station.local", "192.168.1.10"], "tls/0.0.0.0:7447") == (
+        False, ["station.local", "192.168.1.10"])
+    assert {"localhost", "127.0.0.1", "vm", "station.local", "192.168.1.10"} <= set(station_names(keys))
+    assert (keys / "robot" / "robot.crt").read_bytes() == robot_cert  # the robots keep their enrolment
+    for cert in ("station.crt", "robot.crt"):  # both still of the one CA
+        subprocess.run(["openssl", "verify", "-CAfile", str(keys / "ca.crt"), str(keys / cert)], check=True,
+                       capture_output=True)
+    enrolled = tmp_path / "robot-home"
+    shutil.copytree(keys / "robot", enrolled)
+    with pytest.raises(FileExistsError, match="no fleet CA"):
+        ensure_keys(enrolled, [], "tls/127.0.0.1:7447")  # a station never writes over a robot's enrolment

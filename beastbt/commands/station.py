@@ -208,6 +208,11 @@ def station_keys(args: argparse.Namespace, listen: str) -> "tuple[str, Optional[
               "or give --fleet-config FILE", file=sys.stderr)
         return None
     folder = Path(args.keys).expanduser() if args.keys else fleet_folder()
+    bad = [h for h in args.host if not _host_ok(h)]
+    if bad:
+        print(f"beastbt station: error: --host {bad[0][:80]!r}: a name or an address robots reach the station by "
+              f"(letters, digits, '.', '-', ':'), e.g. --host station.local or --host 192.168.1.10", file=sys.stderr)
+        return None
     hosts = [socket.gethostname(), f"{socket.gethostname()}.local", *args.host]
     bound = endpoint_host(listen)
     if bound not in ("0.0.0.0", "::", ""):
