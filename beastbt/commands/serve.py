@@ -91,12 +91,18 @@ def command(args: argparse.Namespace) -> int:
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
     if args.sim or args.robot == "sim":  # it stands at its world's start (where others see it) with a full battery
-        from beastbt.fleet.shared_world import sim_field
-        from beastbt.sim.robot import build_simulator
-        from beastbt.sim.world import empty_world, load_world
         try:
-            sim = build_simulator(profile, load_world(args.world) if args.world else empty_world(), args.seed)
-            agent.stand(sim_field(sim), sim.truth.battery_v, shared=bool(args.world))
+            if args.world:
+                from beastbt.fleet.shared_world import sim_field
+                from beastbt.sim.robot import build_simulator
+                from beastbt.sim.world import load_world
+                sim = build_simulator(profile, load_world(args.world), args.seed)
+                agent.stand(sim_field(sim), sim.truth.battery_v)
+            else:  # each mission's own world: until the first, the default world's start (no simulator built yet)
+                from beastbt.sim.world import empty_world
+                world = empty_world()
+                agent.stand({"x": world.start_x, "y": world.start_y, "yaw": world.start_yaw},
+                            world.battery_start_v, shared=False)
         except InvalidInput as exc:
             agent.close()
             print(exc.format(), file=sys.stderr)
