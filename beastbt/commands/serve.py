@@ -24,6 +24,7 @@ import signal
 import sys
 import tempfile
 import threading
+import time
 import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any, Optional
@@ -33,6 +34,8 @@ ZIP_MAX_FILES = 200
 """The most files a mission's zip may hold."""
 ZIP_MAX_BYTES = 32 << 20
 """The most a mission's zip may unpack to (bytes)."""
+STATION_UNSEEN_S = 10.0
+"""How long a robot waits for its station before it says what to check (wall s): TLS refused quietly otherwise."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -111,15 +114,22 @@ def command(args: argparse.Namespace) -> int:
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          console=args.console)
-    print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
+    keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
+    print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)
     done = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+    unseen_since: Optional[float] = time.monotonic()
     try:
         while not done.is_set():
             try:
                 request = agent.missions.get(timeout=0.25)
             except queue.Empty:
+                if unseen_since is not None and agent.station_present:
+                    unseen_since = None
+                elif unseen_since is not None and time.monotonic() - unseen_since > STATION_UNSEEN_S:
+                    unseen_since = None  # said once: a station that comes later is found all the same
+                    print(station_unseen_hint(fleet), file=sys.stderr, flush=True)
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
@@ -141,6 +151,16 @@ def command(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         agent.close()
     return EXIT_SUCCESS
+
+
+def station_unseen_hint(fleet: Any) -> str:
+    """What a robot says when it has not seen its station for :data:`STATION_UNSEEN_S`: what to check."""
+    endpoint = fleet.endpoint or "the endpoint in " + str(fleet.config_file)
+    if fleet.config_file:
+        return (f"beastbt serve: warning: no station seen at {endpoint} yet (the robot keeps trying): is the station "
+                f"up there, and is its certificate valid for that name or address? ('beastbt station' prints the "
+                f"names; add one with --host NAME) Are these keys of that station's enrolment?")
+    return f"beastbt serve: warning: no station seen at {endpoint} yet (the robot keeps trying): is it up there?"
 
 
 def interrupted(summary: dict) -> bool:
