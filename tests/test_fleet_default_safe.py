@@ -200,11 +200,11 @@ def _listening(port: int) -> bool:
 def test_a_new_host_remakes_only_the_stations_certificate_and_a_robots_folder_is_never_taken(tmp_path):
     from beastbt.fleet.credentials import ensure_keys, station_names
     keys = tmp_path / "keys"
-    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (True, [])
+    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (True, [], [])
     robot_cert = (keys / "robot" / "robot.crt").read_bytes()
-    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (False, [])  # kept as they are
+    assert ensure_keys(keys, ["vm"], "tls/127.0.0.1:7447") == (False, [], [])  # kept as they are
     assert ensure_keys(keys, ["vm", "station.local", "192.168.1.10"], "tls/0.0.0.0:7447") == (
-        False, ["station.local", "192.168.1.10"])
+        False, ["station.local", "192.168.1.10"], [])
     assert {"localhost", "127.0.0.1", "vm", "station.local", "192.168.1.10"} <= set(station_names(keys))
     assert (keys / "robot" / "robot.crt").read_bytes() == robot_cert  # the robots keep their enrolment
     for cert in ("station.crt", "robot.crt"):  # both still of the one CA
@@ -214,3 +214,29 @@ def test_a_new_host_remakes_only_the_stations_certificate_and_a_robots_folder_is
     shutil.copytree(keys / "robot", enrolled)
     with pytest.raises(FileExistsError, match="no fleet CA"):
         ensure_keys(enrolled, [], "tls/127.0.0.1:7447")  # a station never writes over a robot's enrolment
+
+
+def test_a_robot_enrolled_later_gets_a_certificate_of_its_own_and_joins_with_it(tmp_path):
+    from beastbt.fleet.agent import FleetAgent
+    from beastbt.fleet.config import FleetOptions
+    from beastbt.fleet.credentials import ensure_keys
+    from beastbt.fleet.station import Station
+    keys = tmp_path / "keys"
+    ensure_keys(keys, [], "tls/127.0.0.1:7447")
+    assert ensure_keys(keys, [], "tls/127.0.0.1:7447", ["rc"]) == (False, [], ["rc"])
+    assert ensure_keys(keys, [], "tls/127.0.0.1:7447", ["rc"]) == (False, [], [])  # once
+    config = json.loads((keys / "station.json5").read_text())
+    assert {s["id"]: s["cert_common_names"] for s in config["access_control"]["subjects"]} == {
+        "robot-rc": ["rc"], "robots": ["robot"]}
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    station = Station(endpoint, str(keys / "station.json5")).open()
+    rc = FleetAgent("rc", FleetOptions(endpoint, str(keys / "robot-rc" / "robot.json5"))).start()
+    impostor = FleetAgent("rd", FleetOptions(endpoint, str(keys / "robot-rc" / "robot.json5"))).start()
+    try:
+        wait_for(lambda: any(r["name"] == "rc" and r["alive"] for r in station.table.robots()), 10.0, "rc listed")
+        time.sleep(1.0)  # rd's token and states, sent with rc's certificate, never reach the station
+        assert {r["name"] for r in station.table.robots()} == {"rc"} and impostor.published > 0
+    finally:
+        rc.close()
+        impostor.close()
+        station.close()

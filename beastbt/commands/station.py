@@ -18,7 +18,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
 EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
 DEFAULT_LISTEN = "tls/127.0.0.1:7447"
@@ -61,8 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                       "certificates, DIR/station.json5 and DIR/robot.json5 (mutual "
                                                       "TLS, only the station commands) and a how-to; then exit")
     p.add_argument("--robot-name", action="append", default=[], metavar="NAME",
-                   help="when the keys are made: give robot NAME a certificate of its own, with which it may use "
-                        "only its own keys (repeatable); without it, one certificate for every robot")
+                   help="give robot NAME a certificate of its own (when the keys are made, or added to them later), "
+                        "with which it may use only its own keys (repeatable); without it, one certificate for every "
+                        "robot")
     p.add_argument("--host", action="append", default=[], metavar="NAME",
                    help="a name or address robots reach the station by, that its certificate must be valid for "
                         "(repeatable; localhost, 127.0.0.1 and this computer's name always)")
@@ -221,15 +222,12 @@ def station_keys(args: argparse.Namespace, listen: str) -> "tuple[str, Optional[
         problem = _robot_names_problem(args.robot_name)
         if problem:
             raise ValueError(problem)
-        made, added = ensure_keys(folder, [h for h in hosts if _host_ok(h)], listen, args.robot_name)
+        state = ensure_keys(folder, [h for h in hosts if _host_ok(h)], listen, args.robot_name)
     except (ValueError, FileExistsError, OSError, subprocess.CalledProcessError) as exc:
         detail = getattr(exc, "stderr", "") or str(exc)
         print(f"beastbt station: error: the fleet's keys in {folder}: {str(detail).strip()[:300]}", file=sys.stderr)
         return None
-    if args.robot_name and not made:
-        print(f"beastbt station: warning: --robot-name applies when the keys are made; {folder} has its keys: "
-              f"move it away to make new ones (every robot is enrolled again)", file=sys.stderr)
-    print(enrolment(folder.resolve(), listen, made, added, default=not args.keys), end="", flush=True)
+    print(enrolment(folder.resolve(), listen, state, default=not args.keys), end="", flush=True)
     shared = folder / "robot.json5"
     return str(folder / "station.json5"), str(shared) if shared.is_file() else None
 
@@ -248,17 +246,20 @@ def _robot_names_problem(names: list) -> Optional[str]:
     return None
 
 
-def enrolment(folder: Path, listen: str, made: bool, added: list, default: bool = True) -> str:
+def enrolment(folder: Path, listen: str, state: Any, default: bool = True) -> str:
     """What the station prints at start: where its keys are, the names its certificate holds, and how a robot joins
     (its enrolment folder, copied to it, and the command to run there)."""
     from beastbt.fleet.config import DEFAULT_PORT, endpoint_host
     from beastbt.fleet.credentials import enrolments, station_names
     port = listen.rsplit(":", 1)[-1] or DEFAULT_PORT
     names = station_names(folder)
-    lines = [f"fleet keys: {folder} ({'made now' if made else 'kept'}): mutual TLS only, and only this station "
+    lines = [f"fleet keys: {folder} ({'made now' if state.made else 'kept'}): mutual TLS only, and only this station "
              f"commands the robots (keep ca.key on this computer)"]
-    if added:
-        lines.append(f"the station's certificate was made again for {', '.join(added)} (the robots keep theirs)")
+    if state.hosts_added:
+        lines.append(f"the station's certificate was made again for {', '.join(state.hosts_added)} (the robots keep "
+                     f"theirs)")
+    if state.robots_added:
+        lines.append(f"a certificate of its own for {', '.join(state.robots_added)}: enrol it as below")
     lines.append(f"the station's certificate is valid for: {', '.join(names)} (another one: --host NAME)")
     if endpoint_host(listen) in ("127.0.0.1", "::1", "localhost"):
         lines.append("listening on this computer only: for robots on the network, --listen tls/0.0.0.0:" + str(port))

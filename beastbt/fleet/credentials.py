@@ -33,7 +33,7 @@ import re
 import shutil
 import subprocess
 from pathlib import Path
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 VALID_DAYS = 3650
 """How long the certificates are valid (days): a classroom's robots outlive a year."""
@@ -86,14 +86,16 @@ def _robot_rules(prefix: str, name: str) -> list[dict]:
             for i, (messages, exprs) in enumerate(ROBOT_INGRESS)]
 
 
-def station_json5(folder: Path, listen: str, robots: Sequence[str] = ()) -> dict:
+def station_json5(folder: Path, listen: str, robots: Sequence[str] = (), shared: bool = False) -> dict:
     """The station's Zenoh configuration (a router, mutual TLS only, access control for robots).
 
     Without ``robots`` every robot has the common name ``robot`` and may use any robot's keys; with them,
-    each robot has its own certificate (common name: its name) and may use its own keys only.
+    each robot has its own certificate (common name: its name) and may use its own keys only (and, with
+    ``shared``, the robots with the common certificate ``robot`` too, as without ``robots``).
     """
-    groups = [(f"robot-{n}", n, _robot_rules(f"robot-{n}", n)) for n in robots] or [
-        ("robots", "robot", _robot_rules("robot", "*"))]
+    groups = [(f"robot-{n}", n, _robot_rules(f"robot-{n}", n)) for n in robots]
+    if shared or not groups:
+        groups.append(("robots", "robot", _robot_rules("robot", "*")))
     rules = [rule for _, _, group in groups for rule in group]
     rules.append({"id": "to-robots", "messages": ["put", "delete", "query", "reply", "declare_subscriber",
                                                   "declare_queryable", "liveliness_token", "liveliness_query",
@@ -216,10 +218,20 @@ def station_names(folder: Path) -> list[str]:
     return re.findall(r"(?:DNS|IP Address):([^,\s]+)", out)
 
 
-def ensure_keys(folder: Path, hosts: Sequence[str], listen: str, robots: Sequence[str] = ()) -> tuple[bool, list[str]]:
-    """The keys of ``beastbt station`` in ``folder``: made when it holds none (:func:`init_keys`); when it does and
-    ``hosts`` names one the station's certificate is not valid for, that certificate is made again with every name
-    (signed by the same CA: the robots' enrolments stay good). (whether they were made now, the names added).
+class KeysState(NamedTuple):
+    """What :func:`ensure_keys` did: whether the keys were made now, the names added to the station's certificate,
+    the robots given a certificate of their own."""
+
+    made: bool
+    hosts_added: list
+    robots_added: list
+
+
+def ensure_keys(folder: Path, hosts: Sequence[str], listen: str, robots: Sequence[str] = ()) -> KeysState:
+    """The keys of ``beastbt station`` in ``folder``: made when it holds none (:func:`init_keys`). When it does:
+    a name of ``hosts`` the station's certificate is not valid for makes that certificate again with every name
+    (signed by the same CA: the robots' enrolments stay good), and a robot of ``robots`` without a certificate of
+    its own gets one, with its enrolment (``robot-NAME/``), and the station's access control is written again.
 
     ``FileExistsError`` when ``folder`` holds something else than a station's keys (a robot's enrolment).
     """
@@ -230,15 +242,27 @@ def ensure_keys(folder: Path, hosts: Sequence[str], listen: str, robots: Sequenc
                                   f"give the station a folder of its own with --keys DIR")
         init_keys(folder, hosts, listen, robots=robots)
         folder.chmod(0o700)  # the CA's key: this user's only
-        return True, []
+        return KeysState(True, [], [])
     names = station_names(folder)
     added = [h for h in dict.fromkeys(hosts) if h not in names]
     if added:
         _leaf(folder, "station", [*names, *added], VALID_DAYS)
         (folder / "station.key").chmod(0o600)
-        (folder / "ca.srl").unlink(missing_ok=True)
-    return False, added
+    new_robots = [r for r in dict.fromkeys(robots) if not (folder / f"robot-{r}.crt").is_file()]
+    connect = listen.replace("0.0.0.0", "127.0.0.1")
+    for name in new_robots:  # enrolled later: a certificate of its own, signed by the same CA
+        stem = f"robot-{name}"
+        _leaf(folder, stem, [], VALID_DAYS, name)
+        (folder / f"{stem}.key").chmod(0o600)
+        (folder / f"{stem}.json5").write_text(json.dumps(robot_json5(folder, connect, stem), indent=2) + "\n")
+        _enrolment(folder, stem, connect)
+    if new_robots:
+        named = sorted(p.name[len("robot-"):-len(".crt")] for p in folder.glob("robot-*.crt"))
+        config = station_json5(folder, listen, named, shared=(folder / "robot.crt").is_file())
+        (folder / "station.json5").write_text(json.dumps(config, indent=2) + "\n")
+    (folder / "ca.srl").unlink(missing_ok=True)
+    return KeysState(False, added, new_robots)
 
 
-__all__ = ["init_keys", "ensure_keys", "station_names", "enrolments", "station_json5", "robot_json5",
+__all__ = ["init_keys", "ensure_keys", "KeysState", "station_names", "enrolments", "station_json5", "robot_json5",
            "ROBOT_INGRESS"]
