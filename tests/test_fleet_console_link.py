@@ -73,7 +73,7 @@ def test_a_live_station_finds_each_robots_address_from_its_zenoh_link():
         agent.current_state = lambda state=state, url=urls[name]: {**state(), "console_url": url}
         agent.start()
     try:
-        wait_for(lambda: {r["name"] for r in station.table.robots() if r["alive"]} == {"near", "far"}, 5.0,
+        wait_for(lambda: {r["name"] for r in station.table.robots() if r["alive"]} == {"near", "far"}, 20.0,
                  "both robots listed")
         robots = {r["name"]: r for r in station.table.robots()}
         assert agents["near"].zid and station.table._robots["near"].state["zid"] == agents["near"].zid
