@@ -96,16 +96,17 @@ def main() -> None:
     zport, hport = free_port(), free_port()
     endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
     quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "stdin": subprocess.DEVNULL, "cwd": work}
-    procs = [subprocess.Popen([sys.executable, "-m", "beastbt", "station", "--listen", endpoint, "--console",
-                               f"127.0.0.1:{hport}"], **quiet)]
+    # plain TCP on loopback (--insecure-loopback): the bandwidth is measured by a plain Zenoh client of the router
+    procs = [subprocess.Popen([sys.executable, "-m", "beastbt", "station", "--insecure-loopback", "--listen", endpoint,
+                               "--console", f"127.0.0.1:{hport}"], **quiet)]
     station = procs[0]
     try:
         wait_for(lambda: _up(base), 20, "the station answers")
         baseline = cpu_percent(station.pid, 3.0)
         names = [f"r{i}" for i in range(args.robots)]
         for name in names:
-            procs.append(subprocess.Popen([sys.executable, "-m", "beastbt", "serve", "--sim", "--name", name,
-                                           "--fleet", endpoint, "--no-record"], **quiet))
+            procs.append(subprocess.Popen([sys.executable, "-m", "beastbt", "serve", "--sim", "--insecure-loopback",
+                                           "--name", name, "--fleet", endpoint, "--no-record"], **quiet))
         wait_for(lambda: set(names) <= {n for n, r in robots(base).items() if r["alive"]}, 60 + 2 * args.robots,
                  "every robot listed")
         idle = cpu_percent(station.pid, 5.0)

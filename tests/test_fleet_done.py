@@ -45,9 +45,9 @@ def fleet(tmp_path):
     """A station and three serve --sim robots (alpha, bravo, charlie); stopped afterwards."""
     zport, hport = free_port(), free_port()
     endpoint = f"tcp/127.0.0.1:{zport}"
-    procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}", cwd=str(tmp_path))}
+    procs = {"station": beastbt("station", "--insecure-loopback", "--listen", endpoint, "--console", f"127.0.0.1:{hport}", cwd=str(tmp_path))}
     for name in ("alpha", "bravo", "charlie"):
-        procs[name] = beastbt("serve", "--sim", "--name", name, "--fleet", endpoint, "--speed", "2",
+        procs[name] = beastbt("serve", "--sim", "--insecure-loopback", "--name", name, "--fleet", endpoint, "--speed", "2",
                               "--runs-dir", str(tmp_path / "runs"), cwd=str(tmp_path))
     yield {"base": f"http://127.0.0.1:{hport}", "endpoint": endpoint, "procs": procs, "started": time.monotonic()}
     for proc in procs.values():

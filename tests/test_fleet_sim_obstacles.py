@@ -221,13 +221,13 @@ def test_a_robot_standing_in_the_way_is_seen_and_the_moving_one_stops_short(tmp_
     zport, hport = free_port(), free_port()
     endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
     runs = tmp_path / "runs-mover"
-    procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
+    procs = {"station": beastbt("station", "--insecure-loopback", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
                                 cwd=str(tmp_path)),
-             "mover": beastbt("serve", "--sim", "--name", "mover", "--fleet", endpoint, "--speed", "4",
+             "mover": beastbt("serve", "--sim", "--insecure-loopback", "--name", "mover", "--fleet", endpoint, "--speed", "4",
                               "--world", str(world_at(tmp_path, "mover", 0.0)), "--runs-dir", str(runs),
                               cwd=str(tmp_path))}
     if other:
-        procs["stander"] = beastbt("serve", "--sim", "--name", "stander", "--fleet", endpoint, "--world",
+        procs["stander"] = beastbt("serve", "--sim", "--insecure-loopback", "--name", "stander", "--fleet", endpoint, "--world",
                                    str(world_at(tmp_path, "stander", 2.0)), "--no-record", cwd=str(tmp_path))
     try:
         wait_for(lambda: listed(base, set(procs) - {"station"}), 12.0, "the robots listed")
@@ -259,10 +259,10 @@ def test_two_robots_driving_at_each_other_both_stop_without_touching(tmp_path):
     from tests.test_fleet_done import beastbt, robots
     zport, hport = free_port(), free_port()
     endpoint, base = f"tcp/127.0.0.1:{zport}", f"http://127.0.0.1:{hport}"
-    procs = {"station": beastbt("station", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
+    procs = {"station": beastbt("station", "--insecure-loopback", "--listen", endpoint, "--console", f"127.0.0.1:{hport}",
                                 cwd=str(tmp_path))}
     for name, x, yaw in (("west", 0.0, 0.0), ("east", 2.4, 180.0)):  # facing each other, 2.4 m apart
-        procs[name] = beastbt("serve", "--sim", "--name", name, "--fleet", endpoint, "--world",
+        procs[name] = beastbt("serve", "--sim", "--insecure-loopback", "--name", name, "--fleet", endpoint, "--world",
                               str(world_at(tmp_path, name, x, yaw)), "--runs-dir", str(tmp_path / f"runs-{name}"),
                               cwd=str(tmp_path))
     try:

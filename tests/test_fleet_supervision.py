@@ -34,7 +34,7 @@ def test_a_supervised_robot_holds_while_the_station_is_gone_and_goes_on_when_it_
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     station = Station(endpoint).open()
     proc = subprocess.Popen([sys.executable, "-m", "beastbt", "run", str(mission), "--speed", "realtime",
-                             "--fleet", endpoint, "--name", "sup1", "--no-record", "--summary",
+                             "--fleet", endpoint, "--insecure-loopback", "--name", "sup1", "--no-record", "--summary",
                              str(tmp_path / "summary.json")], cwd=str(tmp_path), stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
@@ -81,7 +81,7 @@ def test_an_unsupervised_run_goes_on_without_its_station(tmp_path):
     mission = tmp_path / "plain.yaml"
     mission.write_text("mission: plain\nsteps:\n  - drive: {distance: 0.5 m, speed: 0.5 m/s}\n")
     # nothing listens there: the run starts at once, runs and ends as it would without --fleet
-    proc = subprocess.run([sys.executable, "-m", "beastbt", "run", str(mission), "--fleet",
+    proc = subprocess.run([sys.executable, "-m", "beastbt", "run", str(mission), "--insecure-loopback", "--fleet",
                            f"tcp/127.0.0.1:{free_port()}", "--name", "alone", "--no-record", "--summary",
                            str(tmp_path / "summary.json")], cwd=str(tmp_path), capture_output=True, text=True,
                           timeout=60)

@@ -204,11 +204,15 @@ def add_fleet_arguments(p: argparse.ArgumentParser, required: bool = False) -> N
     """``--fleet ENDPOINT``, ``--fleet-config FILE`` and ``--name NAME`` (``beastbt run`` and ``beastbt serve``)."""
     from beastbt.fleet.config import parse_endpoint
     p.add_argument("--fleet", metavar="ENDPOINT", type=_checked(parse_endpoint),
-                   help="report to a fleet's station on Zenoh, e.g. tcp/127.0.0.1:7447; the run goes on whatever "
-                        "becomes of the link (docs/fleet.md)")
+                   help="report to a fleet's station on Zenoh, e.g. tls/STATION:7447, with the keys of the station's "
+                        "enrolment (~/.local/state/beastbt/fleet/robot.json5); the run goes on whatever becomes of "
+                        "the link (docs/fleet.md)")
     p.add_argument("--fleet-config", metavar="FILE",
-                   help="a standard Zenoh JSON5 configuration for the fleet link (TLS, credentials; see "
-                        "'beastbt station --init-keys')")
+                   help="a standard Zenoh JSON5 configuration for the fleet link (TLS, credentials), such as an "
+                        "enrolment's robot.json5")
+    p.add_argument("--insecure-loopback", action="store_true",
+                   help="join a station that has no keys (its --insecure-loopback): plain TCP on this computer only, "
+                        "where any program could command the robot")
     p.add_argument("--name", help="the robot's name on the fleet (default: the profile's 'robot:' name)")
 
 
@@ -222,7 +226,14 @@ def fleet_options(args: argparse.Namespace, command: str) -> tuple[Optional[Any]
     from beastbt.fleet.keys import name_problem
     if args.name is not None and name_problem(args.name):
         return None, f"beastbt {command}: error: --name: {name_problem(args.name)}"
-    return FleetOptions(endpoint=args.fleet, config_file=args.fleet_config, name=args.name), None
+    from beastbt.fleet.config import INSECURE_ROBOT_WARNING, robot_link
+    try:  # safe by default: with keys, or plain TCP on loopback when asked for
+        endpoint, config_file = robot_link(args.fleet, args.fleet_config, args.insecure_loopback, command)
+    except ValueError as exc:
+        return None, f"beastbt {command}: error: {exc}"
+    if args.insecure_loopback:
+        print(INSECURE_ROBOT_WARNING.format(command=command), file=sys.stderr, flush=True)
+    return FleetOptions(endpoint=endpoint, config_file=config_file, name=args.name), None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

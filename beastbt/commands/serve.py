@@ -24,6 +24,7 @@ import signal
 import sys
 import tempfile
 import threading
+import time
 import zipfile
 from pathlib import Path, PurePosixPath
 from typing import Any, Optional
@@ -33,6 +34,8 @@ ZIP_MAX_FILES = 200
 """The most files a mission's zip may hold."""
 ZIP_MAX_BYTES = 32 << 20
 """The most a mission's zip may unpack to (bytes)."""
+STATION_UNSEEN_S = 10.0
+"""How long a robot waits for its station before it says what to check (wall s): TLS refused quietly otherwise."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -63,8 +66,8 @@ def command(args: argparse.Namespace) -> int:
     from beastbt.core.errors import InvalidInput
     from beastbt.run.session import RunOptions, parse_speed
     if args.fleet is None and args.fleet_config is None:
-        print("beastbt serve: error: a robot serves a fleet: add --fleet tcp/STATION:7447 (or --fleet-config FILE)",
-              file=sys.stderr)
+        print("beastbt serve: error: a robot serves a fleet: add --fleet tls/STATION:7447 (with the station's "
+              "enrolment; or --fleet-config FILE)", file=sys.stderr)
         return EXIT_INVALID
     try:
         speed = parse_speed(args.speed)
@@ -93,10 +96,19 @@ def command(args: argparse.Namespace) -> int:
     except InvalidInput as exc:  # a --fleet-config that is not one
         print(exc.format(), file=sys.stderr)
         return EXIT_INVALID
-    if (args.sim or args.robot == "sim") and args.world:  # it stands at its world's start, where others see it
-        from beastbt.fleet.shared_world import start_field
+    if args.sim or args.robot == "sim":  # it stands at its world's start (where others see it) with a full battery
         try:
-            agent.stand(start_field(profile, args.world))
+            if args.world:
+                from beastbt.fleet.shared_world import sim_field
+                from beastbt.sim.robot import build_simulator
+                from beastbt.sim.world import load_world
+                sim = build_simulator(profile, load_world(args.world), args.seed)
+                agent.stand(sim_field(sim), sim.truth.battery_v)
+            else:  # each mission's own world: until the first, the default world's start (no simulator built yet)
+                from beastbt.sim.world import empty_world
+                world = empty_world()
+                agent.stand({"x": world.start_x, "y": world.start_y, "yaw": world.start_yaw},
+                            world.battery_start_v, shared=False)
         except InvalidInput as exc:
             agent.close()
             print(exc.format(), file=sys.stderr)
@@ -106,19 +118,26 @@ def command(args: argparse.Namespace) -> int:
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          keep_runs=args.keep_runs,
                          console=args.console)
-    print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}: waiting for missions",
+    keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
+    print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)
     from beastbt.run.sd_notify import process_notifier
     notifier = process_notifier()
     notifier.ready(f"robot {name}: waiting for missions")
     done = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+    unseen_since: Optional[float] = time.monotonic()
     try:
         while not done.is_set():
             notifier.watchdog()  # under systemd: fed while idle too, so a hung wait is restarted
             try:
                 request = agent.missions.get(timeout=0.25)
             except queue.Empty:
+                if unseen_since is not None and agent.station_present:
+                    unseen_since = None
+                elif unseen_since is not None and time.monotonic() - unseen_since > STATION_UNSEEN_S:
+                    unseen_since = None  # said once: a station that comes later is found all the same
+                    print(station_unseen_hint(fleet), file=sys.stderr, flush=True)
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
@@ -142,6 +161,16 @@ def command(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGTERM, previous)
         agent.close()
     return EXIT_SUCCESS
+
+
+def station_unseen_hint(fleet: Any) -> str:
+    """What a robot says when it has not seen its station for :data:`STATION_UNSEEN_S`: what to check."""
+    endpoint = fleet.endpoint or "the endpoint in " + str(fleet.config_file)
+    if fleet.config_file:
+        return (f"beastbt serve: warning: no station seen at {endpoint} yet (the robot keeps trying): is the station "
+                f"up there, and is its certificate valid for that name or address? ('beastbt station' prints the "
+                f"names; add one with --host NAME) Are these keys of that station's enrolment?")
+    return f"beastbt serve: warning: no station seen at {endpoint} yet (the robot keeps trying): is it up there?"
 
 
 def interrupted(summary: dict) -> bool:

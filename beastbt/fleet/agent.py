@@ -86,6 +86,12 @@ class FleetAgent:
         self.sim_pose: Optional[dict] = None
         """The ``sim`` field (:func:`~beastbt.fleet.shared_world.sim_field`) of a simulated robot standing idle:
         where its last run left it, or where it starts (None on a real robot)."""
+        self.standing: Optional[dict] = None
+        """A simulated robot before its first run: ``{x, y, yaw, battery_v}`` (m, rad in its world's frame; V), where
+        it stands and its battery, for its idle state (None on a robot: nothing reads its devices while it waits)."""
+        self.zid: Optional[str] = None
+        """The Zenoh id of the robot's session once open: in its state, so that the station finds the address it
+        connects from (what the robot's ``console_url`` must be on)."""
         self.others = OtherRobots(wall)
         """The other simulated robots of this robot's world, as the station relays them (``keys.SIM_POSES``)."""
         self.published = 0
@@ -130,6 +136,7 @@ class FleetAgent:
                   file=sys.stderr, flush=True)
             return
         try:
+            self.zid = str(session.zid())
             events_pub = self._declare(session)
             with self._lock:  # the set-up's events first, then each as it happens
                 early, self._early = self._early, []
@@ -172,10 +179,23 @@ class FleetAgent:
 
     # -- what it publishes --------------------------------------------------------------------
     def idle_state(self) -> dict:
-        """The state of a robot with no mission running: the console's fields, most of them empty."""
-        last = self.last_state
+        """The state of a robot with no mission running: the console's fields, most of them empty, with its pose and
+        battery: a robot's last estimate and battery (from its last run); a simulated robot's pose where it stands
+        (its true pose in a shared world; else its last run's estimate, or its world's start before any run) and its
+        last run's battery (before any run, its world's start battery)."""
+        last, standing = self.last_state, self.standing
+        pose = last.get("pose")
+        if self.sim_pose is not None:
+            pose = _console_pose(self.sim_pose)
+        elif pose is None and standing is not None:
+            pose = _console_pose(standing)
+        battery = last.get("battery")
+        if battery is None and standing is not None and standing.get("battery_v") is not None:
+            from beastbt.live.console_state import battery_percent
+            volts = float(standing["battery_v"])
+            battery = {"volts": round(volts, 2), "percent": round(battery_percent(volts), 0)}
         return {"mission": None, "status": "idle", "time_s": 0.0, "step": None, "last_step": None, "progress": None,
-                "pose": last.get("pose"), "gps": last.get("gps"), "speed_mps": 0.0, "battery": last.get("battery"),
+                "pose": pose, "gps": last.get("gps"), "speed_mps": 0.0, "battery": battery,
                 "estop": self.estop_latched, "teleop": False, "question": None, "tree": [], "ended_at": None,
                 "events": [], "command": {"linear_mps": 0.0, "angular_rps": 0.0}, "paused_by": None}
 
@@ -190,6 +210,7 @@ class FleetAgent:
         state["console_url"] = console.url.split("?")[0] if console is not None and console.url else None
         state["last_run"] = self.last_run
         state["station"] = self.station_present
+        state["zid"] = self.zid
         sim = self.sim
         pose = sim_field(sim) if sim is not None else self.sim_pose
         if pose is not None:  # only a simulated robot: its true pose, for the other simulators of its world
@@ -211,9 +232,12 @@ class FleetAgent:
             self.sim_pose = sim_field(sim)
             sim.others = None
 
-    def stand(self, pose: dict) -> None:
-        """A simulated robot stands idle at ``pose`` (a ``sim`` field) before its first run."""
-        self.sim_pose = dict(pose)
+    def stand(self, pose: dict, battery_v: Optional[float] = None, shared: bool = True) -> None:
+        """A simulated robot stands idle at ``pose`` (a ``sim`` field) with ``battery_v`` (V) before its first run;
+        ``shared``: in a world shared with the fleet's other simulated robots (it is an obstacle to them)."""
+        if shared:
+            self.sim_pose = dict(pose)
+        self.standing = {"x": pose["x"], "y": pose["y"], "yaw": pose["yaw"], "battery_v": battery_v}
 
     def _on_sim_poses(self, sample: Any) -> None:
         pose = self.sim_pose
@@ -354,6 +378,15 @@ class FleetAgent:
         if len(payload) > MISSION_MAX_BYTES:
             return {"status": 413, "error": f"the mission has {len(payload)} bytes: at most {MISSION_MAX_BYTES}"}
         return None
+
+
+def _console_pose(pose: dict) -> dict:
+    """A pose ``{x, y, yaw}`` (m, rad CCW from east) as the console's state has it (``x``, ``y``, ``yaw_deg``, and
+    ``heading_deg``, clockwise from north)."""
+    import math
+    yaw_deg = math.degrees(float(pose["yaw"]))
+    return {"x": round(float(pose["x"]), 3), "y": round(float(pose["y"]), 3), "yaw_deg": round(yaw_deg, 1),
+            "heading_deg": round((90.0 - yaw_deg) % 360.0, 1)}
 
 
 def _payload(query: Any) -> bytes:

@@ -13,7 +13,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import yaml
 
@@ -36,14 +36,15 @@ def world_for(index: int, world: Optional[str], folder: Path) -> Path:
 
 
 def start_robots(count: int, world: Optional[str], endpoint: str, speed: str, folder: Path,
-                 runs_dir: str) -> list[subprocess.Popen]:
-    """Start ``count`` ``beastbt serve --sim`` robots on ``endpoint``; their processes."""
+                 runs_dir: str, link: Sequence[str] = ()) -> list[subprocess.Popen]:
+    """Start ``count`` ``beastbt serve --sim`` robots on ``endpoint``, joining with the options ``link``
+    (``--fleet-config FILE``: the station's keys, or ``--insecure-loopback``); their processes."""
     procs = []
     for i in range(count):
         path = world_for(i, world, folder)
         procs.append(subprocess.Popen(
             [sys.executable, "-m", "beastbt", "serve", "--sim", "--name", f"sim-{i + 1}", "--fleet", endpoint,
-             "--world", str(path), "--speed", speed, "--runs-dir", runs_dir],
+             "--world", str(path), "--speed", speed, "--runs-dir", runs_dir, *link],
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL))
     return procs
 

@@ -13,6 +13,8 @@ The API (docs/fleet.md):
 * ``GET /api/robots``: ``{"robots": [{name, status, alive, pose, battery, step, progress, last_seen_s, ...}]}``,
   those that need attention first (a question, a failure or an e-stop, lost); a robot whose
   liveliness token went (or whose state stopped for :data:`LOST_AFTER_S`) is ``alive: false``, ``status: lost``;
+  its ``console_url`` only when ``http(s)://`` on the robot's own address (else null, and ``console_url_problem``
+  says why: :mod:`~beastbt.fleet.console_link`);
 * ``POST /api/robots/<name>/<control>``: the robot's answer (its queryable ``beastbt/<name>/cmd/<control>``);
 * ``POST /api/robots/<name>/mission``: a mission (YAML, ``{"mission": YAML}`` or a zip with its files) to a
   ``beastbt serve`` robot: ``started``, or the validation errors as ``beastbt validate`` prints them;
@@ -35,6 +37,7 @@ from aiohttp import web
 from beastbt.fleet import keys
 from beastbt.fleet.agent import MISSION_MAX_BYTES
 from beastbt.fleet.config import station_config
+from beastbt.fleet.console_link import link_addresses, robot_console_url
 from beastbt.fleet.shared_world import RELAY_PERIOD_S, check_sim_field, poses_payload
 from beastbt.sim.obstacles import OTHERS_MAX_AGE_S
 from beastbt.live.console_control import CONTROL_MAX_BYTES, Refused, parse_control_body
@@ -71,10 +74,14 @@ class RobotEntry:
 
 
 class FleetTable:
-    """The robots the station has heard of, updated from Zenoh's threads; ``wall`` is a monotonic clock (s)."""
+    """The robots the station has heard of, updated from Zenoh's threads; ``wall`` is a monotonic clock (s);
+    ``addresses`` says where each Zenoh session connected now comes from (Zenoh id -> address), what a robot's
+    ``console_url`` is checked against (:mod:`~beastbt.fleet.console_link`)."""
 
-    def __init__(self, wall: Callable[[], float] = time.monotonic) -> None:
+    def __init__(self, wall: Callable[[], float] = time.monotonic,
+                 addresses: Callable[[], dict[str, str]] = dict) -> None:
         self.wall = wall
+        self.addresses = addresses
         self._lock = threading.Lock()
         self._robots: dict[str, RobotEntry] = {}
 
@@ -111,16 +118,20 @@ class FleetTable:
         with self._lock:
             entries = list(self._robots.values())
         out = []
+        addresses = self.addresses() if any(e.state.get("console_url") for e in entries) else {}
         for e in entries:
             s = e.state
             alive = self.is_alive(e, now)
+            zid = s.get("zid")
+            address = addresses.get(zid) if isinstance(zid, str) else None
+            console_url, console_problem = robot_console_url(s.get("console_url"), address)
             status = s.get("status", "idle") if alive else "lost"
             item = {"name": e.name, "status": status, "alive": alive, "pose": s.get("pose"), "gps": s.get("gps"),
                     "battery": s.get("battery"), "step": s.get("step"), "progress": s.get("progress"),
                     "last_seen_s": None if e.seen_wall is None else round(now - e.seen_wall, 2),
                     "mission": s.get("mission"), "question": s.get("question"), "estop": bool(s.get("estop")),
-                    "last_run": s.get("last_run"), "console_url": s.get("console_url"),
-                    "events": list(e.events)[-5:]}
+                    "last_run": s.get("last_run"), "console_url": console_url,
+                    "console_url_problem": console_problem, "events": list(e.events)[-5:]}
             item["attention"] = self.attention(item)
             out.append(item)
         out.sort(key=lambda r: (r["attention"] if r["attention"] is not None else 9, r["name"]))
@@ -161,7 +172,7 @@ class Station:
     def __init__(self, listen: Optional[str], config_file: Optional[str] = None) -> None:
         self.listen = listen
         self.config_file = config_file
-        self.table = FleetTable()
+        self.table = FleetTable(addresses=self.addresses)
         self._session: Any = None
         self._declared: list[Any] = []
         self._relay_stop = threading.Event()
@@ -187,6 +198,16 @@ class Station:
                                        daemon=True)
         self._relay.start()
         return self
+
+    def addresses(self) -> dict[str, str]:
+        """Where each session linked to the router now comes from: Zenoh id -> address (none when closed)."""
+        session = self._session
+        if session is None:
+            return {}
+        try:
+            return link_addresses(session.info.links())
+        except Exception:  # noqa: BLE001 - closing: no address is known
+            return {}
 
     def _relay_poses(self, publisher: Any) -> None:
         """Put the simulated robots' poses every :data:`RELAY_PERIOD_S` while there are any (a thread of its own):

@@ -67,7 +67,7 @@ def refuse_unsupervised(supervision: Optional[Supervision]) -> None:
     if supervision is not None and supervision.required:
         raise InvalidInput([supervision.where(
             f"this {supervision.source} requires the fleet's supervision (fleet: supervision: required), and "
-            f"the run has no fleet link", "run it with --fleet tcp/STATION:7447 (or send it from a station to "
+            f"the run has no fleet link", "run it with --fleet tls/STATION:7447 (or send it from a station to "
             "'beastbt serve'), or set supervision: none")])
 
 
