@@ -224,15 +224,20 @@ class Trials:
                 trial.process.wait(5.0)
         return self.state(run_id)
 
+    def begin_stop(self) -> None:
+        """Refuse new tries and send SIGTERM to those running, without waiting (the studio is ending: they stop
+        while it closes its server)."""
+        self._closing = True
+        for trial in list(self.runs.values()):
+            if trial.process.poll() is None:
+                trial.process.terminate()
+
     def stop_all(self, wait_s: float = STOP_WAIT_S) -> None:
         """Stop every try still running and remove every try's temporary folder (the studio is ending): SIGTERM,
         then SIGKILL for those still running after ``wait_s`` seconds in all."""
         import time
-        self._closing = True
         trials = list(self.runs.values())
-        for trial in trials:
-            if trial.process.poll() is None:
-                trial.process.terminate()
+        self.begin_stop()
         deadline = time.monotonic() + wait_s
         for trial in trials:
             try:
