@@ -207,7 +207,7 @@ def refusal_of(exc: OSError, what: str) -> FileRefused:
     read-only disk, no permission), each saying what happened and what to do."""
     from beastbt.core.errors import plain_reason
     if exc.errno in FULL_DISK_ERRNOS:
-        return FileRefused(507, f"{what}: the disk is full; free some space and save again (the text is still in "
+        return FileRefused(507, f"{what}: the disk is full; free some space and try again (the text is still in "
                                 f"the editor)")
     if exc.errno == errno.ENAMETOOLONG:
         return FileRefused(400, f"{what}: the name is too long for the disk; choose a shorter one")

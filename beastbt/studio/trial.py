@@ -99,6 +99,8 @@ class Trials:
         self._slots = threading.BoundedSemaphore(MAX_RUNS)
         """One per try process: taken before it starts, given back by its reader when it has ended."""
         self._closing = False
+        self._reports: set[subprocess.Popen] = set()
+        """The ``beastbt report`` processes making a try's report now."""
 
     def start(self, text: str, path: Optional[str], body: dict) -> dict:
         """Start a try of ``text`` (saved or not at ``path``): ``{run_id, console_url}``; raises FileRefused."""
@@ -231,6 +233,10 @@ class Trials:
         for trial in list(self.runs.values()):
             if trial.process.poll() is None:
                 trial.process.terminate()
+        with self._lock:
+            reports = list(self._reports)
+        for making in reports:
+            making.kill()  # a report of a try whose folder is about to go
 
     def stop_all(self, wait_s: float = STOP_WAIT_S) -> None:
         """Stop every try still running and remove every try's temporary folder (the studio is ending): SIGTERM,
@@ -268,13 +274,25 @@ class Trials:
         if run_folder is None:
             raise FileRefused(404, "this try wrote no run folder (it did not start: see its output)")
         out = trial.folder / "report"
-        done = subprocess.run([sys.executable, "-m", "beastbt", "report", str(run_folder), "--out", str(out)],
-                              cwd=trial.folder, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                              timeout=120)
+        if self._closing:
+            raise FileRefused(503, "the studio is ending: no report is made")
+        making = subprocess.Popen([sys.executable, "-m", "beastbt", "report", str(run_folder), "--out", str(out)],
+                                  cwd=trial.folder, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
+        with self._lock:
+            self._reports.add(making)  # the studio ending kills it with the tries
+        try:
+            stdout, stderr = making.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            making.kill()
+            stdout, stderr = making.communicate()
+        finally:
+            with self._lock:
+                self._reports.discard(making)
         html = out / "report.html"
-        if done.returncode != 0 or not html.is_file():
-            raise FileRefused(500 if done.returncode != 2 else 404,
-                              f"the report could not be made: {(done.stderr or done.stdout).strip()[-300:]}")
+        if making.returncode != 0 or not html.is_file():
+            raise FileRefused(500 if making.returncode != 2 else 404,
+                              f"the report could not be made: {(stderr or stdout).strip()[-300:]}")
         trial.report = html
         return html
 
