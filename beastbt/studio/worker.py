@@ -83,7 +83,10 @@ def _edit(text: str, edit: dict) -> dict:
 
 
 def _warm_up(folder: Any) -> None:
-    """Check a template once, so that the first request is as quick as the next."""
+    """Check a template once, so that the first request is as quick as the next; load OpenCV (a map's picture)
+    with one thread, so that what it maps is counted before the address space is capped, whatever the cores."""
+    import cv2
+    cv2.setNumThreads(1)  # one job at a time: a pool of threads would only take address space
     from beastbt.studio.analysis import tree_of
     from beastbt.studio.templates import template_text
     try:
