@@ -60,6 +60,15 @@ def wait_until(condition, timeout_s: float, step_s: float = 0.1) -> bool:
     return bool(condition())
 
 
+def cpu_s(pid: int) -> float:
+    """The CPU time ``pid`` has used (s), 0 when it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def warm(studio: Studio) -> None:
     """Wait until both workers answer (they warm up after the studio starts)."""
     assert studio.post("/api/validate", {"text": SMALL})[0] == 200
@@ -107,8 +116,9 @@ def test_a_client_that_leaves_frees_its_worker(tmp_path):
     try:
         warm(s)
         before = set(s.server.pool.pids())
+        used = {pid: cpu_s(pid) for pid in before}
         sock = raw_post(s.server.port, "/api/validate", {"text": many_waits()})
-        time.sleep(2.0)  # the job is in a worker by now
+        assert wait_until(lambda: any(cpu_s(p) > used[p] + 1.0 for p in before), 60), "no worker took the job"
         assert all(_alive(p) for p in before)
         sock.close()
         assert wait_until(lambda: not all(_alive(p) for p in before), 10), "the worker still checks for nobody"
