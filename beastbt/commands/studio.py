@@ -1,9 +1,10 @@
 """``beastbt studio [FOLDER]``: serve the mission studio for the missions, worlds and robots under FOLDER.
 
-It prints the page's address and serves until Ctrl-C. It binds loopback
-(127.0.0.1:8070) unless ``--listen`` says otherwise; off loopback (or with
-``--token always``) the page needs the token printed in its address, as the
-operator console does. Exit status: 0 after Ctrl-C, 2 for a bad option or
+It prints the page's address and serves until Ctrl-C or SIGTERM (it ends
+within 2 s of either, its checks, tries and their temporary folders with it).
+It binds loopback (127.0.0.1:8070) unless ``--listen`` says otherwise; off
+loopback (or with ``--token always``) the page needs the token printed in its
+address, as the operator console does. Exit status: 0 after Ctrl-C, 2 for a bad option or
 folder (nothing served).
 """
 

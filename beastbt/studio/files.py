@@ -2,13 +2,17 @@
 
 Every path is relative to the folder and must stay inside it: an absolute
 path, a ``..`` part, or a symlink that leads out is refused
-(:class:`FileRefused`, a 4xx). A file's version is the SHA-256 of its bytes,
-so a save can tell whether the file changed on disk since it was read; a save
-keeps the previous content beside the file as ``FILE.bak``.
+(:class:`FileRefused`, a 4xx); so is a name longer than the disk takes, and a
+save into a hidden file or folder (``.git/...``). A file's version is the
+SHA-256 of its bytes, so a save can tell whether the file changed on disk since
+it was read; a save keeps the previous content beside the file as ``FILE.bak``.
+A save the disk refuses is a 507 when the disk is full, a 403 when it may not be
+written, never a 500.
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
 import tempfile
@@ -28,12 +32,18 @@ MAX_FILES = 2000
 """At most this many files are listed: a FOLDER of a whole disk must not stall the page."""
 MAX_BYTES = 2_000_000
 """A file the studio opens or saves is at most this big (bytes): missions are a few kB."""
+MAX_NAME_BYTES = 255
+"""The longest name of one file or folder (bytes of UTF-8): what Linux's file systems take (NAME_MAX)."""
+MAX_PATH_BYTES = 1024
+"""The longest relative path the studio takes (bytes of UTF-8): deeper than any folder of missions."""
+FULL_DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+"""An OS error that means the disk (or the user's quota) is full: answered 507."""
 KINDS = {"mission": "mission", "steps": "mission", "world": "world", "robot": "robot"}
 """First key of a YAML mapping -> the kind of file (as ``beastbt validate`` tells them apart)."""
 
 
 class FileRefused(Exception):
-    """A request the folder cannot serve: ``status`` (400, 403, 404, 409, 413, 415) and a message."""
+    """A request the folder cannot serve: ``status`` (400, 403, 404, 409, 413, 415, 507) and a message."""
 
     def __init__(self, status: int, message: str, disk_text: Optional[str] = None, exists: bool = True) -> None:
         super().__init__(message)
@@ -85,6 +95,13 @@ class StudioFolder:
         if any(part == ".." for part in pure.parts):
             raise FileRefused(403, f"'{rel[:80]}' leads out of the studio's folder ('..'): only files under it are "
                                    f"served")
+        longest = max(pure.parts, key=lambda part: len(part.encode("utf-8")), default="")
+        if len(longest.encode("utf-8")) > MAX_NAME_BYTES:
+            raise FileRefused(400, f"'{longest[:40]}...' is a name of {len(longest.encode('utf-8'))} bytes: a file or "
+                                   f"folder name is at most {MAX_NAME_BYTES}; choose a shorter one")
+        if len(rel.encode("utf-8")) > MAX_PATH_BYTES:
+            raise FileRefused(400, f"'{rel[:40]}...' is a path of {len(rel.encode('utf-8'))} bytes: the studio takes "
+                                   f"paths of at most {MAX_PATH_BYTES}; use fewer or shorter folders")
         target = self.root.joinpath(*pure.parts)
         real = Path(os.path.realpath(target))
         if not _inside(real, self.root):
@@ -146,10 +163,20 @@ class StudioFolder:
         if not rel.lower().endswith(TEXT_SUFFIXES + OTHER_SUFFIXES):
             raise FileRefused(400, f"'{rel[:80]}': the studio saves YAML files ({', '.join(TEXT_SUFFIXES)}) and "
                                    f"geo files ({', '.join(OTHER_SUFFIXES)}) only")
+        if any(part.startswith(".") for part in PurePosixPath(rel).parts):
+            # hidden files and folders are not listed: .git/config and the like are not the studio's to write
+            raise FileRefused(403, f"'{rel[:80]}' is hidden (a name that starts with '.'): the studio does not save "
+                                   f"into hidden files or folders; choose a name without a leading '.'")
         data = text.encode("utf-8")
         if len(data) > MAX_BYTES:
             raise FileRefused(413, f"the text is over {MAX_BYTES} bytes: a mission is a few kB")
         real = self.resolve(rel, must_exist=False)
+        try:
+            return self._write(real, rel, data, version)
+        except OSError as exc:
+            raise refusal_of(exc, f"'{rel[:80]}' was not saved") from None
+
+    def _write(self, real: Path, rel: str, data: bytes, version: Optional[str]) -> str:
         with self._lock:
             exists = real.exists()
             if exists and not real.is_file():
@@ -173,6 +200,18 @@ class StudioFolder:
                 _atomic_write(real.with_name(real.name + ".bak"), disk)
             _atomic_write(real, data)
         return version_of(data)
+
+
+def refusal_of(exc: OSError, what: str) -> FileRefused:
+    """The answer to an OS error while writing: 507 for a full disk, 400 for a name too long, 403 otherwise (a
+    read-only disk, no permission), each saying what happened and what to do."""
+    from beastbt.core.errors import plain_reason
+    if exc.errno in FULL_DISK_ERRNOS:
+        return FileRefused(507, f"{what}: the disk is full; free some space and try again (the text is still in "
+                                f"the editor)")
+    if exc.errno == errno.ENAMETOOLONG:
+        return FileRefused(400, f"{what}: the name is too long for the disk; choose a shorter one")
+    return FileRefused(403, f"{what}: {plain_reason(exc)}")
 
 
 def _inside(path: Path, root: Path) -> bool:
@@ -215,4 +254,4 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise
 
 
-__all__ = ["FileRefused", "StudioFolder", "kind_of", "version_of"]
+__all__ = ["FileRefused", "StudioFolder", "kind_of", "refusal_of", "version_of"]

@@ -4,8 +4,11 @@ Every request passes the guard the operator console uses
 (:class:`beastbt.live.web_guard.WebGuard`: Host, token off loopback, Origin,
 JSON-only for anything that acts). Every answer of ``/api/`` is JSON; an
 error is ``{error}`` with a 4xx, never a traceback. The work that takes CPU
-(validating, compiling) runs in a worker thread so that the page's other
-requests are not held up.
+(validating, compiling, drawing, editing) runs in warm worker processes
+(:mod:`beastbt.studio.work_pool`), killed when it takes too long, runs out of
+memory or its client leaves: a text too large to check is a problem at its line
+1, not a studio that hangs. Reading the folder and starting tries run on
+daemon threads, so that SIGTERM ends the studio within 2 s whatever it does.
 """
 
 from __future__ import annotations
@@ -17,7 +20,6 @@ import os
 import signal
 import socket
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Awaitable, Callable, Optional
 
@@ -28,11 +30,19 @@ from beastbt.live.endpoint import SECURITY_HEADERS
 from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.web_guard import GuardWords, WebGuard
 from beastbt.studio.files import FileRefused, StudioFolder
+from beastbt.studio.work_pool import WORK_TIMEOUT_S, WORKER_MEMORY_BYTES, WorkPool, WorkRefused
 
 DEFAULT_PORT = 8070
 """``beastbt studio`` listens on 127.0.0.1:8070 unless ``--listen`` says otherwise."""
 MAX_BODY_BYTES = 2_500_000
 """A request's body is at most this many bytes (a file's text, JSON-quoted)."""
+IO_THREADS = 4
+"""At most this many folder listings, try starts and reports at once (each on a daemon thread)."""
+SHUTDOWN_S = 0.5
+"""When the studio ends, how long the requests still being answered get (s)."""
+WORK_VERBS = {"validate": ("check", "checking"), "tree": ("compile", "compiling"), "map": ("draw", "drawing"),
+              "edit": ("edit", "editing")}
+"""What each worker job does, for the too-large answer."""
 TOKEN_COOKIE = "beastbt_studio_token"
 PAGE_DIR = Path(__file__).parent / "page"
 """The built page (shipped in the package; built with npm, see docs/studio.md)."""
@@ -59,7 +69,8 @@ class StudioServer:
     """The studio on ``host:port`` for ``folder``: :meth:`start` serves in a thread, :meth:`serve` in this one."""
 
     def __init__(self, folder: str | os.PathLike, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 token: Optional[str] = None, require_token: Optional[bool] = None) -> None:
+                 token: Optional[str] = None, require_token: Optional[bool] = None,
+                 work_timeout_s: float = WORK_TIMEOUT_S, work_memory_bytes: int = WORKER_MEMORY_BYTES) -> None:
         self.folder = StudioFolder(Path(folder))
         self.host = host
         self.requested_port = port
@@ -67,7 +78,8 @@ class StudioServer:
         self.guard = WebGuard(host, token, require_token, cookie=TOKEN_COOKIE,
                               words=GuardWords("studio", "--token always", "the studio started", "a request that "
                                                                                                   "acts"))
-        self.workers = ThreadPoolExecutor(max_workers=2, thread_name_prefix="beastbt-studio")
+        self.pool = WorkPool(self.folder.root, timeout_s=work_timeout_s, memory_bytes=work_memory_bytes)
+        self._io_slots: Optional[asyncio.Semaphore] = None
         from beastbt.studio.trial import Trials
         self.trials = Trials(self.folder)
         self._loop: Optional[asyncio.AbstractEventLoop] = None
@@ -106,6 +118,7 @@ class StudioServer:
         return app
 
     async def _cleanup(self, app: web.Application) -> None:
+        self.pool.close()
         self.trials.stop_all()
 
     def start(self) -> "StudioServer":
@@ -117,19 +130,12 @@ class StudioServer:
         self._thread, self._loop = start_loop_thread(self._bind, "beastbt-studio", after=clean_up)
         return self
 
-    def _warm_up(self) -> None:
-        """Check a template once, in a worker, so that the first check the page asks for is as quick as the next
-        (the first imports the schemas, the compiler and the parts: about a second)."""
-        from beastbt.studio.analysis import tree_of
-        from beastbt.studio.templates import template_text
-        try:
-            tree_of(self.folder, template_text(self.folder, "gps_route", {}), None, None)
-        except Exception:  # noqa: BLE001 - a warm-up only; the real request says what is wrong
-            pass
-
     async def _bind(self) -> None:
-        self.workers.submit(self._warm_up)
-        self._runner = web.AppRunner(self.app(), access_log=None, handle_signals=False)
+        # the workers warm up (schemas, compiler, parts: about a second) while the page loads
+        self.pool.start(asyncio.get_running_loop())
+        self._io_slots = asyncio.Semaphore(IO_THREADS)
+        self._runner = web.AppRunner(self.app(), access_log=None, handle_signals=False,
+                                     shutdown_timeout=SHUTDOWN_S)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.requested_port, reuse_address=True)
         await site.start()
@@ -138,14 +144,14 @@ class StudioServer:
             self.port = sockets[0].getsockname()[1]
 
     def close(self, timeout_s: float = 5.0) -> None:
-        """Stop the runs it started and stop serving."""
+        """Stop the runs it started, its workers, and serving."""
+        self.pool.close()
         self.trials.stop_all()
         loop = self._loop
         if loop is not None and loop.is_running():
             loop.call_soon_threadsafe(loop.stop)
             if self._thread is not None:
                 self._thread.join(timeout_s)
-        self.workers.shutdown(wait=False, cancel_futures=True)
 
     def serve_forever(self, on_ready: Callable[[], None] = lambda: None) -> None:
         """Serve in this thread until Ctrl-C or SIGTERM (the command's way); the tries still running are stopped."""
@@ -161,6 +167,10 @@ class StudioServer:
             try:
                 await ending.wait()
             finally:
+                # the workers first: a request waiting on one is answered at once, and nothing computes on;
+                # the tries stop meanwhile
+                self.pool.close()
+                self.trials.begin_stop()
                 if self._runner is not None:
                     await self._runner.cleanup()
         try:
@@ -168,8 +178,8 @@ class StudioServer:
         except KeyboardInterrupt:
             pass
         finally:
+            self.pool.close()
             self.trials.stop_all()
-            self.workers.shutdown(wait=False, cancel_futures=True)
 
     @property
     def url(self) -> str:
@@ -276,7 +286,7 @@ class StudioServer:
 
     # -- files ------------------------------------------------------------------------
     async def _list_files(self, request: web.Request) -> web.Response:
-        files = await self._work(self.folder.list)
+        files = await self._in_thread(self.folder.list)
         return web.json_response({"folder": str(self.folder.root), "files": files})
 
     async def _get_file(self, request: web.Request) -> web.Response:
@@ -294,7 +304,7 @@ class StudioServer:
 
     async def _list_robots(self, request: web.Request) -> web.Response:
         from beastbt.studio.analysis import robot_names
-        return web.json_response({"robots": robot_names(self.folder)})
+        return web.json_response({"robots": await self._in_thread(robot_names, self.folder)})  # walks the folder
 
     # -- templates ------------------------------------------------------------------------
     async def _list_templates(self, request: web.Request) -> web.Response:
@@ -310,39 +320,96 @@ class StudioServer:
             raise BadRequest(404, f"no template '{name[:40]}'{did_you_mean(name, TEMPLATES)}; the templates are: "
                                   f"{', '.join(TEMPLATES)}")
         body = await self._body(request)
-        return web.json_response({"name": name, "text": template_text(self.folder, name, body)})
+        text = await self._in_thread(template_text, self.folder, name, body)  # it looks for the folder's worlds
+        return web.json_response({"name": name, "text": text})
 
     # -- analysis: validate, tree, map, edit -------------------------------------------------
-    async def _work(self, fn: Callable[..., Any], *args: Any) -> Any:
-        return await asyncio.get_running_loop().run_in_executor(self.workers, fn, *args)
+    async def _in_thread(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)`` on a daemon thread of its own (at most :data:`IO_THREADS` at once): the loop answers other
+        requests meanwhile, and a thread still busy when the studio ends does not keep it alive."""
+        assert self._io_slots is not None
+        loop = asyncio.get_running_loop()
+        done: asyncio.Future = loop.create_future()
+
+        def settle(ok: bool, value: Any) -> None:
+            if not done.done():
+                done.set_result(value) if ok else done.set_exception(value)
+
+        def run() -> None:
+            try:
+                result, ok = fn(*args), True
+            except BaseException as exc:  # noqa: BLE001 - raised again in the request's task
+                result, ok = exc, False
+            try:
+                loop.call_soon_threadsafe(settle, ok, result)
+            except RuntimeError:  # the loop has closed: the studio ended meanwhile
+                pass
+
+        async with self._io_slots:
+            threading.Thread(target=run, name="beastbt-studio-io", daemon=True).start()
+            return await done
 
     def _json_work(self, name: str) -> Callable[[web.Request], Awaitable[web.Response]]:
         async def handle(request: web.Request) -> web.Response:
-            from beastbt.studio import analysis
             body = await self._body(request)
-            text = self._text(body)
-            path = self._optional_str(body, "path")
+            job: dict[str, Any] = {"op": name, "text": self._text(body), "path": self._optional_str(body, "path")}
             if name == "edit":
-                from beastbt.studio.edits import EditRefused, apply_edit
                 edit = body.get("edit")
                 if not isinstance(edit, dict):
                     raise BadRequest(400, "give the edit as 'edit': {op: add_place|move_place|add_fence|add_route, "
                                           "...}")
-                try:
-                    return web.json_response(await self._work(apply_edit, text, edit))
-                except EditRefused as exc:
-                    raise BadRequest(400, str(exc), **exc.where()) from None
-            robot = self._optional_str(body, "robot")
-            fn = {"validate": analysis.validate_text, "tree": analysis.tree_of, "map": analysis.map_of}[name]
-            return web.json_response(await self._work(fn, self.folder, text, path, robot))
+                job["edit"] = edit
+            else:
+                job["robot"] = self._optional_str(body, "robot")
+
+            def gone() -> bool:
+                return request.transport is None or request.transport.is_closing()
+
+            try:
+                message = await self.pool.run(job, gone)
+            except WorkRefused as exc:
+                return self._work_refused(name, exc)
+            if "refused" in message:
+                raise BadRequest(int(message.pop("refused")), str(message.pop("error")), **message)
+            if "failed" in message:
+                return WebGuard.error(500, f"the studio could not answer: {message['failed']}")
+            return web.json_response(message["answer"])
         return handle
+
+    def _work_refused(self, name: str, exc: WorkRefused) -> web.Response:
+        """The answer to a job a worker did not finish: a too-large text is a problem at line 1 (a 413 for an
+        edit), a busy studio a 503."""
+        if exc.reason == "busy":
+            return web.json_response({"error": "the studio is busy with other checks: try again in a moment"},
+                                     status=503, headers={"Retry-After": "1"})
+        if exc.reason == "closing":
+            return WebGuard.error(503, "the studio is ending")
+        if exc.reason == "broken":
+            return WebGuard.error(500, f"the studio's workers do not start ({exc.detail}): see the studio's terminal")
+        if exc.reason == "gone":
+            return WebGuard.error(400, "the client went away before the answer")  # nobody reads this one
+        verb, doing = WORK_VERBS[name]
+        why = (f"{doing} it took more than {self.pool.timeout_s:g} s" if exc.reason == "time"
+               else f"{doing} it needed more than the {self.pool.memory_bytes >> 20} MB the studio gives it")
+        message = f"this text is too large to {verb} here: {why}"
+        hint = ("check it with 'beastbt validate FILE' in a terminal, which has no such limit; a mission this large "
+                "is better split: places in a file of their own (places: {file: ...}), repeated steps in tasks")
+        if name == "edit":
+            return web.json_response({"error": f"{message}; {hint}", "line": 1, "column": 1}, status=413)
+        problem = {"severity": "error", "line": 1, "column": 1, "message": message, "hint": hint}
+        if name == "tree":
+            return web.json_response({"nodes": [], "edges": [], "root": None, "problems": [problem]})
+        if name == "map":
+            return web.json_response({"frame": "gps", "datum": None, "places": [], "fences": [], "routes": [],
+                                      "problems": [problem]})
+        return web.json_response({"problems": [problem]})
 
     # -- try it ------------------------------------------------------------------------
     async def _try(self, request: web.Request) -> web.Response:
         body = await self._body(request)
         text = self._text(body)
         path = self._optional_str(body, "path")
-        return web.json_response(await self._work(self.trials.start, text, path, body))
+        return web.json_response(await self._in_thread(self.trials.start, text, path, body))
 
     async def _try_state(self, request: web.Request) -> web.Response:
         return web.json_response(self.trials.state(request.match_info["run_id"]))
@@ -353,14 +420,14 @@ class StudioServer:
     async def _try_report(self, request: web.Request) -> web.StreamResponse:
         if not request.path.endswith("/"):  # the report's plots are relative to it: serve it as a folder
             raise web.HTTPFound(request.path + "/" + (f"?{request.query_string}" if request.query_string else ""))
-        report = await self._work(self.trials.report_file, request.match_info["run_id"])
+        report = await self._in_thread(self.trials.report_file, request.match_info["run_id"])
         return web.FileResponse(report, headers={"Content-Type": "text/html", "Cache-Control": "no-store"})
 
     async def _try_report_asset(self, request: web.Request) -> web.StreamResponse:
         name = request.match_info["name"]
         if name == "":
             return await self._try_report(request)
-        target = await self._work(self.trials.report_asset, request.match_info["run_id"], name)
+        target = await self._in_thread(self.trials.report_asset, request.match_info["run_id"], name)
         ctype = mimetypes.guess_type(target.name)[0] or "application/octet-stream"
         return web.FileResponse(target, headers={"Content-Type": ctype, "Cache-Control": "no-store"})
 

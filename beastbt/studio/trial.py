@@ -5,7 +5,10 @@ The run is the command a user types (``python -m beastbt run MISSION
 ``beastbt run`` would do. The text runs as it is in the editor, saved or not:
 from a hidden file beside the one it will be saved as (so ``world:`` and geo
 files resolve from the same folder), removed when the run ends. The run's
-folder, summary and printed output go to a temporary folder of the studio.
+folder, summary and printed output go to a temporary folder of the studio,
+removed when the studio ends. At most :data:`MAX_RUNS` tries run at once: a
+try takes one of as many slots before its process starts and gives it back
+when its process has ended, so concurrent requests cannot start more.
 The console's own API is passed through (``/api/try/<id>/console/...``): the
 console refuses to be framed by another page.
 """
@@ -26,10 +29,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-from beastbt.studio.files import FileRefused, StudioFolder
+from beastbt.studio.files import FileRefused, StudioFolder, refusal_of
 
 MAX_RUNS = 4
 """At most this many tries at once (each is a simulator process); older ended ones are forgotten first."""
+STOP_WAIT_S = 1.0
+"""When the studio ends, how long its tries have to stop after SIGTERM before they are killed (s): the studio
+itself ends within 2 s of its own SIGTERM."""
 KEPT_RUNS = 20
 """How many ended tries are remembered (their summary and report)."""
 OUTPUT_LINES = 60
@@ -90,6 +96,11 @@ class Trials:
         self.folder = folder
         self.runs: dict[str, Trial] = {}
         self._lock = threading.Lock()
+        self._slots = threading.BoundedSemaphore(MAX_RUNS)
+        """One per try process: taken before it starts, given back by its reader when it has ended."""
+        self._closing = False
+        self._reports: set[subprocess.Popen] = set()
+        """The ``beastbt report`` processes making a try's report now."""
 
     def start(self, text: str, path: Optional[str], body: dict) -> dict:
         """Start a try of ``text`` (saved or not at ``path``): ``{run_id, console_url}``; raises FileRefused."""
@@ -108,18 +119,32 @@ class Trials:
         seed = body.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise FileRefused(400, "'seed' is a whole number, 0 or more")
-        with self._lock:
-            running = [t for t in self.runs.values() if t.process.poll() is None]
-            if len(running) >= MAX_RUNS:
-                raise FileRefused(409, f"{len(running)} tries are running already: stop one first "
-                                       f"(POST /api/try/RUN_ID/stop)")
-            self._forget_old()
         target = self.folder.resolve(path, must_exist=False) if path else self.folder.root / "untitled.yaml"
+        if self._closing:
+            raise FileRefused(503, "the studio is ending: no new try starts")
+        if not self._slots.acquire(blocking=False):
+            # the slot is taken atomically: of many requests at once, only MAX_RUNS get one
+            raise FileRefused(409, f"{MAX_RUNS} tries are running already (at most {MAX_RUNS} at once): stop one "
+                                   f"first (POST /api/try/RUN_ID/stop)")
+        try:
+            return self._start(text, target, robot, speed, str(max_time), seed)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def _start(self, text: str, target: Path, robot: str, speed: str, max_time: str, seed: int) -> dict:
+        """Start the try's process, with a slot already taken (the reader gives it back when the process ends)."""
+        with self._lock:
+            self._forget_old()
         here = target.parent if target.parent.is_dir() else self.folder.root
         run_id = secrets.token_hex(6)
         mission_file = here / f".{target.stem}.try-{run_id}.yaml"
-        mission_file.write_text(text, encoding="utf-8")
-        run_folder = Path(tempfile.mkdtemp(prefix=f"beastbt-studio-try-{run_id}-"))
+        try:
+            mission_file.write_text(text, encoding="utf-8")
+            run_folder = Path(tempfile.mkdtemp(prefix=f"beastbt-studio-try-{run_id}-"))
+        except OSError as exc:
+            mission_file.unlink(missing_ok=True)
+            raise refusal_of(exc, "the try did not start") from None
         port = free_loopback_port()
         command = [sys.executable, "-m", "beastbt", "run", str(mission_file), "--robot", robot,
                    "--speed", speed, "--max-time", str(max_time), "--seed", str(seed),
@@ -133,13 +158,16 @@ class Trials:
                                        stderr=subprocess.STDOUT, text=True, errors="replace", env=env)
         except OSError:
             mission_file.unlink(missing_ok=True)
+            shutil.rmtree(run_folder, ignore_errors=True)
             raise
         trial = Trial(run_id, process, run_folder, mission_file, port)
+        with self._lock:
+            self.runs[run_id] = trial
         trial.reader = threading.Thread(target=self._read_output, args=(trial,), name=f"beastbt-try-{run_id}",
                                         daemon=True)
         trial.reader.start()
-        with self._lock:
-            self.runs[run_id] = trial
+        if self._closing:  # the studio began to end while this one started: it must not outlive the studio
+            process.kill()
         return {"run_id": run_id, "console_url": f"http://127.0.0.1:{port}/", "state": "running"}
 
     def _read_output(self, trial: Trial) -> None:
@@ -149,6 +177,7 @@ class Trials:
         for line in trial.process.stdout:
             trial.output.append(line.rstrip("\n").replace(name, "(the text in the studio)"))
         trial.process.wait()
+        self._slots.release()
         trial.mission_file.unlink(missing_ok=True)
 
     def _forget_old(self) -> None:
@@ -197,17 +226,36 @@ class Trials:
                 trial.process.wait(5.0)
         return self.state(run_id)
 
-    def stop_all(self) -> None:
-        """Stop every try still running (the studio is closing)."""
+    def begin_stop(self) -> None:
+        """Refuse new tries and send SIGTERM to those running, without waiting (the studio is ending: they stop
+        while it closes its server)."""
+        self._closing = True
         for trial in list(self.runs.values()):
             if trial.process.poll() is None:
                 trial.process.terminate()
-        for trial in list(self.runs.values()):
+        with self._lock:
+            reports = list(self._reports)
+        for making in reports:
+            making.kill()  # a report of a try whose folder is about to go
+
+    def stop_all(self, wait_s: float = STOP_WAIT_S) -> None:
+        """Stop every try still running and remove every try's temporary folder (the studio is ending): SIGTERM,
+        then SIGKILL for those still running after ``wait_s`` seconds in all."""
+        import time
+        trials = list(self.runs.values())
+        self.begin_stop()
+        deadline = time.monotonic() + wait_s
+        for trial in trials:
             try:
-                trial.process.wait(5.0)
+                trial.process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 trial.process.kill()
+                try:
+                    trial.process.wait(1.0)
+                except subprocess.TimeoutExpired:
+                    pass
             trial.mission_file.unlink(missing_ok=True)
+            shutil.rmtree(trial.folder, ignore_errors=True)
 
     @staticmethod
     def _run_folder(trial: Trial) -> Optional[Path]:
@@ -226,13 +274,25 @@ class Trials:
         if run_folder is None:
             raise FileRefused(404, "this try wrote no run folder (it did not start: see its output)")
         out = trial.folder / "report"
-        done = subprocess.run([sys.executable, "-m", "beastbt", "report", str(run_folder), "--out", str(out)],
-                              cwd=trial.folder, stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                              timeout=120)
+        if self._closing:
+            raise FileRefused(503, "the studio is ending: no report is made")
+        making = subprocess.Popen([sys.executable, "-m", "beastbt", "report", str(run_folder), "--out", str(out)],
+                                  cwd=trial.folder, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
+        with self._lock:
+            self._reports.add(making)  # the studio ending kills it with the tries
+        try:
+            stdout, stderr = making.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            making.kill()
+            stdout, stderr = making.communicate()
+        finally:
+            with self._lock:
+                self._reports.discard(making)
         html = out / "report.html"
-        if done.returncode != 0 or not html.is_file():
-            raise FileRefused(500 if done.returncode != 2 else 404,
-                              f"the report could not be made: {(done.stderr or done.stdout).strip()[-300:]}")
+        if making.returncode != 0 or not html.is_file():
+            raise FileRefused(500 if making.returncode != 2 else 404,
+                              f"the report could not be made: {(stderr or stdout).strip()[-300:]}")
         trial.report = html
         return html
 
