@@ -156,7 +156,20 @@ function actionsCell(row, r) {
   button(box, "E-stop", control(r.name, "estop"), {control: "estop", cls: "estop"});
 }
 
+let drawnKey = "";
+
+/** The table and the maps, drawn again only when something but the "seen" times changed (a button under a finger
+ * is not replaced twice a second); the "seen" cells are updated in place. */
 function render() {
+  const key = JSON.stringify(robots.map((r) => ({...r, last_seen_s: null})));
+  if (key === drawnKey) {
+    for (const r of robots) {
+      const seen = document.querySelector(`tr[data-robot="${CSS.escape(r.name)}"] td.seen`);
+      if (seen) seen.textContent = r.last_seen_s === null ? "-" : `${r.last_seen_s.toFixed(1)} s`;
+    }
+    return;
+  }
+  drawnKey = key;
   const body = $("robots").tBodies[0];
   body.textContent = "";
   for (const r of robots) {
@@ -171,7 +184,7 @@ function render() {
     const p = r.progress;
     cell(row, p ? `${p.done}/${p.total}` : "-");
     cell(row, r.battery ? `${r.battery.percent}% ${r.battery.volts} V` : "-");
-    cell(row, r.last_seen_s === null ? "-" : `${r.last_seen_s.toFixed(1)} s`);
+    cell(row, r.last_seen_s === null ? "-" : `${r.last_seen_s.toFixed(1)} s`, "seen");
     actionsCell(row, r);
     if (r.alive) {
       row.addEventListener("dragover", (e) => { e.preventDefault(); row.classList.add("drop"); });
@@ -293,6 +306,7 @@ async function poll() {
   setTimeout(poll, 500);
 }
 
+window.addEventListener("resize", () => { drawnKey = ""; render(); });  // the maps follow the page's width
 $("estop-all").addEventListener("click", () => post("/api/estop-all", "{}").then((a) => {
   if (a.ok) notice(`stop sent to every robot (${a.robots.length} on the fleet now)`, "ok");
 }));
