@@ -290,8 +290,9 @@ def test_on_a_phone_and_a_desktop_the_question_header_and_pad_stay_in_sight_and_
         assert asked["y"] >= bar["bottom"] - 0.5 and asked["bottom"] <= 844, (bar, asked)  # in sight, not under
         for button in ("#estop", "#estop-reset", "#pause", "#resume", "#abort"):
             assert text_lines(phone, button) == 1, button
-            assert box(phone, button)["height"] < 3 * 13, button  # one line of 13 px text and its padding
-            assert box(phone, button)["y"] == box(phone, "#estop")["y"], button  # all on one row
+            assert box(phone, button)["height"] >= 44, button  # a finger's target (test_console_touch_browser.py)
+            centre = box(phone, button)["y"] + box(phone, button)["height"] / 2
+            assert abs(centre - (box(phone, "#estop")["y"] + box(phone, "#estop")["height"] / 2)) <= 1, button
             assert box(phone, button)["x"] + box(phone, button)["width"] <= 390, button
         pad = box(phone, "#joystick")
         assert pad["y"] >= asked["bottom"] and pad["bottom"] <= 844, pad  # on the first screen, no scrolling

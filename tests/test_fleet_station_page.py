@@ -66,7 +66,7 @@ def test_the_station_page_lists_the_robots_stops_them_all_and_sends_a_dropped_mi
                 time.sleep(0.05)
             assert all(a.estop_latched for a in agents)
             # the table puts the e-stopped robots first, and says so
-            until(lambda: "e-stop" in (page.locator("tr[data-robot] .status").first.text_content() or ""))
+            until(lambda: "E-STOPPED" in (page.locator("tr[data-robot] .status").first.text_content() or ""))
             for agent in agents:
                 agent.estop_latched = False
             # a mission dropped on p-1's row goes to p-1's mission queryable, as YAML

@@ -367,11 +367,12 @@ export class StudioMap {
   /** The hint line under the tools: what to do in the current mode. */
   showHint(): void {
     this.ui.hint.textContent = {
-      none: "Drag a place to move it. Click a place or a fence to find it in the text.",
+      none: "Drag a place to move it; click one to find it in the text.",
       place: "Click on the map where the new place is.",
-      fence: "Click the corners of the area to keep out of, then press Finish.",
-      route: "Click the places in the order the robot visits them, then press Finish.",
+      fence: "Click the corners of the area to keep out of, then Finish.",
+      route: "Click the places in the order to visit them, then Finish.",
     }[this.mode];
+    this.ui.hint.title = this.ui.hint.textContent ?? "";
   }
 
   private updateFinish(): void {

@@ -1,5 +1,6 @@
 // The tree pane: the compiled behaviour tree (POST /api/tree) laid out by elkjs (layered, left to right: a
-// mission's tree is wide and shallow, so its steps stack down the pane and scroll like the text) and drawn as SVG.
+// mission's tree is wide and shallow, so its steps stack down the pane and scroll like the text) and drawn as SVG;
+// a tree too deep for the pane's width is drawn as an outline instead, so no part of it is cut off.
 // Clicking a node selects its step in the text.
 import ELK from "elkjs/lib/elk-api.js";
 
@@ -48,6 +49,53 @@ function svg<K extends keyof SVGElementTagNameMap>(tag: K, attrs: Record<string,
 
 let drawn = 0;
 
+interface Box { id: string; x?: number; y?: number; width?: number; height?: number }
+interface Section { startPoint: { x: number; y: number }; endPoint: { x: number; y: number };
+                    bendPoints?: Array<{ x: number; y: number }> }
+/** A laid-out tree (ELK's answer, or the outline's): node boxes and edge polylines, px. */
+interface Laid { width?: number; height?: number; children?: Box[]; edges?: Array<{ sections?: Section[] }>;
+                 outline?: boolean }
+
+/** Indent per level of the outline (px) and its row pitch (px). */
+const INDENT = 18;
+const ROW = 34;
+
+/** The tree as an outline no wider than `width` px: each node on its own row in depth-first order, indented by its
+ * depth, joined to its parent by an elbow from the parent's left side. */
+function outline(data: TreeData, boxes: Array<{ id: string; width: number; height: number }>, width: number): Laid {
+  const kids = new Map<string, string[]>();
+  const hasParent = new Set<string>();
+  for (const [a, b] of data.edges) {
+    const list = kids.get(String(a)) ?? [];
+    list.push(String(b));
+    kids.set(String(a), list);
+    hasParent.add(String(b));
+  }
+  const size = new Map(boxes.map((b) => [b.id, b]));
+  const placed = new Map<string, Box>();
+  const edges: Array<{ sections: Section[] }> = [];
+  let row = 0;
+  let right = 0;
+  const visit = (id: string, depth: number, parent: Box | null): void => {
+    if (placed.has(id)) return;  // a tree has none, but a shared node is drawn once
+    const x = depth * INDENT;
+    const w = Math.max(50, Math.min(size.get(id)?.width ?? 80, width - x));
+    const box = { id, x, y: row * ROW, width: w, height: 28 };
+    placed.set(id, box);
+    right = Math.max(right, x + w);
+    row += 1;
+    if (parent) {
+      const px = parent.x! + INDENT / 2;
+      edges.push({ sections: [{ startPoint: { x: px, y: parent.y! + 28 }, bendPoints: [{ x: px, y: box.y + 14 }],
+                                endPoint: { x: box.x, y: box.y + 14 } }] });
+    }
+    for (const k of kids.get(id) ?? []) visit(k, depth + 1, box);
+  };
+  for (const n of data.nodes) if (!hasParent.has(String(n.id))) visit(String(n.id), 0, null);
+  for (const n of data.nodes) visit(String(n.id), 0, null);  // anything a cycle left out
+  return { width: right, height: row * ROW - (ROW - 28), children: [...placed.values()], edges, outline: true };
+}
+
 /** Lay out and draw `data` into `host`; `select(node)` runs when a node is clicked. */
 export async function drawTree(host: HTMLElement, data: TreeData | null, select: (node: TreeNode) => void,
                                message?: string): Promise<void> {
@@ -79,13 +127,20 @@ export async function drawTree(host: HTMLElement, data: TreeData | null, select:
     edges: data.edges.map((e, i) => ({ id: `e${i}`, sources: [String(e[0])], targets: [String(e[1])] })),
   };
   elk ??= new ELK({ workerUrl: "elk-worker.js" });
-  const laid = await elk.layout(graph as any);
+  let laid: Laid = await elk.layout(graph as any) as Laid;
   if (ticket !== drawn) return;  // a newer tree came while this one was laid out
   const byId = new Map(data.nodes.map((n) => [String(n.id), n]));
+  // A deep tree is shrunk to the pane's width (down to 75 %: the labels stay readable); deeper still, it is drawn
+  // as an outline (one step a row, indented by depth), which fits a narrow pane (a 1024 px screen) whole.
+  const room = host.clientWidth - 16;  // inside the view's padding
+  let scale = Math.max(0.75, Math.min(1, room / ((laid.width ?? 0) + 20) || 1));
+  if (((laid.width ?? 0) + 20) * scale > room) {
+    laid = outline(data, graph.children, room - 20);
+    scale = 1;
+  }
+  host.dataset.layout = laid.outline ? "outline" : "layered";
   const W = (laid.width ?? 0) + 20;
   const H = (laid.height ?? 0) + 20;
-  // A deep tree is shrunk to the pane's width (down to 80 %: the labels stay readable); deeper still, it scrolls.
-  const scale = Math.max(0.75, Math.min(1, (host.clientWidth - 20) / W || 1));
   const root = svg("svg", { width: W * scale, height: H * scale, viewBox: `-10 -10 ${W} ${H}`, class: "tree-svg" });
   const edges = svg("g", { class: "edges" }, root);
   for (const e of laid.edges ?? []) {

@@ -107,9 +107,7 @@ function render(s) {
   $("question").hidden = !q;
   if (q) $("question-text").textContent = q.text;
   const pose = s.pose;
-  $("pose-text").textContent = pose ? `x ${pose.x.toFixed(2)} m  y ${pose.y.toFixed(2)} m  heading ${pose.heading_deg.toFixed(0)}°  ` +
-    `${s.speed_mps.toFixed(2)} m/s` + (s.gps ? `  GPS ${s.gps.sats ?? "?"} sats ±${s.gps.accuracy_m} m` : "  no GPS") +
-    (s.teleop ? "  TELEOP" : "") : "pose -";
+  showPose(s);
   if (pose) {
     const last = trail[trail.length - 1];
     if (!last || Math.hypot(pose.x - last[0], pose.y - last[1]) > 0.05) trail.push([pose.x, pose.y]);
@@ -119,6 +117,42 @@ function render(s) {
   renderEvents(s.events || []);
   mapDirty = true;
   if (over) endVideo(s);
+}
+
+// Which way the robot faces, in the words of the frame the map is drawn in. On a run with a position on Earth
+// (a GPS fix) it is the compass heading, clockwise from north ("heading 90° E"); on a map or odometry run there is
+// no north, so it is the yaw, counter-clockwise from the map's +x axis ("yaw 0° (+x)"), as the mission's map
+// places and the plan are written. The word carries a tooltip saying which.
+const COMPASS = ["N", "NE", "E", "SE", "S", "SW", "W", "NW"];
+const AXES = ["+x", "+x+y", "+y", "−x+y", "−x", "−x−y", "−y", "+x−y"];
+function onEarth(s) {  // a GPS fix, and no saved map whose frame the places are written in
+  return !!(s.gps && s.gps.fix && !(mapLayers && mapLayers.saved_map));
+}
+function facing(s) {
+  const p = s.pose;
+  if (onEarth(s)) {
+    const h = ((p.heading_deg % 360) + 360) % 360;
+    return {word: "heading", text: `${h.toFixed(0)}° ${COMPASS[Math.round(h / 45) % 8]}`,
+            title: "heading: compass degrees clockwise from north (0° N, 90° E)"};
+  }
+  let y = ((p.yaw_deg % 360) + 360) % 360;
+  const axis = AXES[Math.round(y / 45) % 8];
+  if (y > 180) y -= 360;
+  return {word: "yaw", text: `${y.toFixed(0)}° (${axis})`,
+          title: "yaw: degrees counter-clockwise from the map's +x axis (0° faces +x, 90° faces +y); no compass here"};
+}
+function showPose(s) {
+  const el = $("pose-text"), pose = s.pose;
+  if (!pose) { el.textContent = "pose -"; return; }
+  const f = facing(s);
+  const word = document.createElement("abbr");
+  word.title = f.title;
+  word.dataset.testid = "facing";
+  word.textContent = f.word;
+  el.replaceChildren(`x ${pose.x.toFixed(2)} m  y ${pose.y.toFixed(2)} m  `, word, ` ${f.text}  ` +
+    `${s.speed_mps.toFixed(2)} m/s` + (s.gps ? `  GPS ${s.gps.sats ?? "?"} sats ±${s.gps.accuracy_m} m` : "  no GPS") +
+    (s.teleop ? "  TELEOP" : ""));
+  el.title = f.title;
 }
 
 let eventsKey = "";
@@ -339,7 +373,8 @@ function drawMap() {
   // scale bar and north
   g.fillStyle = "#9aa0a6"; g.font = "12px sans-serif";
   const bar = step * scale; g.fillRect(10, H - 14, bar, 3); g.fillText(step + " m", 14 + bar, H - 9);
-  g.fillText("N ↑", W - 32, 16);
+  const geo = state && onEarth(state);  // up is north on Earth; on a map it is the map's +y
+  g.fillText(geo ? "N ↑" : "+y ↑", W - 36, 16);
   $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
 }
 
