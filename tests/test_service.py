@@ -70,7 +70,7 @@ class NotifySocket:
 
 @NEEDS_SYSTEMD
 @pytest.mark.parametrize("args, runs", [
-    (("--fleet", "tcp/127.0.0.1:7447", "--robot", "ugv_beast"), "serve"),
+    (("--fleet", "tls/station.local:7447", "--robot", "ugv_beast"), "serve"),
     (("--mission", str(PATROL), "--sim"), "run"),
 ])
 def test_the_unit_passes_systemd_analyze_verify(tmp_path, args, runs):
