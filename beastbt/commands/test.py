@@ -1,0 +1,194 @@
+"""``beastbt test [PATH ...]``: run every mission test file (``*.test.yaml``) on its seeds, in parallel, and say how each did.
+
+Every file x seed is one run at full speed on the simulator, recorded under
+``runs/`` unless ``--no-record``; the runs are shared among ``-j N``
+processes (default: the machine's cores). One line per test file with its
+seeds' results and the first failure in words, then a total.
+
+Exit status: 0 every run passed, 1 some run failed, 2 a test file is invalid
+(its problems as ``FILE:LINE:COLUMN: error: ...`` on standard error) or no
+test file was found. ``--junit FILE`` writes JUnit XML for CI: one test case
+per file x seed, a failing one with its failures as the message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+
+
+def _jobs(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number of processes") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"'{text}': give 1 or more processes")
+    return value
+
+
+def _seeds(text: str) -> int:
+    value = _jobs(text.replace("processes", ""))
+    if value > 1000:
+        raise argparse.ArgumentTypeError(f"'{text}': at most 1000 seeds")
+    return value
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``beastbt test``."""
+    p.add_argument("paths", nargs="*", default=["."], metavar="PATH",
+                   help="test files, or folders to search for *.test.yaml (default: the current folder)")
+    p.add_argument("-j", "--jobs", type=_jobs, default=None, metavar="N",
+                   help="runs at once, each in a process of its own (default: the number of cores)")
+    p.add_argument("--seeds", type=_seeds, metavar="N", help="run seeds 1..N of every test instead of its seeds:")
+    p.add_argument("--junit", metavar="FILE", help="also write the results as JUnit XML to FILE (for CI)")
+    p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
+    p.add_argument("--no-record", action="store_true", help="do not write run folders")
+
+
+def default_jobs() -> int:
+    """The number of cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+def _run_job(job: tuple[str, Optional[int], int, bool, str]) -> Any:
+    """One file x seed in a worker: the test loaded again there (cheap), run, its result returned."""
+    from beastbt.testing.runs import run_seed
+    from beastbt.testing.spec import load_test
+    path, seeds, seed, record, runs_dir = job
+    return run_seed(load_test(path, seeds), seed, record=record, runs_dir=runs_dir)
+
+
+def run_all(jobs: list[tuple[str, Optional[int], int, bool, str]], processes: int, done: Any) -> list[Any]:
+    """Run every job (in ``processes`` worker processes when more than one), calling ``done(index, result)`` as
+    each finishes; the results in the jobs' order."""
+    results: list[Any] = [None] * len(jobs)
+    if processes <= 1 or len(jobs) <= 1:
+        for i, job in enumerate(jobs):
+            results[i] = _run_job(job)
+            done(i, results[i])
+        return results
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    # fork where there is one: the workers start with beastbt already imported, in milliseconds
+    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else None
+    with ProcessPoolExecutor(max_workers=min(processes, len(jobs)),
+                             mp_context=multiprocessing.get_context(method)) as pool:
+        futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
+        for future in as_completed(futures):
+            i = futures[future]
+            results[i] = future.result()
+            done(i, results[i])
+    return results
+
+
+def test_line(label: str, name: str, results: list[Any]) -> str:
+    """One test file's line: PASS/FAIL, the file and its name, each seed's result, the first failure."""
+    passed = sum(r.passed for r in results)
+    seeds = ", ".join(f"{r.seed} {'ok' if r.passed else 'FAIL'}" for r in results)
+    line = f"{'PASS' if passed == len(results) else 'FAIL'}  {label}: {name} ({passed}/{len(results)} seeds: {seeds})"
+    first = next((r for r in results if not r.passed), None)
+    if first is not None:
+        line += f"\n      {first.first_failure()}"
+    return line
+
+
+def write_junit(path: str, tests: list[tuple[Any, list[Any]]], elapsed_s: float) -> None:
+    """JUnit XML: one testsuite per test file, one testcase per seed, a failing one with its failures."""
+    import xml.etree.ElementTree as ET
+    total = sum(len(rs) for _, rs in tests)
+    failed = sum(1 for _, rs in tests for r in rs if r.failures and r.error is None)
+    errors = sum(1 for _, rs in tests for r in rs if r.error is not None)
+    root = ET.Element("testsuites", name="beastbt test", tests=str(total), failures=str(failed), errors=str(errors),
+                      time=f"{elapsed_s:.3f}")
+    for test, results in tests:
+        suite = ET.SubElement(root, "testsuite", name=str(test.file), tests=str(len(results)),
+                              failures=str(sum(1 for r in results if r.failures and r.error is None)),
+                              errors=str(sum(1 for r in results if r.error is not None)),
+                              time=f"{sum(r.wall_s for r in results):.3f}")
+        classname = str(test.file).removesuffix(".yaml").replace(os.sep, ".").strip(".")
+        for r in results:
+            case = ET.SubElement(suite, "testcase", classname=classname, name=f"{test.name} [seed {r.seed}]",
+                                 time=f"{r.wall_s:.3f}")
+            if r.error is not None:
+                ET.SubElement(case, "error", message=r.first_failure(), type="run").text = r.message()
+            elif r.failures:
+                ET.SubElement(case, "failure", message=r.first_failure(), type="expectation").text = r.message()
+            if r.folder:
+                ET.SubElement(case, "system-out").text = f"run folder: {r.folder}"
+    tree = ET.ElementTree(root)
+    ET.indent(tree)
+    tree.write(path, encoding="utf-8", xml_declaration=True)
+
+
+def command(args: argparse.Namespace) -> int:
+    """Find, check and run the tests; print a line per test and a total. 0 all passed, 1 some failed, 2 invalid."""
+    from beastbt.commands.paths import output_file_problem, output_folder_problem
+    from beastbt.core.errors import InvalidInput
+    from beastbt.testing.spec import SUFFIX, find_tests, load_test
+    for problem in (output_file_problem("--junit", args.junit),
+                    None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)):
+        if problem is not None:
+            print(f"beastbt test: error: {problem}", file=sys.stderr)
+            return EXIT_INVALID
+    files = find_tests(args.paths)
+    if not files:
+        print(f"beastbt test: error: no *{SUFFIX} file under {', '.join(args.paths)}", file=sys.stderr)
+        return EXIT_INVALID
+    started = time.monotonic()
+    tests, invalid = [], 0
+    for f in files:
+        try:
+            tests.append(load_test(f, args.seeds))
+        except InvalidInput as exc:
+            print(exc.format(), file=sys.stderr)
+            invalid += 1
+    jobs = [(str(t.file), args.seeds, seed, not args.no_record, args.runs_dir) for t in tests for seed in t.seeds]
+    spans, start = [], 0
+    for t in tests:
+        spans.append((start, start + len(t.seeds)))
+        start += len(t.seeds)
+    finished: set[int] = set()
+    printed = [0]
+
+    def done(i: int, result: Any) -> None:
+        finished.add(i)
+        while printed[0] < len(tests) and all(j in finished for j in range(*spans[printed[0]])):
+            k = printed[0]
+            print(test_line(str(tests[k].file), tests[k].name, [results_so_far[j] for j in range(*spans[k])]),
+                  flush=True)
+            printed[0] += 1
+
+    results_so_far: dict[int, Any] = {}
+
+    def keep(i: int, result: Any) -> None:
+        results_so_far[i] = result
+        done(i, result)
+
+    results = run_all(jobs, args.jobs or default_jobs(), keep) if jobs else []
+    by_test = [(t, results[a:b]) for t, (a, b) in zip(tests, spans)]
+    elapsed = time.monotonic() - started
+    runs_passed = sum(r.passed for r in results)
+    tests_passed = sum(all(r.passed for r in rs) for _, rs in by_test)
+    total = (f"{len(tests)} test{'s' if len(tests) != 1 else ''}: {tests_passed} passed, "
+             f"{len(tests) - tests_passed} failed ({runs_passed}/{len(results)} seeds passed) in {elapsed:.1f} s")
+    if invalid:
+        total += f"; {invalid} invalid test file{'s' if invalid != 1 else ''} (not run)"
+    print(total)
+    if args.junit:
+        write_junit(args.junit, by_test, elapsed)
+    if invalid or any(r.invalid for r in results):
+        return EXIT_INVALID
+    return EXIT_SUCCESS if runs_passed == len(results) else EXIT_FAILURE
+
+
+__all__ = ["add_arguments", "command", "write_junit", "run_all", "default_jobs"]

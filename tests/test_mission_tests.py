@@ -1,0 +1,228 @@
+"""Mission test files (``*.test.yaml``): each event and a substitution change the run as they say; a test that
+should fail fails naming the expectation, the seed and the value; an invalid file is a positioned error (exit 2).
+
+The missions here are short (seconds of simulated time) so that each run takes a second or two.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from beastbt.core.errors import InvalidInput
+from beastbt.testing.runs import run_seed
+from beastbt.testing.spec import load_test
+from conftest import REPO
+
+CORRIDOR = REPO / "worlds" / "corridor.yaml"
+CAMPUS = REPO / "worlds" / "campus.yaml"
+
+DRIVE = f"""\
+mission: drive_corridor
+world: {CORRIDOR}
+steps:
+  - drive: {{distance: 3 m, speed: 0.2 m/s}}
+failsafes:
+  battery_low: {{below: 11 V, for: 1 s, then: stop}}
+"""
+
+GPS = f"""\
+mission: gps_hold
+world: {CAMPUS}
+steps:
+  - wait: 20 s
+failsafes:
+  gps_lost: {{after: 2 s, then: hold}}
+"""
+
+GOTO = f"""\
+mission: go_a
+world: {CAMPUS}
+places:
+  a: {{lat: 40.41690, lon: -3.70380}}
+steps:
+  - go_to: a
+  - wait: 5 s
+"""
+
+
+def write(folder: Path, mission: str, test: str, name: str = "t.test.yaml") -> Path:
+    (folder / "m.yaml").write_text(mission, encoding="utf-8")
+    path = folder / name
+    path.write_text(test, encoding="utf-8")
+    return path
+
+
+def events_of(folder: Path, mission: str, test: str) -> tuple[object, list[tuple[str, str]]]:
+    from beastbt.testing.runs import UnpacedWall, faults_of
+    from beastbt.assembly import prepare
+    from beastbt.run.session import RunOptions, execute
+    import io
+    t = load_test(write(folder, mission, test))
+    p = prepare(str(t.mission), RunOptions(seed=1, max_time_s=t.max_time_s, record=False, answers=t.answers),
+                faults=faults_of(t))
+    summary = execute(p, io.StringIO(), wall=UnpacedWall())
+    return (p, summary), [(e["kind"], e["text"]) for e in summary["events"]]
+
+
+def has(events: list[tuple[str, str]], kind: str, text: str) -> bool:
+    return any(k == kind and text in t for k, t in events)
+
+
+# -- each kind of event changes the run as it says -----------------------------------------------------------
+
+def test_a_gps_dropout_fires_the_missions_gps_lost_failsafe(tmp_path):
+    (_, summary), events = events_of(tmp_path, GPS, "test: t\nmission: m.yaml\nevents: [{at: 5 s, gps: lost, for: 6 s}]\n")
+    assert has(events, "failsafe", "gps_lost triggered"), events
+    assert has(events, "failsafe", "gps_lost cleared"), events
+    assert has(events, "test", "GPS lost for 6 s (at 5 s")
+    (_, _), calm = events_of(tmp_path, GPS, "test: t\nmission: m.yaml\n")
+    assert not has(calm, "failsafe", "gps_lost")  # without the event, the GPS never drops
+
+
+def test_a_gps_jump_moves_the_receivers_fixes(tmp_path):
+    test = "test: t\nmission: m.yaml\nevents: [{at: 5 s, gps: {jump: 25 m}, for: 10 s}]\n"
+    (_, jumped), events = events_of(tmp_path, GOTO, test)
+    assert has(events, "test", "GPS jumps 25 m for 10 s (at 5 s")
+    # The receiver's fixes against the truth: about 3 m RMS on this seed without the jump (the campus's open sky);
+    # 10 s of fixes 25 m off among ~50 lift it well above 5 m.
+    assert jumped["truth"]["gps_error_rms_m"] > 5.0
+
+
+def test_a_person_is_seen_by_the_lidar_and_stops_the_robot(tmp_path):
+    person = ("test: t\nmission: m.yaml\nmax_time: 30 s\n"
+              "events: [{at: 1 s, person: {from: [7, 0], to: [1.5, 0], speed: 1 m/s, gives_way: false}}]\n")
+    (_, summary), events = events_of(tmp_path, DRIVE, person)
+    assert has(events, "collision_monitor", "stop (mission's command)"), events
+    assert summary["truth"]["min_clearance_m"] < 0.5
+    (_, calm), calm_events = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\n")
+    assert not has(calm_events, "collision_monitor", "stop (")
+    assert calm["status"] == "success"
+
+
+def test_a_silent_lidar_holds_the_robot_through_the_collision_monitor(tmp_path):
+    (_, _), events = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\nevents: [{at: 2 s, lidar: silent, for: 1 s}]\n")
+    assert has(events, "collision_monitor", "LiDAR silent, no scan for"), events
+    assert has(events, "lidar_back", "scans again")
+
+
+def test_a_low_battery_fires_the_battery_failsafe(tmp_path):
+    (_, summary), events = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\nevents: [{at: 2 s, battery: 20 %}]\n")
+    assert has(events, "failsafe", "battery_low triggered"), events
+    assert summary["status"] == "failure"
+
+
+def test_an_operator_pause_holds_the_mission_through_the_console_and_resumes_it(tmp_path):
+    (_, paused), events = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\nevents: [{at: 2 s, operator: pause, for: 5 s}]\n")
+    (_, calm), _ = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\n")
+    assert has(events, "pause", "paused by the operator console") and has(events, "pause", "resumed by the operator console")
+    assert paused["status"] == "success"
+    assert paused["sim_time_s"] >= calm["sim_time_s"] + 4.5
+
+
+def test_an_estop_and_an_abort_stop_the_run(tmp_path):
+    (_, stopped), events = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\nevents: [{at: 2 s, estop: true}]\n")
+    assert stopped["status"] == "stopped" and has(events, "estop", "operator console")
+    (_, aborted), _ = events_of(tmp_path, DRIVE, "test: t\nmission: m.yaml\nevents: [{at: 2 s, operator: abort}]\n")
+    assert aborted["status"] == "stopped"
+    assert has([(e["kind"], e["text"]) for e in aborted["events"]], "mission_end", "aborted by the operator console")
+
+
+def test_an_event_near_a_place_fires_when_the_robot_gets_there(tmp_path):
+    (_, summary), events = events_of(tmp_path, GOTO, "test: t\nmission: m.yaml\n"
+                                                        "events: [{when: {near: a, within: 4 m}, estop: true}]\n")
+    fired = [t for k, t in events if k == "test"]
+    assert fired and "near a within 4 m" in fired[0]
+    assert summary["status"] == "stopped"
+    assert summary["test_events"][0]["time_s"] > 20  # not at the start: the robot had 11 m to go
+
+
+def test_a_substituted_step_is_named_as_such_in_the_tree_and_forces_its_result(tmp_path):
+    test = 'test: t\nmission: m.yaml\nsubstitute:\n  "drive 3 m at 0.2 m/s": {result: failure, after: 2 s}\n'
+    (prepared, summary), events = events_of(tmp_path, DRIVE, test)
+    names = [n.name for n in prepared.run.root.iterate()]
+    assert "drive 3 m at 0.2 m/s [substituted: failure after 2 s]" in names
+    assert summary["status"] == "failure"
+    assert has(events, "substitute", "drive 3 m at 0.2 m/s: failure (substituted by the test)")
+    assert summary["substituted"] == [{"step": "drive 3 m at 0.2 m/s", "result": "failure", "after_s": 2.0}]
+    assert summary["distance_m"] == 0.0  # the stand-in stands still
+
+
+# -- expectations ------------------------------------------------------------------------------------------
+
+def test_expectations_that_hold_pass_and_each_that_does_not_says_which_seed_and_what_it_saw(tmp_path):
+    good = run_seed(load_test(write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nexpect:\n  status: success\n"
+                                                     "  collisions: 0\n  min_clearance: '>= 0.5 m'\n  time: '<= 30 s'\n")),
+                    3, record=False)
+    assert good.passed, good.message()
+    bad = run_seed(load_test(write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nexpect:\n  status: failure\n"
+                                                    "  time: '<= 5 s'\n  events: [{kind: failsafe}]\n")), 3, record=False)
+    words = [f.words() for f in bad.failures]
+    assert words[0].startswith("expect.status: wanted failure, saw success"), words
+    assert words[1].startswith("expect.time: wanted '<= 5 s', saw 1"), words
+    assert words[2] == "expect.events[0]: wanted a failsafe event, saw no failsafe event"
+    assert bad.first_failure().startswith("seed 3: expect.status")
+
+
+# -- invalid files -----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("test, where, words", [
+    ("test: t\nmission: m.yaml\nexpect: {statuss: success}\n", ":3:10:", "unknown key 'statuss'"),
+    ("test: t\nmission: m.yaml\nevents:\n  - {at: 2 s, gps: lost, battery: 20 %}\n", ":4:5:",
+     "an event has one thing that happens, not 2"),
+    ("test: t\nmission: m.yaml\nevents:\n  - {when: {near: gate}, estop: true}\n", ":4:19:", "no place 'gate'"),
+    ("test: t\nmission: m.yaml\nsubstitute:\n  drive 3 m: {result: failure}\n", ":4:3:",
+     "the mission's tree has no step 'drive 3 m'"),
+    ("test: t\nmission: nowhere.yaml\n", ":2:10:", "no file 'nowhere.yaml'"),
+    ("test: t\nmission: m.yaml\nevents: [{at: 2 s, estop: true, for: 3 s}]\n", ":3:", "does not last"),
+])
+def test_an_invalid_test_file_is_a_positioned_error(tmp_path, test, where, words):
+    path = write(tmp_path, DRIVE, test)
+    with pytest.raises(InvalidInput) as caught:
+        load_test(path)
+    said = caught.value.format()
+    assert f"{path}{where}" in said and words in said, said
+
+
+# -- the command -------------------------------------------------------------------------------------------
+
+def beastbt(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "beastbt", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=600)
+
+
+def test_beastbt_test_exits_2_on_an_invalid_file_positioned_without_a_traceback(tmp_path):
+    write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nseeds: many\n", name="bad.test.yaml")
+    done = beastbt("test", str(tmp_path), "--no-record", cwd=tmp_path)
+    assert done.returncode == 2, done
+    assert f"{tmp_path / 'bad.test.yaml'}:3:8: error:" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr + done.stdout
+
+
+def test_beastbt_test_runs_every_file_and_seed_says_the_first_failure_and_writes_junit(tmp_path):
+    write(tmp_path, DRIVE, "test: drives 3 m\nmission: m.yaml\nseeds: 2\nexpect: {status: success}\n",
+          name="good.test.yaml")
+    (tmp_path / "bad.test.yaml").write_text("test: wrongly expects a failure\nmission: m.yaml\nseeds: [4]\n"
+                                            "expect: {status: failure}\n", encoding="utf-8")
+    done = beastbt("test", "-j", "2", "--junit", "out.xml", cwd=tmp_path)
+    assert done.returncode == 1, done
+    out = done.stdout
+    assert "FAIL  bad.test.yaml: wrongly expects a failure (0/1 seeds: 4 FAIL)" in out, out
+    assert "seed 4: expect.status: wanted failure, saw success" in out, out
+    assert "PASS  good.test.yaml: drives 3 m (2/2 seeds: 1 ok, 2 ok)" in out, out
+    assert "2 tests: 1 passed, 1 failed (2/3 seeds passed)" in out, out
+    folder = out.split("(run: ", 1)[1].split(")", 1)[0]
+    assert (tmp_path / folder / "summary.json").is_file()  # the failure names its run folder, which report opens
+    root = ET.parse(tmp_path / "out.xml").getroot()
+    assert root.tag == "testsuites" and root.get("tests") == "3" and root.get("failures") == "1"
+    cases = root.findall("testsuite/testcase")
+    assert len(cases) == 3 and all(c.get("classname") and c.get("name") and c.get("time") for c in cases)
+    failures = [c.find("failure") for c in cases if c.find("failure") is not None]
+    assert len(failures) == 1 and "seed 4: expect.status: wanted failure, saw success" in failures[0].get("message")
+    passing = beastbt("test", "good.test.yaml", "--seeds", "1", "--no-record", cwd=tmp_path)
+    assert passing.returncode == 0 and "(1/1 seeds: 1 ok)" in passing.stdout, passing
+    assert not (tmp_path / "runs").exists() or len(list((tmp_path / "runs").iterdir())) == 3
