@@ -150,6 +150,8 @@ def test_a_substituted_step_is_named_as_such_in_the_tree_and_forces_its_result(t
     assert has(events, "substitute", "drive 3 m at 0.2 m/s: failure (substituted by the test)")
     assert summary["substituted"] == [{"step": "drive 3 m at 0.2 m/s", "result": "failure", "after_s": 2.0}]
     assert summary["distance_m"] == 0.0  # the stand-in stands still
+    from beastbt.core.schema_check import validator_for
+    assert not list(validator_for("summary.schema.json").iter_errors(summary))
 
 
 # -- expectations ------------------------------------------------------------------------------------------
