@@ -228,3 +228,57 @@ def test_beastbt_test_runs_every_file_and_seed_says_the_first_failure_and_writes
     passing = beastbt("test", "good.test.yaml", "--seeds", "1", "--no-record", cwd=tmp_path)
     assert passing.returncode == 0 and "(1/1 seeds: 1 ok)" in passing.stdout, passing
     assert not (tmp_path / "runs").exists() or len(list((tmp_path / "runs").iterdir())) == 3
+
+
+# -- the harness: the same events and substitutions --------------------------------------------------------
+
+def test_the_harness_injects_a_gps_dropout_through_the_same_code(tmp_path):
+    from beastbt.testing import MissionHarness
+    h = MissionHarness.from_yaml(GPS, base_dir=tmp_path)
+    assert h.tick_until(lambda h: h.now_s >= 4.0, timeout_s=10)
+    h.inject(gps="lost", for_s=6)
+    assert h.tick_until(lambda h: any(e.kind == "failsafe" and "gps_lost triggered" in e.text for e in h.events),
+                        timeout_s=5)
+    assert h.run.paused_by is not None and h.run.paused_by.startswith("hold")  # the mission's 'then: hold'
+    fired = [e.text for e in h.events if e.kind == "test"]
+    assert len(fired) == 1 and fired[0].startswith("GPS lost for 6 s (at 4") and fired[0].endswith("events[0])")
+    with pytest.raises(ValueError, match="give it in events="):
+        h.inject(person={"from": [1, 1], "to": [2, 2]})
+    with pytest.raises(InvalidInput, match="'lots' is not allowed"):
+        h.inject(gps="lots")
+
+
+def test_the_harness_takes_substitutions_and_events_as_a_test_file_does(tmp_path):
+    from beastbt.testing import MissionHarness
+    h = MissionHarness.from_yaml(DRIVE, base_dir=tmp_path, substitute={"drive 3 m at 0.2 m/s": {"result": "success",
+                                                                                                  "after": "1 s"}},
+                                 events=[{"at": "0.5 s", "operator": "pause", "for": "2 s"}])
+    h.tick()
+    assert h.status_of("drive 3 m at 0.2 m/s [substituted: success after 1 s]") == "RUNNING"
+    assert h.run_to_end(timeout_s=10) == "success"
+    assert 2.5 <= h.now_s <= 3.5  # paused 2 s by the console's control, then the stand-in's last 0.5 s
+    with pytest.raises(KeyError, match="no step named 'drive 9 m'"):
+        MissionHarness.from_yaml(DRIVE, base_dir=tmp_path, substitute={"drive 9 m": {"result": "failure"}})
+
+
+def test_never_in_reads_the_fences_the_true_position_entered(tmp_path):
+    # A keep-out box 2.5-3.5 m east of the corridor's datum, across the corridor: the 3 m drive from x 1 m crosses it.
+    box = ("fences:\n  box:\n    keep: out\n    polygon:\n"
+           "      - {lat: 40.4167955, lon: -3.7037705}\n      - {lat: 40.4167955, lon: -3.7037587}\n"
+           "      - {lat: 40.4168045, lon: -3.7037587}\n      - {lat: 40.4168045, lon: -3.7037705}\n")
+    test = "test: t\nmission: m.yaml\nexpect: {never_in: [box]}\n"
+    crossed = run_seed(load_test(write(tmp_path, DRIVE + box, test)), 1, record=False)
+    assert [f.words() for f in crossed.failures] == ["expect.never_in: wanted never in ['box'], saw entered ['box']"]
+    short = DRIVE.replace("distance: 3 m", "distance: 1 m") + box  # stops at x 2 m, short of the box
+    assert run_seed(load_test(write(tmp_path, short, test)), 1, record=False).passed
+
+
+def test_every_shipped_mission_has_a_valid_test_file_naming_its_schema():
+    """``beastbt test missions/`` runs one test per shipped mission (run in full by CI and docs/testing.md; here
+    each file is only loaded and checked, which is what would make it exit 2)."""
+    missions = sorted(p.name for p in (REPO / "missions").glob("*.yaml"))
+    tests = sorted((REPO / "missions" / "tests").glob("*.test.yaml"))
+    assert sorted(load_test(t).mission.name for t in tests) == missions
+    for t in tests:
+        first = t.read_text(encoding="utf-8").splitlines()[0]
+        assert first == "# yaml-language-server: $schema=../../schemas/test.schema.json", t

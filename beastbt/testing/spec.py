@@ -177,6 +177,35 @@ def load_test(path: Union[str, Path], seeds: Optional[int] = None) -> MissionTes
     return _checked(doc, Path(path), seeds)
 
 
+def faults_from(events: Optional[list] = None, substitute: Optional[dict] = None, places: Optional[Any] = None,
+                name: str = "<harness>") -> tuple[list[TestEvent], list[Substitution]]:
+    """Events and substitutions written as in a test file (``[{at: 30 s, gps: lost}]``, ``{"go_to a": {result:
+    failure}}``), checked by the same schema and code; raise :class:`InvalidInput` naming ``name`` and the entry.
+    ``places``: the mission's places a ``when: {near: ...}`` may name (None: not checked here)."""
+    from beastbt.core.schema_check import schema_problems
+    data: dict[str, Any] = {"test": name, "mission": name}
+    if events:
+        data["events"] = list(events)
+    if substitute:
+        data["substitute"] = dict(substitute)
+    doc = SourceDoc(file=name, data=data)
+    problems = schema_problems(doc, SCHEMA, "mission test")
+    if problems:
+        raise InvalidInput(problems)
+    checked: list[TestEvent] = []
+    for i, raw in enumerate(data.get("events") or []):
+        event, said = _event(doc, i, raw, None if places is None else set(places) | {"home"})
+        problems.extend(said)
+        if event is not None:
+            checked.append(event)
+    subs = [Substitution(str(step), str(spec["result"]),
+                         _si(doc, ("substitute", step, "after"), spec.get("after", 0), "duration"))
+            for step, spec in (data.get("substitute") or {}).items()]
+    if problems:
+        raise InvalidInput(problems)
+    return checked, subs
+
+
 def _file_at(doc: SourceDoc, key: str, base: Path) -> Optional[Path]:
     value = doc.data.get(key)
     if value is None:
@@ -296,7 +325,7 @@ def _choices(word: str, names: list[str], what: str, none: str) -> str:
     return f"{what}: {', '.join(names)}{did_you_mean(word, names)}"
 
 
-def _event(doc: SourceDoc, i: int, raw: dict, places: set) -> tuple[Optional[TestEvent], list[Problem]]:
+def _event(doc: SourceDoc, i: int, raw: dict, places: Optional[set]) -> tuple[Optional[TestEvent], list[Problem]]:
     """One entry of ``events:`` checked: one trigger, one happening, ``for:`` only where something lasts."""
     at = ("events", i)
     triggers = [k for k in ("at", "when") if k in raw]
@@ -314,7 +343,7 @@ def _event(doc: SourceDoc, i: int, raw: dict, places: set) -> tuple[Optional[Tes
         trigger = Trigger(at_s=_si(doc, at + ("at",), raw["at"], "duration"))
     else:
         near = str(raw["when"]["near"])
-        if near not in places:
+        if places is not None and near not in places:
             return None, [doc.problem(at + ("when", "near"), f"the mission has no place '{near}'",
                                       _choices(near, sorted(places), "its places", "it has no places"))]
         within = raw["when"].get("within", DEFAULT_NEAR_M)
@@ -384,5 +413,5 @@ def matches(written: str, node_name: str) -> bool:
     return node_name == written or node_name.startswith(written + " (")
 
 
-__all__ = ["MissionTest", "TestEvent", "Trigger", "Fault", "Substitution", "Expectations", "Bound", "load_test",
+__all__ = ["faults_from", "MissionTest", "TestEvent", "Trigger", "Fault", "Substitution", "Expectations", "Bound", "load_test",
            "find_tests", "matches", "SUFFIX", "SCHEMA"]
