@@ -282,3 +282,11 @@ def test_every_shipped_mission_has_a_valid_test_file_naming_its_schema():
     for t in tests:
         first = t.read_text(encoding="utf-8").splitlines()[0]
         assert first == "# yaml-language-server: $schema=../../schemas/test.schema.json", t
+
+
+def test_beastbt_validate_checks_a_test_file_as_a_test(tmp_path, capsys):
+    from beastbt import cli
+    assert cli.main(["validate", str(REPO / "missions" / "tests" / "patrol.test.yaml")]) == 0
+    bad = write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nexpect: {reached: [gate]}\n")
+    assert cli.main(["validate", str(bad)]) == 2
+    assert f"{bad}:3:20: error: the mission has no place 'gate'" in capsys.readouterr().err

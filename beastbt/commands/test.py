@@ -34,9 +34,12 @@ def _jobs(text: str) -> int:
 
 
 def _seeds(text: str) -> int:
-    value = _jobs(text.replace("processes", ""))
-    if value > 1000:
-        raise argparse.ArgumentTypeError(f"'{text}': at most 1000 seeds")
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number of seeds") from None
+    if not 1 <= value <= 1000:
+        raise argparse.ArgumentTypeError(f"'{text}': give 1 to 1000 seeds")
     return value
 
 
@@ -157,24 +160,18 @@ def command(args: argparse.Namespace) -> int:
     for t in tests:
         spans.append((start, start + len(t.seeds)))
         start += len(t.seeds)
-    finished: set[int] = set()
+    finished: dict[int, Any] = {}
     printed = [0]
 
     def done(i: int, result: Any) -> None:
-        finished.add(i)
+        # Each test's line as soon as its seeds are done and the tests before it are printed: file order.
+        finished[i] = result
         while printed[0] < len(tests) and all(j in finished for j in range(*spans[printed[0]])):
             k = printed[0]
-            print(test_line(str(tests[k].file), tests[k].name, [results_so_far[j] for j in range(*spans[k])]),
-                  flush=True)
+            print(test_line(str(tests[k].file), tests[k].name, [finished[j] for j in range(*spans[k])]), flush=True)
             printed[0] += 1
 
-    results_so_far: dict[int, Any] = {}
-
-    def keep(i: int, result: Any) -> None:
-        results_so_far[i] = result
-        done(i, result)
-
-    results = run_all(jobs, args.jobs or default_jobs(), keep) if jobs else []
+    results = run_all(jobs, args.jobs or default_jobs(), done) if jobs else []
     by_test = [(t, results[a:b]) for t, (a, b) in zip(tests, spans)]
     elapsed = time.monotonic() - started
     runs_passed = sum(r.passed for r in results)
