@@ -290,3 +290,26 @@ def test_beastbt_validate_checks_a_test_file_as_a_test(tmp_path, capsys):
     bad = write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nexpect: {reached: [gate]}\n")
     assert cli.main(["validate", str(bad)]) == 2
     assert f"{bad}:3:20: error: the mission has no place 'gate'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_sigterm_stops_the_whole_test_session_not_only_the_run_under_way(tmp_path, jobs):
+    import signal
+    import time
+    slow = DRIVE.replace("distance: 3 m, speed: 0.2 m/s", "distance: 9 m, speed: 0.01 m/s")  # 15 min of mission
+    write(tmp_path, slow, "test: slow\nmission: m.yaml\nseeds: 4\n")
+    process = subprocess.Popen([sys.executable, "-m", "beastbt", "test", "-j", jobs], cwd=tmp_path, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not (tmp_path / "runs").is_dir() and time.monotonic() < deadline:
+            time.sleep(0.1)  # a run has started (its folder is made before it moves)
+        time.sleep(1.0)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, out + err
+    assert "interrupted after 0 of 4 runs" in err, err
+    assert "Traceback" not in err

@@ -7,7 +7,7 @@ seeds' results and the first failure in words, then a total.
 
 Exit status: 0 every run passed, 1 some run failed, 2 a test file is invalid
 (its problems as ``FILE:LINE:COLUMN: error: ...`` on standard error) or no
-test file was found. ``--junit FILE`` writes JUnit XML for CI: one test case
+test file was found, 130 interrupted (Ctrl-C or SIGTERM). ``--junit FILE`` writes JUnit XML for CI: one test case
 per file x seed, a failing one with its failures as the message.
 """
 
@@ -21,6 +21,8 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 EXIT_SUCCESS, EXIT_FAILURE, EXIT_INVALID = 0, 1, 2
+EXIT_INTERRUPTED = 130
+"""Ctrl-C or SIGTERM: the run under way stops as any run does (recorded, robot stopped), and no other starts."""
 
 
 def _jobs(text: str) -> int:
@@ -68,7 +70,13 @@ def _run_job(job: tuple[str, Optional[int], int, bool, str]) -> Any:
     from beastbt.testing.runs import run_seed
     from beastbt.testing.spec import load_test
     path, seeds, seed, record, runs_dir = job
-    return run_seed(load_test(path, seeds), seed, record=record, runs_dir=runs_dir)
+    try:
+        return run_seed(load_test(path, seeds), seed, record=record, runs_dir=runs_dir)
+    except KeyboardInterrupt:
+        import multiprocessing
+        if multiprocessing.parent_process() is not None:
+            os._exit(EXIT_INTERRUPTED)  # a worker told to stop: its run is stopped and kept; it takes no other
+        raise
 
 
 def run_all(jobs: list[tuple[str, Optional[int], int, bool, str]], processes: int, done: Any) -> list[Any]:
@@ -84,14 +92,37 @@ def run_all(jobs: list[tuple[str, Optional[int], int, bool, str]], processes: in
     from concurrent.futures import ProcessPoolExecutor, as_completed
     # fork where there is one: the workers start with beastbt already imported, in milliseconds
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else None
-    with ProcessPoolExecutor(max_workers=min(processes, len(jobs)),
-                             mp_context=multiprocessing.get_context(method)) as pool:
+    pool = ProcessPoolExecutor(max_workers=min(processes, len(jobs)), mp_context=multiprocessing.get_context(method))
+    restore = _sigterm_as_interrupt()
+    try:
         futures = {pool.submit(_run_job, job): i for i, job in enumerate(jobs)}
         for future in as_completed(futures):
             i = futures[future]
             results[i] = future.result()
             done(i, results[i])
+    except KeyboardInterrupt:
+        # The workers' runs stop as a run stops on SIGTERM (recorded, the robot stopped); none starts after.
+        for process in list((getattr(pool, "_processes", None) or {}).values()):
+            process.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        restore()
+    pool.shutdown()
     return results
+
+
+def _sigterm_as_interrupt() -> Any:
+    """SIGTERM raises KeyboardInterrupt in this (main) thread until the returned function puts the handler back."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def interrupt(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("SIGTERM")
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    return lambda: signal.signal(signal.SIGTERM, previous)
 
 
 def test_line(label: str, name: str, results: list[Any]) -> str:
@@ -171,7 +202,11 @@ def command(args: argparse.Namespace) -> int:
             print(test_line(str(tests[k].file), tests[k].name, [finished[j] for j in range(*spans[k])]), flush=True)
             printed[0] += 1
 
-    results = run_all(jobs, args.jobs or default_jobs(), done) if jobs else []
+    try:
+        results = run_all(jobs, args.jobs or default_jobs(), done) if jobs else []
+    except KeyboardInterrupt:
+        print(f"beastbt test: interrupted after {len(finished)} of {len(jobs)} runs", file=sys.stderr)
+        return EXIT_INTERRUPTED
     by_test = [(t, results[a:b]) for t, (a, b) in zip(tests, spans)]
     elapsed = time.monotonic() - started
     runs_passed = sum(r.passed for r in results)

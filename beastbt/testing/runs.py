@@ -106,6 +106,10 @@ def run_seed(test: MissionTest, seed: int, record: bool = True, runs_dir: str = 
         result.error = f"the run broke: {type(exc).__name__}: {exc}"
         result.folder = str(prepared.folder.path) if prepared.folder is not None else None
         return result
+    end = next((e["text"] for e in reversed(summary["events"]) if e["kind"] == "mission_end"), "")
+    if end.startswith("stopped: interrupted"):
+        # Ctrl-C or SIGTERM ended this run (execute turns them into a stop): the whole test session stops too.
+        raise KeyboardInterrupt(end)
     result.status = str(summary["status"])
     result.failures = check(test.expect, summary)
     result.wall_s = round(wall.now(), 3)
