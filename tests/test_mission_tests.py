@@ -313,3 +313,25 @@ def test_sigterm_stops_the_whole_test_session_not_only_the_run_under_way(tmp_pat
     assert process.returncode == 130, out + err
     assert "interrupted after 0 of 4 runs" in err, err
     assert "Traceback" not in err
+
+
+ASK = """\
+mission: door_check
+steps:
+  - ask: {id: door, question: Is the door open?, timeout: 5 s, default: no}
+    then:
+      - drive: {distance: 1 m}
+    else:
+      - say: "door closed, staying"
+"""
+
+
+def test_answers_are_given_as_the_question_opens_and_asked_reads_the_ask_events(tmp_path):
+    test = "test: t\nmission: m.yaml\nanswers: {door: yes}\nexpect: {asked: [door], status: success}\n"
+    answered = run_seed(load_test(write(tmp_path, ASK, test)), 1, record=False)
+    assert answered.passed, answered.message()
+    unanswered = run_seed(load_test(write(tmp_path, ASK, "test: t\nmission: m.yaml\nexpect: {time: '< 5 s'}\n")), 1,
+                          record=False)  # nobody answers: the question waits its 5 s timeout
+    assert [f.name for f in unanswered.failures] == ["time"]
+    with pytest.raises(InvalidInput, match="the mission asks no question 'window'"):
+        load_test(write(tmp_path, ASK, "test: t\nmission: m.yaml\nanswers: {window: yes}\n"))

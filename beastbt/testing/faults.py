@@ -183,6 +183,7 @@ class FaultsPart(Part):
         self.world: Optional["World"] = None
         self.fences: list[tuple[str, Any]] = []
         self.entered: list[str] = []
+        self.places: dict[Optional[str], Optional[tuple[float, float]]] = {}
         """The watched fences the robot's true position has been inside, in the order it entered them."""
 
     def install(self, prepared: "Prepared") -> None:
@@ -219,7 +220,9 @@ class FaultsPart(Part):
         trigger = event.trigger
         if trigger.at_s is not None:
             return mission_s + 1e-9 >= trigger.at_s
-        place = self._place_xy(run, trigger.near)
+        if trigger.near not in self.places:  # where the place is in the world, worked out once
+            self.places[trigger.near] = self._place_xy(run, trigger.near)
+        place = self.places[trigger.near]
         if place is None:
             return False
         truth = run.io.sim.truth
