@@ -335,3 +335,15 @@ def test_answers_are_given_as_the_question_opens_and_asked_reads_the_ask_events(
     assert [f.name for f in unanswered.failures] == ["time"]
     with pytest.raises(InvalidInput, match="the mission asks no question 'window'"):
         load_test(write(tmp_path, ASK, "test: t\nmission: m.yaml\nanswers: {window: yes}\n"))
+
+
+def test_a_recorded_test_run_replays_identically_substitution_pause_and_person_included(tmp_path):
+    from beastbt.replay import replay
+    test = ("test: t\nmission: m.yaml\nevents:\n  - {at: 0.5 s, operator: pause, for: 1 s}\n"
+            "  - {at: 0.2 s, person: {from: [3, 0.6], to: [3, -0.6], speed: 0.5 m/s}}\n"
+            'substitute:\n  "drive 3 m at 0.2 m/s": {result: failure, after: 3 s}\n')
+    result = run_seed(load_test(write(tmp_path, DRIVE, test)), 1, record=True, runs_dir=str(tmp_path / "runs"))
+    assert result.status == "failure" and result.folder is not None
+    replayed = replay(result.folder)
+    assert replayed.identical, [d for d in replayed.differences[:3]]
+    assert replayed.replay_status == "failure"
