@@ -347,3 +347,11 @@ def test_a_recorded_test_run_replays_identically_substitution_pause_and_person_i
     replayed = replay(result.folder)
     assert replayed.identical, [d for d in replayed.differences[:3]]
     assert replayed.replay_status == "failure"
+
+
+def test_robot_takes_a_bundled_profiles_name_or_a_file_and_says_where_a_wrong_one_is(tmp_path):
+    assert load_test(write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nrobot: ugv_beast\n")).robot == "ugv_beast"
+    with pytest.raises(InvalidInput) as caught:
+        load_test(write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nrobot: ugv_beest\n"))
+    said = caught.value.format()
+    assert f"{tmp_path / 't.test.yaml'}:3:8: error: no robot profile called 'ugv_beest'; did you mean 'ugv_beast'?" in said, said

@@ -256,8 +256,15 @@ def _checked(doc: SourceDoc, path: Path, seeds_override: Optional[int]) -> Missi
     world = _file_at(doc, "world", base)
     robot = str(d.get("robot", "sim"))
     if robot != "sim":
-        robot_path = _file_at(doc, "robot", base)
-        robot = str(robot_path)
+        beside = Path(robot) if Path(robot).is_absolute() else base / robot
+        robot = str(beside) if beside.is_file() else robot  # else a bundled profile's name (ugv_beast)
+        from beastbt.robot.profile import load_profile
+        try:
+            load_profile(robot)
+        except InvalidInput as exc:
+            if Path(robot).is_file():
+                raise  # the profile's own problems, at their lines in it
+            raise InvalidInput([doc.problem(("robot",), p.message, p.hint) for p in exc.problems]) from None
     mission = load_mission(str(mission_path))  # its own errors, at its own lines
     problems: list[Problem] = []
 
