@@ -132,7 +132,7 @@ def test_line(label: str, name: str, results: list[Any]) -> str:
     line = f"{'PASS' if passed == len(results) else 'FAIL'}  {label}: {name} ({passed}/{len(results)} seeds: {seeds})"
     first = next((r for r in results if not r.passed), None)
     if first is not None:
-        line += f"\n      {first.first_failure()}"
+        line += f" -- {first.first_failure()}"
     return line
 
 
