@@ -355,3 +355,12 @@ def test_robot_takes_a_bundled_profiles_name_or_a_file_and_says_where_a_wrong_on
         load_test(write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nrobot: ugv_beest\n"))
     said = caught.value.format()
     assert f"{tmp_path / 't.test.yaml'}:3:8: error: no robot profile called 'ugv_beest'; did you mean 'ugv_beast'?" in said, said
+
+
+def test_an_event_cannot_wait_for_a_place_on_a_map(tmp_path):
+    test = tmp_path / "o.test.yaml"
+    test.write_text(f"test: t\nmission: {REPO / 'missions' / 'office_rooms.yaml'}\n"
+                    "events: [{when: {near: kitchen}, estop: true}]\n", encoding="utf-8")
+    with pytest.raises(InvalidInput) as caught:
+        load_test(test)
+    assert f"{test}:3:24: error: 'kitchen' is a place on the mission's map" in caught.value.format()

@@ -297,6 +297,12 @@ def _checked(doc: SourceDoc, path: Path, seeds_override: Optional[int]) -> Missi
         if event is not None:
             events.append(event)
 
+    for event in events:
+        place = mission.places.get(event.trigger.near) if event.trigger.near else None
+        if place is not None and place.lat is None:
+            problems.append(doc.problem(("events", event.index, "when", "near"),
+                                        f"'{event.trigger.near}' is a place on the mission's map, which the test cannot "
+                                        f"find in the world", "wait for a GPS place (lat, lon), or use 'at: TIME'"))
     substitutions = [Substitution(str(name), str(spec["result"]),
                                   _si(doc, ("substitute", name, "after"), spec.get("after", 0), "duration"))
                      for name, spec in (d.get("substitute") or {}).items()]
