@@ -58,3 +58,12 @@ def test_the_plugin_is_registered_as_a_pytest11_entry_point_and_the_repos_own_py
     assert entry == 'beastbt = "beastbt.testing.pytest_plugin"'
     assert re.search(r'^testpaths = \["tests"\]', text, re.M)  # missions/tests/*.test.yaml are not collected twice
     assert not list((REPO / "tests").rglob("*.test.yaml"))
+
+
+def test_loading_the_plugin_imports_no_run_nor_simulator():
+    """Every pytest session of a team with beastbt installed loads the plugin: it must cost nearly nothing."""
+    code = ("import sys, beastbt.testing.pytest_plugin; "
+            "print(sorted(m for m in ('py_trees', 'numpy', 'beastbt.run.runner', 'beastbt.sim.robot') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert done.stdout.strip() == "[]", done.stdout + done.stderr

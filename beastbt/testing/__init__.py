@@ -11,6 +11,15 @@
 ``from beastbt.testing import MissionHarness`` is the programmer's way in.
 """
 
-from beastbt.testing.harness import MissionHarness
+from typing import Any
 
 __all__ = ["MissionHarness"]
+
+
+def __getattr__(name: str) -> Any:
+    """``MissionHarness`` on first use: the pytest plugin (loaded by every pytest session where beastbt is
+    installed) imports this package, and must not import the run, the simulator and py_trees to start."""
+    if name == "MissionHarness":
+        from beastbt.testing.harness import MissionHarness
+        return MissionHarness
+    raise AttributeError(f"module 'beastbt.testing' has no attribute {name!r}")
