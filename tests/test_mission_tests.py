@@ -364,3 +364,13 @@ def test_an_event_cannot_wait_for_a_place_on_a_map(tmp_path):
     with pytest.raises(InvalidInput) as caught:
         load_test(test)
     assert f"{test}:3:24: error: 'kitchen' is a place on the mission's map" in caught.value.format()
+
+
+def test_the_search_skips_hidden_folders_and_finds_each_file_once(tmp_path):
+    from beastbt.testing.spec import find_tests
+    for folder in ("a", "a/b", ".venv/lib", "node_modules/x"):
+        (tmp_path / folder).mkdir(parents=True, exist_ok=True)
+        (tmp_path / folder / "t.test.yaml").write_text("test: t\n", encoding="utf-8")
+    (tmp_path / "a" / "m.yaml").write_text("mission: m\n", encoding="utf-8")
+    found = find_tests([tmp_path, tmp_path / "a", tmp_path / "a" / "b" / "t.test.yaml"])
+    assert found == [tmp_path / "a" / "t.test.yaml", tmp_path / "a" / "b" / "t.test.yaml"]

@@ -147,13 +147,18 @@ class MissionTest:
 
 
 def find_tests(paths: list[Union[str, Path]]) -> list[Path]:
-    """Every ``*.test.yaml`` under ``paths`` (files given by name count whatever they end with), sorted, once."""
+    """Every ``*.test.yaml`` under ``paths`` (files given by name count whatever they end with), sorted, once; hidden
+    folders and ``node_modules`` are not searched."""
+    import os
     found: list[Path] = []
     for p in map(Path, paths):
-        if p.is_dir():
-            found.extend(sorted(q for q in p.rglob("*" + SUFFIX) if q.is_file()))
-        else:
+        if not p.is_dir():
             found.append(p)
+            continue
+        for folder, dirs, files in os.walk(p):
+            # Not into hidden folders (.git, .venv) nor node_modules: a project's tests are not there.
+            dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d != "node_modules")
+            found.extend(Path(folder) / f for f in sorted(files) if f.endswith(SUFFIX))
     seen: set[Path] = set()
     out = []
     for p in found:
