@@ -374,3 +374,15 @@ def test_the_search_skips_hidden_folders_and_finds_each_file_once(tmp_path):
     (tmp_path / "a" / "m.yaml").write_text("mission: m\n", encoding="utf-8")
     found = find_tests([tmp_path, tmp_path / "a", tmp_path / "a" / "b" / "t.test.yaml"])
     assert found == [tmp_path / "a" / "t.test.yaml", tmp_path / "a" / "b" / "t.test.yaml"]
+
+
+def test_two_runs_making_their_folder_in_the_same_second_get_two_folders(tmp_path, monkeypatch):
+    """beastbt test -j N starts runs of one mission at once: the one that finds its folder made takes the next."""
+    import datetime
+    from beastbt.core.clock import SimClock
+    from beastbt.run.run_folder import RunFolder
+    when = lambda: datetime.datetime(2026, 12, 6, 23, 0, 0, tzinfo=datetime.timezone.utc)  # noqa: E731
+    first = RunFolder.create(str(tmp_path), "m", SimClock(), calendar=when)
+    monkeypatch.setattr(Path, "exists", lambda self: False)  # as if the other process made it after the look
+    second = RunFolder.create(str(tmp_path), "m", SimClock(), calendar=when)
+    assert first.path != second.path and second.path.name.endswith("-2")

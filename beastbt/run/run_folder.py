@@ -87,12 +87,16 @@ class RunFolder:
         while path.exists():
             n += 1
             path = Path(f"{base}-{n}")
-        try:
-            path.mkdir(parents=True)
-        except OSError as exc:
-            raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
-                                       f"space, give --runs-dir on another disk, or run with --no-record") from None
-        return cls(path)
+        while True:
+            try:
+                path.mkdir(parents=True)
+                return cls(path)
+            except FileExistsError:  # another process (beastbt test -j N) made it since: the next suffix
+                n += 1
+                path = Path(f"{base}-{n}")
+            except OSError as exc:
+                raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
+                                           f"space, give --runs-dir on another disk, or run with --no-record") from None
 
     def save_snapshot(self, name: str, frame: Any) -> str:
         """Save a :class:`~beastbt.blackboard.types.CameraFrame` as ``<name>.jpg``; return its path."""
