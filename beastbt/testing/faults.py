@@ -183,11 +183,13 @@ class FaultsPart(Part):
         self.world: Optional["World"] = None
         self.fences: list[tuple[str, Any]] = []
         self.entered: list[str] = []
-        self.places: dict[Optional[str], Optional[tuple[float, float]]] = {}
         """The watched fences the robot's true position has been inside, in the order it entered them."""
+        self.places: dict[Optional[str], Optional[tuple[float, float]]] = {}
+        """Where each place an event waits for is in the world (m), or None when it is not in the world."""
 
     def install(self, prepared: "Prepared") -> None:
-        """Find the devices the events act on, and the console's controls when an operator event needs them."""
+        """Keep the run and its world, and the fences ``expect: never_in`` watches (the devices are found when an
+        event fires; the LiDAR's emulator is given by :meth:`use_lidar`)."""
         self.run = prepared.run
         self.world = prepared.world
         self.fences = [(name, prepared.mission.fences[name]) for name in self.faults.fences
