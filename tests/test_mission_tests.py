@@ -199,10 +199,12 @@ def beastbt(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 def test_beastbt_test_exits_2_on_an_invalid_file_positioned_without_a_traceback(tmp_path):
     write(tmp_path, DRIVE, "test: t\nmission: m.yaml\nseeds: many\n", name="bad.test.yaml")
-    done = beastbt("test", str(tmp_path), "--no-record", cwd=tmp_path)
+    done = beastbt("test", str(tmp_path), "--no-record", "--junit", "out.xml", cwd=tmp_path)
     assert done.returncode == 2, done
     assert f"{tmp_path / 'bad.test.yaml'}:3:8: error:" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr + done.stdout
+    error = ET.parse(tmp_path / "out.xml").getroot().find("testsuite/testcase/error")  # CI shows it too
+    assert error is not None and error.get("message").startswith(f"{tmp_path / 'bad.test.yaml'}:3:8: error:")
 
 
 def test_beastbt_test_runs_every_file_and_seed_says_the_first_failure_and_writes_junit(tmp_path):

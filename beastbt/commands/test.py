@@ -136,12 +136,14 @@ def test_line(label: str, name: str, results: list[Any]) -> str:
     return line
 
 
-def write_junit(path: str, tests: list[tuple[Any, list[Any]]], elapsed_s: float) -> None:
-    """JUnit XML: one testsuite per test file, one testcase per seed, a failing one with its failures."""
+def write_junit(path: str, tests: list[tuple[Any, list[Any]]], elapsed_s: float,
+                invalid: Sequence[tuple[str, str]] = ()) -> None:
+    """JUnit XML: one testsuite per test file, one testcase per seed, a failing one with its failures; an invalid
+    file (``invalid``: its path and its problems) is a testsuite with one testcase in error."""
     import xml.etree.ElementTree as ET
-    total = sum(len(rs) for _, rs in tests)
+    total = sum(len(rs) for _, rs in tests) + len(invalid)
     failed = sum(1 for _, rs in tests for r in rs if r.failures and r.error is None)
-    errors = sum(1 for _, rs in tests for r in rs if r.error is not None)
+    errors = sum(1 for _, rs in tests for r in rs if r.error is not None) + len(invalid)
     root = ET.Element("testsuites", name="beastbt test", tests=str(total), failures=str(failed), errors=str(errors),
                       time=f"{elapsed_s:.3f}")
     for test, results in tests:
@@ -159,6 +161,11 @@ def write_junit(path: str, tests: list[tuple[Any, list[Any]]], elapsed_s: float)
                 ET.SubElement(case, "failure", message=r.first_failure(), type="expectation").text = r.message()
             if r.folder:
                 ET.SubElement(case, "system-out").text = f"run folder: {r.folder}"
+    for file, problems in invalid:
+        suite = ET.SubElement(root, "testsuite", name=file, tests="1", failures="0", errors="1", time="0.000")
+        case = ET.SubElement(suite, "testcase", classname=file.removesuffix(".yaml").replace(os.sep, ".").strip("."),
+                             name="invalid test file", time="0.000")
+        ET.SubElement(case, "error", message=problems.splitlines()[0], type="invalid").text = problems
     tree = ET.ElementTree(root)
     ET.indent(tree)
     tree.write(path, encoding="utf-8", xml_declaration=True)
@@ -179,13 +186,13 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt test: error: no *{SUFFIX} file under {', '.join(args.paths)}", file=sys.stderr)
         return EXIT_INVALID
     started = time.monotonic()
-    tests, invalid = [], 0
+    tests, invalid = [], []
     for f in files:
         try:
             tests.append(load_test(f, args.seeds))
         except InvalidInput as exc:
             print(exc.format(), file=sys.stderr)
-            invalid += 1
+            invalid.append((str(f), exc.format()))
     jobs = [(str(t.file), args.seeds, seed, not args.no_record, args.runs_dir) for t in tests for seed in t.seeds]
     spans, start = [], 0
     for t in tests:
@@ -214,10 +221,10 @@ def command(args: argparse.Namespace) -> int:
     total = (f"{len(tests)} test{'s' if len(tests) != 1 else ''}: {tests_passed} passed, "
              f"{len(tests) - tests_passed} failed ({runs_passed}/{len(results)} seeds passed) in {elapsed:.1f} s")
     if invalid:
-        total += f"; {invalid} invalid test file{'s' if invalid != 1 else ''} (not run)"
+        total += f"; {len(invalid)} invalid test file{'s' if len(invalid) != 1 else ''} (not run)"
     print(total)
     if args.junit:
-        write_junit(args.junit, by_test, elapsed)
+        write_junit(args.junit, by_test, elapsed, invalid)
     if invalid or any(r.invalid for r in results):
         return EXIT_INVALID
     return EXIT_SUCCESS if runs_passed == len(results) else EXIT_FAILURE
