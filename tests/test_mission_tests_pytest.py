@@ -1,7 +1,7 @@
 """The pytest plugin: each ``*.test.yaml`` x seed is a test item; a failure says the expectation, the seed and the
-value; an invalid file is a collection error at its line. beastbt is not installed here, so the plugin is loaded
-by name (``-p``) in a pytest of its own, over a folder of its own (an installed beastbt loads it by its
-``pytest11`` entry point, checked in pyproject.toml)."""
+value; an invalid file is a collection error at its line. beastbt is not installed here: the plugin is loaded by name
+(``-p``) in a pytest of its own, over a folder of its own; and by its ``pytest11`` entry point, through a dist-info
+made from pyproject.toml's, as pip would install it."""
 
 from __future__ import annotations
 
@@ -21,11 +21,31 @@ steps:
 """
 
 
-def pytest_in(folder: Path, *args: str) -> subprocess.CompletedProcess:
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    return subprocess.run([sys.executable, "-m", "pytest", "-p", "beastbt.testing.pytest_plugin",
-                           "-p", "no:cacheprovider", "-rA", *args], cwd=folder, capture_output=True, text=True,
-                          timeout=600, env=env)
+def entry_point() -> tuple[str, str]:
+    """The ``pytest11`` entry point pyproject.toml declares: (name, module)."""
+    text = (REPO / "pyproject.toml").read_text(encoding="utf-8")
+    line = re.search(r'^\[project\.entry-points\.pytest11\]\n(?:#.*\n)*(.*?)\n', text, re.M).group(1)
+    name, module = (part.strip().strip('"') for part in line.split("=", 1))
+    return name, module
+
+
+def installed(site: Path) -> Path:
+    """A folder that makes Python see beastbt as installed with pyproject's pytest11 entry point (a dist-info with
+    its entry_points.txt, as pip writes it), for pytest to load the plugin as it would on a team's machine."""
+    info = site / "beastbt-0.0.dist-info"
+    info.mkdir(parents=True, exist_ok=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: beastbt\nVersion: 0.0\n", encoding="utf-8")
+    name, module = entry_point()
+    (info / "entry_points.txt").write_text(f"[pytest11]\n{name} = {module}\n", encoding="utf-8")
+    return site
+
+
+def pytest_in(folder: Path, *args: str, site: Path = None) -> subprocess.CompletedProcess:
+    """pytest in ``folder``: with the plugin by name (``-p``), or, given ``site``, loaded by its entry point."""
+    path = str(REPO) if site is None else f"{REPO}{os.pathsep}{site}"
+    load = [] if site is not None else ["-p", "beastbt.testing.pytest_plugin"]
+    return subprocess.run([sys.executable, "-m", "pytest", *load, "-p", "no:cacheprovider", "-rA", *args],
+                          cwd=folder, capture_output=True, text=True, timeout=600, env=dict(os.environ, PYTHONPATH=path))
 
 
 def test_each_file_and_seed_is_a_test_item_and_a_failure_says_which_expectation_seed_and_value(tmp_path):
@@ -52,10 +72,18 @@ def test_an_invalid_file_is_a_collection_error_at_its_line(tmp_path):
     assert "Traceback" not in done.stdout
 
 
-def test_the_plugin_is_registered_as_a_pytest11_entry_point_and_the_repos_own_pytest_stays_in_tests():
+def test_installed_the_plugin_loads_by_its_entry_point_alone_and_with_p_once(tmp_path):
+    (tmp_path / "m.yaml").write_text(MISSION, encoding="utf-8")
+    (tmp_path / "t.test.yaml").write_text("test: drives\nmission: m.yaml\n", encoding="utf-8")
+    site = installed(tmp_path / "site")
+    alone = pytest_in(tmp_path, ".", site=site)
+    assert alone.returncode == 0 and "PASSED t.test.yaml::seed 1" in alone.stdout, alone.stdout + alone.stderr
+    both = pytest_in(tmp_path, "-p", "beastbt.testing.pytest_plugin", ".", site=site)  # as docs/testing.md says
+    assert both.returncode == 0 and "1 passed" in both.stdout, both.stdout + both.stderr
+
+
+def test_the_repos_own_pytest_stays_in_tests():
     text = (REPO / "pyproject.toml").read_text(encoding="utf-8")
-    entry = re.search(r'^\[project\.entry-points\.pytest11\]\n(.*?)\n', text, re.M).group(1)
-    assert entry == 'beastbt = "beastbt.testing.pytest_plugin"'
     assert re.search(r'^testpaths = \["tests"\]', text, re.M)  # missions/tests/*.test.yaml are not collected twice
     assert not list((REPO / "tests").rglob("*.test.yaml"))
 
