@@ -300,8 +300,13 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
                                                  has_odometry="odometry" in fills))
 
 
-def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
-    """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves."""
+def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None,
+            faults: Optional[Any] = None) -> Prepared:
+    """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves.
+
+    ``faults`` is a mission test's events and substitutions (:class:`beastbt.testing.faults.TestFaults`, the
+    simulator only): its persons join the world, its part the run's parts, its substitutions the tree.
+    """
     from beastbt.mission.mission_world import load_mission_world
     from beastbt.sim.world import empty_world, load_world
 
@@ -315,7 +320,15 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
         else:
             world = empty_world()
         use_world_map(mission, world)
-        return assemble(mission, profile, options, SIM, world=world)
+        if faults is None:
+            return assemble(mission, profile, options, SIM, world=world)
+        faults.enter(world)  # the test's persons are in the world before its simulator is built
+        parts = [*parts_for(profile, options, mission=mission), faults.part]
+        prepared = assemble(mission, profile, options, SIM, world=world, services=faults.services(), parts=parts)
+        faults.part.use_lidar(next((getattr(p, "device", None) for p in parts if p.name == "lidar"), None))
+        return prepared
+    if faults is not None:
+        raise ValueError("a mission test's faults are carried out on the simulator only")
     return assemble(mission, profile, options, REAL)
 
 

@@ -29,6 +29,8 @@ PROG = "beastbt"
 COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "run": ("beastbt.commands.run", "run a mission (on the simulator unless --robot names a profile)"),
     "validate": ("beastbt.commands.validate", "check missions, robot profiles and worlds; errors as FILE:LINE:COLUMN"),
+    "test": ("beastbt.commands.test", "run the mission tests (*.test.yaml) on their seeds and faults; one line per "
+                                      "test, --junit FILE for CI"),
     "tree": ("beastbt.commands.tree", "print the behaviour tree a mission compiles to (--dot FILE for Graphviz)"),
     "gps": ("beastbt.commands.gps", "GPS tools: decode a recorded NMEA log through the driver (one JSON line per fix)"),
     "report": ("beastbt.commands.report", "summarise a recorded run and draw its plots (report.html)"),

@@ -458,6 +458,12 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     # (navigation tuning, teleop, line following...) install the same hooks; nothing is recorded.
     options = RunOptions(robot=str(info.get("robot", "sim")), seed=int(info.get("seed", 0) or 0), record=False,
                          answers=json.loads(info.get("answers", "{}")))  # --answer: given again, at the same ask
+    substituted = (rec.summary or {}).get("substituted") or []
+    if substituted and mission_path is None:  # a mission test forced these steps' results: the same stand-ins
+        from beastbt.testing.faults import TestFaults
+        from beastbt.testing.spec import Substitution
+        forced = [Substitution(str(s["step"]), str(s["result"]), float(s["after_s"])) for s in substituted]
+        services.substitute = TestFaults([], forced).services().substitute
     clock = SimClock()
     prepared = assemble(mission, profile, options, REPLAY, io=io, clock=clock, services=services)
     run = prepared.run

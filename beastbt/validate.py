@@ -1,7 +1,7 @@
 """``beastbt validate``: check files without running anything.
 
-A file is checked as a mission, a robot profile or a world according to its
-first key (``mission:``, ``robot:``, ``world:``), and a file whose top level
+A file is checked as a mission, a robot profile, a world or a mission test according to its
+first key (``mission:``, ``robot:``, ``world:``, ``test:``), and a file whose top level
 is a list (of ``{at: ...}`` events) as a joystick script (``--joystick FILE``); anything else is
 checked as a mission, whose errors then say what a mission needs. A
 mission's world file is checked with it: its problems are reported in the
@@ -46,6 +46,9 @@ def validate_file(path: str, robot: Optional[str] = None) -> list[Problem]:
         first = next(iter(doc.data), None) if isinstance(doc.data, dict) else None
         if first == "robot":
             load_profile(path)
+        elif first == "test":  # a mission test file (docs/testing.md), checked with its mission
+            from beastbt.testing.spec import load_test
+            load_test(path)
         elif first == "world":
             load_world(path)
         else:

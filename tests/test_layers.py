@@ -29,8 +29,9 @@ LAYERS: tuple[tuple[int, tuple[str, ...], str], ...] = (
     (9, ("recording",), "the recorder and its writer process, the reader, the report, the list of runs"),
     (10, ("parts", "live", "fleet"), "each part of a robot (a device on the robot and the simulator, a feature); live "
                                      "video; the fleet (Zenoh)"),
-    (11, ("commands", "studio", "<top>"), "the subcommands and the top-level modules: assembly (the composition "
-                                          "root), replay, testing, validate, cli; the studio (it checks with validate)"),
+    (11, ("commands", "studio", "testing", "<top>"), "the subcommands and the top-level modules: assembly (the "
+                                                     "composition root), replay, validate, cli; the studio (it checks "
+                                                     "with validate); testing (the harness, mission tests)"),
 )
 """(rank, packages, what they hold): a module may import its own rank (without cycles) and lower ranks only."""
 

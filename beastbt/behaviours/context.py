@@ -124,6 +124,9 @@ class RunServices:
     ``return_home: {along: path}`` needs it."""
     questions: Optional[Any] = None
     """The run's questions to the operator (:class:`~beastbt.behaviours.ask.OperatorQuestions`)."""
+    substitute: Optional[Callable[[Any], Any]] = None
+    """A mission test's forced step results: given the compiled tree's root, it puts a stand-in named as such in
+    place of each substituted step and returns the root (:mod:`beastbt.testing.faults`); None in any other run."""
     obstacle_sensing: Optional[Any] = None
     """Where the LiDAR sits, the footprint and the scan rules for ``obstacle_within``
     (:class:`~beastbt.behaviours.obstacle_within.ObstacleSensing`); set by the LiDAR part."""

@@ -76,8 +76,11 @@ class Compiler:
 
     # -- structure --------------------------------------------------------
     def compile(self) -> Behaviour:
-        """The whole mission: a sequence of its steps, named after the mission."""
-        return self.sequence(f"mission {self.mission.name}", self.mission.steps, always_wrap=True)
+        """The whole mission: a sequence of its steps, named after the mission (a mission test's substituted steps
+        in place: :attr:`RunServices.substitute`)."""
+        root = self.sequence(f"mission {self.mission.name}", self.mission.steps, always_wrap=True)
+        substitute = self.ctx.services.substitute
+        return root if substitute is None else substitute(root)
 
     def sequence(self, name: str, steps: Sequence[st.Step], always_wrap: bool = False) -> Behaviour:
         """Run ``steps`` in order; a single step stands alone unless ``always_wrap``."""

@@ -89,11 +89,16 @@ class RunFolder:
         while path.exists():
             n += 1
             path = Path(f"{base}-{n}")
-        try:
-            path.mkdir(parents=True)
-        except OSError as exc:
-            raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
-                                       f"space, give --runs-dir on another disk, or run with --no-record") from None
+        while True:
+            try:
+                path.mkdir(parents=True)
+                break
+            except FileExistsError:  # another process (beastbt test -j N) made it since: the next suffix
+                n += 1
+                path = Path(f"{base}-{n}")
+            except OSError as exc:
+                raise RunFolderUnavailable(f"cannot make the run folder {path} ({exc.strerror or exc}): free some "
+                                           f"space, give --runs-dir on another disk, or run with --no-record") from None
         from beastbt.run.retention import hold_running_lock
         try:
             lock_fd: Optional[int] = hold_running_lock(path)

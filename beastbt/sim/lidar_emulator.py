@@ -206,6 +206,9 @@ class LidarEmulator:
         """Chunks cast so far."""
         self.chunk_s = 1.0 / (model.rate_hz * CHUNKS_PER_REVOLUTION)
         """The sampling time one cast covers, s."""
+        self.silent_until_s = -math.inf
+        """Until this sim time (s) the head sends nothing (a fault a mission test injects): what it measures
+        meanwhile is lost, as from a device that went quiet on a live port."""
 
     def on_write(self, data: bytes) -> None:
         """What the driver writes (the LD19 listens to nothing)."""
@@ -264,7 +267,7 @@ class LidarEmulator:
             if due < len(times):
                 break
             pending.pop(0)
-        if out:
+        if out and now_s >= self.silent_until_s:
             self.port.feed(b"".join(out))
 
 

@@ -18,11 +18,21 @@ every stage and the bytes that reached the emulated base::
 
 Time only moves when you tick: ``tick()`` advances the simulated clock by one
 tick period (1 / the mission's rate) after ticking.
+
+Faults and forced step results are those of mission test files
+(docs/testing.md), through the same code (:mod:`beastbt.testing.faults`):
+``events=[{at: ...}]`` and ``substitute={...}`` when the harness is made, or
+:meth:`MissionHarness.inject` now::
+
+    h = MissionHarness.from_file("missions/gps_route.yaml", substitute={"go_to b": {"result": "failure"}})
+    h.tick_until(lambda h: h.now_s >= 20)
+    h.inject(gps="lost", for_s=10)
 """
 
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable, Optional, Union
 
@@ -35,6 +45,15 @@ from beastbt.run.runner import MissionRun, TickRecord
 from beastbt.assembly import prepare
 from beastbt.run.session import Prepared, RunOptions
 from beastbt.run.summary import build_summary
+from beastbt.testing.faults import TestFaults
+from beastbt.testing.spec import faults_from
+
+
+def _faults(events: Optional[list], substitute: Optional[dict]) -> TestFaults:
+    """The faults of a harness run, as a test file's (every harness has them, so :meth:`MissionHarness.inject`
+    works on any); InvalidInput names the entry at fault."""
+    checked, subs = faults_from(events, substitute)
+    return TestFaults(checked, subs)
 
 
 class MissionHarness:
@@ -44,8 +63,10 @@ class MissionHarness:
     (the commands at each stage, the nodes that changed, the true state).
     """
 
-    def __init__(self, prepared: Prepared) -> None:
+    def __init__(self, prepared: Prepared, faults: Optional[TestFaults] = None) -> None:
         self.prepared = prepared
+        self.faults = faults
+        """The run's mission test faults (events, substitutions): what :meth:`inject` adds to."""
         self.run: MissionRun = prepared.run
         if not isinstance(prepared.clock, SimClock):
             raise ValueError("MissionHarness needs the simulator (robot 'sim' or simulate=True)")
@@ -61,28 +82,69 @@ class MissionHarness:
         self._reader = py_trees.blackboard.Client(name="harness")
         for key in catalogue.KEYS:
             catalogue.register(self._reader, key)
+        if faults is not None:
+            self._check_faults(faults)
+
+    def _check_faults(self, faults: TestFaults) -> None:
+        """The places the events wait for and the steps substituted must be the mission's (ValueError)."""
+        places = set(self.prepared.mission.places) | {"home"}
+        for event in faults.events:
+            if event.trigger.near is not None and event.trigger.near not in places:
+                raise ValueError(f"events[{event.index}]: the mission has no place '{event.trigger.near}'; "
+                                 f"its places: {', '.join(sorted(places))}")
+        names = [n.name for n in self.run.root.iterate()]
+        for sub in faults.substitutions:
+            if not any(n.startswith(sub.step) and "[substituted:" in n for n in names):
+                raise KeyError(f"no step named {sub.step!r} to substitute; the tree has: {sorted(set(names))}")
 
     # -- building ---------------------------------------------------------------
     @classmethod
     def from_file(cls, path: Union[str, Path], robot: str = "sim", world: Optional[str] = None, seed: int = 0,
-                  joystick: Optional[Union[str, Path, list]] = None, **options: Any) -> "MissionHarness":
-        """Prepare the mission file at ``path`` on the simulator (``joystick``: a script; ``options``: RunOptions fields)."""
+                  joystick: Optional[Union[str, Path, list]] = None, events: Optional[list] = None,
+                  substitute: Optional[dict] = None, **options: Any) -> "MissionHarness":
+        """Prepare the mission file at ``path`` on the simulator (``joystick``: a script; ``options``: RunOptions fields).
+
+        ``events`` and ``substitute`` are written as in a test file (docs/testing.md): ``[{"at": "5 s", "gps":
+        "lost"}]``, ``{"go_to b": {"result": "failure"}}``.
+        """
         opts = RunOptions(robot=robot, world=world, seed=seed, record=False, simulate=True, joystick_script=joystick,
                           **options)
-        return cls(prepare(str(path), opts))
+        faults = _faults(events, substitute)
+        return cls(prepare(str(path), opts, faults=faults), faults)
 
     @classmethod
     def from_yaml(cls, text: str, robot: str = "sim", world: Optional[str] = None, seed: int = 0,
                   name: str = "<test mission>", base_dir: Optional[Union[str, Path]] = None,
-                  joystick: Optional[Union[str, Path, list]] = None, **options: Any) -> "MissionHarness":
+                  joystick: Optional[Union[str, Path, list]] = None, events: Optional[list] = None,
+                  substitute: Optional[dict] = None, **options: Any) -> "MissionHarness":
         """Prepare a mission written as a YAML string (relative paths resolve from ``base_dir``).
 
-        ``joystick`` is a joystick script played on the simulator; ``options`` are other RunOptions fields.
+        ``joystick`` is a joystick script played on the simulator; ``events`` and ``substitute`` as in
+        :meth:`from_file`; ``options`` are other RunOptions fields.
         """
         base = Path(base_dir) if base_dir is not None else Path(tempfile.gettempdir())
         opts = RunOptions(robot=robot, world=world, seed=seed, record=False, simulate=True, joystick_script=joystick,
                           **options)
-        return cls(prepare(str(base / "mission.yaml"), opts, mission_text=text))
+        faults = _faults(events, substitute)
+        return cls(prepare(str(base / "mission.yaml"), opts, mission_text=text, faults=faults), faults)
+
+    # -- faults -----------------------------------------------------------------
+    def inject(self, for_s: Optional[float] = None, **happening: Any) -> None:
+        """Carry out one event of a test file now, through the same code: ``inject(gps="lost", for_s=10)``,
+        ``inject(gps={"jump": "25 m"})``, ``inject(lidar="silent", for_s=2)``, ``inject(battery="20 %")``,
+        ``inject(operator="pause", for_s=5)``, ``inject(estop=True)`` (``for_s`` seconds). A person joins the
+        world before the run is built: give it in ``events=`` when the harness is made.
+        """
+        if self.faults is None:
+            raise ValueError("this harness was made without mission test faults")
+        raw: dict[str, Any] = {"at": f"{self.run.elapsed_s:.6f} s", **happening}
+        if for_s is not None:
+            raw["for"] = f"{for_s} s"
+        (event,), _ = faults_from([raw], places=self.prepared.mission.places)
+        event = replace(event, index=len(self.faults.events))
+        self.faults.add(event)  # fired now, by the part, and never again
+        self.faults.part.done.add(event.index)
+        self.faults.part.fire(event, self.run, self.clock.now())
 
     # -- time -------------------------------------------------------------------
     @property
