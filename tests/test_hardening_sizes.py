@@ -11,14 +11,21 @@ from __future__ import annotations
 
 import random
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
+import pytest
+
 from beastbt.core import yaml_source
+from beastbt.core.errors import InvalidInput
 from beastbt.estimation.geodesy import distance_m
-from beastbt.mission import place_neighbours, warnings
+from beastbt.mission import geo_files, place_neighbours, warnings
 from beastbt.mission.model import load_mission
+from beastbt.sim import joystick_limits
 from beastbt.validate import validate_file
+from conftest import REPO
 from hostile_yaml import many_places
+from test_hardening_input import beastbt_own_rss
 
 
 def _pairwise(places: list, far_m: float) -> dict[int, tuple[float, str]]:
@@ -101,3 +108,132 @@ def test_a_mission_of_many_places_in_braces_is_composed_by_libyaml():
     assert yaml_source._compose_fast(many_places(4000)) is not None
     assert yaml_source._compose_fast("a: " + "[" * 300 + "]" * 300 + "\n") is None
     assert yaml_source._compose_fast("a: " + "{b: " * 300 + "1" + "}" * 300 + "\n") is None
+
+
+# --- route files and joystick scripts: bytes, points, events (issue 38, point 5 of its Why) ----------------------
+
+def _write_gpx(path: Path, points: int) -> None:
+    with open(path, "w") as f:
+        f.write('<?xml version="1.0"?>\n<gpx version="1.1" creator="probe" xmlns="http://www.topografix.com/GPX/1/1">'
+                "<trk><trkseg>\n")
+        for chunk in range(0, points, 10_000):
+            f.write("".join(f'<trkpt lat="40.{i % 10000:04d}" lon="-3.{i % 7000:04d}"><ele>650</ele></trkpt>\n'
+                            for i in range(chunk, min(points, chunk + 10_000))))
+        f.write("</trkseg></trk></gpx>\n")
+
+
+def _write_kml(path: Path, points: int) -> None:
+    with open(path, "w") as f:
+        f.write('<?xml version="1.0"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><LineString>'
+                "<coordinates>\n")
+        for chunk in range(0, points, 10_000):  # ten tuples a line
+            f.write("".join(f"-3.{i % 7000:04d},40.{i % 10000:04d},0" + ("\n" if i % 10 == 9 else " ")
+                            for i in range(chunk, min(points, chunk + 10_000))))
+        f.write("</coordinates></LineString></Placemark></kml>\n")
+
+
+def _write_script(path: Path, events: int) -> None:
+    with open(path, "w") as f:
+        for chunk in range(0, events, 10_000):
+            f.write("".join(f"- {{at: {i * 0.01:.2f} s, linear: 0.5}}\n"
+                            for i in range(chunk, min(events, chunk + 10_000))))
+
+
+def _route_mission(tmp_path: Path, route: str) -> Path:
+    path = tmp_path / "m.yaml"
+    path.write_text(f"mission: m\nsteps:\n  - route: {{file: {route}}}\n")
+    return path
+
+
+def _refused_cleanly(code: int, err: str, rss_mb: float) -> None:
+    assert code == 2, err[-2000:]
+    assert "internal error" not in err and "Traceback" not in err and "MemoryError" not in err, err[-2000:]
+    assert rss_mb < 200, rss_mb
+
+
+@pytest.mark.parametrize("name, write, says", [
+    ("probe.gpx", _write_gpx, "MB: a route, places or fence file is read up to 16 MB"),
+    ("probe.kml", _write_kml, "MB: a route, places or fence file is read up to 16 MB"),
+])
+def test_a_2_million_point_route_file_is_refused_by_its_size_at_the_key_that_names_it(tmp_path, name, write, says):
+    write(tmp_path / name, 2_000_000)  # the probe's: 78 MB of GPX (here with elevations: more), 38 MB of KML
+    assert (tmp_path / name).stat().st_size > 30 << 20
+    code, _, err, rss = beastbt_own_rss("validate", str(_route_mission(tmp_path, name)), cwd=tmp_path)
+    _refused_cleanly(code, err, rss)
+    assert f"m.yaml:3:19: error: the route file {name} cannot be read: {name} is " in err and says in err, err
+    assert "hint: thin it to at most 10,000 points" in err
+
+
+@pytest.mark.parametrize("name, write, line, column, what", [
+    ("many.gpx", _write_gpx, 3 + 10_000, 1, "points (wpt, rtept, trkpt)"),  # the 10,001st trkpt's line
+    ("many.kml", _write_kml, 3 + 1_000, 1, "coordinates (lon,lat tuples)"),  # ten a line: the 1,001st line
+])
+def test_a_route_file_under_the_size_cap_but_over_the_point_cap_is_refused_at_the_first_point_too_many(
+        tmp_path, name, write, line, column, what):
+    write(tmp_path / name, 200_000)  # within 16 MB: the points are counted as the XML streams by
+    assert (tmp_path / name).stat().st_size < 16 << 20
+    code, _, err, rss = beastbt_own_rss("validate", str(_route_mission(tmp_path, name)), cwd=tmp_path)
+    _refused_cleanly(code, err, rss)
+    assert f"{tmp_path / name}:{line}:{column}: error: more than 10,000 {what}" in err, err
+    assert f"m.yaml:3:19: error: the route file {name} cannot be read" in err
+
+
+def test_a_geojson_and_a_waypoints_file_over_the_point_cap_are_refused_at_their_line(tmp_path):
+    pairs = ",\n".join(f"[-3.{i % 7000:04d}, 40.{i % 10000:04d}]" for i in range(20_000))
+    (tmp_path / "r.geojson").write_text('{"type": "Feature", "geometry": {"type": "LineString", "coordinates": [\n'
+                                        + pairs + "]}}\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(_route_mission(tmp_path, "r.geojson"))
+    assert f"{tmp_path / 'r.geojson'}:10002:1: error: more than 10,000 coordinate lists" in info.value.format()
+    rows = "".join(f"{i}\t0\t3\t16\t0\t0\t0\t0\t40.{i % 10000:04d}\t-3.7\t0\t1\n" for i in range(1, 10_002))
+    (tmp_path / "r.waypoints").write_text("QGC WPL 110\n" + rows)
+    with pytest.raises(InvalidInput) as info:
+        load_mission(_route_mission(tmp_path, "r.waypoints"))
+    assert f"{tmp_path / 'r.waypoints'}:10002:1: error: more than 10,000 waypoints" in info.value.format()
+
+
+def test_a_200000_deep_geojson_is_a_positioned_problem_not_an_internal_error(tmp_path):
+    (tmp_path / "deep.geojson").write_text("[" * 200_000 + "]" * 200_000)
+    code, _, err, rss = beastbt_own_rss("validate", str(_route_mission(tmp_path, "deep.geojson")), cwd=tmp_path)
+    _refused_cleanly(code, err, rss)
+    assert f"{tmp_path / 'deep.geojson'}:1:65: error: not valid GeoJSON: lists and objects nested more than 64 " \
+           f"deep" in err, err
+    assert "m.yaml:3:19: error: the route file deep.geojson cannot be read" in err
+
+
+def test_a_route_file_within_its_bounds_still_gives_its_points(tmp_path):
+    _write_kml(tmp_path / "ok.kml", 10_000)
+    _write_gpx(tmp_path / "ok.gpx", 10_000)
+    assert len(geo_files.read_points(tmp_path / "ok.kml", "route").points) == 10_000
+    assert len(geo_files.read_points(tmp_path / "ok.gpx", "route").points) == 10_000
+
+
+@pytest.mark.parametrize("command", [["validate"], ["run", "missions/patrol.yaml", "--joystick"]])
+def test_a_2_million_event_joystick_script_is_refused_by_its_size(tmp_path, command):
+    script = tmp_path / "probe.yaml"
+    _write_script(script, 2_000_000)  # the probe's 63 MB
+    assert script.stat().st_size > 60_000_000
+    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=REPO)
+    _refused_cleanly(code, err, rss)
+    assert f"{script}:1:1: error: the joystick script is " in err and "MB: a joystick script is read up to 8 MB" \
+        in err, err
+    assert "hint: a joystick script is a short list of timed events" in err
+
+
+@pytest.mark.parametrize("command", [["validate"], ["run", "missions/patrol.yaml", "--joystick"]])
+def test_a_joystick_script_under_the_size_cap_but_over_the_event_cap_is_refused_at_the_first_event_too_many(
+        tmp_path, command):
+    script = tmp_path / "many.yaml"
+    _write_script(script, 200_000)
+    assert script.stat().st_size < 8 << 20
+    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=REPO)
+    _refused_cleanly(code, err, rss)
+    assert f"{script}:10001:3: error: more than 10,000 events: a joystick script holds at most 10,000" in err, err
+
+
+def test_a_joystick_event_of_many_values_is_refused_at_the_value_too_many():
+    text = "- {at: 1 s, press: enable}\n- {at: 2 s, linear: [" + ", ".join(["0"] * 300_000) + "]}\n"
+    problem = joystick_limits.text_size_problem(text, "s.yaml")
+    assert problem is not None and problem.file == "s.yaml" and problem.position.line == 2
+    assert problem.message.startswith("more than 200,000 values")
+    assert joystick_limits.text_size_problem("- {at: 1 s, press: enable}\n" * 100, "s.yaml") is None

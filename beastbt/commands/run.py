@@ -318,7 +318,12 @@ def command(args: argparse.Namespace) -> int:
         # is refused at the cost of reading it, not after the simulator, OpenCV and the parts are imported.
         from pathlib import Path
 
+        from beastbt.sim.joystick_limits import file_size_problem
         from beastbt.sim.joystick_script import script_doc
+        too_big = file_size_problem(opts.joystick_script, opts.joystick_script)  # its size, before reading it
+        if too_big is not None:
+            print(InvalidInput([too_big]).format(), file=sys.stderr)
+            return EXIT_INVALID
         try:
             script_doc(Path(opts.joystick_script).read_text(encoding="utf-8"), opts.joystick_script)
         except InvalidInput as exc:

@@ -37,6 +37,10 @@ def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping)
         if isinstance(spec, (list, tuple)):
             return ScriptedJoystick(list(spec), mapping, source="<joystick events>")
         path = Path(spec)
+        from beastbt.sim.joystick_limits import file_size_problem
+        too_big = file_size_problem(path, str(path))  # before reading it: its size from stat
+        if too_big is not None:
+            raise InvalidInput([too_big])
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as exc:
