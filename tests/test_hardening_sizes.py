@@ -237,3 +237,57 @@ def test_a_joystick_event_of_many_values_is_refused_at_the_value_too_many():
     assert problem is not None and problem.file == "s.yaml" and problem.position.line == 2
     assert problem.message.startswith("more than 200,000 values")
     assert joystick_limits.text_size_problem("- {at: 1 s, press: enable}\n" * 100, "s.yaml") is None
+
+
+# --- map images: the pixels a header declares (issue 38, point 6 of its Why) ---------------------------------------
+
+def _map_with_image(tmp_path: Path, image_name: str, image: bytes) -> Path:
+    (tmp_path / image_name).write_bytes(image)
+    (tmp_path / "huge.yaml").write_text(f"resolution: 0.05\nimage: {image_name}\norigin: [0, 0, 0]\n")
+    (tmp_path / "m.yaml").write_text("mission: m\nmap: huge.yaml\nsteps:\n  - wait: 1 s\n")
+    return tmp_path / "m.yaml"
+
+
+def test_a_pgm_declared_100000_by_100000_is_refused_at_the_image_key_not_an_internal_error(tmp_path):
+    mission_path = _map_with_image(tmp_path, "huge.pgm", b"P5\n# a comment\n100000 100000\n255\n" + bytes(1000))
+    code, _, err, rss = beastbt_own_rss("validate", str(mission_path), cwd=tmp_path)
+    _refused_cleanly(code, err, rss)
+    assert f"{tmp_path / 'huge.yaml'}:2:8: error: the map image huge.pgm declares 100,000 x 100,000 pixels " \
+           f"(10,000,000,000): a map holds at most 40,000,000 cells" in err, err
+    assert "hint: use a coarser resolution or crop the map" in err
+
+
+@pytest.mark.parametrize("name, image, says", [
+    ("huge.png", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + (30_000).to_bytes(4, "big") * 2 + bytes(100),
+     "declares 30,000 x 30,000 pixels"),
+    ("huge.bmp", b"BM" + bytes(16) + (20_000).to_bytes(4, "little") + (-20_000).to_bytes(4, "little", signed=True)
+     + bytes(100), "declares 20,000 x 20,000 pixels"),
+    ("broken.pgm", b"P5\nwide high\n255\n", "its PGM/PPM header has no width and height"),
+    ("empty.pgm", b"P5\n0 10\n255\n", "declares 0 x 10 pixels: an empty image"),
+])
+def test_a_map_image_header_over_the_cap_or_broken_is_refused_at_the_image_key(tmp_path, name, image, says):
+    from beastbt.mapping.occupancy_map import load_map
+    _map_with_image(tmp_path, name, image)
+    with pytest.raises(InvalidInput) as info:
+        load_map(tmp_path / "huge.yaml")
+    text = info.value.format()
+    assert f"{tmp_path / 'huge.yaml'}:2:8: error:" in text and says in text, text
+
+
+def test_an_image_opencv_refuses_by_its_own_bound_is_a_positioned_problem(tmp_path, monkeypatch):
+    # A format whose header is not read here (JPEG) declaring more than OpenCV's 2^30 pixels: its cv2.error.
+    import cv2
+
+    from beastbt.mapping.occupancy_map import load_map
+
+    def refuses(*args, **kwargs):
+        raise cv2.error("OpenCV(5.1.0) loadsave.cpp:80: error: (-215:Assertion failed) pixels <= "
+                        "CV_IO_MAX_IMAGE_PIXELS in function 'validateInputImageSize'\n")
+
+    monkeypatch.setattr(cv2, "imread", refuses)
+    _map_with_image(tmp_path, "huge.jpg", b"\xff\xd8\xff" + bytes(100))
+    with pytest.raises(InvalidInput) as info:
+        load_map(tmp_path / "huge.yaml")
+    text = info.value.format()
+    assert f"{tmp_path / 'huge.yaml'}:2:8: error: cannot read the map image" in text and "OpenCV cannot read it" \
+        in text, text
