@@ -208,25 +208,25 @@ def test_a_route_file_within_its_bounds_still_gives_its_points(tmp_path):
     assert len(geo_files.read_points(tmp_path / "ok.gpx", "route").points) == 10_000
 
 
-@pytest.mark.parametrize("command", [["validate"], ["run", "missions/patrol.yaml", "--joystick"]])
+@pytest.mark.parametrize("command", [["validate"], ["run", str(REPO / "missions" / "patrol.yaml"), "--joystick"]])
 def test_a_2_million_event_joystick_script_is_refused_by_its_size(tmp_path, command):
     script = tmp_path / "probe.yaml"
     _write_script(script, 2_000_000)  # the probe's 63 MB
     assert script.stat().st_size > 60_000_000
-    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=REPO)
+    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=tmp_path)
     _refused_cleanly(code, err, rss)
     assert f"{script}:1:1: error: the joystick script is " in err and "MB: a joystick script is read up to 8 MB" \
         in err, err
     assert "hint: a joystick script is a short list of timed events" in err
 
 
-@pytest.mark.parametrize("command", [["validate"], ["run", "missions/patrol.yaml", "--joystick"]])
+@pytest.mark.parametrize("command", [["validate"], ["run", str(REPO / "missions" / "patrol.yaml"), "--joystick"]])
 def test_a_joystick_script_under_the_size_cap_but_over_the_event_cap_is_refused_at_the_first_event_too_many(
         tmp_path, command):
     script = tmp_path / "many.yaml"
     _write_script(script, 200_000)
     assert script.stat().st_size < 8 << 20
-    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=REPO)
+    code, _, err, rss = beastbt_own_rss(*command, str(script), cwd=tmp_path)
     _refused_cleanly(code, err, rss)
     assert f"{script}:10001:3: error: more than 10,000 events: a joystick script holds at most 10,000" in err, err
 
@@ -291,3 +291,80 @@ def test_an_image_opencv_refuses_by_its_own_bound_is_a_positioned_problem(tmp_pa
     text = info.value.format()
     assert f"{tmp_path / 'huge.yaml'}:2:8: error: cannot read the map image" in text and "OpenCV cannot read it" \
         in text, text
+
+
+# --- MCAP records: what a record may claim (issue 38, point 6 of its Why) -----------------------------------------
+
+def _chunks(data: bytes) -> list[int]:
+    """The byte offsets of the chunk records of an MCAP file's data section."""
+    offsets, pos = [], 8  # after the magic
+    while pos + 9 <= len(data):
+        opcode, length = data[pos], int.from_bytes(data[pos + 1:pos + 9], "little")
+        if opcode == 0x06:
+            offsets.append(pos)
+        if opcode == 0x02:  # the footer
+            break
+        pos += 9 + length
+    return offsets
+
+
+def _crafted(tmp_path: Path, patch) -> tuple[Path, int]:
+    from recording_support import shared_run
+    from beastbt.recording.reader import find_recording
+    data = bytearray(find_recording(shared_run("patrol")[0]).read_bytes())
+    offset = _chunks(bytes(data))[1]  # the second chunk: the first one's messages are read
+    patch(data, offset)
+    path = tmp_path / "crafted.mcap"
+    path.write_bytes(bytes(data))
+    return path, offset
+
+
+TERABYTE = 1 << 40
+
+
+def _claim_uncompressed(data: bytearray, at: int) -> None:
+    data[at + 25:at + 33] = TERABYTE.to_bytes(8, "little")  # opcode, length, start and end times, then this
+
+
+def _claim_record_length(data: bytearray, at: int) -> None:
+    data[at + 1:at + 9] = TERABYTE.to_bytes(8, "little")
+
+
+def _claim_records_length(data: bytearray, at: int) -> None:
+    compression_length = int.from_bytes(data[at + 37:at + 41], "little")
+    records_at = at + 41 + compression_length
+    data[records_at:records_at + 8] = TERABYTE.to_bytes(8, "little")
+
+
+@pytest.mark.parametrize("patch, says", [
+    (_claim_uncompressed, "claims 1,099,511,627,776 bytes uncompressed: a chunk holds at most 268,435,456"),
+    (_claim_record_length, "claims"),
+    (_claim_records_length, "claims 1,099,511,627,776 bytes, but the file has"),
+])
+def test_a_chunk_that_claims_a_terabyte_stops_the_reading_there_with_the_file_and_its_offset(tmp_path, patch, says):
+    from beastbt.recording.reader import read_recording
+    path, offset = _crafted(tmp_path, patch)
+    rec = read_recording(path)
+    assert not rec.complete and rec.stopped_because.startswith(f"crafted.mcap: the "), rec.stopped_because
+    assert f"at byte {offset:,}" in rec.stopped_because and says in rec.stopped_because, rec.stopped_because
+    assert rec.message_count() > 0  # what the first chunk holds is still read
+
+
+def test_a_zstd_frame_that_claims_more_than_its_chunk_is_refused_before_it_is_decompressed():
+    import zstandard
+    from mcap.records import Chunk
+
+    from beastbt.recording.reader import RecordClaim, _decompressed
+    frame = zstandard.ZstdCompressor().compress(bytes(1 << 20))  # its header says 1 MiB
+    chunk = Chunk(message_start_time=0, message_end_time=0, uncompressed_size=1000, uncompressed_crc=0,
+                  compression="zstd", data=frame)
+    with pytest.raises(RecordClaim, match="holds a frame of 1,048,576 bytes, more than the 1,000 it claims"):
+        _decompressed(chunk, 1234)
+
+
+def test_report_of_a_chunk_claiming_a_terabyte_answers_within_bounds(tmp_path):
+    path, offset = _crafted(tmp_path, _claim_uncompressed)
+    code, out, err, rss = beastbt_own_rss("report", str(path), "--out", str(tmp_path / "report"), cwd=tmp_path)
+    assert code == 0, err[-2000:]
+    assert "Traceback" not in err and "MemoryError" not in err and rss < 400, (err[-2000:], rss)
+    assert f"crafted.mcap: the chunk at byte {offset:,} claims 1,099,511,627,776 bytes uncompressed" in out, out
