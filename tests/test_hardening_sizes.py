@@ -24,6 +24,7 @@ from beastbt.mission.model import load_mission
 from beastbt.sim import joystick_limits
 from beastbt.validate import validate_file
 from conftest import REPO
+from hostile_files import write_gpx as _write_gpx, write_kml as _write_kml, write_script as _write_script
 from hostile_yaml import many_places
 from test_hardening_input import beastbt_own_rss
 
@@ -111,33 +112,6 @@ def test_a_mission_of_many_places_in_braces_is_composed_by_libyaml():
 
 
 # --- route files and joystick scripts: bytes, points, events (issue 38, point 5 of its Why) ----------------------
-
-def _write_gpx(path: Path, points: int) -> None:
-    with open(path, "w") as f:
-        f.write('<?xml version="1.0"?>\n<gpx version="1.1" creator="probe" xmlns="http://www.topografix.com/GPX/1/1">'
-                "<trk><trkseg>\n")
-        for chunk in range(0, points, 10_000):
-            f.write("".join(f'<trkpt lat="40.{i % 10000:04d}" lon="-3.{i % 7000:04d}"><ele>650</ele></trkpt>\n'
-                            for i in range(chunk, min(points, chunk + 10_000))))
-        f.write("</trkseg></trk></gpx>\n")
-
-
-def _write_kml(path: Path, points: int) -> None:
-    with open(path, "w") as f:
-        f.write('<?xml version="1.0"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Placemark><LineString>'
-                "<coordinates>\n")
-        for chunk in range(0, points, 10_000):  # ten tuples a line
-            f.write("".join(f"-3.{i % 7000:04d},40.{i % 10000:04d},0" + ("\n" if i % 10 == 9 else " ")
-                            for i in range(chunk, min(points, chunk + 10_000))))
-        f.write("</coordinates></LineString></Placemark></kml>\n")
-
-
-def _write_script(path: Path, events: int) -> None:
-    with open(path, "w") as f:
-        for chunk in range(0, events, 10_000):
-            f.write("".join(f"- {{at: {i * 0.01:.2f} s, linear: 0.5}}\n"
-                            for i in range(chunk, min(events, chunk + 10_000))))
-
 
 def _route_mission(tmp_path: Path, route: str) -> Path:
     path = tmp_path / "m.yaml"
