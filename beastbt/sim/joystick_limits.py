@@ -114,9 +114,9 @@ def list_file_problem(path: Union[str, Path], display_name: Optional[str] = None
     :data:`_SNIFF_BYTES` bytes), None for any other file: what ``beastbt validate`` asks before reading a file
     whole."""
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None  # not opened: opening a pipe would wait for a writer (the loader says what it is)
         with open(path, "rb") as f:
-            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
-                return None
             head = f.read(_SNIFF_BYTES).decode("utf-8", errors="replace")
     except OSError:
         return None
