@@ -192,11 +192,14 @@ def _read_image(path: Path) -> np.ndarray:
 
 def _check_declared_size(image_path: Path, name: str, where: Position) -> None:
     """Refuse, at the YAML's ``image:``, an image whose header declares more than :data:`MAX_CELLS` pixels or
-    declares no sensible size (issue 38: a PGM declaring 100,000 x 100,000); OSError when it cannot be read."""
+    declares no sensible size (issue 38: a PGM declaring 100,000 x 100,000), before any pixel is decoded; an image
+    that cannot be opened is left to the reading, which says why."""
     from beastbt.mapping.image_header import ImageHeaderError, declared_size
 
     try:
         size = declared_size(image_path)
+    except OSError:
+        return  # reading the image says why, where the image is read
     except ImageHeaderError as exc:
         raise _problem(name, where, f"the map image {str(image_path)!r} cannot be read: {exc}",
                        "save the map again (beastbt map save, or map_saver), or point 'image:' at its PGM") from None
@@ -255,10 +258,10 @@ def load_map(path: Union[str, Path]) -> OccupancyMap:
     if thresholds["free_thresh"] > thresholds["occupied_thresh"]:
         raise _problem(name, pos("free_thresh"), "'free_thresh' is above 'occupied_thresh'",
                        "free_thresh is the lighter bound (e.g. 0.25), occupied_thresh the darker (e.g. 0.65)")
+    _check_declared_size(Path(image) if Path(image).is_absolute() else path.parent / image, name, pos("image"))
 
     image_path = Path(image) if Path(image).is_absolute() else path.parent / image
     try:
-        _check_declared_size(image_path, name, pos("image"))  # before a pixel is decoded or allocated
         pixels = _read_image(image_path)
     except OSError as exc:
         raise _problem(name, pos("image"), f"cannot read the map image {str(image_path)!r}: {exc}",

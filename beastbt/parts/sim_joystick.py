@@ -33,14 +33,14 @@ _WHERE = re.compile(r"^(?P<file>.*?):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>
 
 def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping) -> ScriptedJoystick:
     """A script from a YAML file path or a list of event mappings; raise InvalidInput naming file:line:column."""
+    from beastbt.sim.joystick_limits import file_size_problem
+    too_big = None if isinstance(spec, (list, tuple)) else file_size_problem(spec, str(spec))  # from stat
+    if too_big is not None:
+        raise InvalidInput([too_big])
     try:
         if isinstance(spec, (list, tuple)):
             return ScriptedJoystick(list(spec), mapping, source="<joystick events>")
         path = Path(spec)
-        from beastbt.sim.joystick_limits import file_size_problem
-        too_big = file_size_problem(path, str(path))  # before reading it: its size from stat
-        if too_big is not None:
-            raise InvalidInput([too_big])
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as exc:
