@@ -236,6 +236,9 @@ def test_a_pgm_declared_100000_by_100000_is_refused_at_the_image_key_not_an_inte
      "declares 30,000 x 30,000 pixels"),
     ("huge.bmp", b"BM" + bytes(16) + (20_000).to_bytes(4, "little") + (-20_000).to_bytes(4, "little", signed=True)
      + bytes(100), "declares 20,000 x 20,000 pixels"),
+    ("huge.jpg", b"\xff\xd8\xff\xe0\x00\x10JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00"
+     b"\xff\xc0\x00\x0b\x08" + (30_000).to_bytes(2, "big") * 2 + b"\x01\x01\x11\x00" + bytes(100),
+     "declares 30,000 x 30,000 pixels"),  # within OpenCV's 2^30: it would decode 900 million pixels
     ("broken.pgm", b"P5\nwide high\n255\n", "its PGM/PPM header has no width and height"),
     ("empty.pgm", b"P5\n0 10\n255\n", "declares 0 x 10 pixels: an empty image"),
 ])
@@ -249,7 +252,7 @@ def test_a_map_image_header_over_the_cap_or_broken_is_refused_at_the_image_key(t
 
 
 def test_an_image_opencv_refuses_by_its_own_bound_is_a_positioned_problem(tmp_path, monkeypatch):
-    # A format whose header is not read here (JPEG) declaring more than OpenCV's 2^30 pixels: its cv2.error.
+    # A format whose header is not read here (TIFF) declaring more than OpenCV's 2^30 pixels: its cv2.error.
     import cv2
 
     from beastbt.mapping.occupancy_map import load_map
@@ -259,7 +262,7 @@ def test_an_image_opencv_refuses_by_its_own_bound_is_a_positioned_problem(tmp_pa
                         "CV_IO_MAX_IMAGE_PIXELS in function 'validateInputImageSize'\n")
 
     monkeypatch.setattr(cv2, "imread", refuses)
-    _map_with_image(tmp_path, "huge.jpg", b"\xff\xd8\xff" + bytes(100))
+    _map_with_image(tmp_path, "huge.tif", b"II*\x00" + bytes(100))
     with pytest.raises(InvalidInput) as info:
         load_map(tmp_path / "huge.yaml")
     text = info.value.format()
