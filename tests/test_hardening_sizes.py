@@ -345,3 +345,15 @@ def test_report_of_a_chunk_claiming_a_terabyte_answers_within_bounds(tmp_path):
     assert code == 0, err[-2000:]
     assert "Traceback" not in err and "MemoryError" not in err and rss < 400, (err[-2000:], rss)
     assert f"crafted.mcap: the chunk at byte {offset:,} claims 1,099,511,627,776 bytes uncompressed" in out, out
+
+
+def test_a_geojson_of_a_million_empty_lists_or_65_levels_is_refused_on_its_text(tmp_path):
+    (tmp_path / "many.geojson").write_text("[" + ",\n".join(["[]"] * 1_000_000) + "]")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(_route_mission(tmp_path, "many.geojson"))
+    assert f"{tmp_path / 'many.geojson'}:50000:1: error: more than 50,000 lists and objects" in info.value.format()
+    (tmp_path / "deep.geojson").write_text('{"type": "Feature", "x": ' + "[" * 65 + "]" * 65 + "}")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(_route_mission(tmp_path, "deep.geojson"))
+    assert f"{tmp_path / 'deep.geojson'}:1:89: error: not valid GeoJSON: lists and objects nested more than 64 " \
+           f"deep" in info.value.format(), info.value.format()

@@ -15,8 +15,8 @@ points was still validating after 120 s): at most :data:`MAX_GEO_FILE_BYTES`
 on disk, checked with ``stat`` before reading, and at most
 :data:`MAX_GEO_POINTS` points, counted while streaming through the XML with
 expat (GPX, KML) or over the text (GeoJSON, .plan, .waypoints) before the
-points are built. A JSON file nested beyond Python's recursion is a
-positioned error too.
+points are built. A JSON file's lists and objects are bounded in number and
+depth on its text too, before the JSON reader builds (or recurses into) them.
 """
 
 from __future__ import annotations
@@ -121,23 +121,37 @@ def _count_xml_points(path: Path, point_tags: frozenset, coordinates: bool) -> N
         return  # the format's own reader says where and why, as before; it too stops there
 
 
-def _json_depth_problem(text: str, what: str) -> GeoFileError:
-    """Where ``text`` first nests lists and objects deeper than :data:`MAX_JSON_DEPTH` (strings skipped)."""
-    depth = 0
+def _line_column(text: str, index: int) -> tuple[int, int]:
+    """The 1-based line and column of ``text[index]``."""
+    return text.count("\n", 0, index) + 1, index - (text.rfind("\n", 0, index) + 1) + 1
+
+
+def _json_shape_problem(text: str, what: str) -> Optional[GeoFileError]:
+    """The first place where ``text`` nests lists and objects deeper than :data:`MAX_JSON_DEPTH`, or opens more
+    than :data:`MAX_JSON_CONTAINERS` of them (strings skipped); None when it does neither. Looks at most at the
+    first :data:`MAX_JSON_CONTAINERS` + 1 of them."""
+    depth = opened = 0
     for match in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
         token = match.group()
         if token in "[{":
             depth += 1
+            opened += 1
             if depth > MAX_JSON_DEPTH:
-                line = text.count("\n", 0, match.start()) + 1
-                column = match.start() - (text.rfind("\n", 0, match.start()) + 1) + 1
                 return GeoFileError(f"not valid {what}: lists and objects nested more than {MAX_JSON_DEPTH} deep",
-                                    line, column, "a GeoJSON file nests 6 levels at most: is this the right file?")
+                                    *_line_column(text, match.start()),
+                                    "a GeoJSON file nests 6 levels at most: is this the right file?")
+            if opened > MAX_JSON_CONTAINERS:
+                return GeoFileError(f"more than {MAX_JSON_CONTAINERS:,} lists and objects: a route, places or "
+                                    f"fence file holds at most {MAX_GEO_POINTS:,} points",
+                                    *_line_column(text, match.start()), THIN_HINT.format(max=MAX_GEO_POINTS))
         elif token in "]}":
             depth -= 1
-    return GeoFileError(f"not valid {what}: nested too deeply for a JSON reader", None, 1,
-                        "a GeoJSON file nests 6 levels at most: is this the right file?")
+    return None
 
+
+MAX_JSON_CONTAINERS = 5 * MAX_GEO_POINTS
+"""The most lists and objects a GeoJSON or .plan file may open: a named GeoJSON Point is four (its feature, geometry,
+properties and coordinates), so 10,000 places fit."""
 
 _JSON_PAIR = re.compile(r"\[\s*-?[\d.]")
 """The start of a JSON list whose first item is a number: a coordinate pair (or a .plan's params)."""
@@ -227,15 +241,16 @@ def _json(path: Path, what: str) -> object:
     text = path.read_text(encoding="utf-8")
     for i, match in enumerate(_JSON_PAIR.finditer(text)):
         if i == MAX_GEO_POINTS:
-            line = text.count("\n", 0, match.start()) + 1
-            raise _too_many_points("coordinate lists", line, match.start() - (text.rfind("\n", 0, match.start()) + 1)
-                                   + 1)
+            raise _too_many_points("coordinate lists", *_line_column(text, match.start()))
+    # Every list and object costs memory once parsed (an empty list 56 bytes) and a level of the JSON reader's
+    # recursion (200,000 levels: a RecursionError): their number and depth are bounded on the text first.
+    problem = _json_shape_problem(text, what)
+    if problem is not None:
+        raise problem
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise GeoFileError(f"not valid {what} (JSON): {exc.msg}", exc.lineno, exc.colno) from None
-    except RecursionError:
-        raise _json_depth_problem(text, what) from None
 
 
 def _geojson(path: Path, want: str) -> GeoPoints:
@@ -496,4 +511,4 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
 
 
 __all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS",
-           "MAX_GEO_FILE_BYTES", "MAX_GEO_POINTS", "MAX_JSON_DEPTH"]
+           "MAX_GEO_FILE_BYTES", "MAX_GEO_POINTS", "MAX_JSON_DEPTH", "MAX_JSON_CONTAINERS"]
