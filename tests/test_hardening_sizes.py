@@ -357,3 +357,12 @@ def test_a_geojson_of_a_million_empty_lists_or_65_levels_is_refused_on_its_text(
         load_mission(_route_mission(tmp_path, "deep.geojson"))
     assert f"{tmp_path / 'deep.geojson'}:1:89: error: not valid GeoJSON: lists and objects nested more than 64 " \
            f"deep" in info.value.format(), info.value.format()
+
+
+def test_a_kml_of_a_million_elements_without_points_is_refused_while_it_streams(tmp_path):
+    (tmp_path / "many.kml").write_text('<kml xmlns="http://www.opengis.net/kml/2.2"><Document>\n'
+                                       + "<Folder/>\n" * 1_000_000 + "</Document></kml>\n")
+    with pytest.raises(InvalidInput) as info:
+        load_mission(_route_mission(tmp_path, "many.kml"))
+    assert f"{tmp_path / 'many.kml'}:200000:1: error: more than 200,000 XML elements" in info.value.format(), \
+        info.value.format()

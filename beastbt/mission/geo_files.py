@@ -40,6 +40,9 @@ coordinates in a feature of a collection)."""
 THIN_HINT = ("thin it to at most {max:,} points first (GPSBabel: gpsbabel -i gpx -f IN -x simplify,count=1000 "
              "-o gpx -F OUT), or split the route into several files")
 """The hint of a file with too many points."""
+MAX_XML_ELEMENTS = 20 * MAX_GEO_POINTS
+"""The most elements a GPX or KML file may hold (each a node of the tree gpxpy or ElementTree builds): a GPX track
+point with its time, elevation and a sports watch's extensions is some ten."""
 _XML_CHUNK_BYTES = 1 << 16
 """How much of an XML file expat is given at a time while its points are counted."""
 
@@ -68,7 +71,8 @@ def _too_many_points(what: str, line: Optional[int], column: int = 1) -> GeoFile
 def _count_xml_points(path: Path, point_tags: frozenset, coordinates: bool) -> None:
     """Stream the XML at ``path`` through expat, counting its points without building them: elements named in
     ``point_tags`` (GPX ``wpt``, ``rtept``, ``trkpt``), or, with ``coordinates``, the ``lon,lat[,alt]`` tuples of
-    every KML ``coordinates`` element; GeoFileError at the first point beyond :data:`MAX_GEO_POINTS`."""
+    every KML ``coordinates`` element; GeoFileError at the first point beyond :data:`MAX_GEO_POINTS`, or the first
+    element beyond :data:`MAX_XML_ELEMENTS`."""
     import xml.parsers.expat
 
     parser = xml.parsers.expat.ParserCreate()
@@ -76,8 +80,15 @@ def _count_xml_points(path: Path, point_tags: frozenset, coordinates: bool) -> N
     inside = [False]  # inside a <coordinates> element
     in_word = [False]  # the last character data ended inside a tuple (expat may cut text anywhere)
 
+    elements = 0
+
     def start(name: str, attrs: dict) -> None:
-        nonlocal count
+        nonlocal count, elements
+        elements += 1
+        if elements > MAX_XML_ELEMENTS:  # each becomes an object of the reader's tree: bounded like the points
+            raise GeoFileError(f"more than {MAX_XML_ELEMENTS:,} XML elements: a route, places or fence file holds "
+                               f"at most {MAX_GEO_POINTS:,} points", parser.CurrentLineNumber,
+                               parser.CurrentColumnNumber + 1, THIN_HINT.format(max=MAX_GEO_POINTS))
         local = name.rsplit(":", 1)[-1]
         if coordinates:
             inside[0] = local == "coordinates"
@@ -511,4 +522,4 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
 
 
 __all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS",
-           "MAX_GEO_FILE_BYTES", "MAX_GEO_POINTS", "MAX_JSON_DEPTH", "MAX_JSON_CONTAINERS"]
+           "MAX_GEO_FILE_BYTES", "MAX_GEO_POINTS", "MAX_JSON_DEPTH", "MAX_JSON_CONTAINERS", "MAX_XML_ELEMENTS"]
