@@ -366,3 +366,12 @@ def test_a_kml_of_a_million_elements_without_points_is_refused_while_it_streams(
         load_mission(_route_mission(tmp_path, "many.kml"))
     assert f"{tmp_path / 'many.kml'}:200000:1: error: more than 200,000 XML elements" in info.value.format(), \
         info.value.format()
+
+
+def test_recover_stops_at_a_chunk_that_claims_a_terabyte_and_says_where(tmp_path):
+    from beastbt.recording.recover import recover_file
+    path, offset = _crafted(tmp_path, _claim_records_length)
+    messages, kept, reason = recover_file(path, tmp_path / "recovered.mcap")
+    assert messages > 0 and kept == offset, (messages, kept, reason)
+    assert reason.startswith(f"the record at byte {offset:,} claims 1,099,511,627,776 bytes, but the file has"), \
+        reason

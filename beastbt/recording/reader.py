@@ -103,7 +103,7 @@ class RecordClaim(Exception):
         self.offset = offset
 
 
-class _BoundedFile:
+class BoundedFile:
     """The recording file as ``mcap``'s StreamReader reads it: a read that asks for more than the file has left
     raises :class:`RecordClaim` instead of allocating what a record's length field says."""
 
@@ -154,6 +154,13 @@ def _decompressed(chunk: Chunk, offset: int) -> bytes:
     return data
 
 
+def chunk_records(chunk: Chunk, offset: int, validate_crc: bool) -> list:
+    """The records of a chunk that starts at byte ``offset``, decompressed within what it claims
+    (:func:`_decompressed`; RecordClaim beyond it), its CRC checked with ``validate_crc``."""
+    plain = dataclasses.replace(chunk, compression="", data=_decompressed(chunk, offset))
+    return breakup_chunk(plain, validate_crc=validate_crc)
+
+
 CUT_AT_CHUNK = "the recording ends at its last complete chunk (the run was cut short)"
 """``Recording.stopped_because`` of a file that ends with the valid end written after each chunk."""
 
@@ -199,8 +206,8 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
                 schemas[rec.id] = rec
 
     with open(path, "rb") as raw:
-        f = _BoundedFile(raw)
-        # No record_size_limit (4 GiB by default): _BoundedFile holds every read to what the file has left.
+        f = BoundedFile(raw)
+        # No record_size_limit (4 GiB by default): BoundedFile holds every read to what the file has left.
         reader = StreamReader(f, emit_chunks=True, validate_crcs=False,  # type: ignore[arg-type]  # has read()
                               record_size_limit=None)
         records = reader.records
@@ -223,8 +230,7 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
                 break
             if isinstance(rec, Chunk):
                 try:
-                    plain = dataclasses.replace(rec, compression="", data=_decompressed(rec, f.record_start))
-                    inner = breakup_chunk(plain, validate_crc=validate_crcs)
+                    inner = chunk_records(rec, f.record_start, validate_crcs)
                 except RecordClaim as exc:
                     out.stopped_because = f"{path.name}: {exc}"
                     break
@@ -268,4 +274,5 @@ def find_recording(run: Union[str, Path]) -> Path:
     return p
 
 
-__all__ = ["Recording", "read_recording", "find_recording", "RecordClaim", "MAX_CHUNK_BYTES"]
+__all__ = ["Recording", "read_recording", "find_recording", "RecordClaim", "MAX_CHUNK_BYTES", "BoundedFile",
+           "chunk_records"]
