@@ -12,7 +12,9 @@ positioned problem.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 import struct
 from pathlib import Path
 from typing import Optional
@@ -31,8 +33,10 @@ class ImageHeaderError(ValueError):
 
 def declared_size(path: Path) -> Optional[tuple[int, int]]:
     """(width, height) in pixels that the image at ``path`` declares, from its first :data:`HEADER_BYTES`; None
-    for a format whose header is not read here. Raises OSError when the file cannot be read and
-    :class:`ImageHeaderError` when a Netpbm, PNG or BMP header is broken."""
+    for a format whose header is not read here, or what is no regular file. Raises OSError when the file cannot be
+    read and :class:`ImageHeaderError` when a Netpbm, PNG, BMP or JPEG header is broken."""
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        return None  # a device or a pipe is not opened here (a pipe would wait for a writer): the reading refuses it
     with open(path, "rb") as f:
         head = f.read(HEADER_BYTES)
     return size_of_header(head)
