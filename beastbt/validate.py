@@ -35,6 +35,10 @@ def validate_file(path: str, robot: Optional[str] = None) -> list[Problem]:
     from beastbt.robot.profile import load_profile
     from beastbt.sim.world import load_world
     try:
+        from beastbt.sim.joystick_limits import list_file_problem
+        too_big = list_file_problem(path)  # a list (a joystick script?) beyond its bounds: refused before it is read
+        if too_big is not None:
+            return [too_big]
         doc = load_yaml(path, require_mapping=False)
         if isinstance(doc.data, list) and not any(isinstance(e, dict) and set(e) & FILE_KEYS for e in doc.data):
             # Only a joystick script is a list of events at its top level; a list of a mission's keys is a

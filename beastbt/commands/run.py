@@ -335,6 +335,12 @@ def command(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     from beastbt.core.errors import InvalidInput
     if isinstance(opts.joystick_script, str):
+        from beastbt.sim.joystick_limits import file_size_problem
+        too_big = file_size_problem(opts.joystick_script, opts.joystick_script)  # from stat, before reading it
+        if too_big is not None:
+            print(InvalidInput([too_big]).format(), file=sys.stderr)
+            return EXIT_INVALID
+    if isinstance(opts.joystick_script, str):
         # The script's YAML (alias bound, numbers) is read before the robot is assembled, so that a hostile script
         # is refused at the cost of reading it, not after the simulator, OpenCV and the parts are imported.
         from pathlib import Path

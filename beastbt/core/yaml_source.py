@@ -341,6 +341,27 @@ _FAST_MAX_DEPTH = 200
 levels that indentation and '- ' can add): deeper ones go to PyYAML's composer, which says where it gave up."""
 
 
+def _nests_within(text: str, depth: int) -> bool:
+    """Whether libyaml's parser (iterative: it keeps its own stack) finds no list or mapping nested ``depth`` deep.
+
+    The quick bound in :func:`_compose_fast` counts every bracket of the file, so a mission with a few hundred
+    places written ``{lat: .., lon: ..}`` failed it and went to PyYAML's composer, ten times slower (issue 38:
+    4,000 places took seconds). Counting the real nesting costs a parse without building nodes.
+    """
+    opened = 0
+    try:
+        for event in yaml.parse(text, Loader=yaml.CSafeLoader):
+            if isinstance(event, yaml.CollectionStartEvent):
+                opened += 1
+                if opened >= depth:
+                    return False
+            elif isinstance(event, yaml.CollectionEndEvent):
+                opened -= 1
+    except Exception:  # noqa: BLE001 - whatever libyaml refuses, PyYAML's composer says why
+        return False
+    return True
+
+
 def _compose_fast(text: str) -> Optional[yaml.Node]:
     """The node graph of a plain document composed by libyaml (PyYAML's C binding, some ten times faster than
     its Python composer: most of loading a mission or a profile), or None to compose it with :func:`_compose`.
@@ -352,7 +373,8 @@ def _compose_fast(text: str) -> Optional[yaml.Node]:
     if not getattr(yaml, "__with_libyaml__", False) or _FAST_REFUSED.search(text) \
             or yaml.reader.Reader.NON_PRINTABLE.search(text):
         return None
-    if text.count("[") + text.count("{") + max(map(len, text.splitlines()), default=0) >= _FAST_MAX_DEPTH:
+    if text.count("[") + text.count("{") + max(map(len, text.splitlines()), default=0) >= _FAST_MAX_DEPTH \
+            and not _nests_within(text, _FAST_MAX_DEPTH):
         return None
     try:
         root = yaml.compose(text, Loader=yaml.CSafeLoader)

@@ -177,7 +177,10 @@ def _read_image(path: Path) -> np.ndarray:
     """The image's pixels as a 2D uint8/uint16 array (top row first); colour images are averaged as map_server does."""
     import cv2  # only a map needs OpenCV's image codecs
 
-    pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:  # OpenCV's own bound on pixels (2^30), a format it half-reads: the file's fault
+        raise OSError(f"OpenCV cannot read it ({str(exc).strip().splitlines()[-1][:200]})") from None
     if pixels is None:
         raise OSError("not an image OpenCV can read (PGM, PNG, BMP, JPEG)")
     if pixels.ndim == 3:
@@ -185,6 +188,26 @@ def _read_image(path: Path) -> np.ndarray:
         colour = pixels[:, :, :3] if channels >= 3 else pixels[:, :, :1]
         pixels = np.rint(colour.astype(float).mean(axis=2)).astype(pixels.dtype)
     return pixels
+
+
+def _check_declared_size(image_path: Path, name: str, where: Position) -> None:
+    """Refuse, at the YAML's ``image:``, an image whose header declares more than :data:`MAX_CELLS` pixels or
+    declares no sensible size (issue 38: a PGM declaring 100,000 x 100,000), before any pixel is decoded; an image
+    that cannot be opened is left to the reading, which says why."""
+    from beastbt.mapping.image_header import ImageHeaderError, declared_size
+
+    try:
+        size = declared_size(image_path)
+    except OSError:
+        return  # reading the image says why, where the image is read
+    except ImageHeaderError as exc:
+        raise _problem(name, where, f"the map image {str(image_path)!r} cannot be read: {exc}",
+                       "save the map again (beastbt map save, or map_saver), or point 'image:' at its PGM") from None
+    if size is not None and size[0] * size[1] > MAX_CELLS:
+        raise _problem(name, where, f"the map image {image_path.name} declares {size[0]:,} x {size[1]:,} pixels "
+                                    f"({size[0] * size[1]:,}): a map holds at most {MAX_CELLS:,} cells",
+                       "use a coarser resolution or crop the map (a 2 km x 2 km site at 5 cm is 1,600 million "
+                       "cells: map it in parts)")
 
 
 def load_map(path: Union[str, Path]) -> OccupancyMap:
@@ -235,6 +258,7 @@ def load_map(path: Union[str, Path]) -> OccupancyMap:
     if thresholds["free_thresh"] > thresholds["occupied_thresh"]:
         raise _problem(name, pos("free_thresh"), "'free_thresh' is above 'occupied_thresh'",
                        "free_thresh is the lighter bound (e.g. 0.25), occupied_thresh the darker (e.g. 0.65)")
+    _check_declared_size(Path(image) if Path(image).is_absolute() else path.parent / image, name, pos("image"))
 
     image_path = Path(image) if Path(image).is_absolute() else path.parent / image
     try:

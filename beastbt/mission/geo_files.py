@@ -9,15 +9,42 @@ XML parser; the rest are JSON or text. A file that cannot be read is a
 :class:`GeoFileError` naming the line where the format has lines; what
 beastbt cannot do (altitudes, other mission commands) is listed in
 ``ignored`` so that the loader can warn once.
+
+Every file is bounded before it is parsed (issue 38: a 78 MB GPX of 2 million
+points was still validating after 120 s): at most :data:`MAX_GEO_FILE_BYTES`
+on disk, checked with ``stat`` before reading, and at most
+:data:`MAX_GEO_POINTS` points, counted while streaming through the XML with
+expat (GPX, KML) or over the text (GeoJSON, .plan, .waypoints) before the
+points are built. A JSON file's lists and objects are bounded in number and
+depth on its text too, before the JSON reader builds (or recurses into) them.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
+
+MAX_GEO_FILE_BYTES = 16 << 20
+"""The largest route, places or fence file read, in bytes (16 MiB): ten thousand GPX track points with times and
+elevations take about 2 MB."""
+MAX_GEO_POINTS = 10_000
+"""The most points a route, places or fence file may hold (each becomes a place of the mission and a go_to): a
+real route has hundreds, a recorded track at 1 s a few thousand an hour."""
+MAX_JSON_DEPTH = 64
+"""How deep a GeoJSON or .plan file may nest lists and objects: GeoJSON needs 6 levels (a MultiPolygon's
+coordinates in a feature of a collection)."""
+THIN_HINT = ("thin it to at most {max:,} points first (GPSBabel: gpsbabel -i gpx -f IN -x simplify,count=1000 "
+             "-o gpx -F OUT), or split the route into several files")
+"""The hint of a file with too many points."""
+MAX_XML_ELEMENTS = 20 * MAX_GEO_POINTS
+"""The most elements a GPX or KML file may hold (each a node of the tree gpxpy or ElementTree builds): a GPX track
+point with its time, elevation and a sports watch's extensions is some ten."""
+_XML_CHUNK_BYTES = 1 << 16
+"""How much of an XML file expat is given at a time while its points are counted."""
 
 NAV_WAYPOINT = 16
 """MAVLink MAV_CMD_NAV_WAYPOINT: the only mission item a ground robot's route takes from a .plan or .waypoints."""
@@ -25,11 +52,120 @@ KML_NS = "{http://www.opengis.net/kml/2.2}"
 
 
 class GeoFileError(ValueError):
-    """A places or route file that cannot be read: ``line`` (1-based) where the format has lines, else None."""
+    """A places or route file that cannot be read: ``line`` (1-based) where the format has lines, else None;
+    ``column`` (1-based) where known, ``hint`` what to do when there is more to say than 'fix the file'."""
 
-    def __init__(self, message: str, line: Optional[int] = None) -> None:
+    def __init__(self, message: str, line: Optional[int] = None, column: int = 1,
+                 hint: Optional[str] = None) -> None:
         super().__init__(message)
         self.line = line
+        self.column = column
+        self.hint = hint
+
+
+def _too_many_points(what: str, line: Optional[int], column: int = 1) -> GeoFileError:
+    return GeoFileError(f"more than {MAX_GEO_POINTS:,} {what}: a route, places or fence file holds at most "
+                        f"{MAX_GEO_POINTS:,} points", line, column, THIN_HINT.format(max=MAX_GEO_POINTS))
+
+
+def _count_xml_points(path: Path, point_tags: frozenset, coordinates: bool) -> None:
+    """Stream the XML at ``path`` through expat, counting its points without building them: elements named in
+    ``point_tags`` (GPX ``wpt``, ``rtept``, ``trkpt``), or, with ``coordinates``, the ``lon,lat[,alt]`` tuples of
+    every KML ``coordinates`` element; GeoFileError at the first point beyond :data:`MAX_GEO_POINTS`, or the first
+    element beyond :data:`MAX_XML_ELEMENTS`."""
+    import xml.parsers.expat
+
+    parser = xml.parsers.expat.ParserCreate()
+    count = 0
+    inside = [False]  # inside a <coordinates> element
+    in_word = [False]  # the last character data ended inside a tuple (expat may cut text anywhere)
+
+    elements = 0
+
+    def start(name: str, attrs: dict) -> None:
+        nonlocal count, elements
+        elements += 1
+        if elements > MAX_XML_ELEMENTS:  # each becomes an object of the reader's tree: bounded like the points
+            raise GeoFileError(f"more than {MAX_XML_ELEMENTS:,} XML elements: a route, places or fence file holds "
+                               f"at most {MAX_GEO_POINTS:,} points", parser.CurrentLineNumber,
+                               parser.CurrentColumnNumber + 1, THIN_HINT.format(max=MAX_GEO_POINTS))
+        local = name.rsplit(":", 1)[-1]
+        if coordinates:
+            inside[0] = local == "coordinates"
+            in_word[0] = False
+        elif local in point_tags:
+            count += 1
+            if count > MAX_GEO_POINTS:
+                raise _too_many_points("points (wpt, rtept, trkpt)", parser.CurrentLineNumber,
+                                       parser.CurrentColumnNumber + 1)
+
+    def end(name: str) -> None:
+        inside[0] = False
+
+    def text(data: str) -> None:
+        nonlocal count
+        if not inside[0]:
+            return
+        line, column = parser.CurrentLineNumber, parser.CurrentColumnNumber + 1
+        for match in re.finditer(r"\S+", data):
+            if match.start() == 0 and in_word[0]:
+                continue  # the rest of a tuple the previous piece of text began
+            count += 1
+            if count > MAX_GEO_POINTS:
+                before = data[:match.start()]
+                newlines = before.count("\n")
+                col = (len(before) - before.rfind("\n")) if newlines else column + len(before)
+                raise _too_many_points("coordinates (lon,lat tuples)", line + newlines, col)
+        in_word[0] = bool(data) and not data[-1].isspace()
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    parser.CharacterDataHandler = text
+    try:
+        with open(path, "rb") as f:
+            while True:
+                chunk = f.read(_XML_CHUNK_BYTES)
+                parser.Parse(chunk, not chunk)
+                if not chunk:
+                    break
+    except xml.parsers.expat.ExpatError:
+        return  # the format's own reader says where and why, as before; it too stops there
+
+
+def _line_column(text: str, index: int) -> tuple[int, int]:
+    """The 1-based line and column of ``text[index]``."""
+    return text.count("\n", 0, index) + 1, index - (text.rfind("\n", 0, index) + 1) + 1
+
+
+def _json_shape_problem(text: str, what: str) -> Optional[GeoFileError]:
+    """The first place where ``text`` nests lists and objects deeper than :data:`MAX_JSON_DEPTH`, or opens more
+    than :data:`MAX_JSON_CONTAINERS` of them (strings skipped); None when it does neither. Looks at most at the
+    first :data:`MAX_JSON_CONTAINERS` + 1 of them."""
+    depth = opened = 0
+    for match in re.finditer(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', text):
+        token = match.group()
+        if token in "[{":
+            depth += 1
+            opened += 1
+            if depth > MAX_JSON_DEPTH:
+                return GeoFileError(f"not valid {what}: lists and objects nested more than {MAX_JSON_DEPTH} deep",
+                                    *_line_column(text, match.start()),
+                                    "a GeoJSON file nests 6 levels at most: is this the right file?")
+            if opened > MAX_JSON_CONTAINERS:
+                return GeoFileError(f"more than {MAX_JSON_CONTAINERS:,} lists and objects: a route, places or "
+                                    f"fence file holds at most {MAX_GEO_POINTS:,} points",
+                                    *_line_column(text, match.start()), THIN_HINT.format(max=MAX_GEO_POINTS))
+        elif token in "]}":
+            depth -= 1
+    return None
+
+
+MAX_JSON_CONTAINERS = 5 * MAX_GEO_POINTS
+"""The most lists and objects a GeoJSON or .plan file may open: a named GeoJSON Point is four (its feature, geometry,
+properties and coordinates), so 10,000 places fit."""
+
+_JSON_PAIR = re.compile(r"\[\s*-?[\d.]")
+"""The start of a JSON list whose first item is a number: a coordinate pair (or a .plan's params)."""
 
 
 @dataclass
@@ -50,6 +186,7 @@ def _check(lat: float, lon: float, where: str, line: Optional[int] = None) -> tu
 def _gpx(path: Path, want: str) -> GeoPoints:
     import gpxpy
     import gpxpy.gpx
+    _count_xml_points(path, frozenset(("wpt", "rtept", "trkpt")), coordinates=False)
     try:
         gpx = gpxpy.parse(path.read_text(encoding="utf-8"))
     except gpxpy.gpx.GPXXMLSyntaxException as exc:
@@ -75,6 +212,7 @@ def _gpx(path: Path, want: str) -> GeoPoints:
 def _kml(path: Path, want: str) -> GeoPoints:
     import xml.etree.ElementTree as ET  # only for a mission with a KML file: it costs every start-up otherwise
 
+    _count_xml_points(path, frozenset(), coordinates=True)
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
@@ -108,11 +246,22 @@ def _kml(path: Path, want: str) -> GeoPoints:
 
 
 def _json(path: Path, what: str) -> object:
-    """The JSON document at ``path``; GeoFileError at its line when it is not JSON."""
+    """The JSON document at ``path``; GeoFileError at its line when it is not JSON, nests beyond
+    :data:`MAX_JSON_DEPTH`, or holds more than :data:`MAX_GEO_POINTS` lists that start with a number (counted
+    on the text, before the lists are built)."""
+    text = path.read_text(encoding="utf-8")
+    for i, match in enumerate(_JSON_PAIR.finditer(text)):
+        if i == MAX_GEO_POINTS:
+            raise _too_many_points("coordinate lists", *_line_column(text, match.start()))
+    # Every list and object costs memory once parsed (an empty list 56 bytes) and a level of the JSON reader's
+    # recursion (200,000 levels: a RecursionError): their number and depth are bounded on the text first.
+    problem = _json_shape_problem(text, what)
+    if problem is not None:
+        raise problem
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise GeoFileError(f"not valid {what} (JSON): {exc.msg}", exc.lineno) from None
+        raise GeoFileError(f"not valid {what} (JSON): {exc.msg}", exc.lineno, exc.colno) from None
 
 
 def _geojson(path: Path, want: str) -> GeoPoints:
@@ -175,12 +324,26 @@ def _waypoints(path: Path, want: str) -> GeoPoints:
         if index == 0:
             continue  # the home position, not a point to visit
         if command == NAV_WAYPOINT:
+            if len(out.points) == MAX_GEO_POINTS:
+                raise _too_many_points("waypoints", number)
             out.points.append((None, *_check(lat, lon, "a .waypoints waypoint", number)))
         else:
             others.add(command)
     if others:
         out.ignored.append(f"mission commands other than NAV_WAYPOINT ({', '.join(map(str, sorted(others)))})")
     return out
+
+
+def _check_size(path: Path) -> None:
+    """GeoFileError for what is no regular file, or a file over :data:`MAX_GEO_FILE_BYTES`, before reading it."""
+    info = path.stat()
+    if not stat.S_ISREG(info.st_mode):
+        raise GeoFileError(f"{path.name} is not a regular file (a folder, a device or a pipe?)", None, 1,
+                           "name a GPX, KML, GeoJSON, .plan or .waypoints file")
+    if info.st_size > MAX_GEO_FILE_BYTES:
+        raise GeoFileError(f"{path.name} is {info.st_size / (1 << 20):,.1f} MB: a route, places or fence file is "
+                           f"read up to {MAX_GEO_FILE_BYTES >> 20} MB", None, 1,
+                           THIN_HINT.format(max=MAX_GEO_POINTS))
 
 
 READERS = {".gpx": _gpx, ".kml": _kml, ".geojson": _geojson, ".json": _geojson, ".plan": _plan,
@@ -194,6 +357,7 @@ def read_points(path: Path, want: str) -> GeoPoints:
     if reader is None:
         raise GeoFileError(f"'{path.suffix}' files are not read: use .gpx, .kml, .geojson, .plan or .waypoints")
     try:
+        _check_size(path)
         got = reader(path, want)
     except FileNotFoundError:
         raise GeoFileError(f"{path} does not exist (paths are relative to the mission file)") from None
@@ -201,9 +365,14 @@ def read_points(path: Path, want: str) -> GeoPoints:
         raise GeoFileError(f"cannot read {path}: {exc.strerror or exc}") from None
     except GeoFileError:
         raise
+    except RecursionError:  # elements nested thousands deep, past the readers' recursion
+        raise GeoFileError(f"{path.name} nests its elements too deeply to be read", None, 1,
+                           "a route file nests a few levels: is this the right file?") from None
     except (ValueError, OverflowError, TypeError, KeyError, IndexError, AttributeError) as exc:
         # A coordinate that is no number, a 400-digit one (float() overflows), a 5000-digit one (int() refuses).
         raise GeoFileError(f"cannot read the points of {path.name}: {str(exc)[:200]}") from None
+    if len(got.points) > MAX_GEO_POINTS:  # what the readers' own counts let through (a .plan's items)
+        raise _too_many_points("points", None)
     if want == "polygon" and len(got.points) > 3 and got.points[0][1:] == got.points[-1][1:]:
         got.points.pop()  # a closed ring repeats its first corner
     if not got.points:
@@ -307,9 +476,10 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
             got = read_points(path, want)
         except GeoFileError as exc:
             errors.append(doc.problem(path_key, f"the {want if want != 'places' else 'places'} file {relative} "
-                                                f"cannot be read: {exc}", "fix the file, or point 'file:' at another"))
+                                                f"cannot be read: {exc}",
+                                      exc.hint or "fix the file, or point 'file:' at another"))
             if exc.line is not None:
-                errors.append(Problem(str(path), Position(exc.line, 1), str(exc)))
+                errors.append(Problem(str(path), Position(exc.line, exc.column), str(exc), exc.hint))
             return None
         for what in got.ignored:
             warnings.append(warning(doc.problem(path_key, f"{relative}: ignored {what}")))
@@ -351,4 +521,5 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     return errors, warnings
 
 
-__all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS"]
+__all__ = ["UNREADABLE_ROUTE", "read_points", "resolve_geo_files", "GeoFileError", "GeoPoints", "READERS",
+           "MAX_GEO_FILE_BYTES", "MAX_GEO_POINTS", "MAX_JSON_DEPTH", "MAX_JSON_CONTAINERS", "MAX_XML_ELEMENTS"]

@@ -21,6 +21,7 @@ from beastbt.core.units import format_quantity
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, distance_m
 from beastbt.behaviours.conditions import sector_width_rad
 from beastbt.mission import steps as st
+from beastbt.mission.place_neighbours import lonely_places
 
 FAR_PLACE_M = TYPO_DISTANCE_M
 """Places farther apart than this (m) are almost surely a typo, typically latitude and longitude swapped (the
@@ -63,8 +64,12 @@ def _speed_warnings(mission: Any, limit_mps: Optional[float], whose: str) -> lis
     return out
 
 
-def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float, float]]) -> Optional[tuple[str, str]]:
+def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float, float]],
+                    lonely: Optional[tuple[float, str]]) -> Optional[tuple[str, str]]:
     """(message, hint) when ``place`` is far from where the mission happens, judged on its own; else None.
+
+    ``lonely`` is (metres, name) of the nearest other place when every other
+    place is farther than :data:`FAR_PLACE_M` (from :func:`lonely_places`).
 
     Where the mission happens is its world's datum, or (no world) the
     simulator's default world. A place far from it that swapping its lat and
@@ -91,15 +96,14 @@ def _place_far_away(place: Any, places: list, world_datum: Optional[tuple[float,
                 f"lat and lon swapped: are they swapped?", f"write lat: {place.lon:.6f}, lon: {place.lat:.6f}")
     if d > FAR_PLACE_M and world_datum is not None:
         return f"place '{place.name}' is {d / 1000:.0f} km from {reference}: is it typed right?", hint
-    others = [(distance_m(place.lat, place.lon, o.lat, o.lon), o.name) for o in places if o is not place]
-    if len(others) >= 2 and all(far > FAR_PLACE_M for far, _ in others):
-        nearest, name = min(others)
+    if len(places) >= 3 and lonely is not None:
+        nearest, name = lonely
         return (f"place '{place.name}' is {nearest / 1000:.0f} km from the nearest other place ('{name}'), and "
                 f"farther from all the others: are its lat and lon swapped?", hint)
-    if len(places) == 2 and place is places[1] and others[0][0] > FAR_PLACE_M and not looks_swapped(places[0]):
+    if len(places) == 2 and place is places[1] and lonely is not None and not looks_swapped(places[0]):
         # Two places far apart, neither swapped by the look of it: which one is wrong cannot be told, so say it
         # once, at the second, without blaming it.
-        return (f"place '{place.name}' is {others[0][0] / 1000:.0f} km from '{others[0][1]}', the only other place: "
+        return (f"place '{place.name}' is {lonely[0] / 1000:.0f} km from '{lonely[1]}', the only other place: "
                 f"is one of them typed wrong (lat and lon swapped, a digit off)?", hint)
     return None
 
@@ -147,8 +151,9 @@ def mission_warnings(mission: Any, world_datum: Optional[tuple[float, float]] = 
     out += _speed_warnings(mission, mission.speed_limit_mps, "the mission's limit")
     out += _map_place_warnings(mission)
     places = [p for p in mission.places.values() if p.lat is not None]
-    for place in places:
-        said = _place_far_away(place, places, world_datum)
+    lonely = lonely_places(places, FAR_PLACE_M)  # linear in the places, not pairwise (issue 38)
+    for i, place in enumerate(places):
+        said = _place_far_away(place, places, world_datum, lonely.get(i))
         if said is not None:
             out.append(warning(doc.problem(("places", place.name), said[0], said[1])))
     for fence in getattr(mission, "fences", {}).values():

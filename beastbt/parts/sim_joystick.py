@@ -33,6 +33,10 @@ _WHERE = re.compile(r"^(?P<file>.*?):(?P<line>\d+):(?P<col>\d+): error: (?P<msg>
 
 def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping) -> ScriptedJoystick:
     """A script from a YAML file path or a list of event mappings; raise InvalidInput naming file:line:column."""
+    from beastbt.sim.joystick_limits import file_size_problem
+    too_big = None if isinstance(spec, (list, tuple)) else file_size_problem(spec, str(spec))  # from stat
+    if too_big is not None:
+        raise InvalidInput([too_big])
     try:
         if isinstance(spec, (list, tuple)):
             return ScriptedJoystick(list(spec), mapping, source="<joystick events>")

@@ -7,11 +7,21 @@ the first record that is cut short: a run killed mid-write still yields every
 message of its complete chunks. ``Recording.complete`` says whether the file
 ended properly (with its summary section: a file the writer left after a
 chunk ends with a footer too, but without one).
+
+What a record claims is checked before anything is allocated for it (issue
+38: a crafted chunk claiming 1 TB made ``beastbt report`` try to allocate
+it): no read may claim more bytes than the file has left, a chunk may claim
+at most :data:`MAX_CHUNK_BYTES` uncompressed, and it is decompressed within
+what it claims, whatever its compressed frame's own header says. Reading
+stops there, as at a record cut short, and ``stopped_because`` names the
+file and the record's byte offset.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Optional, Union
@@ -79,6 +89,78 @@ class Recording:
         return sum(self.counts.values())
 
 
+MAX_CHUNK_BYTES = 256 << 20
+"""The most a chunk may claim uncompressed, in bytes (256 MiB): the recorder closes a chunk at
+``chunk_max_bytes`` (a few MB) after its last message, and one camera frame is well under a megabyte."""
+
+
+class RecordClaim(Exception):
+    """A record (or a chunk's content) that claims more than there can be: ``offset`` is the record's first byte
+    in the file; the message says what it claims and what there is."""
+
+    def __init__(self, offset: int, message: str) -> None:
+        super().__init__(message)
+        self.offset = offset
+
+
+class BoundedFile:
+    """The recording file as ``mcap``'s StreamReader reads it: a read that asks for more than the file has left
+    raises :class:`RecordClaim` instead of allocating what a record's length field says."""
+
+    def __init__(self, f: Any) -> None:
+        self._f = f
+        self._size = os.fstat(f.fileno()).st_size
+        self.record_start = 0
+        """Where the record being read starts (set by the reader before each record)."""
+
+    def tell(self) -> int:
+        """The position in the file (bytes)."""
+        return self._f.tell()
+
+    def read(self, n: int = -1) -> bytes:
+        """Up to ``n`` bytes; RecordClaim when ``n`` is beyond the end of the file."""
+        left = self._size - self._f.tell()
+        if n is not None and n > left:
+            raise RecordClaim(self.record_start, f"the record at byte {self.record_start:,} claims {n:,} bytes, "
+                                                 f"but the file has {left:,} left (cut short, or damaged)")
+        return self._f.read(n)
+
+
+def _decompressed(chunk: Chunk, offset: int) -> bytes:
+    """A chunk's records, decompressed within what it claims (:data:`MAX_CHUNK_BYTES` at most): a compressed frame
+    whose header claims more, or that holds more, is a RecordClaim at ``offset``."""
+    claim = chunk.uncompressed_size
+    if claim > MAX_CHUNK_BYTES:
+        raise RecordClaim(offset, f"the chunk at byte {offset:,} claims {claim:,} bytes uncompressed: a chunk holds "
+                                  f"at most {MAX_CHUNK_BYTES:,}")
+    if chunk.compression == "zstd":
+        import zstandard
+        framed = zstandard.frame_content_size(chunk.data)  # -1 when the frame does not say
+        if framed > claim:  # zstandard would allocate what the frame says, whatever the limit given
+            raise RecordClaim(offset, f"the chunk at byte {offset:,} holds a frame of {framed:,} bytes, more than "
+                                      f"the {claim:,} it claims")
+        data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=claim)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+        decompressor = lz4.frame.LZ4FrameDecompressor()
+        data = decompressor.decompress(chunk.data, max_length=claim)
+        if not decompressor.eof:
+            raise RecordClaim(offset, f"the chunk at byte {offset:,} holds more than the {claim:,} bytes it claims")
+    else:
+        data = chunk.data
+    if len(data) > claim:
+        raise RecordClaim(offset, f"the chunk at byte {offset:,} holds {len(data):,} bytes, more than the {claim:,} "
+                                  f"it claims")
+    return data
+
+
+def chunk_records(chunk: Chunk, offset: int, validate_crc: bool) -> list:
+    """The records of a chunk that starts at byte ``offset``, decompressed within what it claims
+    (:func:`_decompressed`; RecordClaim beyond it), its CRC checked with ``validate_crc``."""
+    plain = dataclasses.replace(chunk, compression="", data=_decompressed(chunk, offset))
+    return breakup_chunk(plain, validate_crc=validate_crc)
+
+
 CUT_AT_CHUNK = "the recording ends at its last complete chunk (the run was cut short)"
 """``Recording.stopped_because`` of a file that ends with the valid end written after each chunk."""
 
@@ -123,16 +205,23 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
             elif isinstance(rec, Schema):
                 schemas[rec.id] = rec
 
-    with open(path, "rb") as f:
-        reader = StreamReader(f, emit_chunks=True, validate_crcs=False)
+    with open(path, "rb") as raw:
+        f = BoundedFile(raw)
+        # No record_size_limit (4 GiB by default): BoundedFile holds every read to what the file has left.
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=False,  # type: ignore[arg-type]  # has read()
+                              record_size_limit=None)
         records = reader.records
         while True:
+            f.record_start = f.tell()
             try:
                 rec = next(records)
             except StopIteration:
                 break
             except InvalidMagic:
                 raise  # not an MCAP file at all
+            except RecordClaim as exc:
+                out.stopped_because = f"{path.name}: {exc}"
+                break
             except EndOfFile:
                 out.stopped_because = "the file ends before its footer (the run was cut short)"
                 break
@@ -141,7 +230,10 @@ def read_recording(path: Union[str, Path], topics: Optional[Iterable[str]] = Non
                 break
             if isinstance(rec, Chunk):
                 try:
-                    inner = breakup_chunk(rec, validate_crc=validate_crcs)
+                    inner = chunk_records(rec, f.record_start, validate_crcs)
+                except RecordClaim as exc:
+                    out.stopped_because = f"{path.name}: {exc}"
+                    break
                 except Exception as exc:
                     out.stopped_because = f"incomplete chunk ({type(exc).__name__}: {exc})"
                     break
@@ -182,4 +274,5 @@ def find_recording(run: Union[str, Path]) -> Path:
     return p
 
 
-__all__ = ["Recording", "read_recording", "find_recording"]
+__all__ = ["Recording", "read_recording", "find_recording", "RecordClaim", "MAX_CHUNK_BYTES", "BoundedFile",
+           "chunk_records"]

@@ -30,10 +30,10 @@ from typing import Any, Optional, Union
 
 from mcap.exceptions import InvalidMagic
 from mcap.records import Attachment, Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader
 
 from beastbt.recording.config import compression_type
-from beastbt.recording.reader import find_recording, read_recording
+from beastbt.recording.reader import BoundedFile, RecordClaim, chunk_records, find_recording, read_recording
 
 BACKUP_SUFFIX = ".cut"
 """The cut file is kept as ``<name>.mcap.cut``: not an ``.mcap``, so no tool takes it for the run's recording."""
@@ -67,10 +67,13 @@ class RecoveryError(Exception):
 def _valid_records(path: Path) -> Any:
     """Yield ``(record, end offset)`` for each record of the longest valid prefix of ``path``, chunks checked;
     then one last ``(None, reason)``."""
-    with open(path, "rb") as f:
-        reader = StreamReader(f, emit_chunks=True, validate_crcs=False, record_size_limit=os.path.getsize(path))
+    with open(path, "rb") as raw:
+        f = BoundedFile(raw)  # no read beyond the file's end, whatever a record claims (issue 38)
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=False,  # type: ignore[arg-type]  # has read()
+                              record_size_limit=os.path.getsize(path))
         records = reader.records
         while True:
+            f.record_start = f.tell()
             try:
                 rec = next(records)
             except StopIteration:
@@ -78,12 +81,18 @@ def _valid_records(path: Path) -> Any:
                 return
             except InvalidMagic as exc:
                 raise RecoveryError(f"{path}: not an MCAP file ({exc})") from None
+            except RecordClaim as exc:
+                yield None, str(exc)
+                return
             except Exception as exc:  # noqa: BLE001 - a cut record parses as anything: stop before it
                 yield None, f"record cut short at byte {f.tell()} ({type(exc).__name__})"
                 return
             if isinstance(rec, Chunk):
                 try:
-                    inner = breakup_chunk(rec, validate_crc=True)
+                    inner = chunk_records(rec, f.record_start, validate_crc=True)
+                except RecordClaim as exc:
+                    yield None, str(exc)
+                    return
                 except Exception as exc:  # noqa: BLE001 - a chunk cut short fails its CRC or its decompression
                     yield None, f"chunk cut short ({type(exc).__name__})"
                     return

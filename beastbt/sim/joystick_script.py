@@ -98,9 +98,14 @@ _STICK_KEYS = (AXIS_LINEAR, AXIS_ANGULAR)
 
 def script_doc(text: str, source: str) -> "SourceDoc":
     """A joystick script's YAML read with positions (an empty text is an empty script); raise
-    :class:`~beastbt.core.errors.InvalidInput` for what the YAML loader refuses (syntax, alias bombs, numbers)."""
+    :class:`~beastbt.core.errors.InvalidInput` for what the YAML loader refuses (syntax, alias bombs, numbers) and
+    for a script beyond :mod:`beastbt.sim.joystick_limits`' bounds on events and values."""
     from beastbt.core.errors import InvalidInput
     from beastbt.core.yaml_source import SourceDoc, load_yaml
+    from beastbt.sim.joystick_limits import text_size_problem
+    too_big = text_size_problem(text, source)  # counted before the events are built: they cost 60x the bytes
+    if too_big is not None:
+        raise InvalidInput([too_big])
     try:
         return load_yaml(source, text=text, display_name=source, require_mapping=False)
     except InvalidInput as exc:
