@@ -299,12 +299,21 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
                                                  has_odometry="odometry" in fills))
 
 
-def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None) -> Prepared:
-    """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves."""
+def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None,
+            refs: Optional[Any] = None) -> Prepared:
+    """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves.
+
+    The files the mission names are read where ``refs`` (a :class:`beastbt.core.file_refs.FileRefs`) allows: by
+    default inside ``options.files_inside`` if it is set, else anywhere (the command line).
+    """
+    from beastbt.core.file_refs import CLI, FileRefs
     from beastbt.mission.mission_world import load_mission_world
     from beastbt.sim.world import empty_world, load_world
 
-    mission = load_mission(mission_path, text=mission_text)
+    if refs is None:
+        refs = FileRefs.inside(options.files_inside, f"the folder {options.files_inside} (--files-inside)") \
+            if options.files_inside else CLI
+    mission = load_mission(mission_path, text=mission_text, refs=refs)
     profile = load_profile(options.robot)
     if options.simulated:
         if options.world:
@@ -324,12 +333,8 @@ def use_world_map(mission: Mission, world: World) -> None:
     name = world.data.get("map") if world.doc is not None else None
     if mission.map_file is not None or not isinstance(name, str) or world.file is None:
         return
-    from pathlib import Path
-    from beastbt.mission.model import read_map
-
-    path = Path(name)
-    mission.map_file = path if path.is_absolute() else (Path(world.file).parent / path).resolve()
-    read_map(mission, world.doc)
+    from beastbt.mission.model import locate_world_map
+    locate_world_map(mission, world.doc, world.file)  # where the mission's files may be (beastbt.core.file_refs)
 
 
 def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,

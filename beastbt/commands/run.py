@@ -234,6 +234,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--answer", action="append", type=_answer, metavar="ID=yes|no", default=[],
                    help="answer the mission's question ID in advance (repeatable): --answer door=yes")
     p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
+    p.add_argument("--files-inside", metavar="DIR",
+                   help="read the files the mission names (world, map, route files) only inside DIR, or shipped "
+                        "ones by name (the studio's tries use it)")
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
@@ -293,7 +296,8 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      record_sensors=args.record_sensors, answers=dict(args.answer))
+                      record_sensors=args.record_sensors, answers=dict(args.answer),
+                      files_inside=args.files_inside)
     opts.fleet, problem = fleet_options(args, "run")
     if problem is not None:
         print(problem, file=sys.stderr)
