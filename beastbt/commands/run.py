@@ -320,15 +320,19 @@ def command(args: argparse.Namespace) -> int:
     if isinstance(opts.joystick_script, str):
         # The script's YAML (alias bound, numbers) is read before the robot is assembled, so that a hostile script
         # is refused at the cost of reading it, not after the simulator, OpenCV and the parts are imported.
-        from pathlib import Path
-
+        from beastbt.core.file_refs import JOYSTICK, RefusedFile, read_capped
         from beastbt.sim.joystick_script import script_doc
         try:
-            script_doc(Path(opts.joystick_script).read_text(encoding="utf-8"), opts.joystick_script)
+            # a regular file within the joystick script's cap: /dev/zero or a pipe is refused, not read
+            script_doc(read_capped(opts.joystick_script, JOYSTICK).decode("utf-8"), opts.joystick_script)
         except InvalidInput as exc:
             print(exc.format(), file=sys.stderr)
             return EXIT_INVALID
-        except (OSError, UnicodeDecodeError):
+        except RefusedFile as exc:
+            print(f"{opts.joystick_script}:1:1: error: cannot read the joystick script: {exc.message}\n"
+                  f"    hint: --joystick takes a YAML file: a list like [{{at: 2 s, press: enable}}]", file=sys.stderr)
+            return EXIT_INVALID
+        except UnicodeDecodeError:
             pass  # said with its reason when the script is loaded with the robot
     from beastbt.assembly import prepare
     from beastbt.cli import collector_paused

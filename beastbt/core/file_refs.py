@@ -131,8 +131,8 @@ class FileRefs:
         target = Path(written) if pure.is_absolute() else base / written
         if self.root is not None:
             if pure.is_absolute():
-                raise RefusedFile(f"the {kind.what} '{_shown(written)}' is an absolute path: {self.where} reads only "
-                                  f"files inside it", self._path_hint(kind))
+                raise RefusedFile(f"the {kind.what} '{_shown(written)}' is an absolute path: only files inside "
+                                  f"{self.where} are read", self._path_hint(kind))
             real = Path(os.path.realpath(target))
             if not _inside(real, self.root):
                 how = "climbs out of" if ".." in pure.parts else "is a link that leads out of"
