@@ -338,15 +338,23 @@ class FleetAgent:
         if refusal is not None:
             _answer(query, False, refusal)
             return
-        self.missions.put(MissionRequest(payload, lambda ok, body: _answer(query, ok, body)))
+
+        def answer(ok: bool, body: dict) -> None:
+            if not ok:  # refused (invalid, unreadable): the robot is free before the station hears it, so that
+                self.mission_done()  # the mission sent again at once, fixed, is not told the robot is busy
+            _answer(query, ok, body)
+        self.missions.put(MissionRequest(payload, answer))
 
     def _mission_refusal(self, payload: bytes) -> Optional[dict]:
         if not self.takes_missions:
             return {"status": 409, "error": f"{self.name} runs one mission ('beastbt run') and takes no other: "
                                             f"run 'beastbt serve' on it to send it missions"}
         if self.link is not None or self._pending_mission:
-            mission = self.link.run.mission.name if self.link is not None else "another"
-            return {"status": 409, "error": f"{self.name} is busy with mission '{mission}': abort it first"}
+            if self.link is None:
+                return {"status": 409, "error": f"{self.name} is checking another mission: send it again in a "
+                                                f"moment"}
+            return {"status": 409, "error": f"{self.name} is busy with mission '{self.link.run.mission.name}': "
+                                            f"abort it first"}
         if self.estop_latched:
             return {"status": 409, "error": f"the e-stop of {self.name} is latched: reset it first (estop_reset)"}
         if not payload.strip():
