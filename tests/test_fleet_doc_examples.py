@@ -268,6 +268,18 @@ def test_a_mission_without_a_content_type_is_taken_by_what_it_is(quick_path):
     assert status == 400 and "neither UTF-8 YAML text nor a zip" in answer["error"], answer
 
 
+def test_a_missing_file_is_said_with_where_its_path_is_read_from_on_the_robot(quick_path):
+    base = quick_path["examples"].station_base
+    text = "mission: m\nworld: worlds/nowhere.yaml\nsteps:\n  - stop\n"
+    for body, content_type, said in (
+            (text.encode(), "application/yaml", "read from the robot's mission folder (beastbt serve --missions-dir)"),
+            (zipped({"mission.yaml": text}), "application/zip", "read from the mission's folder in the zip")):
+        status, answer, _ = send(base, "sim-1", body, content_type)
+        assert status == 422 and answer["errors"].startswith(
+            "mission.yaml:2:8: error: the world file 'worlds/nowhere.yaml' does not exist"), answer
+        assert said in answer["errors"] and "current directory" not in answer["errors"], answer
+
+
 def test_the_quick_paths_curl_examples_run_as_written(quick_path):
     examples = quick_path["examples"]
     for command in quick_path["commands"]:

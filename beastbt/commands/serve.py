@@ -165,12 +165,13 @@ def serve_one(agent: Any, request: Any, options: Any, missions_dir: Optional[Pat
         try:
             if is_zip(request.payload):
                 path = unpack(request.payload, folder)
-                refs = FileRefs.inside(folder, "the mission's zip")
+                refs = FileRefs.inside(folder, "the mission's zip", "the mission's folder in the zip")
             else:
                 # a YAML reads its files as if it were saved in the robot's mission folder (nothing is written there)
                 text = mission_text(request.payload)
                 path = missions_dir / "mission.yaml"
-                refs = FileRefs.inside(missions_dir, "the robot's mission folder")
+                refs = FileRefs.inside(missions_dir, "the robot's mission folder",
+                                       "the robot's mission folder (beastbt serve --missions-dir)")
         except ValueError as exc:
             request.answer(False, {"status": 400, "error": str(exc)})
             return None

@@ -99,6 +99,8 @@ class FileRefs:
 
     root: Optional[Path] = None
     where: str = "the command line"
+    relative_from: str = "the folder of the file that names it"
+    """Where a relative path starts, as hints say it (a mission sent to a robot as YAML: its mission folder)."""
 
     @classmethod
     def anywhere(cls) -> "FileRefs":
@@ -106,9 +108,11 @@ class FileRefs:
         return cls()
 
     @classmethod
-    def inside(cls, root: Union[str, Path], where: str) -> "FileRefs":
-        """Only files inside ``root`` (after links), or shipped ones by bare name; ``where`` names the folder."""
-        return cls(Path(os.path.realpath(root)), where)
+    def inside(cls, root: Union[str, Path], where: str,
+               relative_from: str = "the folder of the file that names it") -> "FileRefs":
+        """Only files inside ``root`` (after links), or shipped ones by bare name; ``where`` names the folder,
+        ``relative_from`` where relative paths start."""
+        return cls(Path(os.path.realpath(root)), where, relative_from)
 
     @property
     def confined(self) -> bool:
@@ -141,7 +145,13 @@ class FileRefs:
             target = real
         elif not pure.is_absolute():
             target = target.resolve()  # as the command line always showed it: absolute, without '..'
-        self.check(target, kind, written)
+        try:
+            self.check(target, kind, written)
+        except RefusedFile as exc:
+            if "does not exist" not in exc.message:
+                raise
+            raise RefusedFile(exc.message, f"check the name; a relative path is read from {self.relative_from}"
+                                           + self._shipped_hint(kind)) from None
         return target
 
     def _by_name(self, written: str, base: Path, kind: FileKind) -> Path:
@@ -161,12 +171,14 @@ class FileRefs:
                           f"ones{did_you_mean(written, names)}",
                           f"{shipped}; or write the file's path ({written}.yaml beside this file)")
 
-    def _path_hint(self, kind: FileKind) -> str:
+    def _shipped_hint(self, kind: FileKind) -> str:
         names = shipped_names(kind)
-        shipped = f"; or name a shipped one: {', '.join(names)}" if names else ""
+        return f"; or name a shipped one: {', '.join(names)}" if names else ""
+
+    def _path_hint(self, kind: FileKind) -> str:
         if self.root is None:
-            return f"a relative path is read from the folder of the file that names it{shipped}"
-        return f"give a path relative to the file that names it, inside {self.where}{shipped}"
+            return f"a relative path is read from {self.relative_from}{self._shipped_hint(kind)}"
+        return f"give a path relative to {self.relative_from}, inside {self.where}{self._shipped_hint(kind)}"
 
     # -- reading ------------------------------------------------------------------------------
     def check(self, path: Union[str, Path], kind: FileKind, written: Optional[str] = None) -> None:

@@ -58,7 +58,8 @@ def robot_argument(folder: StudioFolder, robot: Optional[str]) -> str:
     if robot in shipped_names(ROBOT):
         return robot
     try:
-        return str(studio_refs(folder).locate(robot, folder.root, ROBOT))
+        refs = FileRefs.inside(folder.root, "the studio's folder", "the studio's folder")
+        return str(refs.locate(robot, folder.root, ROBOT))
     except RefusedFile as exc:
         status = 404 if "does not exist" in exc.message or exc.message.startswith("no ") else 400
         if any(word in exc.message for word in ("absolute path", "climbs out", "leads out")):
