@@ -273,3 +273,33 @@ def test_a_template_names_the_shipped_world_by_its_name_so_the_file_can_move(tmp
         moved.parent.mkdir(exist_ok=True)
         moved.write_text(text)
         assert [p for p in validate_file(str(moved)) if p.severity == "error"] == [], name
+
+
+def test_route_places_and_map_image_files_are_held_to_the_same_folder(tmp_path):
+    from beastbt.core.errors import InvalidInput
+    from beastbt.mission.model import load_mission
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    (tmp_path / "out.gpx").write_text("<gpx><rte><rtept lat='40.4' lon='-3.7'/></rte></gpx>\n")
+    refs = FileRefs.inside(folder, "the studio's folder")
+    for step in ("route: {file: /etc/passwd}", "route: {file: ../out.gpx}", "route: {file: /dev/zero}"):
+        mission = folder / "m.yaml"
+        mission.write_text(f"mission: m\nsteps:\n  - {step}\n")
+        with pytest.raises(InvalidInput) as refused:
+            load_mission(mission, refs=refs)
+        text = refused.value.format()
+        assert text.startswith("m.yaml:3:18: error: the route file '") or f"{mission}:3:" in text, text
+        assert SECRET not in text and ("absolute path" in text or "climbs out" in text), text
+    # a map inside the folder whose image is outside it, or a device: refused at the map's image line
+    (folder / "maps").mkdir()
+    shutil.copy(REPO / "maps" / "office.pgm", tmp_path / "outside.pgm")
+    for image, says in (("../../outside.pgm", "climbs out of the studio's folder"), ("/dev/zero", "is an absolute path")):
+        (folder / "maps" / "m.yaml").write_text(f"image: {image}\nresolution: 0.05\norigin: [0, 0, 0]\n")
+        mission = folder / "m.yaml"
+        mission.write_text("mission: m\nmap: maps/m.yaml\nplaces: {a: {x: 1 m, y: 1 m}}\nsteps:\n  - go_to: a\n")
+        with pytest.raises(InvalidInput) as refused:
+            load_mission(mission, refs=refs)
+        assert f"m.yaml:1:8: error: the map image '{image}' {says}" in refused.value.format(), refused.value.format()
+    # on the command line the same map image is read (the user's own disk)
+    (folder / "maps" / "m.yaml").write_text("image: ../../outside.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    assert load_mission(folder / "m.yaml").map_grid is not None

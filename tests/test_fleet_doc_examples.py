@@ -280,6 +280,14 @@ def test_a_missing_file_is_said_with_where_its_path_is_read_from_on_the_robot(qu
         assert said in answer["errors"] and "current directory" not in answer["errors"], answer
 
 
+def test_a_mission_sent_as_a_form_is_told_the_types_a_mission_may_have(quick_path):
+    base = quick_path["examples"].station_base
+    # what curl --data-binary sends without -H: a form's type, which a page on another site could send too
+    status, answer, _ = send(base, "sim-1", b"mission: m\nsteps: [stop]\n", "application/x-www-form-urlencoded")
+    assert status == 403 and "application/yaml" in answer["error"] and "-H 'Content-Type: application/yaml'" in \
+        answer["error"] and "needs Content-Type: application/json" not in answer["error"], answer
+
+
 def test_the_quick_paths_curl_examples_run_as_written(quick_path):
     examples = quick_path["examples"]
     for command in quick_path["commands"]:
@@ -324,3 +332,4 @@ def test_the_tls_example_runs_as_written(tmp_path):
             examples.run(command, robot_cwd=robot_folder)
     finally:
         examples.close()
+

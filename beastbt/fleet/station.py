@@ -297,6 +297,18 @@ class StationServer(ConsoleServer):
             return MISSION_TYPES
         return super().body_types(request)
 
+    def _refusal(self, request: web.Request) -> Optional[web.Response]:
+        """The console's guard; a mission refused for its type is told the types a mission may have (not JSON's)."""
+        refusal = super()._refusal(request)
+        if (refusal is not None and request.method == "POST" and request.path.endswith("/mission")
+                and request.content_type not in self.body_types(request) and b"needs Content-Type" in refusal.body):
+            return self.guard.error(403, f"a mission is sent as application/yaml, application/zip, application/json "
+                                         f"({{\"mission\": YAML}}) or with no Content-Type, not as "
+                                         f"'{request.content_type[:60]}' (a form's type, which a page on another "
+                                         f"site could send): e.g. curl --data-binary @mission.yaml -H "
+                                         f"'Content-Type: application/yaml' ...")
+        return refusal
+
     async def _bind(self) -> None:
         app = web.Application(middlewares=[self._guard], client_max_size=MISSION_MAX_BYTES)
         app.on_response_prepare.append(self._headers)

@@ -249,8 +249,10 @@ def load_map(path: Union[str, Path], refs: Optional["FileRefs"] = None) -> Occup
         image_path = (refs or CLI).locate(image, path.parent, MAP_IMAGE)
         pixels = _read_image(image_path, (refs or CLI).read_bytes(image_path, MAP_IMAGE, image))
     except RefusedFile as exc:
-        raise _problem(name, pos("image"), exc.message, "the image path is relative to the YAML's folder; "
-                       + exc.hint) from None
+        if "does not exist" in exc.message:
+            raise _problem(name, pos("image"), f"cannot read the map image '{image}': it does not exist",
+                           "the image path is relative to the YAML's folder") from None
+        raise _problem(name, pos("image"), exc.message, exc.hint) from None
     except OSError as exc:
         raise _problem(name, pos("image"), f"cannot read the map image {str(image_path)!r}: {exc}",
                        "the image path is relative to the YAML's folder") from None

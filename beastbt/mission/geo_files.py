@@ -318,12 +318,11 @@ def resolve_geo_files(doc: "SourceDoc", base: Path,  # type: ignore[name-defined
     def load(path_key: tuple, relative: str, want: str) -> Optional[GeoPoints]:
         try:
             path = (refs or CLI).locate(relative, base, ROUTE)
-        except RefusedFile as exc:
-            if "does not exist" in exc.message:  # as the readers say it, for the file's kind
-                path = (base / relative) if not Path(relative).is_absolute() else Path(relative)
-            else:
-                errors.append(doc.problem(path_key, exc.message, exc.hint))
-                return None
+        except RefusedFile as exc:  # missing, outside where it may be, a device, too large: the path as written
+            missing = f"the {want} file {relative} cannot be read: it does not exist"
+            errors.append(doc.problem(path_key, missing if "does not exist" in exc.message else exc.message,
+                                      exc.hint))
+            return None
         try:
             got = read_points(path, want)
         except GeoFileError as exc:
