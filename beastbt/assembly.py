@@ -322,19 +322,21 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
             world = load_mission_world(mission)
         else:
             world = empty_world()
-        use_world_map(mission, world)
+        # a world from the command line reads its map as the command line does; the mission's, as the mission
+        use_world_map(mission, world, CLI if options.world else None)
         return assemble(mission, profile, options, SIM, world=world)
     return assemble(mission, profile, options, REAL)
 
 
-def use_world_map(mission: Mission, world: World) -> None:
+def use_world_map(mission: Mission, world: World, refs: Optional[Any] = None) -> None:
     """A mission that names no ``map:`` of its own localises on its world's ``map:``, if the world has one (the
-    path relative to the world file; a missing or bad map is an error at the world's line)."""
+    path relative to the world file, read where ``refs`` allows: by default where the mission's files may be; a
+    missing or bad map is an error at the world's line)."""
     name = world.data.get("map") if world.doc is not None else None
     if mission.map_file is not None or not isinstance(name, str) or world.file is None:
         return
     from beastbt.mission.model import locate_world_map
-    locate_world_map(mission, world.doc, world.file)  # where the mission's files may be (beastbt.core.file_refs)
+    locate_world_map(mission, world.doc, world.file, refs)  # where its files may be (beastbt.core.file_refs)
 
 
 def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,

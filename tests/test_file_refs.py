@@ -75,7 +75,7 @@ def test_confined_paths_stay_inside_the_folder_and_refusals_name_the_path_as_wri
     for written, says in (("/etc/passwd", "is an absolute path"), (str(outside), "is an absolute path"),
                           ("../../outside.yaml", "climbs out of the studio's folder"),
                           ("out.yaml", "is a link that leads out of the studio's folder"),
-                          ("/dev/zero", "is an absolute path"), ("/tmp/x.yaml/.", "is an absolute path")):
+                          ("/dev/zero", "is an absolute path"), ("/tmp/x.yaml/.", "names a folder, not a file")):
         with pytest.raises(RefusedFile) as refused:
             refs.locate(written, base, WORLD)
         assert f"the world file '{written}' {says}" in refused.value.message
@@ -126,7 +126,7 @@ def test_the_command_line_reads_any_regular_file_but_never_a_device_and_never_qu
     folder.mkdir()
     cases = {"zero.yaml": ("world: /dev/zero", "2:8: error: the world file '/dev/zero' is not a regular file"),
              "fifo.yaml.m": (f"world: {fifo}", f"2:8: error: the world file '{fifo}' is not a regular file"),
-             "dot.yaml": (f"world: {folder}/.", f"2:8: error: the world file '{folder}/.': this is a folder"),
+             "dot.yaml": (f"world: {folder}/.", f"2:8: error: the world file '{folder}/.' names a folder, not a file"),
              "map.yaml": ("map: /dev/zero", "2:6: error: the map file '/dev/zero' is not a regular file"),
              "passwd.yaml": ("world: /etc/passwd", "2:8: error: the world file /etc/passwd has problems")}
     for name, (line, _) in cases.items():

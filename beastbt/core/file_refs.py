@@ -128,6 +128,9 @@ class FileRefs:
             raise RefusedFile(f"the {kind.what} must be named by a path or a name", self._path_hint(kind))
         if "\x00" in written or len(written) > 1024:
             raise RefusedFile(f"'{_shown(written)}' is not a file name", self._path_hint(kind))
+        if written.rstrip().endswith(("/", "/.", "/..")) or written.strip() in (".", ".."):
+            # 'x.yaml/.' names the folder x.yaml (pathlib would quietly drop the '.')
+            raise RefusedFile(f"the {kind.what} '{_shown(written)}' names a folder, not a file", "name a file in it")
         base = Path(base)
         if is_bare_name(written) and kind.shipped is not None:
             return self._by_name(written, base, kind)

@@ -849,10 +849,10 @@ def _value_at(data: Any, key: PathKey) -> Any:
     return data
 
 
-def locate_world_map(m: Mission, world_doc: SourceDoc, world_file: str) -> None:
-    """A mission without ``map:`` of its own takes its world's ``map:`` (relative to the world file, where the
-    mission's ``refs`` allow), and reads it; InvalidInput at the world's ``map:`` line."""
-    m.map_file = locate(m.refs, world_doc, ("map",), Path(world_file).parent, MAP)
+def locate_world_map(m: Mission, world_doc: SourceDoc, world_file: str, refs: Optional[FileRefs] = None) -> None:
+    """A mission without ``map:`` of its own takes its world's ``map:`` (relative to the world file, where ``refs``
+    allow: by default the mission's), and reads it; InvalidInput at the world's ``map:`` line."""
+    m.map_file = locate(refs or m.refs, world_doc, ("map",), Path(world_file).parent, MAP)
     read_map(m, world_doc)
 
 
