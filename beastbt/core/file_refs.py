@@ -229,6 +229,12 @@ def _open_regular(path: Union[str, Path], kind: FileKind, shown: str) -> int:
     if text.endswith(("/", "/.")) or text in (".", ".."):
         raise RefusedFile(f"the {kind.what} '{_shown(shown)}': this is a folder, not a file", "name a file in it")
     try:
+        # a device is not even opened (opening some has effects: a watchdog starts, a tape rewinds); fstat below
+        # checks the file actually opened, should it have been swapped in between
+        before = os.stat(text)
+        if not stat.S_ISREG(before.st_mode) and not stat.S_ISDIR(before.st_mode):
+            raise RefusedFile(f"the {kind.what} '{_shown(shown)}' is not a regular file (a device, a pipe or a "
+                              f"socket): only files are read", f"name a {kind.what} saved on disk")
         fd = os.open(text, flags)
     except FileNotFoundError:
         raise RefusedFile(f"the {kind.what} '{_shown(shown)}' does not exist",
