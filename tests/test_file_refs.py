@@ -303,3 +303,19 @@ def test_route_places_and_map_image_files_are_held_to_the_same_folder(tmp_path):
     # on the command line the same map image is read (the user's own disk)
     (folder / "maps" / "m.yaml").write_text("image: ../../outside.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
     assert load_mission(folder / "m.yaml").map_grid is not None
+
+
+def test_a_file_over_its_kinds_cap_is_refused_at_the_key_before_it_is_parsed(tmp_path):
+    from beastbt.core.errors import InvalidInput
+    from beastbt.mission.model import load_mission
+    big = tmp_path / "big.yaml"
+    big.write_text("world: big\nwalls:\n" + "  - [0, 0, 1, 1]\n" * (WORLD.max_bytes // 17 + 1))
+    mission = tmp_path / "m.yaml"
+    mission.write_text(MISSION.format(line="world: big.yaml"))
+    started = time.monotonic()
+    with pytest.raises(InvalidInput) as refused:
+        from beastbt.mission.mission_world import load_mission_world
+        load_mission_world(load_mission(mission, refs=FileRefs.inside(tmp_path, "the studio's folder")))
+    assert time.monotonic() - started < 2.0  # refused from its size, not parsed (a megabyte of YAML takes seconds)
+    assert f"m.yaml:2:8: error: the world file 'big.yaml' has {big.stat().st_size} bytes, more than the " \
+           f"{WORLD.max_bytes}" in refused.value.format()

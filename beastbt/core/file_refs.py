@@ -37,22 +37,24 @@ class FileKind:
     """The folder of shipped files a bare name is looked up in (``worlds``, ``robots``, ``maps``), or None."""
 
 
-MISSION = FileKind("mission", 4 << 20)
-"""A mission YAML: a few kB; the robot takes at most 4 MB (``MISSION_MAX_BYTES`` of the fleet agent)."""
-WORLD = FileKind("world file", 8 << 20, "worlds")
-"""A simulated world: walls, obstacles and floor lines, tens of kB at most in practice."""
-ROBOT = FileKind("robot profile", 1 << 20, "robots")
-"""A robot profile: a few kB."""
+# The caps fit what each kind holds, hundreds of times over, and keep what reading one costs bounded: YAML with
+# positions takes about 100 times its size in memory to read (1 MB: about 100 MB), GPX and KML some 50 times.
+MISSION = FileKind("mission", 1 << 20)
+"""A mission YAML: a few kB (4,000 places are 120 kB)."""
+WORLD = FileKind("world file", 1 << 20, "worlds")
+"""A simulated world: walls, obstacles and floor lines; the shipped ones are 2 kB."""
+ROBOT = FileKind("robot profile", 256 << 10, "robots")
+"""A robot profile: 4 kB at most among the shipped ones."""
 MAP = FileKind("map file", 64 << 10, "maps")
 """A ``map_server`` YAML: a dozen lines naming its image."""
 MAP_IMAGE = FileKind("map image", 64 << 20)
 """A map's PGM or PNG: 4,000 x 4,000 pixels (16 MB as a PGM) is a large building at 5 cm."""
-ROUTE = FileKind("route file", 16 << 20)
-"""A GPX, KML, GeoJSON, .plan or .waypoints file (route, places or fence): about 100,000 points."""
-PLACES = FileKind("places file", 2 << 20)
-"""A places YAML on a map (``places: {file: ...}``)."""
-JOYSTICK = FileKind("joystick script", 8 << 20)
-"""A scripted joystick (``--joystick FILE``): about 250,000 events."""
+ROUTE = FileKind("route file", 4 << 20)
+"""A GPX, KML, GeoJSON, .plan or .waypoints file (route, places or fence): some 40,000 points of GPX."""
+PLACES = FileKind("places file", 512 << 10)
+"""A places YAML on a map (``places: {file: ...}``): some 10,000 places."""
+JOYSTICK = FileKind("joystick script", 1 << 20)
+"""A scripted joystick (``--joystick FILE``): some 30,000 events, a quarter of an hour of sticks at 30 Hz."""
 YAML_MAX_BYTES = max(MISSION.max_bytes, WORLD.max_bytes, ROBOT.max_bytes, JOYSTICK.max_bytes)
 """Any YAML file beastbt reads is at most this big (the largest YAML kind's cap)."""
 YAML_FILE = FileKind("YAML file", YAML_MAX_BYTES)

@@ -31,6 +31,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
+from beastbt.core.file_refs import MISSION
 from beastbt.fleet import keys
 from beastbt.fleet.config import FleetOptions, robot_config
 from beastbt.fleet.shared_world import others_of, sim_field
@@ -361,6 +362,9 @@ class FleetAgent:
             return {"status": 400, "error": "the mission is empty: send the mission's YAML (or a zip with its files)"}
         if len(payload) > MISSION_MAX_BYTES:
             return {"status": 413, "error": f"the mission has {len(payload)} bytes: at most {MISSION_MAX_BYTES}"}
+        if not payload.startswith(b"PK\x03\x04") and len(payload) > MISSION.max_bytes:
+            return {"status": 413, "error": f"the mission's YAML has {len(payload)} bytes: at most "
+                                            f"{MISSION.max_bytes} (a mission is a few kB)"}
         return None
 
 
