@@ -39,8 +39,8 @@ class FileKind:
 
 # The caps fit what each kind holds, hundreds of times over, and keep what reading one costs bounded: YAML with
 # positions takes about 100 times its size in memory to read (1 MB: about 100 MB), GPX and KML some 50 times.
-MISSION = FileKind("mission", 1 << 20)
-"""A mission YAML: a few kB (4,000 places are 120 kB)."""
+MISSION = FileKind("mission", 2 << 20)
+"""A mission YAML: a few kB (4,000 places are 120 kB); as large as the studio edits (2 MB)."""
 WORLD = FileKind("world file", 1 << 20, "worlds")
 """A simulated world: walls, obstacles and floor lines; the shipped ones are 2 kB."""
 ROBOT = FileKind("robot profile", 256 << 10, "robots")
