@@ -3,12 +3,12 @@
 The robot says it is alive on the fleet and waits (status ``idle``). Each
 mission that comes on ``beastbt/<name>/mission`` (YAML, or a zip with the
 files it names) is checked and assembled exactly as ``beastbt run`` does it
-(the files it names read only inside the robot's mission folder,
-``--missions-dir``, for a YAML, or inside the zip; shipped worlds and maps by
-name in both: :mod:`beastbt.core.file_refs`)
 (:func:`beastbt.assembly.prepare`: recorded, with every safety part): the
 answer is the validation errors as ``beastbt validate`` prints them, or
-``started``; then it runs, and the robot waits again. On the simulator
+``started``; then it runs, and the robot waits again. The files a mission
+names are read only inside the robot's mission folder (``--missions-dir``)
+for a YAML, inside the zip for a zip, or among the shipped worlds and maps by
+name (:mod:`beastbt.core.file_refs`). On the simulator
 (``--sim``, or ``--robot sim``) a mission runs at real time unless ``--speed``
 says otherwise, so that people can watch. The robot keeps working when the
 fleet link drops: a mission under way goes on (unless it requires the
