@@ -182,6 +182,15 @@ class StudioProcess:
         conn.close()
         return answer
 
+    def get(self, path: str) -> tuple[int, str]:
+        """(status, raw answer text) of a GET."""
+        conn = http.client.HTTPConnection("127.0.0.1", self.port, timeout=30)
+        conn.request("GET", path, headers={"Host": f"127.0.0.1:{self.port}"})
+        response = conn.getresponse()
+        answer = response.status, response.read().decode("utf-8", "replace")
+        conn.close()
+        return answer
+
     def peak_rss_bytes(self) -> int:
         """The studio's peak resident memory so far (VmHWM)."""
         for line in Path(f"/proc/{self.process.pid}/status").read_text().splitlines():
@@ -319,3 +328,15 @@ def test_a_file_over_its_kinds_cap_is_refused_at_the_key_before_it_is_parsed(tmp
     assert time.monotonic() - started < 2.0  # refused from its size, not parsed (a megabyte of YAML takes seconds)
     assert f"m.yaml:2:8: error: the world file 'big.yaml' has {big.stat().st_size} bytes, more than the " \
            f"{WORLD.max_bytes}" in refused.value.format()
+
+
+def test_a_try_reads_the_files_its_mission_names_only_inside_the_folder(studio):
+    status, raw = studio.post("/api/try", {"text": MISSION.format(line="world: ../../outside.yaml"),
+                                           "path": "missions/m.yaml", "speed": "max"})
+    assert status == 200, raw
+    run_id = json.loads(raw)["run_id"]
+    state = wait_for(lambda: (lambda a: a if a["state"] == "ended" else None)(
+        json.loads(studio.get(f"/api/try/{run_id}")[1])), 60.0, "the try ends", period_s=0.2)
+    output = "\n".join(state["output"]) if isinstance(state["output"], list) else str(state["output"])
+    assert state["exit_code"] == 2 and "hidden_content" not in output, state
+    assert "the world file '../../outside.yaml' climbs out of the folder" in output, output
