@@ -301,16 +301,22 @@ def run_warnings(mission: Mission, profile: RobotProfile, world: Optional[World]
 
 
 def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] = None,
-            faults: Optional[Any] = None) -> Prepared:
+            faults: Optional[Any] = None, refs: Optional[Any] = None) -> Prepared:
     """Load and check the mission, profile and world, and assemble the run; raise InvalidInput before anything moves.
 
     ``faults`` is a mission test's events and substitutions (:class:`beastbt.testing.faults.TestFaults`, the
     simulator only): its persons join the world, its part the run's parts, its substitutions the tree.
+    The files the mission names are read where ``refs`` (a :class:`beastbt.core.file_refs.FileRefs`) allows: by
+    default inside ``options.files_inside`` if it is set, else anywhere (the command line).
     """
+    from beastbt.core.file_refs import CLI, FileRefs
     from beastbt.mission.mission_world import load_mission_world
     from beastbt.sim.world import empty_world, load_world
 
-    mission = load_mission(mission_path, text=mission_text)
+    if refs is None:
+        refs = FileRefs.inside(options.files_inside, f"the folder {options.files_inside} (--files-inside)") \
+            if options.files_inside else CLI
+    mission = load_mission(mission_path, text=mission_text, refs=refs)
     profile = load_profile(options.robot)
     if options.simulated:
         if options.world:
@@ -319,7 +325,8 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
             world = load_mission_world(mission)
         else:
             world = empty_world()
-        use_world_map(mission, world)
+        # a world from the command line reads its map as the command line does; the mission's, as the mission
+        use_world_map(mission, world, CLI if options.world else None)
         if faults is None:
             return assemble(mission, profile, options, SIM, world=world)
         faults.enter(world)  # the test's persons are in the world before its simulator is built
@@ -332,18 +339,15 @@ def prepare(mission_path: str, options: RunOptions, mission_text: Optional[str] 
     return assemble(mission, profile, options, REAL)
 
 
-def use_world_map(mission: Mission, world: World) -> None:
+def use_world_map(mission: Mission, world: World, refs: Optional[Any] = None) -> None:
     """A mission that names no ``map:`` of its own localises on its world's ``map:``, if the world has one (the
-    path relative to the world file; a missing or bad map is an error at the world's line)."""
+    path relative to the world file, read where ``refs`` allows: by default where the mission's files may be; a
+    missing or bad map is an error at the world's line)."""
     name = world.data.get("map") if world.doc is not None else None
     if mission.map_file is not None or not isinstance(name, str) or world.file is None:
         return
-    from pathlib import Path
-    from beastbt.mission.model import read_map
-
-    path = Path(name)
-    mission.map_file = path if path.is_absolute() else (Path(world.file).parent / path).resolve()
-    read_map(mission, world.doc)
+    from beastbt.mission.model import locate_world_map
+    locate_world_map(mission, world.doc, world.file, refs)  # where its files may be (beastbt.core.file_refs)
 
 
 def compile_for_profile(mission: Mission, profile: RobotProfile, simulated: bool = True,

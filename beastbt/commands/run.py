@@ -255,6 +255,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--answer", action="append", type=_answer, metavar="ID=yes|no", default=[],
                    help="answer the mission's question ID in advance (repeatable): --answer door=yes")
     p.add_argument("--sim", action="store_true", help="run a real robot profile on the simulator (same geometry and limits)")
+    p.add_argument("--files-inside", metavar="DIR",
+                   help="read the files the mission names (world, map, route files) only inside DIR, or shipped "
+                        "ones by name (the studio's tries use it)")
     p.add_argument("--joystick", metavar="FILE",
                    help="simulator only: play a joystick script (YAML list such as [{at: 2 s, press: enable}, "
                         "{at: 2.5 s, linear: 0.8}, {at: 6 s, release: enable}]) through the real joystick driver")
@@ -314,7 +317,8 @@ def command(args: argparse.Namespace) -> int:
                       foxglove=args.foxglove, stream_size=args.stream_size,
                       stream_quality=args.stream_quality, stream_fps=args.stream_fps,
                       stream_overlay=not args.stream_no_overlay, record_images_hz=args.record_images,
-                      record_sensors=args.record_sensors, answers=dict(args.answer), keep_runs=args.keep_runs)
+                      record_sensors=args.record_sensors, answers=dict(args.answer), keep_runs=args.keep_runs,
+                      files_inside=args.files_inside)
     opts.fleet, problem = fleet_options(args, "run")
     if problem is not None:
         print(problem, file=sys.stderr)
@@ -343,15 +347,19 @@ def command(args: argparse.Namespace) -> int:
     if isinstance(opts.joystick_script, str):
         # The script's YAML (alias bound, numbers) is read before the robot is assembled, so that a hostile script
         # is refused at the cost of reading it, not after the simulator, OpenCV and the parts are imported.
-        from pathlib import Path
-
+        from beastbt.core.file_refs import JOYSTICK, RefusedFile, read_capped
         from beastbt.sim.joystick_script import script_doc
         try:
-            script_doc(Path(opts.joystick_script).read_text(encoding="utf-8"), opts.joystick_script)
+            # a regular file within the joystick script's cap: /dev/zero or a pipe is refused, not read
+            script_doc(read_capped(opts.joystick_script, JOYSTICK).decode("utf-8"), opts.joystick_script)
         except InvalidInput as exc:
             print(exc.format(), file=sys.stderr)
             return EXIT_INVALID
-        except (OSError, UnicodeDecodeError):
+        except RefusedFile as exc:
+            print(f"{opts.joystick_script}:1:1: error: cannot read the joystick script: {exc.message}\n"
+                  f"    hint: --joystick takes a YAML file: a list like [{{at: 2 s, press: enable}}]", file=sys.stderr)
+            return EXIT_INVALID
+        except UnicodeDecodeError:
             pass  # said with its reason when the script is loaded with the robot
     from beastbt.assembly import prepare
     from beastbt.cli import collector_paused

@@ -5,7 +5,10 @@ mission that comes on ``beastbt/<name>/mission`` (YAML, or a zip with the
 files it names) is checked and assembled exactly as ``beastbt run`` does it
 (:func:`beastbt.assembly.prepare`: recorded, with every safety part): the
 answer is the validation errors as ``beastbt validate`` prints them, or
-``started``; then it runs, and the robot waits again. On the simulator
+``started``; then it runs, and the robot waits again. The files a mission
+names are read only inside the robot's mission folder (``--missions-dir``)
+for a YAML, inside the zip for a zip, or among the shipped worlds and maps by
+name (:mod:`beastbt.core.file_refs`). On the simulator
 (``--sim``, or ``--robot sim``) a mission runs at real time unless ``--speed``
 says otherwise, so that people can watch. The robot keeps working when the
 fleet link drops: a mission under way goes on (unless it requires the
@@ -48,6 +51,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speed", default="realtime",
                    help="on the simulator: realtime (default, so that people can watch), max, or a factor such as 10")
     p.add_argument("--runs-dir", default="runs", help="where run folders go (default: ./runs)")
+    p.add_argument("--missions-dir", default=".", metavar="DIR",
+                   help="the robot's mission folder: a mission sent as YAML reads the files it names (world, map, "
+                        "route files) inside DIR only, as if it were saved there (default: the current folder)")
     p.add_argument("--no-record", action="store_true", help="do not write run folders")
     from beastbt.commands.run import _positive_int
     p.add_argument("--keep-runs", type=_positive_int, metavar="N",
@@ -75,6 +81,8 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt serve: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
     problem = None if args.no_record else output_folder_problem("--runs-dir", args.runs_dir)
+    if problem is None and not Path(args.missions_dir).is_dir():
+        problem = f"--missions-dir {args.missions_dir}: no such folder"
     if problem is not None:
         print(f"beastbt serve: error: {problem}", file=sys.stderr)
         return EXIT_INVALID
@@ -118,6 +126,7 @@ def command(args: argparse.Namespace) -> int:
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          keep_runs=args.keep_runs,
                          console=args.console)
+    missions_dir = Path(args.missions_dir).resolve()
     keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)
@@ -141,7 +150,7 @@ def command(args: argparse.Namespace) -> int:
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
-                summary = serve_one(agent, request, options)
+                summary = serve_one(agent, request, options, missions_dir)
                 if summary is not None and interrupted(summary):
                     done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
             except Exception as exc:  # noqa: BLE001 - the robot was stopped by the run's end; it serves on
@@ -179,36 +188,69 @@ def interrupted(summary: dict) -> bool:
                for e in summary.get("events", []))
 
 
-def serve_one(agent: Any, request: Any, options: Any) -> Optional[dict]:
-    """Check, answer and run one mission request; the run's summary, or None when it was refused."""
+def serve_one(agent: Any, request: Any, options: Any, missions_dir: Optional[Path] = None) -> Optional[dict]:
+    """Check, answer and run one mission request; the run's summary, or None when it was refused. A YAML mission
+    reads the files it names inside ``missions_dir`` (the robot's mission folder; default: the current folder)."""
     from beastbt.assembly import prepare
     from beastbt.core.errors import InvalidInput
     from beastbt.robot.hardware import DeviceUnavailable
     from beastbt.run.run_folder import RunFolderUnavailable
     from beastbt.run.session import execute
+    from beastbt.core.file_refs import FileRefs
     folder = Path(tempfile.mkdtemp(prefix="beastbt-mission-"))
+    missions_dir = (missions_dir or Path(".")).resolve()
     try:
+        text: Optional[str] = None
         try:
-            path = unpack(request.payload, folder)
+            if is_zip(request.payload):
+                path = unpack(request.payload, folder)
+                refs = FileRefs.inside(folder, "the mission's zip", "the mission's folder in the zip")
+            else:
+                # a YAML reads its files as if it were saved in the robot's mission folder (nothing is written there)
+                text = mission_text(request.payload)
+                path = missions_dir / "mission.yaml"
+                refs = FileRefs.inside(missions_dir, "the robot's mission folder",
+                                       "the robot's mission folder (beastbt serve --missions-dir)")
         except ValueError as exc:
             request.answer(False, {"status": 400, "error": str(exc)})
             return None
         try:
-            prepared = prepare(str(path), options)
+            prepared = prepare(str(path), options, mission_text=text, refs=refs)
         except InvalidInput as exc:
-            text = exc.format().replace(f"{folder}/", "")
             request.answer(False, {"status": 422, "error": "the mission is not valid: nothing moved",
-                                   "errors": text})
+                                   "errors": _relative(exc.format(), folder, missions_dir)})
             return None
         except (DeviceUnavailable, RunFolderUnavailable) as exc:
             request.answer(False, {"status": 503, "error": str(exc)})
             return None
-        warnings = [w.format().replace(f"{folder}/", "") for w in prepared.warnings]
+        warnings = [_relative(w.format(), folder, missions_dir) for w in prepared.warnings]
         request.answer(True, {"started": prepared.mission.name, "warnings": warnings})
         print(f"mission '{prepared.mission.name}' from the station", flush=True)
         return execute(prepared, sys.stdout)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def _relative(text: str, *folders: Path) -> str:
+    """``text`` with the robot's own folders taken off the paths in it (``mission.yaml:3:5``, not ``/tmp/...``)."""
+    for folder in folders:
+        if str(folder) != "/":
+            text = text.replace(f"{folder}/", "")
+    return text
+
+
+def is_zip(payload: bytes) -> bool:
+    """Whether a mission's bytes are a zip (its local file header's signature), not a YAML text."""
+    return payload.startswith(b"PK\x03\x04")
+
+
+def mission_text(payload: bytes) -> str:
+    """A mission sent as YAML, as text; ValueError when it is not UTF-8 text."""
+    try:
+        return payload.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError("the mission is neither UTF-8 YAML text nor a zip: send the mission's YAML, or a zip with "
+                         "mission.yaml and the files it names") from None
 
 
 def unpack(payload: bytes, folder: Path) -> Path:

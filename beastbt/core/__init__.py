@@ -1,1 +1,1 @@
-"""The ground every other package stands on: clock, events, errors with source positions, units, YAML with positions, schema loading, config dataclasses, bundled files. Imports nothing else of beastbt."""
+"""The ground every other package stands on: clock, events, errors with source positions, units, YAML with positions, schema loading, config dataclasses, bundled files, where named files may be read from (file_refs). Imports nothing else of beastbt."""

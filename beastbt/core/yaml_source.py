@@ -24,7 +24,7 @@ import re
 
 import yaml
 
-from beastbt.core.errors import InvalidInput, Position, Problem, plain_reason
+from beastbt.core.errors import InvalidInput, Position, Problem
 
 PathKey = tuple[Union[str, int], ...]
 
@@ -498,6 +498,15 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
     return Problem(file, pos, message, "check the indentation and the ':' and '-' around this line; quote text that contains ': ' or '#'")
 
 
+def _value_kind(value: Any) -> str:
+    """What a value is, in words, without its content: ``text (40 characters)``, ``number``..."""
+    if isinstance(value, str):
+        return f"text ({len(value)} characters)"
+    if isinstance(value, bool) or value is None:
+        return f"value ({value!r})"
+    return "number" if isinstance(value, (int, float)) else "value"
+
+
 def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str | None = None,
               require_mapping: bool = True) -> SourceDoc:
     """Read a YAML file into a :class:`SourceDoc`; raise :class:`InvalidInput` with every problem found.
@@ -507,18 +516,18 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
     """
     name = display_name or str(path)
     if text is None:
+        from beastbt.core.file_refs import YAML_FILE, RefusedFile, read_capped
         try:
-            text = Path(path).read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InvalidInput([Problem(name, Position(1, 1), "file not found", "check the path; relative paths are relative to the current directory")])
-        except IsADirectoryError:
-            raise InvalidInput([Problem(name, Position(1, 1), "this is a folder, not a file",
-                                        "give the path of a YAML file in it")])
+            # regular files only, at most YAML_MAX_BYTES: a device or a pipe named as a YAML file is not read
+            text = read_capped(path, YAML_FILE, name).decode("utf-8")
+        except RefusedFile as exc:
+            if "does not exist" in exc.message:
+                raise InvalidInput([Problem(name, Position(1, 1), "file not found",
+                                            "check the path; relative paths are relative to the current "
+                                            "directory")]) from None
+            raise InvalidInput([Problem(name, Position(1, 1), exc.message, exc.hint)]) from None
         except UnicodeDecodeError as exc:
             raise InvalidInput([_undecodable(name, exc)]) from None
-        except OSError as exc:
-            raise InvalidInput([Problem(name, Position(1, 1), f"cannot read the file: {plain_reason(exc)}",
-                                        "check the path and the file's permissions")])
     doc = SourceDoc(file=name, data=None)
     try:
         node, alias_uses = _compose(text)
@@ -542,7 +551,8 @@ def load_yaml(path: Union[str, Path], text: str | None = None, display_name: str
     if builder.problems:
         raise InvalidInput(builder.problems)
     if require_mapping and not isinstance(doc.data, dict):
-        kind = "a list" if isinstance(doc.data, list) else f"a single value ({doc.data!r})"
+        # the value is not quoted: a file named by mistake (/etc/passwd as a world) must not be shown in a message
+        kind = "a list" if isinstance(doc.data, list) else f"a single {_value_kind(doc.data)}"
         raise InvalidInput([Problem(name, doc.position(()), f"the top level must be a mapping of keys, but it is {kind}",
                                     "start the file with 'mission: <name>' on its own line, with no '-' before it")])
     return doc

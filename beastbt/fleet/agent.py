@@ -31,6 +31,7 @@ from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
+from beastbt.core.file_refs import MISSION
 from beastbt.fleet import keys
 from beastbt.fleet.config import FleetOptions, robot_config
 from beastbt.fleet.shared_world import others_of, sim_field
@@ -362,21 +363,32 @@ class FleetAgent:
         if refusal is not None:
             _answer(query, False, refusal)
             return
-        self.missions.put(MissionRequest(payload, lambda ok, body: _answer(query, ok, body)))
+
+        def answer(ok: bool, body: dict) -> None:
+            if not ok:  # refused (invalid, unreadable): the robot is free before the station hears it, so that
+                self.mission_done()  # the mission sent again at once, fixed, is not told the robot is busy
+            _answer(query, ok, body)
+        self.missions.put(MissionRequest(payload, answer))
 
     def _mission_refusal(self, payload: bytes) -> Optional[dict]:
         if not self.takes_missions:
             return {"status": 409, "error": f"{self.name} runs one mission ('beastbt run') and takes no other: "
                                             f"run 'beastbt serve' on it to send it missions"}
         if self.link is not None or self._pending_mission:
-            mission = self.link.run.mission.name if self.link is not None else "another"
-            return {"status": 409, "error": f"{self.name} is busy with mission '{mission}': abort it first"}
+            if self.link is None:
+                return {"status": 409, "error": f"{self.name} is checking another mission: send it again in a "
+                                                f"moment"}
+            return {"status": 409, "error": f"{self.name} is busy with mission '{self.link.run.mission.name}': "
+                                            f"abort it first"}
         if self.estop_latched:
             return {"status": 409, "error": f"the e-stop of {self.name} is latched: reset it first (estop_reset)"}
         if not payload.strip():
             return {"status": 400, "error": "the mission is empty: send the mission's YAML (or a zip with its files)"}
         if len(payload) > MISSION_MAX_BYTES:
             return {"status": 413, "error": f"the mission has {len(payload)} bytes: at most {MISSION_MAX_BYTES}"}
+        if not payload.startswith(b"PK\x03\x04") and len(payload) > MISSION.max_bytes:
+            return {"status": 413, "error": f"the mission's YAML has {len(payload)} bytes: at most "
+                                            f"{MISSION.max_bytes} (a mission is a few kB)"}
         return None
 
 

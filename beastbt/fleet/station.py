@@ -313,8 +313,22 @@ class StationServer(ConsoleServer):
         if request.path == "/api/estop-all":
             return (request.content_type,)
         if request.path.endswith("/mission"):
+            if "Content-Type" not in request.headers:
+                return (request.content_type,)  # no type at all (curl -H 'Content-Type:'): the body says what it is
             return MISSION_TYPES
         return super().body_types(request)
+
+    def _refusal(self, request: web.Request) -> Optional[web.Response]:
+        """The console's guard; a mission refused for its type is told the types a mission may have (not JSON's)."""
+        refusal = super()._refusal(request)
+        if (refusal is not None and request.method == "POST" and request.path.endswith("/mission")
+                and request.content_type not in self.body_types(request) and b"needs Content-Type" in refusal.body):
+            return self.guard.error(403, f"a mission is sent as application/yaml, application/zip, application/json "
+                                         f"({{\"mission\": YAML}}) or with no Content-Type, not as "
+                                         f"'{request.content_type[:60]}' (a form's type, which a page on another "
+                                         f"site could send): e.g. curl --data-binary @mission.yaml -H "
+                                         f"'Content-Type: application/yaml' ...")
+        return refusal
 
     async def _bind(self) -> None:
         app = web.Application(middlewares=[self._guard], client_max_size=MISSION_MAX_BYTES)
@@ -379,14 +393,16 @@ class StationServer(ConsoleServer):
         name = self._robot(request)
         raw = await request.read()
         if request.content_type == "application/json":
-            try:
-                body = json.loads(raw) if raw.strip() else None
-            except (ValueError, RecursionError):
-                body = None
-            if not isinstance(body, dict) or not isinstance(body.get("mission"), str):
+            body = _json_object(raw)
+            if body is None or not isinstance(body.get("mission"), str):
                 raise Refused(400, "expected {\"mission\": \"<the mission's YAML>\"}, or the YAML itself "
                                    "(Content-Type: application/yaml), or a zip with its files (application/zip)")
             raw = body["mission"].encode("utf-8")
+        elif "Content-Type" not in request.headers:
+            # no type at all: the body says what it is (a zip's signature, {"mission": ...}, else the YAML)
+            body = _json_object(raw) if raw.lstrip()[:1] == b"{" else None
+            if body is not None and isinstance(body.get("mission"), str):
+                raw = body["mission"].encode("utf-8")
         return await self._ask(name, keys.mission_key(name), raw, MISSION_TIMEOUT_S)
 
     async def _ask(self, name: str, key: str, payload: bytes, timeout_s: float) -> web.Response:
@@ -403,6 +419,15 @@ class StationServer(ConsoleServer):
         status = body.get("status")
         status = status if isinstance(status, int) and 400 <= status < 600 else 502
         return web.json_response({k: v for k, v in body.items() if k not in ("ok", "status")}, status=status)
+
+
+def _json_object(raw: bytes) -> Optional[dict]:
+    """``raw`` as a JSON object, or None when it is not one."""
+    try:
+        body = json.loads(raw) if raw.strip() else None
+    except (ValueError, RecursionError):
+        return None
+    return body if isinstance(body, dict) else None
 
 
 __all__ = ["Station", "StationServer", "FleetTable", "RobotEntry", "LOST_AFTER_S"]

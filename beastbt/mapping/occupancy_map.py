@@ -25,12 +25,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Optional, Union
+from typing import TYPE_CHECKING, Any, Optional, Union
 
 import numpy as np
 
 from beastbt.core.errors import InvalidInput, Position, Problem
 from beastbt.core.yaml_source import load_yaml
+
+if TYPE_CHECKING:
+    from beastbt.core.file_refs import FileRefs
 
 UNKNOWN = -1
 """Occupancy value of a cell nothing has seen (``nav_msgs/OccupancyGrid``'s -1)."""
@@ -173,12 +176,16 @@ def _problem(file: str, pos: Position, message: str, hint: str = _HINT) -> Inval
     return InvalidInput([Problem(file, pos, message, hint)])
 
 
-def _read_image(path: Path) -> np.ndarray:
-    """The image's pixels as a 2D uint8/uint16 array (top row first); colour images are averaged as map_server does."""
+def _read_image(path: Path, data: Optional[bytes] = None) -> np.ndarray:
+    """The image's pixels as a 2D uint8/uint16 array (top row first); colour images are averaged as map_server does.
+    ``data``: the file's bytes, already read (within the map image's cap)."""
     import cv2  # only a map needs OpenCV's image codecs
 
     try:
-        pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if data is None:
+            pixels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        else:
+            pixels = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
     except cv2.error as exc:  # OpenCV's own bound on pixels (2^30), a format it half-reads: the file's fault
         raise OSError(f"OpenCV cannot read it ({str(exc).strip().splitlines()[-1][:200]})") from None
     if pixels is None:
@@ -210,7 +217,7 @@ def _check_declared_size(image_path: Path, name: str, where: Position) -> None:
                        "cells: map it in parts)")
 
 
-def load_map(path: Union[str, Path]) -> OccupancyMap:
+def load_map(path: Union[str, Path], refs: Optional["FileRefs"] = None) -> OccupancyMap:
     """Read a ``map_server`` YAML and its image into an :class:`OccupancyMap`.
 
     Pixels become occupancy as ``map_server`` does: with ``p`` the pixel's
@@ -218,8 +225,10 @@ def load_map(path: Union[str, Path]) -> OccupancyMap:
     ``trinary`` gives 100 above ``occupied_thresh``, 0 below ``free_thresh``
     and -1 between; ``scale`` gives the percentage between the thresholds;
     ``raw`` takes the pixel value itself. Raises :class:`InvalidInput` with the
-    file, line and column of what is wrong.
+    file, line and column of what is wrong. The image is read where ``refs`` allows (default: anywhere, as the
+    command line does; :mod:`beastbt.core.file_refs`), a regular file within the map image's byte cap.
     """
+    from beastbt.core.file_refs import CLI, MAP_IMAGE, RefusedFile
     path = Path(path)
     doc = load_yaml(path)
     name = doc.file
@@ -258,11 +267,16 @@ def load_map(path: Union[str, Path]) -> OccupancyMap:
     if thresholds["free_thresh"] > thresholds["occupied_thresh"]:
         raise _problem(name, pos("free_thresh"), "'free_thresh' is above 'occupied_thresh'",
                        "free_thresh is the lighter bound (e.g. 0.25), occupied_thresh the darker (e.g. 0.65)")
-    _check_declared_size(Path(image) if Path(image).is_absolute() else path.parent / image, name, pos("image"))
-
-    image_path = Path(image) if Path(image).is_absolute() else path.parent / image
     try:
-        pixels = _read_image(image_path)
+        image_path = (refs or CLI).locate(image, path.parent, MAP_IMAGE)
+        # The header first, where the policy allows reading: a declared size over the cap decodes nothing.
+        _check_declared_size(image_path, name, pos("image"))
+        pixels = _read_image(image_path, (refs or CLI).read_bytes(image_path, MAP_IMAGE, image))
+    except RefusedFile as exc:
+        if "does not exist" in exc.message:
+            raise _problem(name, pos("image"), f"cannot read the map image '{image}': it does not exist",
+                           "the image path is relative to the YAML's folder") from None
+        raise _problem(name, pos("image"), exc.message, exc.hint) from None
     except OSError as exc:
         raise _problem(name, pos("image"), f"cannot read the map image {str(image_path)!r}: {exc}",
                        "the image path is relative to the YAML's folder") from None

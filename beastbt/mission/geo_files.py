@@ -26,7 +26,10 @@ import re
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
+
+if TYPE_CHECKING:
+    from beastbt.core.file_refs import FileRefs
 
 MAX_GEO_FILE_BYTES = 16 << 20
 """The largest route, places or fence file read, in bytes (16 MiB): ten thousand GPX track points with times and
@@ -406,18 +409,23 @@ MAP_PLACE_KEYS = ("x", "y", "yaw", "tolerance")
 
 
 def map_places_file(doc: "SourceDoc", base: Path, relative: str,  # type: ignore[name-defined]  # noqa: F821
-                    errors: list) -> dict:
+                    errors: list, refs: Optional["FileRefs"] = None) -> dict:
     """The named poses of a places YAML (``name: {x: 1 m, y: 2 m, yaw: 90 deg, tolerance: 0.3 m}``, map frame) as
     the mission's ``places:``; problems go to ``errors``, positioned in that file (and at the mission's ``file:``
     when the file cannot be read)."""
     from beastbt.core.errors import InvalidInput, Problem
     from beastbt.core.units import parse_quantity
+    from beastbt.core.file_refs import CLI, PLACES, RefusedFile
     from beastbt.core.yaml_source import load_yaml
-    path = (base / relative) if not Path(relative).is_absolute() else Path(relative)
-    if not path.is_file():
-        errors.append(doc.problem(("places", "file"), f"the places file {relative} does not exist",
-                                  "the path is relative to the mission file; a places YAML holds "
-                                  "name: {x: 1 m, y: 2 m, yaw: 90 deg} lines"))
+    try:
+        path = (refs or CLI).locate(relative, base, PLACES)
+    except RefusedFile as exc:
+        if "does not exist" in exc.message:
+            errors.append(doc.problem(("places", "file"), f"the places file {relative} does not exist",
+                                      "the path is relative to the mission file; a places YAML holds "
+                                      "name: {x: 1 m, y: 2 m, yaw: 90 deg} lines"))
+        else:
+            errors.append(doc.problem(("places", "file"), exc.message, exc.hint))
         return {}
     try:
         places = load_yaml(path)
@@ -457,8 +465,12 @@ def map_places_file(doc: "SourceDoc", base: Path, relative: str,  # type: ignore
     return out
 
 
-def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # type: ignore[name-defined]  # noqa: F821
+def resolve_geo_files(doc: "SourceDoc", base: Path,  # type: ignore[name-defined]  # noqa: F821
+                      refs: Optional["FileRefs"] = None) -> tuple[list, list]:
     """Read ``places: {file}`` and every ``route: {file}`` of a mission document into plain places (in ``doc.data``).
+
+    The files are found and opened where ``refs`` allows (default: anywhere, the command line's policy; see
+    :mod:`beastbt.core.file_refs`): regular files within the route file's byte cap.
 
     Returns (errors, warnings) as Problems: errors at the file's line (and at
     the mission's ``file:``), warnings for what a file carries that beastbt
@@ -470,8 +482,16 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     warnings: list = []
     data = doc.data if isinstance(doc.data, dict) else {}
 
+    from beastbt.core.file_refs import CLI, ROUTE, RefusedFile
+
     def load(path_key: tuple, relative: str, want: str) -> Optional[GeoPoints]:
-        path = (base / relative) if not Path(relative).is_absolute() else Path(relative)
+        try:
+            path = (refs or CLI).locate(relative, base, ROUTE)
+        except RefusedFile as exc:  # missing, outside where it may be, a device, too large: the path as written
+            missing = f"the {want} file {relative} cannot be read: it does not exist"
+            errors.append(doc.problem(path_key, missing if "does not exist" in exc.message else exc.message,
+                                      exc.hint))
+            return None
         try:
             got = read_points(path, want)
         except GeoFileError as exc:
@@ -488,7 +508,7 @@ def resolve_geo_files(doc: "SourceDoc", base: Path) -> tuple[list, list]:  # typ
     places = data.get("places")
     if (isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str)
             and Path(places["file"]).suffix.lower() in (".yaml", ".yml")):
-        data["places"] = map_places_file(doc, base, places["file"], errors)
+        data["places"] = map_places_file(doc, base, places["file"], errors, refs)
     elif isinstance(places, dict) and set(places) == {"file"} and isinstance(places["file"], str):
         got = load(("places", "file"), places["file"], "places")
         data["places"] = {} if got is None else {

@@ -18,6 +18,7 @@ from beastbt.mission.fences import Fence
 from beastbt.mission.geo_files import resolve_geo_files
 from beastbt.mission.task_params import expand_task_parameters
 from beastbt.core.errors import InvalidInput, Problem, did_you_mean
+from beastbt.core.file_refs import CLI, MAP, WORLD, FileRefs, RefusedFile
 from beastbt.core.schema_check import load_schema, schema_problems
 from beastbt.core.schema_defaults import schema_default
 from beastbt.mission import steps as st
@@ -117,6 +118,11 @@ class Mission:
     """Steps of installed packages the mission uses (``beastbt.steps`` entry points), by keyword."""
     map_file: Optional[Path] = None
     """The saved map to localise on (``map:``), resolved against the mission's folder."""
+    refs: FileRefs = CLI
+    world_refused: Optional[Problem] = None
+    """Why ``world:`` cannot be read (at its line), or None: said when the world is loaded, so that a run given
+    another world (``--world``) is not stopped by it; the refused file is never opened."""
+    """Where the files it names may be read from (:mod:`beastbt.core.file_refs`): its world's ``map:`` too."""
     map_grid: Optional[Any] = None
     """That map, read (a :class:`beastbt.mapping.occupancy_map.OccupancyMap`), or None without ``map:``."""
     map_start: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -717,11 +723,16 @@ def _do_steps(mission: "Mission") -> list[st.Do]:
     return [s for s in everything if isinstance(s, st.Do)]
 
 
-def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None) -> Mission:
-    """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found."""
+def load_mission(path: Union[str, Path], text: Optional[str] = None, display_name: Optional[str] = None,
+                 refs: FileRefs = CLI) -> Mission:
+    """Load, validate and check a mission; raise :class:`InvalidInput` with every problem found.
+
+    The files it names (``world:``, ``map:``, route and places files) are read where ``refs`` allows: anywhere
+    on the command line (the default), inside the studio's folder or the robot's mission folder there.
+    """
     doc = load_yaml(path, text=text, display_name=display_name)
     params, param_problems = expand_task_parameters(doc)
-    geo_errors, geo_warnings = resolve_geo_files(doc, Path(path).parent if str(path) else Path("."))
+    geo_errors, geo_warnings = resolve_geo_files(doc, Path(path).parent if str(path) else Path("."), refs)
     param_problems = param_problems + geo_errors
     # A keyword the language does not know may be a step of an installed package: only those are loaded.
     external = load_external_steps(step_keywords_in(doc.data, STEP_KEYWORDS), STEP_KEYWORDS)
@@ -733,7 +744,7 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     problems += [p for p in _SemanticChecker(doc).run_guarded() if (p.file, p.position) not in said]
     if problems:
         raise InvalidInput(problems)
-    mission = _build(doc, Path(path), external)
+    mission = _build(doc, Path(path), external, refs)
     _load_map(mission, doc)
     bad_fences = [doc.problem(("fences", name), why, "list the corners in order around the area")
                   for name, fence in mission.fences.items() if (why := fence.valid_problem()) is not None]
@@ -751,11 +762,12 @@ def load_mission(path: Union[str, Path], text: Optional[str] = None, display_nam
     return mission
 
 
-def _read_map_keys(m: Mission, d: dict, base: Path) -> None:
+def _read_map_keys(m: Mission, doc: SourceDoc, base: Path) -> None:
     """``map:``, ``start:`` and ``initial_uncertainty:`` into the mission (the map itself is read by
     :func:`_load_map`)."""
+    d = doc.data
     if "map" in d:
-        m.map_file = (base / d["map"]).resolve() if not Path(d["map"]).is_absolute() else Path(d["map"])
+        m.map_file = locate(m.refs, doc, ("map",), base, MAP)
     start = d.get("start")
     if isinstance(start, str):
         m.map_start_place = start
@@ -819,6 +831,31 @@ def _localized_conditions(node: Any, path: PathKey) -> list[PathKey]:
     return found
 
 
+def locate(refs: FileRefs, doc: SourceDoc, key: PathKey, base: Path, kind: Any) -> Path:
+    """The file ``doc`` names at ``key`` (a path, or a bare name such as ``campus``), from a file in ``base``,
+    where ``refs`` allows it; InvalidInput at that key, naming the path as written, if it is refused."""
+    try:
+        return refs.locate(_value_at(doc.data, key), base, kind)
+    except RefusedFile as exc:
+        hint = exc.hint
+        if kind is MAP and "does not exist" in exc.message:
+            hint += "; build a map with beastbt run MISSION --build-map maps/NAME.yaml"
+        raise InvalidInput([doc.problem(key, exc.message, hint)]) from None
+
+
+def _value_at(data: Any, key: PathKey) -> Any:
+    for part in key:
+        data = data[part]
+    return data
+
+
+def locate_world_map(m: Mission, world_doc: SourceDoc, world_file: str, refs: Optional[FileRefs] = None) -> None:
+    """A mission without ``map:`` of its own takes its world's ``map:`` (relative to the world file, where ``refs``
+    allow: by default the mission's), and reads it; InvalidInput at the world's ``map:`` line."""
+    m.map_file = locate(refs or m.refs, world_doc, ("map",), Path(world_file).parent, MAP)
+    read_map(m, world_doc)
+
+
 def read_map(m: Mission, doc: SourceDoc) -> None:
     """Read ``m.map_file`` into ``m.map_grid``: a missing file is a problem at ``doc``'s ``map:`` (the mission's,
     or the world's that gave it), a bad one at the line of the map's own YAML."""
@@ -828,18 +865,21 @@ def read_map(m: Mission, doc: SourceDoc) -> None:
                                         "the path is relative to the file that names it; build a map with "
                                         "beastbt run MISSION --build-map maps/NAME.yaml")])
     from beastbt.mapping.occupancy_map import load_map  # OpenCV reads the image: only for a mission with a map
-    m.map_grid = load_map(m.map_file)
+    m.map_grid = load_map(m.map_file, refs=m.refs)
 
 
-def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mission:
+def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep], refs: FileRefs = CLI) -> Mission:
     d = doc.data
     limits = d.get("limits") or {}
     base = path.parent if str(path) else Path(".")
     m = Mission(name=d["mission"], file=doc.file, doc=doc, description=d.get("description", ""),
-                external_steps=external)
+                external_steps=external, refs=refs)
     if "world" in d:
-        m.world = (base / d["world"]).resolve() if not Path(d["world"]).is_absolute() else Path(d["world"])
-    _read_map_keys(m, d, base)
+        try:
+            m.world = locate(refs, doc, ("world",), base, WORLD)
+        except InvalidInput as exc:
+            m.world, m.world_refused = Path(str(d["world"])), exc.problems[0]
+    _read_map_keys(m, doc, base)
     m.rate_hz = parse_quantity(d.get("rate", mission_default("/properties", "rate")), "frequency")
     if "speed" in limits:
         m.speed_limit_mps = parse_quantity(limits["speed"], "speed")
@@ -902,5 +942,5 @@ def _build(doc: SourceDoc, path: Path, external: dict[str, ExternalStep]) -> Mis
     return m
 
 
-__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "read_map", "step_of", "steps_of", "condition_of",
+__all__ = ["Mission", "Place", "RawStep", "Failsafe", "load_mission", "read_map", "locate", "locate_world_map", "step_of", "steps_of", "condition_of",
            "parse_count", "HOME", "DEFAULT_NEAR_WITHIN_M", "sector_angle"]

@@ -41,11 +41,15 @@ def load_joystick_script(spec: Union[str, Path, list], mapping: JoystickMapping)
         if isinstance(spec, (list, tuple)):
             return ScriptedJoystick(list(spec), mapping, source="<joystick events>")
         path = Path(spec)
+        from beastbt.core.file_refs import JOYSTICK, RefusedFile, read_capped
         try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InvalidInput([Problem(str(path), Position(), f"cannot read the joystick script: {plain_reason(exc)}",
-                                        "--joystick takes a YAML file: a list like [{at: 2 s, press: enable}]")])
+            # a regular file within the joystick script's byte cap: a device or a pipe is not read
+            text = read_capped(path, JOYSTICK, str(spec)).decode("utf-8")
+        except (RefusedFile, UnicodeDecodeError) as exc:
+            why = exc.message if isinstance(exc, RefusedFile) else "it is not UTF-8 text"
+            raise InvalidInput([Problem(str(path), Position(), f"cannot read the joystick script: {why}",
+                                        "--joystick takes a YAML file: a list like [{at: 2 s, press: enable}]")]
+                               ) from None
         # Read here, not in from_yaml, so that the loader's problems keep their hints.
         return ScriptedJoystick.from_doc(script_doc(text, str(spec)), mapping)
     except ScriptProblems as exc:

@@ -726,11 +726,12 @@ def tree_nodes(run: Any) -> list[dict]:
 def _file_text(path: Optional[str], data: Any) -> Optional[str]:
     """The text of ``path`` when it still parses to ``data`` (what was run), else ``data`` as YAML."""
     if path:
+        from beastbt.core.file_refs import YAML_FILE, RefusedFile, read_capped
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            text = read_capped(path, YAML_FILE).decode("utf-8")  # a regular file within the YAML cap, or none
             if data is None or yaml.safe_load(text) == data:
                 return text
-        except (OSError, yaml.YAMLError):
+        except (RefusedFile, UnicodeDecodeError, yaml.YAMLError):
             pass
     if data is None:
         return None

@@ -91,6 +91,9 @@ class RunOptions:
     (``--build-map``)."""
     map_resolution_m: Optional[float] = None
     """The built map's cell size, metres (``--map-resolution``; default 5 cm)."""
+    files_inside: Optional[str] = None
+    """Read the files the mission names (``world:``, ``map:``, route files) only inside this folder, or shipped ones
+    by name (``--files-inside``; :mod:`beastbt.core.file_refs`); None: anywhere, as written."""
 
     @property
     def simulated(self) -> bool:

@@ -225,9 +225,11 @@ class ScriptedJoystick:
 
     @classmethod
     def from_file(cls, path: Union[str, Path], mapping: Optional[JoystickMapping] = None, **kwargs: Any) -> "ScriptedJoystick":
-        """Build from a YAML file (see :meth:`from_yaml`)."""
+        """Build from a YAML file (see :meth:`from_yaml`): a regular file within the joystick script's byte cap
+        (:func:`beastbt.core.file_refs.read_capped`; RefusedFile otherwise)."""
+        from beastbt.core.file_refs import JOYSTICK, read_capped
         p = Path(path)
-        return cls.from_yaml(p.read_text(encoding="utf-8"), mapping, source=str(p), **kwargs)
+        return cls.from_yaml(read_capped(p, JOYSTICK).decode("utf-8"), mapping, source=str(p), **kwargs)
 
     def _validate(self, events: Any, positions: Optional[Sequence[Optional[tuple[int, int]]]]) -> list[ScriptEvent]:
         from beastbt.core.errors import Position, Problem, did_you_mean

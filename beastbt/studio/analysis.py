@@ -4,7 +4,9 @@ Each function takes the studio's folder, the text, the relative path the text
 is (or will be) saved at (so ``world:`` and geo files resolve from its
 folder), and a robot profile, and answers the JSON of docs/studio.md. The
 checks are beastbt's own (the same as ``beastbt validate`` prints): nothing
-here judges a mission by other rules.
+here judges a mission by other rules. Every file a text or a request names
+(``world:``, ``map:``, route files, the robot) is read only inside the
+studio's folder, or among the shipped ones by name (:func:`studio_refs`).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from beastbt.core.errors import InvalidInput, Position, Problem
+from beastbt.core.file_refs import MAP, ROBOT, WORLD, FileRefs, RefusedFile, shipped_names
 from beastbt.studio.files import FileRefused, StudioFolder, kind_of
 
 UNSAVED_NAME = "untitled.yaml"
@@ -36,13 +39,32 @@ def robot_names(folder: StudioFolder) -> list[str]:
     return names + [f["path"] for f in folder.list() if f["kind"] == "robot"]
 
 
+def studio_refs(folder: StudioFolder) -> FileRefs:
+    """Where the files a text names may be read from in the studio: inside its folder, or shipped ones by name."""
+    return FileRefs.inside(folder.root, "the studio's folder")
+
+
 def robot_argument(folder: StudioFolder, robot: Optional[str]) -> str:
-    """What ``load_profile`` takes for the page's robot: a bundled name as is, a folder file by its real path."""
+    """What ``load_profile`` takes for the page's robot: a bundled name as is, a folder file by its real path.
+
+    Anything else is refused (:class:`FileRefused`, 400/403/404) before a byte of it is read: a path outside the
+    folder (``/etc/passwd``), a device (``/dev/zero``), a folder (``x.yaml/.``), a file over the profile's cap.
+    The message names the robot as the request wrote it.
+    """
     if not robot:
         return DEFAULT_ROBOT
-    if robot.endswith((".yaml", ".yml")):
-        return str(folder.resolve(robot))
-    return robot
+    if not isinstance(robot, str):
+        raise FileRefused(400, "'robot' is a robot profile's name or the path of a robot file in the folder")
+    if robot in shipped_names(ROBOT):
+        return robot
+    try:
+        refs = FileRefs.inside(folder.root, "the studio's folder", "the studio's folder")
+        return str(refs.locate(robot, folder.root, ROBOT))
+    except RefusedFile as exc:
+        status = 404 if "does not exist" in exc.message or exc.message.startswith("no ") else 400
+        if any(word in exc.message for word in ("absolute path", "climbs out", "leads out")):
+            status = 403
+        raise FileRefused(status, f"'robot': {exc.message} ({exc.hint})") from None
 
 
 def problem_json(p: Problem, name: str, lines: list[str]) -> dict:
@@ -95,7 +117,7 @@ def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[
         if kind in ("world", "robot") or _is_list(text):
             return None, _check_by_file(real, name, text, kind)
         from beastbt.mission.model import load_mission
-        mission = load_mission(real, text=text, display_name=name)
+        mission = load_mission(real, text=text, display_name=name, refs=studio_refs(folder))
         found = mission_with_world(mission)
         if not any(p.severity == "error" for p in found):
             found = found + for_robot(mission, robot_argument(folder, robot))
@@ -244,7 +266,7 @@ def _map_frame(folder: StudioFolder, mission: Any, world: Any, text: str, path: 
     if grid is None:
         from beastbt.mapping.occupancy_map import load_map
         try:
-            grid = load_map(mission.map_file)
+            grid = load_map(mission.map_file, refs=mission.refs)
         except InvalidInput:
             grid = None
     if grid is not None:
@@ -377,17 +399,18 @@ def _raw_map_plan(folder: StudioFolder, doc: Any, base: Path, answer: dict) -> N
     from beastbt.sim.world import load_world
     data = doc.data
 
+    refs = studio_refs(folder)
+
     def file(key: str) -> Optional[Path]:
-        value = data.get(key)
-        if not isinstance(value, str):
+        try:  # only what the studio may read: the mission's problems say why another is refused
+            return refs.locate(data.get(key), base, MAP if key == "map" else WORLD)
+        except RefusedFile:
             return None
-        found = base / value
-        return found if found.is_file() else None
 
     try:
         map_file = file("map")
         if map_file is not None:
-            answer["map"] = _grid_json(folder, load_map(map_file), map_file)
+            answer["map"] = _grid_json(folder, load_map(map_file, refs=refs), map_file)
         start = data.get("start")
         if start is None:
             pose = (0.0, 0.0, 0.0)

@@ -1,9 +1,10 @@
 """New missions from templates: patrol, GPS route, line, teleop; each one validates as it comes.
 
 A template is a short mission with comments that say what to change. One that
-runs in a simulated world names it (``world:``) relative to where the new file
-will be saved: the folder's own world of that name when there is one, else the
-world shipped with beastbt.
+runs in a simulated world names it (``world:``): the folder's own world of that
+name by its path relative to where the new file will be saved, else the world
+shipped with beastbt by its bare name (``world: corridor``), which resolves
+wherever the file goes (docs/mission-language.md).
 """
 
 from __future__ import annotations
@@ -106,14 +107,13 @@ steps:
 
 
 def world_path(folder: StudioFolder, mission_path: Optional[str], world_file: str) -> str:
-    """The ``world:`` value that reaches ``world_file`` from a mission saved at ``mission_path``."""
+    """The ``world:`` value that reaches ``world_file`` from a mission saved at ``mission_path``: the folder's own
+    world by its relative path, else the shipped world's bare name (never a path into beastbt's install)."""
     here = (folder.root / mission_path).parent if mission_path else folder.root
     mine = [f["path"] for f in folder.list() if f["kind"] == "world" and Path(f["path"]).name == world_file]
-    if mine:
-        target = folder.root / sorted(mine, key=lambda p: (p.count("/"), p))[0]
-    else:
-        from beastbt.core.resources import data_dir
-        target = Path(str(data_dir("worlds") / world_file))
+    if not mine:
+        return Path(world_file).stem  # 'world: corridor': looked up beside the file, then among the shipped worlds
+    target = folder.root / sorted(mine, key=lambda p: (p.count("/"), p))[0]
     try:
         return Path(os.path.relpath(target, here)).as_posix()
     except ValueError:  # another drive (Windows): no relative path

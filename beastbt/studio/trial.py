@@ -109,8 +109,8 @@ class Trials:
         robot = body.get("robot") or "sim"
         if not isinstance(robot, str):
             raise FileRefused(400, "'robot' is a robot profile's name or the path of a robot file")
-        if robot.endswith((".yaml", ".yml")):
-            robot = str(self.folder.resolve(robot))
+        from beastbt.studio.analysis import robot_argument
+        robot = robot_argument(self.folder, robot)  # inside the folder, or a shipped profile (file_refs)
         max_time = body.get("max_time") or "10 min"
         try:
             parse_duration(str(max_time))
@@ -149,7 +149,7 @@ class Trials:
         command = [sys.executable, "-m", "beastbt", "run", str(mission_file), "--robot", robot,
                    "--speed", speed, "--max-time", str(max_time), "--seed", str(seed),
                    "--console", f"127.0.0.1:{port}", "--summary", str(run_folder / "summary.json"),
-                   "--runs-dir", str(run_folder / "runs")]
+                   "--runs-dir", str(run_folder / "runs"), "--files-inside", str(self.folder.root)]
         if robot != "sim":
             command.append("--sim")  # a real robot's profile on the simulator: a try never moves a robot
         env = dict(os.environ, PYTHONUNBUFFERED="1")
