@@ -111,8 +111,8 @@ class Examples:
             words = [sys.executable, "-m", "beastbt", *words[1:]]
             if words[3] == "station" and "--init-keys" not in words:
                 # the station's defaults are the fixed ports: named, as the ports above are
-                if "--listen" not in words:
-                    words += ["--listen", f"tcp/127.0.0.1:{self.ports.zenoh}"]
+                if "--listen" not in words:  # its default: mutual TLS with the keys it makes (XDG_STATE_HOME)
+                    words += ["--listen", f"tls/127.0.0.1:{self.ports.zenoh}"]
                 if "--console" not in words:
                     words += ["--console", f"127.0.0.1:{self.ports.http}"]
             if words[3] == "serve":
@@ -123,7 +123,9 @@ class Examples:
         """Run one example's command: a station or a robot in the background (returned once up), the rest to
         completion (asserted to succeed)."""
         argv = self.argv(command)
-        env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1"}
+        # The station makes its keys and a robot of the same user finds them in the state folder: the test's own.
+        env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1",
+               "XDG_STATE_HOME": str(self.cwd / "state")}
         if argv[0] == sys.executable and argv[3] in ("station", "serve") and "--init-keys" not in argv:
             robot = argv[3] == "serve"
             proc = subprocess.Popen(argv, cwd=(robot_cwd if robot else None) or self.cwd, env=env, stdin=subprocess.DEVNULL,
@@ -302,14 +304,31 @@ def test_the_quick_paths_curl_examples_run_as_written(quick_path):
     assert wait_for(patrol_ended, 15.0, "the patrol ended by the stop-all")["status"] == "stopped"
 
 
-def test_the_python_example_prints_the_robots_states(quick_path):
-    code = quick_path["examples"].ports.apply(python_example())
+def _run_python_example(ports: Ports) -> str:
+    code = ports.apply(python_example())
     try:
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=8)
-        out = done.stdout
+        return done.stdout
     except subprocess.TimeoutExpired as exc:  # it prints states until stopped
-        out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-    assert "beastbt/sim-1/state" in out, out
+        return exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+
+
+def test_the_python_example_sees_nothing_on_the_default_fleet(quick_path):
+    """As the doc says: with the station's keys (the quick path) a plain Zenoh session cannot watch the fleet."""
+    assert "beastbt/" not in _run_python_example(quick_path["examples"].ports)
+
+
+def test_the_python_example_prints_the_robots_states_on_a_bench_fleet(tmp_path):
+    """As the doc says: on a bench started with --insecure-loopback, the example watches the robots' states."""
+    ports = Ports()
+    examples = Examples(ports, tmp_path)
+    try:
+        for command in (f"beastbt station --insecure-loopback --listen tcp/127.0.0.1:7447",
+                        "beastbt serve --sim --name sim-1 --insecure-loopback --fleet tcp/127.0.0.1:7447"):
+            examples.run(command, robot_cwd=tmp_path)
+        assert "beastbt/sim-1/state" in _run_python_example(ports)
+    finally:
+        examples.close()
 
 
 @pytest.mark.skipif(shutil.which("openssl") is None, reason="--init-keys needs the openssl command")
@@ -324,11 +343,9 @@ def test_the_tls_example_runs_as_written(tmp_path):
             if command.startswith("beastbt serve"):
                 # the robot's files, copied to it as README.txt says
                 config = re.search(r"--fleet-config (\S+)", command)
-                if config is not None:
-                    shutil.copy(tmp_path / "keys" / Path(config.group(1)).name, robot_folder)
-                    for name in ("ca.crt", "robot.crt", "robot.key"):
-                        if (tmp_path / "keys" / name).exists():
-                            shutil.copy(tmp_path / "keys" / name, robot_folder)
+                if config is not None:  # the enrolment folder (keys/robot/), copied to the robot as it is named
+                    enrolment = Path(config.group(1)).parent
+                    shutil.copytree(tmp_path / "keys" / enrolment, robot_folder / enrolment, dirs_exist_ok=True)
             examples.run(command, robot_cwd=robot_folder)
     finally:
         examples.close()

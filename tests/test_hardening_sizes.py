@@ -126,15 +126,15 @@ def _refused_cleanly(code: int, err: str, rss_mb: float) -> None:
 
 
 @pytest.mark.parametrize("name, write, says", [
-    ("probe.gpx", _write_gpx, "MB: a route, places or fence file is read up to 16 MB"),
-    ("probe.kml", _write_kml, "MB: a route, places or fence file is read up to 16 MB"),
+    ("probe.gpx", _write_gpx, "MB: a route file is read up to 16 MB"),
+    ("probe.kml", _write_kml, "MB: a route file is read up to 16 MB"),
 ])
 def test_a_2_million_point_route_file_is_refused_by_its_size_at_the_key_that_names_it(tmp_path, name, write, says):
     write(tmp_path / name, 2_000_000)  # the probe's: 78 MB of GPX (here with elevations: more), 38 MB of KML
     assert (tmp_path / name).stat().st_size > 30 << 20
     code, _, err, rss = beastbt_own_rss("validate", str(_route_mission(tmp_path, name)), cwd=tmp_path)
     _refused_cleanly(code, err, rss)
-    assert f"m.yaml:3:19: error: the route file {name} cannot be read: {name} is " in err and says in err, err
+    assert f"m.yaml:3:19: error: the route file '{name}' is " in err and says in err, err
     assert "hint: thin it to at most 10,000 points" in err
 
 
@@ -262,6 +262,7 @@ def test_an_image_opencv_refuses_by_its_own_bound_is_a_positioned_problem(tmp_pa
                         "CV_IO_MAX_IMAGE_PIXELS in function 'validateInputImageSize'\n")
 
     monkeypatch.setattr(cv2, "imread", refuses)
+    monkeypatch.setattr(cv2, "imdecode", refuses)  # the map image is read through the file policy, then decoded
     _map_with_image(tmp_path, "huge.tif", b"II*\x00" + bytes(100))
     with pytest.raises(InvalidInput) as info:
         load_map(tmp_path / "huge.yaml")

@@ -35,6 +35,8 @@ class FileKind:
     """The largest such file read (bytes)."""
     shipped: Optional[str] = None
     """The folder of shipped files a bare name is looked up in (``worlds``, ``robots``, ``maps``), or None."""
+    too_big_hint: Optional[str] = None
+    """What to do with a file over the cap (a generic hint when None)."""
 
 
 # The caps fit what each kind holds, hundreds of times over, and keep what reading one costs bounded: YAML with
@@ -49,12 +51,15 @@ MAP = FileKind("map file", 64 << 10, "maps")
 """A ``map_server`` YAML: a dozen lines naming its image."""
 MAP_IMAGE = FileKind("map image", 64 << 20)
 """A map's PGM or PNG: 4,000 x 4,000 pixels (16 MB as a PGM) is a large building at 5 cm."""
-ROUTE = FileKind("route file", 4 << 20)
-"""A GPX, KML, GeoJSON, .plan or .waypoints file (route, places or fence): some 40,000 points of GPX."""
+ROUTE = FileKind("route file", 16 << 20, None, "thin it to at most 10,000 points (GPSBabel: gpsbabel -x simplify,"
+                                              "count=10000), or split it")
+"""A GPX, KML, GeoJSON, .plan or .waypoints file (route, places or fence): read streaming, its points counted
+(at most 10,000: :mod:`beastbt.mission.geo_files`), so its cap is that of the parser's (16 MB)."""
 PLACES = FileKind("places file", 512 << 10)
 """A places YAML on a map (``places: {file: ...}``): some 10,000 places."""
-JOYSTICK = FileKind("joystick script", 1 << 20)
-"""A scripted joystick (``--joystick FILE``): some 30,000 events, a quarter of an hour of sticks at 30 Hz."""
+JOYSTICK = FileKind("joystick script", 8 << 20, None, "a joystick script holds at most 10,000 events: split it")
+"""A scripted joystick (``--joystick FILE``): its events are counted by libyaml's parser before anything is built
+(at most 10,000: :mod:`beastbt.sim.joystick_limits`), so its cap is that module's (8 MB)."""
 YAML_MAX_BYTES = max(MISSION.max_bytes, WORLD.max_bytes, ROBOT.max_bytes, JOYSTICK.max_bytes)
 """Any YAML file beastbt reads is at most this big (the largest YAML kind's cap)."""
 YAML_FILE = FileKind("YAML file", YAML_MAX_BYTES)
@@ -265,8 +270,17 @@ def _open_regular(path: Union[str, Path], kind: FileKind, shown: str) -> int:
 
 
 def _too_big(kind: FileKind, shown: str, size: int) -> RefusedFile:
-    return RefusedFile(f"the {kind.what} '{_shown(shown)}' has {size} bytes, more than the {kind.max_bytes} a "
-                       f"{kind.what} may have", f"a {kind.what} is read whole: split it, or make it coarser")
+    return RefusedFile(f"the {kind.what} '{_shown(shown)}' is {_megabytes(size)}: a {kind.what} is read up to "
+                       f"{_megabytes(kind.max_bytes)}", kind.too_big_hint or f"a {kind.what} is read whole: split "
+                                                                             f"it, or make it coarser")
+
+
+def _megabytes(size: int) -> str:
+    """A size for a person: MB (2^20 bytes) with one decimal where it matters, kB below one MB."""
+    if size >= 1 << 20:
+        mb = size / (1 << 20)
+        return f"{mb:,.0f} MB" if mb == int(mb) or mb >= 100 else f"{mb:,.1f} MB"
+    return f"{size / 1024:,.0f} kB"
 
 
 def _inside(path: Path, root: Path) -> bool:

@@ -138,6 +138,10 @@ class RunFolder:
         if self.lock_fd is not None:
             os.close(self.lock_fd)
             self.lock_fd = None
+            try:
+                os.unlink(self.path / ".running")  # a finished run's folder holds what it recorded, nothing else
+            except OSError:
+                pass
 
 
 def events_log_text(events: list[dict]) -> str:
