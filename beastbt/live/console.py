@@ -330,9 +330,22 @@ class ConsoleLink:
                     else:
                         reset_estop(run, "operator console")
                         self._reply(request, True, {"estop": False})
+                elif name == "tune_save":  # the file is written on a thread of its own: the loop never waits for it
+                    threading.Thread(target=self._save_tuning, args=(request,), name="beastbt-tuning-save",
+                                     daemon=True).start()
                 else:
                     future = self.controls.submit(name, body)
                     future.add_done_callback(lambda f, request=request: self._answered(request, f))
+
+    def _save_tuning(self, request: int) -> None:
+        """``POST /api/tuning/save``: the changes written into the profile's file (:func:`save_through`)."""
+        from beastbt.live.tuning import save_through
+        try:
+            self._reply(request, True, save_through(self.controls, 2.0))
+        except Refused as exc:
+            self._reply(request, False, (exc.status, str(exc)))
+        except Exception as exc:  # noqa: BLE001 - a timeout, a run that ended: an answer, never a dead thread
+            self._reply(request, False, (503, f"could not save the tuning: {type(exc).__name__} {exc}".strip()))
 
     def _answered(self, request: int, future: Any) -> None:
         # Called where the control was carried out: the tick thread, which must not block on the pipe.
