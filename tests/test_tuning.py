@@ -56,9 +56,11 @@ def test_each_knob_takes_its_title_unit_range_and_default_from_the_profile_schem
     assert knobs["collision_monitor.min_points"]["integer"] and knobs["collision_monitor.min_points"]["value"] == 3
     assert knobs["local_planner.goal_dist_scale"]["default"] == 2.0
     assert "localisation.lost_quality" not in knobs  # no saved map, no localiser: nothing to bind it to
+    assert knobs["collision_monitor.slow.ratio"]["title"] == "Slow zone ratio"  # a nested knob: its parent names it
     for name, k in knobs.items():  # every one as the schema states it
         prop = knob_schema(name)
-        assert k["title"] == prop["title"] and k["default"] == prop.get("default"), name
+        assert k["title"].endswith(prop["title"].lower() if name.count(".") > 1 else prop["title"]), name
+        assert k["default"] == prop.get("default"), name
     assert {spec.name.split(".")[0] for spec in KNOBS} >= {"limits", "line_follower", "collision_monitor",
                                                           "local_planner", "navigation", "localisation"}
 
@@ -116,6 +118,9 @@ def test_the_planner_and_monitor_knobs_reach_their_objects(line_run):
     navigator = h.run.ctx.services.local_navigator
     assert navigator.planner.config.obstacle_scale == navigator.planner_config.obstacle_scale == 3.0
     assert math.isclose(h.run.gate.limits.max_turn_rate_rps, math.radians(60))
+    h.tick(30)
+    line = tuning_of(h.run).state()["line"]  # the line follower's error, for the page's plot
+    assert line["seen"] and abs(line["offset_m"]) < 0.05 and line["t"] > 0
     assert tuning_of(h.run).changes() == {"collision_monitor.slow.ratio": 0.5, "local_planner.obstacle_scale": 3.0,
                                           "limits.max_turn_rate_dps": 60.0}
 

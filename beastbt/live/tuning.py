@@ -266,7 +266,10 @@ def _knob(spec: KnobSpec, run: Any, holder: Any) -> Knob:
     if not unit and spec.name.endswith("_dps"):
         unit = "deg/s"
     default = prop.get("default")
-    return Knob(spec, holder, str(prop.get("title", spec.name)), unit, prop.get("minimum"),
+    title = str(prop.get("title", spec.name))
+    if spec.name.count(".") > 1:  # a nested knob (collision_monitor.slow.ratio): its parent names it too
+        title = f"{knob_schema(spec.name.rsplit('.', 1)[0]).get('title', '')} {title.lower()}".strip()
+    return Knob(spec, holder, title, unit, prop.get("minimum"),
                 prop.get("exclusiveMinimum"), float(maximum), None if default is None else float(default), integer,
                 value, value)
 
@@ -373,7 +376,7 @@ class TuningRegistry:
 
     def line_state(self) -> Optional[dict]:
         """The line follower's error for the page's plot while a line is followed: ``{t, offset_m, seen}``."""
-        if "line_follower" not in self.knobs:
+        if "line_follower.default_speed_mps" not in self.knobs:
             return None
         if self._board is None:
             import py_trees
