@@ -203,3 +203,37 @@ def test_save_through_the_console_controls_writes_the_profile_and_moves_the_rese
     assert "  max_speed_mps: 0.25        # the Beast's top speed is about 0.35 m/s" in robot.read_text()
     assert control(controls, "tune_reset", {}, h.now_s) == {"reset": []}  # the saved value is the profile's now
     assert h.run.gate.limits.max_speed_mps == 0.25
+
+
+def test_the_station_relays_tuning_to_the_robots_run(tmp_path):
+    """A robot's agent answers the station's ``tuning``, ``tune``, ``tune_reset`` and ``tune_save`` (its queryables
+    ``beastbt/<name>/cmd/<control>``) through the run's console controls, as the console's page does."""
+    pytest.importorskip("zenoh")
+    from types import SimpleNamespace
+
+    from beastbt.fleet import keys
+    from beastbt.fleet.agent import FleetAgent
+    from beastbt.fleet.config import FleetOptions
+    assert {"tuning", "tune", "tune_reset", "tune_save"} <= set(keys.CONTROLS)
+    robot = tmp_path / "robot.yaml"
+    robot.write_text(SIM_PROFILE, encoding="utf-8")
+    h = MissionHarness.from_file(LINE, robot=str(robot))
+    controls = ConsoleControls(h.run, wall=lambda: 0.0)
+    h.tick()
+
+    class Ticking:  # the run's tick thread, answering at once
+        def submit(self, name, body):
+            future = controls.submit(name, body)
+            controls.apply_pending(h.now_s)
+            return future
+    agent = FleetAgent("beast", FleetOptions("tcp/127.0.0.1:1"))  # not started: its controls are called directly
+    agent.link = SimpleNamespace(run=h.run, controls=Ticking())
+    ok, listing = agent.control("tuning", b"{}")
+    assert ok and "limits.max_speed_mps" in {k["name"] for k in listing["knobs"]}
+    assert agent.control("tune", b'{"name": "limits.max_speed_mps", "value": 0.9}') == (
+        False, {"status": 400, "error": "limits.max_speed_mps = 0.9 is out of range: above 0 and at most 0.35 m/s"})
+    assert agent.control("tune", b'{"name": "limits.max_speed_mps", "value": 0.2}')[0]
+    assert h.run.gate.limits.max_speed_mps == 0.2
+    ok, saved = agent.control("tune_save", b"{}")
+    assert ok and saved["saved"] == ["limits.max_speed_mps"] and "max_speed_mps: 0.2 " in robot.read_text()
+    assert agent.control("tune_reset", b"{}") == (True, {"reset": []})
