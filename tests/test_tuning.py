@@ -237,3 +237,14 @@ def test_the_station_relays_tuning_to_the_robots_run(tmp_path):
     ok, saved = agent.control("tune_save", b"{}")
     assert ok and saved["saved"] == ["limits.max_speed_mps"] and "max_speed_mps: 0.2 " in robot.read_text()
     assert agent.control("tune_reset", b"{}") == (True, {"reset": []})
+
+
+def test_the_consoles_knobs_table_lists_every_knob_with_its_schema_default():
+    text = (REPO / "docs" / "console.md").read_text(encoding="utf-8")
+    rows = {cells[0].strip("` "): cells for cells in
+            (line.strip("|").split("|") for line in text.splitlines() if line.startswith("| `") and "." in line)}
+    for spec in KNOBS:
+        assert spec.name in rows, f"docs/console.md's knobs table has no {spec.name}"
+        default = knob_schema(spec.name).get("default")
+        written = rows[spec.name][3].strip()
+        assert written == "(the profile's)" if default is None else float(written) == default, spec.name
