@@ -248,3 +248,19 @@ def test_the_consoles_knobs_table_lists_every_knob_with_its_schema_default():
         default = knob_schema(spec.name).get("default")
         written = rows[spec.name][3].strip()
         assert written == "(the profile's)" if default is None else float(written) == default, spec.name
+
+
+def test_a_navigation_knob_reaches_the_running_step_and_its_sliders_show_while_it_drives():
+    from py_trees.common import Status
+
+    from beastbt.behaviours.navigation import GoTo
+    h = MissionHarness.from_file(REPO / "missions" / "gps_route.yaml", seed=1)
+    controls = ConsoleControls(h.run, wall=lambda: 0.0)
+    driving = lambda h: [n for n in h.run.nodes if isinstance(n, GoTo) and n.status == Status.RUNNING]  # noqa: E731
+    assert h.tick_until(lambda h: bool(driving(h)), 30)
+    assert {"navigation", "local_planner"} <= set(tuning_of(h.run).active_groups())
+    control(controls, "tune", {"name": "navigation.default_blocked_after_s", "value": 45}, h.now_s)
+    assert h.run.ctx.services.navigation.default_blocked_after_s == 45.0
+    assert all(n.nav.default_blocked_after_s == 45.0 for n in driving(h))  # the step under way reads it next tick
+    h.tick()
+    assert driving(h) and driving(h)[0].nav.default_blocked_after_s == 45.0

@@ -39,9 +39,9 @@ from typing import Any, Callable, Optional
 
 from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE
-from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT
+from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT, TUNE
 
-TUNING_CONTROLS = ("tuning", "tune", "tune_reset", "tune_changes", "tune_saved")
+TUNING_CONTROLS = ("tuning", TUNE, "tune_reset", "tune_changes", "tune_saved")
 """Live tuning's controls (:mod:`beastbt.live.tuning`): the listing, a change, a reset, the changes to save and
 that they were saved."""
 READ_ONLY = ("tuning", "tune_changes")
@@ -61,7 +61,8 @@ class Refused(Exception):
 
 @dataclass
 class Command:
-    """One control from the console: ``name`` (pause, resume, abort, answer, teleop), its body, its result."""
+    """One control from the console: ``name`` (pause, resume, abort, answer, teleop, live tuning's), its body, its
+    result."""
 
     name: str
     body: dict = field(default_factory=dict)
@@ -191,7 +192,7 @@ class ConsoleControls:
         registry = tuning_of(self.run)
         if name == "tuning":
             return registry.listing()
-        if name == "tune":
+        if name == TUNE:
             body = check_tune_body(body)
             return registry.set(body["name"], body["value"], now_s)
         if name == "tune_reset":
