@@ -264,3 +264,23 @@ def test_a_navigation_knob_reaches_the_running_step_and_its_sliders_show_while_i
     assert all(n.nav.default_blocked_after_s == 45.0 for n in driving(h))  # the step under way reads it next tick
     h.tick()
     assert driving(h) and driving(h)[0].nav.default_blocked_after_s == 45.0
+
+
+def test_a_profile_installed_inside_the_package_is_not_saved_to(monkeypatch):
+    """Installed, ``--robot sim`` is a file inside the package: saving is refused with how to save instead."""
+    from beastbt.live import tuning
+    h = MissionHarness.from_file(LINE)
+    controls = ConsoleControls(h.run, wall=lambda: 0.0)
+    h.tick()
+    control(controls, "tune", {"name": "limits.max_speed_mps", "value": 0.25}, h.now_s)
+    monkeypatch.setattr(h.run.profile, "file", str(Path(tuning.__file__).parent / "robots" / "sim.yaml"))
+
+    class Ticking:
+        def submit(self, name, body):
+            future = controls.submit(name, body)
+            controls.apply_pending(h.now_s)
+            return future
+    with pytest.raises(Refused) as refused:
+        tuning.save_through(Ticking(), 1.0)
+    assert refused.value.status == 409 and "--robot my_robot.yaml" in str(refused.value)
+    assert tuning_of(h.run).changes() == {"limits.max_speed_mps": 0.25}  # kept: still to be saved elsewhere

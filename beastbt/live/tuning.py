@@ -474,6 +474,19 @@ def write_profile(path: str, values: dict[str, float], integers: frozenset[str] 
     os.replace(tmp, target)
 
 
+def inside_package(path: str) -> bool:
+    """Whether ``path`` is one of the files installed inside the beastbt package (a bundled profile)."""
+    from pathlib import Path
+
+    import beastbt
+    package = Path(beastbt.__file__).resolve().parent
+    try:
+        Path(path).resolve().relative_to(package)
+    except ValueError:
+        return False
+    return True
+
+
 def save_through(controls: Any, timeout_s: float) -> dict:
     """``POST /api/tuning/save`` from any thread but the tick thread: take the changes (a control, on the tick
     thread), write them into the profile's file here (the loop never waits for the disk), then tell the run they
@@ -484,6 +497,9 @@ def save_through(controls: Any, timeout_s: float) -> dict:
         return {"saved": [], "profile_file": path}
     if not path:
         raise _refused(409, "this run's profile has no file to save to")
+    if inside_package(path):
+        raise _refused(409, f"{path} is the profile installed with beastbt (an upgrade would undo the change): copy "
+                            f"it (cp {path} my_robot.yaml), run with --robot my_robot.yaml and save there")
     from beastbt.studio.edits import EditRefused
     try:
         write_profile(path, values, integers)
