@@ -69,6 +69,21 @@ def test_the_speed_slider_slows_the_robot_within_0_2_s_the_replay_is_identical_a
             assert page.get_by_test_id("knob-limits.max_speed_mps").input_value() == str(SLOW_MPS)
             assert slowed["tuning"]["values"]["limits.max_speed_mps"] == SLOW_MPS
             playwright_api.expect(page.get_by_test_id("knob-value-limits.max_speed_mps")).to_have_class("val changed")
+            # a real drag of a gain: sent as it moves (at most 10 a second), the slider never rebuilt under the finger
+            curve = page.get_by_test_id("knob-line_follower.curve_slowdown_m")
+            element = curve.element_handle()
+            box = curve.bounding_box()
+            y = box["y"] + box["height"] / 2
+            page.mouse.move(box["x"] + box["width"] * 0.1, y)
+            page.mouse.down()
+            for i in range(1, 13):
+                page.mouse.move(box["x"] + box["width"] * (0.1 + 0.03 * i), y)
+                page.wait_for_timeout(60)
+            page.mouse.up()
+            assert element.evaluate("e => e.isConnected")
+            dragged = float(curve.input_value())
+            assert 0.5 < dragged < 1.0
+            run.wait_state(lambda s: s["tuning"]["values"]["line_follower.curve_slowdown_m"] == dragged, 5)
             shots = Path(os.environ.get("BEASTBT_SCREENSHOTS") or tmp_path)
             shots.mkdir(parents=True, exist_ok=True)
             page.get_by_test_id("tuning").screenshot(path=str(shots / "console_tuning.png"))
@@ -85,6 +100,7 @@ def test_the_speed_slider_slows_the_robot_within_0_2_s_the_replay_is_identical_a
         run.kill()
     text = robot.read_text(encoding="utf-8")
     assert f"  max_speed_mps: {SLOW_MPS}        # the Beast's top speed is about 0.35 m/s" in text
+    assert f"line_follower:\n  curve_slowdown_m: {dragged}\n" in text  # a section the profile did not have
     original = (REPO / "robots" / "sim.yaml").read_text(encoding="utf-8")
     assert [line for line in text.splitlines() if "#" in line] == [
         line.replace("max_speed_mps: 0.35", f"max_speed_mps: {SLOW_MPS}") for line in original.splitlines()
@@ -92,7 +108,11 @@ def test_the_speed_slider_slows_the_robot_within_0_2_s_the_replay_is_identical_a
     folder = next((tmp_path / "runs").iterdir())
     rec = read_recording(folder / "run.mcap")
     tunes = [m for m in rec.topic("/operator/input") if m["control"] == "tune"]
-    assert [m["body"] for m in tunes] == [{"name": "limits.max_speed_mps", "value": SLOW_MPS}]
+    assert [m["body"] for m in tunes if m["body"]["name"] == "limits.max_speed_mps"] == [
+        {"name": "limits.max_speed_mps", "value": SLOW_MPS}]
+    curves = [m["body"]["value"] for m in tunes if m["body"]["name"] == "line_follower.curve_slowdown_m"]
+    assert len(curves) >= 2 and curves[-1] == dragged  # while it moved, and where it stopped
+    tunes = [m for m in tunes if m["body"]["name"] == "limits.max_speed_mps"]
     changed_s = tunes[0]["now_s"]
     # On the run's clock, from the tick the change counted in: the wheels are commanded the new speed at once (the
     # gate's deceleration: 0.06 m/s in 0.06 s), and the robot's true speed has made 80 % of the change within 0.2 s

@@ -293,7 +293,8 @@ class TuningRegistry:
                 self.knobs[spec.name] = _knob(spec, run, holder)
         self._board: Any = None
         self.version = 0
-        """Changes with every change of a value (the console's page fetches the knobs again when it does)."""
+        """Changes when the knobs' description changes (a save makes new profile values): the console's page fetches
+        the knobs again then. The values themselves come with every state."""
 
     def listing(self) -> dict:
         """``GET /api/tuning``: ``{knobs: [...], active: [groups], profile_file}``."""
@@ -350,7 +351,6 @@ class TuningRegistry:
         holder = knob.spec.holder(self.run)  # a frozen config is replaced by each change: the one in force now
         knob.spec.write(self.run, holder, value)
         knob.value = value
-        self.version += 1
 
     def reset(self, now_s: float, who: str = "console") -> dict:
         """Throw the changes away: every knob back to the profile's value. Returns the knobs it set back."""

@@ -158,12 +158,13 @@ function knobRow(k) {
   hint.className = "hint";
   hint.textContent = `${k.range}` + (k.default != null ? ` · default ${fmtKnob(k, k.default)}` : "")
                      + ` · profile ${fmtKnob(k, k.profile)}`;
-  let sentAt = 0, timer = null, sent = k.value;
+  let sentAt = 0, timer = null;
+  const row = {input, val, sent: k.value};
   const send = () => {
     clearTimeout(timer); timer = null;
     const value = Number(input.value);
-    if (value === sent) return;  // the change event where the last input already sent it
-    sentAt = performance.now(); sent = value;
+    if (value === row.sent) return;  // the change event where the last input already sent it
+    sentAt = performance.now(); row.sent = value;
     post("tuning", {name: k.name, value});
   };
   input.addEventListener("input", () => {
@@ -173,7 +174,7 @@ function knobRow(k) {
   });
   input.addEventListener("change", send);
   box.append(label, input, val, hint);
-  tuning.rows.set(k.name, {input, val});
+  tuning.rows.set(k.name, row);
 }
 function renderTuning(t, ended) {
   $("tuning").hidden = !t;
@@ -202,7 +203,9 @@ function renderTuning(t, ended) {
   for (const [name, row] of tuning.rows) {
     const v = t.values[name];
     if (v == null) continue;
-    if (document.activeElement !== row.input) { row.input.value = v; row.val.textContent = fmtKnob(tuning.knobs.get(name), v); }
+    if (document.activeElement !== row.input) {  // never under the operator's finger
+      row.input.value = v; row.sent = v; row.val.textContent = fmtKnob(tuning.knobs.get(name), v);
+    }
     row.val.classList.toggle("changed", changed.has(name));
     row.input.disabled = ended;
   }
