@@ -7,6 +7,8 @@ questions). What is where:
 
 * :mod:`beastbt.live.console_state`: the state object and the map's layers (built here, on the tick thread);
 * :mod:`beastbt.live.console_control`: the controls, carried out on the tick thread;
+* :mod:`beastbt.live.tuning`: live tuning's knobs, set by the ``tune`` control (saving writes the profile's file on
+  a thread of its own, never the tick thread's);
 * :mod:`beastbt.live.console_process`: the console's own process, with the web server
   (:mod:`beastbt.live.console_server`) and the video encoder (:mod:`beastbt.live.console_video`);
 * ``console_page/``: the page, its script and style (shipped in the package, no CDN).
