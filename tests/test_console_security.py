@@ -179,6 +179,27 @@ def test_a_control_from_another_page_is_refused_and_nothing_moves(standing):
     assert state["pose"] == start
 
 
+def test_tuning_from_another_page_is_refused_and_no_knob_changes(standing):
+    """Live tuning's endpoints sit behind the same guard as every control (a slower robot is harmless; a faster one,
+    or a profile rewritten from another page, is not)."""
+    run = standing
+    before = run.state()["tuning"]["values"]
+    for path, body in (("/api/tuning", {"name": "limits.max_speed_mps", "value": 0.1}), ("/api/tuning/reset", {}),
+                       ("/api/tuning/save", {})):
+        for content_type, headers in (("text/plain", {}), ("application/x-www-form-urlencoded", {}),
+                                      ("application/json", {"Origin": "http://evil.example"}),
+                                      ("application/json", {"Sec-Fetch-Site": "cross-site"})):
+            status, answer = post(run, path, body, content_type, **headers)
+            assert status == 403, (path, content_type, headers, status, answer)
+    status, _, answer = request(run, "GET", "/api/tuning", None, {"Origin": "http://evil.example"})
+    assert status == 403
+    status, _, answer = request(run, "GET", "/api/tuning", None, {"Host": "evil.example"})
+    assert status == 403 and "rebinding" in answer["error"]
+    status, _, answer = request(run, "GET", "/api/tuning")  # this computer's script may read them
+    assert status == 200 and {k["name"]: k["value"] for k in answer["knobs"]} == before
+    assert untouched(run)["tuning"]["values"] == before and before["limits.max_speed_mps"] == 0.35
+
+
 def test_the_consoles_own_page_and_a_script_on_this_computer_may_control(standing):
     run = standing
     own = {"Origin": f"http://127.0.0.1:{run.port}", "Sec-Fetch-Site": "same-origin"}

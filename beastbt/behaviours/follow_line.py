@@ -276,7 +276,8 @@ class FollowLine(BeastBehaviour):
                 return self.fail(f"no line in sight for {lost_for:.1f} s")
             return self.fail(f"line lost for {lost_for:.1f} s")
 
-        # -- steer
+        # -- steer (the speed again each tick: live tuning may change the follower's speed or the speed limit)
+        self.speed_mps = min(self.speed_arg or cfg.default_speed_mps, self.ctx.speed_limit_mps)
         limit_w = min(cfg.max_turn_rate_rps, self.ctx.turn_rate_limit_rps)
         if seen:
             y = obs.offset_m

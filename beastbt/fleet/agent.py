@@ -335,6 +335,12 @@ class FleetAgent:
                 body = check_teleop_body(body)
             elif control == "answer":
                 body = check_answer_body(body)
+            elif control == "tune":
+                from beastbt.live.tuning import check_tune_body
+                body = check_tune_body(body)
+            elif control == "tune_save":  # the profile's file written here, on Zenoh's thread, not the loop's
+                from beastbt.live.tuning import save_through
+                return True, save_through(link.controls, CONTROL_TIMEOUT_S)
             future = link.controls.submit(control, body)
             return True, future.result(CONTROL_TIMEOUT_S)
         except Refused as exc:

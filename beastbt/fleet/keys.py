@@ -36,8 +36,10 @@ ALL_STATES = f"{PREFIX}/*/state"
 """Every robot's state."""
 ALL_EVENTS = f"{PREFIX}/*/events"
 """Every robot's events."""
-CONTROLS = ("pause", "resume", "abort", "estop", "estop_reset", "answer", "teleop")
-"""The controls a robot answers on ``beastbt/<name>/cmd/<control>`` (those of the operator console)."""
+CONTROLS = ("pause", "resume", "abort", "estop", "estop_reset", "answer", "teleop", "tuning", "tune", "tune_reset",
+            "tune_save")
+"""The controls a robot answers on ``beastbt/<name>/cmd/<control>`` (those of the operator console; live tuning's
+``tuning`` lists the knobs, ``tune`` takes ``{name, value}``, ``tune_reset`` and ``tune_save``)."""
 NAME_MAX = 64
 """The longest robot name (characters)."""
 _NAME = re.compile(r"[A-Za-z0-9_-]+")

@@ -7,6 +7,8 @@ questions). What is where:
 
 * :mod:`beastbt.live.console_state`: the state object and the map's layers (built here, on the tick thread);
 * :mod:`beastbt.live.console_control`: the controls, carried out on the tick thread;
+* :mod:`beastbt.live.tuning`: live tuning's knobs, set by the ``tune`` control (saving writes the profile's file on
+  a thread of its own, never the tick thread's);
 * :mod:`beastbt.live.console_process`: the console's own process, with the web server
   (:mod:`beastbt.live.console_server`) and the video encoder (:mod:`beastbt.live.console_video`);
 * ``console_page/``: the page, its script and style (shipped in the package, no CDN).
@@ -330,9 +332,22 @@ class ConsoleLink:
                     else:
                         reset_estop(run, "operator console")
                         self._reply(request, True, {"estop": False})
+                elif name == "tune_save":  # the file is written on a thread of its own: the loop never waits for it
+                    threading.Thread(target=self._save_tuning, args=(request,), name="beastbt-tuning-save",
+                                     daemon=True).start()
                 else:
                     future = self.controls.submit(name, body)
                     future.add_done_callback(lambda f, request=request: self._answered(request, f))
+
+    def _save_tuning(self, request: int) -> None:
+        """``POST /api/tuning/save``: the changes written into the profile's file (:func:`save_through`)."""
+        from beastbt.live.tuning import save_through
+        try:
+            self._reply(request, True, save_through(self.controls, 2.0))
+        except Refused as exc:
+            self._reply(request, False, (exc.status, str(exc)))
+        except Exception as exc:  # noqa: BLE001 - a timeout, a run that ended: an answer, never a dead thread
+            self._reply(request, False, (503, f"could not save the tuning: {type(exc).__name__} {exc}".strip()))
 
     def _answered(self, request: int, future: Any) -> None:
         # Called where the control was carried out: the tick thread, which must not block on the pipe.

@@ -39,8 +39,14 @@ from typing import Any, Callable, Optional
 
 from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE
-from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT
+from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT, TUNE
 
+TUNING_CONTROLS = ("tuning", TUNE, "tune_reset", "tune_changes", "tune_saved")
+"""Live tuning's controls (:mod:`beastbt.live.tuning`): the listing, a change, a reset, the changes to save and
+that they were saved."""
+READ_ONLY = ("tuning", "tune_changes")
+"""Controls that only ask: carried out on the tick thread like the others, but not operator inputs (nothing to
+replay)."""
 STICK_TIMEOUT_S = 0.2
 """The remote stick is released when no message came for this long (wall s); the page sends every 0.1 s."""
 
@@ -55,7 +61,8 @@ class Refused(Exception):
 
 @dataclass
 class Command:
-    """One control from the console: ``name`` (pause, resume, abort, answer, teleop), its body, its result."""
+    """One control from the console: ``name`` (pause, resume, abort, answer, teleop, live tuning's), its body, its
+    result."""
 
     name: str
     body: dict = field(default_factory=dict)
@@ -125,8 +132,10 @@ class ConsoleControls:
             except Exception as exc:  # noqa: BLE001 - a bad control must never end the run
                 cmd.result.set_exception(Refused(400, f"could not {cmd.name}: {exc}"))
             else:
-                # Carried out: recorded with its tick, so that a replay does it again at the same tick.
-                self.run.inputs.note(self.run, CONSOLE, cmd.name, cmd.body, now_s)
+                # Carried out: recorded with its tick, so that a replay does it again at the same tick (a question
+                # that changes nothing, such as the tuning's listing, is not an input).
+                if cmd.name not in READ_ONLY:
+                    self.run.inputs.note(self.run, CONSOLE, cmd.name, cmd.body, now_s)
                 cmd.result.set_result(outcome)
             self.applied += 1
         if self.stick_held and self.wall() - self.stick_wall_s > self.stick_timeout_s:
@@ -161,6 +170,8 @@ class ConsoleControls:
             return self._answer(cmd.body)
         if name == "teleop":
             return self._teleop(cmd.body, now_s)
+        if name in TUNING_CONTROLS:
+            return self._tuning(name, cmd.body, now_s)
         raise Refused(400, f"unknown control '{name}'")
 
     def _answer(self, body: dict) -> dict:
@@ -173,6 +184,26 @@ class ConsoleControls:
         if not questions.answer(question.id, body.get("choice"), "console"):
             raise Refused(400, f"choice must be one of {', '.join(question.choices)}, not {body.get('choice')!r}")
         return {"answered": question.id, "choice": questions.answer_of(question.id)}
+
+    def _tuning(self, name: str, body: dict, now_s: float) -> dict:
+        """Live tuning (:mod:`beastbt.live.tuning`): list the knobs, set one, reset them, take or mark the changes to
+        save."""
+        from beastbt.live.tuning import check_tune_body, tuning_of
+        registry = tuning_of(self.run)
+        if name == "tuning":
+            return registry.listing()
+        if name == TUNE:
+            body = check_tune_body(body)
+            return registry.set(body["name"], body["value"], now_s)
+        if name == "tune_reset":
+            return registry.reset(now_s)
+        if name == "tune_changes":
+            return {"changes": registry.changes(), "profile_file": getattr(self.run.profile, "file", None),
+                    "integers": sorted(n for n, k in registry.knobs.items() if k.integer)}
+        values = body.get("values")  # tune_saved
+        if not isinstance(values, dict):
+            raise Refused(400, "expected {\"values\": {KNOB: NUMBER}}")
+        return registry.saved(values)
 
     def _teleop(self, body: dict, now_s: float) -> dict:
         override = self.run.ctx.services.teleop
@@ -287,5 +318,5 @@ def check_answer_body(body: Any) -> dict:
     return {"id": body["id"], "choice": body["choice"]}
 
 
-__all__ = ["ConsoleControls", "Command", "Refused", "check_teleop_body", "check_answer_body", "parse_control_body",
+__all__ = ["ConsoleControls", "Command", "Refused", "TUNING_CONTROLS", "READ_ONLY", "check_teleop_body", "check_answer_body", "parse_control_body",
            "describe", "STICK_TIMEOUT_S", "CONTROL_MAX_BYTES"]

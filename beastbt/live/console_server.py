@@ -10,7 +10,8 @@ The contract (tests and other tools rely on it):
   says it decodes it (:mod:`beastbt.live.console_video`).
 * ``POST /api/pause``, ``/api/resume``, ``/api/abort``, ``/api/estop``,
   ``/api/estop/reset``, ``/api/answer`` (``{id, choice}``), ``/api/teleop``
-  (``{linear, angular, deadman}``). Each answers ``{ok: true, ...}``, or a 4xx
+  (``{linear, angular, deadman}``); live tuning (:mod:`beastbt.live.tuning`): ``GET /api/tuning``
+  (the knobs), ``POST /api/tuning`` (``{name, value}``), ``/api/tuning/reset``, ``/api/tuning/save``. Each answers ``{ok: true, ...}``, or a 4xx
   with ``{error}`` when it cannot be done (409: not now, 400: a bad request).
 * Off loopback (or with ``--console-token always``) every request needs the
   run's token (printed once at start): ``?token=``, an ``Authorization:
@@ -60,6 +61,7 @@ from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answ
                                           parse_control_body)
 from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
 from beastbt.live.server_thread import start_loop_thread
+from beastbt.live.tuning import check_tune_body
 from beastbt.live.web_guard import WebGuard
 from beastbt.live.console_state import state_json  # noqa: F401 - part of this module's names
 from beastbt.live.console_video import ConsoleVideo
@@ -68,6 +70,8 @@ PUSH_PERIOD_S = 0.1
 """The state is pushed to every WebSocket at least this often (s): 10 a second."""
 CONTROL_TIMEOUT_S = 2.0
 """How long a control waits for the tick thread before the answer is 503 (s)."""
+SAVE_TIMEOUT_S = 6.0
+"""How long saving the tuning may take (s): two controls on the tick thread and the profile's file written between."""
 TOKEN_COOKIE = "beastbt_console_token"
 CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; img-src 'self' data: blob:; "
                            "media-src blob:; connect-src 'self'; object-src 'none'; base-uri 'none'; "
@@ -137,6 +141,10 @@ class ConsoleServer:
         app.router.add_get("/api/video", self._ws_video)
         for name in ("pause", "resume", "abort", "answer", "teleop"):
             app.router.add_post(f"/api/{name}", self._control(name))
+        app.router.add_get("/api/tuning", self._tuning)
+        app.router.add_post("/api/tuning", self._control("tune"))
+        app.router.add_post("/api/tuning/reset", self._control("tune_reset"))
+        app.router.add_post("/api/tuning/save", self._tuning_save)
         app.router.add_post("/api/estop", self._estop)
         app.router.add_post("/api/estop/reset", self._estop_reset)
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
@@ -358,8 +366,17 @@ class ConsoleServer:
                 body = check_teleop_body(body)
             elif name == "answer":
                 body = check_answer_body(body)
+            elif name == "tune":
+                body = check_tune_body(body)
             return await self._answer(name, body)
         return handle
+
+    async def _tuning(self, request: web.Request) -> web.Response:
+        return await self._answer("tuning", {})
+
+    async def _tuning_save(self, request: web.Request) -> web.Response:
+        await self._body(request)  # a body, if any, must still be a control's (strict JSON, 4 kB)
+        return await self._answer("tune_save", {}, SAVE_TIMEOUT_S)
 
     async def _estop(self, request: web.Request) -> web.Response:
         return await self._answer("estop", {})
@@ -367,12 +384,12 @@ class ConsoleServer:
     async def _estop_reset(self, request: web.Request) -> web.Response:
         return await self._answer("estop_reset", {})
 
-    async def _answer(self, name: str, body: dict) -> web.Response:
+    async def _answer(self, name: str, body: dict, timeout_s: float = CONTROL_TIMEOUT_S) -> web.Response:
         future = self.controls.submit(name, body)
         try:
-            outcome = await asyncio.wait_for(asyncio.wrap_future(future), CONTROL_TIMEOUT_S)
+            outcome = await asyncio.wait_for(asyncio.wrap_future(future), timeout_s)
         except asyncio.TimeoutError:
-            return _error(503, f"the run did not take '{name}' within {CONTROL_TIMEOUT_S:g} s")
+            return _error(503, f"the run did not take '{name}' within {timeout_s:g} s")
         return web.json_response({"ok": True, **outcome})
 
 

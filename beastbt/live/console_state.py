@@ -23,6 +23,7 @@ import py_trees
 from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, BatteryState, GpsFix, MapPose
 from beastbt.estimation.geodesy import LocalFrame
+from beastbt.live.tuning import tuning_of
 from beastbt.run.progress import progress_of
 
 STATUS_NAMES = {"success": "succeeded", "failure": "failed", "stopped": "aborted"}
@@ -446,6 +447,9 @@ class ConsoleState:
             "trail_len": len(self.trail),
             "map_version": self._current_map_version(),
             "obstacles": obstacle_layers(run, self.frame, self._board, run.clock.now(), pose),
+            # live tuning's values and the line's error (beastbt.live.tuning); from the first tick, once every part
+            # has put in what the knobs bind to
+            "tuning": tuning_of(run).state() if run.ticks > 0 else None,
         }
         if run.status is not None:
             last = getattr(self, "_published", None)

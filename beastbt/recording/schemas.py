@@ -162,9 +162,11 @@ OPERATOR_INPUT = _obj("beastbt.OperatorInput",
                           "now_s": {"type": "number", "description": "Clock time it was carried out at, seconds."},
                           "source": {"type": "string", "description": "console or terminal."},
                           "control": {"type": "string",
-                                      "description": "pause, resume, abort, answer, teleop or stick_silent."},
+                                      "description": "pause, resume, abort, answer, teleop, stick_silent; "
+                                                     "live tuning: tune, tune_reset, tune_saved."},
                           "body": {"type": "object", "description": "The control's body ({id, choice} for an "
-                                                                    "answer; {linear, angular, deadman} for teleop)."}})
+                                                                    "answer; {linear, angular, deadman} for teleop; "
+                                                                    "{name, value} for tune)."}})
 
 EVENT = _obj("beastbt.Event", "One run event (clock seconds, a kind word, a text).", {
     "time_s": {"type": "number"}, "kind": {"type": "string"}, "text": {"type": "string"}})

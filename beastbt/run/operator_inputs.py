@@ -2,7 +2,7 @@
 
 The tree, the devices and the clock are recorded as they are; what a person
 does through the operator console (pause, resume, abort, answer, the on-page
-stick) or a terminal (an answer typed at the prompt) happens between their
+stick, a knob tuned live: :mod:`beastbt.live.tuning`) or a terminal (an answer typed at the prompt) happens between their
 readings, in wall time. Each such input, once carried out, is noted here
 with the tick it counted in (:class:`OperatorInput`); the recorder keeps the
 notes (channel ``/operator/input``) and ``beastbt replay`` carries them out
@@ -25,13 +25,17 @@ TERMINAL = "terminal"
 """The source of answers typed at the run's terminal (:class:`~beastbt.run.session.TerminalAnswers`)."""
 STICK_SILENT = "stick_silent"
 """The console's control that releases a stick whose messages stopped (its timeout is wall time)."""
+TUNE = "tune"
+"""The console's (or the station's) control that sets one knob live, ``{name, value}`` (:mod:`beastbt.live.tuning`);
+``tune_reset`` throws the changes away and ``tune_saved`` says they were written to the profile (a reset comes back
+to them). Replayed at their tick, so a tuned run replays identically."""
 
 
 @dataclass(frozen=True)
 class OperatorInput:
     """One input carried out: the tick it counted in, the clock time (s) it was carried out at, where it came
     from (``console``, ``terminal``), the control (``pause``, ``resume``, ``abort``, ``answer``, ``teleop``,
-    ``stick_silent``) and its body (the console's JSON body; ``{id, choice}`` for an answer)."""
+    ``stick_silent``, ``tune``, ``tune_reset``, ``tune_saved``) and its body (the console's JSON body; ``{id, choice}`` for an answer)."""
 
     tick: int
     now_s: float
@@ -62,4 +66,4 @@ class OperatorInputs:
             listener(item)
 
 
-__all__ = ["OperatorInput", "OperatorInputs", "CONSOLE", "TERMINAL", "STICK_SILENT"]
+__all__ = ["OperatorInput", "OperatorInputs", "CONSOLE", "TERMINAL", "STICK_SILENT", "TUNE"]

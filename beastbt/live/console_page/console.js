@@ -115,8 +115,140 @@ function render(s) {
   if (s.map_version !== mapVersion) { mapVersion = s.map_version; loadMap(); }
   renderTree(s.tree);
   renderEvents(s.events || []);
+  renderTuning(s.tuning, ended);
   mapDirty = true;
   if (over) endVideo(s);
+}
+
+// ---- live tuning -----------------------------------------------------------------------------------
+// The knobs come from GET /api/tuning (title, unit, range, default, the profile's value) and again whenever the
+// state's tuning.version changes; the state carries the values and which groups the running steps use. A slider
+// sends POST /api/tuning {name, value} as it moves (at most every 100 ms, and once more where it stops): the run
+// takes it at its next tick. A value the run refuses shows its answer (the range) as a notice.
+const tuning = {knobs: new Map(), version: -1, loading: false, rows: new Map(), shown: "", line: [], lastLineT: null};
+const GROUP_NAMES = {limits: "speed limits", line_follower: "line follower", collision_monitor: "collision monitor",
+                     local_planner: "local planner", navigation: "navigation", localisation: "localisation"};
+const fmtKnob = (k, v) => (k.integer ? String(Math.round(v)) : (+v).toFixed(Math.max(0, -Math.floor(Math.log10(k.step || 0.01)))))
+                          + (k.unit ? " " + k.unit : "");
+async function loadTuning(version) {
+  if (tuning.loading) return;
+  tuning.loading = true;
+  try {
+    const r = await fetch("/api/tuning", {headers: authHeaders(), cache: "no-store"});
+    if (r.ok) {
+      const t = await r.json();
+      tuning.knobs = new Map(t.knobs.map((k) => [k.name, k]));
+      tuning.version = version;
+      tuning.shown = "";  // lay the sliders out again
+      $("tuning-info").textContent = t.profile_file ? "profile: " + t.profile_file : "the knobs the running steps use";
+    }
+  } catch (e) { /* the next state tries again */ }
+  tuning.loading = false;
+}
+function knobRow(k) {
+  const box = $("knobs");
+  const label = document.createElement("label");
+  label.textContent = k.title; label.title = k.name; label.htmlFor = "knob-" + k.name;
+  const input = document.createElement("input");
+  input.type = "range"; input.id = "knob-" + k.name; input.dataset.testid = "knob-" + k.name; input.dataset.knob = k.name;
+  input.min = k.min_exclusive ? k.min + k.step : k.min; input.max = k.max; input.step = k.step; input.value = k.value;
+  const val = document.createElement("span");
+  val.className = "val"; val.dataset.testid = "knob-value-" + k.name;
+  const hint = document.createElement("div");
+  hint.className = "hint";
+  hint.textContent = `${k.range}` + (k.default != null ? ` · default ${fmtKnob(k, k.default)}` : "")
+                     + ` · profile ${fmtKnob(k, k.profile)}`;
+  let sentAt = 0, timer = null;
+  const row = {input, val, sent: k.value};
+  const send = () => {
+    clearTimeout(timer); timer = null;
+    const value = Number(input.value);
+    if (value === row.sent) return;  // the change event where the last input already sent it
+    sentAt = performance.now(); row.sent = value;
+    post("tuning", {name: k.name, value});
+  };
+  input.addEventListener("input", () => {
+    val.textContent = fmtKnob(k, input.value);
+    const wait = 100 - (performance.now() - sentAt);
+    if (wait <= 0) send(); else if (!timer) timer = setTimeout(send, wait);
+  });
+  input.addEventListener("change", send);
+  box.append(label, input, val, hint);
+  tuning.rows.set(k.name, row);
+}
+function renderTuning(t, ended) {
+  $("tuning").hidden = !t;
+  if (!t) return;
+  if (t.version !== tuning.version) loadTuning(t.version);
+  const active = new Set(t.active);
+  const names = [...tuning.knobs.values()].filter((k) => active.has(k.group)).map((k) => k.name);
+  const key = names.join(",");
+  if (key !== tuning.shown) {  // the running steps changed (a line followed, a place driven to): other sliders
+    $("knobs").textContent = "";
+    tuning.rows.clear();
+    let group = "";
+    for (const name of names) {
+      const k = tuning.knobs.get(name);
+      if (k.group !== group) {
+        group = k.group;
+        const h = document.createElement("div");
+        h.className = "group"; h.textContent = GROUP_NAMES[group] || group;
+        $("knobs").append(h);
+      }
+      knobRow(k);
+    }
+    tuning.shown = key;
+  }
+  const changed = new Set(t.changed);
+  for (const [name, row] of tuning.rows) {
+    const v = t.values[name];
+    if (v == null) continue;
+    if (document.activeElement !== row.input) {  // never under the operator's finger
+      row.input.value = v; row.sent = v; row.val.textContent = fmtKnob(tuning.knobs.get(name), v);
+    }
+    row.val.classList.toggle("changed", changed.has(name));
+    row.input.disabled = ended;
+  }
+  $("tuning-save").disabled = ended || !changed.size;
+  $("tuning-reset").disabled = ended || !changed.size;
+  plotLine(t.line, active.has("line_follower"));
+}
+$("tuning-save").onclick = async () => {
+  const a = await post("tuning/save");
+  if (a.ok) notice(a.saved && a.saved.length ? `saved to ${a.profile_file}: ${a.saved.join(", ")}` : "nothing to save");
+};
+$("tuning-reset").onclick = () => post("tuning/reset");
+// The line follower's error beside its gains: the detector's offset at the look-ahead (cm), the last 10 s.
+function plotLine(line, following) {
+  const box = $("line-plot-box");
+  if (line && line.t !== tuning.lastLineT) {
+    tuning.lastLineT = line.t;
+    tuning.line.push([line.t, line.offset_m]);
+    while (tuning.line.length && tuning.line[0][0] < line.t - 10) tuning.line.shift();
+  }
+  box.hidden = !following && !tuning.line.length;
+  if (box.hidden) return;
+  const c = $("line-plot"), g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const pts = tuning.line;
+  if (!pts.length) return;
+  const t1 = pts[pts.length - 1][0], t0 = t1 - 10;
+  const peak = Math.max(2, ...pts.filter((p) => p[1] != null).map((p) => Math.abs(p[1] * 100)));
+  const y = (cm) => c.height / 2 - cm / peak * (c.height / 2 - 8), x = (t) => (t - t0) / 10 * c.width;
+  g.strokeStyle = "#3a3f46"; g.beginPath(); g.moveTo(0, y(0)); g.lineTo(c.width, y(0)); g.stroke();
+  g.strokeStyle = "#4aa3ff"; g.lineWidth = 2; g.beginPath();
+  let open = false;
+  for (const [t, off] of pts) {
+    if (off == null) { open = false; continue; }  // the line out of sight: a gap
+    if (open) g.lineTo(x(t), y(off * 100)); else g.moveTo(x(t), y(off * 100));
+    open = true;
+  }
+  g.stroke();
+  g.fillStyle = "#9aa0a6"; g.font = "11px system-ui";
+  g.fillText(`±${peak.toFixed(1)} cm`, 4, 12);
+  const last = pts[pts.length - 1][1];
+  $("line-plot-info").textContent = "line error " + (last == null ? "(out of sight)" : (last * 100).toFixed(1) + " cm")
+                                    + ", last 10 s";
 }
 
 // Which way the robot faces, in the words of the frame the map is drawn in. On a run with a position on Earth
