@@ -43,6 +43,7 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
 if typing.TYPE_CHECKING:  # OpenCV and SciPy load when a robot with a LiDAR navigates, not with the language
+    from beastbt.navigation.global_navigator import GlobalNavigator, PathFollow
     from beastbt.navigation.local_navigator import LocalNavigator
     from beastbt.navigation.local_planner import PlanResult
 
@@ -167,6 +168,14 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
+LOCAL_GOAL_AHEAD_M = 2.0
+"""Following a planned way, the local planner aims at the way's point this far ahead (m): inside its window."""
+
+WAY_SWITCH_MIN_M = 1.0
+WAY_SWITCH_FRACTION = 0.1
+"""A new plan replaces a way still clear only when it is shorter than what is left of it by this fraction (or
+WAY_SWITCH_MIN_M, the larger)."""
+
 KEEP_PLANNING_S = 2.0
 """After obstacles were last in the pure-pursuit command's way, the local planner keeps choosing for this long (s)."""
 
@@ -201,6 +210,12 @@ class GoTo(BeastBehaviour):
         self.blocked_after_s = blocked_after_s
         self.nav = NavConfig()
         self.local: Optional[LocalNavigator] = None
+        self.global_nav: Optional[GlobalNavigator] = None
+        self.way: Optional[PathFollow] = None
+        """The planned way round what the global costmap holds (odom), or None: the straight line."""
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.way_best_m = 0.0
         self.costmap_fresh = False
         self.last_cmd = (0.0, 0.0)
         self.obstructed_at_s = -math.inf
@@ -225,6 +240,11 @@ class GoTo(BeastBehaviour):
     def initialise(self) -> None:
         self.nav = self.ctx.services.navigation or NavConfig()
         self.local = self.ctx.services.local_navigator
+        self.global_nav = self.local.global_nav if self.local is not None else None
+        self.way = None
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.way_best_m = 0.0
         self.costmap_fresh = False
         self.obstructed_at_s = -math.inf
         odom = self.read("pose_odom")
@@ -401,10 +421,32 @@ class GoTo(BeastBehaviour):
                 odom_m: float) -> Status:
         nav = self.nav
         p = self.ctx.params
-        ce, cn = self._carrot(e, n, dist)
-        de, dn = ce - e, cn - n
-        ld = math.hypot(de, dn)
-        alpha = wrap_angle(math.atan2(dn, de) - pose.yaw)
+        failed = self._global_way(now, pose, e, n, tolerance)
+        if failed is not None:
+            return failed
+        way = self.way
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if way is not None and odom is not None:
+            # Round what the global costmap holds: pure pursuit along the planned way (odom frame).
+            along = way.project((odom.x, odom.y), 2.0 * nav.lookahead_m + 1.0)
+            carrot_odom = way.point_at(along + nav.lookahead_m)
+            local_goal = way.point_at(along + LOCAL_GOAL_AHEAD_M)
+            dx, dy = carrot_odom[0] - odom.x, carrot_odom[1] - odom.y
+            ld = math.hypot(dx, dy)
+            alpha = wrap_angle(math.atan2(dy, dx) - odom.yaw)
+            if along > self.way_best_m + nav.progress_m:
+                # Along the way round is progress, even where it leads away from the place (out of a dead end).
+                self.way_best_m = along
+                self.progress_at_s = now
+                self.best_dist_at_s = now
+        else:
+            way = None
+            if self.line_start is None:
+                self.line_start = (e, n)
+            ce, cn = self._carrot(e, n, dist)
+            de, dn = ce - e, cn - n
+            ld = math.hypot(de, dn)
+            alpha = wrap_angle(math.atan2(dn, de) - pose.yaw)
         # Progress: the fused position got closer to the target, or the wheels carried the robot
         # toward it (the fused distance alone stalls on the slow approach while the GPS pulls the
         # estimate about), or the heading error shrinks while turning in place.
@@ -433,7 +475,10 @@ class GoTo(BeastBehaviour):
         self.mode = "rotate" if rotate else "drive"
         preferred = self._preference(rotate, alpha, ld, dist, tolerance)
         v, w = preferred
-        plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
+        if way is not None and odom is not None:
+            plan = self._plan(now, odom, preferred, carrot_odom, local_goal)
+        else:
+            plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
         if plan is not None:
             v, w = plan.linear_mps, plan.angular_rps
         # Obstacles in the way since the last progress: going round them or waiting for them is not being
@@ -442,9 +487,8 @@ class GoTo(BeastBehaviour):
         blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
-            toward = wrap_angle(math.atan2(dn, de) - pose.yaw)
             return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(toward)}, {dist:.1f} m to {self.place}")
+                             f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
             return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
@@ -462,9 +506,59 @@ class GoTo(BeastBehaviour):
             self.feedback_message = f"{what}, {dist:.1f} m to {self.place}"
         elif rotate:
             self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {dist:.1f} m to go"
+        elif way is not None:
+            self.feedback_message = f"{dist:.1f} m to {self.place}, on the way round ({way.length_m:.1f} m planned)"
         else:
             self.feedback_message = f"{dist:.1f} m to {self.place}"
         return Status.RUNNING
+
+    # -- the global costmap: planning round what the LiDAR has seen -------------------------------------------
+    def _global_way(self, now: float, pose: FusedPose, e: float, n: float, tolerance: float) -> Optional[Status]:
+        """Keep :attr:`way` up to date: None while the straight line to the place is clear on the global costmap;
+        else a path planned round the marks, again every ``global_costmap.replan_period_s`` and at once when a new
+        mark blocks it. FAILURE (the reason named) when no way exists; otherwise None."""
+        g = self.global_nav
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if g is None or odom is None:
+            self.way = None
+            return None
+        version = g.layer.version
+        due = now - self.way_planned_at_s >= g.config.replan_period_s
+        if version == self.way_version and not due:
+            return None
+        self.way_version = version
+        here = (odom.x, odom.y)
+        goal = self._to_odom(-e, -n, pose, odom)
+        if not g.blocked((here, goal), skip_m=g.inscribed_m):
+            if self.way is not None:
+                self.way = None
+                self.line_start = None  # the straight line again, from where the robot is
+            self.way_planned_at_s = now
+            return None
+        kept = self.way is not None and not g.blocked(self.way.ahead(), skip_m=g.inscribed_m)
+        if kept and not due:
+            return None  # the way planned is still clear: kept until the period is up
+        from beastbt.navigation.global_navigator import PathFollow
+        from beastbt.navigation.global_planner import NoPath
+        try:
+            path = g.plan(here, goal, tolerance, self.place)
+        except NoPath as exc:
+            self.command(0.0, 0.0)
+            return self.fail(f"no way to {self.place}: {exc.reason}")
+        self.way_planned_at_s = now
+        if kept and self.way is not None:
+            # The way followed is still clear: only a clearly shorter one replaces it. Two ways round of about the
+            # same length (either side of a dead end) would otherwise swap at every plan and the robot dither.
+            ahead = self.way.ahead()
+            remaining = math.hypot(ahead[0, 0] - here[0], ahead[0, 1] - here[1]) + self.way.length_m - self.way.along_m
+            if path.length_m > remaining - max(WAY_SWITCH_MIN_M, WAY_SWITCH_FRACTION * remaining):
+                return None
+        if self.way is None:
+            self.ctx.events.add("replan", f"{self.name}: the straight way is blocked; planned round, "
+                                          f"{path.length_m:.1f} m")
+        self.way = PathFollow(path.points)
+        self.way_best_m = 0.0
+        return None
 
     def _preference(self, rotate: bool, alpha: float, ld: float, dist: float, tolerance: float
                     ) -> tuple[float, float]:
@@ -500,6 +594,8 @@ class GoTo(BeastBehaviour):
             return
         scan: Optional[LaserScan] = self.read("scan")
         costmap = local.observe(scan, self.read("pose_odom"), now)
+        if local.fresh is not None and self.global_nav is not None:
+            self.global_nav.observe(*local.fresh)
         if costmap is not None:
             self.costmap_fresh = True
             self.bb.costmap = costmap

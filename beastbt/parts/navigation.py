@@ -173,9 +173,17 @@ def local_navigator(profile: RobotProfile) -> Optional["LocalNavigator"]:
     lidar: LidarConfig = section_config(profile, "lidar", LidarConfig)
     limits = Limits(profile.max_speed_mps, profile.max_turn_rate_rps, profile.max_accel_mps2,
                     profile.max_angular_accel_rps2)
-    return LocalNavigator(section_config(profile, "local_costmap", LocalCostmapConfig),
-                          section_config(profile, "local_planner", LocalPlannerConfig),
-                          footprint_radius(profile.data), lidar.mounting, limits)
+    local = LocalNavigator(section_config(profile, "local_costmap", LocalCostmapConfig),
+                           section_config(profile, "local_planner", LocalPlannerConfig),
+                           footprint_radius(profile.data), lidar.mounting, limits)
+    # GPS go_to plans on a rolling global costmap with memory (beastbt/navigation/global_navigator.py).
+    from beastbt.navigation.global_navigator import GlobalNavigator
+    from beastbt.navigation.global_planner import GlobalPlannerConfig
+    from beastbt.navigation.obstacle_layer import GlobalCostmapConfig
+    local.global_nav = GlobalNavigator(section_config(profile, "global_costmap", GlobalCostmapConfig),
+                                       section_config(profile, "global_planner", GlobalPlannerConfig),
+                                       footprint_radius(profile.data), lidar.mounting)
+    return local
 
 
 def install_map_truth(p: Prepared, planner: Any) -> None:
@@ -220,8 +228,9 @@ def install_navigation(p: Prepared) -> None:
     if planner is not None:  # go_to on the mission's map: the profile's global planner and the robot's size
         from beastbt.actuation.collision_monitor import footprint_radius
         from beastbt.navigation.global_planner import GlobalPlannerConfig
+        from beastbt.navigation.obstacle_layer import GlobalCostmapConfig
         planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
-                          footprint_radius(p.profile.data))
+                          footprint_radius(p.profile.data), section_config(p.profile, "global_costmap", GlobalCostmapConfig))
         install_map_truth(p, planner)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
