@@ -190,9 +190,9 @@ class MapGoTo(GoTo):
     def __init__(self, name: str, ctx: MissionContext, place: str, target: MapTarget, planner: MapPlanner,
                  tolerance_m: Optional[float], speed_mps: Optional[float] = None,
                  gps_timeout_s: Optional[float] = None, stuck_after_s: Optional[float] = None,
-                 blocked_after_s: Optional[float] = None) -> None:
+                 blocked_after_s: Optional[float] = None, recovery_tries: Optional[int] = None) -> None:
         super().__init__(name, ctx, place, lambda: None, tolerance_m, speed_mps, gps_timeout_s, stuck_after_s,
-                         blocked_after_s)
+                         blocked_after_s, recovery_tries)
         self.map_target = target
         self.planner = planner
         self.path: Optional[np.ndarray] = None
@@ -255,6 +255,8 @@ class MapGoTo(GoTo):
             self.path = None  # and the robot may have been driven anywhere: plan again from where it is
         self.last_tick_s = now
         self._observe(now)
+        if self._recovering(now):
+            return Status.RUNNING
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         pose: Optional[MapPose] = self.read("map_pose")
         if pose is None or not pose.localized:
@@ -384,11 +386,23 @@ class MapGoTo(GoTo):
         pose: Optional[MapPose] = self.read("map_pose")
         if local is None or local.fresh is None or pose is None or not pose.localized:
             return
+        if self.planner.layer_config is not None and not self.planner.layer_config.enabled:
+            return
         from beastbt.estimation.map_localiser import compose
         from beastbt.navigation.global_navigator import lidar_pose
         scan, at = local.fresh
         base = compose((pose.odom_x, pose.odom_y, pose.odom_yaw), at)
         self.planner.layer.update(lidar_pose(local.mounting, base), scan.angles_rad, scan.ranges_m)
+
+    def clear_costmaps_around(self, radius_m: float) -> int:
+        """As GoTo's, and the map's obstacle layer round the robot's pose on the map; a new path is planned."""
+        n = super().clear_costmaps_around(radius_m)
+        pose: Optional[MapPose] = self.read("map_pose")
+        layer = self.planner._layer
+        if layer is not None and pose is not None:
+            n += layer.clear_around(pose.x, pose.y, radius_m)
+        self.path = None
+        return n
 
     def _path_blocked(self) -> bool:
         """Whether a mark of the obstacle layer has come within the inscribed radius of the path ahead since the
@@ -470,11 +484,12 @@ class MapGoTo(GoTo):
         blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
-            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                                      f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to "
+                                      f"{self.place}")
         self.command(v, w)
         self.last_cmd = (v, w)
         if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:

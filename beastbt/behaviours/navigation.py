@@ -43,6 +43,7 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
 if typing.TYPE_CHECKING:  # OpenCV and SciPy load when a robot with a LiDAR navigates, not with the language
+    from beastbt.behaviours.recovery import Recoveries
     from beastbt.navigation.global_navigator import GlobalNavigator, PathFollow
     from beastbt.navigation.local_navigator import LocalNavigator
     from beastbt.navigation.local_planner import PlanResult
@@ -199,8 +200,12 @@ class GoTo(BeastBehaviour):
 
     def __init__(self, name: str, ctx: MissionContext, place: str, target: Target, tolerance_m: Optional[float],
                  speed_mps: Optional[float] = None, gps_timeout_s: Optional[float] = None,
-                 stuck_after_s: Optional[float] = None, blocked_after_s: Optional[float] = None) -> None:
+                 stuck_after_s: Optional[float] = None, blocked_after_s: Optional[float] = None,
+                 recovery_tries: Optional[int] = None) -> None:
         super().__init__(name, ctx)
+        self.recovery_tries = recovery_tries
+        """Recoveries this step may run before giving up (None: the profile's ``recovery.tries``; 0: none)."""
+        self.recoveries: Optional[Recoveries] = None
         self.place = place
         self.target = target
         self.tolerance_m = tolerance_m
@@ -241,6 +246,17 @@ class GoTo(BeastBehaviour):
         self.nav = self.ctx.services.navigation or NavConfig()
         self.local = self.ctx.services.local_navigator
         self.global_nav = self.local.global_nav if self.local is not None else None
+        self.recoveries = None
+        if self.local is not None:  # recoveries need the LiDAR: to clear its costmaps and to look behind
+            from beastbt.behaviours.recovery import (RECOVERY_CONFIG, RECOVERY_LOG, RecoveryConfig, RecoveryLog,
+                                                     Recoveries)
+            plugins = self.ctx.services.plugins
+            config = plugins.get(RECOVERY_CONFIG) or RecoveryConfig()
+            tries = self.recovery_tries if self.recovery_tries is not None else config.tries
+            log = plugins.get(RECOVERY_LOG)
+            if log is None:
+                log = plugins[RECOVERY_LOG] = RecoveryLog()
+            self.recoveries = Recoveries(config, tries, self.local.footprint_radius_m, log)
         self.way = None
         self.way_version = -1
         self.way_planned_at_s = -math.inf
@@ -306,6 +322,8 @@ class GoTo(BeastBehaviour):
             self.line_start = None
         self.last_tick_s = now
         self._observe(now)
+        if self._recovering(now):
+            return Status.RUNNING
         tolerance = self.tolerance_m if self.tolerance_m is not None else nav.default_tolerance_m
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         fix = self.read("gps_fix")
@@ -379,11 +397,11 @@ class GoTo(BeastBehaviour):
             if now - self.progress_at_s > blocked_after:
                 self.command(0.0, 0.0)
                 toward = wrap_angle(math.atan2(carrot[1] - odom.y, carrot[0] - odom.x) - odom.yaw)
-                return self.fail(f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, while finding "
-                                 f"the heading")
+                return self._give_up(now, f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, "
+                                          f"while finding the heading")
         elif now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
         self.command(v, w)
         self.last_cmd = (v, w)
         self.feedback_message = f"finding the heading: {driven:.1f} m driven, {dist:.1f} m to {self.place}"
@@ -487,18 +505,20 @@ class GoTo(BeastBehaviour):
         blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
-            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                                      f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to "
+                                      f"{self.place}")
         position_after = nav.stuck_position_factor * self.stuck_after_s
         if obstructed:
             position_after = max(position_after, blocked_after)
         if now - self.best_dist_at_s > position_after:
             # The wheels turn but the position does not follow (tracks slipping against an obstacle).
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no closer to {self.place} for {position_after:g} s, {dist:.1f} m to go")
+            return self._give_up(now, f"stuck: no closer to {self.place} for {position_after:g} s, "
+                                      f"{dist:.1f} m to go")
         self.command(v, w)
         self.last_cmd = (v, w)
         if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:
@@ -511,6 +531,55 @@ class GoTo(BeastBehaviour):
         else:
             self.feedback_message = f"{dist:.1f} m to {self.place}"
         return Status.RUNNING
+
+    # -- recoveries: before giving up ---------------------------------------------------------------------------
+    def _give_up(self, now: float, reason: str) -> Status:
+        """FAILURE with ``reason``, unless a recovery is left: then it starts (RUNNING) and the step tries again
+        once it has ended (:mod:`beastbt.behaviours.recovery`)."""
+        rec = self.recoveries
+        if rec is None or rec.left() == 0:
+            return self.fail(reason)
+        self.command(0.0, 0.0)
+        rec.begin(self, self.ctx.events, now, reason)
+        self.feedback_message = f"recovering: {rec.what}"
+        return Status.RUNNING
+
+    def _recovering(self, now: float) -> bool:
+        """Tick the recovery under way; True while it runs, and on the tick it ends (the step then starts afresh:
+        progress timers, the way round and the local planner's memory)."""
+        rec = self.recoveries
+        if rec is None or not rec.running:
+            return False
+        if rec.tick(self, self.ctx.events, now):
+            self.feedback_message = f"recovering: {rec.what}"
+            return True
+        self._restart_progress(now)
+        self.obstructed_at_s = -math.inf
+        self.way = None
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.last_cmd = (0.0, 0.0)
+        self.feedback_message = f"trying again after {rec.what}"
+        return True
+
+    def clear_costmaps_around(self, radius_m: float) -> int:
+        """The recovery ``clear``: forget the local costmap and the global costmap's marks within ``radius_m`` (m)
+        of the robot; the number of global cells forgotten."""
+        n = 0
+        if self.local is not None:
+            self.local.costmap.clear()
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if self.global_nav is not None and odom is not None:
+            n += self.global_nav.clear_around((odom.x, odom.y), radius_m)
+        return n
+
+    def points_base(self) -> Optional[typing.Any]:
+        """The newest scan's returns in base_link ((n, 2) m), or None without a LiDAR or a fresh scan."""
+        scan: Optional[LaserScan] = self.read("scan")
+        if self.local is None or scan is None or self.now() - scan.stamp_s > self.local.planner_config.scan_timeout_s:
+            return None
+        from beastbt.devices.lidar_scan import base_points_xy
+        return base_points_xy(scan, self.local.mounting)
 
     # -- the global costmap: planning round what the LiDAR has seen -------------------------------------------
     def _global_way(self, now: float, pose: FusedPose, e: float, n: float, tolerance: float) -> Optional[Status]:

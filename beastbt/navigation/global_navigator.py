@@ -228,4 +228,5 @@ class PathFollow:
         return np.vstack(([start], self.points[self.cum > self.along_m]))
 
 
-__all__ = ["GlobalNavigator", "PathFollow", "lidar_pose", "marks_near", "sample_polyline", "disk_offsets", "EDGE_MARGIN_M"]
+__all__ = ["GlobalNavigator", "PathFollow", "lidar_pose", "marks_near", "sample_polyline", "disk_offsets",
+           "EDGE_MARGIN_M"]

@@ -52,6 +52,8 @@ class GlobalCostmapConfig:
     """The profile's ``global_costmap:`` section: the obstacle layer with memory and, on GPS, its rolling window.
     Metres and seconds."""
 
+    enabled: bool
+    """Whether go_to keeps the global costmap and plans on it (false: the straight line and the local costmap)."""
     width_m: float
     """Side of the square rolling window in the odom frame on GPS missions (m); on a map the map's extent."""
     resolution_m: float
@@ -87,6 +89,14 @@ class GlobalCostmapConfig:
     def from_dict(cls, d: Any) -> "GlobalCostmapConfig":
         """Build from a profile's ``global_costmap:`` mapping; unknown keys or bad values raise ``ValueError``."""
         return dataclass_from_dict(cls, d, "global_costmap")
+
+
+CONNECT_MAX_M = 1.0
+"""Neighbouring returns (adjacent beams) at most this far apart mark the cells between them too (m)."""
+
+GRAZING_COT = 1.0 / math.tan(math.radians(10.0))
+"""A beam clears a marked cell only when it ends beyond it by a cell plus the cell's distance times the beam spacing
+times this: a surface seen at more than 10 deg from the beam is not cleared by the beams that hit it."""
 
 
 def wrap(a: np.ndarray) -> np.ndarray:
@@ -137,14 +147,18 @@ class ObstacleLayer:
         """Clear then mark with one scan: its beams' ``angles_rad`` (in the LiDAR's frame) and ``ranges_m`` (NaN:
         no return), seen from ``lidar_pose`` (x m, y m, yaw rad of the LiDAR in the grid's frame). The number of
         cells cleared."""
-        cleared = self._clear(lidar_pose, angles_rad, ranges_m)
-        self._mark(lidar_pose, angles_rad, ranges_m)
+        if len(angles_rad) < 2:
+            return 0
+        # The beams by angle, once for both passes (a LiDAR's revolution may start anywhere).
+        order = np.argsort(angles_rad)
+        a, r = angles_rad[order], ranges_m[order]
+        spacing = float(np.median(np.diff(a)))
+        cleared = self._clear(lidar_pose, a, r, spacing)
+        self._mark(lidar_pose, a, r, spacing)
         return cleared
 
-    def _clear(self, pose: tuple[float, float, float], angles: np.ndarray, ranges: np.ndarray) -> int:
+    def _clear(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float) -> int:
         cfg, res = self.config, self.resolution_m
-        if len(angles) < 2:
-            return 0
         lx, ly, lyaw = pose
         reach = cfg.raytrace_max_range_m
         # Only the marked cells in the box the beams can reach.
@@ -168,9 +182,6 @@ class ObstacleLayer:
             return 0
         rr, cc, dx, dy, dist = rr[near], cc[near], dx[near], dy[near], dist[near]
         bearing = wrap(np.arctan2(dy, dx) - lyaw)
-        order = np.argsort(angles)
-        a = angles[order]
-        r = ranges[order]
         # The beam nearest each cell's bearing (the beams wrap round at +-pi).
         i = np.searchsorted(a, bearing) % len(a)
         j = (i - 1) % len(a)
@@ -180,12 +191,13 @@ class ObstacleLayer:
         off = np.minimum(di, dj)
         # A beam clears a cell it passes through: within half the cell's angular size of the cell's centre, or
         # within the spacing of the beams (a sparse scan still clears what lies between its beams' ends).
-        spacing = float(np.median(np.diff(a))) if len(a) > 2 else math.pi
         through = off <= np.maximum(0.5 * res / np.maximum(dist, res), 0.6 * spacing)
         beam = r[k]
         no_return = ~np.isfinite(beam)
         valid = np.isfinite(beam) & (beam >= cfg.obstacle_min_range_m)
-        went_past = valid & (beam > dist + res)
+        # Past the cell by a cell, and by more where the beams are far apart: a beam that grazes a wall hits it a
+        # little farther along than the cell it passes (by dist * spacing / tan(angle)); it must not clear the wall.
+        went_past = valid & (beam > dist + res + dist * spacing * GRAZING_COT)
         if cfg.clear_on_no_return:
             went_past |= no_return
         clear = through & went_past
@@ -196,15 +208,28 @@ class ObstacleLayer:
             self.cleared_total += n
         return n
 
-    def _mark(self, pose: tuple[float, float, float], angles: np.ndarray, ranges: np.ndarray) -> None:
+    def _mark(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float) -> None:
         cfg = self.config
-        ok = np.isfinite(ranges) & (ranges >= cfg.obstacle_min_range_m) & (ranges <= cfg.obstacle_max_range_m)
+        ok = np.isfinite(r) & (r >= cfg.obstacle_min_range_m) & (r <= cfg.obstacle_max_range_m)
         if not ok.any():
             return
         lx, ly, lyaw = pose
-        a = angles[ok] + lyaw
-        r = ranges[ok]
-        row, col, inside = self.cells(lx + r * np.cos(a), ly + r * np.sin(a))
+        x = lx + np.where(ok, r, 0.0) * np.cos(a + lyaw)
+        y = ly + np.where(ok, r, 0.0) * np.sin(a + lyaw)
+        # Neighbouring returns less than CONNECT_MAX_M apart are one surface: the cells between them are marked too.
+        # A wall seen at a grazing angle is hit only every r * spacing / sin(angle) (0.9 m at 7 m and 8 deg with
+        # a 1 deg LiDAR), and a planner would take the holes between its hits for gaps.
+        pair = ok[:-1] & ok[1:] & (np.diff(a) <= 2.0 * spacing)
+        gap = np.hypot(np.diff(x), np.diff(y))
+        pair &= gap <= CONNECT_MAX_M
+        i = np.flatnonzero(pair)
+        if i.size:
+            t = np.linspace(0.0, 1.0, max(2, int(math.ceil(CONNECT_MAX_M / (0.5 * self.resolution_m)))))[None, 1:-1]
+            x = np.concatenate((x[ok], (x[i, None] + t * (x[i + 1] - x[i])[:, None]).ravel()))
+            y = np.concatenate((y[ok], (y[i, None] + t * (y[i + 1] - y[i])[:, None]).ravel()))
+        else:
+            x, y = x[ok], y[ok]
+        row, col, inside = self.cells(x, y)
         row, col = row[inside], col[inside]
         if self.unmarkable is not None and row.size:
             keep = ~self.unmarkable[row, col]
