@@ -197,3 +197,28 @@ def test_cells_marked_blocked_on_a_map_are_cleared_when_a_beam_passes_through_th
     planner.layer.update(pose, ANGLES, ranges_to([(10.9, -3.0, 10.9, 3.0)], pose))
     path = planner.plan((0.0, 0.0), (8.0, 0.0), 0.1, "far")
     assert path.length_m == pytest.approx(8.0, abs=0.2)
+
+
+# -- on the simulator: a place inside a closed pen ends the step, naming why ------------------------------------
+def test_go_to_a_place_inside_a_closed_pen_ends_naming_why_instead_of_exploring_for_ever(tmp_path):
+    # A closed pen 6 m x 6 m round the place (3 m from its walls, more than the GPS's error). The LiDAR cannot see
+    # the far side from outside, and unseen cells are free: the planner leads round one side, then the other, each
+    # time a wall appears on the way. Progress along those ways does not count for ever: once the place has come
+    # no closer for 3 x 20 s the step gives up (or, when every wall has been seen, no way is left).
+    from nav_support import events_of, harness, place_yaml
+    box = [[-3.0, 6.0, 3.0, 6.0], [3.0, 6.0, 3.0, 12.0], [3.0, 12.0, -3.0, 12.0], [-3.0, 12.0, -3.0, 6.0]]
+    h = harness(tmp_path, f"""
+mission: t
+places:
+  inside: {place_yaml(0.0, 9.0, tolerance="0.5 m")}
+steps:
+  - go_to: {{place: inside, recovery: none}}
+""", walls=box)
+    h.run_to_end(timeout_s=300)
+    assert h.result == "failure"
+    failed = events_of(h, "step_failed")
+    assert len(failed) == 1
+    text = failed[0].text
+    assert ("no way to inside" in text and "walls enclose it" in text) or "no closer to inside for 60 s on ways round" \
+        in text, text
+    assert h.summary()["truth"]["collisions"] == 0

@@ -172,6 +172,10 @@ Target = Callable[[], Optional[tuple[float, float]]]
 LOCAL_GOAL_AHEAD_M = 2.0
 """Following a planned way, the local planner aims at the way's point this far ahead (m): inside its window."""
 
+WAY_PATIENCE_FACTOR = 3.0
+"""Following ways round, a step gives up (stuck) once the place has come no closer for this many times its
+position limit (4 x stuck_after, or blocked_after: 60 s by default)."""
+
 WAY_SWITCH_MIN_M = 1.0
 WAY_SWITCH_FRACTION = 0.1
 """A new plan replaces a way still clear only when it is shorter than what is left of it by this fraction (or
@@ -233,6 +237,9 @@ class GoTo(BeastBehaviour):
         self.progress_at_s = 0.0
         self.best_dist_m = math.inf
         self.best_dist_at_s = 0.0
+        self.closer_at_s = 0.0
+        """When the fused position last came closer to the place (s): on a way round, progress along the way counts,
+        but not for longer than WAY_PATIENCE_FACTOR times the position limit without coming closer."""
         self.best_turn_rad = math.inf
         self.odom_at_progress_m = 0.0
         self.last_odom_m: Optional[float] = None
@@ -306,6 +313,7 @@ class GoTo(BeastBehaviour):
         self.progress_at_s = now
         self.best_dist_m = math.inf
         self.best_dist_at_s = now
+        self.closer_at_s = now
         self.best_turn_rad = math.inf
         odom = self.read("pose_odom")
         self.odom_at_progress_m = odom.distance_m if odom is not None else 0.0
@@ -478,6 +486,7 @@ class GoTo(BeastBehaviour):
         elif self.best_dist_m - dist >= nav.progress_m:
             self.best_dist_m = dist
             self.best_dist_at_s = now
+            self.closer_at_s = now
             self.progress_at_s = now
             self.closing_m = 0.0
         elif self.closing_m >= nav.progress_m:
@@ -514,6 +523,13 @@ class GoTo(BeastBehaviour):
         position_after = nav.stuck_position_factor * self.stuck_after_s
         if obstructed:
             position_after = max(position_after, blocked_after)
+        patience = WAY_PATIENCE_FACTOR * position_after
+        if way is not None and now - self.closer_at_s > patience:
+            # Ways round that lead nowhere closer, one after the other (the far side of an enclosure the LiDAR has
+            # not seen yet, explored back and forth): progress along each is not progress for ever.
+            self.command(0.0, 0.0)
+            return self._give_up(now, f"stuck: no closer to {self.place} for {patience:g} s on ways round, "
+                                      f"{dist:.1f} m to go")
         if now - self.best_dist_at_s > position_after:
             # The wheels turn but the position does not follow (tracks slipping against an obstacle).
             self.command(0.0, 0.0)
