@@ -154,14 +154,13 @@ def test_a_fence_across_the_way_blocks_the_straight_line_and_the_plan_goes_round
 
 def test_a_goal_enclosed_by_what_was_seen_fails_at_once_naming_why():
     g = navigator()
-    box = [(6.0, -2.0, 10.0, -2.0), (10.0, -2.0, 10.0, 2.0), (10.0, 2.0, 6.0, 2.0), (6.0, 2.0, 6.0, -2.0)]
+    # a 4 m box round the goal, every wall seen
     g.layer.mark_points(*sample_polyline(np.array([[6, -2], [10, -2], [10, 2], [6, 2], [6, -2]], float),
                                          0.05).T)
     assert g.blocked(((0.0, 0.0), (8.0, 0.0)))
     with pytest.raises(NoPath) as err:
         g.plan((0.0, 0.0), (8.0, 0.0), 1.0, "inside")
     assert "cannot be reached" in err.value.reason and "inside" in err.value.reason
-    assert box  # the walls seen
 
 
 def test_a_goal_beyond_the_window_is_planned_to_at_its_edge():
