@@ -77,6 +77,19 @@ def robot_without_lidar(folder: Path) -> str:
     return str(path)
 
 
+def robot_without_global_costmap(folder: Path) -> str:
+    """robots/sim.yaml with ``global_costmap: {enabled: false}``: go_to on the straight line and the local costmap
+    alone, as before the global costmap."""
+    import yaml
+
+    root = Path(__file__).resolve().parent.parent
+    data = yaml.safe_load((root / "robots" / "sim.yaml").read_text(encoding="utf-8"))
+    data["global_costmap"] = {"enabled": False}
+    path = folder / "robot_without_global_costmap.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return str(path)
+
+
 def true_distance_m(h: MissionHarness, east_m: float, north_m: float) -> float:
     """True distance (m) from the simulated robot to a point of the test field."""
     t = h.truth

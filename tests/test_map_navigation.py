@@ -182,7 +182,7 @@ steps:
     summary, trail, planner = run_traced(mission, 200.0, robot=str(profile))
     assert summary["status"] == "success", summary["events"][-3:]
     assert summary["truth"]["collisions"] == 0
-    assert any(e["kind"] == "replan" and "(blocked)" in e["text"] for e in summary["events"])
+    assert any(e["kind"] == "replan" and "(blocked" in e["text"] for e in summary["events"])  # by the box seen
     # it went round by the corridor: out of the office's door and into the lab's
     assert sorted(round(x) for x in crossings(trail, 4.0)) in ([2, 7], [3, 7], [2, 8], [3, 8])
     assert summary["map_waypoints"][0]["path_m"] < 6.0  # the first plan: through the door between the rooms (5 m)

@@ -83,18 +83,23 @@ class MapPlanner:
         self.start = start_xy_yaw
         """Where the mission started on the map (x m, y m, yaw rad): home."""
         self.config = GlobalPlannerConfig()
+        self.layer_config: Any = None
         self.footprint_radius_m = 0.15
         self._costmap: Any = None
+        self._layer: Any = None
         self.visits: list[MapVisit] = []
         self.plans = 0
         self.listeners: list[Callable[[MapVisit], None]] = []
         """Called with a visit when it ends (the simulator's truth listens here)."""
 
-    def configure(self, config: Any, footprint_radius_m: float) -> None:
-        """The profile's ``global_planner:`` section and the robot's footprint radius (m), before the first plan."""
+    def configure(self, config: Any, footprint_radius_m: float, layer_config: Any = None) -> None:
+        """The profile's ``global_planner:`` section, the robot's footprint radius (m) and the ``global_costmap:``
+        section (the obstacle layer's), before the first plan."""
         self.config = config
         self.footprint_radius_m = footprint_radius_m
+        self.layer_config = layer_config
         self._costmap = None
+        self._layer = None
 
     @property
     def costmap(self) -> Any:
@@ -104,11 +109,36 @@ class MapPlanner:
             self._costmap = GlobalCostmap(self.grid, self.config, self.footprint_radius_m)
         return self._costmap
 
+    @property
+    def layer(self) -> Any:
+        """The :class:`~beastbt.navigation.obstacle_layer.ObstacleLayer` over the map (built on first use): what the
+        LiDAR has seen that the map does not show, marked and cleared by ray tracing. The map's walls and a band
+        of ``footprint_padding_m`` (at least a cell) round them are never marked."""
+        if self._layer is None:
+            import cv2
+
+            from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
+            grid = self.grid
+            layer = ObstacleLayer(self.layer_config or GlobalCostmapConfig(), grid.rows, grid.cols, grid.resolution_m,
+                                  grid.origin_x, grid.origin_y)
+            k = max(1, int(math.ceil(self.config.footprint_padding_m / grid.resolution_m)))
+            walls = grid.occupied().astype(np.uint8)
+            layer.unmarkable = cv2.dilate(walls, np.ones((2 * k + 1, 2 * k + 1), np.uint8)).astype(bool)
+            self._layer = layer
+        return self._layer
+
+    def costmap_now(self) -> Any:
+        """The costmap with what the obstacle layer holds now (recomputed when the layer changed)."""
+        cm = self.costmap
+        if self._layer is not None and cm.layer_version != self._layer.version:
+            cm.set_obstacles(self._layer.marked, self._layer.version)
+        return cm
+
     def plan(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float, name: str) -> Any:
         """A :class:`~beastbt.navigation.global_planner.GlobalPath` (map frame, m); raises ``NoPath``."""
         from beastbt.navigation.global_planner import plan_path
         self.plans += 1
-        return plan_path(self.costmap, start, goal, tolerance_m, goal_name=name)
+        return plan_path(self.costmap_now(), start, goal, tolerance_m, goal_name=name)
 
 
 def map_waypoints(planner: MapPlanner) -> list[dict]:
@@ -160,9 +190,9 @@ class MapGoTo(GoTo):
     def __init__(self, name: str, ctx: MissionContext, place: str, target: MapTarget, planner: MapPlanner,
                  tolerance_m: Optional[float], speed_mps: Optional[float] = None,
                  gps_timeout_s: Optional[float] = None, stuck_after_s: Optional[float] = None,
-                 blocked_after_s: Optional[float] = None) -> None:
+                 blocked_after_s: Optional[float] = None, recovery_tries: Optional[int] = None) -> None:
         super().__init__(name, ctx, place, lambda: None, tolerance_m, speed_mps, gps_timeout_s, stuck_after_s,
-                         blocked_after_s)
+                         blocked_after_s, recovery_tries)
         self.map_target = target
         self.planner = planner
         self.path: Optional[np.ndarray] = None
@@ -174,10 +204,13 @@ class MapGoTo(GoTo):
         self.map_visit: Optional[MapVisit] = None
         self.unlocalised_since_s: Optional[float] = None
         self.replans = 0
+        self.path_version = -1
 
     # -- lifecycle ----------------------------------------------------------------------------------
     def initialise(self) -> None:
         super().initialise()
+        self.global_nav = None  # on the map the obstacle layer is the map planner's, in the map frame
+        self.path_version = -1
         # Places on the map are no GPS waypoints: the GPS visit GoTo opened keeps lat/lon None (the summary's
         # waypoints leave it out) and this step's visit is a map visit (the summary's map_waypoints).
         self.path = None
@@ -222,6 +255,8 @@ class MapGoTo(GoTo):
             self.path = None  # and the robot may have been driven anywhere: plan again from where it is
         self.last_tick_s = now
         self._observe(now)
+        if self._recovering(now):
+            return Status.RUNNING
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         pose: Optional[MapPose] = self.read("map_pose")
         if pose is None or not pose.localized:
@@ -277,6 +312,8 @@ class MapGoTo(GoTo):
         elif now - self.best_along_at_s > cfg.blocked_replan_s:
             why = "blocked"
             self._mark_blocking(pose)
+        elif self._path_blocked():
+            why = "blocked by what the LiDAR sees"
         if why is None:
             return None
         from beastbt.navigation.global_planner import NoPath
@@ -284,7 +321,7 @@ class MapGoTo(GoTo):
             path = self.planner.plan((pose.x, pose.y), goal, max(tolerance * 0.5, 0.0), self.place)
         except NoPath as exc:
             self.command(0.0, 0.0)
-            if why == "blocked":
+            if why.startswith("blocked"):
                 return self.fail(f"blocked: no other way to {self.place} ({exc.reason}); "
                                  f"{self._obstacle_text(0.0)}")
             return self.fail(f"no path to {self.place}: {exc.reason}")
@@ -339,7 +376,49 @@ class MapGoTo(GoTo):
             near |= np.hypot(mx - x, my - y) <= reach
         # densify the polyline ahead with the points near it, so that a thin door's gap is closed
         if near.any():
-            self.planner.costmap.mark_lethal(mx[near], my[near])
+            self.planner.layer.mark_points(mx[near], my[near])
+
+    def _observe(self, now: float) -> None:
+        """As GoTo's, and a new scan also marks and clears the map's obstacle layer, placed on the map by the
+        localiser's map -> odom transform."""
+        super()._observe(now)
+        local = self.local
+        pose: Optional[MapPose] = self.read("map_pose")
+        if local is None or local.fresh is None or pose is None or not pose.localized:
+            return
+        if self.planner.layer_config is not None and not self.planner.layer_config.enabled:
+            return
+        from beastbt.estimation.map_localiser import compose
+        from beastbt.navigation.global_navigator import lidar_pose
+        scan, at = local.fresh
+        base = compose((pose.odom_x, pose.odom_y, pose.odom_yaw), at)
+        self.planner.layer.update(lidar_pose(local.mounting, base), scan.angles_rad, scan.ranges_m)
+
+    def clear_costmaps_around(self, radius_m: float) -> int:
+        """As GoTo's, and the map's obstacle layer round the robot's pose on the map; a new path is planned."""
+        n = super().clear_costmaps_around(radius_m)
+        pose: Optional[MapPose] = self.read("map_pose")
+        layer = self.planner._layer
+        if layer is not None and pose is not None:
+            n += layer.clear_around(pose.x, pose.y, radius_m)
+        self.path = None
+        return n
+
+    def _path_blocked(self) -> bool:
+        """Whether a mark of the obstacle layer has come within the inscribed radius of the path ahead since the
+        last look (checked once per change of the layer)."""
+        layer = self.planner._layer
+        if layer is None or self.path is None or self.cum is None or layer.version == self.path_version:
+            return False
+        self.path_version = layer.version
+        from beastbt.navigation.global_navigator import disk_offsets, marks_near
+        inscribed = self.planner.costmap.inscribed_m
+        ahead = self.path[self.cum >= self.along_m]
+        if len(ahead) == 0:
+            return False
+        start = np.array([self._point_at(self.along_m)])
+        return marks_near(layer, np.vstack((start, ahead)), disk_offsets(inscribed / layer.resolution_m),
+                          skip_m=inscribed)
 
     # -- following ------------------------------------------------------------------------------------
     def _project(self, pose: MapPose) -> float:
@@ -405,11 +484,12 @@ class MapGoTo(GoTo):
         blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
-            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                                      f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to "
+                                      f"{self.place}")
         self.command(v, w)
         self.last_cmd = (v, w)
         if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:

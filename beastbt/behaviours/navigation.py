@@ -43,6 +43,8 @@ from beastbt.core.config import dataclass_from_dict
 from beastbt.estimation.estimator import wrap_angle
 from beastbt.estimation.geodesy import TYPO_DISTANCE_M, LocalFrame, distance_m
 if typing.TYPE_CHECKING:  # OpenCV and SciPy load when a robot with a LiDAR navigates, not with the language
+    from beastbt.behaviours.recovery import Recoveries
+    from beastbt.navigation.global_navigator import GlobalNavigator, PathFollow
     from beastbt.navigation.local_navigator import LocalNavigator
     from beastbt.navigation.local_planner import PlanResult
 
@@ -167,6 +169,18 @@ Target = Callable[[], Optional[tuple[float, float]]]
 """Where to go: a function giving (lat, lon) in degrees, or None while unknown (home before a fix)."""
 
 
+LOCAL_GOAL_AHEAD_M = 2.0
+"""Following a planned way, the local planner aims at the way's point this far ahead (m): inside its window."""
+
+WAY_PATIENCE_FACTOR = 3.0
+"""Following ways round, a step gives up (stuck) once the place has come no closer for this many times its
+position limit (4 x stuck_after, or blocked_after: 60 s by default)."""
+
+WAY_SWITCH_MIN_M = 1.0
+WAY_SWITCH_FRACTION = 0.1
+"""A new plan replaces a way still clear only when it is shorter than what is left of it by this fraction (or
+WAY_SWITCH_MIN_M, the larger)."""
+
 KEEP_PLANNING_S = 2.0
 """After obstacles were last in the pure-pursuit command's way, the local planner keeps choosing for this long (s)."""
 
@@ -190,8 +204,12 @@ class GoTo(BeastBehaviour):
 
     def __init__(self, name: str, ctx: MissionContext, place: str, target: Target, tolerance_m: Optional[float],
                  speed_mps: Optional[float] = None, gps_timeout_s: Optional[float] = None,
-                 stuck_after_s: Optional[float] = None, blocked_after_s: Optional[float] = None) -> None:
+                 stuck_after_s: Optional[float] = None, blocked_after_s: Optional[float] = None,
+                 recovery_tries: Optional[int] = None) -> None:
         super().__init__(name, ctx)
+        self.recovery_tries = recovery_tries
+        """Recoveries this step may run before giving up (None: the profile's ``recovery.tries``; 0: none)."""
+        self.recoveries: Optional[Recoveries] = None
         self.place = place
         self.target = target
         self.tolerance_m = tolerance_m
@@ -201,6 +219,12 @@ class GoTo(BeastBehaviour):
         self.blocked_after_s = blocked_after_s
         self.nav = NavConfig()
         self.local: Optional[LocalNavigator] = None
+        self.global_nav: Optional[GlobalNavigator] = None
+        self.way: Optional[PathFollow] = None
+        """The planned way round what the global costmap holds (odom), or None: the straight line."""
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.way_best_m = 0.0
         self.costmap_fresh = False
         self.last_cmd = (0.0, 0.0)
         self.obstructed_at_s = -math.inf
@@ -213,6 +237,9 @@ class GoTo(BeastBehaviour):
         self.progress_at_s = 0.0
         self.best_dist_m = math.inf
         self.best_dist_at_s = 0.0
+        self.closer_at_s = 0.0
+        """When the fused position last came closer to the place (s): on a way round, progress along the way counts,
+        but not for longer than WAY_PATIENCE_FACTOR times the position limit without coming closer."""
         self.best_turn_rad = math.inf
         self.odom_at_progress_m = 0.0
         self.last_odom_m: Optional[float] = None
@@ -225,6 +252,22 @@ class GoTo(BeastBehaviour):
     def initialise(self) -> None:
         self.nav = self.ctx.services.navigation or NavConfig()
         self.local = self.ctx.services.local_navigator
+        self.global_nav = self.local.global_nav if self.local is not None else None
+        self.recoveries = None
+        if self.local is not None:  # recoveries need the LiDAR: to clear its costmaps and to look behind
+            from beastbt.behaviours.recovery import (RECOVERY_CONFIG, RECOVERY_LOG, RecoveryConfig, RecoveryLog,
+                                                     Recoveries)
+            plugins = self.ctx.services.plugins
+            config = plugins.get(RECOVERY_CONFIG) or RecoveryConfig()
+            tries = self.recovery_tries if self.recovery_tries is not None else config.tries
+            log = plugins.get(RECOVERY_LOG)
+            if log is None:
+                log = plugins[RECOVERY_LOG] = RecoveryLog()
+            self.recoveries = Recoveries(config, tries, self.local.footprint_radius_m, log)
+        self.way = None
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.way_best_m = 0.0
         self.costmap_fresh = False
         self.obstructed_at_s = -math.inf
         odom = self.read("pose_odom")
@@ -270,6 +313,7 @@ class GoTo(BeastBehaviour):
         self.progress_at_s = now
         self.best_dist_m = math.inf
         self.best_dist_at_s = now
+        self.closer_at_s = now
         self.best_turn_rad = math.inf
         odom = self.read("pose_odom")
         self.odom_at_progress_m = odom.distance_m if odom is not None else 0.0
@@ -286,6 +330,8 @@ class GoTo(BeastBehaviour):
             self.line_start = None
         self.last_tick_s = now
         self._observe(now)
+        if self._recovering(now):
+            return Status.RUNNING
         tolerance = self.tolerance_m if self.tolerance_m is not None else nav.default_tolerance_m
         timeout = self.gps_timeout_s if self.gps_timeout_s is not None else nav.default_gps_timeout_s
         fix = self.read("gps_fix")
@@ -359,11 +405,11 @@ class GoTo(BeastBehaviour):
             if now - self.progress_at_s > blocked_after:
                 self.command(0.0, 0.0)
                 toward = wrap_angle(math.atan2(carrot[1] - odom.y, carrot[0] - odom.x) - odom.yaw)
-                return self.fail(f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, while finding "
-                                 f"the heading")
+                return self._give_up(now, f"blocked for {blocked_after:g} s: {self._obstacle_text(toward)}, "
+                                          f"while finding the heading")
         elif now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s while finding the heading")
         self.command(v, w)
         self.last_cmd = (v, w)
         self.feedback_message = f"finding the heading: {driven:.1f} m driven, {dist:.1f} m to {self.place}"
@@ -401,10 +447,32 @@ class GoTo(BeastBehaviour):
                 odom_m: float) -> Status:
         nav = self.nav
         p = self.ctx.params
-        ce, cn = self._carrot(e, n, dist)
-        de, dn = ce - e, cn - n
-        ld = math.hypot(de, dn)
-        alpha = wrap_angle(math.atan2(dn, de) - pose.yaw)
+        failed = self._global_way(now, pose, e, n, tolerance)
+        if failed is not None:
+            return failed
+        way = self.way
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if way is not None and odom is not None:
+            # Round what the global costmap holds: pure pursuit along the planned way (odom frame).
+            along = way.project((odom.x, odom.y), 2.0 * nav.lookahead_m + 1.0)
+            carrot_odom = way.point_at(along + nav.lookahead_m)
+            local_goal = way.point_at(along + LOCAL_GOAL_AHEAD_M)
+            dx, dy = carrot_odom[0] - odom.x, carrot_odom[1] - odom.y
+            ld = math.hypot(dx, dy)
+            alpha = wrap_angle(math.atan2(dy, dx) - odom.yaw)
+            if along > self.way_best_m + nav.progress_m:
+                # Along the way round is progress, even where it leads away from the place (out of a dead end).
+                self.way_best_m = along
+                self.progress_at_s = now
+                self.best_dist_at_s = now
+        else:
+            way = None
+            if self.line_start is None:
+                self.line_start = (e, n)
+            ce, cn = self._carrot(e, n, dist)
+            de, dn = ce - e, cn - n
+            ld = math.hypot(de, dn)
+            alpha = wrap_angle(math.atan2(dn, de) - pose.yaw)
         # Progress: the fused position got closer to the target, or the wheels carried the robot
         # toward it (the fused distance alone stalls on the slow approach while the GPS pulls the
         # estimate about), or the heading error shrinks while turning in place.
@@ -418,6 +486,7 @@ class GoTo(BeastBehaviour):
         elif self.best_dist_m - dist >= nav.progress_m:
             self.best_dist_m = dist
             self.best_dist_at_s = now
+            self.closer_at_s = now
             self.progress_at_s = now
             self.closing_m = 0.0
         elif self.closing_m >= nav.progress_m:
@@ -433,7 +502,10 @@ class GoTo(BeastBehaviour):
         self.mode = "rotate" if rotate else "drive"
         preferred = self._preference(rotate, alpha, ld, dist, tolerance)
         v, w = preferred
-        plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
+        if way is not None and odom is not None:
+            plan = self._plan(now, odom, preferred, carrot_odom, local_goal)
+        else:
+            plan = self._steer(now, pose, preferred, (de, dn), (-e, -n))
         if plan is not None:
             v, w = plan.linear_mps, plan.angular_rps
         # Obstacles in the way since the last progress: going round them or waiting for them is not being
@@ -442,19 +514,27 @@ class GoTo(BeastBehaviour):
         blocked_after = self._blocked_after()
         if obstructed and now - self.progress_at_s > max(blocked_after, self.stuck_after_s):
             self.command(0.0, 0.0)
-            toward = wrap_angle(math.atan2(dn, de) - pose.yaw)
-            return self.fail(f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
-                             f"{self._obstacle_text(toward)}, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"blocked for {max(blocked_after, self.stuck_after_s):g} s: "
+                                      f"{self._obstacle_text(alpha)}, {dist:.1f} m to {self.place}")
         if not obstructed and now - self.progress_at_s > self.stuck_after_s:
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to {self.place}")
+            return self._give_up(now, f"stuck: no progress for {self.stuck_after_s:g} s, {dist:.1f} m to "
+                                      f"{self.place}")
         position_after = nav.stuck_position_factor * self.stuck_after_s
         if obstructed:
             position_after = max(position_after, blocked_after)
+        patience = WAY_PATIENCE_FACTOR * position_after
+        if way is not None and now - self.closer_at_s > patience:
+            # Ways round that lead nowhere closer, one after the other (the far side of an enclosure the LiDAR has
+            # not seen yet, explored back and forth): progress along each is not progress for ever.
+            self.command(0.0, 0.0)
+            return self._give_up(now, f"stuck: no closer to {self.place} for {patience:g} s on ways round, "
+                                      f"{dist:.1f} m to go")
         if now - self.best_dist_at_s > position_after:
             # The wheels turn but the position does not follow (tracks slipping against an obstacle).
             self.command(0.0, 0.0)
-            return self.fail(f"stuck: no closer to {self.place} for {position_after:g} s, {dist:.1f} m to go")
+            return self._give_up(now, f"stuck: no closer to {self.place} for {position_after:g} s, "
+                                      f"{dist:.1f} m to go")
         self.command(v, w)
         self.last_cmd = (v, w)
         if plan is not None and (plan.linear_mps, plan.angular_rps) != preferred:
@@ -462,9 +542,108 @@ class GoTo(BeastBehaviour):
             self.feedback_message = f"{what}, {dist:.1f} m to {self.place}"
         elif rotate:
             self.feedback_message = f"turning toward {self.place}: {math.degrees(alpha):.0f} deg, {dist:.1f} m to go"
+        elif way is not None:
+            self.feedback_message = f"{dist:.1f} m to {self.place}, on the way round ({way.length_m:.1f} m planned)"
         else:
             self.feedback_message = f"{dist:.1f} m to {self.place}"
         return Status.RUNNING
+
+    # -- recoveries: before giving up ---------------------------------------------------------------------------
+    def _give_up(self, now: float, reason: str) -> Status:
+        """FAILURE with ``reason``, unless a recovery is left: then it starts (RUNNING) and the step tries again
+        once it has ended (:mod:`beastbt.behaviours.recovery`)."""
+        rec = self.recoveries
+        if rec is None or rec.left() == 0:
+            return self.fail(reason)
+        self.command(0.0, 0.0)
+        rec.begin(self, self.ctx.events, now, reason)
+        self.feedback_message = f"recovering: {rec.what}"
+        return Status.RUNNING
+
+    def _recovering(self, now: float) -> bool:
+        """Tick the recovery under way; True while it runs, and on the tick it ends (the step then starts afresh:
+        progress timers, the way round and the local planner's memory)."""
+        rec = self.recoveries
+        if rec is None or not rec.running:
+            return False
+        if rec.tick(self, self.ctx.events, now):
+            self.feedback_message = f"recovering: {rec.what}"
+            return True
+        self._restart_progress(now)
+        self.obstructed_at_s = -math.inf
+        self.way = None
+        self.way_version = -1
+        self.way_planned_at_s = -math.inf
+        self.last_cmd = (0.0, 0.0)
+        self.feedback_message = f"trying again after {rec.what}"
+        return True
+
+    def clear_costmaps_around(self, radius_m: float) -> int:
+        """The recovery ``clear``: forget the local costmap and the global costmap's marks within ``radius_m`` (m)
+        of the robot; the number of global cells forgotten."""
+        n = 0
+        if self.local is not None:
+            self.local.costmap.clear()
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if self.global_nav is not None and odom is not None:
+            n += self.global_nav.clear_around((odom.x, odom.y), radius_m)
+        return n
+
+    def points_base(self) -> Optional[typing.Any]:
+        """The newest scan's returns in base_link ((n, 2) m), or None without a LiDAR or a fresh scan."""
+        scan: Optional[LaserScan] = self.read("scan")
+        if self.local is None or scan is None or self.now() - scan.stamp_s > self.local.planner_config.scan_timeout_s:
+            return None
+        from beastbt.devices.lidar_scan import base_points_xy
+        return base_points_xy(scan, self.local.mounting)
+
+    # -- the global costmap: planning round what the LiDAR has seen -------------------------------------------
+    def _global_way(self, now: float, pose: FusedPose, e: float, n: float, tolerance: float) -> Optional[Status]:
+        """Keep :attr:`way` up to date: None while the straight line to the place is clear on the global costmap;
+        else a path planned round the marks, again every ``global_costmap.replan_period_s`` and at once when a new
+        mark blocks it. FAILURE (the reason named) when no way exists; otherwise None."""
+        g = self.global_nav
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if g is None or odom is None:
+            self.way = None
+            return None
+        version = g.layer.version
+        due = now - self.way_planned_at_s >= g.config.replan_period_s
+        if version == self.way_version and not due:
+            return None
+        self.way_version = version
+        here = (odom.x, odom.y)
+        goal = self._to_odom(-e, -n, pose, odom)
+        if not g.blocked((here, goal), skip_m=g.inscribed_m):
+            if self.way is not None:
+                self.way = None
+                self.line_start = None  # the straight line again, from where the robot is
+            self.way_planned_at_s = now
+            return None
+        kept = self.way is not None and not g.blocked(self.way.ahead(), skip_m=g.inscribed_m)
+        if kept and not due:
+            return None  # the way planned is still clear: kept until the period is up
+        from beastbt.navigation.global_navigator import PathFollow
+        from beastbt.navigation.global_planner import NoPath
+        try:
+            path = g.plan(here, goal, tolerance, self.place)
+        except NoPath as exc:
+            self.command(0.0, 0.0)
+            return self.fail(f"no way to {self.place}: {exc.reason}")
+        self.way_planned_at_s = now
+        if kept and self.way is not None:
+            # The way followed is still clear: only a clearly shorter one replaces it. Two ways round of about the
+            # same length (either side of a dead end) would otherwise swap at every plan and the robot dither.
+            ahead = self.way.ahead()
+            remaining = math.hypot(ahead[0, 0] - here[0], ahead[0, 1] - here[1]) + self.way.length_m - self.way.along_m
+            if path.length_m > remaining - max(WAY_SWITCH_MIN_M, WAY_SWITCH_FRACTION * remaining):
+                return None
+        if self.way is None:
+            self.ctx.events.add("replan", f"{self.name}: the straight way is blocked; planned round, "
+                                          f"{path.length_m:.1f} m")
+        self.way = PathFollow(path.points)
+        self.way_best_m = 0.0
+        return None
 
     def _preference(self, rotate: bool, alpha: float, ld: float, dist: float, tolerance: float
                     ) -> tuple[float, float]:
@@ -500,6 +679,8 @@ class GoTo(BeastBehaviour):
             return
         scan: Optional[LaserScan] = self.read("scan")
         costmap = local.observe(scan, self.read("pose_odom"), now)
+        if local.fresh is not None and self.global_nav is not None:
+            self.global_nav.observe(*local.fresh)
         if costmap is not None:
             self.costmap_fresh = True
             self.bb.costmap = costmap

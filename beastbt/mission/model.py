@@ -580,7 +580,15 @@ class _StepReader:
             return {"tolerance_m": opt("tolerance", "distance", mapping), "speed_mps": opt("speed", "speed", mapping),
                     "gps_timeout_s": opt("gps_timeout", "duration", mapping),
                     "stuck_after_s": opt("stuck_after", "duration", mapping),
-                    "blocked_after_s": opt("blocked_after", "duration", mapping)}
+                    "blocked_after_s": opt("blocked_after", "duration", mapping),
+                    "recovery_tries": recovery_tries(mapping)}
+
+        def recovery_tries(mapping: Any) -> Optional[int]:
+            # recovery: none | {tries: N}; absent: the robot's default
+            r = mapping.get("recovery") if isinstance(mapping, dict) else None
+            if r is None:
+                return None
+            return 0 if r == "none" else int(r["tries"])
 
         k = s.kind
         if k in self.external:

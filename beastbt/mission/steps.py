@@ -102,6 +102,9 @@ class NavOptions(Value):
     stuck_after_s: Optional[float] = None
     blocked_after_s: Optional[float] = None
     """With a LiDAR: fail after this long kept from progress by obstacles (s); None: the robot's default."""
+    recovery_tries: Optional[int] = None
+    """With a LiDAR: recoveries before giving up (``recovery: {tries: N}``; 0 for ``recovery: none``); None: the
+    robot's ``recovery.tries``."""
 
 
 @dataclass(kw_only=True, eq=False, repr=False)

@@ -134,7 +134,11 @@ class GlobalCostmap:
         lethal = grid.occupied()
         if not config.allow_unknown:
             lethal = lethal | grid.unknown()
+        self.static_lethal = lethal
+        """The map's own lethal cells (occupied, and unknown unless allowed)."""
         self.lethal = lethal
+        self.layer_version = -1
+        """The obstacle layer's version the costs were last computed with (:meth:`set_obstacles`)."""
         self._graph: Optional[_Graph] = None
         self._coarse: Optional[_Graph] = None
         self._update()
@@ -155,6 +159,22 @@ class GlobalCostmap:
         _, self.labels = cv2.connectedComponents(self.passable.astype(np.uint8), connectivity=8)
         if self._graph is not None:
             self._graph.set_costs(self.cost, self.config.cost_weight)
+
+    def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None) -> bool:
+        """The map's lethal cells plus those ``marked`` by an obstacle layer (a bool array of the map's shape; its
+        ``version``), on ``grid`` when the window moved (same shape, another origin). The costs are recomputed when
+        the lethal cells changed; True when they were."""
+        if grid is not None:
+            if grid.data.shape != self.grid.data.shape:
+                raise ValueError("GlobalCostmap.set_obstacles: the grid's shape may not change")
+            self.grid = grid
+        self.layer_version = version
+        lethal = self.static_lethal | marked
+        if np.array_equal(lethal, self.lethal):
+            return False
+        self.lethal = lethal
+        self._update()
+        return True
 
     def mark_lethal(self, x: np.ndarray, y: np.ndarray) -> int:
         """Mark the cells holding map-frame points (m) lethal (something is there the map did not show); the number

@@ -19,6 +19,7 @@ import numpy as np
 
 from beastbt.blackboard.types import FusedPose, LaserScan, LocalCostmap
 from beastbt.devices.lidar_scan import LidarMounting, base_points_xy
+from beastbt.navigation.global_navigator import GlobalNavigator
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap
 from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig
 
@@ -46,6 +47,11 @@ class LocalNavigator:
         self._last_scan: Optional[LaserScan] = None
         self.scans_used = 0
         """Scans put into the costmap so far."""
+        self.fresh: Optional[tuple[LaserScan, tuple[float, float, float]]] = None
+        """The scan :meth:`observe` took this call, with the odom pose (x m, y m, yaw rad) at its stamp; None
+        when it brought no new scan (the global costmap is fed from here)."""
+        self.global_nav: Optional[GlobalNavigator] = None
+        """The rolling global costmap and planner of GPS go_to (:mod:`beastbt.navigation.global_navigator`)."""
 
     # -- poses and scans --------------------------------------------------------------
     def _remember(self, pose: FusedPose) -> None:
@@ -79,6 +85,7 @@ class LocalNavigator:
     def observe(self, scan: Optional[LaserScan], pose: Optional[FusedPose], now_s: float) -> Optional[LocalCostmap]:
         """Take this tick's scan and odom pose; the costmap (rebuilt when the scan is new), or None without a fresh
         scan (none yet, or older than ``local_planner.scan_timeout_s``)."""
+        self.fresh = None
         if pose is None:
             return None
         self._remember(pose)
@@ -92,6 +99,7 @@ class LocalNavigator:
             self.costmap.add_scan(scan.stamp_s, base_points_xy(scan, m), at, (m.x_m, m.y_m))
             self.costmap.build(scan.stamp_s, (pose.x, pose.y))
             self.scans_used += 1
+            self.fresh = (scan, at)
         return self.costmap.latest
 
     def nearest_obstacle(self, pose: FusedPose, toward_rad: Optional[float] = None,

@@ -173,9 +173,18 @@ def local_navigator(profile: RobotProfile) -> Optional["LocalNavigator"]:
     lidar: LidarConfig = section_config(profile, "lidar", LidarConfig)
     limits = Limits(profile.max_speed_mps, profile.max_turn_rate_rps, profile.max_accel_mps2,
                     profile.max_angular_accel_rps2)
-    return LocalNavigator(section_config(profile, "local_costmap", LocalCostmapConfig),
-                          section_config(profile, "local_planner", LocalPlannerConfig),
-                          footprint_radius(profile.data), lidar.mounting, limits)
+    local = LocalNavigator(section_config(profile, "local_costmap", LocalCostmapConfig),
+                           section_config(profile, "local_planner", LocalPlannerConfig),
+                           footprint_radius(profile.data), lidar.mounting, limits)
+    # GPS go_to plans on a rolling global costmap with memory (beastbt/navigation/global_navigator.py).
+    from beastbt.navigation.global_navigator import GlobalNavigator
+    from beastbt.navigation.global_planner import GlobalPlannerConfig
+    from beastbt.navigation.obstacle_layer import GlobalCostmapConfig
+    layer = section_config(profile, "global_costmap", GlobalCostmapConfig)
+    if layer.enabled:
+        local.global_nav = GlobalNavigator(layer, section_config(profile, "global_planner", GlobalPlannerConfig),
+                                           footprint_radius(profile.data), lidar.mounting)
+    return local
 
 
 def install_map_truth(p: Prepared, planner: Any) -> None:
@@ -200,6 +209,20 @@ def install_map_truth(p: Prepared, planner: Any) -> None:
     planner.listeners.append(true_error)
 
 
+def install_recoveries(p: Prepared) -> None:
+    """The profile's ``recovery:`` section for go_to's recoveries, and the summary's ``recoveries`` (how many of
+    each kind ran; beastbt/behaviours/recovery.py)."""
+    from beastbt.behaviours.recovery import RECOVERY_CONFIG, RECOVERY_LOG, RecoveryConfig, RecoveryLog
+    run = p.run
+    run.ctx.services.plugins[RECOVERY_CONFIG] = section_config(p.profile, "recovery", RecoveryConfig)
+    log = run.ctx.services.plugins.setdefault(RECOVERY_LOG, RecoveryLog())
+
+    def contribute_recoveries(r: MissionRun, summary: dict) -> None:
+        if any(isinstance(n, (GoTo, RetracePath)) for n in r.nodes) or log.kinds:
+            summary["recoveries"] = log.summary()
+    run.summary_contributors.append(contribute_recoveries)
+
+
 def install_navigation(p: Prepared) -> None:
     """Give go_to the profile's navigation tuning and, with a LiDAR, the local costmap and planner; on a robot
     with a GPS, offer going home."""
@@ -207,6 +230,7 @@ def install_navigation(p: Prepared) -> None:
     run.ctx.services.navigation = section_config(p.profile, "navigation", NavConfig)
     if "lidar" in run.ctx.capabilities:
         run.ctx.services.local_navigator = local_navigator(p.profile)
+        install_recoveries(p)
         if run.ctx.services.local_navigator is not None and any(isinstance(n, (GoTo, RetracePath))
                                                                 for n in run.nodes):
             # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
@@ -220,8 +244,10 @@ def install_navigation(p: Prepared) -> None:
     if planner is not None:  # go_to on the mission's map: the profile's global planner and the robot's size
         from beastbt.actuation.collision_monitor import footprint_radius
         from beastbt.navigation.global_planner import GlobalPlannerConfig
+        from beastbt.navigation.obstacle_layer import GlobalCostmapConfig
         planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
-                          footprint_radius(p.profile.data))
+                          footprint_radius(p.profile.data),
+                          section_config(p.profile, "global_costmap", GlobalCostmapConfig))
         install_map_truth(p, planner)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back

@@ -28,9 +28,10 @@ _DEFAULT_TOLERANCE_M = NavConfig().default_tolerance_m
 
 
 def _options(s: st.NavOptions) -> dict:
-    """speed_mps, gps_timeout_s, stuck_after_s and blocked_after_s of a navigation step (None when not given)."""
+    """speed_mps, gps_timeout_s, stuck_after_s, blocked_after_s and recovery_tries of a navigation step (None when
+    not given)."""
     return {"speed_mps": s.speed_mps, "gps_timeout_s": s.gps_timeout_s, "stuck_after_s": s.stuck_after_s,
-            "blocked_after_s": s.blocked_after_s}
+            "blocked_after_s": s.blocked_after_s, "recovery_tries": s.recovery_tries}
 
 
 def _within(tolerance_m: Optional[float]) -> str:

@@ -1,0 +1,232 @@
+"""Global planning for GPS go_to: a rolling global costmap with memory in the odom frame, and A* on it.
+
+:class:`GlobalNavigator` is what a GPS ``go_to`` (and so ``route`` and
+``return_home``) plans with on a robot with a LiDAR, as Nav2's planner
+server plans on its global costmap:
+
+* the **obstacle layer** (:class:`~beastbt.navigation.obstacle_layer.ObstacleLayer`)
+  is a window of ``global_costmap.width_m`` (40 m) at ``resolution_m``
+  (0.1 m) in ``odom`` that rolls with the robot; each new scan marks and
+  clears it (ray tracing), placed with the odom pose at the scan's time;
+* the **costmap** is the global planner's
+  (:class:`~beastbt.navigation.global_planner.GlobalCostmap`: inflation by
+  the footprint radius plus ``global_planner.footprint_padding_m``, then
+  Nav2's exponential cost), built from the layer only when a plan is made;
+* :meth:`GlobalNavigator.plan` is :func:`~beastbt.navigation.global_planner.plan_path`
+  (A* with string pulling) from the robot to the goal, the goal clipped to
+  the window when it lies beyond (it is planned to again as the window
+  rolls).
+
+Planning is needed only when the straight way is blocked:
+:meth:`GlobalNavigator.blocked` answers that from the marks alone (a mark
+within the inscribed radius of the line), so a robot in the open pays for
+no costmap and no search. Nothing here reads a clock.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Optional
+
+import numpy as np
+
+from beastbt.blackboard.types import LaserScan
+from beastbt.devices.lidar_scan import LidarMounting
+from beastbt.mapping.occupancy_map import FREE, OccupancyMap
+from beastbt.navigation.global_planner import GlobalCostmap, GlobalPath, GlobalPlannerConfig, plan_path
+from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
+
+EDGE_MARGIN_M = 1.0
+"""A goal beyond the window is planned to at the window's edge less this (m)."""
+
+
+def lidar_pose(mounting: LidarMounting, base: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The LiDAR's pose (x m, y m, yaw rad) in the frame where base_link is at ``base`` (x m, y m, yaw rad)."""
+    x, y, yaw = base
+    c, s = math.cos(yaw), math.sin(yaw)
+    return (x + c * mounting.x_m - s * mounting.y_m, y + s * mounting.x_m + c * mounting.y_m,
+            yaw + math.radians(mounting.yaw_deg))
+
+
+def disk_offsets(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
+    """(d_row, d_col) of the cells whose centres lie within ``radius_cells`` of a cell's centre."""
+    k = int(math.floor(radius_cells))
+    dr, dc = np.mgrid[-k:k + 1, -k:k + 1]
+    inside = dr ** 2 + dc ** 2 <= radius_cells ** 2
+    return dr[inside], dc[inside]
+
+
+class GlobalNavigator:
+    """The rolling global costmap (odom) of a GPS go_to and its planner; see the module docstring.
+
+    ``footprint_radius_m`` is the robot's circle (m), ``mounting`` where the LiDAR sits on it.
+    """
+
+    def __init__(self, config: GlobalCostmapConfig, planner: GlobalPlannerConfig, footprint_radius_m: float,
+                 mounting: LidarMounting) -> None:
+        self.config = config
+        self.planner_config = planner
+        self.footprint_radius_m = footprint_radius_m
+        self.inscribed_m = footprint_radius_m + planner.footprint_padding_m
+        self.mounting = mounting
+        n = int(round(config.width_m / config.resolution_m))
+        half = n * config.resolution_m / 2.0
+        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half)
+        self._costmap: Optional[GlobalCostmap] = None
+        self._disk = disk_offsets(self.inscribed_m / config.resolution_m)
+        self.plans = 0
+        """Plans made so far."""
+        self.scans_used = 0
+
+    # -- scans --------------------------------------------------------------------------------------------
+    def observe(self, scan: LaserScan, base_odom: tuple[float, float, float]) -> None:
+        """Mark and clear with a new ``scan`` seen from base_link at ``base_odom`` (odom x m, y m, yaw rad, at the
+        scan's time); the window first rolls to the robot if it has moved far enough."""
+        self.layer.recentre(base_odom[0], base_odom[1])
+        self.layer.update(lidar_pose(self.mounting, base_odom), scan.angles_rad, scan.ranges_m)
+        self.scans_used += 1
+
+    def clear_around(self, xy: tuple[float, float], radius_m: float) -> int:
+        """Forget the marks within ``radius_m`` of ``xy`` (odom, m): the recovery that clears the costmap."""
+        return self.layer.clear_around(xy[0], xy[1], radius_m)
+
+    # -- is the way blocked? -------------------------------------------------------------------------------
+    def blocked(self, points: np.ndarray, skip_m: float = 0.0) -> bool:
+        """Whether a mark lies within the inscribed radius of the polyline ``points`` ((n, 2) odom, m), from
+        ``skip_m`` along it (the robot's own surroundings may be left out), inside the window."""
+        return marks_near(self.layer, points, self._disk, skip_m)
+
+    # -- planning ------------------------------------------------------------------------------------------------
+    def costmap(self) -> GlobalCostmap:
+        """The global costmap of the window as the layer is now (built, or brought up to date, here)."""
+        layer = self.layer
+        rows, cols = layer.shape
+        cm = self._costmap
+        if cm is None:
+            grid = OccupancyMap(np.full((rows, cols), FREE, np.int8), layer.resolution_m, layer.origin_x,
+                                layer.origin_y)
+            cm = self._costmap = GlobalCostmap(grid, self.planner_config, self.footprint_radius_m)
+        if cm.layer_version != layer.version:
+            grid = None
+            if (cm.grid.origin_x, cm.grid.origin_y) != (layer.origin_x, layer.origin_y):
+                grid = OccupancyMap(cm.grid.data, layer.resolution_m, layer.origin_x, layer.origin_y)
+            cm.set_obstacles(layer.marked, layer.version, grid)
+        return cm
+
+    def clip_to_window(self, start: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
+        """``goal`` (odom, m), or where the line from ``start`` to it leaves the window less :data:`EDGE_MARGIN_M`."""
+        layer = self.layer
+        rows, cols = layer.shape
+        lo_x, lo_y = layer.origin_x + EDGE_MARGIN_M, layer.origin_y + EDGE_MARGIN_M
+        hi_x = layer.origin_x + cols * layer.resolution_m - EDGE_MARGIN_M
+        hi_y = layer.origin_y + rows * layer.resolution_m - EDGE_MARGIN_M
+        gx, gy = goal
+        if lo_x <= gx <= hi_x and lo_y <= gy <= hi_y:
+            return goal
+        sx, sy = start
+        t = 1.0
+        for s0, g0, lo, hi in ((sx, gx, lo_x, hi_x), (sy, gy, lo_y, hi_y)):
+            d = g0 - s0
+            if d > 1e-9 and g0 > hi:
+                t = min(t, (hi - s0) / d)
+            elif d < -1e-9 and g0 < lo:
+                t = min(t, (lo - s0) / d)
+        t = max(t, 0.0)
+        return sx + t * (gx - sx), sy + t * (gy - sy)
+
+    def plan(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float,
+             name: str) -> GlobalPath:
+        """A path (odom, m) from ``start`` to ``goal`` on the costmap; raises
+        :class:`~beastbt.navigation.global_planner.NoPath` with the reason when there is none."""
+        target = self.clip_to_window(start, goal)
+        clipped = target != goal
+        self.plans += 1
+        return plan_path(self.costmap(), start, target, tolerance_m if not clipped else max(tolerance_m, 2.0),
+                         goal_name=name if not clipped else f"the way toward {name}")
+
+
+def marks_near(layer: ObstacleLayer, points: Any, disk: tuple[np.ndarray, np.ndarray], skip_m: float = 0.0) -> bool:
+    """Whether ``layer`` has a mark in the ``disk`` (:func:`disk_offsets`) round any point of the polyline ``points``
+    ((n, 2) m, in the layer's frame) from ``skip_m`` along it, inside the grid."""
+    res = layer.resolution_m
+    samples = sample_polyline(np.asarray(points, dtype=float), res * 0.5, skip_m)
+    if len(samples) == 0:
+        return False
+    row, col, inside = layer.cells(samples[:, 0], samples[:, 1])
+    row, col = row[inside], col[inside]
+    if row.size == 0:
+        return False
+    dr, dc = disk
+    rr = (row[:, None] + dr[None, :]).ravel()
+    cc = (col[:, None] + dc[None, :]).ravel()
+    rows, cols = layer.shape
+    ok = (rr >= 0) & (rr < rows) & (cc >= 0) & (cc < cols)
+    return bool(layer.marked[rr[ok], cc[ok]].any())
+
+
+def sample_polyline(points: np.ndarray, step_m: float, skip_m: float = 0.0) -> np.ndarray:
+    """Points (k, 2) every ``step_m`` (m) along a polyline ((n, 2), m), from ``skip_m`` along it, its end included."""
+    p = np.asarray(points, dtype=float)
+    if len(p) == 0:
+        return p.reshape(0, 2)
+    if len(p) == 1:
+        return p if skip_m <= 0.0 else p[:0]
+    seg = np.hypot(*np.diff(p, axis=0).T)
+    cum = np.concatenate(([0.0], np.cumsum(seg)))
+    s = np.arange(skip_m, cum[-1], step_m)
+    s = np.append(s, cum[-1]) if cum[-1] >= skip_m else s
+    x = np.interp(s, cum, p[:, 0])
+    y = np.interp(s, cum, p[:, 1])
+    return np.column_stack((x, y))
+
+
+class PathFollow:
+    """A planned path (``points`` (n, 2), m) and how far along it the robot is (``along_m``), for pure pursuit."""
+
+    def __init__(self, points: np.ndarray) -> None:
+        self.points = np.asarray(points, dtype=float)
+        seg = np.hypot(*np.diff(self.points, axis=0).T) if len(self.points) > 1 else np.zeros(0)
+        self.cum = np.concatenate(([0.0], np.cumsum(seg)))
+        self.along_m = 0.0
+
+    @property
+    def length_m(self) -> float:
+        """The path's length (m)."""
+        return float(self.cum[-1])
+
+    def project(self, xy: tuple[float, float], reach_m: float) -> float:
+        """Move ``along_m`` to the nearest point of the path to ``xy`` (m) from a little behind it to ``reach_m``
+        beyond (a path that passes near itself is not skipped ahead); never backwards. The new ``along_m``."""
+        p, cum = self.points, self.cum
+        if len(p) < 2:
+            return self.along_m
+        a, b = p[:-1], p[1:]
+        ab = b - a
+        L2 = np.maximum((ab ** 2).sum(axis=1), 1e-12)
+        t = np.clip(((xy[0] - a[:, 0]) * ab[:, 0] + (xy[1] - a[:, 1]) * ab[:, 1]) / L2, 0.0, 1.0)
+        d = np.hypot(a[:, 0] + t * ab[:, 0] - xy[0], a[:, 1] + t * ab[:, 1] - xy[1])
+        along = cum[:-1] + t * np.sqrt(L2)
+        window = (along >= self.along_m - 0.5) & (along <= self.along_m + reach_m)
+        if window.any():
+            d = np.where(window, d, np.inf)
+        i = int(np.argmin(d))
+        self.along_m = float(max(self.along_m, along[i]))
+        return self.along_m
+
+    def point_at(self, along_m: float) -> tuple[float, float]:
+        """The path's point ``along_m`` (m) from its start (its end beyond)."""
+        p, cum = self.points, self.cum
+        if along_m >= cum[-1] or len(p) < 2:
+            return float(p[-1, 0]), float(p[-1, 1])
+        i = int(np.searchsorted(cum, along_m, side="right")) - 1
+        f = (along_m - cum[i]) / max(cum[i + 1] - cum[i], 1e-12)
+        return float(p[i, 0] + f * (p[i + 1, 0] - p[i, 0])), float(p[i, 1] + f * (p[i + 1, 1] - p[i, 1]))
+
+    def ahead(self) -> np.ndarray:
+        """The rest of the path from where the robot is along it ((k, 2), m)."""
+        start = self.point_at(self.along_m)
+        return np.vstack(([start], self.points[self.cum > self.along_m]))
+
+
+__all__ = ["GlobalNavigator", "PathFollow", "lidar_pose", "marks_near", "sample_polyline", "disk_offsets",
+           "EDGE_MARGIN_M"]
