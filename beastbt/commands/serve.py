@@ -57,6 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="serve each mission's operator console there (tree, video, joystick); the station's page "
                         "links to it")
     add_fleet_arguments(p)
+    from beastbt.ros2.cli import add_ros2_arguments
+    add_ros2_arguments(p)
 
 
 def command(args: argparse.Namespace) -> int:
@@ -79,6 +81,11 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt serve: error: {problem}", file=sys.stderr)
         return EXIT_INVALID
     fleet, problem = fleet_options(args, "serve")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
+    from beastbt.ros2.cli import ros2_options
+    ros2, problem = ros2_options(args, "serve")
     if problem is not None:
         print(problem, file=sys.stderr)
         return EXIT_INVALID
@@ -117,7 +124,7 @@ def command(args: argparse.Namespace) -> int:
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          keep_runs=args.keep_runs,
-                         console=args.console)
+                         console=args.console, ros2=ros2)
     keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)

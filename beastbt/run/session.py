@@ -91,6 +91,8 @@ class RunOptions:
     (``--build-map``)."""
     map_resolution_m: Optional[float] = None
     """The built map's cell size, metres (``--map-resolution``; default 5 cm)."""
+    ros2: Optional[Mapping[str, Any]] = None
+    """Show the run to ROS 2 over Zenoh (``--ros2``): ``{listen, config, on_goal}`` (docs/ros2.md); None: off."""
 
     @property
     def simulated(self) -> bool:
