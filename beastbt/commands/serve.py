@@ -125,6 +125,12 @@ def command(args: argparse.Namespace) -> int:
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          keep_runs=args.keep_runs,
                          console=args.console, ros2=ros2)
+    serving = None
+    if ros2 is not None:
+        from beastbt.ros2.serving import Ros2Serving
+        serving = Ros2Serving(agent, profile, ros2, args.world)
+        options.ros2 = serving.run_option()
+        serving.idle()
     keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)
@@ -148,6 +154,8 @@ def command(args: argparse.Namespace) -> int:
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
+                if serving is not None:
+                    serving.busy()  # the run's own ROS 2 link takes the port
                 summary = serve_one(agent, request, options)
                 if summary is not None and interrupted(summary):
                     done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
@@ -157,6 +165,8 @@ def command(args: argparse.Namespace) -> int:
                       file=sys.stderr, flush=True)
             finally:
                 agent.mission_done()
+                if serving is not None:
+                    serving.idle()
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
             if not done.is_set():
                 print(f"robot '{name}': waiting for missions", flush=True)
@@ -166,6 +176,8 @@ def command(args: argparse.Namespace) -> int:
     finally:
         notifier.stopping()
         signal.signal(signal.SIGTERM, previous)
+        if serving is not None:
+            serving.close()
         agent.close()
     return EXIT_SUCCESS
 

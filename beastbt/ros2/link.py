@@ -129,7 +129,7 @@ class Ros2Link:
     """The link (module docstring) of ``prepared``'s run, opened by :meth:`open` and closed by :meth:`close`."""
 
     def __init__(self, prepared: Any, options: Ros2Options, wall: Callable[[], float] = time.monotonic,
-                 on_goal: Optional[Callable[[cdr.PoseStamped], None]] = None) -> None:
+                 on_goal: Optional[Callable[[cdr.PoseStamped, Any], None]] = None) -> None:
         self.prepared = prepared
         self.run = prepared.run
         self.options = options
@@ -340,7 +340,7 @@ class Ros2Link:
             run.events.add("ros2", f"ROS 2 /goal_pose ({pose.position[0]:.2f}, {pose.position[1]:.2f}) not taken: "
                                    f"goals are taken by 'beastbt serve --ros2'")
             return
-        self.on_goal(pose)
+        self.on_goal(pose, run)
 
     # -- closing -------------------------------------------------------------------------------------------------
     def close(self) -> None:
@@ -359,5 +359,75 @@ class Ros2Link:
         session.close()
 
 
-__all__ = ["Ros2Link", "Ros2Options", "options_from", "full_name", "takes_commands", "session_config",
-           "DEADMAN_S", "DEFAULT_LISTEN", "FORMATS", "DISTROS"]
+
+
+# -- beastbt serve: goals between missions -------------------------------------------------------------------------
+
+def goal_mission(pose: cdr.PoseStamped, map_file: Optional[str] = None) -> bytes:
+    """The mission a ``/goal_pose`` becomes in ``beastbt serve``: a planned ``go_to`` to that place on
+    ``map_file`` (the pose's frame is taken as the map's; the heading is not kept: go_to ends where it arrives)."""
+    import json
+    x, y = pose.position[0], pose.position[1]
+    return (f"mission: ros2_goal\n"
+            f"description: rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}\n"
+            + (f"map: {json.dumps(str(map_file))}\n" if map_file else "") +
+            f"places:\n  goal: {{x: {x:.3f} m, y: {y:.3f} m}}\n"
+            f"steps:\n  - go_to: goal\n").encode()
+
+
+class GoalListener:
+    """``beastbt serve --ros2`` while no mission runs: the node stays in the ROS graph and ``/goal_pose`` is
+    taken (each goal handed to ``on_goal``). Closed while a mission runs: its run's link takes over the port."""
+
+    def __init__(self, options: Ros2Options, on_goal: Callable[[cdr.PoseStamped, Any], None]) -> None:
+        self.options = options
+        self.on_goal = on_goal
+        self.session: Any = None
+        self._items: list[Any] = []
+
+    def open(self) -> "GoalListener":
+        """Open the session, the node's token and the /goal_pose subscription."""
+        import zenoh
+        o = self.options
+        self.session = zenoh.open(session_config(o))
+        zid = str(self.session.info.zid())
+        humble = o.distro == "humble"
+        spec = INPUTS["goal_pose"]
+        topic = full_name(o.namespace, spec.name)
+        if o.format == "rmw_zenoh":
+            node = rz.Node(o.domain, zid, 0, o.namespace, o.node)
+            key = rz.topic_key(o.domain, topic, spec.type_name, humble).rsplit("/", 1)[0] + "/*"
+            tokens = [node.token(), node.endpoint_token(1, rz.SUBSCRIPTION, topic, spec.type_name, spec.qos, humble)]
+        else:
+            key = bridge.data_key(topic)
+            tokens = [bridge.plugin_token(zid),
+                      bridge.endpoint_token(zid, rz.SUBSCRIPTION, key, spec.type_name, spec.qos)]
+        for token in tokens:
+            self._items.append(self.session.liveliness().declare_token(token))
+
+        def receive(sample: Any) -> None:
+            try:
+                pose = cdr.decode_pose_stamped(sample.payload.to_bytes())
+            except cdr.CdrError:
+                return
+            self.on_goal(pose, None)
+        if takes_commands(o):
+            self._items.append(self.session.declare_subscriber(key, receive))
+        return self
+
+    def close(self) -> None:
+        """Leave the graph and free the port."""
+        session, self.session = self.session, None
+        if session is None:
+            return
+        for item in self._items:
+            try:
+                item.undeclare()
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+        self._items = []
+        session.close()
+
+
+__all__ = ["Ros2Link", "Ros2Options", "GoalListener", "goal_mission", "options_from", "full_name", "takes_commands",
+           "session_config", "DEADMAN_S", "DEFAULT_LISTEN", "FORMATS", "DISTROS"]
