@@ -3,10 +3,12 @@
 Assembled only for a run with ``--ros2``; it imports Zenoh only then. The
 profile's ``ros2:`` section (``schemas/parts/ros2.schema.json``) says the
 domain, namespace, format and topics; :mod:`beastbt.ros2.link` does the rest.
-The sensors a published topic comes from are kept awake (a ROS user opening
-rviz2 expects ``/scan`` even when the mission never reads it); the camera is
-not woken (only the frames the run takes, with their JPEG, go out). A replay
-never opens the link.
+The topics carry what the run reads anyway (as the console and the
+recording, watching wakes no sensor); a topic the profile's ``ros2: topics:``
+names explicitly keeps its sensor awake (``topics: [odom, tf, scan]``: the
+LiDAR scans even for a mission that never reads it). The camera is never woken
+(only the frames the run takes, with their JPEG, go out). A replay never
+opens the link.
 """
 
 from __future__ import annotations
@@ -16,8 +18,9 @@ from typing import Any, Optional
 from beastbt.robot.part import REPLAY, Build, Part
 from beastbt.run.session import Prepared
 
-READS = {"scan": "scan", "fix": "gps_fix", "imu": "imu", "battery": "battery", "odom": "pose", "tf": "pose"}
-"""The readings (blackboard names) each topic comes from: reading them keeps their sensors awake."""
+READS = {"scan": "scan", "fix": "gps_fix", "imu": "imu", "battery": "battery"}
+"""The readings (blackboard names) of the sensor topics: a topic the profile's ``ros2: topics:`` lists keeps its
+sensor awake. /odom and /tf are the dead reckoning every run has: they wake no estimator."""
 
 
 class Ros2Part(Part):
@@ -33,15 +36,14 @@ class Ros2Part(Part):
 
     def __init__(self) -> None:
         self.link: Optional[Any] = None
-        self.reads = ("pose",)
+        self.reads: tuple[str, ...] = ()
 
     def attach(self, build: Build) -> None:
-        """Note the mode, and which sensors the topics asked for keep awake."""
+        """Note the mode, and the sensors the profile's ``ros2: topics:`` names (none without the list: the
+        topics carry what the run reads anyway, and watching costs the run nothing more)."""
         self.mode = build.mode
-        section = build.profile.section("ros2") or {}
-        topics = section.get("topics")
-        wanted = topics if topics is not None else list(READS)
-        self.reads = tuple(sorted({READS[t] for t in wanted if t in READS}))
+        topics = (build.profile.section("ros2") or {}).get("topics") or ()
+        self.reads = tuple(sorted({READS[t] for t in topics if t in READS}))
 
     def install(self, prepared: Prepared) -> None:
         """Open the link (a Zenoh session listening for the laptop) and hook it into the run."""
