@@ -11,11 +11,13 @@ ROS2_DEFAULT = "profile"
 
 
 def _endpoint(text: str) -> str:
+    if text == ROS2_DEFAULT:
+        return text  # a bare --ros2 (argparse passes the const through the type too)
     from beastbt.fleet.config import parse_endpoint
     try:
         return parse_endpoint(text, "--ros2")
     except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+        raise argparse.ArgumentTypeError(str(exc).replace("--fleet-config", "--ros2-config")) from None
 
 
 def add_ros2_arguments(p: argparse.ArgumentParser) -> None:

@@ -160,9 +160,13 @@ class Ros2Link:
         """Open the session, declare the node, publishers and subscriptions, and hook into the run."""
         import zenoh
         self.session = zenoh.open(session_config(self.options))
-        self.zid = str(self.session.info.zid())
-        self._declare_outputs()
-        self._declare_inputs()
+        try:
+            self.zid = str(self.session.info.zid())
+            self._declare_outputs()
+            self._declare_inputs()
+        except BaseException:
+            self.close()  # nothing half-declared stays behind (the port is freed)
+            raise
         run = self.run
         clock = self.prepared.clock
         self.topics = RunTopics(run, self.prepared.profile, self.options.topics, self._send,
