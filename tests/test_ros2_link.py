@@ -114,7 +114,7 @@ def session_run(tmp_path_factory):
     from beastbt.recording.reader import read_recording
     rec = read_recording(record, topics=["/operator/input", "/cmd/gate"])
     return {"seen": seen, "tokens": tokens, "out": out, "code": proc.returncode, "latched": latched,
-            "last_put_ns": last_put_ns,
+            "last_put_ns": last_put_ns, "record": record,
             "summary": json.loads(summary.read_text()), "rec": rec}
 
 
@@ -247,3 +247,15 @@ def test_estop_topic_stops_the_run(session_run):
     assert session_run["summary"]["status"] == "stopped"
     assert any("ROS 2 /estop" in e["text"] for e in session_run["summary"]["events"])
 
+
+
+def test_a_run_driven_from_ros2_replays_identically_up_to_the_estop(session_run):
+    # /cmd_vel went through the console's controls: the recording notes each with its tick, so the replay
+    # carries them out again at the same ticks, and the deadman's release too. The e-stop is not an operator
+    # input: beastbt replay re-applies only the console's own e-stop (as for the fleet's), so the last tick,
+    # the one the /estop latched in, is the one difference.
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-m", "beastbt", "replay", str(session_run["record"])], env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert "commands differ at 1 of" in r.stdout, r.stdout[-1500:] + r.stderr[-1500:]
+    assert "mux: recorded 0.0000 m/s 0.0000 rad/s (estop, mux estop)" in r.stdout
