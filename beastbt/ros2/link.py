@@ -252,33 +252,28 @@ class Ros2Link:
     # -- in (Zenoh's threads: decode, then queue for the tick thread) --------------------------------------------
     def _receiver(self, name: str) -> Callable[[Any], None]:
         def receive(sample: Any) -> None:
+            data = sample.payload.to_bytes()
+            kind = "cmd_vel" if name == "cmd_vel_stamped" else name
             try:
-                data = sample.payload.to_bytes()
                 if name == "estop":
                     if cdr.decode_bool(data):
                         from beastbt.run.safety import request_estop  # safe from any thread
                         request_estop(self.run, "ROS 2 /estop")
                     return
-                if name in ("cmd_vel", "cmd_vel_stamped"):
-                    if self.options.format == "bridge" and len(data) != TWIST_BYTES:
-                        value: Any = cdr.decode_twist_stamped(data)
-                    elif name == "cmd_vel":
-                        value = cdr.decode_twist(data)
-                    else:
-                        value = cdr.decode_twist_stamped(data)
-                    name_ = "cmd_vel"
+                value: Any
+                if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
+                                                 and len(data) != TWIST_BYTES):
+                    value = cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
+                elif name == "cmd_vel":
+                    value = cdr.decode_twist(data)
                 elif name == "goal_pose":
-                    value, name_ = cdr.decode_pose_stamped(data), name
+                    value = cdr.decode_pose_stamped(data)
                 else:
-                    value, name_ = cdr.decode_pose_with_covariance_stamped(data), name
+                    value = cdr.decode_pose_with_covariance_stamped(data)
             except cdr.CdrError as exc:
                 self._pending.put(("bad", f"{name}: {exc}"))
-                self.run.io.wakeup.set()
-                return
-            if not self.commands:
-                self._pending.put(("refused", name_))
             else:
-                self._pending.put((name_, value))
+                self._pending.put((kind, value) if self.commands else ("refused", kind))
             self.run.io.wakeup.set()
         return receive
 
