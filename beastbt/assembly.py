@@ -127,6 +127,8 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("fleet", "beastbt.parts.fleet:FleetPart", lambda profile, options: options.fleet is not None),
     PartEntry("fleet_check", "beastbt.parts.fleet:UnsupervisedCheck",
               lambda profile, options: options.fleet is None),
+    # ROS 2 over Zenoh (--ros2): last, so that its remote stick and its topics see every other part installed.
+    PartEntry("ros2", "beastbt.parts.ros2:Ros2Part", lambda profile, options: options.ros2 is not None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
 

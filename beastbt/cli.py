@@ -36,6 +36,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
     "report": ("beastbt.commands.report", "summarise a recorded run and draw its plots (report.html)"),
     "replay": ("beastbt.commands.replay", "feed a recorded run back through the estimator and the tree; show differences"),
     "runs": ("beastbt.commands.runs", "list the recorded runs with their outcome, one line each"),
+    "export": ("beastbt.commands.export", "export a recorded run: '--ros2 out.mcap' writes a ROS 2 bag (CDR, "
+                                          "ros2msg schemas) for ros2 bag play, rviz2 and Foxglove"),
     "recover": ("beastbt.commands.recover", "rewrite a recording cut short (power cut, full disk) as a whole MCAP "
                                             "file, the cut one kept as .cut; rebuild a missing summary"),
     "route": ("beastbt.commands.route", "route tools: 'route from-run RUN' writes the path a recorded run drove "

@@ -27,8 +27,8 @@ LAYERS: tuple[tuple[int, tuple[str, ...], str], ...] = (
     (7, ("robot",), "the robot profile, its ports (RobotIO) and the part protocol"),
     (8, ("run",), "the tick loop, safety wiring, failsafes, the session, the summary, run folders"),
     (9, ("recording",), "the recorder and its writer process, the reader, the report, the list of runs"),
-    (10, ("parts", "live", "fleet"), "each part of a robot (a device on the robot and the simulator, a feature); live "
-                                     "video; the fleet (Zenoh)"),
+    (10, ("parts", "live", "fleet", "ros2"), "each part of a robot (a device on the robot and the simulator, a "
+                                             "feature); live video; the fleet (Zenoh); ROS 2 over Zenoh"),
     (11, ("commands", "studio", "testing", "<top>"), "the subcommands and the top-level modules: assembly (the "
                                                      "composition root), replay, validate, cli; the studio (it checks "
                                                      "with validate); testing (the harness, mission tests)"),

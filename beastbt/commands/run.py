@@ -284,6 +284,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stream-fps", metavar="FPS", type=_positive_float, help="most frames streamed per second (default 25)")
     p.add_argument("--stream-no-overlay", action="store_true", help="stream the bare camera, without the detected line and step")
     add_fleet_arguments(p)
+    from beastbt.ros2.cli import add_ros2_arguments
+    add_ros2_arguments(p)
     p.add_argument("--record-images", type=_non_negative_float, metavar="HZ", dest="record_images",
                    help="camera images recorded per second as JPEG (0 for none); without it, 2 per second of a "
                         "camera the run uses anyway, or of any camera with --record-sensors")
@@ -320,6 +322,11 @@ def command(args: argparse.Namespace) -> int:
                       record_sensors=args.record_sensors, answers=dict(args.answer), keep_runs=args.keep_runs,
                       files_inside=args.files_inside)
     opts.fleet, problem = fleet_options(args, "run")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
+    from beastbt.ros2.cli import ros2_options
+    opts.ros2, problem = ros2_options(args, "run")
     if problem is not None:
         print(problem, file=sys.stderr)
         return EXIT_INVALID

@@ -63,6 +63,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="serve each mission's operator console there (tree, video, joystick); the station's page "
                         "links to it")
     add_fleet_arguments(p)
+    from beastbt.ros2.cli import add_ros2_arguments
+    add_ros2_arguments(p)
 
 
 def command(args: argparse.Namespace) -> int:
@@ -87,6 +89,11 @@ def command(args: argparse.Namespace) -> int:
         print(f"beastbt serve: error: {problem}", file=sys.stderr)
         return EXIT_INVALID
     fleet, problem = fleet_options(args, "serve")
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return EXIT_INVALID
+    from beastbt.ros2.cli import ros2_options
+    ros2, problem = ros2_options(args, "serve")
     if problem is not None:
         print(problem, file=sys.stderr)
         return EXIT_INVALID
@@ -125,8 +132,14 @@ def command(args: argparse.Namespace) -> int:
     options = RunOptions(robot=args.robot, world=args.world, seed=args.seed, speed=speed, runs_dir=args.runs_dir,
                          record=not args.no_record, simulate=args.sim, fleet=replace(fleet, agent=agent),
                          keep_runs=args.keep_runs,
-                         console=args.console)
+                         console=args.console, ros2=ros2)
     missions_dir = Path(args.missions_dir).resolve()
+    serving = None
+    if ros2 is not None:
+        from beastbt.ros2.serving import Ros2Serving
+        serving = Ros2Serving(agent, profile, ros2, args.world)
+        options.ros2 = serving.run_option()
+        serving.idle()
     keys = f" with the keys of {fleet.config_file}" if fleet.config_file and fleet.endpoint else ""
     print(f"robot '{name}' serving the fleet at {fleet.endpoint or fleet.config_file}{keys}: waiting for missions",
           flush=True)
@@ -150,6 +163,8 @@ def command(args: argparse.Namespace) -> int:
                 continue
             signal.signal(signal.SIGTERM, previous)  # during a run, the run's own: stop, summary, recording
             try:
+                if serving is not None:
+                    serving.busy()  # the run's own ROS 2 link takes the port
                 summary = serve_one(agent, request, options, missions_dir)
                 if summary is not None and interrupted(summary):
                     done.set()  # Ctrl-C or SIGTERM during a mission stops it (as 'run' does) and the serving too
@@ -159,6 +174,8 @@ def command(args: argparse.Namespace) -> int:
                       file=sys.stderr, flush=True)
             finally:
                 agent.mission_done()
+                if serving is not None:
+                    serving.idle()
                 signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
             if not done.is_set():
                 print(f"robot '{name}': waiting for missions", flush=True)
@@ -168,6 +185,8 @@ def command(args: argparse.Namespace) -> int:
     finally:
         notifier.stopping()
         signal.signal(signal.SIGTERM, previous)
+        if serving is not None:
+            serving.close()
         agent.close()
     return EXIT_SUCCESS
 

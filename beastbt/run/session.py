@@ -94,6 +94,8 @@ class RunOptions:
     files_inside: Optional[str] = None
     """Read the files the mission names (``world:``, ``map:``, route files) only inside this folder, or shipped ones
     by name (``--files-inside``; :mod:`beastbt.core.file_refs`); None: anywhere, as written."""
+    ros2: Optional[Mapping[str, Any]] = None
+    """Show the run to ROS 2 over Zenoh (``--ros2``): ``{listen, config, on_goal}`` (docs/ros2.md); None: off."""
 
     @property
     def simulated(self) -> bool:

@@ -1,0 +1,432 @@
+"""The ROS 2 link of one run: a Zenoh session that speaks rmw_zenoh (or the DDS bridge's format), out and in.
+
+Out: the run's topics (:mod:`beastbt.ros2.topics`) as CDR on their keys, each
+message with rmw_zenoh's attachment, every publisher and subscription
+announced by its liveliness token so that ``ros2 topic list`` and rviz2 find
+them; ``/map`` and ``/tf_static`` transient local (a late rviz2 gets them from
+a cache, as from map_server).
+
+In, all carried out on the tick thread, through the paths the console and the
+joystick use (no side door):
+
+* ``/cmd_vel`` (Twist; TwistStamped too) is a remote stick to teleop
+  (:class:`~beastbt.live.console_control.ConsoleControls`): the deadman is
+  held while messages come, the velocity is the stick's deflection times the
+  profile's teleop scale (capped there), so the mux puts it at teleop
+  priority, the gate limits it, the collision monitor and the e-stop stay in
+  charge; when no message came for :data:`DEADMAN_S` (wall time) the stick
+  is released and the robot stops at once.
+* ``/estop`` (std_msgs/Bool): true latches the e-stop (from anyone: stopping
+  is always allowed); false does nothing (an e-stop is reset at the robot,
+  the console or the station).
+* ``/initialpose``: the map localiser starts again around that pose.
+* ``/goal_pose``: handed to ``on_goal`` when the run has one (``beastbt
+  serve`` turns it into a planned ``go_to``); otherwise an event says it was
+  not taken.
+
+Access (the fleet's rules, docs/fleet.md): with ``--ros2-config FILE`` (TLS,
+Zenoh's access control) the link is what that configuration allows. Without
+it the link is plain TCP: on loopback it takes commands; listening beyond
+loopback it publishes and takes only the e-stop, since anyone on the network
+could otherwise drive the robot.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+from beastbt.ros2 import bridge, cdr
+from beastbt.ros2 import rmw_zenoh as rz
+from beastbt.ros2.topics import INPUTS, TOPICS, RunTopics
+
+DEADMAN_S = 0.5
+"""``/cmd_vel`` holds the robot's teleop this long after its last message (wall s), then the robot stops."""
+DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+"""Where the link listens by default: Zenoh's port, on this computer only."""
+FORMATS = ("rmw_zenoh", "bridge")
+DISTROS = ("jazzy", "humble")
+TWIST_BYTES = 52
+"""A Twist's CDR: the 4-byte header and six float64; a TwistStamped is longer (the bridge's key has no type)."""
+
+
+@dataclass(frozen=True)
+class Ros2Options:
+    """How the run meets ROS 2 (``--ros2`` and the profile's ``ros2:`` section; docs/ros2.md).
+
+    ``listen`` a Zenoh endpoint the laptop connects to; ``config_file`` a Zenoh
+    JSON5 configuration (TLS, access control) taken as written; ``domain`` the
+    ROS domain id; ``namespace`` the node's (``/`` or ``/robot1``); ``format``
+    ``rmw_zenoh`` or ``bridge``; ``distro`` ``jazzy`` (type hashes in keys) or
+    ``humble`` (``TypeHashNotSupported``); ``topics`` the names of
+    :data:`~beastbt.ros2.topics.TOPICS` to publish.
+    """
+
+    listen: Optional[str] = DEFAULT_LISTEN
+    config_file: Optional[str] = None
+    domain: int = 0
+    namespace: str = "/"
+    format: str = "rmw_zenoh"
+    distro: str = "jazzy"
+    node: str = "beastbt"
+    topics: frozenset = field(default_factory=lambda: frozenset(n for n in TOPICS if n != "tf_static"))
+
+
+def options_from(section: Optional[dict], listen: Optional[str], config_file: Optional[str]) -> Ros2Options:
+    """The link's options: the profile's ``ros2:`` section (checked by its schema), then the command line's."""
+    s = dict(section or {})
+    topics = s.get("topics")
+    return Ros2Options(listen=listen or s.get("listen") or DEFAULT_LISTEN,
+                       config_file=config_file or s.get("config"), domain=int(s.get("domain", 0)),
+                       namespace=str(s.get("namespace", "/")), format=str(s.get("format", "rmw_zenoh")),
+                       distro=str(s.get("distro", "jazzy")), node=str(s.get("node", "beastbt")),
+                       topics=frozenset(topics) if topics is not None else Ros2Options().topics)
+
+
+def full_name(namespace: str, name: str) -> str:
+    """``/robot1`` + ``scan`` -> ``/robot1/scan`` (``/`` + ``scan`` -> ``/scan``)."""
+    ns = namespace.strip("/")
+    return f"/{ns}/{name}" if ns else f"/{name}"
+
+
+def takes_commands(options: Ros2Options) -> bool:
+    """Whether the link takes commands (module docstring): a configuration of its own, or plain on loopback."""
+    if options.config_file:
+        return True
+    from beastbt.fleet.config import endpoint_host
+    from beastbt.live.endpoint import is_loopback
+    return options.listen is None or is_loopback(endpoint_host(options.listen))
+
+
+def session_config(options: Ros2Options) -> Any:
+    """The Zenoh configuration: the given file as written (its listen endpoint set when given), else a peer
+    listening on ``listen``, with no scouting (nothing else on the network is probed)."""
+    import json
+
+    import zenoh
+    if options.config_file:
+        from beastbt.fleet.config import _load
+        config = _load(options.config_file, "--ros2-config")
+    else:
+        config = zenoh.Config()
+        config.insert_json5("mode", json.dumps("peer"))
+        config.insert_json5("scouting/multicast/enabled", "false")
+        config.insert_json5("scouting/gossip/enabled", "false")
+        config.insert_json5("connect/endpoints", "[]")
+    if options.listen:
+        config.insert_json5("listen/endpoints", json.dumps([options.listen]))
+    # Transient local publishers are zenoh-ext AdvancedPublishers, which stamp their samples (as rmw_zenoh's own
+    # configuration enables it).
+    config.insert_json5("timestamping/enabled", "true")
+    return config
+
+
+class Ros2Link:
+    """The link (module docstring) of ``prepared``'s run, opened by :meth:`open` and closed by :meth:`close`."""
+
+    def __init__(self, prepared: Any, options: Ros2Options, wall: Callable[[], float] = time.monotonic,
+                 on_goal: Optional[Callable[[cdr.PoseStamped, Any], None]] = None) -> None:
+        self.prepared = prepared
+        self.run = prepared.run
+        self.options = options
+        self.wall = wall
+        self.on_goal = on_goal
+        self.humble = options.distro == "humble"
+        self.commands = takes_commands(options)
+        self.session: Any = None
+        self.zid = ""
+        self._pubs: dict[str, Any] = {}
+        self._seq: dict[str, int] = {}
+        self._gids: dict[str, bytes] = {}
+        self._tokens: list[Any] = []
+        self._subs: list[Any] = []
+        self.token_keys: list[str] = []
+        """The liveliness tokens declared (for the tests and ``beastbt doctor``)."""
+        self.keys: dict[str, str] = {}
+        """The data key of each published topic."""
+        self._pending: "queue.SimpleQueue[tuple[str, Any]]" = queue.SimpleQueue()
+        self.controls: Any = None
+        self.topics: Optional[RunTopics] = None
+        self.received = 0
+        self.refused = 0
+        self._lock = threading.Lock()
+
+    # -- opening -------------------------------------------------------------------------------------------------
+    def open(self) -> "Ros2Link":
+        """Open the session, declare the node, publishers and subscriptions, and hook into the run."""
+        import zenoh
+        self.session = zenoh.open(session_config(self.options))
+        try:
+            self.zid = str(self.session.info.zid())
+            self._declare_outputs()
+            self._declare_inputs()
+        except BaseException:
+            self.close()  # nothing half-declared stays behind (the port is freed)
+            raise
+        run = self.run
+        clock = self.prepared.clock
+        self.topics = RunTopics(run, self.prepared.profile, self.options.topics, self._send,
+                                time.time() - clock.now())
+        self.topics.start(clock.now())
+        run.recorders.append(self.topics.on_tick)
+        if self.commands:
+            from beastbt.live.console_control import ConsoleControls
+            self.controls = ConsoleControls(run, self.wall, stick_timeout_s=DEADMAN_S)
+            run.reactors.append(self._apply)
+        run.hooks.insert(0, self._apply)  # before the tree: a command counts in this tick
+        return self
+
+    def _declare_outputs(self) -> None:
+        import zenoh
+        o = self.options
+        names = set(o.topics) | ({"tf_static"} if "tf" in o.topics else set())
+        node = rz.Node(o.domain, self.zid, 0, o.namespace, o.node)
+        if o.format == "rmw_zenoh":
+            self._token(node.token())
+        else:
+            self._token(bridge.plugin_token(self.zid))
+        for eid, name in enumerate(sorted(names), start=1):
+            spec = TOPICS[name]
+            topic = full_name(o.namespace, spec.name)
+            if o.format == "rmw_zenoh":
+                key = rz.topic_key(o.domain, topic, spec.type_name, self.humble)
+                token = node.endpoint_token(eid, rz.PUBLISHER, topic, spec.type_name, spec.qos, self.humble)
+                self._gids[name] = rz.gid(token)
+            else:
+                key = bridge.data_key(topic)
+                token = bridge.endpoint_token(self.zid, rz.PUBLISHER, key, spec.type_name, spec.qos)
+            reliable = spec.qos.reliability == rz.RELIABLE
+            kwargs = {"congestion_control": zenoh.CongestionControl.DROP,
+                      "reliability": zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT}
+            if spec.qos.durability == rz.TRANSIENT_LOCAL:
+                import zenoh.ext
+                pub = zenoh.ext.declare_advanced_publisher(
+                    self.session, key, cache=zenoh.ext.CacheConfig(max_samples=spec.qos.depth),
+                    publisher_detection=True, **kwargs)
+            else:
+                pub = self.session.declare_publisher(key, **kwargs)
+            self._pubs[name] = pub
+            self._seq[name] = 0
+            self.keys[name] = key
+            self._token(token)
+        self._next_eid = len(names) + 1
+        self._node = node
+
+    def _declare_inputs(self) -> None:
+        o = self.options
+        eid = self._next_eid
+        for name, spec in INPUTS.items():
+            topic = full_name(o.namespace, spec.name)
+            if o.format == "rmw_zenoh":
+                # any type hash: a Humble sender writes TypeHashNotSupported, a Jazzy one its RIHS01
+                key = rz.topic_key(o.domain, topic, spec.type_name, self.humble).rsplit("/", 1)[0] + "/*"
+                token = self._node.endpoint_token(eid, rz.SUBSCRIPTION, topic, spec.type_name, spec.qos, self.humble)
+            else:
+                if name == "cmd_vel_stamped":
+                    continue  # the bridge's key has no type: /cmd_vel's one subscription reads both (by size)
+                key = bridge.data_key(topic)
+                token = bridge.endpoint_token(self.zid, rz.SUBSCRIPTION, key, spec.type_name, spec.qos)
+            self._subs.append(self.session.declare_subscriber(key, self._receiver(name)))
+            self._token(token)
+            eid += 1
+
+    def _token(self, key: str) -> None:
+        self._tokens.append(self.session.liveliness().declare_token(key))
+        self.token_keys.append(key)
+
+    # -- out -----------------------------------------------------------------------------------------------------
+    def _send(self, name: str, payload: bytes) -> None:
+        pub = self._pubs.get(name)
+        if pub is None:
+            return
+        if self.options.format == "rmw_zenoh":
+            seq = self._seq[name] = self._seq[name] + 1
+            pub.put(payload, attachment=rz.attachment(seq, time.time_ns(), self._gids[name]))
+        else:
+            pub.put(payload)
+
+    # -- in (Zenoh's threads: decode, then queue for the tick thread) --------------------------------------------
+    def _receiver(self, name: str) -> Callable[[Any], None]:
+        def receive(sample: Any) -> None:
+            data = sample.payload.to_bytes()
+            kind = "cmd_vel" if name == "cmd_vel_stamped" else name
+            try:
+                if name == "estop":
+                    if cdr.decode_bool(data):
+                        from beastbt.run.safety import request_estop  # safe from any thread
+                        request_estop(self.run, "ROS 2 /estop")
+                    return
+                value: Any
+                if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
+                                                 and len(data) != TWIST_BYTES):
+                    value = cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
+                elif name == "cmd_vel":
+                    value = cdr.decode_twist(data)
+                elif name == "goal_pose":
+                    value = cdr.decode_pose_stamped(data)
+                else:
+                    value = cdr.decode_pose_with_covariance_stamped(data)
+            except cdr.CdrError as exc:
+                self._pending.put(("bad", f"{name}: {exc}"))
+            else:
+                self._pending.put((kind, value) if self.commands else ("refused", kind))
+            self.run.io.wakeup.set()
+        return receive
+
+    # -- the tick thread -------------------------------------------------------------------------------------------
+    def _apply(self, run: Any, now_s: float) -> None:
+        """A tick hook and a reactor: carry out what came, then the deadman (the stick's own timeout)."""
+        pending = self._pending
+        controls = self.controls
+        if pending.empty() and (controls is None or not controls.stick_held):
+            return
+        while True:
+            try:
+                kind, value = pending.get_nowait()
+            except queue.Empty:
+                break
+            self.received += 1
+            if kind == "cmd_vel":
+                self._drive(value)
+            elif kind == "initialpose":
+                self._initial_pose(run, value)
+            elif kind == "goal_pose":
+                self._goal(run, value)
+            elif kind == "refused":
+                self.refused += 1
+                if self.refused == 1:
+                    run.events.add("ros2", f"ROS 2 {value} not taken: the link listens beyond loopback without keys "
+                                           f"(--ros2-config with TLS to command; docs/ros2.md)")
+            elif kind == "bad":
+                run.events.add("ros2", f"ROS 2 message not understood: {value}")
+        if controls is not None:
+            controls.apply_pending(now_s)
+
+    def _drive(self, twist: cdr.Twist) -> None:
+        if self.controls is None:
+            return
+        override = self.run.ctx.services.teleop
+        config = getattr(getattr(override, "teleop", None), "config", None)
+        lin_scale = float(getattr(config, "scale_linear_mps", 0.0) or 0.0)
+        ang_scale = float(getattr(config, "scale_angular_rps", 0.0) or 0.0)
+        linear = twist.linear[0] / lin_scale if lin_scale > 0 else 0.0
+        angular = twist.angular[2] / ang_scale if ang_scale > 0 else 0.0
+        self.controls.submit("teleop", {"linear": max(-1.0, min(1.0, linear)),
+                                        "angular": max(-1.0, min(1.0, angular)), "deadman": True})
+
+    def _initial_pose(self, run: Any, pose: cdr.PoseStamped) -> None:
+        loc = run.ctx.services.plugins.get("map_localiser")
+        from beastbt.blackboard.types import MapPose
+        last = run.latest.get(MapPose)
+        if loc is None or last is None:
+            run.events.add("ros2", "ROS 2 /initialpose not taken: this run localises on no map")
+            return
+        from beastbt.estimation.map_localiser import compose, invert
+        odom = compose(invert((last.odom_x, last.odom_y, last.odom_yaw)), (last.x, last.y, last.yaw))
+        cov = pose.covariance or ()
+        sigma_xy = math.sqrt(max(cov[0], cov[7])) if len(cov) == 36 and cov[0] > 0 else 0.5
+        sigma_yaw = math.sqrt(cov[35]) if len(cov) == 36 and cov[35] > 0 else math.radians(15.0)
+        loc.start((pose.position[0], pose.position[1], pose.yaw), sigma_xy, sigma_yaw, odom)
+        run.events.add("ros2", f"ROS 2 /initialpose: localising again around ({pose.position[0]:.2f}, "
+                               f"{pose.position[1]:.2f}) m, {math.degrees(pose.yaw):.0f} deg")
+
+    def _goal(self, run: Any, pose: cdr.PoseStamped) -> None:
+        if self.on_goal is None:
+            run.events.add("ros2", f"ROS 2 /goal_pose ({pose.position[0]:.2f}, {pose.position[1]:.2f}) not taken: "
+                                   f"goals are taken by 'beastbt serve --ros2'")
+            return
+        self.on_goal(pose, run)
+
+    # -- closing -------------------------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Undeclare everything and close the session (the laptop sees the node go)."""
+        with self._lock:
+            session, self.session = self.session, None
+        if session is None:
+            return
+        if self.controls is not None:
+            self.controls.close()
+        for item in self._subs + self._tokens + list(self._pubs.values()):
+            try:
+                item.undeclare()
+            except Exception:  # noqa: BLE001 - closing what is already gone is no error
+                pass
+        session.close()
+
+
+
+
+# -- beastbt serve: goals between missions -------------------------------------------------------------------------
+
+def goal_mission(pose: cdr.PoseStamped, map_file: Optional[str] = None) -> bytes:
+    """The mission a ``/goal_pose`` becomes in ``beastbt serve``: a planned ``go_to`` to that place on
+    ``map_file`` (the pose's frame is taken as the map's; the heading is not kept: go_to ends where it arrives)."""
+    import json
+    x, y = pose.position[0], pose.position[1]
+    return (f"mission: ros2_goal\n"
+            f"description: rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}\n"
+            + (f"map: {json.dumps(str(map_file))}\n" if map_file else "") +
+            f"places:\n  goal: {{x: {x:.3f} m, y: {y:.3f} m}}\n"
+            f"steps:\n  - go_to: goal\n").encode()
+
+
+class GoalListener:
+    """``beastbt serve --ros2`` while no mission runs: the node stays in the ROS graph and ``/goal_pose`` is
+    taken (each goal handed to ``on_goal``). Closed while a mission runs: its run's link takes over the port."""
+
+    def __init__(self, options: Ros2Options, on_goal: Callable[[cdr.PoseStamped, Any], None]) -> None:
+        self.options = options
+        self.on_goal = on_goal
+        self.session: Any = None
+        self._items: list[Any] = []
+
+    def open(self) -> "GoalListener":
+        """Open the session, the node's token and the /goal_pose subscription."""
+        import zenoh
+        o = self.options
+        self.session = zenoh.open(session_config(o))
+        zid = str(self.session.info.zid())
+        humble = o.distro == "humble"
+        spec = INPUTS["goal_pose"]
+        topic = full_name(o.namespace, spec.name)
+        if o.format == "rmw_zenoh":
+            node = rz.Node(o.domain, zid, 0, o.namespace, o.node)
+            key = rz.topic_key(o.domain, topic, spec.type_name, humble).rsplit("/", 1)[0] + "/*"
+            tokens = [node.token(), node.endpoint_token(1, rz.SUBSCRIPTION, topic, spec.type_name, spec.qos, humble)]
+        else:
+            key = bridge.data_key(topic)
+            tokens = [bridge.plugin_token(zid),
+                      bridge.endpoint_token(zid, rz.SUBSCRIPTION, key, spec.type_name, spec.qos)]
+        for token in tokens:
+            self._items.append(self.session.liveliness().declare_token(token))
+
+        def receive(sample: Any) -> None:
+            try:
+                pose = cdr.decode_pose_stamped(sample.payload.to_bytes())
+            except cdr.CdrError:
+                return
+            self.on_goal(pose, None)
+        if takes_commands(o):
+            self._items.append(self.session.declare_subscriber(key, receive))
+        return self
+
+    def close(self) -> None:
+        """Leave the graph and free the port."""
+        session, self.session = self.session, None
+        if session is None:
+            return
+        for item in self._items:
+            try:
+                item.undeclare()
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+        self._items = []
+        session.close()
+
+
+__all__ = ["Ros2Link", "Ros2Options", "GoalListener", "goal_mission", "options_from", "full_name", "takes_commands",
+           "session_config", "DEADMAN_S", "DEFAULT_LISTEN", "FORMATS", "DISTROS"]
