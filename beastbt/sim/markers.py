@@ -197,15 +197,15 @@ class MarkerPainter:
         return drawn
 
 
-def marker_schema_problem(value: Any) -> Optional[str]:
-    """Why a ``tags:`` list cannot be drawn (an id beyond its family's dictionary), or None."""
+def marker_schema_problem(value: Any) -> Optional[tuple[int, str]]:
+    """Why a ``tags:`` list cannot be drawn, as (item index, message): an id beyond its family's dictionary; or None."""
     for i, t in enumerate(value or []):
         family = str(t.get("family", DEFAULT_FAMILY))
         if family not in FAMILIES:
-            return f"tags[{i}].family: unknown marker family {family!r}"
+            return i, f"unknown marker family {family!r}"
         size = cv2.aruco.getPredefinedDictionary(FAMILIES[family]).bytesList.shape[0]
         if not 0 <= int(t["id"]) < size:
-            return f"tags[{i}].id: {family} has ids 0 to {size - 1}, got {t['id']}"
+            return i, f"{family} has ids 0 to {size - 1}, got {t['id']}"
     return None
 
 
