@@ -100,7 +100,8 @@ class TagDetection:
 
 
 class FiducialDetector:
-    """Finds markers of ``families`` and solves their pose; ``sizes_m`` gives a tag's side by id (else ``size_m``).
+    """Finds markers of ``families`` and solves their pose; ``sizes_m`` gives a tag's side by id (else ``size_m``),
+    read at each detection (the caller may add sizes later).
 
     Corners are refined to subpixel accuracy (``CORNER_REFINE_SUBPIX``: the pose needs it, and it costs a
     fraction of a millisecond at 320x240).
@@ -115,7 +116,7 @@ class FiducialDetector:
             raise ValueError(f"tag size must be > 0 m, got {size_m}")
         self.families = tuple(families)
         self.size_m = float(size_m)
-        self.sizes_m = dict(sizes_m or {})
+        self.sizes_m = sizes_m if sizes_m is not None else {}  # the caller's mapping, read at each detection
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
         self._detectors = [(f, cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(FAMILIES[f]), params))
