@@ -1,4 +1,4 @@
-"""The camera examples of docs/mission-language.md run on the simulator in worlds/lab.yaml and do what they say."""
+"""The camera examples of docs/mission-language.md run on the simulator in their worlds and do what they say."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ EXPECTED = {
     "camera_watch": ["photo", "photo", "alert"],
     "camera_rounds": ["photo", "photo", "alert", "docked"],
     "camera_checkpoint": ["say"],
+    "camera_patrol": ["photo", "photo", "photo"],
 }
 
 
@@ -27,8 +28,8 @@ def test_the_doc_has_the_camera_examples():
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_camera_example_runs(name):
     h = MissionHarness.from_yaml(CAMERA_EXAMPLES[name], seed=1, base_dir=REPO / "missions")
-    assert h.prepared.world is not None and h.prepared.world.name == "lab"
-    assert h.run_to_end(300) == "success", [e.text for e in h.events if e.kind == "step_failed"]
+    assert h.prepared.world is not None and h.prepared.world.name == ("campus" if name == "camera_patrol" else "lab")
+    assert h.run_to_end(900) == "success", [e.text for e in h.events if e.kind == "step_failed"]
     kinds = [e.kind for e in h.events if e.kind in ("photo", "alert", "docked", "say")]
     assert kinds == EXPECTED[name]
     s = h.summary()

@@ -95,6 +95,10 @@ class Compiler:
 
     def _step(self, s: st.Step) -> Behaviour:
         kind = st.keyword_of(s)
+        if kind == "route":
+            from beastbt.mission.route_tasks import needs_tasks, route_with_tasks
+            if needs_tasks(s):  # tasks at each place, or going on after a failure: one go_to per place
+                return route_with_tasks(self, s)  # type: ignore[arg-type]
         builder = self.builders.get(kind)
         if builder is None and kind in self.mission.external_steps:
             builder = self.mission.external_steps[kind].build

@@ -343,6 +343,8 @@ class _SemanticChecker:
                                    "write 'go_to: gate' or 'go_to: {lat: 40.4168, lon: -3.7038}'")
                 for j, name in enumerate(v.get("places", [])):
                     self.place_ref(p + ("places", j), name)
+                if s.kind == "route" and "at_each" in v:
+                    self.walk_steps(v["at_each"], p + ("at_each",))
         elif s.kind == "follow_line":
             for k in ("speed", "lost_after"):
                 if k in v:
@@ -610,7 +612,8 @@ class _StepReader:
         if k == "route":
             loops = v.get("loops", mission_default("/$defs/step/anyOf/6/properties/route/properties", "loops"))
             return st.Route(places=tuple(v["places"]), loops=parse_count(loops), resume=v.get("resume", "current"),
-                            **nav(v), **where)
+                            at_each=self.steps(v.get("at_each") or [], path + ("route", "at_each")),
+                            stop_on_failure=bool(v.get("stop_on_failure", True)), **nav(v), **where)
         if k == "return_home":
             along = v.get("along", "straight") if isinstance(v, dict) else "straight"
             return st.ReturnHome(along=along, **nav(v), **where)

@@ -130,6 +130,10 @@ class Route(Step, NavOptions):
     loops: int = 1
     resume: str = "current"
     """After a pause: ``current`` place, or the ``nearest`` remaining one."""
+    at_each: tuple["Step", ...] = ()
+    """Steps run at each place once reached (``at_each``); a bare ``photo`` is named after the place."""
+    stop_on_failure: bool = True
+    """False: a place that fails is noted and the route goes on (``stop_on_failure: false``)."""
 
 
 @dataclass(kw_only=True, eq=False, repr=False)
