@@ -9,8 +9,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import jsonschema
 import pytest
 
+from beastbt.core.schema_check import load_schema
 from beastbt.testing import MissionHarness
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,6 +41,7 @@ def test_dock_from_3_m_and_40_deg_off_ends_within_2_cm_and_2_deg(seed):
     s = h.summary()
     assert s["truth"]["collisions"] == 0
     assert s["truth"]["dock_error_m"] < 0.02 and s["truth"]["dock_error_deg"] < 2.0
+    jsonschema.validate(s, load_schema("summary.schema.json"))
     dock = s["vision"]["docks"][0]
     assert dock["status"] == "docked" and dock["retries"] == 0 and dock["error_m"] < 0.02
     # undock backed off half a metre along the tag's axis

@@ -6,9 +6,11 @@ import math
 from pathlib import Path
 
 import cv2
+import jsonschema
 import pytest
 
 from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_check import load_schema
 from beastbt.mission.model import load_mission
 from beastbt.testing import MissionHarness
 
@@ -105,6 +107,7 @@ def test_photo_and_alert_with_a_photo(tmp_path):
         assert img is not None and img.shape == (240, 320, 3) and p["size_px"] == [320, 240]
     assert [a["text"] for a in s["alerts"]] == [f"someone in the lab (photo {photos[2]['file']})", "all quiet"]
     assert [e.kind for e in h.events].count("photo") == 3
+    jsonschema.validate(s, load_schema("summary.schema.json"))
 
 
 def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
