@@ -135,3 +135,14 @@ def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, m
         load_mission(path)
     text = str(err.value)
     assert f"bad.yaml:{where}" in text and message in text, text
+
+
+def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):
+    world = room(tmp_path)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: \"nothing to see\"\n  - undock: {distance: 0.1 m}\n",
+                                 world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert h.run.ctx.services.vision is None and not h.run.io.camera.enabled
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: {text: \"look\", photo: true}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert h.run.io.camera.reasons == ["vision"]

@@ -30,6 +30,8 @@ from beastbt.run.session import Prepared
 
 VISION_STEPS = frozenset({"photo", "alert", "dock", "undock"})
 """Step keywords of this part."""
+CAMERA_WORDS = frozenset({"photo", "alert", "dock"})
+"""Steps that need the camera's frames (an alert only with ``photo: true``; ``undock`` never)."""
 NOT_STEPS = frozenset({"say", "description", "mission", "places", "world"})
 """Mission keys whose text is never a step or a condition."""
 
@@ -66,7 +68,7 @@ def _undock(c: Compiler, s: st.Undock) -> py_trees.behaviour.Behaviour:
 # -- every run -------------------------------------------------------------------------------
 
 def vision_uses(data: Any) -> list[str]:
-    """Why a mission (its YAML data) needs the detectors: the vision steps and ``sees`` it mentions, in order."""
+    """Why a mission (its YAML data) needs the camera's frames: the camera words and ``sees`` it mentions, in order."""
     found: list[str] = []
 
     def walk(node: Any) -> None:
@@ -74,12 +76,14 @@ def vision_uses(data: Any) -> list[str]:
             for k, v in node.items():
                 if k in NOT_STEPS:
                     continue
-                if (k in VISION_STEPS or k == "sees") and k not in found:
+                if k == "alert" and not (isinstance(v, dict) and v.get("photo") is True):
+                    continue  # an alert without a photo needs no camera
+                if (k in CAMERA_WORDS or k == "sees") and k not in found:
                     found.append(k)
                 walk(v)
         elif isinstance(node, list):
             for item in node:
-                if isinstance(item, str) and item in VISION_STEPS and item not in found:
+                if isinstance(item, str) and item in CAMERA_WORDS and item not in found:
                     found.append(item)  # a bare `photo` or `undock` step
                 walk(item)
 
@@ -105,7 +109,7 @@ def install_vision_watch(prepared: Prepared) -> None:
     run = prepared.run
     pipeline = run.io.camera
     uses = vision_uses(prepared.mission.doc.data if prepared.mission.doc is not None else {})
-    if pipeline is None or not uses or uses == ["undock"]:
+    if pipeline is None or not uses:
         return
     from beastbt.vision.watch import VisionWatch
 
