@@ -146,3 +146,26 @@ def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: {text: \"look\", photo: true}\n", world=world, seed=1)
     assert h.run_to_end(30) == "success"
     assert h.run.io.camera.reasons == ["vision"]
+
+
+def test_track_turns_to_keep_a_red_box_centred(tmp_path):
+    # the red box 2.5 m away, 25 deg to the right of where the robot faces: near the edge of the picture
+    world = room(tmp_path, "obstacles:\n  - {shape: box, x: 3.266, y: -1.057, size_m: [0.3, 0.3], colour: red}\n")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 8 s}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    t = h.truth
+    bearing = math.degrees(math.atan2(-1.057 - t.y, 3.266 - t.x) - t.yaw)
+    assert abs(bearing) < 4.0, bearing  # facing the box
+    assert abs(math.hypot(t.x - 1.0, t.y)) < 0.05  # turned in place
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: blue, for: 2 s}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "failure"
+    assert any("never saw blue" in e.text for e in h.events)
+
+
+def test_a_typed_colour_is_hashable_and_reads_back():
+    from beastbt.mission.vision_steps import sees_of
+    from beastbt.vision.colour import ColourRange
+    c = sees_of({"colour": {"hsv": [[100, 120, 60], [130, 255, 255]]}, "min_area": "2 %"})
+    hash(c)
+    assert ColourRange.parse(c.colour).boxes == (((100, 120, 60), (130, 255, 255)),)
+    assert abs(c.min_area_frac - 0.02) < 1e-12

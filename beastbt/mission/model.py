@@ -32,7 +32,7 @@ HOME = "home"
 STEP_KEYWORDS = (
     "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
-    "wait_until", "until", "abort_if", "ask", "photo", "alert", "dock", "undock",
+    "wait_until", "until", "abort_if", "ask", "photo", "alert", "dock", "undock", "track",
 )
 
 
@@ -396,6 +396,12 @@ class _SemanticChecker:
             self.check_condition(v, p)
             if "timeout" in self.get(s.path):
                 self.positive(s.path + ("timeout",), "duration")
+        elif s.kind == "track" and isinstance(v, dict):
+            from beastbt.mission.vision_steps import check_sees
+            for where, message, hint in check_sees({"colour": v.get("colour")}):
+                self.error(p + where, message, hint)
+            if "for" in v:
+                self.positive(p + ("for",), "duration")
         elif s.kind in ("dock", "undock") and isinstance(v, dict):
             for k in ("distance", "size", "speed"):
                 if k in v:
@@ -674,7 +680,7 @@ class _StepReader:
             return st.AbortIf(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
         if k == "wait_until":
             return st.WaitUntil(condition=condition_of(v), timeout_s=opt("timeout", "duration", raw), **where)
-        if k in ("photo", "alert", "dock", "undock"):
+        if k in ("photo", "alert", "dock", "undock", "track"):
             from beastbt.mission.vision_steps import vision_step
             return vision_step(k, v, where)
         raise ValueError(f"no typed step for '{k}'")

@@ -256,6 +256,15 @@ class Undock(Step):
     distance_m: float
 
 
+@dataclass(kw_only=True, eq=False, repr=False)
+class Track(Step):
+    """``track: {colour: red, for: 30 s}``: turn to keep the largest blob of a colour centred, for a time."""
+
+    KEYWORD: ClassVar[str] = "track"
+    colour: Any
+    duration_s: float
+
+
 # -- conditions --------------------------------------------------------------------------------------------
 
 @dataclass(kw_only=True, eq=False, repr=False)
@@ -495,7 +504,7 @@ class PluginStep(Step):
 CORE_STEP_CLASSES: tuple[type[Step], ...] = (
     DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
     Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
-    WaitUntil, UntilBlock, AbortIf, Ask, Photo, Alert, Dock, Undock,
+    WaitUntil, UntilBlock, AbortIf, Ask, Photo, Alert, Dock, Undock, Track,
 )
 """Every step class of the language (not PluginStep)."""
 

@@ -1,5 +1,5 @@
-"""The camera's words of the mission language, read into typed values: ``photo``, ``alert``, ``dock``, ``undock`` and
-the ``{sees: ...}`` condition.
+"""The camera's words of the mission language, read into typed values: ``photo``, ``alert``, ``dock``, ``undock``,
+``track`` and the ``{sees: ...}`` condition.
 
 The schema has already checked their shape; here they become the dataclasses of
 :mod:`beastbt.mission.steps` (SI units), and :func:`check_sees` adds what the schema
@@ -24,7 +24,8 @@ MIN_AREA_DEFAULT = "1 %"
 
 
 def vision_step(kind: str, v: Any, where: dict) -> st.Step:
-    """The typed step of a checked ``photo``, ``alert``, ``dock`` or ``undock`` (``where``: its ``at`` and ``path``)."""
+    """The typed step of a checked ``photo``, ``alert``, ``dock``, ``undock`` or ``track`` (``where``: its ``at`` and
+    ``path``)."""
     if kind == "photo":
         name = v.get("name") if isinstance(v, dict) else None
         return st.Photo(name=None if name is None else str(name), **where)
@@ -38,8 +39,18 @@ def vision_step(kind: str, v: Any, where: dict) -> st.Step:
                        size_m=parse_quantity(v.get("size", DOCK_DEFAULTS["size"]), "distance"),
                        family=str(v.get("family", DOCK_DEFAULTS["family"])),
                        speed_mps=None if speed is None else parse_quantity(speed, "speed"), **where)
+    if kind == "track":
+        return st.Track(colour=colour_of(v["colour"]), duration_s=parse_quantity(v["for"], "duration"), **where)
     distance = v.get("distance", UNDOCK_DISTANCE) if isinstance(v, dict) else UNDOCK_DISTANCE
     return st.Undock(distance_m=parse_quantity(distance, "distance"), **where)
+
+
+def colour_of(raw: Any) -> Any:
+    """A checked colour as a typed value keeps it (hashable): a name, or the HSV box's two corners as tuples."""
+    if isinstance(raw, dict):
+        lo, hi = raw["hsv"]
+        return (tuple(int(x) for x in lo), tuple(int(x) for x in hi))
+    return str(raw)
 
 
 def sees_of(raw: Any) -> st.Sees:
@@ -52,7 +63,7 @@ def sees_of(raw: Any) -> st.Sees:
                        within_m=None if within is None else parse_quantity(within, "distance"))
     if "qr" in raw:
         return st.Sees(what="qr", text=str(raw["qr"]))
-    return st.Sees(what="colour", colour=raw["colour"],
+    return st.Sees(what="colour", colour=colour_of(raw["colour"]),
                    min_area_frac=parse_quantity(raw.get("min_area", MIN_AREA_DEFAULT), "fraction"))
 
 

@@ -1,8 +1,9 @@
-"""What a mission asks the camera: ``{sees: ...}``, ``photo``, ``alert``, ``dock`` and ``undock``.
+"""What a mission asks the camera: ``{sees: ...}``, ``photo``, ``alert``, ``dock``, ``undock`` and ``track``.
 
 * Steps: ``photo`` (:class:`~beastbt.behaviours.photo.TakePhoto`), ``alert``
   (:class:`~beastbt.behaviours.photo.RaiseAlert`), ``dock`` and ``undock``
-  (:mod:`beastbt.behaviours.dock`); on a robot without a camera ``photo`` and ``dock`` fail
+  (:mod:`beastbt.behaviours.dock`), ``track`` (:mod:`beastbt.behaviours.track`); on a robot without a
+  camera ``photo``, ``dock`` and ``track`` fail
   saying so, and an alert goes without its photo.
 * When the run is assembled, and only for a mission that uses these words: the detectors
   (:class:`~beastbt.vision.watch.VisionWatch`, ``ctx.services.vision``) and the camera switched on
@@ -28,9 +29,9 @@ from beastbt.core.units import format_quantity
 from beastbt.robot.part import Part
 from beastbt.run.session import Prepared
 
-VISION_STEPS = frozenset({"photo", "alert", "dock", "undock"})
+VISION_STEPS = frozenset({"photo", "alert", "dock", "undock", "track"})
 """Step keywords of this part."""
-CAMERA_WORDS = frozenset({"photo", "alert", "dock"})
+CAMERA_WORDS = frozenset({"photo", "alert", "dock", "track"})
 """Steps that need the camera's frames (an alert only with ``photo: true``; ``undock`` never)."""
 NOT_STEPS = frozenset({"say", "description", "mission", "places", "world"})
 """Mission keys whose text is never a step or a condition."""
@@ -58,6 +59,16 @@ def _dock(c: Compiler, s: st.Dock) -> py_trees.behaviour.Behaviour:
         return NotAvailable(name, c.ctx, "dock needs a camera to see the tag, and this robot has none")
     from beastbt.behaviours.dock import Dock
     return Dock(name, c.ctx, s.tag, s.family, s.size_m, s.distance_m, s.speed_mps)
+
+
+def _track(c: Compiler, s: st.Track) -> py_trees.behaviour.Behaviour:
+    from beastbt.vision.colour import ColourRange
+    colour = ColourRange.parse(s.colour)
+    name = f"track {colour.name} for {format_quantity(s.duration_s, 'duration')}"
+    if "camera" not in c.ctx.capabilities:
+        return NotAvailable(name, c.ctx, "track needs a camera, and this robot has none")
+    from beastbt.behaviours.track import TrackColour
+    return TrackColour(name, c.ctx, colour, s.duration_s)
 
 
 def _undock(c: Compiler, s: st.Undock) -> py_trees.behaviour.Behaviour:
@@ -162,8 +173,9 @@ class VisionPart(Part):
     name = "vision"
 
     def steps(self) -> Mapping[str, StepBuilder]:
-        """photo, alert, dock, undock."""
-        return {"photo": _photo, "alert": _alert, "dock": _dock, "undock": _undock}  # type: ignore[dict-item]
+        """photo, alert, dock, undock, track."""
+        return {"photo": _photo, "alert": _alert, "dock": _dock, "undock": _undock,  # type: ignore[dict-item]
+                "track": _track}
 
     def install(self, prepared: Prepared) -> None:
         """The detectors and the camera on, when the mission uses them."""

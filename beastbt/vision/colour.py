@@ -38,12 +38,15 @@ class ColourRange:
 
     @classmethod
     def parse(cls, value: Any) -> "ColourRange":
-        """A named colour or ``{hsv: [[h, s, v], [h, s, v]]}``; ``ValueError`` says what is wrong."""
+        """A named colour, ``{hsv: [[h, s, v], [h, s, v]]}`` or the two corners as a tuple; ``ValueError`` says what
+        is wrong."""
         if isinstance(value, str):
             if value not in NAMED_COLOURS:
                 raise ValueError(f"unknown colour {value!r}: one of {', '.join(NAMED_COLOURS)} or {{hsv: [[h, s, v], "
                                  "[h, s, v]]}")
             return cls(value, NAMED_COLOURS[value])
+        if isinstance(value, tuple) and len(value) == 2:  # the two corners alone, as a mission's typed value keeps them
+            value = {"hsv": value}
         if isinstance(value, dict) and "hsv" in value:
             lo, hi = value["hsv"]
             lo = tuple(int(x) for x in lo)
