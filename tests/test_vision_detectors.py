@@ -139,3 +139,28 @@ def test_colour_by_hsv_box_and_its_errors():
         ColourRange.parse("purple")
     with pytest.raises(ValueError, match="hue 0-179"):
         ColourRange.parse({"hsv": [[200, 0, 0], [210, 255, 255]]})
+
+
+def test_qr_reads_on_a_worker_thread_do_not_hold_the_caller():
+    import time as _time
+    from beastbt.blackboard.types import CameraFrame
+    from beastbt.vision.watch import VisionRates, VisionWatch
+    rng = np.random.default_rng(0)
+    board = {"text": "door-3", "size_m": 0.2, "x": 0.5, "y": 0.0, "z_m": 0.2, "facing_deg": 180}
+    frame = CameraFrame(0.0, scene(rng, qr_boards=[board]), 1)
+    now = [0.0]
+    watch = VisionWatch(lambda: CameraFrame(now[0], frame.image, int(now[0] * 10) + 1), CAMERA,
+                        rates=VisionRates(qr_hz=100.0), background_qr=True)
+    try:
+        assert watch.qr_codes(0.0) is None  # the first read is under way: no answer yet (unknown)
+        texts = None
+        for i in range(1, 200):
+            now[0] = i * 0.1
+            got = watch.qr_codes(now[0])
+            if got:
+                texts = [q.text for q in got]
+                break
+            _time.sleep(0.01)  # the test waits for the worker; the watch itself never does
+        assert texts == ["door-3"]
+    finally:
+        watch.close()

@@ -129,7 +129,11 @@ def install_vision_watch(prepared: Prepared) -> None:
         return None if got is None else got[0]
 
     watch = VisionWatch(latest, pipeline.geometry, _gimbal_reader())
+    # On the robot the frames come from a thread and the clock is the wall's: a QR read (tens of ms) goes to a
+    # worker thread; the simulator reads in lockstep, so that a seed gives the same run.
+    watch.background_qr = bool(pipeline.threaded)
     run.ctx.services.vision = watch
+    prepared.closers.append(watch.close)
     pipeline.enable("vision", max_rate_hz=watch.rates.frame_rate_hz, lines=False)
     sim = run.io.sim
     if sim is not None and prepared.world is not None:

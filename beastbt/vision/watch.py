@@ -78,6 +78,8 @@ class VisionWatch:
     log: PhotoLog = field(default_factory=PhotoLog)
     docks: list[dict[str, Any]] = field(default_factory=list)
     """Each dock step's end: tag, status, retries, estimated ``error_m``/``error_deg`` (and ``truth`` in the sim)."""
+    background_qr: bool = False
+    """Read QR codes on a worker thread (the robot) instead of the calling one (the simulator, in lockstep)."""
     on_dock: Optional[Callable[[dict[str, Any]], None]] = None
     """Told each dock entry as it is made (the simulator adds the true pose error)."""
     runs: dict[str, int] = field(default_factory=dict)
@@ -91,6 +93,9 @@ class VisionWatch:
         self._kept: dict[str, _Kept] = {}
         self._motion_seen_s = float("-inf")
         self._motion_gimbal: Optional[tuple[float, float]] = None
+        self._qr_pool: Any = None
+        self._qr_pending: Any = None
+        self._qr_last: Optional[list[QrDetection]] = None
 
     # -- frames -----------------------------------------------------------------------
     def frame(self, now_s: float) -> Optional[CameraFrame]:
@@ -142,7 +147,11 @@ class VisionWatch:
         return None
 
     def qr_codes(self, now_s: float) -> Optional[list[QrDetection]]:
-        """The QR codes read in the newest frame (at most ``rates.qr_hz`` reads a second); None without a frame."""
+        """The QR codes read in the newest frame (at most ``rates.qr_hz`` reads a second); None without a frame.
+
+        With ``background_qr`` (the robot: its frames come from a thread too) the reader runs on a worker
+        thread of its own, since a read takes tens of milliseconds that the tick loop cannot spare: this
+        returns the newest finished read (None before the first), at most one read in flight."""
         frame = self.frame(now_s)
         if frame is None:
             return None
@@ -151,7 +160,25 @@ class VisionWatch:
             return kept.value
         if self._qr is None:
             self._qr = QrReader()
-        return self._keep("qr", frame, now_s, self._qr.read(frame.image))
+        if not self.background_qr:
+            return self._keep("qr", frame, now_s, self._qr.read(frame.image))
+        if self._qr_pending is not None and self._qr_pending.done():
+            self._qr_last = self._qr_pending.result()
+            self._qr_pending = None
+        if self._qr_pending is None:
+            if self._qr_pool is None:
+                from concurrent.futures import ThreadPoolExecutor
+                self._qr_pool = ThreadPoolExecutor(1, thread_name_prefix="beastbt-qr")
+            self._qr_pending = self._qr_pool.submit(self._qr.read, frame.image)
+            self._kept["qr"] = _Kept(frame.seq, now_s, self._qr_last)
+            self.runs["qr"] = self.runs.get("qr", 0) + 1
+        return self._qr_last
+
+    def close(self) -> None:
+        """Stop the QR reader's worker thread, if one was started."""
+        if self._qr_pool is not None:
+            self._qr_pool.shutdown(wait=False, cancel_futures=True)
+            self._qr_pool = None
 
     def motion(self, now_s: float, still: bool) -> Optional[MotionResult]:
         """Motion in the newest frame while the robot is ``still`` (its base and its gimbal); None without a frame.
