@@ -111,6 +111,7 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("map_building", "beastbt.parts.map_building:MapBuildingPart",
               lambda profile, options: options.build_map is not None),
     PartEntry("line_following", "beastbt.parts.line_following:LineFollowingPart", _always),
+    PartEntry("vision", "beastbt.parts.vision:VisionPart", _always),
     PartEntry("teleop", "beastbt.parts.teleop:TeleopPart", _always),
     PartEntry("map_localisation", "beastbt.parts.map_localisation:MapLocalisationPart", _always,
               for_mission=lambda mission: mission.map_file is not None),

@@ -115,6 +115,9 @@ class RunServices:
     """Pose and arrival errors against the simulator's truth (``beastbt.parts.nav_summary.NavTruth``)."""
     video_stream: Optional[Any] = None
     """The live video server (``beastbt.live.video_stream.VideoStreamServer``) with ``--stream``."""
+    vision: Optional[Any] = None
+    """On a robot with a camera, for a mission that looks: the detectors (:class:`~beastbt.vision.watch.VisionWatch`)
+    behind ``sees``, ``photo``, ``alert`` and ``dock``; set by the vision part."""
     on_failure: dict[str, FailureHandler] = field(default_factory=dict)
     """``on_failure`` actions beyond stop and hold that parts provide: action -> handler (teleop, return_home)."""
     failsafe: dict[str, FailsafeHandler] = field(default_factory=dict)

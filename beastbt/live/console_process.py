@@ -128,7 +128,7 @@ def _viewer_camera(spec: Optional[dict]) -> Optional[Any]:
     SIM_CPU.open_from_environment()  # rendering the viewer's picture is the simulator's work (benchmarks)
     floor = build_floor(spec["floor"] if spec["floor"] is not None else PLAIN_FLOOR, spec["floor_seed"])
     return SimCamera(floor, spec["geometry"], np.random.default_rng(spec["floor_seed"] + 1), spec["effects"],
-                     spec.get("scenery"))
+                     spec.get("scenery"), markers=spec.get("markers") or ())
 
 
 def serve(inbox: Connection, outbox: Connection) -> int:

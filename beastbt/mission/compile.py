@@ -98,6 +98,10 @@ class Compiler:
 
     def _step(self, s: st.Step) -> Behaviour:
         kind = st.keyword_of(s)
+        if kind == "route":
+            from beastbt.mission.route_tasks import needs_tasks, route_with_tasks
+            if needs_tasks(s):  # tasks at each place, or going on after a failure: one go_to per place
+                return route_with_tasks(self, s)  # type: ignore[arg-type]
         builder = self.builders.get(kind)
         if builder is None and kind in self.mission.external_steps:
             builder = self.mission.external_steps[kind].build
@@ -186,6 +190,8 @@ class Compiler:
                              lambda rd: block.elapsed_s() >= seconds, r)
         if isinstance(c, st.ObstacleWithin):
             return self.obstacle_condition(c)
+        if isinstance(c, st.Sees):
+            return self.sees_condition(c)
         if isinstance(c, st.Not):
             inner = self.condition(c.condition)
             return Condition(f"not {inner}", not_of(inner.test), r)
@@ -193,6 +199,16 @@ class Compiler:
         if isinstance(c, st.AllOf):
             return Condition("all of (" + ", ".join(map(str, parts)) + ")", all_of([p.test for p in parts]), r)
         return Condition("any of (" + ", ".join(map(str, parts)) + ")", any_of([p.test for p in parts]), r)
+
+    def sees_condition(self, c: st.Sees) -> Condition:
+        """``{sees: ...}``: on the camera's newest frame; :class:`ConditionUnavailable` on a robot without a camera."""
+        from beastbt.behaviours.sees import sees_condition, sees_text
+        if "camera" not in self.ctx.capabilities:
+            raise ConditionUnavailable(sees_text(c), "'sees' needs a camera, and this robot has none "
+                                                     "(no camera: section in its profile)")
+        if c.what == "motion":
+            self.ctx.condition_reads.add("pose_odom")
+        return sees_condition(c, self.reader)
 
     def obstacle_condition(self, c: st.ObstacleWithin) -> Condition:
         """``obstacle_within``: on the latest LiDAR scan; :class:`ConditionUnavailable` on a robot without a LiDAR."""
@@ -271,6 +287,8 @@ def _snapshot(c: Compiler, s: st.Snapshot) -> Behaviour:
 NEEDS_A_PART: Mapping[str, str] = MappingProxyType({
     "go_to": "GPS navigation", "route": "GPS navigation", "return_home": "GPS navigation",
     "follow_line": "a camera and the line follower", "teleop": "a joystick",
+    "photo": "a camera", "alert": "the camera's part", "dock": "a camera", "undock": "a drive base",
+    "track": "a camera",
 })
 """Steps of the language that a part provides, and what a robot without that part lacks."""
 

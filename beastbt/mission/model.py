@@ -33,7 +33,7 @@ HOME = "home"
 STEP_KEYWORDS = (
     "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
-    "wait_until", "until", "abort_if", "ask",
+    "wait_until", "until", "abort_if", "ask", "photo", "alert", "dock", "undock", "track",
 )
 
 
@@ -349,6 +349,8 @@ class _SemanticChecker:
                                    "write 'go_to: gate' or 'go_to: {lat: 40.4168, lon: -3.7038}'")
                 for j, name in enumerate(v.get("places", [])):
                     self.place_ref(p + ("places", j), name)
+                if s.kind == "route" and "at_each" in v:
+                    self.walk_steps(v["at_each"], p + ("at_each",))
         elif s.kind == "follow_line":
             for k in ("speed", "lost_after"):
                 if k in v:
@@ -400,6 +402,16 @@ class _SemanticChecker:
             self.check_condition(v, p)
             if "timeout" in self.get(s.path):
                 self.positive(s.path + ("timeout",), "duration")
+        elif s.kind == "track" and isinstance(v, dict):
+            from beastbt.mission.vision_steps import check_sees
+            for where, message, hint in check_sees({"colour": v.get("colour")}):
+                self.error(p + where, message, hint)
+            if "for" in v:
+                self.positive(p + ("for",), "duration")
+        elif s.kind in ("dock", "undock") and isinstance(v, dict):
+            for k in ("distance", "size", "speed"):
+                if k in v:
+                    self.positive(p + (k,), self.POSITIVE.get(k, "distance"))
 
     def fence_ref(self, path: PathKey, name: Any) -> None:
         fences = self.data.get("fences") or {}
@@ -425,6 +437,10 @@ class _SemanticChecker:
             if "obstacle_within" in c:
                 self.positive(path + ("obstacle_within",), "distance")
                 self.check_sector(c.get("sector_deg"), path + ("sector_deg",))
+            if "sees" in c:
+                from beastbt.mission.vision_steps import check_sees
+                for where, message, hint in check_sees(c["sees"]):
+                    self.error(path + ("sees",) + where, message, hint)
             if "not" in c:
                 self.check_condition(c["not"], path + ("not",))
             for key in ("all", "any"):
@@ -616,7 +632,8 @@ class _StepReader:
         if k == "route":
             loops = v.get("loops", mission_default("/$defs/step/anyOf/6/properties/route/properties", "loops"))
             return st.Route(places=tuple(v["places"]), loops=parse_count(loops), resume=v.get("resume", "current"),
-                            **nav(v), **where)
+                            at_each=self.steps(v.get("at_each") or [], path + ("route", "at_each")),
+                            stop_on_failure=bool(v.get("stop_on_failure", True)), **nav(v), **where)
         if k == "return_home":
             along = v.get("along", "straight") if isinstance(v, dict) else "straight"
             return st.ReturnHome(along=along, **nav(v), **where)
@@ -677,6 +694,9 @@ class _StepReader:
             return st.AbortIf(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
         if k == "wait_until":
             return st.WaitUntil(condition=condition_of(v), timeout_s=opt("timeout", "duration", raw), **where)
+        if k in ("photo", "alert", "dock", "undock", "track"):
+            from beastbt.mission.vision_steps import vision_step
+            return vision_step(k, v, where)
         raise ValueError(f"no typed step for '{k}'")
 
 
@@ -716,6 +736,9 @@ def condition_of(raw: Any) -> st.Condition:
         sector = raw.get("sector_deg")
         ends = None if sector is None else (sector_angle(sector[0]), sector_angle(sector[1]))
         return st.ObstacleWithin(gap_m=parse_quantity(raw["obstacle_within"], "distance"), sector_rad=ends)
+    if "sees" in raw:
+        from beastbt.mission.vision_steps import sees_of
+        return sees_of(raw["sees"])
     if "not" in raw:
         return st.Not(condition=condition_of(raw["not"]))
     if "all" in raw:

@@ -133,6 +133,10 @@ class Route(Step, NavOptions):
     loops: int = 1
     resume: str = "current"
     """After a pause: ``current`` place, or the ``nearest`` remaining one."""
+    at_each: tuple["Step", ...] = ()
+    """Steps run at each place once reached (``at_each``); a bare ``photo`` is named after the place."""
+    stop_on_failure: bool = True
+    """False: a place that fails is noted and the route goes on (``stop_on_failure: false``)."""
 
 
 @dataclass(kw_only=True, eq=False, repr=False)
@@ -214,6 +218,54 @@ class Teleop(Step):
     KEYWORD: ClassVar[str] = "teleop"
     duration_s: Optional[float] = None
     """None: until the operator releases the enable button."""
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
+class Photo(Step):
+    """``photo: {name: gate}`` (or ``photo``): save the camera's frame at full resolution; ``name`` None: named after
+    where it was taken."""
+
+    KEYWORD: ClassVar[str] = "photo"
+    name: Optional[str] = None
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
+class Alert(Step):
+    """``alert: "someone in the lab"`` (``{text, photo: true}``): an event of kind alert, with a photo when asked."""
+
+    KEYWORD: ClassVar[str] = "alert"
+    text: str
+    photo: bool = False
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
+class Dock(Step):
+    """``dock: {tag: 0, distance: 0.25 m}``: staging pose 1 m in front of the tag, a visual approach to ``distance_m``
+    (robot centre to the tag's face), square to it. ``size_m``: the tag's black square (m)."""
+
+    KEYWORD: ClassVar[str] = "dock"
+    tag: int
+    distance_m: float
+    size_m: float
+    family: str
+    speed_mps: Optional[float] = None
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
+class Undock(Step):
+    """``undock`` (``{distance: 0.5 m}``): back straight off the dock."""
+
+    KEYWORD: ClassVar[str] = "undock"
+    distance_m: float
+
+
+@dataclass(kw_only=True, eq=False, repr=False)
+class Track(Step):
+    """``track: {colour: red, for: 30 s}``: turn to keep the largest blob of a colour centred, for a time."""
+
+    KEYWORD: ClassVar[str] = "track"
+    colour: Any
+    duration_s: float
 
 
 # -- conditions --------------------------------------------------------------------------------------------
@@ -308,8 +360,23 @@ class ObstacleWithin(Value):
     sector_rad: Optional[tuple[float, float]] = None
 
 
+@dataclass(kw_only=True, eq=False, repr=False)
+class Sees(Value):
+    """``{sees: ...}``: the camera sees ``what`` now: ``tag`` (``tag_id`` of ``family``, within ``within_m`` when
+    given), ``qr`` (``text``), ``motion``, or ``colour`` (``colour`` as written, at least ``min_area_frac`` of the
+    picture)."""
+
+    what: str
+    tag_id: Optional[int] = None
+    family: Optional[str] = None
+    within_m: Optional[float] = None
+    text: Optional[str] = None
+    colour: Any = None
+    min_area_frac: float = 0.01
+
+
 Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered,
-                  InFence, ObstacleWithin]
+                  InFence, ObstacleWithin, Sees]
 """A condition of ``if``, ``while``, ``wait_until``, ``until`` and ``abort_if``."""
 
 
@@ -440,7 +507,7 @@ class PluginStep(Step):
 CORE_STEP_CLASSES: tuple[type[Step], ...] = (
     DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
     Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
-    WaitUntil, UntilBlock, AbortIf, Ask,
+    WaitUntil, UntilBlock, AbortIf, Ask, Photo, Alert, Dock, Undock, Track,
 )
 """Every step class of the language (not PluginStep)."""
 
@@ -452,4 +519,4 @@ def keyword_of(step: Step) -> str:
 
 __all__ = [c.__name__ for c in CORE_STEP_CLASSES] + [
     "Value", "Step", "NavOptions", "PluginStep", "Condition", "Flag", "BatteryBelow", "Near", "Elapsed", "Not", "AllOf",
-    "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "InFence", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]
+    "AnyOf", "DistanceTravelled", "TimeInBlock", "Answered", "InFence", "Sees", "CORE_STEP_CLASSES", "FOREVER", "keyword_of"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import json
 from functools import lru_cache
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -144,11 +144,12 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
         return floor_holder[0]
 
     scenery = Scenery.of_world(world.walls, world.obstacles, raw_floor is not None, floor_seed)
+    markers = world_markers(world)
 
     def make_camera() -> Camera:
         # Built when first used: its floor and ground textures are the simulator's work (cpu_account).
         sim_camera = SIM_CPU.call(CAMERA, lambda: SimCamera(floor_map(), pipeline.geometry, camera_rng, effects,
-                                                            scenery, lambda: persons_xy(sim)))
+                                                            scenery, lambda: persons_xy(sim), markers))
         sim_camera.update(sim.truth)  # the live truth: the camera follows the robot and its gimbal
         io.sim_camera = sim_camera
         if config.format == "mjpeg":  # a fake USB camera: the rendered frames come as its own JPEG
@@ -171,8 +172,26 @@ def attach_sim_camera(sim: Simulator, profile: RobotProfile, io: RobotIO, events
     io.floor_map = floor_map
     # What a live viewer's process needs to build a camera of its own on the same mounting and floor.
     io.viewer_camera = {"floor": raw_floor, "floor_seed": floor_seed, "geometry": pipeline.geometry,
-                        "effects": effects, "scenery": scenery}
+                        "effects": effects, "scenery": scenery, "markers": markers}
     io.closers.append(pipeline.close)
+
+
+def world_markers(world: Any) -> list:
+    """The world's ``tags:`` and ``qr_boards:`` as :class:`~beastbt.sim.markers.PlanarMarker` (none: ``[]``); a tag
+    its family does not have is an error at ``tags``, before anything moves."""
+    tags, boards = world.data.get("tags"), world.data.get("qr_boards")
+    if not tags and not boards:
+        return []
+    from beastbt.sim.markers import marker_schema_problem, markers_of_world
+    why = marker_schema_problem(tags)
+    if why is not None and world.doc is not None:
+        raise InvalidInput([world.doc.problem(("tags", why[0], "id"), f"tags: {why[1]}",
+                                              "use an id the family has, or a family with more ids "
+                                              "(apriltag_36h11 has 587)")])
+    try:
+        return markers_of_world(tags, boards)
+    except ValueError as exc:
+        raise world_problem(world, "tags", exc) from None
 
 
 def persons_xy(sim: Simulator) -> Optional[list[tuple[float, float]]]:

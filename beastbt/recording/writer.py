@@ -683,6 +683,11 @@ class RunFileWriter:
             data = Path(path).read_bytes()
             self._writer.add_attachment(create_time=0, log_time=self._ns(stamp_s), name=Path(path).name,
                                         media_type="image/jpeg", data=data)
+            # and as a message, so that Foxglove shows the photos on their own channel at their time
+            self._emit("/camera/photo", self._ns(stamp_s), {"timestamp": fox_time(self._ns(stamp_s)),
+                                                            "frame_id": self.frames.camera_optical,
+                                                            "data": base64.b64encode(data).decode("ascii"),
+                                                            "format": "jpeg"})
         elif kind == "scene":
             _, now_s, description = item
             t = self._ns(now_s)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, Sequence
 
 import cv2
 import numpy as np
@@ -30,6 +30,7 @@ from beastbt.core.schema_defaults import schema_defaults
 from beastbt.core.config import dataclass_from_dict
 from beastbt.sim.cpu_account import CAMERA, SIM_CPU
 from beastbt.sim.floor import FloorMap
+from beastbt.sim.markers import MarkerPainter, PlanarMarker
 from beastbt.sim.scenery import FINE_GROUND_M, Scenery, SceneryRenderer, ground_canvas, ground_world_from_canvas
 from beastbt.sim.truth import RobotTruth
 from beastbt.vision.camera_model import CameraGeometry
@@ -92,13 +93,15 @@ class SimCamera:
     ``pan_rad``/``tilt_rad`` turn the camera further (pan left, tilt up).
     Frames are BGR uint8 ``(height_px, width_px, 3)``. ``scenery`` adds the
     ground, sky, walls and obstacles; ``persons_xy`` says where the scenery's
-    persons are now ((N, 2) m, world frame), read at each frame.
+    persons are now ((N, 2) m, world frame), read at each frame. ``markers``: the world's tags and QR
+    boards (:mod:`beastbt.sim.markers`), drawn over the scenery.
     """
 
     def __init__(self, floor: FloorMap, geometry: CameraGeometry, rng: np.random.Generator,
                  effects: Optional[CameraEffects] = None, scenery: Optional[Scenery] = None,
-                 persons_xy: Optional[Callable[[], Any]] = None) -> None:
+                 persons_xy: Optional[Callable[[], Any]] = None, markers: Sequence[PlanarMarker] = ()) -> None:
         self.floor = floor
+        self._markers = MarkerPainter(markers) if markers else None
         self.scenery = scenery if scenery is not None and not scenery.empty else None
         self.persons_xy = persons_xy
         self._painter = SceneryRenderer(self.scenery) if self.scenery is not None else None
@@ -235,6 +238,8 @@ class SimCamera:
             )
         if self._painter is not None:
             self._painter.draw_solids(out, geom, x_m, y_m, yaw_rad, persons_xy)
+        if self._markers is not None:
+            self._markers.draw(out, geom, x_m, y_m, yaw_rad)
         img = out
         e = self.effects
         if e.exposure_s > 0:

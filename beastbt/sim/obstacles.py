@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from functools import cached_property
 import threading
 import time
-from typing import Any, Callable, Iterable, Union
+from typing import Any, Callable, Iterable, Optional, Union
 
 from beastbt.core.schema_defaults import schema_default
 
@@ -52,6 +52,8 @@ class BoxObstacle:
     length_m: float
     width_m: float
     yaw: float = 0.0
+    colour: Optional[str] = None
+    """Its paint as the camera sees it (``red``, ``green``, ``blue``, ``yellow``); None: brown cardboard."""
 
     def corners(self) -> list[tuple[float, float]]:
         """The four corners in the world frame (m), counter-clockwise."""
@@ -218,7 +220,8 @@ def obstacle_of(d: dict) -> Obstacle:
     shape = d["shape"]
     if shape == "box":
         length, width = (float(v) for v in d["size_m"])
-        return BoxObstacle(float(d["x"]), float(d["y"]), length, width, math.radians(float(d.get("yaw_deg", _default("box", "yaw_deg")))))
+        return BoxObstacle(float(d["x"]), float(d["y"]), length, width, math.radians(float(d.get("yaw_deg", _default("box", "yaw_deg")))),
+                           d.get("colour"))
     if shape == "cylinder":
         return CylinderObstacle(float(d["x"]), float(d["y"]), float(d["radius_m"]))
     if shape == "person":

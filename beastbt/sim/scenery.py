@@ -83,6 +83,8 @@ WALL_BGR = (196, 212, 222)
 # The skirting is 40 % darker than the floor tiles: a clear foot, short of what the line detector takes for tape (60 %).
 SKIRTING_BGR = (100, 112, 126)
 BOX_BGR = (60, 105, 150)
+PAINT_BGR = {"red": (40, 40, 200), "green": (60, 160, 50), "blue": (190, 90, 30), "yellow": (40, 200, 220)}
+"""A painted box's colours (``colour:`` of a world's box), saturated enough for the colour finder under shading."""
 CYLINDER_BGR = (125, 125, 130)
 LEGS_BGR = (110, 72, 48)
 SHIRT_BGR = (60, 60, 185)
@@ -294,9 +296,10 @@ class SceneryRenderer:
         for o in scenery.obstacles:
             if isinstance(o, BoxObstacle):
                 # corners() run counter-clockwise, as _prism wants them
-                parts.append(_prism(np.array(o.corners()), 0.0, BOX_HEIGHT_M, BOX_BGR))
+                paint = PAINT_BGR.get(o.colour, BOX_BGR) if o.colour else BOX_BGR
+                parts.append(_prism(np.array(o.corners()), 0.0, BOX_HEIGHT_M, paint))
                 top = np.array([[*c, BOX_HEIGHT_M] for c in o.corners()], float)[None]
-                parts.append(_Faces(top, np.array([[0.0, 0.0, 1.0]]), np.array([BOX_BGR], float) * 1.1,
+                parts.append(_Faces(top, np.array([[0.0, 0.0, 1.0]]), np.array([paint], float) * 1.1,
                                     np.zeros(1, bool)))
             elif isinstance(o, CylinderObstacle):
                 parts.append(_prism(np.array([o.x, o.y]) + o.radius_m * _ring(), 0.0, CYLINDER_HEIGHT_M, CYLINDER_BGR))

@@ -1,0 +1,171 @@
+"""The camera's words on the simulator: ``{sees: ...}`` in conditions, ``photo``, ``alert``; and their errors."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import jsonschema
+import pytest
+
+from beastbt.core.errors import InvalidInput
+from beastbt.core.schema_check import load_schema
+from beastbt.mission.model import load_mission
+from beastbt.testing import MissionHarness
+
+ROOT = Path(__file__).resolve().parents[1]
+ROOM = """world: room
+gps: {sky: none}
+start: {x: 1.0, y: 0.0, yaw_deg: 0}
+walls:
+  - [0.0, -3.0, 6.0, -3.0]
+  - [0.0, 3.0, 6.0, 3.0]
+  - [0.0, -3.0, 0.0, 3.0]
+  - [6.0, -3.0, 6.0, 3.0]
+"""
+LEVEL = "  - look: {tilt: 40 deg}          # the camera level: it looks at the room, not the floor\n"
+
+
+def room(tmp_path: Path, extra: str = "") -> str:
+    path = tmp_path / "room.yaml"
+    path.write_text(ROOM + extra, encoding="utf-8")
+    return str(path)
+
+
+def run(world: str, steps: str, seed: int = 1, **options) -> MissionHarness:
+    return MissionHarness.from_yaml("mission: t\nsteps:\n" + LEVEL + steps, world=world, seed=seed, **options)
+
+
+def test_sees_motion_fires_within_a_second_of_a_person_walking_into_view(tmp_path):
+    world = room(tmp_path, "obstacles:\n  - {shape: person, radius_m: 0.25, speed_mps: 0.8, "
+                           "path: [[4.0, -2.8], [4.0, 2.8]], start_s: 8}\n")
+    h = run(world, "  - wait_until: {sees: motion}\n    timeout: 30 s\n")
+    contact = h.run.io.sim.drive.contact
+    entered = None
+    cam_x = 1.0 + 0.1
+    half_fov = math.radians(62.2 / 2)
+    while not h.done and h.now_s < 40:
+        h.tick()
+        x, y = contact.person_xy[0]
+        # the person's near edge inside the picture's edge
+        if entered is None and abs(math.atan2(y, x - cam_x)) < half_fov + math.atan2(0.25, x - cam_x):
+            entered = h.now_s
+    assert h.result == "success"
+    fired = next(e.time_s for e in h.events if e.kind == "mission_end")
+    assert entered is not None and entered > 8.0
+    assert 0.0 <= fired - entered <= 1.0, (entered, fired)
+
+
+def test_no_motion_in_an_empty_room_and_none_while_turning(tmp_path):
+    world = room(tmp_path)
+    h = run(world, "  - parallel:\n      succeed_on: any\n      steps:\n"
+                   "        - wait_until: {sees: motion}\n        - turn: {angle: 180 deg}\n"
+                   "  - wait_until: {sees: motion}\n    timeout: 6 s\n")
+    assert h.run_to_end(60) == "failure"
+    # the turn ran to its end (motion while turning would have ended the parallel block half way round)
+    assert abs(math.degrees(math.remainder(h.truth.yaw - math.pi, 2 * math.pi))) < 5.0
+    failed = [e.text for e in h.events if e.kind == "step_failed"]
+    assert len(failed) == 1 and "sees motion" in failed[0]  # then, standing still, an empty room: no motion
+
+
+def test_sees_a_qr_board_and_not_another_text(tmp_path):
+    world = room(tmp_path, "qr_boards:\n  - {text: door-3, size_m: 0.25, x: 1.7, y: 0.0, z_m: 0.2, "
+                           "facing_deg: 180}\n")
+    h = run(world, "  - wait_until: {sees: {qr: \"door-3\"}}\n    timeout: 3 s\n"
+                   "  - wait_until: {sees: {qr: \"door-4\"}}\n    timeout: 3 s\n")
+    assert h.run_to_end(30) == "failure"
+    failed = [e.text for e in h.events if e.kind == "step_failed"]
+    assert len(failed) == 1 and "door-4" in failed[0]
+
+
+def test_sees_a_red_box_by_its_area_and_a_tag_by_its_id(tmp_path):
+    world = room(tmp_path, "obstacles:\n  - {shape: box, x: 3.0, y: 0.3, size_m: [0.4, 0.4], colour: red}\n"
+                           "tags:\n  - {id: 3, x: 2.8, y: -0.5, z_m: 0.25, facing_deg: 180, mount: post}\n")
+    h = run(world, "  - if: {sees: {colour: red, min_area: 2 %}}\n    then: [{say: \"red\"}]\n"
+                   "  - if: {sees: {colour: red, min_area: 40 %}}\n    then: [{say: \"red everywhere\"}]\n"
+                   "  - if: {sees: {colour: blue}}\n    then: [{say: \"blue\"}]\n"
+                   "  - if: {sees: {tag: 3}}\n    then: [{say: \"tag 3\"}]\n"
+                   "  - if: {sees: {tag: 4}}\n    then: [{say: \"tag 4\"}]\n"
+                   "  - if: {sees: {tag: 3, within: 1 m}}\n    then: [{say: \"tag 3 near\"}]\n"
+                   "  - if: {sees: {tag: 3, within: 2 m}}\n    then: [{say: \"tag 3 within 2 m\"}]\n")
+    assert h.run_to_end(30) == "success"
+    said = [e.text for e in h.events if e.kind == "say"]
+    assert said == ["red", "tag 3", "tag 3 within 2 m"]
+
+
+def test_photo_and_alert_with_a_photo(tmp_path):
+    world = room(tmp_path)
+    h = run(world, "  - photo: {name: gate}\n  - photo\n  - alert: {text: \"someone in the lab\", photo: true}\n"
+                   "  - alert: \"all quiet\"\n")
+    assert h.run_to_end(30) == "success"
+    s = h.summary()
+    photos = s["vision"]["photos"]
+    assert [p["name"] for p in photos] == ["gate", "photo-line5", "alert-1"]
+    for p in photos:
+        img = cv2.imread(p["file"])
+        assert img is not None and img.shape == (240, 320, 3) and p["size_px"] == [320, 240]
+    assert [a["text"] for a in s["alerts"]] == [f"someone in the lab (photo {photos[2]['file']})", "all quiet"]
+    assert [e.kind for e in h.events].count("photo") == 3
+    jsonschema.validate(s, load_schema("summary.schema.json"))
+
+
+def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: \"hello\"\n  - photo\n", robot="robots/diy_pwm.yaml")
+    assert h.run_to_end(10) == "failure"
+    assert any(e.kind == "alert" and e.text == "hello" for e in h.events)
+    assert any("this robot has no camera" in e.text for e in h.events)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - wait_until: {sees: motion}\n", robot="robots/diy_pwm.yaml")
+    assert h.run_to_end(10) == "failure"
+    assert any("'sees' needs a camera" in e.text for e in h.events)
+
+
+@pytest.mark.parametrize("step, where, message", [
+    ("- wait_until: {sees: {colour: {hsv: [[200, 0, 0], [10, 255, 255]]}}}", "3:33", "hue 0-179"),
+    ("- wait_until: {sees: {colour: red, min_area: 200 %}}", "3:48", "at most 100 %"),
+    ("- wait_until: {sees: {colour: purple}}", "3:33", "expected one of red, green, blue, yellow"),
+    ("- wait_until: {sees: {tag: 3, within: 0 m}}", "3:41", "within must be greater than zero"),
+    ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
+    ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
+])
+def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, message):
+    path = tmp_path / "bad.yaml"
+    path.write_text(f"mission: bad\nsteps:\n  {step}\n", encoding="utf-8")
+    with pytest.raises(InvalidInput) as err:
+        load_mission(path)
+    text = str(err.value)
+    assert f"bad.yaml:{where}" in text and message in text, text
+
+
+def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):
+    world = room(tmp_path)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: \"nothing to see\"\n  - undock: {distance: 0.1 m}\n",
+                                 world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert h.run.ctx.services.vision is None and not h.run.io.camera.enabled
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - alert: {text: \"look\", photo: true}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert h.run.io.camera.reasons == ["vision"]
+
+
+def test_track_turns_to_keep_a_red_box_centred(tmp_path):
+    # the red box 2.5 m away, 25 deg to the right of where the robot faces: near the edge of the picture
+    world = room(tmp_path, "obstacles:\n  - {shape: box, x: 3.266, y: -1.057, size_m: [0.3, 0.3], colour: red}\n")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 8 s}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    t = h.truth
+    bearing = math.degrees(math.atan2(-1.057 - t.y, 3.266 - t.x) - t.yaw)
+    assert abs(bearing) < 4.0, bearing  # facing the box
+    assert abs(math.hypot(t.x - 1.0, t.y)) < 0.05  # turned in place
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: blue, for: 2 s}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "failure"
+    assert any("never saw blue" in e.text for e in h.events)
+
+
+def test_a_typed_colour_is_hashable_and_reads_back():
+    from beastbt.mission.vision_steps import sees_of
+    from beastbt.vision.colour import ColourRange
+    c = sees_of({"colour": {"hsv": [[100, 120, 60], [130, 255, 255]]}, "min_area": "2 %"})
+    hash(c)
+    assert ColourRange.parse(c.colour).boxes == (((100, 120, 60), (130, 255, 255)),)
+    assert abs(c.min_area_frac - 0.02) < 1e-12
