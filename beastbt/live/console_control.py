@@ -40,6 +40,7 @@ from typing import Any, Callable, Optional
 from beastbt.blackboard.types import JoystickState, VelocityCommand
 from beastbt.devices.joystick import AXIS_ANGULAR, AXIS_LINEAR, BUTTON_ENABLE
 from beastbt.run.operator_inputs import CONSOLE, STICK_SILENT, TUNE
+from beastbt.live.refusal import Refused  # noqa: F401 - the controls' refusal, imported from here by the console
 
 TUNING_CONTROLS = ("tuning", TUNE, "tune_reset", "tune_changes", "tune_saved")
 """Live tuning's controls (:mod:`beastbt.live.tuning`): the listing, a change, a reset, the changes to save and
@@ -49,14 +50,6 @@ READ_ONLY = ("tuning", "tune_changes")
 replay)."""
 STICK_TIMEOUT_S = 0.2
 """The remote stick is released when no message came for this long (wall s); the page sends every 0.1 s."""
-
-
-class Refused(Exception):
-    """A control that cannot be carried out now: ``status`` is the HTTP status (409, 400) and the message says why."""
-
-    def __init__(self, status: int, message: str) -> None:
-        super().__init__(message)
-        self.status = status
 
 
 @dataclass

@@ -137,7 +137,7 @@ def _localiser_config(run: Any) -> Any:
 
 def _put_localiser(run: Any, old: Any, new: Any) -> None:
     if not new.lost_quality <= new.found_quality:
-        from beastbt.live.console_control import Refused
+        from beastbt.live.refusal import Refused
         raise Refused(400, f"localisation.lost_quality ({new.lost_quality:g}) must not be above found_quality "
                            f"({new.found_quality:g})")
     run.ctx.services.plugins["map_localiser"].config = new
@@ -277,7 +277,7 @@ def _knob(spec: KnobSpec, run: Any, holder: Any) -> Knob:
 # -- the registry ---------------------------------------------------------------------------------------------------
 
 def _refused(status: int, message: str) -> Exception:
-    from beastbt.live.console_control import Refused
+    from beastbt.live.refusal import Refused
     return Refused(status, message)
 
 
@@ -431,10 +431,10 @@ def _number(value: float, integer: bool) -> Union[int, float]:
 def save_profile_text(text: str, values: dict[str, float], integers: frozenset[str] = frozenset()) -> str:
     """``text`` (a robot profile) with each knob of ``values`` (dotted path -> value in the knob's unit) written in,
     with ruamel.yaml's round trip: comments, order and layout kept; a missing section or key is added. Raises
-    :class:`~beastbt.studio.edits.EditRefused` when the text is not a YAML mapping."""
+    :class:`~beastbt.core.yaml_round_trip.EditRefused` when the text is not a YAML mapping."""
     from ruamel.yaml.comments import CommentedMap
 
-    from beastbt.studio.edits import EditRefused, _dump, _patched, load_round_trip
+    from beastbt.core.yaml_round_trip import EditRefused, _dump, _patched, load_round_trip
     crlf = "\r\n" in text
     work = text.replace("\r\n", "\n") if crlf else text
     if not work.endswith("\n"):
@@ -500,7 +500,7 @@ def save_through(controls: Any, timeout_s: float) -> dict:
     if inside_package(path):
         raise _refused(409, f"{path} is the profile installed with beastbt (an upgrade would undo the change): copy "
                             f"it (cp {path} my_robot.yaml), run with --robot my_robot.yaml and save there")
-    from beastbt.studio.edits import EditRefused
+    from beastbt.core.yaml_round_trip import EditRefused
     try:
         write_profile(path, values, integers)
     except (OSError, EditRefused) as exc:
