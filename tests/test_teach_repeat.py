@@ -69,7 +69,8 @@ def test_a_joystick_drive_without_flags_is_taught_where_it_truly_went(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "of the fused path" in done.stdout
     repeat = tmp_path / "repeat.yaml"
-    repeat.write_text(f"mission: repeat\nworld: {REPO / 'worlds' / 'campus.yaml'}\nsteps:\n  - route: {{file: path.gpx}}\n")
+    repeat.write_text(f"mission: repeat\nworld: {REPO / 'worlds' / 'campus.yaml'}\nsteps:\n"
+                      f"  - route: {{file: path.gpx}}\n")
     points = [p for p in load_mission(repeat).places.values()]
     assert len(points) >= 8
     world = load_world(REPO / "worlds" / "campus.yaml")

@@ -154,4 +154,5 @@ class HomeFinder:
         return c * dx - s * dy, s * dx + c * dy, moved
 
 
-__all__ = ["Home", "HomeFinder", "home_line", "position_sigma_m", "HOME_MIN_FIXES", "HOME_MAX_SIGMA_M", "HOME_WAIT_S", "STILL_M"]
+__all__ = ["Home", "HomeFinder", "home_line", "position_sigma_m", "HOME_MIN_FIXES", "HOME_MAX_SIGMA_M", "HOME_WAIT_S",
+           "STILL_M"]
