@@ -149,7 +149,7 @@ def contribute(run: Any, summary: dict) -> None:
         summary["waypoints"] = out
         if log.visits.dropped:  # a long route keeps its first and its last visits
             summary["waypoints_dropped"] = log.visits.dropped
-    planner = run.ctx.services.plugins.get("map_planner")
+    planner = (getattr(run.ctx.services, "plugins", None) or {}).get("map_planner")
     if planner is not None and planner.visits:  # places on a saved map: the same table, x and y for lat and lon
         from beastbt.behaviours.map_navigation import map_waypoint_rows
         summary["waypoints"] = list(summary.get("waypoints") or []) + map_waypoint_rows(planner)
