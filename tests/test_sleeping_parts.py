@@ -54,12 +54,19 @@ def test_a_mission_that_only_drives_leaves_gps_imu_and_ekf_asleep():
     assert h.blackboard("pose").position_valid is False
 
 
-def test_a_recorded_run_lets_them_sleep(tmp_path):
+def test_a_recorded_run_keeps_where_it_was_and_lets_the_rest_sleep(tmp_path):
+    from beastbt.recording.track import PositionTrack
     h = harness(PATROL_LIKE, record_path=str(tmp_path / "run.mcap"))
-    assert awake(h) == {"gps": False, "imu": False, "ekf": False}  # the recording holds what the run used
+    # The recording reads the GPS fix (where the robot was); the EKF steps for it about once a second only.
+    assert awake(h) == {"gps": True, "imu": False, "ekf": True}
+    track = h.run.estimator
+    assert isinstance(track, PositionTrack) and track.period_s == 1.0
     assert lidar_awake(h)  # the collision monitor reads it (and /scan is recorded)
-    h.run_to_end()
+    assert h.run_to_end() == "success"
     close(h)
+    seconds = h.run.elapsed_s
+    # At least once a second (the fused pose recorded at >= 1 Hz), at most once per GPS epoch (1 Hz) and per second.
+    assert seconds > 5 and seconds - 1 <= track.steps <= 2 * seconds + 3
 
 
 def test_record_sensors_keeps_them_awake(tmp_path):

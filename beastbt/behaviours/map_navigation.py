@@ -151,6 +151,15 @@ def map_waypoints(planner: MapPlanner) -> list[dict]:
              "path_m": r(v.path_m, 2), "replans": v.replans} for v in planner.visits]
 
 
+def map_waypoint_rows(planner: MapPlanner) -> list[dict]:
+    """The map's visits as rows of the summary's ``waypoints``, the table GPS places get: ``lat``/``lon`` null,
+    ``x``/``y`` the place in the map frame (m); the arrival error the true one in the simulator (m)."""
+    return [{"name": w["name"], "lat": None, "lon": None, "x": w["x"], "y": w["y"], "reached": w["reached"],
+             "arrival_error_m": w["arrival_error_m"] if w["reached"] else None, "time_s": w["time_s"],
+             "tolerance_m": w["tolerance_m"], "estimated_error_m": w["estimated_error_m"] if w["reached"] else None}
+            for w in map_waypoints(planner)]
+
+
 def mission_map_start(mission: Any) -> tuple[float, float, float]:
     """Where a mission with ``map:`` starts on its map (x m, y m, yaw rad): its ``start:`` pose, the place it names,
     or the map frame's origin. Home on the map."""
@@ -537,5 +546,6 @@ def map_home_target(planner: MapPlanner) -> MapTarget:
     return lambda: (planner.start[0], planner.start[1])
 
 
-__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints", "near_on_map",
+__all__ = ["MapGoTo", "MapPlanner", "MapVisit", "map_planner", "mission_map_start", "map_waypoints",
+           "map_waypoint_rows", "near_on_map",
            "map_place_target", "map_home_target", "MAP_PLANNER"]

@@ -52,7 +52,8 @@ KEYS: dict[str, KeySpec] = {k.name: k for k in (
     KeySpec("global_plan", GlobalPlan, "m", "map",
             "The path planned on the mission's map that go_to, route and return_home follow (absent without a map)."),
     KeySpec("joystick", JoystickState, "-", "-", "Latest joystick state (named axes -1..1 and buttons)."),
-    KeySpec("home", tuple, "deg", "WGS84", "(lat, lon) where the mission started: the first good fix."),
+    KeySpec("home", tuple, "deg", "WGS84", "(lat, lon) where the mission started: the fused start position once the "
+                                          "estimate settled (beastbt/run/home.py)."),
     KeySpec("cmd_mission", VelocityCommand, "m/s, rad/s", "body", "What the mission asks the base to do this tick."),
     KeySpec("servo_requests", dict, "rad", "servo", "name -> ServoCommand the mission asks for (latest per servo)."),
     KeySpec("servo_angles", dict, "rad", "servo", "name -> last angle sent to each servo."),

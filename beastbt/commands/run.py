@@ -291,7 +291,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "camera the run uses anyway, or of any camera with --record-sensors")
     p.add_argument("--record-sensors", action="store_true",
                    help="record every sensor (GPS, IMU, LiDAR, camera images...) even those the run does not read, "
-                        "keeping them and the estimator awake; by default a recording holds what the run used")
+                        "keeping them and the estimator awake; by default a recording holds what the run used and "
+                        "where the robot was (GPS fixes, fused pose)")
 
 
 @reader_safe_stdout

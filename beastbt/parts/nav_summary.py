@@ -8,7 +8,9 @@
   world's datum); on a robot, the estimated one. It is null for a place not
   reached. The tolerance (m) is the one the step used (the step's, else the
   place's, else the profile's navigation default): the true error can exceed
-  it, since arrival is judged on the estimate.
+  it, since arrival is judged on the estimate. Places on a saved map (a
+  mission with ``map:``) get the same rows after them, with ``lat`` and
+  ``lon`` null and ``x``, ``y`` the place in the map frame (m).
 - ``truth.position_error_rms_m``: RMS horizontal distance (m) between the
   fused pose and the truth over every tick with a valid position;
   ``truth.gps_error_rms_m``: the same for the raw GPS fixes (one per epoch),
@@ -147,6 +149,10 @@ def contribute(run: Any, summary: dict) -> None:
         summary["waypoints"] = out
         if log.visits.dropped:  # a long route keeps its first and its last visits
             summary["waypoints_dropped"] = log.visits.dropped
+    planner = (getattr(run.ctx.services, "plugins", None) or {}).get("map_planner")
+    if planner is not None and planner.visits:  # places on a saved map: the same table, x and y for lat and lon
+        from beastbt.behaviours.map_navigation import map_waypoint_rows
+        summary["waypoints"] = list(summary.get("waypoints") or []) + map_waypoint_rows(planner)
     tracker = run.ctx.services.nav_truth
     if tracker is not None and run.estimator is not None and "truth" in summary:
         truth = summary["truth"]

@@ -6,6 +6,7 @@ from typing import Any, Optional
 
 from beastbt.live.endpoint import parse_endpoint
 from beastbt.recording.recorder import install
+from beastbt.recording.track import install_track
 from beastbt.robot.part import Part
 from beastbt.run.session import Prepared
 
@@ -22,18 +23,25 @@ def foxglove_endpoint(value: Any) -> Optional[tuple[str, int]]:
 
 class RecordingPart(Part):
     """Every run recorded (``<run folder>/run.mcap``, ``--record FILE``) and/or served to Foxglove live
-    (``--foxglove [HOST:]PORT``); nothing when the run does neither. It reads nothing itself: the recording
-    holds what the run used, and only ``--record-sensors`` wakes the parts that would sleep."""
+    (``--foxglove [HOST:]PORT``); nothing when the run does neither. It reads the GPS fix only: the recording
+    holds what the run used and where the robot was (:mod:`beastbt.recording.track`), and only
+    ``--record-sensors`` wakes the other parts that would sleep."""
 
     name = "recording"
     schema = "parts/recording.schema.json"
-    # Nothing: a recording holds what the run used, and wakes no part the run lets sleep (the GPS, the IMU and
-    # the EKF of a patrol). ``--record-sensors`` (RunOptions.record_sensors) keeps every part awake instead.
-    reads = ()
+    # The GPS fix: every recording keeps where the robot was (the fixes, and the fused pose of the position track
+    # when the EKF sleeps), so that any run with a GPS can be taught (``beastbt route from-run``). It wakes no other
+    # part the run lets sleep (the IMU of a patrol); ``--record-sensors`` (RunOptions.record_sensors) keeps every
+    # part awake instead.
+    reads = ("gps_fix",)
 
     def install(self, prepared: Prepared) -> None:
         """Attach the recorder (it adds ``recording`` to the summary itself), with the live server if asked."""
-        install(prepared, live=foxglove_endpoint(prepared.options.foxglove))
+        rec = install(prepared, live=foxglove_endpoint(prepared.options.foxglove))
+        if rec is not None:
+            from beastbt.parts.navigation import ekf_estimator
+            profile, run = prepared.profile, prepared.run
+            install_track(prepared, rec.config.track_rate_hz, lambda: ekf_estimator(profile, run.io, prepared.events))
 
 
 __all__ = ["RecordingPart"]

@@ -31,6 +31,10 @@ class RecordingConfig:
     # simulator's /truth are recorded at most this often (Hz); commands, events and the readings the run used
     # go every tick (replay needs them). 0 records the poses every tick too.
     pose_rate_hz: float
+    # A run on a robot with a GPS records where it was even when nothing in it reads the position: the GPS stays
+    # awake for the recording, and when the EKF sleeps it steps at each GPS fix and at least this often (Hz) for
+    # the recording's position track (beastbt.recording.track), the wheels carrying the pose on between. 0: no fused track (the fixes still are).
+    track_rate_hz: float
     # While the poses, the true pose and the gimbal stay the same (the robot stands still), they are recorded
     # only this often (s). 0 records them at pose_rate_hz all the same.
     still_interval_s: float
@@ -69,6 +73,8 @@ class RecordingConfig:
             raise ValueError(f"image_max_width_px must be zero or positive, got {self.image_max_width_px}")
         if not (math.isfinite(self.pose_rate_hz) and self.pose_rate_hz >= 0):
             raise ValueError(f"pose_rate_hz must be zero or positive, got {self.pose_rate_hz}")
+        if not (math.isfinite(self.track_rate_hz) and self.track_rate_hz >= 0):
+            raise ValueError(f"track_rate_hz must be zero or positive, got {self.track_rate_hz}")
         if not (math.isfinite(self.still_interval_s) and self.still_interval_s >= 0):
             raise ValueError(f"still_interval_s must be zero or positive, got {self.still_interval_s}")
         if self.queue_max_items < 1:

@@ -40,6 +40,8 @@ from pathlib import Path
 from typing import Any, NamedTuple, Optional
 
 from beastbt.recording.reader import Recording, find_recording, read_recording
+from beastbt.run.home import home_line
+from beastbt.run.summary import obstacles_line, waypoint_text
 
 FIG_SIZE_IN = (10.0, 6.0)
 """Size of every plot except the map, inches (at :data:`DPI`: 1000 x 600 pixels)."""
@@ -93,6 +95,9 @@ class Waypoint:
     """The fused estimate's distance to the place at arrival (m): what arrival was judged on."""
     true_error_m: Optional[float] = None
     """The true distance at arrival (m, simulator only): the estimate's own error included."""
+    x: Optional[float] = None
+    y: Optional[float] = None
+    """A place on a saved map: where it is in the map frame (m); ``lat``/``lon`` are then None."""
 
 
 EPOCH_NS_AFTER = 946_684_800 * 10**9
@@ -394,7 +399,45 @@ class RunData:
             estimated = wp.get("estimated_error_m", None if simulated else wp.get("arrival_error_m"))
             out.append(Waypoint(str(wp.get("name", "?")), wp.get("lat"), wp.get("lon"), bool(wp.get("reached")),
                                 tol, wp.get("arrival_error_m"), wp.get("time_s"), estimated,
-                                wp.get("arrival_error_m") if simulated else None))
+                                wp.get("arrival_error_m") if simulated else None, wp.get("x"), wp.get("y")))
+        if not any(w.x is not None for w in out):
+            # Summaries from before map places joined the waypoints kept them in map_waypoints only.
+            for wp in (self.summary or {}).get("map_waypoints") or []:
+                reached = bool(wp.get("reached"))
+                err = wp.get("arrival_error_m") if reached else None
+                out.append(Waypoint(str(wp.get("name", "?")), None, None, reached, wp.get("tolerance_m"), err,
+                                    wp.get("time_s"), wp.get("estimated_error_m") if reached else None,
+                                    err if simulated else None, wp.get("x"), wp.get("y")))
+        return out
+
+    def map_to_world(self) -> Optional[tuple[float, float, float]]:
+        """The saved map's frame in the report's (the world's) frame (x m, y m, yaw rad), or None (no saved map,
+        or no world start): the robot started at the world's start and at the mission's start on the map."""
+        if not hasattr(self, "_map_to_world"):
+            self._map_to_world = None
+            mission = self.mission()
+            if self.world_start is not None and mission is not None and getattr(mission, "map_file", None):
+                from beastbt.behaviours.map_navigation import mission_map_start
+                from beastbt.estimation.map_localiser import compose, invert
+                self._map_to_world = compose(self.world_start, invert(tuple(mission_map_start(mission))))
+        return self._map_to_world
+
+    def map_point(self, x: float, y: float) -> Optional[tuple[float, float]]:
+        """A point of the saved map's frame (m) in the report's frame, or None when the map is not placed."""
+        t = self.map_to_world()
+        if t is None:
+            return None
+        c, s = math.cos(t[2]), math.sin(t[2])
+        return t[0] + c * x - s * y, t[1] + s * x + c * y
+
+    def localiser_path(self) -> list[tuple[float, float]]:
+        """The localiser's pose on the saved map (``/map/pose``) in the report's frame (m); empty without."""
+        if self.map_to_world() is None:
+            return []
+        out = []
+        for m in self.rec.topic("/map/pose"):
+            p = m["pose"]["position"]
+            out.append(self.map_point(p["x"], p["y"]))
         return out
 
     def _places(self) -> dict:
@@ -410,25 +453,33 @@ class RunData:
         mission's places no step got to (reached None).
         """
         frame = self.local_frame()
-        if frame is None:
-            return []
         out = []
         seen = set()
         for wp in self.waypoints():
-            if wp.lat is None or wp.lon is None or wp.name in seen:
+            if wp.name in seen:
+                continue
+            if wp.lat is not None and wp.lon is not None and frame is not None:
+                e, n, _ = frame.to_enu(wp.lat, wp.lon)
+            elif wp.x is not None and wp.y is not None and self.map_point(wp.x, wp.y) is not None:
+                e, n = self.map_point(wp.x, wp.y)  # a place on the saved map
+            else:
                 continue
             seen.add(wp.name)
-            e, n, _ = frame.to_enu(wp.lat, wp.lon)
             out.append((wp.name, e, n, wp.tolerance_m, wp.reached))
         default = None
         for name, place in self._places().items():
-            if name in seen or getattr(place, "lat", None) is None:
+            if name in seen:
+                continue
+            if getattr(place, "lat", None) is not None and frame is not None:
+                e, n, _ = frame.to_enu(place.lat, place.lon)
+            elif getattr(place, "x", None) is not None and self.map_point(place.x, place.y) is not None:
+                e, n = self.map_point(place.x, place.y)
+            else:
                 continue
             tol = getattr(place, "tolerance_m", None)
             if tol is None:
                 default = default if default is not None else self.default_tolerance_m()
                 tol = default
-            e, n, _ = frame.to_enu(place.lat, place.lon)
             out.append((name, e, n, tol, None))
         return out
 
@@ -475,23 +526,6 @@ class RunData:
 # -- the terminal summary ---------------------------------------------------------------------
 
 
-def obstacles_line(s: dict) -> Optional[str]:
-    """The summary's obstacle figures in one line: the simulator's collisions and least clearance, and what the
-    collision monitor did (episodes per action); None when the run has neither."""
-    parts = []
-    truth = s.get("truth") or {}
-    if "collisions" in truth:
-        n = truth["collisions"]
-        least = truth.get("min_clearance_m")
-        parts.append(f"{n} collision{'s' if n != 1 else ''}"
-                     + (f", least clearance {least:.2f} m" if least is not None else "") + " (truth)")
-    episodes = (s.get("collision_monitor") or {}).get("episodes") or {}
-    if s.get("collision_monitor") is not None:
-        said = ", ".join(f"{action} {count}" for action, count in sorted(episodes.items()))
-        parts.append("collision monitor: " + (said if said else "never acted"))
-    return "  obstacles: " + "; ".join(parts) if parts else None
-
-
 def summary_text(d: RunData) -> str:
     """A few lines for a person: outcome, duration, distance, waypoints, failsafes, recording."""
     rec, s = d.rec, d.summary or {}
@@ -510,14 +544,15 @@ def summary_text(d: RunData) -> str:
     if when is not None:
         where.append(f"started {when:%Y-%m-%d %H:%M:%S} UTC")
     lines.append("  " + ", ".join(where))
+    if s.get("home") is not None:
+        lines.append(home_line(s["home"]))
     wps = d.waypoints()
     if wps:
         lines.append("  waypoints:")
         for wp in wps:
-            lines.append(f"    {wp.name}: {'reached' if wp.reached else 'NOT reached'}"
-                         + (f", {wp.arrival_error_m:.2f} m off" if wp.arrival_error_m is not None else "")
-                         + (f" (tolerance {wp.tolerance_m:.2f} m)" if wp.tolerance_m is not None else "")
-                         + (f" at {wp.time_s:.1f} s" if wp.time_s is not None else ""))
+            lines.append("    " + waypoint_text(wp.name, wp.reached, wp.tolerance_m, wp.estimated_error_m,
+                                                  wp.true_error_m, wp.time_s)
+                         + (f" [map x {wp.x:.2f} m, y {wp.y:.2f} m]" if wp.x is not None and wp.y is not None else ""))
     else:
         lines.append("  waypoints: none")
     obstacles = obstacles_line(s)
@@ -572,8 +607,8 @@ MAP_MARGIN_M = 1.0
 def map_extent(d: RunData) -> Optional[tuple[float, float, float, float]]:
     """The map's (x min, x max, y min, y max) in metres, square: what the robot did and where it was to go.
 
-    It spans the true path (on a robot without truth: the fused estimate,
-    else odometry, else the GPS fixes), the line track, and the mission's
+    It spans the true path (on a robot without truth: the localiser's pose on
+    a saved map, else the fused estimate, else odometry, else the GPS fixes), the line track, and the mission's
     places with their tolerance circles. GPS scatter and walls do not
     widen it: a wild fix or a long building would shrink the path to a dot.
     """
@@ -583,6 +618,9 @@ def map_extent(d: RunData) -> Optional[tuple[float, float, float, float]]:
     if truth:
         xs += [m["x"] for m in truth]
         ys += [m["y"] for m in truth]
+    elif d.localiser_path():
+        xs += [p[0] for p in d.localiser_path()]
+        ys += [p[1] for p in d.localiser_path()]
     else:
         for topic in ("/estimate/fused", "/estimate/odom"):
             pts = [d.to_world(m) for m in d.rec.topic(topic)]
@@ -645,7 +683,13 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
         pts = [d.to_world(m) for m in odom]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], color="tab:green", linewidth=1, linestyle="--",
                 label="odometry", zorder=4)
-    if fused:
+    localiser = d.localiser_path()
+    if localiser:
+        # On a saved map the robot navigates by the localiser's pose (the fused one is the wheels' and the gyro's
+        # there, with no GPS indoors): draw what it went by.
+        ax.plot([p[0] for p in localiser], [p[1] for p in localiser], color="tab:blue", linewidth=1.2,
+                label="localiser (map pose)", zorder=5)
+    elif fused:
         pts = [d.to_world(m) for m in fused]
         ax.plot([p[0] for p in pts], [p[1] for p in pts], color="tab:blue", linewidth=1.2, label="fused estimate",
                 zorder=5)

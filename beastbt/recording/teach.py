@@ -4,9 +4,10 @@ The path is the fused estimate's latitude and longitude (``/estimate/fused``)
 where its position was valid, else the GPS fixes (``/gps/fix``). Points are
 kept one every ``every_m`` metres (the first and the last always), so that
 ``route: {file: path.gpx}`` repeats the drive, for example one driven by
-joystick. A run whose mission never reads the position (a teleop drive)
-has its GPS and EKF asleep, and so no position recorded: teach with
-``beastbt run --record-sensors``.
+joystick. Every recorded run on a robot with a GPS has both, whether its
+mission reads the position or not (a teleop drive: the recording's position
+track, :mod:`beastbt.recording.track`), so any such run can be taught, with
+no flag; recordings made before the track have only what their mission read.
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ def driven_path(run: Union[str, Path]) -> tuple[list[tuple[float, float]], str]:
     if fixes:
         return fixes, "gps"
     raise ValueError(f"{run}: the recording has no position on Earth (no valid fused position, no GPS fix): "
-                     f"record a run on a robot (or world) with a GPS, with --record-sensors when its mission "
-                     f"never reads the position (a teleop drive: its GPS and EKF sleep otherwise)")
+                     f"teach with a run on a robot with a GPS (its profile's gps:) that got a fix; a recording "
+                     f"made before every run kept its position needs --record-sensors when its mission never "
+                     f"read the position")
 
 
 def thin(points: list[tuple[float, float]], every_m: float) -> list[tuple[float, float]]:

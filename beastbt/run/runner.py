@@ -22,6 +22,7 @@ from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import (BatteryState, CameraFrame, FusedPose, GpsFix, ImuSample, JoystickState,
                                       LaserScan, LineObservation, MapPose, ServoCommand, VelocityCommand, WheelOdometry)
 from beastbt.estimation.estimator import Estimator, OdometryEstimator
+from beastbt.run.home import Home, HomeFinder
 from beastbt.mission.compile import StepBuilder, compile_mission
 from beastbt.mission.model import Mission
 from beastbt.core.clock import Clock
@@ -135,6 +136,9 @@ class MissionRun:
         self.ticks = 0
         self.start_s: Optional[float] = None
         self.home: Optional[tuple[float, float]] = None
+        self.home_set: Optional[Home] = None
+        """How home was set (the fused start once settled: :mod:`beastbt.run.home`), for the summary; None before."""
+        self._home_finder: Optional[HomeFinder] = None
         self.latest: dict[type, Any] = {}
         self.paused_by: Optional[str] = None
         """Why the tree is not ticked now (``hold``, ``teleop``...), or None."""
@@ -301,10 +305,17 @@ class MissionRun:
                        ("scan", LaserScan)):
             if t in latest:
                 setattr(bb, key, latest[t])
-        if gps and self.home is None:
-            self.home = (gps[0].lat, gps[0].lon)
-            bb.home = self.home
-            self.events.add("home", f"home set at the first fix {self.home[0]:.6f}, {self.home[1]:.6f}")
+        if self.home is None:
+            finder = self._home_finder
+            if finder is None:  # at the first tick: by then the parts have left (or replaced) the estimator
+                finder = self._home_finder = HomeFinder(fused=self.estimator is not None, start_odom=pose_odom)
+            found = (finder.update(now, gps, pose if self.estimator is not None else None, pose_odom)
+                     if gps or finder.had_fix else None)
+            if found is not None:
+                self.home_set = found
+                self.home = (found.lat, found.lon)
+                bb.home = self.home
+                self.events.add("home", found.text())
         return readings
 
     def check_failsafes(self, now: float) -> None:

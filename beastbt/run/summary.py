@@ -51,18 +51,80 @@ def build_summary(run: Any, seed: int, wall_time_s: float, world_name: Optional[
         least = contact.min_clearance_m if contact is not None else None
         summary["truth"]["collisions"] = contact.collisions if contact is not None else 0
         summary["truth"]["min_clearance_m"] = None if least is None else round(least, 4) + 0.0  # + 0.0: no -0.0
+    home = getattr(run, "home_set", None)
+    if home is not None:  # how home was set: the fused start once settled (beastbt/run/home.py)
+        summary["home"] = home.as_dict()
     for contribute in run.summary_contributors:  # the parts' fields (waypoints, truth metrics, recording...)
         contribute(run, summary)
     return summary
+
+
+def waypoint_text(name: str, reached: bool, tolerance_m: Optional[float], estimated_error_m: Optional[float],
+                  true_error_m: Optional[float], time_s: Optional[float]) -> str:
+    """One place visited, in words: reached or not, when (mission s), and how far off (m), saying that arrival is
+    judged on the estimate (within the tolerance) and, in the simulator, how far the robot truly was."""
+    if not reached:
+        return f"{name}: NOT reached"
+    text = f"{name}: reached" + (f" at {time_s:.1f} s" if time_s is not None else "")
+    judged = []
+    if estimated_error_m is not None:
+        judged.append(f"{estimated_error_m:.2f} m off by the estimate")
+    if tolerance_m is not None:
+        judged.append(f"tolerance {tolerance_m:.2f} m")
+    if judged:
+        text += " (arrival is judged on the estimate: " + ", ".join(judged) + ")"
+    if true_error_m is not None:
+        text += f"; truly {true_error_m:.2f} m off"
+        if tolerance_m is not None and true_error_m > tolerance_m:
+            text += " (beyond the tolerance by the estimate's own error)"
+    return text
+
+
+def summary_waypoint_text(wp: dict, simulated: bool) -> str:
+    """:func:`waypoint_text` of one of the summary's ``waypoints`` (``simulated``: the summary has ``truth``, so
+    ``arrival_error_m`` is the true distance; summaries from before ``estimated_error_m`` lack the estimate's)."""
+    err = wp.get("arrival_error_m")
+    estimated = wp.get("estimated_error_m", None if simulated else err)
+    return waypoint_text(str(wp.get("name", "?")), bool(wp.get("reached")), wp.get("tolerance_m"), estimated,
+                         err if simulated else None, wp.get("time_s"))
+
+
+def obstacles_line(s: dict) -> Optional[str]:
+    """The summary's obstacle figures in one line: the simulator's collisions and least clearance, and what the
+    collision monitor did (episodes per action); None when the run has neither."""
+    parts = []
+    truth = s.get("truth") or {}
+    if "collisions" in truth:
+        n = truth["collisions"]
+        least = truth.get("min_clearance_m")
+        parts.append(f"{n} collision{'s' if n != 1 else ''}"
+                     + (f", least clearance {least:.2f} m" if least is not None else "") + " (truth)")
+    episodes = (s.get("collision_monitor") or {}).get("episodes") or {}
+    if s.get("collision_monitor") is not None:
+        said = ", ".join(f"{action} {count}" for action, count in sorted(episodes.items()))
+        parts.append("collision monitor: " + (said if said else "never acted"))
+    return "  obstacles: " + "; ".join(parts) if parts else None
+
+
+def has_obstacles(s: dict) -> bool:
+    """Whether the terminal summary speaks of obstacles: the robot has a LiDAR (the collision monitor's fields),
+    or the world has walls or obstacles (a least clearance), or something was hit."""
+    truth = s.get("truth") or {}
+    return (s.get("collision_monitor") is not None or truth.get("min_clearance_m") is not None
+            or bool(truth.get("collisions")))
 
 
 def human_summary(summary: dict) -> str:
     """A few lines for a person at the end of a run.
 
     The end itself is said once, in the first line (the mission_end event was
-    printed as it happened); its time is that event's, so the two agree. The
-    failures before it (last five) are repeated for whoever scrolled past them.
+    printed as it happened); its time is that event's, so the two agree. Then
+    how home was set, the places visited (arrival judged on the estimate; the
+    true distance in the simulator), collisions and clearance when the robot
+    has a LiDAR or the world has obstacles. The failures before the end (last
+    five) are repeated for whoever scrolled past them.
     """
+    from beastbt.run.home import home_line
     events = summary["events"]
     end = next((e for e in reversed(events) if e["kind"] == "mission_end"), None)
     why = end["text"].split(": ", 1)[1] if end is not None and ": " in end["text"] else None
@@ -78,10 +140,13 @@ def human_summary(summary: dict) -> str:
         lines.append(f"  localisation: {'localised' if loc['localized'] else 'NOT localised'} at the end, match "
                      f"{loc['match_quality']:.0%}, {loc['updates']} updates"
                      + (f"; true error RMS {rms:.3f} m" if rms is not None else ""))
+    if summary.get("home") is not None:
+        lines.append(home_line(summary["home"]))
+    simulated = "truth" in summary
     for wp in summary.get("waypoints", []):
-        err = wp.get("arrival_error_m")
-        lines.append(f"  waypoint {wp['name']}: {'reached' if wp['reached'] else 'NOT reached'}"
-                     + (f", {err:.2f} m off" if err is not None else ""))
+        lines.append("  waypoint " + summary_waypoint_text(wp, simulated))
+    if has_obstacles(summary):
+        lines.append(obstacles_line(summary) or "  obstacles: none seen")
     ends = [e for e in events if e["kind"] in ("step_failed", "failsafe", "estop")]
     for e in ends[-5:]:
         lines.append(f"  [{e['time_s']:7.1f} s] {e['kind']}: {e['text']}")
