@@ -46,3 +46,24 @@ def test_the_readme_lists_every_command_and_every_option_of_run():
     options = [o for action in run._actions for o in action.option_strings if o.startswith("--") and o != "--help"]
     missing = [o for o in options if f"`{o}" not in readme and f"{o}`" not in readme and f" {o}," not in readme]
     assert not missing, f"options of 'beastbt run' the README does not list: {missing}"
+
+
+STALE_PROMISES = {
+    "Planning around obstacles is next": "go_to plans round obstacles (docs/navigation.md)",
+    "Until the collision monitor\nexists": "the collision monitor exists (docs/obstacles.md)",
+    "until the collision monitor exists": "the collision monitor exists (docs/obstacles.md)",
+}
+"""Sentences that promised, as still to come, what beastbt now does (issue 37 item 13): a reader believes them."""
+
+
+@pytest.mark.parametrize("doc", [p for p in READ_BY_PEOPLE if p.suffix == ".md"], ids=lambda p: str(p.relative_to(REPO)))
+def test_no_doc_promises_as_coming_what_is_already_there(doc):
+    text = doc.read_text(encoding="utf-8")
+    stale = [f"{said!r}: {why}" for said, why in STALE_PROMISES.items() if said in text]
+    assert not stale, stale
+
+
+def test_the_quick_start_says_how_long_the_test_suite_takes():
+    """A new user who types the README's second line is told what to expect of it (issue 37 item 14)."""
+    quick = (REPO / "README.md").read_text(encoding="utf-8").split("## Quick start", 1)[1].split("\n## ", 1)[0]
+    assert re.search(r"takes about \d+ minutes on two cores", quick), quick
