@@ -82,6 +82,7 @@ def test_a_test_run_takes_one_of_the_tries_slots(studio):
 def test_new_test_writes_a_test_file_for_the_mission_that_validates(studio):
     status, made = studio.post("/api/tests/new", {"path": "missions/other.yaml"})
     assert status == 409 and "tests/other.test.yaml exists already" in made["error"]
+    assert made["path"] == "tests/other.test.yaml"  # the page opens it instead
     (studio.folder / "missions" / "fresh.yaml").write_text(SHORT.replace("short", "fresh"), encoding="utf-8")
     status, made = studio.post("/api/tests/new", {"path": "missions/fresh.yaml"})
     assert status == 200 and made["path"] == "tests/fresh.test.yaml"

@@ -167,4 +167,9 @@ def test_test_shows_each_seeds_result_and_new_test_opens_a_test_file(browser, st
     expect(page.get_by_test_id("problems").locator(".problem.error")).to_have_count(0)
     assert (folder / "tests" / "three_places.test.yaml").is_file()
     shots(page, "test_new")
+    # again: the test is there, and New test opens it rather than writing over it
+    open_file(page, "missions/short.yaml")
+    page.get_by_test_id("test-new").click()
+    expect(page.get_by_test_id("current-path")).to_have_text("tests/short.test.yaml")
+    assert (folder / "tests" / "short.test.yaml").read_text(encoding="utf-8") == PASSING
     assert page.page_errors == []  # type: ignore[attr-defined]

@@ -46,6 +46,14 @@ expect:
 """The text "New test" writes: it validates for any mission that validates."""
 
 
+class TestExists(FileRefused):
+    """"New test" for a mission whose ``tests/<mission>.test.yaml`` is there already: a 409 naming it (``path``)."""
+
+    def __init__(self, path: str) -> None:
+        super().__init__(409, f"{path} exists already: it is opened instead (copy it to test more)")
+        self.path = path
+
+
 def mission_of_test(test_file: Path) -> Optional[Path]:
     """The mission file a test file names (``mission:``, relative to the test file), resolved; None when it names
     none (not YAML, no ``mission:`` text)."""
@@ -85,7 +93,7 @@ def new_test(folder: StudioFolder, mission_path: str) -> dict:
     target_rel = f"tests/{stem}.test.yaml"
     target = folder.resolve(target_rel, must_exist=False)
     if target.exists():
-        raise FileRefused(409, f"{target_rel} exists already: open it (or give this test another name)")
+        raise TestExists(target_rel)
     import yaml
     try:
         name = yaml.safe_load(mission.read_text(encoding="utf-8")).get("mission") or stem
@@ -249,4 +257,4 @@ class TestRuns:
             shutil.rmtree(run.folder, ignore_errors=True)
 
 
-__all__ = ["TestRuns", "TestRun", "junit_results", "mission_of_test", "new_test", "tests_of"]
+__all__ = ["TestExists", "TestRuns", "TestRun", "junit_results", "mission_of_test", "new_test", "tests_of"]

@@ -463,9 +463,12 @@ class StudioServer:
         return web.json_response({"path": path, "tests": await self._in_thread(tests_of, self.folder, path)})
 
     async def _new_test(self, request: web.Request) -> web.Response:
-        from beastbt.studio.mission_tests import new_test
+        from beastbt.studio.mission_tests import TestExists, new_test
         body = await self._body(request)
-        return web.json_response(await self._in_thread(new_test, self.folder, self._mission_path(request, body)))
+        try:
+            return web.json_response(await self._in_thread(new_test, self.folder, self._mission_path(request, body)))
+        except TestExists as exc:
+            raise BadRequest(409, str(exc), path=exc.path) from None
 
     async def _test(self, request: web.Request) -> web.Response:
         body = await self._body(request)

@@ -846,7 +846,12 @@ $("test-new").addEventListener("click", async () => {
     await openFile(made.path, { text: made.text, version: made.version, kind: "test" });
     status(`${made.path} made for ${cur.path}: change what it expects, save, then Test`, "ok");
   } catch (e) {
-    fail("no new test", e);
+    if (e instanceof ApiError && e.status === 409 && typeof e.body?.path === "string") {
+      await openFile(e.body.path);  // the mission's test is there already: open it
+      status(e.message, "info");
+    } else {
+      fail("no new test", e);
+    }
   }
 });
 
