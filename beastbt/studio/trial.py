@@ -11,12 +11,16 @@ run ends. The run's folder goes to the studio folder's ``runs/``, where
 ``beastbt runs`` lists it; its summary, printed output and report go to a
 temporary folder of the studio, removed when the studio ends.
 
-The time left a try shows is wall time: the console's estimate of the mission
-time left (``progress.eta_s``) divided by the speed-up measured from the
-console's own clock (mission seconds per wall second over the last polls), so a
-run at ``--speed max`` does not show real-time seconds. At most :data:`MAX_RUNS` tries run at once: a
-try takes one of as many slots before its process starts and gives it back
-when its process has ended, so concurrent requests cannot start more.
+The time left a try shows is wall time (:func:`mission_time_left`,
+:func:`pace_of`): the mission time left, from the console's estimate at the last
+step's end, divided by the speed-up measured from the console's own clock
+(mission seconds per wall second over the last polls), so a run at ``--speed
+max`` does not show real-time seconds.
+
+At most :data:`MAX_RUNS` tries and test runs (:mod:`beastbt.studio.mission_tests`)
+run at once: each takes one of as many slots before its process starts and
+gives it back when its process has ended, so concurrent requests cannot start
+more.
 The console's own API is passed through (``/api/try/<id>/console/...``): the
 console refuses to be framed by another page.
 """
@@ -59,6 +63,8 @@ PACE_WINDOW_S = 10.0
 """The speed-up is measured over the console's states of about this many last wall seconds."""
 PACE_MIN_SPAN_S = 0.5
 """No speed-up is given before the states span this many wall seconds (two polls a moment apart say little)."""
+MAX_FACTOR = 1000.0
+"""The largest factor of real time a try takes (above that, ``max`` is what is meant)."""
 RECORDED_IN = "run recorded in "
 """How ``beastbt run`` names its run folder when it ends (beastbt/run/session.py)."""
 
@@ -117,10 +123,6 @@ def speed_argument(value: Any) -> str:
             return f"{factor:g}"
     raise FileRefused(400, f"'speed' is \"max\" (as fast as the machine can), \"realtime\" or a factor of real "
                            f"time from above 0 to {MAX_FACTOR:g} such as 10, not {json.dumps(value)[:40]}")
-
-
-MAX_FACTOR = 1000.0
-"""The largest factor of real time a try takes (above that, ``max`` is what is meant)."""
 
 
 def mission_time_left(trial: "Trial", progress: dict, sim_s: Any) -> Optional[float]:
