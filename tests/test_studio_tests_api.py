@@ -100,3 +100,42 @@ def test_new_test_writes_a_test_file_for_the_mission_that_validates(studio):
     assert problems and problems[0]["severity"] == "error" and problems[0]["line"] == broken.splitlines().index(
         "  status: sucess") + 1
     assert studio.post("/api/tests/new", {"path": "missions/nothing.yaml"})[0] == 404
+
+
+def test_a_test_run_ends_with_the_studio(tmp_path):
+    """SIGTERM to ``beastbt studio`` (as a service manager ends it) ends its test runs too: none outlives it."""
+    import http.client
+    import json
+    import os
+    import subprocess
+    import sys
+    from conftest import REPO
+    from test_studio_api import _alive, _children
+    (tmp_path / "missions").mkdir()
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "missions" / "long.yaml").write_text("mission: long\nsteps:\n  - wait: 3000 s\n", encoding="utf-8")
+    (tmp_path / "tests" / "long.test.yaml").write_text(
+        "test: long waits\nmission: ../missions/long.yaml\nseeds: 5\nmax_time: 1 h\nexpect:\n  status: success\n",
+        encoding="utf-8")
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, "-m", "beastbt", "studio", str(tmp_path), "--listen", "127.0.0.1:0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    started: list[int] = []
+    try:
+        assert proc.stdout is not None
+        url = [proc.stdout.readline() for _ in range(2)][1].split()[-1]
+        conn = http.client.HTTPConnection("127.0.0.1", int(url.rsplit(":", 1)[1].strip("/")), timeout=30)
+        conn.request("POST", "/api/test", body=json.dumps({"path": "missions/long.yaml"}),
+                     headers={"Content-Type": "application/json"})
+        answer = conn.getresponse()
+        assert answer.status == 200, answer.read()
+        conn.close()
+        started = _children(proc.pid)
+        assert started  # beastbt test
+    finally:
+        proc.terminate()
+        assert proc.wait(30) == 0
+    deadline = time.monotonic() + 10
+    while [pid for pid in started if _alive(pid)] and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not [pid for pid in started if _alive(pid)], "a test run outlived the studio"
