@@ -116,6 +116,8 @@ def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[
     try:
         if kind in ("world", "robot") or _is_list(text):
             return None, _check_by_file(real, name, text, kind)
+        if kind == "test":
+            return None, _check_test(real, name, text)
         from beastbt.mission.model import load_mission
         mission = load_mission(real, text=text, display_name=name, refs=studio_refs(folder))
         found = mission_with_world(mission)
@@ -128,6 +130,23 @@ def check(folder: StudioFolder, text: str, path: Optional[str], robot: Optional[
         raise
     except Exception as exc:  # noqa: BLE001 - a slip of ours must not end in a traceback for a user's text
         return None, [internal_error(name, exc)]
+
+
+def _check_test(real: Path, name: str, text: str) -> list[Problem]:
+    """A mission test's problems as ``beastbt validate`` finds them: its schema's, then its mission's (at their own
+    lines in the mission's file), read from where it will be saved so that ``mission:`` resolves."""
+    from beastbt.core.schema_check import schema_problems
+    from beastbt.core.yaml_source import load_yaml
+    from beastbt.testing.spec import SCHEMA, _checked
+    try:
+        doc = load_yaml(real, text=text, display_name=name)
+        problems = schema_problems(doc, SCHEMA, "mission test")
+        if problems:
+            return problems
+        _checked(doc, real, None)
+    except InvalidInput as exc:
+        return exc.problems
+    return []
 
 
 def _is_list(text: str) -> bool:

@@ -38,7 +38,7 @@ MAX_PATH_BYTES = 1024
 """The longest relative path the studio takes (bytes of UTF-8): deeper than any folder of missions."""
 FULL_DISK_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
 """An OS error that means the disk (or the user's quota) is full: answered 507."""
-KINDS = {"mission": "mission", "steps": "mission", "world": "world", "robot": "robot"}
+KINDS = {"mission": "mission", "steps": "mission", "world": "world", "robot": "robot", "test": "test"}
 """First key of a YAML mapping -> the kind of file (as ``beastbt validate`` tells them apart)."""
 
 
@@ -59,7 +59,7 @@ def version_of(data: bytes) -> str:
 
 
 def kind_of(text: str) -> str:
-    """``mission``, ``world``, ``robot`` or ``other`` from the first key of a YAML text (cheaply: its first key
+    """``mission``, ``world``, ``robot``, ``test`` (a mission test) or ``other`` from the first key of a YAML text (cheaply: its first key
     line)."""
     for line in text.splitlines():
         stripped = line.strip()

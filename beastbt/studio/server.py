@@ -82,6 +82,8 @@ class StudioServer:
         self._io_slots: Optional[asyncio.Semaphore] = None
         from beastbt.studio.trial import Trials
         self.trials = Trials(self.folder)
+        from beastbt.studio.mission_tests import TestRuns
+        self.tests = TestRuns(self.folder, self.trials)
         self._loop: Optional[asyncio.AbstractEventLoop] = None
         self._thread: Optional[threading.Thread] = None
         self._runner: Optional[web.AppRunner] = None
@@ -110,6 +112,11 @@ class StudioServer:
         r.add_get("/api/try/{run_id}/report/{name:.+}", self._try_report_asset)
         r.add_get("/api/try/{run_id}/console/{what:.+}", self._try_console)
         r.add_post("/api/try/{run_id}/console/{what:.+}", self._try_console)
+        r.add_get("/api/tests", self._list_tests)
+        r.add_post("/api/tests/new", self._new_test)
+        r.add_post("/api/test", self._test)
+        r.add_get("/api/test/{test_id}", self._test_state)
+        r.add_post("/api/test/{test_id}/stop", self._test_stop)
         r.add_route("*", "/api/{rest:.*}", self._no_api)
         r.add_get("/schemas/{name:.+}", self._schema)
         r.add_get("/", self._page)
@@ -120,6 +127,7 @@ class StudioServer:
     async def _cleanup(self, app: web.Application) -> None:
         self.pool.close()
         self.trials.stop_all()
+        self.tests.stop_all()
 
     def start(self) -> "StudioServer":
         """Bind and serve in a daemon thread; raises OSError when the address cannot be bound."""
@@ -147,6 +155,7 @@ class StudioServer:
         """Stop the runs it started, its workers, and serving."""
         self.pool.close()
         self.trials.stop_all()
+        self.tests.stop_all()
         loop = self._loop
         if loop is not None and loop.is_running():
             loop.call_soon_threadsafe(loop.stop)
@@ -171,6 +180,9 @@ class StudioServer:
                 # the tries stop meanwhile
                 self.pool.close()
                 self.trials.begin_stop()
+                for run in list(self.tests.runs.values()):
+                    if run.process.poll() is None:
+                        run.process.terminate()
                 if self._runner is not None:
                     await self._runner.cleanup()
         try:
@@ -180,6 +192,7 @@ class StudioServer:
         finally:
             self.pool.close()
             self.trials.stop_all()
+            self.tests.stop_all()
 
     @property
     def url(self) -> str:
@@ -436,6 +449,36 @@ class StudioServer:
         status, answer = await self.trials.console(request.match_info["run_id"], request.method,
                                                    request.match_info["what"], body)
         return web.json_response(answer, status=status)
+
+    # -- mission tests ------------------------------------------------------------------------
+    def _mission_path(self, request: web.Request, body: Optional[dict] = None) -> str:
+        path = (body or {}).get("path") if body is not None else request.query.get("path")
+        if not isinstance(path, str) or not path:
+            raise BadRequest(400, "give the mission's 'path' (its file in the folder)")
+        return path
+
+    async def _list_tests(self, request: web.Request) -> web.Response:
+        from beastbt.studio.mission_tests import tests_of
+        path = self._mission_path(request)
+        return web.json_response({"path": path, "tests": await self._in_thread(tests_of, self.folder, path)})
+
+    async def _new_test(self, request: web.Request) -> web.Response:
+        from beastbt.studio.mission_tests import TestExists, new_test
+        body = await self._body(request)
+        try:
+            return web.json_response(await self._in_thread(new_test, self.folder, self._mission_path(request, body)))
+        except TestExists as exc:
+            raise BadRequest(409, str(exc), path=exc.path) from None
+
+    async def _test(self, request: web.Request) -> web.Response:
+        body = await self._body(request)
+        return web.json_response(await self._in_thread(self.tests.start, self._mission_path(request, body)))
+
+    async def _test_state(self, request: web.Request) -> web.Response:
+        return web.json_response(await self._in_thread(self.tests.state, request.match_info["test_id"]))
+
+    async def _test_stop(self, request: web.Request) -> web.Response:
+        return web.json_response(await self._in_thread(self.tests.stop, request.match_info["test_id"]))
 
     async def _no_api(self, request: web.Request) -> web.Response:
         return WebGuard.error(404 if request.method in ("GET", "POST", "PUT") else 405,

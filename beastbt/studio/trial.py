@@ -2,13 +2,25 @@
 
 The run is the command a user types (``python -m beastbt run MISSION
 --console 127.0.0.1:PORT --summary FILE``), so the studio tries exactly what
-``beastbt run`` would do. The text runs as it is in the editor, saved or not:
-from a hidden file beside the one it will be saved as (so ``world:`` and geo
-files resolve from the same folder), removed when the run ends. The run's
-folder, summary and printed output go to a temporary folder of the studio,
-removed when the studio ends. At most :data:`MAX_RUNS` tries run at once: a
-try takes one of as many slots before its process starts and gives it back
-when its process has ended, so concurrent requests cannot start more.
+``beastbt run`` would do: as fast as the machine can by default
+(``--speed max``; ``speed`` 10 or ``realtime`` when asked), capped by the run's
+own default mission time unless ``max_time`` is given. The text runs as it is
+in the editor, saved or not: from a hidden file beside the one it will be saved
+as (so ``world:`` and geo files resolve from the same folder), removed when the
+run ends. The run's folder goes to the studio folder's ``runs/``, where
+``beastbt runs`` lists it; its summary, printed output and report go to a
+temporary folder of the studio, removed when the studio ends.
+
+The time left a try shows is wall time (:func:`mission_time_left`,
+:func:`pace_of`): the mission time left, from the console's estimate at the last
+step's end, divided by the speed-up measured from the console's own clock
+(mission seconds per wall second over the last polls), so a run at ``--speed
+max`` does not show real-time seconds.
+
+At most :data:`MAX_RUNS` tries and test runs (:mod:`beastbt.studio.mission_tests`)
+run at once: each takes one of as many slots before its process starts and
+gives it back when its process has ended, so concurrent requests cannot start
+more.
 The console's own API is passed through (``/api/try/<id>/console/...``): the
 console refuses to be framed by another page.
 """
@@ -16,6 +28,7 @@ console refuses to be framed by another page.
 from __future__ import annotations
 
 import json
+import math
 import os
 import secrets
 import shutil
@@ -44,6 +57,16 @@ CONSOLE_PATHS = ("api/state", "api/map", "api/pause", "api/resume", "api/abort",
                  "api/answer", "api/teleop")
 """The console's API passed through the studio (docs/console.md)."""
 SPEED_WORDS = ("max", "realtime")
+DEFAULT_SPEED = "max"
+"""A try runs as fast as the machine can unless the request says otherwise."""
+PACE_WINDOW_S = 10.0
+"""The speed-up is measured over the console's states of about this many last wall seconds."""
+PACE_MIN_SPAN_S = 0.5
+"""No speed-up is given before the states span this many wall seconds (two polls a moment apart say little)."""
+MAX_FACTOR = 1000.0
+"""The largest factor of real time a try takes (above that, ``max`` is what is meant)."""
+RECORDED_IN = "run recorded in "
+"""How ``beastbt run`` names its run folder when it ends (beastbt/run/session.py)."""
 
 
 @dataclass
@@ -61,6 +84,15 @@ class Trial:
     reader: Optional[threading.Thread] = None
     report: Optional[Path] = None
     report_error: Optional[str] = None
+    speed: str = DEFAULT_SPEED
+    runs_dir: Optional[Path] = None
+    """Where the run's folder goes (the studio folder's ``runs/``)."""
+    run_folder: Optional[Path] = None
+    """The run's folder, once ``beastbt run`` has said where it recorded it."""
+    pace: deque = field(default_factory=lambda: deque(maxlen=64))
+    """(wall s, mission s) of the console states read through the studio: the measured speed-up."""
+    eta_anchor: Optional[tuple[int, float, float]] = None
+    """(steps done, mission s left, mission time) when the count of steps done last changed."""
 
     @property
     def summary_file(self) -> Path:
@@ -75,18 +107,60 @@ def free_loopback_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _speed(value: Any) -> str:
+def speed_argument(value: Any) -> str:
+    """``--speed`` of a try from the request's ``speed``: ``"max"`` (also when not given), ``"realtime"``, or a
+    factor of real time above 0 (a number, or its text); FileRefused 400 otherwise."""
     if value is None:
-        return "realtime"
-    text = str(value).strip()
-    if text in SPEED_WORDS:
-        return text
-    try:
-        if float(text) > 0:
-            return text
-    except ValueError:
-        pass
-    raise FileRefused(400, f"'speed' is max, realtime or a factor of real time such as 4, not {value!r}")
+        return DEFAULT_SPEED
+    if isinstance(value, str) and value.strip() in SPEED_WORDS:
+        return value.strip()
+    if not isinstance(value, bool) and isinstance(value, (int, float, str)):
+        try:
+            factor = float(value)
+        except ValueError:
+            factor = math.nan
+        if math.isfinite(factor) and 0 < factor <= MAX_FACTOR:
+            return f"{factor:g}"
+    raise FileRefused(400, f"'speed' is \"max\" (as fast as the machine can), \"realtime\" or a factor of real "
+                           f"time from above 0 to {MAX_FACTOR:g} such as 10, not {json.dumps(value)[:40]}")
+
+
+def mission_time_left(trial: "Trial", progress: dict, sim_s: Any, before_s: Optional[float] = None
+                      ) -> Optional[float]:
+    """The mission seconds left: the console's estimate (``eta_s``, at the pace of the steps done so far) as it was
+    when the last step ended, less the mission time since. The console's own figure counts whole steps, so it
+    grows while a long step runs; this one falls as the mission goes on, and is set again at each step's end.
+
+    ``before_s``: the mission time of the state read before this one. A step that ended since ended, as far as
+    anyone knows, halfway between the two; the console's estimate, proportional to the mission time at a count of
+    steps, is taken back to then (at 40 times real time, a poll every 0.4 s is 16 s of mission time)."""
+    done, eta = progress.get("done"), progress.get("eta_s")
+    if not isinstance(sim_s, (int, float)) or isinstance(sim_s, bool):
+        return None
+    if not isinstance(eta, (int, float)) or isinstance(eta, bool) or not isinstance(done, int):
+        trial.eta_anchor = None
+        return None
+    if trial.eta_anchor is None or trial.eta_anchor[0] != done:
+        ended_s = float(sim_s)
+        if before_s is not None and 0 < before_s < sim_s:
+            ended_s = (before_s + float(sim_s)) / 2
+        trial.eta_anchor = (done, float(eta) * ended_s / float(sim_s) if sim_s > 0 else float(eta), ended_s)
+    _, eta_then, sim_then = trial.eta_anchor
+    return max(0.0, eta_then - (float(sim_s) - sim_then))
+
+
+def pace_of(samples: deque, eta_s: Optional[float], now_s: float) -> dict:
+    """``{speedup, time_left_s}``: mission seconds per wall second over the last :data:`PACE_WINDOW_S` of
+    ``samples`` ((wall s, mission s) pairs, oldest first), and the wall seconds left at that pace for ``eta_s``
+    mission seconds left (None when either is unknown: too few samples, a paused run, no estimate)."""
+    recent = [(w, m) for w, m in samples if now_s - w <= PACE_WINDOW_S]
+    speedup: Optional[float] = None
+    if len(recent) >= 2 and recent[-1][0] - recent[0][0] >= PACE_MIN_SPAN_S:
+        speedup = (recent[-1][1] - recent[0][1]) / (recent[-1][0] - recent[0][0])
+    left = None
+    if speedup is not None and speedup > 1e-3 and eta_s is not None:
+        left = round(eta_s / speedup, 1)
+    return {"speedup": None if speedup is None else round(speedup, 2), "time_left_s": left}
 
 
 class Trials:
@@ -105,34 +179,46 @@ class Trials:
     def start(self, text: str, path: Optional[str], body: dict) -> dict:
         """Start a try of ``text`` (saved or not at ``path``): ``{run_id, console_url}``; raises FileRefused."""
         from beastbt.core.units import UnitError, parse_duration
-        speed = _speed(body.get("speed"))
+        speed = speed_argument(body.get("speed"))
         robot = body.get("robot") or "sim"
         if not isinstance(robot, str):
             raise FileRefused(400, "'robot' is a robot profile's name or the path of a robot file")
         from beastbt.studio.analysis import robot_argument
         robot = robot_argument(self.folder, robot)  # inside the folder, or a shipped profile (file_refs)
-        max_time = body.get("max_time") or "10 min"
-        try:
-            parse_duration(str(max_time))
-        except UnitError as exc:
-            raise FileRefused(400, f"'max_time': {exc}") from None
+        # no cap of the studio's own: the run's (beastbt run's default mission time) unless the request gives one
+        max_time = body.get("max_time")
+        if max_time is not None:
+            try:
+                if isinstance(max_time, bool) or parse_duration(max_time) <= 0:
+                    raise UnitError("give a time above 0 such as '10 min'")
+            except (UnitError, TypeError, ValueError) as exc:
+                raise FileRefused(400, f"'max_time': {exc}") from None
         seed = body.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise FileRefused(400, "'seed' is a whole number, 0 or more")
         target = self.folder.resolve(path, must_exist=False) if path else self.folder.root / "untitled.yaml"
-        if self._closing:
-            raise FileRefused(503, "the studio is ending: no new try starts")
-        if not self._slots.acquire(blocking=False):
-            # the slot is taken atomically: of many requests at once, only MAX_RUNS get one
-            raise FileRefused(409, f"{MAX_RUNS} tries are running already (at most {MAX_RUNS} at once): stop one "
-                                   f"first (POST /api/try/RUN_ID/stop)")
+        self.take_slot("try")
         try:
-            return self._start(text, target, robot, speed, str(max_time), seed)
+            return self._start(text, target, robot, speed, None if max_time is None else str(max_time), seed)
         except BaseException:
             self._slots.release()
             raise
 
-    def _start(self, text: str, target: Path, robot: str, speed: str, max_time: str, seed: int) -> dict:
+    def take_slot(self, what: str) -> None:
+        """Take one of the :data:`MAX_RUNS` slots for a simulator process (a try, or a test run); FileRefused 409
+        when all are taken, 503 when the studio is ending. :meth:`give_slot` gives it back."""
+        if self._closing:
+            raise FileRefused(503, f"the studio is ending: no new {what} starts")
+        if not self._slots.acquire(blocking=False):
+            # the slot is taken atomically: of many requests at once, only MAX_RUNS get one
+            raise FileRefused(409, f"{MAX_RUNS} tries and test runs are running already (at most {MAX_RUNS} at "
+                                   f"once): stop one first (POST /api/try/RUN_ID/stop or /api/test/TEST_ID/stop)")
+
+    def give_slot(self) -> None:
+        """Give back a slot :meth:`take_slot` took (its process has ended)."""
+        self._slots.release()
+
+    def _start(self, text: str, target: Path, robot: str, speed: str, max_time: Optional[str], seed: int) -> dict:
         """Start the try's process, with a slot already taken (the reader gives it back when the process ends)."""
         with self._lock:
             self._forget_old()
@@ -146,10 +232,13 @@ class Trials:
             mission_file.unlink(missing_ok=True)
             raise refusal_of(exc, "the try did not start") from None
         port = free_loopback_port()
+        runs_dir = self.folder.root / "runs"  # beastbt runs, run in the folder, lists the tries with the other runs
         command = [sys.executable, "-m", "beastbt", "run", str(mission_file), "--robot", robot,
-                   "--speed", speed, "--max-time", str(max_time), "--seed", str(seed),
+                   "--speed", speed, "--seed", str(seed),
                    "--console", f"127.0.0.1:{port}", "--summary", str(run_folder / "summary.json"),
-                   "--runs-dir", str(run_folder / "runs"), "--files-inside", str(self.folder.root)]
+                   "--runs-dir", str(runs_dir), "--files-inside", str(self.folder.root)]
+        if max_time is not None:
+            command += ["--max-time", max_time]
         if robot != "sim":
             command.append("--sim")  # a real robot's profile on the simulator: a try never moves a robot
         env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -160,7 +249,7 @@ class Trials:
             mission_file.unlink(missing_ok=True)
             shutil.rmtree(run_folder, ignore_errors=True)
             raise
-        trial = Trial(run_id, process, run_folder, mission_file, port)
+        trial = Trial(run_id, process, run_folder, mission_file, port, speed=speed, runs_dir=runs_dir)
         with self._lock:
             self.runs[run_id] = trial
         trial.reader = threading.Thread(target=self._read_output, args=(trial,), name=f"beastbt-try-{run_id}",
@@ -175,7 +264,12 @@ class Trials:
         assert trial.process.stdout is not None
         name = str(trial.mission_file)
         for line in trial.process.stdout:
-            trial.output.append(line.rstrip("\n").replace(name, "(the text in the studio)"))
+            line = line.rstrip("\n")
+            if line.startswith(RECORDED_IN) and trial.runs_dir is not None:
+                recorded = Path(line[len(RECORDED_IN):].strip())
+                if recorded.parent.resolve() == trial.runs_dir.resolve():  # only a folder of the studio's runs/
+                    trial.run_folder = recorded
+            trial.output.append(line.replace(name, "(the text in the studio)"))
         trial.process.wait()
         self._slots.release()
         trial.mission_file.unlink(missing_ok=True)
@@ -198,7 +292,7 @@ class Trials:
         trial = self.get(run_id)
         code = trial.process.poll()
         out: dict[str, Any] = {"run_id": run_id, "state": "running" if code is None else "ended",
-                               "console_url": f"http://127.0.0.1:{trial.console_port}/",
+                               "console_url": f"http://127.0.0.1:{trial.console_port}/", "speed": trial.speed,
                                "output": list(trial.output)}
         if code is not None:
             if trial.reader is not None:
@@ -209,8 +303,10 @@ class Trials:
                 out["summary"] = json.loads(trial.summary_file.read_text(encoding="utf-8"))
             except (OSError, ValueError):
                 out["summary"] = None
-            if self._run_folder(trial) is not None:
+            folder = self._run_folder(trial)
+            if folder is not None:
                 out["report"] = f"/api/try/{run_id}/report/"
+                out["run_folder"] = self._shown(folder)
         return out
 
     def stop(self, run_id: str) -> dict:
@@ -259,9 +355,18 @@ class Trials:
 
     @staticmethod
     def _run_folder(trial: Trial) -> Optional[Path]:
-        runs = trial.folder / "runs"
-        folders = sorted(p for p in runs.iterdir() if p.is_dir()) if runs.is_dir() else []
-        return folders[-1] if folders else None
+        """The try's own run folder (others' runs share ``runs/``), when the run wrote one."""
+        if trial.reader is not None:
+            trial.reader.join(2.0)  # its last line names the folder
+        folder = trial.run_folder
+        return folder if folder is not None and (folder / "summary.json").is_file() else None
+
+    def _shown(self, folder: Path) -> str:
+        """``runs/NAME`` relative to the studio folder (the way ``beastbt runs`` there names it)."""
+        try:
+            return folder.resolve().relative_to(self.folder.root.resolve()).as_posix()
+        except ValueError:
+            return str(folder)
 
     def report_file(self, run_id: str) -> Path:
         """The HTML report of an ended try, made with ``beastbt report`` the first time it is asked for."""
@@ -320,11 +425,28 @@ class Trials:
                                            headers={"Content-Type": "application/json"} if body is not None else {}
                                            ) as answer:
                     try:
-                        return answer.status, await answer.json(content_type=None)
+                        data = await answer.json(content_type=None)
                     except ValueError:
                         return 502, {"error": "the console answered something that is not JSON"}
+                    if what == "api/state" and answer.status == 200 and isinstance(data, dict):
+                        data["pace"] = self._pace(trial, data)
+                    return answer.status, data
         except (aiohttp.ClientError, OSError, TimeoutError):
             return 503, {"error": "the try's console does not answer (yet): it starts a moment after the run"}
 
 
-__all__ = ["Trial", "Trials", "free_loopback_port"]
+    @staticmethod
+    def _pace(trial: Trial, state: dict) -> dict:
+        """The console's state's ``pace``: the measured speed-up and the wall time left (:func:`pace_of`)."""
+        import time
+        now = time.monotonic()
+        sim = state.get("time_s")
+        before = trial.pace[-1][1] if trial.pace else None
+        if isinstance(sim, (int, float)) and not isinstance(sim, bool):
+            if not trial.pace or trial.pace[-1][1] != sim or now - trial.pace[-1][0] > PACE_MIN_SPAN_S:
+                trial.pace.append((now, float(sim)))
+        progress = state.get("progress") if isinstance(state.get("progress"), dict) else {}
+        return pace_of(trial.pace, mission_time_left(trial, progress, sim, before), now)
+
+
+__all__ = ["Trial", "Trials", "free_loopback_port", "mission_time_left", "pace_of", "speed_argument"]

@@ -275,13 +275,14 @@ async function loadFiles(): Promise<void> {
   }
 }
 
-const KIND_TITLES: Record<string, string> = { mission: "Missions", world: "Worlds", robot: "Robots", other: "Other" };
+const KIND_TITLES: Record<string, string> = { mission: "Missions", test: "Tests", world: "Worlds", robot: "Robots",
+  other: "Other" };
 
 /** The file list, grouped by kind: missions, worlds, robots, other. */
 function renderFiles(): void {
   const list = $("file-list");
   list.replaceChildren();
-  for (const kind of ["mission", "world", "robot", "other"]) {
+  for (const kind of ["mission", "test", "world", "robot", "other"]) {
     const files = state.files.filter((f) => (KIND_TITLES[f.kind] ? f.kind : "other") === kind);
     if (!files.length) continue;
     const head = document.createElement("li");
@@ -313,7 +314,7 @@ function renderFiles(): void {
 
 /** The page's copy of the JSON Schema of a kind of file (absolute: its `$ref`s resolve beside it). */
 function schemaFor(kind: string): string | null {
-  const name = { mission: "mission", world: "world", robot: "robot" }[kind];
+  const name = { mission: "mission", world: "world", robot: "robot", test: "test" }[kind];
   return name ? new URL(`schemas/${name}.schema.json`, location.href).href : null;
 }
 
@@ -348,6 +349,7 @@ async function openFile(path: string, given?: { text: string; version: string | 
   $<HTMLButtonElement>("save").disabled = false;
   $<HTMLButtonElement>("try").disabled = file.kind !== "mission";
   $("try").title = file.kind === "mission" ? "Run this mission on the simulator" : "Only a mission can be tried";
+  $<HTMLButtonElement>("test").disabled = file.kind !== "mission";
   await useSchema(file.model.uri, schemaFor(file.kind));
   editor.setModel(file.model);
   if (file.viewState) editor.restoreViewState(file.viewState);
@@ -514,6 +516,8 @@ interface TryState {
   exit_code?: number | null;
   summary?: Record<string, any> | null;
   report?: string | null;
+  run_folder?: string | null;
+  speed?: string;
   output?: string | string[];
 }
 
@@ -526,6 +530,8 @@ interface LiveState {
   pose?: { x: number; y: number; yaw_deg?: number };
   question?: { id: string; text: string } | null;
   tree?: Array<{ id: string; status?: string }>;
+  /** Added by the studio: mission seconds per wall second, measured, and the wall seconds left at that pace. */
+  pace?: { speedup?: number | null; time_left_s?: number | null };
 }
 
 const run = {
@@ -550,6 +556,7 @@ async function tryIt(): Promise<void> {
   run.ended = false;
   const panel = $("run-panel");
   panel.hidden = false;
+  $("test-panel").hidden = true;
   panel.className = "run-panel running";
   delete panel.dataset.result;
   $("run-outcome").textContent = "Starting the simulator…";
@@ -567,9 +574,10 @@ async function tryIt(): Promise<void> {
   studioMap.showRobot(null);
   showTab("map");
   try {
-    // ?speed=max&max_time=5%20min in the page's address: a faster, shorter try (the run's own options)
+    // the speed chosen beside Try it; ?max_time=5%20min in the page's address caps the mission time
     const params = new URLSearchParams(location.search);
-    const speed = params.get("speed") || undefined;
+    const chosen = $<HTMLSelectElement>("try-speed").value;
+    const speed = chosen === "max" || chosen === "realtime" ? chosen : Number(chosen);
     const maxTime = params.get("max_time") || undefined;
     const answer = await api<{ run_id: string; console_url?: string }>("try",
       { text: cur.model.getValue(), path: cur.path, speed, max_time: maxTime, robot: robot() });
@@ -607,13 +615,27 @@ async function pollRun(id: string): Promise<void> {
   run.timer = window.setTimeout(() => void pollRun(id), TRY_POLL_MS);
 }
 
-/** The progress bar: steps done of the steps a full run takes. */
-function setProgress(p: LiveState["progress"] | null): void {
+/** The progress bar: steps done of the steps a full run takes, and the wall time left at the measured pace (the
+ * studio's `pace`: the mission time left over the speed-up, not the mission time itself). */
+function setProgress(p: LiveState["progress"] | null, pace?: LiveState["pace"]): void {
   const done = p?.done ?? 0;
   const total = p?.total ?? null;
   $("run-progress-fill").style.width = total ? `${Math.min(100, (100 * done) / total)}%` : "0";
-  $("run-progress-text").textContent = p ? (total ? `${done} of ${total} steps` : `${done} steps`)
-    + (p.eta_s != null ? `, about ${Math.round(p.eta_s)} s left` : "") : "";
+  const text = $("run-progress-text");
+  const left = pace?.time_left_s ?? null;
+  const speedup = pace?.speedup ?? null;
+  text.dataset.timeLeft = left != null ? String(left) : "";
+  text.dataset.speedup = speedup != null ? String(speedup) : "";
+  text.textContent = p ? (total ? `${done} of ${total} steps` : `${done} steps`)
+    + (left != null ? `, about ${formatSeconds(left)} left` : "")
+    + (speedup != null && speedup > 0 ? ` (${speedup >= 1.5 ? Math.round(speedup) : speedup.toFixed(1)}× real time)`
+      : "") : "";
+}
+
+/** `45 s`, `3 min 20 s`. */
+function formatSeconds(s: number): string {
+  const whole = Math.max(0, Math.round(s));
+  return whole < 60 ? `${whole} s` : `${Math.floor(whole / 60)} min ${whole % 60} s`;
 }
 
 /** What the run does now: its step, time, progress, question, robot on the map and tree. */
@@ -621,7 +643,7 @@ function showLive(live: LiveState): void {
   if (run.ended) return;
   $("run-step").textContent = live.step ?? "-";
   $("run-time").textContent = live.time_s != null ? `${live.time_s.toFixed(1)} s` : "";
-  setProgress(live.progress ?? null);
+  setProgress(live.progress ?? null, live.pace);
   const paused = (live.step ?? "").includes("(paused)");
   $("run-pause").hidden = paused;
   $("run-resume").hidden = !paused;
@@ -664,6 +686,8 @@ function showEnded(s: TryState): void {
     ["time (simulated)", sm.sim_time_s != null ? `${Number(sm.sim_time_s).toFixed(1)} s` : undefined],
     ["distance driven", sm.distance_m != null ? `${Number(sm.distance_m).toFixed(1)} m` : undefined],
     ["top speed", sm.max_speed_mps != null ? `${Number(sm.max_speed_mps).toFixed(2)} m/s` : undefined],
+    ["time (wall)", sm.wall_time_s != null ? `${Number(sm.wall_time_s).toFixed(1)} s` : undefined],
+    ["recorded in", s.run_folder ?? undefined],
     ["exit code", s.exit_code != null ? String(s.exit_code) : undefined],
   ];
   for (const [k, v] of rows) {
@@ -711,6 +735,126 @@ for (const [id, choice] of [["run-yes", "yes"], ["run-no", "no"]] as const) {
   });
 }
 
+// ---------------------------------------------------------------- test
+/** GET /api/test/<id> (docs/studio.md, Test). */
+interface TestState {
+  test_id: string;
+  state: string;
+  files: string[];
+  exit_code?: number;
+  output?: string[];
+  results?: Array<{ file: string; test: string; seed: number | null; passed: boolean; message: string | null }>;
+}
+
+const tests = { id: null as string | null, timer: 0 };
+
+/** Run the open mission's tests (POST /api/test): each file x seed's result when they end. */
+async function testIt(): Promise<void> {
+  const cur = state.current;
+  if (!cur || cur.kind !== "mission") { status("open a mission first", "error"); return; }
+  if (cur.model.getValue() !== cur.savedText) status("the tests run the saved mission: save to test your changes",
+    "info");
+  window.clearTimeout(tests.timer);
+  if (tests.id) void api(`test/${encodeURIComponent(tests.id)}/stop`, {}).catch(() => {});
+  tests.id = null;
+  const panel = $("test-panel");
+  panel.hidden = false;
+  $("run-panel").hidden = true;
+  panel.className = "run-panel test-panel running";
+  delete panel.dataset.result;
+  $("test-outcome").textContent = "Running the tests…";
+  $("test-results").replaceChildren();
+  $("test-details").hidden = true;
+  $("test-stop").hidden = false;
+  try {
+    const answer = await api<{ test_id: string; files: string[] }>("test", { path: cur.path });
+    tests.id = answer.test_id;
+    $("test-outcome").textContent = `Running ${answer.files.length} test file${answer.files.length === 1 ? "" : "s"}`
+      + `: ${answer.files.join(", ")}…`;
+    void pollTests(answer.test_id);
+  } catch (e) {
+    panel.className = "run-panel test-panel failure";
+    panel.dataset.result = "none";
+    $("test-stop").hidden = true;
+    $("test-outcome").textContent = `No test ran: ${(e as Error).message}`;
+  }
+}
+$("test").addEventListener("click", () => void testIt());
+
+async function pollTests(id: string): Promise<void> {
+  if (tests.id !== id) return;
+  try {
+    const s = await api<TestState>(`test/${encodeURIComponent(id)}`);
+    if (tests.id !== id) return;
+    $("test-output").textContent = (s.output ?? []).join("\n");
+    $("test-details").hidden = !(s.output ?? []).length;
+    if (s.state !== "running") { showTests(s); return; }
+  } catch (e) {
+    fail("the tests' state cannot be read", e);
+  }
+  tests.timer = window.setTimeout(() => void pollTests(id), TRY_POLL_MS);
+}
+
+/** Each file x seed: pass or fail, and the first failure in words. */
+function showTests(s: TestState): void {
+  const results = s.results ?? [];
+  const passed = results.filter((r) => r.passed).length;
+  const ok = s.exit_code === 0 && results.length > 0;
+  const panel = $("test-panel");
+  panel.className = `run-panel test-panel ${ok ? "success" : "failure"}`;
+  panel.dataset.result = ok ? "passed" : "failed";
+  $("test-stop").hidden = true;
+  $("test-outcome").textContent = results.length
+    ? `${ok ? "✔" : "✖"} ${passed} of ${results.length} seed${results.length === 1 ? "" : "s"} passed`
+    : `✖ The tests did not run (exit ${s.exit_code}): see the output`;
+  const list = $("test-results");
+  list.replaceChildren();
+  for (const r of results) {
+    const li = document.createElement("li");
+    li.className = r.passed ? "pass" : "fail";
+    li.setAttribute("data-testid", "test-result");
+    li.dataset.file = r.file;
+    li.dataset.seed = String(r.seed ?? "");
+    li.dataset.passed = String(r.passed);
+    li.textContent = `${r.file}: ${r.test}, seed ${r.seed ?? "?"}: ${r.passed ? "passed" : "failed"}`;
+    if (!r.passed && r.message) {
+      const why = document.createElement("span");
+      why.className = "why";
+      why.textContent = r.message;
+      li.appendChild(why);
+    }
+    list.appendChild(li);
+  }
+}
+
+$("test-stop").addEventListener("click", async () => {
+  if (!tests.id) return;
+  try { showTests(await api<TestState>(`test/${encodeURIComponent(tests.id)}/stop`, {})); }
+  catch (e) { fail("not stopped", e); }
+});
+$("test-close").addEventListener("click", () => {
+  window.clearTimeout(tests.timer);
+  tests.id = null;
+  $("test-panel").hidden = true;
+});
+$("test-new").addEventListener("click", async () => {
+  const cur = state.current;
+  if (!cur || cur.kind !== "mission") { status("open a mission first", "error"); return; }
+  try {
+    const made = await api<{ path: string; text: string; version: string }>("tests/new", { path: cur.path });
+    await loadFiles();
+    await openFile(made.path, { text: made.text, version: made.version, kind: "test" });
+    status(`${made.path} made for ${cur.path}: change what it expects, save, then Test`, "ok");
+  } catch (e) {
+    if (e instanceof ApiError && e.status === 409 && typeof e.body?.path === "string") {
+      await openFile(e.body.path);  // the mission's test is there already: open it
+      status(e.message, "info");
+    } else {
+      fail("no new test", e);
+    }
+  }
+});
+
 // ---------------------------------------------------------------- robot
 /** The robot a mission is checked, compiled and tried for (GET /api/robots; the simulator's by default). */
 function robot(): string | undefined {
@@ -744,7 +888,13 @@ $("robot").addEventListener("change", () => {
 void loadRobots();
 // Nothing to type into, save or try until a file is open: text typed into no file would be lost.
 editor.updateOptions({ readOnly: true });
-for (const id of ["try", "save"]) $<HTMLButtonElement>(id).disabled = true;
+for (const id of ["try", "test", "save"]) $<HTMLButtonElement>(id).disabled = true;
+{
+  // ?speed=max|realtime|10 in the page's address chooses the try's speed (as the control does)
+  const wanted = new URLSearchParams(location.search).get("speed");
+  const select = $<HTMLSelectElement>("try-speed");
+  if (wanted && [...select.options].some((o) => o.value === wanted)) select.value = wanted;
+}
 showTab("map");
 showProblems([]);
 void loadTemplates();
