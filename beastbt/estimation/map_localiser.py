@@ -116,6 +116,14 @@ class LocaliserConfig:
     """How long the quality must stay below ``lost_quality`` before ``localized`` turns false (s)."""
     found_quality: float
     """Match quality at which a robot that was not localised counts as localised again (share of beams)."""
+    ambiguity_check_interval_s: float
+    """How often the whole map is searched for another place that explains the scan as well (s); at every update
+    while the answer is open. 0 turns the check off."""
+    ambiguity_margin: float
+    """How much better (mean log-likelihood per beam) the estimate must explain the scan than the best other
+    place for the estimate to win; closer than this, both are kept and ``localized`` is false."""
+    ambiguity_separation_m: float
+    """Another place counts as another only this far from the estimate (m) or 30 degrees off."""
 
     def __post_init__(self) -> None:
         if self.particles < 10 or self.particles > 100_000:
@@ -136,6 +144,9 @@ class LocaliserConfig:
                              f"{self.candidates_per_injected}")
         if not 0.0 <= self.lost_inject_share <= 1.0:
             raise ValueError(f"localisation: 'lost_inject_share' must be 0..1, got {self.lost_inject_share}")
+        for name in ("ambiguity_check_interval_s", "ambiguity_margin", "ambiguity_separation_m"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"localisation: '{name}' must be >= 0, got {getattr(self, name)}")
         if not 0.0 <= self.lost_quality <= self.found_quality <= 1.0:
             raise ValueError(f"localisation: 'lost_quality' ({self.lost_quality}) and 'found_quality' "
                              f"({self.found_quality}) must be 0..1, lost_quality <= found_quality")
@@ -163,6 +174,33 @@ def invert(a: Pose2D) -> Pose2D:
     return (-c * a[0] - s * a[1], s * a[0] - c * a[1], float(wrap(-a[2])))
 
 
+COARSE_STEP_M = 0.25
+"""The global search's grid step over the map (m)."""
+COARSE_HEADINGS = 36
+"""The global search's headings (every 10 degrees)."""
+COARSE_SIGMA_M = 0.2
+"""The width of the coarse likelihood the global search scores with (m): about its grid step."""
+COARSE_BEAMS = 16
+"""Beams of the scan the coarse search scores (the refinement uses all of ``beams``)."""
+SETTLED_CHECKS = 3
+"""After a start or an ambiguity, the map is searched at every filter update until this many searches in a row found
+no other place as good; then every ``ambiguity_check_interval_s``."""
+TIGHT_CLOUD_M = 0.5
+"""The cloud's spread (m, over x and y together) below which it counts as settled, and is compared with the map."""
+TIGHT_CLOUD_DEG = 15.0
+"""The cloud's heading spread (degrees) below which it counts as settled."""
+INJECT_BELOW_SHARE = 0.05
+"""Particles go to another place that fits as well only when the cloud has less than this share of its weight there."""
+FOLLOW_SHARE = 0.3
+"""The share of the particles sent to another place that fits about as well as the estimate."""
+CLEARLY_BETTER_SHARE = 0.8
+"""The share sent to another place that fits clearly better (by more than ``ambiguity_margin``)."""
+AMBIGUOUS_SHARE = 0.1
+"""While another place holds at least this share of the cloud's weight, the robot is not localised."""
+SEARCH_CANDIDATES = 12
+"""Best coarse poses refined (distinct places, at least a grid step apart)."""
+
+
 class LikelihoodField:
     """Per-cell log-likelihood of a beam ending there, and the distance to the nearest occupied cell (m).
 
@@ -187,6 +225,14 @@ class LikelihoodField:
         self.log_p = np.pad(logp.astype(np.float32), 1, constant_values=math.log(config.z_rand))
         self.dist_m = np.pad(d.astype(np.float32), 1, constant_values=far)
         self.free_cells = np.flatnonzero(grid.free().ravel())
+        # For the global search (MapLocaliser.search_map): a likelihood as wide as the search's grid step, so that
+        # a pose on the coarse grid near the right one still scores as a match.
+        # Padded by the LiDAR's range all round, so that no end point of a pose on the map falls off it: the
+        # search then adds whole-cell offsets to flat indices, with no clipping.
+        wide = COARSE_SIGMA_M
+        self.coarse_pad = int(math.ceil(config.max_range_m / grid.resolution_m)) + 2
+        self.log_p_coarse = np.pad(np.log(config.z_hit * np.exp(-0.5 * (d / wide) ** 2) + config.z_rand)
+                                   .astype(np.float32), self.coarse_pad, constant_values=math.log(config.z_rand))
         self._c = math.cos(grid.origin_yaw)
         self._s = math.sin(grid.origin_yaw)
 
@@ -234,6 +280,21 @@ class MapLocaliser:
         """Filter updates done (a scan after enough motion)."""
         self.injected = 0
         """Random particles injected by recovery so far."""
+        self.ambiguous = False
+        """Another place on the map explains the scans about as well as the estimate: ``localized`` is false until
+        one of them wins (the particles follow both meanwhile)."""
+        self.alternative: Optional[Pose2D] = None
+        """The best other place of the last global search (map frame), or None."""
+        self.searches = 0
+        """Global searches of the map done."""
+        self._next_search_s: Optional[float] = None
+        self._clear_checks = 0
+        self._alternative_from_odom: Optional[Pose2D] = None
+        self._alternative_fits = False
+        """The last search found another place that explains the scan within ``ambiguity_margin`` of the estimate."""
+        """The other place followed (as a map -> odom transform, so that it moves with the robot), or None."""
+        """Global searches in a row that found no other place as good: below SETTLED_CHECKS, one at every update."""
+        self._search_coarse = self._coarse_poses()
 
     # -- set-up -------------------------------------------------------------------------------------------------
     def start(self, pose: Pose2D, sigma_xy_m: float, sigma_yaw_rad: float, odom: Pose2D) -> None:
@@ -307,6 +368,17 @@ class MapLocaliser:
             self._recover_average(mean_log_p)
         self._resample(beams)
         self.updates += 1
+        tight = (self.covariance[0, 0] + self.covariance[1, 1] <= TIGHT_CLOUD_M ** 2
+                 and self.covariance[2, 2] <= math.radians(TIGHT_CLOUD_DEG) ** 2)
+        if cfg.ambiguity_check_interval_s > 0.0 and tight:
+            # Only a cloud that has settled somewhere is compared with the rest of the map: a wide one (a start
+            # known to a metre) is still finding its place, and its mean would lose to any place that fits.
+            if (self._next_search_s is None or now_s >= self._next_search_s or self._clear_checks < SETTLED_CHECKS
+                    or not self.localized):
+                self._check_ambiguity(beams, est, odom)
+                self._clear_checks = 0 if self._alternative_from_odom is not None else self._clear_checks + 1
+                self._next_search_s = now_s + cfg.ambiguity_check_interval_s
+            self._judge_ambiguity(odom, est)
         self._judge(now_s, self._quality(beams, est))
         return True
 
@@ -428,6 +500,139 @@ class MapLocaliser:
         self.px, self.py, self.pth = px, py, pth
         self.w = np.full(n, 1.0 / n)
 
+    # -- another place that fits as well ----------------------------------------------------------------------
+    def _coarse_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """The global search's positions: free cells of the map on a :data:`COARSE_STEP_M` grid (x, y in m)."""
+        g = self.grid
+        step = max(1, int(round(COARSE_STEP_M / g.resolution_m)))
+        free = g.free()
+        rows, cols = np.nonzero(free[::step, ::step])
+        x, y = g.cell_centres(cols * step, rows * step)
+        return np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+
+    def _scores(self, x: np.ndarray, y: np.ndarray, th: np.ndarray, beams: np.ndarray,
+                table: np.ndarray) -> np.ndarray:
+        """Mean log-likelihood per beam of ``beams`` (base_link) at each pose, looked up in ``table``."""
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        ex = x[:, None] + c * beams[:, 0][None, :] - s * beams[:, 1][None, :]
+        ey = y[:, None] + s * beams[:, 0][None, :] + c * beams[:, 1][None, :]
+        row, col = self.field.cells(ex, ey)
+        return table[row, col].mean(axis=1)
+
+    def _refine(self, pose: Pose2D, beams: np.ndarray) -> tuple[Pose2D, float]:
+        """A local search around ``pose`` on the fine likelihood (shrinking steps); the best pose and its score."""
+        rng = self.rng
+        best = np.array(pose, dtype=np.float64)
+        best_score = float(self._scores(best[:1], best[1:2], best[2:3], beams, self.field.log_p)[0])
+        for sd_xy, sd_th in ((0.15, 0.12), (0.06, 0.05), (0.02, 0.02)):
+            x = best[0] + rng.normal(0.0, sd_xy, 24)
+            y = best[1] + rng.normal(0.0, sd_xy, 24)
+            th = best[2] + rng.normal(0.0, sd_th, 24)
+            scores = self._scores(x, y, th, beams, self.field.log_p)
+            i = int(np.argmax(scores))
+            if scores[i] > best_score:
+                best, best_score = np.array([x[i], y[i], th[i]]), float(scores[i])
+        return (float(best[0]), float(best[1]), float(wrap(best[2]))), best_score
+
+    def search_map(self, beams: np.ndarray) -> list[tuple[Pose2D, float]]:
+        """The places on the whole map that best explain ``beams`` (base_link, m), best first, each refined on the
+        fine likelihood: (pose, mean log-likelihood per beam). A correlative search: every free cell of a
+        :data:`COARSE_STEP_M` grid at :data:`COARSE_HEADINGS` headings, scored on a few beams against a widened
+        likelihood, then the best distinct ones refined."""
+        cx, cy = self._search_coarse
+        if len(cx) == 0 or len(beams) < 4:
+            return []
+        idx = np.linspace(0, len(beams) - 1, min(COARSE_BEAMS, len(beams))).astype(np.int64)
+        few = beams[idx]
+        headings = np.arange(COARSE_HEADINGS) * (2.0 * math.pi / COARSE_HEADINGS)
+        best_score = np.full(len(cx), -np.inf, dtype=np.float32)
+        best_th = np.zeros(len(cx))
+        # In whole cells of the padded table: each position's cell once, each heading's beam offsets once, and a
+        # flat look-up of their sums (an end point off the table is clipped onto its border row or column).
+        g = self.grid
+        table = self.field.log_p_coarse
+        cols_p = table.shape[1]
+        pad = self.field.coarse_pad
+        r0, c0 = self.field.cells(cx, cy)  # in the 1-cell padded tables: positions are on the map
+        base = (r0 - 1 + pad) * cols_p + (c0 - 1 + pad)
+        inv = 1.0 / g.resolution_m
+        cg, sg = math.cos(g.origin_yaw), math.sin(g.origin_yaw)
+        flat = table.ravel()
+        for th in headings:
+            c, s = math.cos(th), math.sin(th)
+            ox = c * few[:, 0] - s * few[:, 1]
+            oy = s * few[:, 0] + c * few[:, 1]
+            dc = np.rint((cg * ox + sg * oy) * inv).astype(np.int64)
+            dr = np.rint((-sg * ox + cg * oy) * inv).astype(np.int64)
+            score = flat[base[:, None] + (dr * cols_p + dc)[None, :]].sum(axis=1)
+            better = score > best_score
+            best_score[better] = score[better]
+            best_th[better] = th
+        best_score /= len(few)
+        order = np.argsort(-best_score)
+        picked: list[int] = []
+        for i in order:
+            if all((cx[i] - cx[j]) ** 2 + (cy[i] - cy[j]) ** 2 > (2 * COARSE_STEP_M) ** 2 for j in picked):
+                picked.append(int(i))
+                if len(picked) >= SEARCH_CANDIDATES:
+                    break
+        found = [self._refine((float(cx[i]), float(cy[i]), float(best_th[i])), beams) for i in picked]
+        self.searches += 1
+        return sorted(found, key=lambda f: -f[1])
+
+    def _check_ambiguity(self, beams: np.ndarray, est: Pose2D, odom: Pose2D) -> None:
+        """Search the map for another place that explains the scan about as well as the estimate (twin rooms, a
+        start given wrongly). When there is one and the cloud has (almost) no particles there, some go there
+        (most of them, if it explains the scan clearly better), so that the filter follows both places and its
+        own weighing, scan after scan, tells them apart (see :meth:`_judge_ambiguity`)."""
+        cfg = self.config
+        _, est_score = self._refine(est, beams)
+        others = [(pose, score) for pose, score in self.search_map(beams)
+                  if math.hypot(pose[0] - est[0], pose[1] - est[1]) > cfg.ambiguity_separation_m
+                  or abs(float(wrap(pose[2] - est[2]))) > math.radians(30.0)]
+        if not others or others[0][1] < est_score - cfg.ambiguity_margin:
+            self._alternative_fits = False
+            return  # the estimate explains the scan clearly best
+        alt, alt_score = others[0]
+        self._alternative_fits = True
+        if self._share_near(alt) < INJECT_BELOW_SHARE:
+            n = len(self.px)
+            k = int(n * (CLEARLY_BETTER_SHARE if alt_score > est_score + cfg.ambiguity_margin else FOLLOW_SHARE))
+            pick = self.rng.choice(n, k, replace=False)
+            self.px[pick] = alt[0] + self.rng.normal(0.0, 0.05, k)
+            self.py[pick] = alt[1] + self.rng.normal(0.0, 0.05, k)
+            self.pth[pick] = wrap(alt[2] + self.rng.normal(0.0, 0.03, k))
+            self.injected += k
+        # Kept relative to the odometry, so that it moves with the robot as the particles there do.
+        self._alternative_from_odom = compose(alt, invert(odom))
+
+    def _share_near(self, pose: Pose2D) -> float:
+        """The share of the particles' weight within 0.5 m and 30 degrees of ``pose``."""
+        near = (((self.px - pose[0]) ** 2 + (self.py - pose[1]) ** 2 <= 0.25)
+                & (np.abs(wrap(self.pth - pose[2])) <= math.radians(30.0)))
+        return float(self.w[near].sum())
+
+    def _judge_ambiguity(self, odom: Pose2D, est: Pose2D) -> None:
+        """``ambiguous`` while the last search found another place that fits about as well, or the other place
+        found still holds at least :data:`AMBIGUOUS_SHARE` of the cloud (and is not where the estimate is);
+        forgotten once a search finds the estimate clearly best and the scans have left the other place too few
+        particles."""
+        if self._alternative_from_odom is None:
+            self.ambiguous, self.alternative = self._alternative_fits, None
+            return
+        alt = compose(self._alternative_from_odom, odom)
+        apart = (math.hypot(alt[0] - est[0], alt[1] - est[1]) > self.config.ambiguity_separation_m
+                 or abs(float(wrap(alt[2] - est[2]))) > math.radians(30.0))
+        if not apart:  # the estimate moved to it: the next searches (at every update again) find the other
+            self._alternative_from_odom = None
+            self.ambiguous, self.alternative = False, None
+            return
+        share = self._share_near(alt)
+        self.alternative = alt
+        self.ambiguous = self._alternative_fits or share >= AMBIGUOUS_SHARE
+        if not self.ambiguous:
+            self._alternative_from_odom, self.alternative = None, None
+
     def _quality(self, beams: np.ndarray, pose: Pose2D) -> float:
         """Share of ``beams`` (base_link) that end within ``match_tolerance_m`` of an occupied cell at ``pose``."""
         c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -442,6 +647,10 @@ class MapLocaliser:
         half fits the scan does not count as found)."""
         self.match_quality = quality
         cfg = self.config
+        if self.ambiguous:
+            self.localized = False  # two places fit: saying either would be a guess
+            self._low_since = None
+            return
         if not self.localized:
             if quality >= cfg.found_quality:
                 self.localized = True
