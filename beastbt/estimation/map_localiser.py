@@ -183,20 +183,24 @@ COARSE_SIGMA_M = 0.2
 COARSE_BEAMS = 16
 """Beams of the scan the coarse search scores (the refinement uses all of ``beams``)."""
 SETTLED_CHECKS = 3
-"""After a start or an ambiguity, the map is searched at every filter update until this many searches in a row found
-no other place as good; then every ``ambiguity_check_interval_s``."""
+"""Once the cloud has settled (after a start, or when the robot is localised again), the map is searched at this
+many filter updates in a row; then every ``ambiguity_check_interval_s``."""
 TIGHT_CLOUD_M = 0.5
 """The cloud's spread (m, over x and y together) below which it counts as settled, and is compared with the map."""
 TIGHT_CLOUD_DEG = 15.0
 """The cloud's heading spread (degrees) below which it counts as settled."""
 INJECT_BELOW_SHARE = 0.05
 """Particles go to another place that fits as well only when the cloud has less than this share of its weight there."""
-FOLLOW_SHARE = 0.3
-"""The share of the particles sent to another place that fits about as well as the estimate."""
-CLEARLY_BETTER_SHARE = 0.8
-"""The share sent to another place that fits clearly better (by more than ``ambiguity_margin``)."""
+FOLLOW_SHARE = 0.2
+"""The share of the particles sent to another place that fits about as well as the estimate (or better): a fixed
+minority, whatever one scan says, so that the filter's own weighing, scan after scan, decides between the two."""
 AMBIGUOUS_SHARE = 0.1
-"""While another place holds at least this share of the cloud's weight, the robot is not localised."""
+"""The share of the cloud's weight the other place must hold, after :data:`EVIDENCE_UPDATES` updates, for the robot
+not to count as localised: half what it was given, i.e. the scans since have not made it more than twice less likely
+than the estimate."""
+EVIDENCE_UPDATES = 3
+"""Filter updates (scans) the other place is weighed for before it can make the robot not localised: one scan that
+happens not to see what tells two places apart (a plant, a door) is no evidence that they are alike."""
 SEARCH_CANDIDATES = 12
 """Best coarse poses refined (distinct places, at least a grid step apart)."""
 
@@ -284,16 +288,21 @@ class MapLocaliser:
         """Another place on the map explains the scans about as well as the estimate: ``localized`` is false until
         one of them wins (the particles follow both meanwhile)."""
         self.alternative: Optional[Pose2D] = None
-        """The best other place of the last global search (map frame), or None."""
+        """The other place the particles follow (map frame), or None."""
         self.searches = 0
         """Global searches of the map done."""
-        self._next_search_s: Optional[float] = None
-        self._clear_checks = 0
         self._alternative_from_odom: Optional[Pose2D] = None
-        self._alternative_fits = False
-        """The last search found another place that explains the scan within ``ambiguity_margin`` of the estimate."""
-        """The other place followed (as a map -> odom transform, so that it moves with the robot), or None."""
-        """Global searches in a row that found no other place as good: below SETTLED_CHECKS, one at every update."""
+        """The other place followed, as a map -> odom transform (so that it moves with the robot), or None."""
+        self._weighed = 0
+        """Filter updates since particles were last sent to the other place (the evidence gathered on it)."""
+        self._next_search_s: Optional[float] = None
+        self._localized_before_ambiguity: Optional[bool] = None
+        """``localized`` when another place was found to fit as well (restored once one of them wins), or None."""
+        self._settle_checks = SETTLED_CHECKS
+        """Searches left to do at every update (the cloud has just settled); then one every interval."""
+        self._cluster_xy_var = math.inf
+        self._cluster_yaw_var = math.inf
+        """The spread of the particles around the estimate (m^2 over x and y together; rad^2): the cloud there."""
         self._search_coarse = self._coarse_poses()
 
     # -- set-up -------------------------------------------------------------------------------------------------
@@ -363,22 +372,14 @@ class MapLocaliser:
         self.last_odom = odom
         mean_log_p = self._weigh(beams)
         est = self._estimate()
+        before = self.map_pose_of(odom)
         self.map_from_odom = compose(est, invert(odom))
         if not first:  # the first update weighs the whole initial spread: its average says nothing of a match
             self._recover_average(mean_log_p)
         self._resample(beams)
         self.updates += 1
-        tight = (self.covariance[0, 0] + self.covariance[1, 1] <= TIGHT_CLOUD_M ** 2
-                 and self.covariance[2, 2] <= math.radians(TIGHT_CLOUD_DEG) ** 2)
-        if cfg.ambiguity_check_interval_s > 0.0 and tight:
-            # Only a cloud that has settled somewhere is compared with the rest of the map: a wide one (a start
-            # known to a metre) is still finding its place, and its mean would lose to any place that fits.
-            if (self._next_search_s is None or now_s >= self._next_search_s or self._clear_checks < SETTLED_CHECKS
-                    or not self.localized):
-                self._check_ambiguity(beams, est, odom)
-                self._clear_checks = 0 if self._alternative_from_odom is not None else self._clear_checks + 1
-                self._next_search_s = now_s + cfg.ambiguity_check_interval_s
-            self._judge_ambiguity(odom, est)
+        if cfg.ambiguity_check_interval_s > 0.0:
+            self._follow_both(now_s, beams, est, before, odom)
         self._judge(now_s, self._quality(beams, est))
         return True
 
@@ -422,12 +423,18 @@ class MapLocaliser:
     def _estimate(self) -> Pose2D:
         """The weighted mean of the heaviest cluster of particles; the weighted covariance of all around it."""
         w, px, py, pth = self.w, self.px, self.py, self.pth
-        # The heaviest 0.5 m bin: after recovery a few far particles must not drag the mean between two places.
+        # The heaviest 1.5 m square (3 x 3 bins of 0.5 m): after recovery a few far particles must not drag the mean
+        # between two places, and a small dense clump (particles just sent to another place) must not outweigh a
+        # cloud spread over a few bins.
         key_x = np.floor(px / 0.5).astype(np.int64)
         key_y = np.floor(py / 0.5).astype(np.int64)
-        keys = (key_x - key_x.min()) * (int(key_y.max() - key_y.min()) + 1) + (key_y - key_y.min())
-        heaviest = np.bincount(keys, weights=w).argmax()
-        centre = np.flatnonzero(keys == heaviest)
+        key_x -= key_x.min() - 1
+        key_y -= key_y.min() - 1
+        shape = (int(key_x.max()) + 2, int(key_y.max()) + 2)
+        bins = np.bincount(key_x * shape[1] + key_y, weights=w, minlength=shape[0] * shape[1]).reshape(shape)
+        window = sum(np.roll(np.roll(bins, i, axis=0), j, axis=1) for i in (-1, 0, 1) for j in (-1, 0, 1))
+        hx, hy = np.unravel_index(int(np.argmax(window)), shape)
+        centre = (np.abs(key_x - hx) <= 1) & (np.abs(key_y - hy) <= 1)
         cx = float(np.average(px[centre], weights=w[centre] + 1e-300))
         cy = float(np.average(py[centre], weights=w[centre] + 1e-300))
         near = (px - cx) ** 2 + (py - cy) ** 2 <= 1.0
@@ -435,6 +442,8 @@ class MapLocaliser:
         x = float(np.average(px[near], weights=wn))
         y = float(np.average(py[near], weights=wn))
         yaw = float(math.atan2(np.average(np.sin(pth[near]), weights=wn), np.average(np.cos(pth[near]), weights=wn)))
+        self._cluster_xy_var = float(np.average((px[near] - x) ** 2 + (py[near] - y) ** 2, weights=wn))
+        self._cluster_yaw_var = float(np.average(wrap(pth[near] - yaw) ** 2, weights=wn))
         d = np.stack((px - x, py - y, wrap(pth - yaw)))
         cov = (d * w) @ d.T
         # The map itself is only known to a cell: add the variance of that quantisation (res^2 / 12) on x and y,
@@ -524,7 +533,7 @@ class MapLocaliser:
         rng = self.rng
         best = np.array(pose, dtype=np.float64)
         best_score = float(self._scores(best[:1], best[1:2], best[2:3], beams, self.field.log_p)[0])
-        for sd_xy, sd_th in ((0.15, 0.12), (0.06, 0.05), (0.02, 0.02)):
+        for sd_xy, sd_th in ((0.15, 0.12), (0.06, 0.05), (0.02, 0.02), (0.008, 0.008), (0.003, 0.003)):
             x = best[0] + rng.normal(0.0, sd_xy, 24)
             y = best[1] + rng.normal(0.0, sd_xy, 24)
             th = best[2] + rng.normal(0.0, sd_th, 24)
@@ -580,58 +589,105 @@ class MapLocaliser:
         self.searches += 1
         return sorted(found, key=lambda f: -f[1])
 
-    def _check_ambiguity(self, beams: np.ndarray, est: Pose2D, odom: Pose2D) -> None:
-        """Search the map for another place that explains the scan about as well as the estimate (twin rooms, a
-        start given wrongly). When there is one and the cloud has (almost) no particles there, some go there
-        (most of them, if it explains the scan clearly better), so that the filter follows both places and its
-        own weighing, scan after scan, tells them apart (see :meth:`_judge_ambiguity`)."""
+    def _apart(self, a: Pose2D, b: Pose2D) -> bool:
+        """``a`` and ``b`` are different places: ``ambiguity_separation_m`` apart, or 30 degrees."""
+        return (math.hypot(a[0] - b[0], a[1] - b[1]) > self.config.ambiguity_separation_m
+                or abs(float(wrap(a[2] - b[2]))) > math.radians(30.0))
+
+    def _other_place(self, beams: np.ndarray, est: Pose2D) -> Optional[tuple[Pose2D, Pose2D]]:
+        """Search the whole map (:meth:`search_map`) for another place that explains ``beams`` within
+        ``ambiguity_margin`` of the estimate, or better; None when the estimate explains them clearly best. The
+        estimate is refined the same way as the places found, so that a cloud's mean a few centimetres off does
+        not lose to a place polished by the search. The other place and the estimate refined, or None."""
+        refined, est_score = self._refine(est, beams)
+        for pose, score in self.search_map(beams):
+            if self._apart(pose, est):
+                return (pose, refined) if score >= est_score - self.config.ambiguity_margin else None
+        return None
+
+    def _send_particles(self, pose: Pose2D, est: Pose2D, odom: Pose2D) -> None:
+        """Move :data:`FOLLOW_SHARE` of the particles (drawn at random) to ``pose`` and follow it from now on. Each
+        keeps its offset from the estimate (the whole cloud's shape is carried over, rotated): particles scattered
+        more loosely than the settled cloud would lose to it on their scatter alone, not on the place."""
+        n = len(self.px)
+        k = int(n * FOLLOW_SHARE)
+        pick = self.rng.choice(n, k, replace=False)
+        # The estimate's place onto the other one: ``est`` refined as ``pose`` was, so that the two correspond as
+        # closely as they can (a centimetre off costs the particles sent there much of their weight).
+        t = compose(pose, invert(est))
+        c, s = math.cos(t[2]), math.sin(t[2])
+        x, y = self.px[pick], self.py[pick]
+        self.px[pick] = t[0] + c * x - s * y
+        self.py[pick] = t[1] + s * x + c * y
+        self.pth[pick] = wrap(self.pth[pick] + t[2])
+        self.w = np.full(n, 1.0 / n)  # just resampled: every particle weighs the same
+        self.injected += k
+
+    def _follow_both(self, now_s: float, beams: np.ndarray, est: Pose2D, before: Pose2D,
+                     odom: Pose2D) -> None:
+        """Another place that fits as well (twin rooms, a start given wrongly). Once the cloud has settled, the
+        whole map is searched (at :data:`SETTLED_CHECKS` updates in a row, then every
+        ``ambiguity_check_interval_s``); a place that explains the scan about as well as the estimate (or better)
+        is given :data:`FOLLOW_SHARE` of the particles, and the filter's weighing, scan after scan, decides: after
+        :data:`EVIDENCE_UPDATES` updates, while the other place still holds :data:`AMBIGUOUS_SHARE` of the weight,
+        ``ambiguous`` is true (``localized`` false); when it holds the most, it becomes the estimate and the place
+        the estimate was at becomes the other one. ``before`` is the estimate before this update."""
         cfg = self.config
-        _, est_score = self._refine(est, beams)
-        others = [(pose, score) for pose, score in self.search_map(beams)
-                  if math.hypot(pose[0] - est[0], pose[1] - est[1]) > cfg.ambiguity_separation_m
-                  or abs(float(wrap(pose[2] - est[2]))) > math.radians(30.0)]
-        if not others or others[0][1] < est_score - cfg.ambiguity_margin:
-            self._alternative_fits = False
-            return  # the estimate explains the scan clearly best
-        alt, alt_score = others[0]
-        self._alternative_fits = True
-        if self._share_near(alt) < INJECT_BELOW_SHARE:
-            n = len(self.px)
-            k = int(n * (CLEARLY_BETTER_SHARE if alt_score > est_score + cfg.ambiguity_margin else FOLLOW_SHARE))
-            pick = self.rng.choice(n, k, replace=False)
-            self.px[pick] = alt[0] + self.rng.normal(0.0, 0.05, k)
-            self.py[pick] = alt[1] + self.rng.normal(0.0, 0.05, k)
-            self.pth[pick] = wrap(alt[2] + self.rng.normal(0.0, 0.03, k))
-            self.injected += k
-        # Kept relative to the odometry, so that it moves with the robot as the particles there do.
-        self._alternative_from_odom = compose(alt, invert(odom))
+        lapsed = False
+        if self._alternative_from_odom is not None:
+            alt = compose(self._alternative_from_odom, odom)
+            if not self._apart(alt, est):
+                # The estimate moved to the other place: the place it left is now the other one, already weighed.
+                if self._apart(before, est):
+                    self._alternative_from_odom = compose(before, invert(odom))
+                    self._weighed = EVIDENCE_UPDATES - 1
+                    self.ambiguous = True
+                else:
+                    self._alternative_from_odom = None
+            if self._alternative_from_odom is not None:
+                alt = compose(self._alternative_from_odom, odom)
+                self._weighed += 1
+                if self._weighed >= EVIDENCE_UPDATES:
+                    if self._share_near(alt) >= AMBIGUOUS_SHARE:
+                        self.ambiguous = True
+                    else:
+                        # The scans made the other place unlikely. While it was an open question, the map is looked
+                        # at again now: the cloud's own drift may have thinned a place that fits just as well.
+                        self._alternative_from_odom = None
+                        lapsed = self.ambiguous
+                        self.ambiguous = False
+        self.alternative = (None if self._alternative_from_odom is None
+                            else compose(self._alternative_from_odom, odom))
+        tight = (self._cluster_xy_var <= TIGHT_CLOUD_M ** 2
+                 and self._cluster_yaw_var <= math.radians(TIGHT_CLOUD_DEG) ** 2)
+        if not tight or (not self.localized and not self.ambiguous and not lapsed):
+            # Only a cloud that has settled somewhere is compared with the rest of the map: a wide one (a start
+            # known to a metre) is still finding its place, and its mean would lose to any place that fits.
+            self._settle_checks = SETTLED_CHECKS
+            self._next_search_s = None
+            return
+        if self._alternative_from_odom is not None:
+            return  # the particles follow both places: the scans decide, no search needed meanwhile
+        if not (lapsed or self._settle_checks > 0 or self._next_search_s is None or now_s >= self._next_search_s):
+            return
+        self._settle_checks = max(0, self._settle_checks - 1)
+        self._next_search_s = now_s + cfg.ambiguity_check_interval_s
+        found = self._other_place(beams, est)
+        if found is None:
+            return
+        other, refined = found
+        if self._share_near(other) < INJECT_BELOW_SHARE:
+            self._send_particles(other, refined, odom)
+        self._alternative_from_odom = compose(other, invert(odom))
+        self.alternative = other
+        self._weighed = 0
+        self.ambiguous = lapsed  # still an open question: it stays so while the new particles are weighed
 
     def _share_near(self, pose: Pose2D) -> float:
         """The share of the particles' weight within 0.5 m and 30 degrees of ``pose``."""
         near = (((self.px - pose[0]) ** 2 + (self.py - pose[1]) ** 2 <= 0.25)
                 & (np.abs(wrap(self.pth - pose[2])) <= math.radians(30.0)))
         return float(self.w[near].sum())
-
-    def _judge_ambiguity(self, odom: Pose2D, est: Pose2D) -> None:
-        """``ambiguous`` while the last search found another place that fits about as well, or the other place
-        found still holds at least :data:`AMBIGUOUS_SHARE` of the cloud (and is not where the estimate is);
-        forgotten once a search finds the estimate clearly best and the scans have left the other place too few
-        particles."""
-        if self._alternative_from_odom is None:
-            self.ambiguous, self.alternative = self._alternative_fits, None
-            return
-        alt = compose(self._alternative_from_odom, odom)
-        apart = (math.hypot(alt[0] - est[0], alt[1] - est[1]) > self.config.ambiguity_separation_m
-                 or abs(float(wrap(alt[2] - est[2]))) > math.radians(30.0))
-        if not apart:  # the estimate moved to it: the next searches (at every update again) find the other
-            self._alternative_from_odom = None
-            self.ambiguous, self.alternative = False, None
-            return
-        share = self._share_near(alt)
-        self.alternative = alt
-        self.ambiguous = self._alternative_fits or share >= AMBIGUOUS_SHARE
-        if not self.ambiguous:
-            self._alternative_from_odom, self.alternative = None, None
 
     def _quality(self, beams: np.ndarray, pose: Pose2D) -> float:
         """Share of ``beams`` (base_link) that end within ``match_tolerance_m`` of an occupied cell at ``pose``."""
@@ -648,9 +704,17 @@ class MapLocaliser:
         self.match_quality = quality
         cfg = self.config
         if self.ambiguous:
+            if self._localized_before_ambiguity is None:
+                self._localized_before_ambiguity = self.localized
             self.localized = False  # two places fit: saying either would be a guess
             self._low_since = None
             return
+        if self._localized_before_ambiguity is not None:
+            # One place won: the robot is as localised as it was before the question arose, judged by the match as
+            # any localised robot is (a match spoiled by something the map does not show, between lost_quality and
+            # found_quality, does not keep it unlocalised).
+            self.localized = self._localized_before_ambiguity
+            self._localized_before_ambiguity = None
         if not self.localized:
             if quality >= cfg.found_quality:
                 self.localized = True
