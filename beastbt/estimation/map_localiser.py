@@ -31,7 +31,13 @@ The method is AMCL's (Thrun, Burgard, Fox, *Probabilistic Robotics*, ch. 4, 6, 8
   ``lost_inject_share`` of them at every update. Each injected particle is
   the best of ``candidates_per_injected`` random poses scored against the
   current scan (sensor resetting, Lenser and Veloso 2000): plain random
-  particles rarely land near the robot in a building of many rooms.
+  particles rarely land near the robot in a building of many rooms;
+* **another place that fits as well** (twin rooms, a start given wrongly):
+  once the cloud has settled, the whole map is searched (a correlative
+  search, :meth:`MapLocaliser.search_map`) for another place that explains
+  the scan within ``ambiguity_margin`` of the estimate; it gets a fixed
+  share of the particles and the filter's weighing decides, scan after scan;
+  while it holds its own after a few updates, ``localized`` is false.
 
 The filter updates only when the robot has moved ``update_min_d_m`` or turned
 ``update_min_angle_deg`` since the last update (AMCL's ``update_min_d``/``a``):
@@ -117,11 +123,12 @@ class LocaliserConfig:
     found_quality: float
     """Match quality at which a robot that was not localised counts as localised again (share of beams)."""
     ambiguity_check_interval_s: float
-    """How often the whole map is searched for another place that explains the scan as well (s); at every update
-    while the answer is open. 0 turns the check off."""
+    """How often the whole map is searched for another place that explains the scan as well (s), once the cloud has
+    settled (at :data:`SETTLED_CHECKS` updates in a row first). 0 turns the check off."""
     ambiguity_margin: float
-    """How much better (mean log-likelihood per beam) the estimate must explain the scan than the best other
-    place for the estimate to win; closer than this, both are kept and ``localized`` is false."""
+    """How much better (mean log-likelihood per beam, nats) the estimate must explain the scan than the best other
+    place for that place to be left alone; closer than this (or worse), particles go there and the filter's weighing
+    decides (``localized`` is false while both hold)."""
     ambiguity_separation_m: float
     """Another place counts as another only this far from the estimate (m) or 30 degrees off."""
 
