@@ -205,7 +205,7 @@ AMBIGUOUS_SHARE = 0.1
 """The share of the cloud's weight the other place must hold, after :data:`EVIDENCE_UPDATES` updates, for the robot
 not to count as localised: half what it was given, i.e. the scans since have not made it more than twice less likely
 than the estimate."""
-EVIDENCE_UPDATES = 3
+EVIDENCE_UPDATES = 5
 """Filter updates (scans) the other place is weighed for before it can make the robot not localised: one scan that
 happens not to see what tells two places apart (a plant, a door) is no evidence that they are alike."""
 SEARCH_CANDIDATES = 12
@@ -303,8 +303,12 @@ class MapLocaliser:
         self._weighed = 0
         """Filter updates since particles were last sent to the other place (the evidence gathered on it)."""
         self._next_search_s: Optional[float] = None
+        self._moved_while_ambiguous = False
+        """The estimate moved to the other place while the question was open."""
         self._localized_before_ambiguity: Optional[bool] = None
         """``localized`` when another place was found to fit as well (restored once one of them wins), or None."""
+        self._open_checks = 0
+        """Searches in a row that must find no other place before an open question (``ambiguous``) is closed."""
         self._settle_checks = SETTLED_CHECKS
         """Searches left to do at every update (the cloud has just settled); then one every interval."""
         self._cluster_xy_var = math.inf
@@ -385,9 +389,10 @@ class MapLocaliser:
             self._recover_average(mean_log_p)
         self._resample(beams)
         self.updates += 1
+        quality = self._quality(beams, est)
         if cfg.ambiguity_check_interval_s > 0.0:
-            self._follow_both(now_s, beams, est, before, odom)
-        self._judge(now_s, self._quality(beams, est))
+            self._follow_both(now_s, beams, est, before, odom, quality)
+        self._judge(now_s, quality)
         return True
 
     def no_scan(self, now_s: float) -> None:
@@ -548,6 +553,15 @@ class MapLocaliser:
             i = int(np.argmax(scores))
             if scores[i] > best_score:
                 best, best_score = np.array([x[i], y[i], th[i]]), float(scores[i])
+        # Then a polish on a small grid round the best, so that two places refined alike are compared alike (the
+        # random draws alone leave a centimetre or two to chance).
+        d = np.array([(dx, dy, dth) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dth in (-1, 0, 1)], dtype=np.float64)
+        for step, turn in ((0.02, 0.01), (0.01, 0.005), (0.005, 0.0025)):
+            x, y, th = best[0] + step * d[:, 0], best[1] + step * d[:, 1], best[2] + turn * d[:, 2]
+            scores = self._scores(x, y, th, beams, self.field.log_p)
+            i = int(np.argmax(scores))
+            if scores[i] > best_score:
+                best, best_score = np.array([x[i], y[i], th[i]]), float(scores[i])
         return (float(best[0]), float(best[1]), float(wrap(best[2]))), best_score
 
     def search_map(self, beams: np.ndarray) -> list[tuple[Pose2D, float]]:
@@ -612,7 +626,33 @@ class MapLocaliser:
                 return (pose, refined) if score >= est_score - self.config.ambiguity_margin else None
         return None
 
-    def _send_particles(self, pose: Pose2D, est: Pose2D, odom: Pose2D) -> None:
+    def _align(self, x: np.ndarray, y: np.ndarray, th: np.ndarray, pose: Pose2D,
+               beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The particles (x, y, th) moved as one, by the small shift and turn about ``pose`` under which they explain
+        ``beams`` best (the sum of their likelihoods): two refined poses correspond only to a centimetre or two
+        (less on a scan taken while turning), and that much costs a settled cloud most of its weight."""
+        bw = self.config.beam_weight
+        for step, turn in ((0.02, 0.01), (0.01, 0.005), (0.005, 0.0025)):
+            best, best_score = (0.0, 0.0, 0.0), -np.inf
+            for dth in (-turn, 0.0, turn):
+                c, s = math.cos(dth), math.sin(dth)
+                rx = pose[0] + c * (x - pose[0]) - s * (y - pose[1])
+                ry = pose[1] + s * (x - pose[0]) + c * (y - pose[1])
+                for dx in (-step, 0.0, step):
+                    for dy in (-step, 0.0, step):
+                        total = self._scores(rx + dx, ry + dy, th + dth, beams, self.field.log_p) * len(beams)
+                        score = float(np.logaddexp.reduce(bw * total))
+                        if score > best_score:
+                            best, best_score = (dx, dy, dth), score
+            dx, dy, dth = best
+            c, s = math.cos(dth), math.sin(dth)
+            x, y = (pose[0] + c * (x - pose[0]) - s * (y - pose[1]) + dx,
+                    pose[1] + s * (x - pose[0]) + c * (y - pose[1]) + dy)
+            th = th + dth
+            pose = (pose[0] + dx, pose[1] + dy, pose[2] + dth)
+        return x, y, wrap(th)
+
+    def _send_particles(self, pose: Pose2D, est: Pose2D, odom: Pose2D, beams: np.ndarray) -> None:
         """Move :data:`FOLLOW_SHARE` of the particles (drawn at random) to ``pose`` and follow it from now on. Each
         keeps its offset from the estimate (the whole cloud's shape is carried over, rotated): particles scattered
         more loosely than the settled cloud would lose to it on their scatter alone, not on the place."""
@@ -624,31 +664,33 @@ class MapLocaliser:
         t = compose(pose, invert(est))
         c, s = math.cos(t[2]), math.sin(t[2])
         x, y = self.px[pick], self.py[pick]
-        self.px[pick] = t[0] + c * x - s * y
-        self.py[pick] = t[1] + s * x + c * y
-        self.pth[pick] = wrap(self.pth[pick] + t[2])
+        x, y, th = t[0] + c * x - s * y, t[1] + s * x + c * y, self.pth[pick] + t[2]
+        self.px[pick], self.py[pick], self.pth[pick] = self._align(x, y, th, pose, beams)
         self.w = np.full(n, 1.0 / n)  # just resampled: every particle weighs the same
         self.injected += k
 
     def _follow_both(self, now_s: float, beams: np.ndarray, est: Pose2D, before: Pose2D,
-                     odom: Pose2D) -> None:
+                     odom: Pose2D, quality: float) -> None:
         """Another place that fits as well (twin rooms, a start given wrongly). Once the cloud has settled, the
         whole map is searched (at :data:`SETTLED_CHECKS` updates in a row, then every
         ``ambiguity_check_interval_s``); a place that explains the scan about as well as the estimate (or better)
         is given :data:`FOLLOW_SHARE` of the particles, and the filter's weighing, scan after scan, decides: after
         :data:`EVIDENCE_UPDATES` updates, while the other place still holds :data:`AMBIGUOUS_SHARE` of the weight,
         ``ambiguous`` is true (``localized`` false); when it holds the most, it becomes the estimate and the place
-        the estimate was at becomes the other one. ``before`` is the estimate before this update."""
+        the estimate was at becomes the other one. ``before`` is the estimate before this update, ``quality`` the
+        scan's match quality at the estimate: a scan the estimate explains poorly (below ``lost_quality``: people,
+        a box the map does not show, or a robot lost) is not compared with the map, since a place that lacks what
+        spoils it would win on it (recovery searches for a lost robot)."""
         cfg = self.config
-        lapsed = False
         if self._alternative_from_odom is not None:
             alt = compose(self._alternative_from_odom, odom)
             if not self._apart(alt, est):
-                # The estimate moved to the other place: the place it left is now the other one, already weighed.
+                # The estimate moved to the other place: the place it left is now the other one, weighed as a new one.
                 if self._apart(before, est):
                     self._alternative_from_odom = compose(before, invert(odom))
-                    self._weighed = EVIDENCE_UPDATES - 1
+                    self._weighed = 0
                     self.ambiguous = True
+                    self._moved_while_ambiguous = True
                 else:
                     self._alternative_from_odom = None
             if self._alternative_from_odom is not None:
@@ -658,16 +700,16 @@ class MapLocaliser:
                     if self._share_near(alt) >= AMBIGUOUS_SHARE:
                         self.ambiguous = True
                     else:
-                        # The scans made the other place unlikely. While it was an open question, the map is looked
-                        # at again now: the cloud's own drift may have thinned a place that fits just as well.
+                        # The scans made the other place unlikely. If it was an open question, it stays open until
+                        # searches at SETTLED_CHECKS updates in a row find no other place: the cloud's own drift may
+                        # have thinned a place that fits just as well, and one search may miss it.
                         self._alternative_from_odom = None
-                        lapsed = self.ambiguous
-                        self.ambiguous = False
+                        self._open_checks = SETTLED_CHECKS if self.ambiguous else 0
         self.alternative = (None if self._alternative_from_odom is None
                             else compose(self._alternative_from_odom, odom))
         tight = (self._cluster_xy_var <= TIGHT_CLOUD_M ** 2
                  and self._cluster_yaw_var <= math.radians(TIGHT_CLOUD_DEG) ** 2)
-        if not tight or (not self.localized and not self.ambiguous and not lapsed):
+        if not tight or (not self.localized and not self.ambiguous):
             # Only a cloud that has settled somewhere is compared with the rest of the map: a wide one (a start
             # known to a metre) is still finding its place, and its mean would lose to any place that fits.
             self._settle_checks = SETTLED_CHECKS
@@ -675,20 +717,26 @@ class MapLocaliser:
             return
         if self._alternative_from_odom is not None:
             return  # the particles follow both places: the scans decide, no search needed meanwhile
-        if not (lapsed or self._settle_checks > 0 or self._next_search_s is None or now_s >= self._next_search_s):
+        if quality < cfg.lost_quality:
+            return
+        if not (self._open_checks > 0 or self._settle_checks > 0 or self._next_search_s is None
+                or now_s >= self._next_search_s):
             return
         self._settle_checks = max(0, self._settle_checks - 1)
         self._next_search_s = now_s + cfg.ambiguity_check_interval_s
         found = self._other_place(beams, est)
         if found is None:
+            if self._open_checks > 0:
+                self._open_checks -= 1
+                self.ambiguous = self._open_checks > 0
             return
         other, refined = found
         if self._share_near(other) < INJECT_BELOW_SHARE:
-            self._send_particles(other, refined, odom)
+            self._send_particles(other, refined, odom, beams)
         self._alternative_from_odom = compose(other, invert(odom))
         self.alternative = other
         self._weighed = 0
-        self.ambiguous = lapsed  # still an open question: it stays so while the new particles are weighed
+        self._open_checks = 0  # ``ambiguous`` as it was, while the particles there are weighed
 
     def _share_near(self, pose: Pose2D) -> float:
         """The share of the particles' weight within 0.5 m and 30 degrees of ``pose``."""
@@ -713,14 +761,16 @@ class MapLocaliser:
         if self.ambiguous:
             if self._localized_before_ambiguity is None:
                 self._localized_before_ambiguity = self.localized
+                self._moved_while_ambiguous = False
             self.localized = False  # two places fit: saying either would be a guess
             self._low_since = None
             return
         if self._localized_before_ambiguity is not None:
-            # One place won: the robot is as localised as it was before the question arose, judged by the match as
-            # any localised robot is (a match spoiled by something the map does not show, between lost_quality and
-            # found_quality, does not keep it unlocalised).
-            self.localized = self._localized_before_ambiguity
+            # One place won. If it is the place the robot was localised at when the question arose, it is as
+            # localised as it was, judged by the match as any localised robot is (a match spoiled by something the
+            # map does not show, between lost_quality and found_quality, does not keep it unlocalised); a place
+            # it moved to must reach found_quality first.
+            self.localized = self._localized_before_ambiguity and not self._moved_while_ambiguous
             self._localized_before_ambiguity = None
         if not self.localized:
             if quality >= cfg.found_quality:
