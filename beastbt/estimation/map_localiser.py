@@ -208,6 +208,12 @@ than the estimate."""
 EVIDENCE_UPDATES = 5
 """Filter updates (scans) the other place is weighed for before it can make the robot not localised: one scan that
 happens not to see what tells two places apart (a plant, a door) is no evidence that they are alike."""
+TRUSTED_UPDATES = 25
+"""Filter updates with a match of at least ``found_quality``, localised all along with no other place in question, after
+which the estimate is trusted over what one scan says elsewhere: the map is no longer searched. The odometry has then
+carried it, step by step, from where it was found, and a place elsewhere that fits better (a box, a person the map
+does not show spoils the scan where the robot is) is more likely wrong than a jump across the map. Recovery (random
+particles) still acts if the match is lost."""
 SEARCH_CANDIDATES = 12
 """Best coarse poses refined (distinct places, at least a grid step apart)."""
 
@@ -307,6 +313,8 @@ class MapLocaliser:
         """The estimate moved to the other place while the question was open."""
         self._localized_before_ambiguity: Optional[bool] = None
         """``localized`` when another place was found to fit as well (restored once one of them wins), or None."""
+        self._track_updates = 0
+        """Filter updates in a row localised with a good match, no other place in question (see TRUSTED_UPDATES)."""
         self._open_checks = 0
         """Searches in a row that must find no other place before an open question (``ambiguous``) is closed."""
         self._settle_checks = SETTLED_CHECKS
@@ -715,9 +723,13 @@ class MapLocaliser:
             self._settle_checks = SETTLED_CHECKS
             self._next_search_s = None
             return
+        if not self.localized or self.ambiguous:
+            self._track_updates = 0
+        elif quality >= cfg.found_quality:
+            self._track_updates += 1  # (a scan spoiled by something the map lacks neither counts nor resets it)
         if self._alternative_from_odom is not None:
             return  # the particles follow both places: the scans decide, no search needed meanwhile
-        if quality < cfg.lost_quality:
+        if quality < cfg.lost_quality or (self._track_updates >= TRUSTED_UPDATES and self._open_checks == 0):
             return
         if not (self._open_checks > 0 or self._settle_checks > 0 or self._next_search_s is None
                 or now_s >= self._next_search_s):
