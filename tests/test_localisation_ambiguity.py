@@ -93,7 +93,7 @@ def test_the_office_with_a_start_5_m_off_in_the_lab_is_found(tmp_path, seed):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_a_start_far_off_is_lost_then_found_where_it_is(tmp_path, seed):
-    """5 m and 90 degrees off (tests/test_map_localiser.py has the same start with the search off): the scans fit
+    """5 m and 90 degrees off (as in tests/test_map_localiser.py, which checks that it is noticed): the scans fit
     nowhere near, so it is not localised after lost_after_s and recovery searches; where recovery settles first may
     be a place that only half fits (the kitchen, the lab), which the search of the map then weighs against the rest:
     it ends localised where it is, never confidently wrong for more than 2 s."""

@@ -36,13 +36,12 @@ walls:
 """
 
 
-def run_mission(folder: Path, text: str, seed: int = 0, trace: bool = False, robot: str = "sim") -> tuple[dict, list]:
+def run_mission(folder: Path, text: str, seed: int = 0, trace: bool = False) -> tuple[dict, list]:
     """Run a mission written into ``folder`` (beside the office map); its summary and, with ``trace``, per tick
-    (clock s, map_pose, true pose in the map frame of the map, which starts at the world's start, pose_odom).
-    ``robot``: a robot profile's path, simulated, instead of the sim robot."""
+    (clock s, map_pose, true pose in the map frame of the map, which starts at the world's start, pose_odom)."""
     path = folder / "mission.yaml"
     path.write_text(text)
-    prepared = prepare(str(path), RunOptions(record=False, seed=seed, robot=robot, simulate=robot != "sim"))
+    prepared = prepare(str(path), RunOptions(record=False, seed=seed))
     rows: list = []
     if trace:
         world = prepared.world
@@ -124,12 +123,7 @@ def test_a_start_far_from_the_truth_is_noticed_and_searched_for(office):
     scans and recovery draws particles over the map. (Where it lands is not asserted: the office and the lab are the
     same room 5 m apart, so a scan from inside one fits both.)"""
     extra = "start: {x: 5 m, y: 0.5 m, yaw: 90 deg}\n"
-    # Recovery alone: the search of the whole map for another place (tests/test_localisation_ambiguity.py) would
-    # find the robot at the first scans.
-    profile = office / "robot.yaml"
-    profile.write_text((REPO / "robots" / "sim.yaml").read_text().replace(
-        "geometry:", "localisation: {ambiguity_check_interval_s: 0}\n\ngeometry:", 1))
-    summary, rows = run_mission(office, mission_text("kidnapped", TOUR, extra), trace=True, robot=str(profile))
+    summary, rows = run_mission(office, mission_text("kidnapped", TOUR, extra), trace=True)
     lost = [now for now, p, _, _ in rows if not p.localized]
     assert lost and lost[0] <= 2.5
     assert summary["localisation"]["injected_particles"] > 0

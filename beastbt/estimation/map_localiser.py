@@ -638,7 +638,7 @@ class MapLocaliser:
                beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The particles (x, y, th) moved as one, by the small shift and turn about ``pose`` under which they explain
         ``beams`` best (the sum of their likelihoods): two refined poses correspond only to a centimetre or two
-        (less on a scan taken while turning), and that much costs a settled cloud most of its weight."""
+        (worse on a scan taken while turning), and that much costs a settled cloud most of its weight."""
         bw = self.config.beam_weight
         for step, turn in ((0.02, 0.01), (0.01, 0.005), (0.005, 0.0025)):
             best, best_score = (0.0, 0.0, 0.0), -np.inf
@@ -688,7 +688,8 @@ class MapLocaliser:
         the estimate was at becomes the other one. ``before`` is the estimate before this update, ``quality`` the
         scan's match quality at the estimate: a scan the estimate explains poorly (below ``lost_quality``: people,
         a box the map does not show, or a robot lost) is not compared with the map, since a place that lacks what
-        spoils it would win on it (recovery searches for a lost robot)."""
+        spoils it would win on it (recovery searches for a lost robot). Nor once the estimate is trusted
+        (:data:`TRUSTED_UPDATES`)."""
         cfg = self.config
         if self._alternative_from_odom is not None:
             alt = compose(self._alternative_from_odom, odom)
