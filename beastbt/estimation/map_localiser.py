@@ -296,7 +296,7 @@ class MapLocaliser:
         self.updates = 0
         """Filter updates done (a scan after enough motion)."""
         self.injected = 0
-        """Random particles injected by recovery so far."""
+        """Particles injected by recovery, or sent to another place that fits as well, so far."""
         self.ambiguous = False
         """Another place on the map explains the scans about as well as the estimate: ``localized`` is false until
         one of them wins (the particles follow both meanwhile)."""
