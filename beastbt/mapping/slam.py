@@ -18,7 +18,8 @@ comparison: a scan becomes a *keyframe* only once the robot has moved
 
 :meth:`~OnlineMapper.occupancy_map` draws the map from the optimised
 keyframes: each scan ray-cast into log-odds (free along each beam, occupied
-at its end; no return, NaN, is skipped: a dropout says nothing), thresholded
+at its end, so later beams clear where a person stood; no return, NaN, is
+skipped: a dropout says nothing), thresholded
 into an :class:`~beastbt.mapping.occupancy_map.OccupancyMap`. The map frame
 is the robot's pose when mapping began (x forward, y left), as slam_toolbox's.
 Units: metres, radians, seconds.
@@ -72,9 +73,9 @@ class MappingConfig:
     loop_keyframes: int = 15
     optimise_every_keyframes: int = 5
     # Transient returns (a person walking or standing a while, then gone) must not stay walls: one look through a
-    # cell hit once clears it (0.7 - 0.4 = 0.3, below occupied_thresh's 0.62), a wall hit twice or more survives
+    # cell hit once clears it (0.7 - 0.4 = 0.3, below 0.62, occupied_thresh 0.65 in log-odds), a wall hit twice or more survives
     # the odd grazing beam crossing it, and the clamp at 2.5 lets a cell a standing person saturated clear after
-    # five looks through it once the person has gone (at +-5 it took 13). docs/mapping.md has the figures.
+    # five looks through it once the person has gone (with -0.25 and +-5 it took 18). docs/mapping.md has the figures.
     hit_log_odds: float = 0.7
     free_log_odds: float = -0.4
     max_log_odds: float = 2.5
