@@ -1,7 +1,7 @@
 """SLAM among people: transient returns (people walking, people standing a while and leaving) do not become walls.
 
-``missions/floor_people_tour.yaml`` drives ``worlds/floor_people.yaml`` (five rooms off a corridor, eleven
-people: walking in the rooms and along the corridor, four standing inside the doors for the first 30 s then
+``missions/floor_people_tour.yaml`` drives ``worlds/floor_people.yaml`` (five rooms off a corridor, fifteen
+people: walking in the rooms and along the corridor, six standing for 20-30 s, four of them inside the doors, then
 walking off) with ``--build-map``, on seeds 1-5, and the map is judged against the world by
 ``tests/slam_judge.py``: at least 90 % of the wall cells seen are marked, at most 5 % of the occupied cells are
 ghosts (more than 10 cm from any wall or fixed obstacle), and the robot touched nothing. Before the map cleared
