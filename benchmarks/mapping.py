@@ -25,7 +25,12 @@ dead reckoning and on a synthetic 1000-keyframe graph (ten laps of a 10 m x
 5 m loop, 0.3 m steps, a loop closure every fifth keyframe), with the largest
 position error of each solution against the truth (the same for both).
 
-Run: python benchmarks/mapping.py [--reps 5]
+Last, the map among people: ``missions/floor_people_tour.yaml`` on ``worlds/floor_people.yaml`` (five rooms,
+fifteen people walking or standing a while) with ``--build-map`` on seeds 1-5, judged by ``tests/slam_judge.py``:
+the share of the wall cells seen that the map marks, and the share of its occupied cells that are ghosts (more
+than 10 cm from any wall or fixed obstacle); min and max over the seeds.
+
+Run: python benchmarks/mapping.py [--reps 5] [--floor-seeds 5]
 """
 
 from __future__ import annotations
@@ -194,6 +199,8 @@ def spread(values: list[float], fmt: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=5, help="runs to take medians over (default 5)")
+    parser.add_argument("--floor-seeds", type=int, default=5,
+                        help="seeds 1..N of the map among people (default 5; 0 leaves it out)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         one_run(99, Path(tmp))  # warm-up: imports, OpenCV and SciPy loaded
@@ -237,7 +244,31 @@ def main() -> None:
     print(f"synthetic pose graph ({len(graph.poses)} keyframes, {len(graph.edges)} edges), from dead reckoning:")
     for line in solve_both(graph.edges, odo, truth, args.reps):
         print("  " + line)
+    if args.floor_seeds > 0:
+        floor_among_people(args.floor_seeds, figures)
     figures.save()
+
+
+def floor_among_people(seeds: int, figures: Figures) -> None:
+    """The floor_people tour mapped on seeds 1..``seeds``: walls marked and ghosts (%), min and max."""
+    sys.path.insert(0, str(REPO / "tests"))
+    from slam_judge import FLOOR_TOUR, run_and_judge
+
+    marked, ghosts = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(1, seeds + 1):
+            summary, j = run_and_judge(FLOOR_TOUR, seed, Path(tmp) / str(seed))
+            marked.append(100 * j.marked)
+            ghosts.append(100 * j.ghosts)
+            print(f"  seed {seed}: {summary['status']}, {summary['truth']['collisions']} collisions, walls marked "
+                  f"{100 * j.marked:.1f} % of {j.seen} cells seen, ghosts {100 * j.ghosts:.1f} % of {j.occupied} "
+                  f"occupied cells")
+    print(f"map among people (floor_people, seeds 1-{seeds}): walls marked {min(marked):.1f}-{max(marked):.1f} % "
+          f"(goal >= 90 %), ghosts {min(ghosts):.1f}-{max(ghosts):.1f} % (goal <= 5 %)")
+    figures.put("floor_marked_pct.min", min(marked), 3)
+    figures.put("floor_marked_pct.max", max(marked), 3)
+    figures.put("floor_ghosts_pct.min", min(ghosts), 3)
+    figures.put("floor_ghosts_pct.max", max(ghosts), 3)
 
 
 if __name__ == "__main__":
