@@ -183,7 +183,7 @@ def test_tuning_from_another_page_is_refused_and_no_knob_changes(standing):
     """Live tuning's endpoints sit behind the same guard as every control (a slower robot is harmless; a faster one,
     or a profile rewritten from another page, is not)."""
     run = standing
-    before = run.state()["tuning"]["values"]
+    before = run.wait_state(lambda s: s.get("tuning") is not None)["tuning"]["values"]  # once the run has ticked
     for path, body in (("/api/tuning", {"name": "limits.max_speed_mps", "value": 0.1}), ("/api/tuning/reset", {}),
                        ("/api/tuning/save", {})):
         for content_type, headers in (("text/plain", {}), ("application/x-www-form-urlencoded", {}),
