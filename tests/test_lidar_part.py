@@ -48,7 +48,9 @@ def test_a_sim_profile_with_a_lidar_runs_and_the_unread_lidar_sleeps(tmp_path):
 
 
 def test_a_profile_without_a_lidar_gets_no_lidar_part():
-    assert "lidar" not in [p.name for p in parts_for(load_profile("ugv_beast"), RunOptions())]
+    # diy_pwm carries the lidar: section commented out; the Beast carries Waveshare's kit (issue 36)
+    assert "lidar" not in [p.name for p in parts_for(load_profile("diy_pwm"), RunOptions())]
+    assert "lidar" in [p.name for p in parts_for(load_profile("ugv_beast"), RunOptions())]
     data = yaml.safe_load((REPO / "robots" / "sim.yaml").read_text(encoding="utf-8"))
     assert data["lidar"]["type"] == "ld19"  # the simulator carries Waveshare's kit LiDAR
     assert "lidar" in [p.name for p in parts_for(load_profile("sim"), RunOptions())]

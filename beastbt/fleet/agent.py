@@ -382,7 +382,7 @@ class FleetAgent:
                                             f"run 'beastbt serve' on it to send it missions"}
         if self.link is not None or self._pending_mission:
             if self.link is None:
-                return {"status": 409, "error": f"{self.name} is checking another mission: send it again in a "
+                return {"status": 409, "error": f"{self.name} is busy checking another mission: send it again in a "
                                                 f"moment"}
             return {"status": 409, "error": f"{self.name} is busy with mission '{self.link.run.mission.name}': "
                                             f"abort it first"}
