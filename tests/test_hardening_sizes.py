@@ -93,13 +93,15 @@ def test_the_far_place_warnings_measure_a_number_of_distances_linear_in_the_plac
 
 def test_a_mission_of_4000_places_validates_in_under_8_times_the_cost_of_1000(tmp_path):
     # Processor time of this process, so a busy machine does not fail it; 16x before (6.5 s against 109 s).
-    costs = {}
-    for count in (1000, 1000, 4000):  # the first 1000 loads the modules
+    # The least of three tries of each size: a garbage collection or a neighbour's cache misses falling in one
+    # try must not decide it (linear is 4x; quadratic was 16x).
+    costs: dict[int, float] = {}
+    for count in (1000, 1000, 1000, 1000, 4000, 4000, 4000):  # the first 1000 loads the modules
         path = tmp_path / f"m{count}.yaml"
         path.write_text(many_places(count))
         t0 = time.process_time()
         assert validate_file(str(path)) == []
-        costs[count] = time.process_time() - t0
+        costs[count] = min(costs.get(count, float("inf")), time.process_time() - t0)
     assert costs[4000] < 8 * costs[1000], costs
 
 
