@@ -230,6 +230,9 @@ def serve_one(agent: Any, request: Any, options: Any, missions_dir: Optional[Pat
                 path = missions_dir / "mission.yaml"
                 refs = FileRefs.inside(missions_dir, "the robot's mission folder",
                                        "the robot's mission folder (beastbt serve --missions-dir)")
+                if getattr(request, "on_robot", False):  # made from the robot's own profile, not from the network
+                    from beastbt.core.file_refs import CLI
+                    refs = CLI
         except ValueError as exc:
             request.answer(False, {"status": 400, "error": str(exc)})
             return None

@@ -54,6 +54,9 @@ class MissionRequest:
 
     payload: bytes
     answer: Callable[[bool, dict], None]
+    on_robot: bool = False
+    """Made on the robot itself from its own profile (a ROS 2 goal with the profile's ``ros2: map:``), not sent
+    over the network: the files it names are read as written, as on the command line."""
 
 
 class FleetAgent:

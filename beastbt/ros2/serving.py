@@ -60,7 +60,8 @@ class Ros2Serving:
             if not ok:
                 print(f"beastbt serve: ROS 2 goal ({x:.2f}, {y:.2f}) not taken: {body.get('error')} "
                       f"{body.get('errors', '')}".rstrip(), file=sys.stderr, flush=True)
-        self.agent.missions.put(MissionRequest(goal_mission(pose, self.map_file), answer))
+        # on_robot: the goal's map is the one the robot's own profile names (ros2: map:), read where it says
+        self.agent.missions.put(MissionRequest(goal_mission(pose, self.map_file), answer, on_robot=True))
         if run is not None and run.mission.name == GOAL_MISSION:
             run.abort("a new ROS 2 goal")  # the next goal replaces this one
         elif run is not None:
