@@ -1,4 +1,5 @@
-"""``beastbt report RUN``: a run at a glance, in the terminal and as plots (drawn by :mod:`beastbt.recording.report_plots`).
+"""``beastbt report RUN``: a run at a glance, in the terminal and as plots
+(drawn by :mod:`beastbt.recording.report_plots`).
 
 From a run folder (``runs/<time>_<mission>/``) or an ``.mcap`` file:
 
