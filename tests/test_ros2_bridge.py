@@ -20,6 +20,7 @@ import pytest
 from beastbt.ros2 import bridge, cdr, rmw_zenoh as rz
 from conftest import REPO
 from fleet_support import free_port, wait_for
+from ros2_support import peer_with_tokens
 
 zenoh = pytest.importorskip("zenoh")
 typesys = pytest.importorskip("rosbags.typesys")
@@ -28,19 +29,7 @@ MISSION = "mission: stand_by\nsteps:\n  - wait: 60 s\n"
 
 
 def _peer(port: int):
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
-    try:
-        s = zenoh.open(conf)
-    except Exception:  # noqa: BLE001 - not listening yet
-        return None
-    tokens = [str(r.ok.key_expr) for r in s.liveliness().get("@ros2_lv/**", timeout=1.0) if r.ok is not None]
-    if not tokens:
-        s.close()
-        return None
-    return s, tokens
+    return peer_with_tokens(port)
 
 
 def test_the_bridge_format_out_and_in(tmp_path):

@@ -19,25 +19,16 @@ import pytest
 from beastbt.ros2 import rmw_zenoh as rz
 from conftest import REPO
 from fleet_support import free_port, wait_for
+from ros2_support import peer_with_tokens
 
 zenoh = pytest.importorskip("zenoh")
 typesys = pytest.importorskip("rosbags.typesys")
 
 
 def _peer_seeing_goal_subscription(port: int):
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"peer"')
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
-    try:
-        s = zenoh.open(conf)
-    except Exception:  # noqa: BLE001 - not listening yet
-        return None
-    tokens = [str(r.ok.key_expr) for r in s.liveliness().get("@ros2_lv/**", timeout=1.0) if r.ok is not None]
-    if not any("/MS/" in t and "%goal_pose/geometry_msgs::msg::dds_::PoseStamped_/" in t for t in tokens):
-        s.close()
-        return None
-    return s
+    found = peer_with_tokens(port, lambda tokens: any(
+        "/MS/" in t and "%goal_pose/geometry_msgs::msg::dds_::PoseStamped_/" in t for t in tokens))
+    return None if found is None else found[0]
 
 
 def test_goal_pose_becomes_a_planned_go_to_on_the_office_map(tmp_path):
