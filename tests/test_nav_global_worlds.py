@@ -1,10 +1,13 @@
-"""The worlds built for the global costmap (worlds/field_fence.yaml, worlds/field_dead_end.yaml), on seeds 1-5.
+"""The worlds built for the global costmap (worlds/field_fence.yaml, worlds/field_dead_end.yaml), on two seeds.
 
 * missions/fence_crossing.yaml: a GPS route across a field with an 8 m fence whose only gap (0.25 m) is narrower
   than the robot; the way is round an end, 4 m off the line. It must succeed in at most 1.5x the time of the same
   route on the empty field (worlds/field.yaml), without touching the fence.
 * missions/dead_end.yaml: a place behind a U-shaped dead end (6 m x 5 m, open towards the robot). It must succeed
   in at most 3x the empty field's time, without touching the U.
+
+benchmarks/nav_worlds.py sweeps seeds 1-5 of both courses (its last figures: benchmarks/results/nav_worlds.json);
+the tests keep two seeds so that CI stays within its time.
 
 Without the global costmap (``global_costmap: {enabled: false}``, as before it) both fail: the local costmap is
 6 m wide and forgets what it saw, so the robot pushes at the gap or into the U until it is blocked.
@@ -21,7 +24,7 @@ from beastbt.testing import MissionHarness
 from conftest import REPO
 from nav_support import robot_without_global_costmap
 
-SEEDS = (1, 2, 3, 4, 5)
+SEEDS = (1, 4)
 
 
 def run(mission: str, world: str, seed: int, robot: Optional[str] = None, until_s: float = 400.0) -> tuple[dict, float]:
