@@ -96,3 +96,19 @@ def test_the_summary_says_how_home_was_set(tmp_path):
     assert summary["home"]["how"] == "fused_start" and summary["home"]["fixes"] >= HOME_MIN_FIXES
     assert any(e["kind"] == "home" and "fused start position" in e["text"] for e in summary["events"])
     assert "  home: the fused start position, set at" in human_summary(summary)
+
+
+def test_return_home_at_the_start_says_it_waits_for_home_not_for_a_fix(tmp_path):
+    mission = tmp_path / "home_first.yaml"
+    mission.write_text(f"mission: home_first\nworld: {REPO / 'worlds' / 'campus.yaml'}\nsteps:\n  - return_home: {{}}\n",
+                       encoding="utf-8")
+    h = MissionHarness.from_file(mission, seed=1)
+    node = next(n for n in h.root.iterate() if n.name.startswith("return_home"))
+    said_after_a_fix = set()
+    while not h.done and h.now_s < 120:
+        h.tick()
+        if h.blackboard("gps_fix") is not None and node.status.name == "RUNNING":
+            said_after_a_fix.add(node.feedback_message)
+    assert h.result == "success"
+    assert "waiting for home: the position estimate is settling" in said_after_a_fix
+    assert "waiting for a GPS fix" not in said_after_a_fix

@@ -344,7 +344,13 @@ class GoTo(BeastBehaviour):
             if no_fix_s > timeout:
                 what = "home is not known" if self.goal is None else "no position"
                 return self.fail(f"no GPS fix for {timeout:g} s ({what})")
-            self.feedback_message = "waiting for a GPS fix"
+            if fix is None:
+                self.feedback_message = "waiting for a GPS fix"
+            elif self.goal is None:
+                # A fix is in but home (or a place relative to it) waits for the estimate to settle.
+                self.feedback_message = "waiting for home: the position estimate is settling"
+            else:
+                self.feedback_message = "waiting for the fused position"
             return Status.RUNNING
         if no_fix_s > timeout:
             self.command(0.0, 0.0)
