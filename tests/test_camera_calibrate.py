@@ -133,3 +133,35 @@ def test_the_docs_profile_example_validates_and_is_read(tmp_path):
     assert main(["validate", str(path)]) == 0
     geometry = CameraGeometry.from_config(section_config(load_profile(path), "camera", CameraConfig))
     assert geometry.camera_matrix[0, 0] == pytest.approx(609.72 / 2) and geometry.dist_coeffs[1] == 0.18034
+
+
+def test_a_calibrated_lens_distortion_reaches_the_tags_pose():
+    # A tag near the picture's edge seen through a barrel lens: with the profile's intrinsics (the lens's
+    # distortion) the vision service places it right; as the ideal pinhole it would be placed too far away.
+    from dataclasses import replace
+
+    from beastbt.blackboard.types import CameraFrame
+    from beastbt.vision.calibration import CameraIntrinsics
+    from beastbt.vision.watch import VisionWatch
+    from photo_like import CAMERA, scene, tag_at
+    k = CAMERA.camera_matrix
+    lens = CameraIntrinsics(CAMERA.width_px, CAMERA.height_px, k[0, 0], k[1, 1], k[0, 2], k[1, 2],
+                            (-0.35, 0.1, 0.0, 0.0, 0.0))
+    rng = np.random.default_rng(3)
+    ideal = scene(rng, tags=[tag_at(5, 0.9, 0.32, 0.0, size_m=0.16)])
+    # the picture as the lens bends it: each of its pixels shows where the ideal camera would see that ray
+    h, w = ideal.shape[:2]
+    uv = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 1, 2).astype(np.float64)
+    ideal_uv = cv2.undistortPoints(uv, k, np.array(lens.distortion), P=k).reshape(h, w, 2).astype(np.float32)
+    bent = cv2.remap(ideal, ideal_uv[..., 0], ideal_uv[..., 1], cv2.INTER_LINEAR)
+    frame = CameraFrame(0.0, bent, 1)
+
+    def placed(geometry: CameraGeometry) -> tuple[float, ...]:
+        tags = VisionWatch(lambda: frame, geometry).tags(0.0)
+        assert tags is not None and [t.id for t in tags] == [5]
+        return tags[0].position_m
+
+    x, y, _ = placed(replace(CAMERA, intrinsics=lens))
+    assert abs(x - 0.9) < 0.015 and abs(y - 0.32) < 0.015, (x, y)
+    x, _, _ = placed(CAMERA)
+    assert x - 0.9 > 0.04, x  # without the calibration: the tag looks smaller, so farther
