@@ -150,6 +150,7 @@ def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):
 
 BOX = (3.266, -1.057)
 """A red box 2.5 m from the robot's start, 25 deg to the right of where it faces: near the picture's edge."""
+RED_BOX = f"obstacles:\n  - {{shape: box, x: {BOX[0]}, y: {BOX[1]}, size_m: [0.3, 0.3], colour: red}}\n"
 
 
 def camera_bearing_deg(h: MissionHarness, box: tuple[float, float]) -> float:
@@ -161,7 +162,7 @@ def camera_bearing_deg(h: MissionHarness, box: tuple[float, float]) -> float:
 
 
 def test_track_centres_a_red_box_with_the_pan_servo(tmp_path):
-    world = room(tmp_path, f"obstacles:\n  - {{shape: box, x: {BOX[0]}, y: {BOX[1]}, size_m: [0.3, 0.3], colour: red}}\n")
+    world = room(tmp_path, RED_BOX)
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 6 s}\n", world=world, seed=1)
     assert h.run_to_end(30) == "success"
     assert abs(camera_bearing_deg(h, BOX)) < 3.0  # the box in the middle of the picture
@@ -193,7 +194,7 @@ def test_track_turns_a_robot_without_a_pan_servo(tmp_path):
     assert "gimbal: false" in text and "pitch_deg: 0 " in text
     profile = tmp_path / "fixed_camera.yaml"
     profile.write_text(text, encoding="utf-8")
-    world = room(tmp_path, f"obstacles:\n  - {{shape: box, x: {BOX[0]}, y: {BOX[1]}, size_m: [0.3, 0.3], colour: red}}\n")
+    world = room(tmp_path, RED_BOX)
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 6 s}\n", world=world, seed=1,
                                  robot=str(profile))
     assert h.run_to_end(30) == "success"

@@ -95,11 +95,13 @@ class CameraIntrinsics:
 
     def __post_init__(self) -> None:
         if self.width_px < 2 or self.height_px < 2:
-            raise ValueError(f"intrinsics: the image size must be at least 2x2 pixels, got {self.width_px}x{self.height_px}")
+            raise ValueError("intrinsics: the image size must be at least 2x2 pixels, "
+                             f"got {self.width_px}x{self.height_px}")
         if not (self.fx_px > 0.0 and self.fy_px > 0.0):
             raise ValueError(f"intrinsics: fx_px and fy_px must be > 0 px, got {self.fx_px} and {self.fy_px}")
         if len(self.distortion) not in (4, 5):
-            raise ValueError(f"intrinsics: distortion is k1, k2, p1, p2 (, k3): 4 or 5 numbers, got {len(self.distortion)}")
+            raise ValueError("intrinsics: distortion is k1, k2, p1, p2 (, k3): 4 or 5 numbers, "
+                             f"got {len(self.distortion)}")
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "CameraIntrinsics":
