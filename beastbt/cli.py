@@ -46,6 +46,8 @@ COMMANDS: Mapping[str, tuple[str, str]] = MappingProxyType({
                                     "recorded run's LiDAR scans; 'map show MAP --places MISSION' draws one"),
     "joystick": ("beastbt.commands.joystick", "gamepad tools: 'joystick test' shows its input live, the preset it "
                                               "gets and what each control does"),
+    "camera": ("beastbt.commands.camera", "camera tools: 'camera calibrate PHOTOS... --board 9x6 --square 25mm' "
+                                          "finds the camera's intrinsics from checkerboard photos"),
     "doctor": ("beastbt.commands.doctor", "check every device of a robot profile (ports, base, GPS, IMU, camera, "
                                           "joystick, CAN) without moving"),
     "studio": ("beastbt.commands.studio", "serve the mission studio: write, place on a map, check and try missions "

@@ -148,18 +148,59 @@ def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):
     assert h.run.io.camera.reasons == ["vision"]
 
 
-def test_track_turns_to_keep_a_red_box_centred(tmp_path):
-    # the red box 2.5 m away, 25 deg to the right of where the robot faces: near the edge of the picture
-    world = room(tmp_path, "obstacles:\n  - {shape: box, x: 3.266, y: -1.057, size_m: [0.3, 0.3], colour: red}\n")
-    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 8 s}\n", world=world, seed=1)
-    assert h.run_to_end(30) == "success"
+BOX = (3.266, -1.057)
+"""A red box 2.5 m from the robot's start, 25 deg to the right of where it faces: near the picture's edge."""
+RED_BOX = f"obstacles:\n  - {{shape: box, x: {BOX[0]}, y: {BOX[1]}, size_m: [0.3, 0.3], colour: red}}\n"
+
+
+def camera_bearing_deg(h: MissionHarness, box: tuple[float, float]) -> float:
+    """The box's true bearing off the camera's axis (deg, left positive): the robot's heading and the pan's."""
     t = h.truth
-    bearing = math.degrees(math.atan2(-1.057 - t.y, 3.266 - t.x) - t.yaw)
-    assert abs(bearing) < 4.0, bearing  # facing the box
-    assert abs(math.hypot(t.x - 1.0, t.y)) < 0.05  # turned in place
+    cam_x, cam_y = t.x + 0.1 * math.cos(t.yaw), t.y + 0.1 * math.sin(t.yaw)
+    off = math.atan2(box[1] - cam_y, box[0] - cam_x) - t.yaw - t.pan_rad
+    return math.degrees(math.atan2(math.sin(off), math.cos(off)))
+
+
+def test_track_centres_a_red_box_with_the_pan_servo(tmp_path):
+    world = room(tmp_path, RED_BOX)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 6 s}\n", world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert abs(camera_bearing_deg(h, BOX)) < 3.0  # the box in the middle of the picture
+    assert math.degrees(h.truth.pan_rad) < -20.0  # by turning the camera right
+    assert abs(math.degrees(h.truth.yaw)) < 2.0 and math.hypot(h.truth.x - 1.0, h.truth.y) < 0.02  # not the robot
     h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: blue, for: 2 s}\n", world=world, seed=1)
     assert h.run_to_end(30) == "failure"
     assert any("never saw blue" in e.text for e in h.events)
+
+
+def test_track_turns_the_robot_when_the_pan_nears_its_limit(tmp_path):
+    # the box 2 m away, 85 deg to the left; the camera already looking there: beyond the pan's free range
+    box = (1.0 + 2.0 * math.cos(math.radians(85)), 2.0 * math.sin(math.radians(85)))
+    world = room(tmp_path, f"obstacles:\n  - {{shape: box, x: {box[0]:.3f}, y: {box[1]:.3f}, size_m: [0.3, 0.3], "
+                           "colour: red}\n")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - look: {pan: 85 deg}\n  - track: {colour: red, for: 8 s}\n",
+                                 world=world, seed=1)
+    assert h.run_to_end(30) == "success"
+    assert abs(camera_bearing_deg(h, box)) < 3.0
+    assert math.degrees(h.truth.yaw) > 20.0  # the robot turned left toward it
+    # so the pan came back to its free range (60 deg; it holds within 2 deg of it: no hunting)
+    assert math.degrees(h.truth.pan_rad) < 63.0
+
+
+def test_track_turns_a_robot_without_a_pan_servo(tmp_path):
+    # the simulator's robot without its gimbal, its camera fixed and level
+    text = (ROOT / "robots" / "sim.yaml").read_text(encoding="utf-8")
+    text = text.replace("  gimbal: true", "  gimbal: false").replace("    pitch_deg: 40 ", "    pitch_deg: 0  ")
+    assert "gimbal: false" in text and "pitch_deg: 0 " in text
+    profile = tmp_path / "fixed_camera.yaml"
+    profile.write_text(text, encoding="utf-8")
+    world = room(tmp_path, RED_BOX)
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - track: {colour: red, for: 6 s}\n", world=world, seed=1,
+                                 robot=str(profile))
+    assert h.run_to_end(30) == "success"
+    assert h.truth.pan_rad == 0.0
+    assert abs(camera_bearing_deg(h, BOX)) < 4.0  # facing the box
+    assert math.hypot(h.truth.x - 1.0, h.truth.y) < 0.05  # turned in place
 
 
 def test_a_typed_colour_is_hashable_and_reads_back():
@@ -169,3 +210,12 @@ def test_a_typed_colour_is_hashable_and_reads_back():
     hash(c)
     assert ColourRange.parse(c.colour).boxes == (((100, 120, 60), (130, 255, 255)),)
     assert abs(c.min_area_frac - 0.02) < 1e-12
+
+
+def test_the_docs_track_example_runs_and_pans_to_the_caretaker():
+    doc = (ROOT / "docs" / "vision.md").read_text(encoding="utf-8")
+    example = doc.split("## Keeping a colour in view")[1].split("```yaml\n")[1].split("```")[0]
+    h = MissionHarness.from_yaml(example, seed=1, base_dir=ROOT / "missions")
+    assert h.run_to_end(60) == "success"
+    assert abs(camera_bearing_deg(h, (3.0, -2.1))) < 3.0  # the caretaker (waiting to cross) in the middle
+    assert math.degrees(h.truth.pan_rad) < -15.0  # by the pan

@@ -134,6 +134,10 @@ class CameraConfig:
     # What the console encodes pixels to: auto (the Pi's hardware H.264 encoder when present, else JPEG), jpeg
     # or h264 (the hardware encoder; an error where there is none). A camera's own JPEG or H.264 goes as it came.
     console_codec: str
+    # The calibrated lens as ``beastbt camera calibrate`` writes it (fx_px, fy_px, cx_px, cy_px at width_px x
+    # height_px, distortion), read by beastbt.vision.camera_model.CameraGeometry.from_config; None: the ideal
+    # pinhole of mounting.hfov_deg.
+    intrinsics: Optional[dict]
 
     def __post_init__(self) -> None:
         if isinstance(self.device, bool) or not isinstance(self.device, (str, int)):

@@ -3,7 +3,10 @@
 :class:`CameraGeometry` models an undistorted pinhole camera with square
 pixels, built from the horizontal field of view and the image size, mounted
 ``height_m`` above a flat floor, ``x_offset_m`` ahead of the robot centre,
-pitched ``pitch_deg`` down (and optionally panned ``pan_deg`` left). Floor
+pitched ``pitch_deg`` down (and optionally panned ``pan_deg`` left). A calibrated camera
+(``intrinsics``: the profile's ``camera.intrinsics:``, see :mod:`beastbt.vision.calibration`) takes its
+focal lengths and principal point from there instead, scaled to the image size, and carries the lens's
+distortion for the detectors (the floor mapping stays an ideal pinhole). Floor
 points are in the robot body frame (x forward, y left, metres, origin at the
 robot centre on the floor); pixels are (u right, v down) with integer values
 at pixel centres, as OpenCV uses them.
@@ -21,6 +24,8 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Optional
 
 import numpy as np
+
+from beastbt.vision.calibration import CameraIntrinsics
 
 if TYPE_CHECKING:  # only for the type of from_config's argument
     from beastbt.devices.camera import CameraConfig
@@ -42,6 +47,8 @@ class CameraGeometry:
     x_offset_m: float = 0.10
     y_offset_m: float = 0.0
     pan_deg: float = 0.0
+    intrinsics: Optional[CameraIntrinsics] = None
+    """The calibrated lens (at its own image size); None: the ideal pinhole of ``hfov_deg``."""
 
     def __post_init__(self) -> None:
         if self.width_px < 2 or self.height_px < 2:
@@ -51,10 +58,16 @@ class CameraGeometry:
         if not self.height_m > 0.0:
             raise ValueError(f"height_m must be > 0 m, got {self.height_m}")
         # Everything below depends only on the fields; compute it once.
-        fx = (self.width_px / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
-        cx = (self.width_px - 1) / 2.0
-        cy = (self.height_px - 1) / 2.0
-        k = np.array([[fx, 0.0, cx], [0.0, fx, cy], [0.0, 0.0, 1.0]])
+        c = self.intrinsics
+        if c is None:
+            fx = fy = (self.width_px / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
+            cx = (self.width_px - 1) / 2.0
+            cy = (self.height_px - 1) / 2.0
+        else:  # calibrated at c's size: scale to ours (pixel centres: u + 0.5 scales)
+            sx, sy = self.width_px / c.width_px, self.height_px / c.height_px
+            fx, fy = c.fx_px * sx, c.fy_px * sy
+            cx, cy = (c.cx_px + 0.5) * sx - 0.5, (c.cy_px + 0.5) * sy - 0.5
+        k = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
         th = math.radians(self.pitch_deg)
         ps = math.radians(self.pan_deg)
         fwd = np.array([math.cos(th) * math.cos(ps), math.cos(th) * math.sin(ps), -math.sin(th)])
@@ -72,9 +85,11 @@ class CameraGeometry:
     # --- construction ----------------------------------------------------------------
     @classmethod
     def from_config(cls, config: "CameraConfig") -> "CameraGeometry":
-        """The geometry of a configured camera (its size and mounting)."""
+        """The geometry of a configured camera (its size, mounting and calibrated ``intrinsics`` if any)."""
         m = config.mounting
+        raw = getattr(config, "intrinsics", None)
         return cls(
+            intrinsics=CameraIntrinsics.from_dict(raw) if raw is not None else None,
             width_px=config.width_px,
             height_px=config.height_px,
             hfov_deg=m.hfov_deg,
@@ -105,6 +120,13 @@ class CameraGeometry:
     def camera_matrix(self) -> np.ndarray:
         """The 3x3 intrinsic matrix K (pixels)."""
         return self._k.copy()  # type: ignore[attr-defined]
+
+    @property
+    def dist_coeffs(self) -> np.ndarray:
+        """The lens's distortion (OpenCV's k1, k2, p1, p2, k3; no unit): zeros without a calibration."""
+        if self.intrinsics is None:
+            return np.zeros(5)
+        return np.array(self.intrinsics.distortion, dtype=float)
 
     @property
     def horizon_v(self) -> float:

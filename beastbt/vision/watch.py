@@ -137,7 +137,8 @@ class VisionWatch:
         if detector is None:
             detector = self._fiducials[families] = FiducialDetector(families, DEFAULT_TAG_SIZE_M, self.tag_sizes_m)
         cam = self.camera_now(frame)
-        return self._keep(key, frame, now_s, detector.detect(frame.image, cam.camera_matrix, None, cam.camera_from_body))
+        found = detector.detect(frame.image, cam.camera_matrix, cam.dist_coeffs, cam.camera_from_body)
+        return self._keep(key, frame, now_s, found)
 
     def tag(self, now_s: float, tag_id: int, family: str = "apriltag_36h11") -> Optional[TagDetection]:
         """Tag ``tag_id`` of ``family`` in the newest frame, or None (not seen, or no fresh frame)."""
