@@ -1,4 +1,4 @@
-"""What a patrol's detectors cost at real time: tags and motion looked for at 5 Hz, against the same patrol without them.
+"""A patrol's detectors at real time: tags and motion looked for at 5 Hz, against the same patrol without them.
 
 A round of the lab (worlds/lab.yaml): the camera levelled, drive 1 m, turn, drive back, stand 3 s, turn back,
 stand 3 s, over and over, for ``--seconds`` of mission time at ``--speed realtime``, recorded (the default).
@@ -16,9 +16,10 @@ after the rates are set), measured as benchmarks/realtime_cpu.py measures a run:
 descendants (the recording writer) sampled from ``/proc`` every 0.25 s, the steady share between 4 s after the
 start and 1.5 s before the end, and the simulator's part of it (``beastbt.sim.cpu_account``: the physics, the
 emulators, the camera's rendering), so that **beastbt without the simulator** is what the robot would spend.
-The detectors' cost is the difference awake - asleep of that share (it holds the detectors, the frames handed to
-vision, the recording of ``/camera/detections``, ``/camera/tags`` and the images), and, measured inside the
-awake run, the thread CPU time spent in the watch's ``tags`` and ``motion`` calls over the mission's time.
+The detectors' cost is the difference awake - asleep of that share, and the ratio awake / asleep (it holds the
+detectors, the frames handed to vision, the recording of ``/camera/detections``, ``/camera/tags`` and the
+images), and, measured inside the awake run, the thread CPU time spent in the watch's ``tags`` and ``motion``
+calls over the mission's time.
 Goal (issue 34): awake - asleep under 3 % of one core.
 
 Run: python benchmarks/vision_patrol_cpu.py [--seconds 40] [--reps 3]
@@ -195,6 +196,7 @@ def main() -> None:
     added = [a["beastbt"] - s["beastbt"] for a, s in zip(got["awake"], got["asleep"])]
     added_whole = [a["share"] - s["share"] for a, s in zip(got["awake"], got["asleep"])]
     figures.spread("added.beastbt_pct", added, 100.0)
+    figures.spread("ratio", [a["beastbt"] / s["beastbt"] for a, s in zip(got["awake"], got["asleep"])])
     figures.spread("added.pct", added_whole, 100.0)
     own = [100 * (m["detectors"]["tags_s"] + m["detectors"]["motion_s"]) / m["summary"]["sim_time_s"]
            for m in got["awake"] if m["detectors"]]

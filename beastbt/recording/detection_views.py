@@ -48,11 +48,13 @@ def _outline(t: dict, points: list[list[float]], rgba: dict, scale: float, thick
 
 
 def _box(t: dict, box: list[int], rgba: dict, scale: float) -> dict:
+    """A box ``[x, y, w, h]`` (frame pixels) as an outline."""
     x, y, w, h = box
     return _outline(t, [[x, y], [x + w, y], [x + w, y + h], [x, y + h]], rgba, scale)
 
 
 def _label(t: dict, u: float, v: float, text: str, rgba: dict) -> dict:
+    """A caption whose baseline is just above (u, v) (published pixels), kept inside the picture's top."""
     return {"timestamp": t, "position": {"x": u, "y": max(12.0, v - 4.0)}, "text": text, "font_size": 12.0,
             "text_color": rgba, "background_color": _TEXT_BG}
 

@@ -206,9 +206,9 @@ class McapRecorder:
         """Where the poses and the true pose were then (to see whether anything moved)."""
         self._servo_moved = False
         self._views: Optional[ObstacleSampler] = None
+        """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
         self._detections: Any = None
         """The detectors' frame entries (:mod:`beastbt.vision.detection_feed`), once the run's vision watch is seen."""
-        """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
 
     def tag_sources(self, io: Any) -> None:
         """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.

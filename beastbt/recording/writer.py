@@ -608,7 +608,9 @@ def message_count(item: tuple, images: bool) -> int:
     if kind == "scene":
         return 2  # /route, /scene
     if kind == "detections":
-        return sum(1 + any(t["position_m"] is not None and t["facing_rad"] is not None for t in e.get("tags", ())) for e in item[2])
+        # /camera/detections for each entry, and /camera/tags for those with a tag placed in the base frame
+        return sum(1 + any(t["position_m"] is not None and t["facing_rad"] is not None for t in e.get("tags", ()))
+                   for e in item[2])
     if kind == "views":
         views = item[2]
         contact = views.get("contact")
