@@ -172,9 +172,21 @@ def test_a_question_is_answered_on_the_page(browser, run_console, shots):
 
 
 def test_the_page_shows_the_final_status_after_the_end(browser, run_console, shots):
-    run = run_console(SHORT.replace("wait: 1 s", "wait: 4 s"), "--speed", "realtime")
+    # In the lab, the camera levelled at the dock's tag 0 and the tag detector awake all along (for a tag 9 the lab
+    # does not have): the page draws the tag found over the video.
+    mission = f"""mission: console_short
+world: {REPO / 'worlds' / 'lab.yaml'}
+steps:
+  - look: {{tilt: 40 deg}}
+  - abort_if: {{sees: {{tag: 9}}}}
+    steps:
+      - drive: {{distance: 0.3 m}}
+      - wait: 4 s
+"""
+    run = run_console(mission, "--speed", "realtime")
     page = open_page(browser, run)
     wait_for_page(page, "window.beastbtVideoStats.frames > 0", timeout_s=10)  # a frame, captioned "running"
+    wait_for_page(page, "window.beastbtVideoStats.detections > 0", timeout_s=10)  # tag 0 outlined on it
     code, _, _ = run.finish()
     assert code == 0
     playwright_api.expect(page.get_by_test_id("status")).to_have_text("succeeded", timeout=5000)

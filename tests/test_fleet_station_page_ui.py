@@ -217,3 +217,19 @@ def test_a_robots_console_is_linked_only_when_it_is_an_http_address(browser, fle
         assert links.count() == 0
         until(lambda: name.locator("[data-testid=console-text]").count() == 1)  # shown as text, not a link
     assert page.errors == []
+
+
+def test_a_robots_alerts_are_listed_in_its_row_the_newest_shown(browser, fleet, shots):
+    url, add = fleet
+    agent = add("watcher")
+    page = open_page(browser, url, 1)
+    agent.publish_event(12.0, "alert", "someone in the lab")
+    for k in range(60):  # a busy run's other events do not push the alert out of the list
+        agent.publish_event(13.0 + k, "step", f"step {k}")
+    agent.publish_event(80.5, "alert", "door 3 open (photo alert-2.jpg)")
+    alert = row(page, "watcher").get_by_test_id("alert")
+    playwright_api.expect(alert).to_have_text("alert: door 3 open (photo alert-2.jpg) (t 80.5 s) · 1 earlier",
+                                              timeout=5000)
+    assert "t 12.0 s: someone in the lab" in alert.get_attribute("title")
+    shots(page, "alerts")
+    assert page.errors == []

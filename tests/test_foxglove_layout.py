@@ -83,3 +83,9 @@ def test_a_misspelt_frame_name_is_refused_with_its_place(tmp_path, capsys):
     assert cli.main(["validate", str(robot)]) == 2
     err = capsys.readouterr().err
     assert f"{robot}:" in err and "base_lnk" in err
+
+
+def test_the_image_panel_draws_the_detections_and_the_3d_view_the_tags():
+    config = json.loads(LAYOUT_FILE.read_text(encoding="utf-8"))["configById"]
+    assert config["Image!beastbt"]["imageMode"]["annotations"]["/camera/detections"]["visible"] is True
+    assert config["3D!beastbt"]["topics"]["/camera/tags"]["visible"] is True

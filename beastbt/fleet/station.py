@@ -52,6 +52,9 @@ MISSION_TIMEOUT_S = 30.0
 """How long the station waits for a robot to check a mission and start it (s): it loads the world and the parts."""
 EVENTS_KEPT = 50
 """The newest events kept per robot."""
+ALERTS_KEPT = 5
+"""The newest alerts (events of kind ``alert``, a mission's ``alert`` step) listed per robot, kept apart from the
+events so that a busy run's other events do not push them out."""
 MISSION_TYPES = ("application/json", "application/yaml", "application/x-yaml", "text/yaml", "text/x-yaml",
                  "application/zip")
 """What a mission may be sent as without the token: none of them is a form's or ``text/plain`` (a page on
@@ -71,6 +74,7 @@ class RobotEntry:
     state: dict = field(default_factory=dict)
     seen_wall: Optional[float] = None
     events: deque = field(default_factory=lambda: deque(maxlen=EVENTS_KEPT))
+    alerts: deque = field(default_factory=lambda: deque(maxlen=ALERTS_KEPT))
 
 
 class FleetTable:
@@ -106,7 +110,10 @@ class FleetTable:
     def event(self, name: str, event: dict) -> None:
         """A robot's event came."""
         with self._lock:
-            self._entry(name).events.append(event)
+            entry = self._entry(name)
+            entry.events.append(event)
+            if event.get("kind") == "alert":
+                entry.alerts.append(event)
 
     def is_alive(self, entry: RobotEntry, now: float) -> bool:
         """The robot's token stands and its state is fresh."""
@@ -131,7 +138,8 @@ class FleetTable:
                     "last_seen_s": None if e.seen_wall is None else round(now - e.seen_wall, 2),
                     "mission": s.get("mission"), "question": s.get("question"), "estop": bool(s.get("estop")),
                     "last_run": s.get("last_run"), "console_url": console_url,
-                    "console_url_problem": console_problem, "events": list(e.events)[-5:]}
+                    "console_url_problem": console_problem, "events": list(e.events)[-5:],
+                    "alerts": list(e.alerts)}
             item["attention"] = self.attention(item)
             out.append(item)
         out.sort(key=lambda r: (r["attention"] if r["attention"] is not None else 9, r["name"]))

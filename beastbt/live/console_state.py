@@ -356,6 +356,10 @@ class ConsoleState:
         self._layers_key: Optional[tuple] = None
         from beastbt.recording.obstacle_views import board_reader
         self._board = board_reader()
+        self._detections: Any = None
+        """The detectors' frame entries (:mod:`beastbt.vision.detection_feed`), once the run's vision watch is seen."""
+        self._shown: Optional[dict] = None
+        """The newest frame entry, drawn over the video until the detectors sleep."""
         self._published = Published(0, self.build())
         self._last_wall = -math.inf
         self._ticks = 0
@@ -450,6 +454,7 @@ class ConsoleState:
             # live tuning's values and the line's error (beastbt.live.tuning); from the first tick, once every part
             # has put in what the knobs bind to
             "tuning": tuning_of(run).state() if run.ticks > 0 else None,
+            "detections": self._detections_now(run),
         }
         if run.status is not None:
             last = getattr(self, "_published", None)
@@ -459,6 +464,22 @@ class ConsoleState:
             state["step"] = f"ended: {state['status']}"
             state["ended_at"] = state["last_step"]
         return state
+
+    def _detections_now(self, run: Any) -> Optional[dict]:
+        """What the detectors found in the newest frame they looked at (a frame entry of
+        :mod:`beastbt.vision.detection_feed`: pixels of a frame ``size`` wide and high), for the page to draw over
+        the video; None while no detector is awake (and for a mission that never wakes one)."""
+        feed = self._detections
+        if feed is None:
+            watch = getattr(run.ctx.services, "vision", None)
+            if watch is None:
+                return None
+            from beastbt.vision.detection_feed import DetectionFeed
+            feed = self._detections = DetectionFeed.attach(watch)
+        entries = feed.take(run.clock.now())
+        if entries:
+            self._shown = None if entries[-1]["seq"] < 0 else entries[-1]
+        return self._shown
 
     def _current_map_version(self) -> int:
         key = self._layers_key_now()

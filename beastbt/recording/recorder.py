@@ -207,6 +207,8 @@ class McapRecorder:
         self._servo_moved = False
         self._views: Optional[ObstacleSampler] = None
         """What the obstacle views draw (costmap, plan, zones, persons), sampled each tick once ``run`` is known."""
+        self._detections: Any = None
+        """The detectors' frame entries (:mod:`beastbt.vision.detection_feed`), once the run's vision watch is seen."""
 
     def tag_sources(self, io: Any) -> None:
         """Wrap the base's and every sensor's poll so each tick knows which device each reading came from.
@@ -425,6 +427,15 @@ class McapRecorder:
             changed = views.sample(rec.now_s)
             if changed is not None:
                 self._put(("views", rec.now_s, changed), rec.now_s)
+        if self._detections is None and self.run is not None:
+            watch = getattr(self.run.ctx.services, "vision", None)
+            if watch is not None:  # the mission uses the camera's words: the detectors may wake
+                from beastbt.vision.detection_feed import DetectionFeed
+                self._detections = DetectionFeed.attach(watch)
+        if self._detections is not None:
+            entries = self._detections.take(rec.now_s)
+            if entries:
+                self._put(("detections", rec.now_s, entries), rec.now_s)
 
     def _pose_due(self, now_s: float, pose_odom: Any, pose: Any, truth: Any) -> bool:
         """Whether this tick's poses (and truth) go to the recording: at most ``pose_rate_hz``, and while nothing

@@ -223,6 +223,8 @@ CHANNELS: dict[str, dict] = {
     "/camera/calibration": FOXGLOVE_CAMERA_CALIBRATION,  # with every image, its size (pinhole, no distortion)
     "/camera/annotations": FOXGLOVE_IMAGE_ANNOTATIONS,  # the detected line, its look-ahead point, a junction
     "/camera/photo": FOXGLOVE_COMPRESSED_IMAGE,  # each photo and snapshot the mission took, full resolution
+    "/camera/detections": FOXGLOVE_IMAGE_ANNOTATIONS,  # tags, QR codes, colour blob, motion: per frame looked at
+    "/camera/tags": FOXGLOVE_SCENE_UPDATE,  # each tag seen, a plate at its pose (base_link at the frame's time)
     "/scan": FOXGLOVE_LASER_SCAN,  # each LiDAR revolution, in the lidar frame (0 = no return)
     "/costmap": FOXGLOVE_GRID,  # the local costmap (odom frame, uint8 Nav2 costs), at most 2 Hz when it changed
     "/local_plan": FOXGLOVE_SCENE_UPDATE,  # the local planner's path (odom frame), at most 5 Hz when it changed

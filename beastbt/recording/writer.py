@@ -52,6 +52,7 @@ from beastbt.recording.foxglove import fox_time
 from beastbt.recording.foxglove_live import LiveServer, start_live
 from beastbt.recording.mcap_file import (COMMIT_MAX_BYTES, NoFile, RecordStream, describe_write_error,
                                          mcap_writer_class)
+from beastbt.recording import detection_views as dv
 from beastbt.recording import obstacle_views as ov
 from beastbt.recording.scene import SceneView
 from beastbt.recording.schemas import OFFSET_KEY
@@ -215,6 +216,8 @@ class RunFileWriter:
         self._lidar: Optional[dict] = json.loads(info["lidar_mounting"]) if info.get("lidar_mounting") else None
         """The profile's LiDAR mounting on base_link (metres, degrees): base_link -> lidar on /tf."""
         self._geometries: dict[tuple[int, int], Any] = {}
+        self._frame_log_ns: dict[int, int] = {}
+        """Camera frame seq -> log time (ns) of its /sensors/camera message, for the newest 64 frames."""
         self._epochs = fx.EpochFixes()
         self._gps_altitude_m = 0.0
         self._gps_up_variance_m2 = 0.0
@@ -370,6 +373,9 @@ class RunFileWriter:
         elif kind == "views":
             _, now_s, views = item
             self._write_views(self._ns(now_s), views)
+        elif kind == "detections":
+            _, now_s, entries = item
+            self._write_detections(self._ns(now_s), entries)
         elif kind == "servo":
             _, now_s, c = item
             if c.name is not None and c.angle_rad is not None:
@@ -406,6 +412,9 @@ class RunFileWriter:
             elif r.__class__ is LaserScan:
                 emit("/scan", t, fx.laser_scan(t, r, source))  # the revolution goes only there (no /sensors copy)
             elif r.__class__ is Frame:
+                self._frame_log_ns[r.seq] = t  # the detections of this frame are stamped like its image
+                if len(self._frame_log_ns) > 64:
+                    del self._frame_log_ns[next(iter(self._frame_log_ns))]
                 emit("/sensors/camera", t, {"stamp_s": r.stamp_s, "seq": r.seq, "width": r.width,
                                             "height": r.height, "image_recorded": r.image is not None,
                                             "source": source})
@@ -509,6 +518,18 @@ class RunFileWriter:
             self._emit("/localisation/particles", t, ov.particles_update(t, frames.odom, localisation))
             self._emit("/localisation/quality", t, ov.quality_message(localisation))
 
+    def _write_detections(self, now_ns: int, entries: list) -> None:
+        """/camera/detections and /camera/tags of each frame entry (:mod:`beastbt.recording.detection_views`),
+        stamped with the log time of that frame's /sensors/camera message (its /camera/image's, when it has one);
+        an entry with no frame (seq -1: the detectors sleep) clears the image's annotations at ``now_ns``."""
+        for entry in entries:
+            t = self._frame_log_ns.get(entry["seq"], now_ns)
+            scale = dv.published_scale(entry["size"][0], self.config.image_max_width_px)
+            self._emit("/camera/detections", t, dv.image_annotations(t, entry, scale))
+            tags = dv.tags_update(t, self.frames.base_link, entry)
+            if tags is not None:
+                self._emit("/camera/tags", t, tags)
+
     def _write_image(self, frame: Frame, t_ns: int) -> Optional[tuple[int, int, int, int]]:
         """Publish a frame on /camera/image (JPEG, scaled down to ``image_max_width_px``); returns (camera width,
         height, published width, height) in pixels, or None when it could not be encoded."""
@@ -586,6 +607,10 @@ def message_count(item: tuple, images: bool) -> int:
         return 1
     if kind == "scene":
         return 2  # /route, /scene
+    if kind == "detections":
+        # /camera/detections for each entry, and /camera/tags for those with a tag placed in the base frame
+        return sum(1 + any(t["position_m"] is not None and t["facing_rad"] is not None for t in e.get("tags", ()))
+                   for e in item[2])
     if kind == "views":
         views = item[2]
         contact = views.get("contact")

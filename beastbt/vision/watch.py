@@ -84,6 +84,9 @@ class VisionWatch:
     """Told each dock entry as it is made (the simulator adds the true pose error)."""
     runs: dict[str, int] = field(default_factory=dict)
     """How often each detector ran (``tags``, ``qr``, ``motion``, ``colour``): the summary's ``vision.detections``."""
+    listeners: list[Callable[[str, CameraFrame, Any], None]] = field(default_factory=list)
+    """Told each detector's answer as it is made (its kind key, the frame it looked at, the answer): the views
+    of :mod:`beastbt.vision.detection_feed` (the recording, the console)."""
 
     def __post_init__(self) -> None:
         self._fiducials: dict[tuple[str, ...], FiducialDetector] = {}
@@ -96,6 +99,7 @@ class VisionWatch:
         self._qr_pool: Any = None
         self._qr_pending: Any = None
         self._qr_last: Optional[list[QrDetection]] = None
+        self._qr_frame: Optional[CameraFrame] = None
 
     # -- frames -----------------------------------------------------------------------
     def frame(self, now_s: float) -> Optional[CameraFrame]:
@@ -121,6 +125,8 @@ class VisionWatch:
     def _keep(self, kind: str, frame: CameraFrame, now_s: float, value: Any) -> Any:
         self._kept[kind] = _Kept(frame.seq, now_s, value)
         self.runs[kind] = self.runs.get(kind, 0) + 1
+        for tell in self.listeners:
+            tell(kind, frame, value)
         return value
 
     # -- the detectors ------------------------------------------------------------------
@@ -166,11 +172,15 @@ class VisionWatch:
         if self._qr_pending is not None and self._qr_pending.done():
             self._qr_last = self._qr_pending.result()
             self._qr_pending = None
+            if self._qr_frame is not None:
+                for tell in self.listeners:
+                    tell("qr", self._qr_frame, self._qr_last)
         if self._qr_pending is None:
             if self._qr_pool is None:
                 from concurrent.futures import ThreadPoolExecutor
                 self._qr_pool = ThreadPoolExecutor(1, thread_name_prefix="beastbt-qr")
             self._qr_pending = self._qr_pool.submit(self._qr.read, frame.image)
+            self._qr_frame = frame
             self._kept["qr"] = _Kept(frame.seq, now_s, self._qr_last)
             self.runs["qr"] = self.runs.get("qr", 0) + 1
         return self._qr_last

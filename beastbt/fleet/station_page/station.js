@@ -156,6 +156,19 @@ function actionsCell(row, r) {
   button(box, "E-stop", control(r.name, "estop"), {control: "estop", cls: "estop"});
 }
 
+/** The robot's newest alert (a mission's `alert` step) under its mission, the earlier ones in its tooltip. */
+function alertsIn(td, alerts) {
+  if (!alerts.length) return;
+  const newest = alerts[alerts.length - 1];
+  const line = document.createElement("div");
+  line.className = "alert";
+  line.dataset.testid = "alert";
+  line.textContent = `alert: ${newest.text} (t ${Number(newest.time_s).toFixed(1)} s)` +
+    (alerts.length > 1 ? ` · ${alerts.length - 1} earlier` : "");
+  line.title = alerts.map((a) => `t ${Number(a.time_s).toFixed(1)} s: ${a.text}`).join("\n");
+  td.appendChild(line);
+}
+
 let drawnKey = "";
 
 /** The table and the maps, drawn again only when something but the "seen" times changed (a button under a finger
@@ -180,7 +193,7 @@ function render() {
     nameCell(row, r);
     statusCell(row, r);
     const last = r.last_run ? ` (last: ${r.last_run.mission} ${r.last_run.status})` : "";
-    cell(row, (r.mission ? `${r.mission}: ${r.step || "-"}` : "-") + last);
+    alertsIn(cell(row, (r.mission ? `${r.mission}: ${r.step || "-"}` : "-") + last), r.alerts || []);
     const p = r.progress;
     cell(row, p ? `${p.done}/${p.total}` : "-");
     cell(row, r.battery ? `${r.battery.percent}% ${r.battery.volts} V` : "-");

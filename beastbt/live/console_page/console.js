@@ -775,6 +775,7 @@ function showFrame(image, width, height, overlay, capturedMs, quality, codec) {
   if (w < c.width || h < c.height) { g.fillStyle = "#000"; g.fillRect(0, 0, c.width, c.height); }
   g.drawImage(image, x, y, w, h);
   if (overlay) drawOverlay(g, x, y, w, h, overlay, c.width);
+  videoStats.detections = state && state.detections ? drawDetections(g, x, y, w, h, state.detections) : 0;
   videoStats.overlay = overlay; videoStats.quality = quality;  // 0: the camera's own JPEG; 0xFF01/2: H.264
   videoStats.codec = codec; videoStats.drawn += 1; videoStats.size = [width, height];
   if (state && ENDED.has(state.status)) { endVideo(state); return; }  // a frame sent before the end
@@ -902,6 +903,36 @@ function drawOverlay(g, x0, y0, w, h, o, width) {
   g.fillStyle = "rgba(0,0,0,0.5)"; g.fillRect(0, 0, width, step * lines.length + step / 3);
   g.fillStyle = "#ffffff"; g.font = `${size}px sans-serif`;
   lines.forEach((text, i) => g.fillText(text, 6, step * (i + 1) - step / 4));
+}
+
+// What the camera's detectors found in the newest frame they looked at (state.detections: beastbt/vision/
+// detection_feed.py; pixels of a frame `size` wide and high): tag and QR outlines, the colour blob's box, the
+// moving region's box, each labelled. Returns how many things it drew (videoStats.detections, for the tests).
+function drawDetections(g, x0, y0, w, h, d) {
+  const sx = w / d.size[0], sy = h / d.size[1], unit = Math.max(1, Math.round(w / 320));
+  const size = Math.max(12, 8 * unit);
+  let drawn = 0;
+  const shape = (points, colour, label) => {
+    g.strokeStyle = colour; g.lineWidth = 2 * unit; g.beginPath();
+    points.forEach((p, i) => { const x = x0 + p[0] * sx, y = y0 + p[1] * sy; if (i) g.lineTo(x, y); else g.moveTo(x, y); });
+    g.closePath(); g.stroke();
+    const left = Math.min(...points.map((p) => p[0])), top = Math.min(...points.map((p) => p[1]));
+    g.font = `${size}px sans-serif`;
+    const tx = x0 + left * sx, ty = Math.max(y0 + size + 2, y0 + top * sy - 4);
+    g.fillStyle = "rgba(0,0,0,0.6)"; g.fillRect(tx - 2, ty - size, g.measureText(label).width + 4, size + 4);
+    g.fillStyle = colour; g.fillText(label, tx, ty);
+    drawn += 1;
+  };
+  const box = (b) => [[b[0], b[1]], [b[0] + b[2], b[1]], [b[0] + b[2], b[1] + b[3]], [b[0], b[1] + b[3]]];
+  const COLOURS = {red: "rgb(255,60,60)", green: "rgb(60,255,60)", blue: "rgb(90,140,255)", yellow: "rgb(255,240,30)"};
+  (d.tags || []).forEach((t) => shape(t.corners, "rgb(30,230,60)", `tag ${t.id} ${t.distance_m.toFixed(2)} m`));
+  (d.qr || []).forEach((q) => shape(q.corners, "rgb(0,200,255)", `qr ${q.text}`));
+  (d.colour || []).forEach((b) => shape(box(b.box), COLOURS[b.name] || "rgb(255,60,255)",
+                                       `${b.name} ${(b.area_frac * 100).toFixed(1)} %`));
+  const m = d.motion;
+  if (m && m.box && m.warm) shape(box(m.box), m.moving ? "rgb(255,140,0)" : "rgba(255,215,80,0.6)",
+                                  `motion ${(m.area_frac * 100).toFixed(1)} %`);
+  return drawn;
 }
 
 // At the end no frame comes any more: the last one (captioned "running") gets a band that says the run ended.
