@@ -83,10 +83,11 @@ def test_example_runs_have_every_channel_with_messages_that_match_their_schemas(
     # (tests/test_obstacle_views.py records them), nor is what an operator did from the console or a terminal
     # (/operator/input: tests/test_replay_operator.py records and validates it).
     # Nor is a map (/localisation/*: tests/test_map_localiser_views.py records them; /map, /path, /map/pose:
-    # tests/test_map_show.py).
+    # tests/test_map_show.py), nor anything the global costmap marks (/global_costmap, /plan:
+    # tests/test_global_views.py).
     missing = set(CHANNELS) - with_messages - {"/costmap", "/local_plan", "/sim/persons", "/operator/input",
                                                "/localisation/particles", "/localisation/quality", "/map", "/path",
-                                               "/map/pose"}
+                                               "/map/pose", "/global_costmap", "/plan"}
     assert not missing, f"no messages on {sorted(missing)}"
 
 
