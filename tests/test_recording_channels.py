@@ -274,7 +274,7 @@ def test_every_stream_type_gets_its_channel_and_validates(tmp_path):
     assert empty == {"/cmd/mission", "/devices/state", "/scene", "/route", "/camera/calibration",
                      "/camera/annotations", "/costmap", "/local_plan", "/collision_monitor/zones", "/sim/persons",
                      "/sim/contact", "/operator/input", "/localisation/particles", "/localisation/quality", "/map",
-                     "/path", "/map/pose", "/camera/photo"}  # no photo taken
+                     "/path", "/map/pose", "/camera/photo", "/global_costmap", "/plan"}  # no photo taken
     # Images at 2 Hz out of 20 fps over 2 s: at t = 0, 0.5, 1.0, 1.5, 2.0; each a real JPEG, scaled to 32 px wide.
     images = topics["/camera/image"]
     offset = read_recording(tmp_path / "s.mcap", topics=[]).log_time_offset_ns

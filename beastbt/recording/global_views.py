@@ -150,7 +150,7 @@ def global_costs(marks: CostmapMarks) -> Optional[tuple[float, float, np.ndarray
     """(x m, y m of the lower-left corner, uint8 costs (rows, cols)) of the box round the lethal cells plus the
     inflation radius, by the planner's own :class:`~beastbt.navigation.global_planner.GlobalCostmap`; None when
     none is lethal. Every cell outside the box costs 0."""
-    from beastbt.mapping.occupancy_map import FREE, OccupancyMap
+    from beastbt.mapping.occupancy_map import FREE, OCCUPIED, OccupancyMap
     from beastbt.navigation.global_planner import GlobalCostmap
     res = marks.resolution_m
     cut = crop(marks, int(math.ceil(marks.planner.inflation_radius_m / res)) + 1)
@@ -158,10 +158,9 @@ def global_costs(marks: CostmapMarks) -> Optional[tuple[float, float, np.ndarray
         return None
     r0, c0, box = cut
     x0, y0 = marks.origin_x_m + c0 * res, marks.origin_y_m + r0 * res
-    costmap = GlobalCostmap(OccupancyMap(np.full(box.shape, FREE, np.int8), res, x0, y0), marks.planner,
-                            marks.footprint_radius_m)
-    costmap.set_obstacles(box, 0)
-    return x0, y0, costmap.cost
+    # The lethal cells as a map's occupied ones: the costmap's costs are worked out once, as it is made.
+    grid = OccupancyMap(np.where(box, OCCUPIED, FREE).astype(np.int8), res, x0, y0)
+    return x0, y0, GlobalCostmap(grid, marks.planner, marks.footprint_radius_m).cost
 
 
 def global_costmap_grid(t_ns: int, frame_id: str, marks: CostmapMarks) -> dict:
