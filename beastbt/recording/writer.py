@@ -602,7 +602,8 @@ def message_count(item: tuple, images: bool) -> int:
         views = item[2]
         contact = views.get("contact")
         return (("costmap" in views) + ("plan" in views) + ("zones" in views) + ("map" in views) + ("path" in views)
-                + ("map_pose" in views) + 2 * ("localisation" in views)
+                + ("map_pose" in views) + 2 * ("localisation" in views) + ("global_costmap" in views)
+                + ("gps_plan" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0
