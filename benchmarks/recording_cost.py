@@ -29,10 +29,21 @@ Prints:
    difference in percentage points per rep (goal, issue 26: at most +1 % of
    a core);
 3. with ``--size``: the size of the MCAP file of a 10-minute simulated patrol
-   (repeated forever, stopped at 10 min; no images), goal under 20 MB.
+   (repeated forever, stopped at 10 min; no images), goal under 20 MB;
+4. with ``--nav-views``: what the global costmap's views (``/global_costmap``
+   and ``/plan``, :mod:`beastbt.recording.global_views`) add to a recorded
+   run at ``--speed realtime``: the patrol (``--mission``) and the fence
+   crossing (missions/fence_crossing.yaml, where the global costmap changes
+   at every scan and the robot plans round the fence), each recorded with the
+   views and with them switched off (their sampler returns nothing), runs of
+   ``--realtime-s`` seconds interleaved as in section 2; the difference in
+   percentage points of one core (goal, issue 32: under 1 %); and what one
+   message costs: reading the marks on the tick side and building the Grid on
+   the writer's, for the fence's marks and for a 40 m window one tenth marked
+   (its size too).
 
 Run: python benchmarks/recording_cost.py [--reps N] [--realtime-s S] [--mission FILE] [--robot PROFILE] [--size]
-[--skip-max] [--skip-realtime]
+[--skip-max] [--skip-realtime] [--nav-views]
 """
 
 from __future__ import annotations
@@ -242,6 +253,77 @@ def ten_minutes(runs_dir: str) -> None:
     FIGURES.put("ten_minutes.bytes_per_tick", size / r["ticks"])
 
 
+FENCE = REPO / "missions" / "fence_crossing.yaml"
+
+
+def nav_views(mission: str, robot: str, reps: int, seconds: float, runs_dir: str) -> None:
+    """Section 4: share of one core at --speed realtime, recorded with the global costmap's views and without."""
+    from beastbt.recording import global_views
+    sample = global_views.GlobalViewSampler.sample
+    print(f"4. the global costmap's views (/global_costmap, /plan), --speed realtime, {seconds:g} s runs, {reps} reps "
+          f"of each; share of one core from 3 s into the mission to its last tick (this process and the writer "
+          f"process), median (lowest-highest):")
+    for name, path in (("patrol", mission), ("fence", str(FENCE))):
+        share: dict[str, list[float]] = {"without": [], "with": []}
+        messages: list[float] = []
+        for rep in range(reps):
+            order = ("without", "with") if rep % 2 == 0 else ("with", "without")
+            for mode in order:
+                global_views.GlobalViewSampler.sample = sample if mode == "with" else (lambda self, now_s: {})
+                try:
+                    r = one_run(path, options("recorded", "realtime", seconds, runs_dir, robot), window_from_s=3.0)
+                finally:
+                    global_views.GlobalViewSampler.sample = sample
+                share[mode].append(r["window_cpu_s"] / r["window_wall_s"])
+                if mode == "with" and r["path"] is not None:
+                    from beastbt.recording.reader import read_recording
+                    rec = read_recording(r["path"], topics=["/global_costmap", "/plan"])
+                    messages.append(sum(len(v) for v in rec.messages.values()))
+        diffs = [b - a for a, b in zip(share["without"], share["with"])]
+        print(f"   {Path(path).name}: without {spread(share['without'], 100, '{:.2f}')} %, with "
+              f"{spread(share['with'], 100, '{:.2f}')} % ({spread(messages, 1, '{:.0f}')} messages on the two "
+              f"channels a run); the views add {spread(diffs, 100, '{:+.2f}')} % of one core  [goal: under 1 %]")
+        FIGURES.spread(f"nav_views.{name}.without_pct", share["without"], 100)
+        FIGURES.spread(f"nav_views.{name}.with_pct", share["with"], 100)
+        FIGURES.spread(f"nav_views.{name}.added_points", diffs, 100)
+    one_message_cost()
+
+
+def one_message_cost() -> None:
+    """What one /global_costmap message costs on each side, for the fence's marks and a window one tenth marked."""
+    import json
+
+    import numpy as np
+
+    from beastbt.navigation.global_planner import GlobalPlannerConfig
+    from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
+    from beastbt.recording import global_views
+    n = 400  # the default window: 40 m at 0.1 m
+    cases = {}
+    fence = ObstacleLayer(GlobalCostmapConfig(), n, n, 0.1, -20.0, -20.0)
+    fence.marked[280, 160:240] = True  # an 8 m fence 8 m ahead
+    cases["fence"] = fence
+    dense = ObstacleLayer(GlobalCostmapConfig(), n, n, 0.1, -20.0, -20.0)
+    dense.marked[:] = np.random.default_rng(1).random((n, n)) < 0.1  # a cluttered window, marks everywhere
+    cases["dense"] = dense
+    for name, layer in cases.items():
+        source = ("odom", layer, None, GlobalPlannerConfig(), 0.15)
+        reps = 20
+        t0 = time.process_time()
+        for _ in range(reps):
+            marks = global_views.marks_of(source)
+        tick_us = (time.process_time() - t0) / reps * 1e6
+        t0 = time.process_time()
+        for _ in range(reps):
+            text = json.dumps(global_views.global_costmap_grid(0, "odom", marks))
+        writer_ms = (time.process_time() - t0) / reps * 1e3
+        print(f"   one message, {name} ({marks.lethal.size} lethal cells of {n * n}): tick side {tick_us:.0f} us, "
+              f"writer side {writer_ms:.1f} ms, {len(text) / 1e3:.1f} kB of JSON before the chunk's compression")
+        FIGURES.put(f"nav_views.message.{name}.tick_us", tick_us)
+        FIGURES.put(f"nav_views.message.{name}.writer_ms", writer_ms)
+        FIGURES.put(f"nav_views.message.{name}.kb", len(text) / 1e3)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=7, help="runs of each mode per section (default 7, at least 5)")
@@ -251,6 +333,8 @@ def main() -> None:
     ap.add_argument("--skip-realtime", action="store_true", help="leave out section 2 (real time)")
     ap.add_argument("--skip-max", action="store_true", help="leave out section 1 (--speed max)")
     ap.add_argument("--size", action="store_true", help="also section 3 (the size of a 10-minute recording)")
+    ap.add_argument("--nav-views", action="store_true",
+                    help="also section 4 (what /global_costmap and /plan add at real time)")
     args = ap.parse_args()
     if args.reps < 5:
         ap.error("--reps: at least 5 (medians over fewer say little)")
@@ -262,6 +346,8 @@ def main() -> None:
             real_time(args.mission, args.robot, args.reps, args.realtime_s, runs_dir)
         if args.size:
             ten_minutes(runs_dir)
+        if args.nav_views:
+            nav_views(args.mission, args.robot, args.reps, args.realtime_s, runs_dir)
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min)")
     FIGURES.save()  # benchmarks/results/recording_cost.json, quoted by docs/recording.md
 

@@ -83,10 +83,12 @@ def test_example_runs_have_every_channel_with_messages_that_match_their_schemas(
     # (tests/test_obstacle_views.py records them), nor is what an operator did from the console or a terminal
     # (/operator/input: tests/test_replay_operator.py records and validates it).
     # Nor is a map (/localisation/*: tests/test_map_localiser_views.py records them; /map, /path, /map/pose:
-    # tests/test_map_show.py). Nor a detector (/camera/detections, /camera/tags: tests/test_recording_detections.py).
+    # tests/test_map_show.py). Nor a detector (/camera/detections, /camera/tags: tests/test_recording_detections.py),
+    # nor anything the global costmap marks (/global_costmap, /plan: tests/test_global_views.py).
     missing = set(CHANNELS) - with_messages - {"/costmap", "/local_plan", "/sim/persons", "/operator/input",
                                                "/localisation/particles", "/localisation/quality", "/map", "/path",
-                                               "/map/pose", "/camera/detections", "/camera/tags"}
+                                               "/map/pose", "/camera/detections", "/camera/tags", "/global_costmap",
+                                               "/plan"}
     assert not missing, f"no messages on {sorted(missing)}"
 
 
@@ -274,7 +276,8 @@ def test_every_stream_type_gets_its_channel_and_validates(tmp_path):
                      "/camera/annotations", "/costmap", "/local_plan", "/collision_monitor/zones", "/sim/persons",
                      "/sim/contact", "/operator/input", "/localisation/particles", "/localisation/quality", "/map",
                      "/path", "/map/pose", "/camera/photo",  # no photo taken
-                     "/camera/detections", "/camera/tags"}  # no detector awake
+                     "/camera/detections", "/camera/tags",  # no detector awake
+                     "/global_costmap", "/plan"}  # no go_to
     # Images at 2 Hz out of 20 fps over 2 s: at t = 0, 0.5, 1.0, 1.5, 2.0; each a real JPEG, scaled to 32 px wide.
     images = topics["/camera/image"]
     offset = read_recording(tmp_path / "s.mcap", topics=[]).log_time_offset_ns

@@ -248,6 +248,18 @@ class GoTo(BeastBehaviour):
         self.init_start: Optional[FusedPose] = None
         self.distance_m = math.inf
 
+    @property
+    def way(self) -> Optional[PathFollow]:
+        """The planned way round what the global costmap holds (odom), or None: the straight line. Setting it tells
+        the global navigator too (``GlobalNavigator.following``), whose way the views draw (``/plan``)."""
+        return self._way
+
+    @way.setter
+    def way(self, way: Optional[PathFollow]) -> None:
+        self._way = way
+        if self.global_nav is not None:
+            self.global_nav.following = way
+
     # -- lifecycle ------------------------------------------------------------------------
     def initialise(self) -> None:
         self.nav = self.ctx.services.navigation or NavConfig()
@@ -287,6 +299,7 @@ class GoTo(BeastBehaviour):
     def terminate(self, new_status: Status) -> None:
         if self.local is not None:
             self.bb.local_plan = None  # no plan is followed once the step has ended (the costmap keeps its stamp)
+        self.way = None  # nor a way round (the views take it off)
         visit = self.visit
         if visit is None:
             return

@@ -102,7 +102,7 @@ def _costmap_cells(costmap: Any, odom_on_plan: tuple[float, float, float]) -> di
 
 
 def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float,
-                    pose: Optional[tuple[float, float, float]]) -> dict:
+                    pose: Optional[tuple[float, float, float]], global_layer: Any = None) -> dict:
     """What the map draws of obstacles now, on the plan (metres, rounded to cm): each key None when there is none.
 
     ``scan``: the latest LiDAR revolution's returns (at most :data:`MAX_SCAN_POINTS`);
@@ -111,11 +111,14 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
     both); ``blocked``: the planner finds no way; ``costmap``: ``{cells, resolution_m}``, the centres of the
     local costmap's cells an obstacle is in or the footprint would touch (Nav2's lethal and inscribed, at most
     :data:`MAX_COSTMAP_CELLS`); ``persons``: the simulator's persons where they are, ``[x, y, radius]``;
-    ``path``: the path planned on the mission's saved map (``global_plan``), on the plan.
+    ``path``: the path planned on the mission's saved map (``global_plan``), or the way round a GPS go_to
+    follows (``GlobalNavigator.following``, odom), on the plan; ``global_costmap``: with ``global_layer`` (a
+    :class:`~beastbt.recording.global_views.ConsoleGlobalLayer`), the global costmap's marked cells as an image
+    placed like ``saved_map`` (``png``, ``corner``, ``yaw_rad``, ``width_m``, ``height_m``).
     """
     from beastbt.recording.obstacle_views import fresh, sim_contact
     out: dict = {"scan": None, "zones": None, "plan": None, "blocked": False, "costmap": None, "persons": None,
-                 "path": None}
+                 "path": None, "global_costmap": None}
     on_plan = frame.map_on_plan()
     global_plan = catalogue.get(board_client, "global_plan") if on_plan is not None else None
     if global_plan is not None and len(global_plan.points_xy) >= 2:
@@ -148,12 +151,36 @@ def obstacle_layers(run: Any, frame: "MapFrame", board_client: Any, now_s: float
         costmap = fresh(catalogue.get(board_client, "costmap"), now_s)
         if costmap is not None:
             out["costmap"] = _costmap_cells(costmap, odom_on_plan)
+        local = run.ctx.services.local_navigator
+        way = getattr(getattr(local, "global_nav", None), "following", None)
+        if way is not None and out["path"] is None:  # the way round a GPS go_to follows (odom)
+            out["path"] = _to_plan(way.points, *odom_on_plan)
+        drawn = global_layer.now(run, now_s) if global_layer is not None else None
+        if drawn is not None:
+            out["global_costmap"] = _global_costmap_on_plan(drawn, frame, odom_on_plan)
     contact = sim_contact(run)
     if contact is not None and contact.persons:
         # The simulator's world is the plan (MapFrame): the persons are drawn where they stand.
         out["persons"] = [[round(float(x), 2), round(float(y), 2), p.radius_m]
                           for (x, y), p in zip(contact.person_xy.tolist(), contact.persons)]
     return out
+
+
+def _global_costmap_on_plan(drawn: tuple[str, dict], frame: "MapFrame",
+                            odom_on_plan: tuple[float, float, float]) -> Optional[dict]:
+    """The console's global costmap layer (``(frame, layer)`` of ``ConsoleGlobalLayer.now``) placed on the plan:
+    its corner moved from odom (GPS) or the saved map's frame onto the plan, with the frame's yaw there."""
+    kind, layer = drawn
+    x, y = layer["corner"]
+    if kind == "map":
+        on_plan = frame.map_on_plan()
+        if on_plan is None:
+            return None
+        corner, yaw = frame.map_point(x, y), on_plan[2]
+    else:
+        corner, yaw = _to_plan([[x, y]], *odom_on_plan)[0], odom_on_plan[2]
+    return {"png": layer["png"], "corner": corner, "yaw_rad": round(yaw, 6), "width_m": layer["width_m"],
+            "height_m": layer["height_m"]}
 
 
 def battery_percent(volts: float, cells: Optional[int] = None) -> float:
@@ -354,12 +381,14 @@ class ConsoleState:
         self._map_key: Optional[tuple] = None
         self._layers: dict = {}
         self._layers_key: Optional[tuple] = None
+        from beastbt.recording.global_views import ConsoleGlobalLayer
         from beastbt.recording.obstacle_views import board_reader
         self._board = board_reader()
         self._detections: Any = None
         """The detectors' frame entries (:mod:`beastbt.vision.detection_feed`), once the run's vision watch is seen."""
         self._shown: Optional[dict] = None
         """The newest frame entry, drawn over the video until the detectors sleep."""
+        self._global_layer = ConsoleGlobalLayer()
         self._published = Published(0, self.build())
         self._last_wall = -math.inf
         self._ticks = 0
@@ -450,7 +479,7 @@ class ConsoleState:
             "paused_by": "operator" if run.operator_paused else run.paused_by,
             "trail_len": len(self.trail),
             "map_version": self._current_map_version(),
-            "obstacles": obstacle_layers(run, self.frame, self._board, run.clock.now(), pose),
+            "obstacles": obstacle_layers(run, self.frame, self._board, run.clock.now(), pose, self._global_layer),
             # live tuning's values and the line's error (beastbt.live.tuning); from the first tick, once every part
             # has put in what the knobs bind to
             "tuning": tuning_of(run).state() if run.ticks > 0 else None,

@@ -77,6 +77,11 @@ class GlobalNavigator:
         self.plans = 0
         """Plans made so far."""
         self.scans_used = 0
+        self.following: Optional[PathFollow] = None
+        """The way round the running go_to follows (odom), or None while it drives the straight line or no go_to
+        runs: set by the step, read by the views (``/plan``, the console)."""
+        self.goal_name = ""
+        """What the newest plan was made for (a place's name, or ``the way toward`` it when the goal was clipped)."""
 
     # -- scans --------------------------------------------------------------------------------------------
     def observe(self, scan: LaserScan, base_odom: tuple[float, float, float]) -> None:
@@ -141,8 +146,9 @@ class GlobalNavigator:
         target = self.clip_to_window(start, goal)
         clipped = target != goal
         self.plans += 1
+        self.goal_name = name if not clipped else f"the way toward {name}"
         return plan_path(self.costmap(), start, target, tolerance_m if not clipped else max(tolerance_m, 2.0),
-                         goal_name=name if not clipped else f"the way toward {name}")
+                         goal_name=self.goal_name)
 
 
 def marks_near(layer: ObstacleLayer, points: Any, disk: tuple[np.ndarray, np.ndarray], skip_m: float = 0.0) -> bool:

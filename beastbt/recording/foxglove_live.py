@@ -34,7 +34,7 @@ import threading
 import time
 from typing import Any, Callable, Optional
 
-LATCHED = ("/scene", "/route", "/collision_monitor/zones")
+LATCHED = ("/scene", "/route", "/collision_monitor/zones", "/global_costmap", "/plan")
 """Topics whose last message a newly subscribed client needs (they are sent at the start and on change)."""
 
 

@@ -100,7 +100,8 @@ class ObstacleSampler:
     :meth:`sample` returns the payload of a ``views`` item, or None when
     nothing changed worth sending. Payload keys, each present only when it changed:
     ``costmap`` (a LocalCostmap, or None: taken off), ``plan`` (a LocalPlan or None),
-    ``zones`` (``{"zones": monitor.zones(), "action": ...}``), ``contact``
+    ``zones`` (``{"zones": monitor.zones(), "action": ...}``), ``global_costmap`` and ``gps_plan``
+    (:class:`~beastbt.recording.global_views.GlobalViewSampler`), ``contact``
     (``{"t_s", "clearance_m", "collisions", "in_contact", "persons": [[x, y, r], ...], "moved"}``, world metres;
     ``moved``: the persons are not where the last payload had them).
     """
@@ -130,6 +131,9 @@ class ObstacleSampler:
         from beastbt.recording.map_views import MapSampler
         self._map = MapSampler(run)
         """The saved map and the planned path (a mission with map:), sampled here so they ride the same item."""
+        from beastbt.recording.global_views import GlobalViewSampler
+        self._global = GlobalViewSampler(run)
+        """The global costmap and the GPS way round (/global_costmap, /plan), sampled to ride the same item."""
         self._localiser = run.ctx.services.plugins.get("map_localiser")
         self._localisation_s = -math.inf
 
@@ -169,6 +173,7 @@ class ObstacleSampler:
                                   "collisions": int(contact.collisions), "in_contact": bool(contact.in_contact),
                                   "persons": persons, "moved": moved}
         out.update(self._map.sample(now_s))
+        out.update(self._global.sample(now_s))
         loc = self._localiser
         if loc is not None and now_s - self._localisation_s >= LOCALISATION_PERIOD_S - 1e-9:
             self._localisation_s = now_s

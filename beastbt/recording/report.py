@@ -52,7 +52,7 @@ NOT_PLOTTED = ("/sensors/imu", "/sensors/battery", "/sensors/joystick", "/sensor
                # Foxglove's views of what the report reads elsewhere (every tick: decoding them is memory for nothing)
                "/gps/fused", "/tf", "/odom", "/scene", "/route", "/camera/calibration", "/camera/annotations",
                "/costmap", "/local_plan", "/collision_monitor/zones", "/sim/persons", "/localisation/particles",
-               "/camera/photo", "/camera/detections", "/camera/tags")
+               "/camera/photo", "/camera/detections", "/camera/tags", "/global_costmap", "/plan")
 """Topics the report does not decode (counted all the same): the plots do not use them."""
 
 
@@ -255,6 +255,24 @@ class RunData:
                 where = truth_at(truth, [m["t_s"]])[0] if truth else None
                 out.extend([(t, where)] * (n - last))
             last = n
+        return out
+
+    def recoveries(self) -> list[tuple[float, str, Optional[tuple[float, float]]]]:
+        """(clock time s, text, where m or None) of each recovery a navigation step ran (the ``recovery`` events
+        that start one; a back-up skipped for want of room is not one): where by the simulator's truth, else by the
+        fused estimate nearest in time, in the world's frame as the path plot draws it."""
+        events = [(float(m["time_s"]), m["text"]) for m in self.rec.topic("/events")
+                  if m.get("kind") == "recovery" and ": recovery " in m.get("text", "")]
+        if not events:
+            return []
+        truth = self.rec.topic("/truth")
+        if truth:
+            return [(t, text, where) for (t, text), where in zip(events, truth_at(truth, [t for t, _ in events]))]
+        fused = self.rec.topic("/estimate/fused")
+        out: list[tuple[float, str, Optional[tuple[float, float]]]] = []
+        for t, text in events:
+            near = min(fused, key=lambda m: abs(float(m.get("stamp_s", 0.0)) - t)) if fused else None
+            out.append((t, text, self.to_world(near) if near is not None else None))
         return out
 
     def true_clearance(self) -> tuple[list[float], list[float]]:
@@ -555,6 +573,14 @@ def summary_text(d: RunData) -> str:
     obstacles = obstacles_line(s)
     if obstacles:
         lines.append(obstacles)
+    recoveries = d.recoveries()
+    counted = s.get("recoveries")
+    if recoveries or counted is not None:
+        kinds = (counted or {}).get("kinds") or {}
+        lines.append(f"  recoveries: {len(recoveries) if counted is None else counted.get('count', 0)}"
+                     + (" (" + ", ".join(f"{k} {n}" for k, n in kinds.items()) + ")" if kinds else ""))
+        for t, text, _ in recoveries:
+            lines.append(f"    [{t:8.2f} s] {text}")
     failsafes = rec.topic("/failsafes")
     if failsafes:
         lines.append("  failsafes:")

@@ -101,8 +101,8 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
 
     Walls and the line track under everything; the raw GPS fixes, when the
     run had any, light and small; the truth, then odometry and the fused
-    estimate over it; where the robot started and ended; the mission's
-    places with their tolerance circles.
+    estimate over it; where the robot started and ended, collided and ran a
+    recovery; the mission's places with their tolerance circles.
     The axis limits are :func:`map_extent`'s.
     """
     truth = d.rec.topic("/truth")
@@ -148,6 +148,10 @@ def draw_path(d: RunData, ax: Any) -> list[str]:
     if hits:
         ax.plot([p[0] for p in hits], [p[1] for p in hits], marker="X", color="red", markeredgecolor="black",
                 markersize=12, linestyle="none", label=f"collision ({len(hits)})", zorder=9)
+    turns = [where for _, _, where in d.recoveries() if where is not None]
+    if turns:  # where a navigation step ran a recovery (clear, back up, spin, wait) before trying again
+        ax.plot([p[0] for p in turns], [p[1] for p in turns], marker="D", color="tab:orange", markeredgecolor="black",
+                markersize=8, linestyle="none", label=f"recovery ({len(turns)})", zorder=8)
     _draw_targets(ax, d)
     extent = map_extent(d)
     if extent is not None:

@@ -230,6 +230,8 @@ CHANNELS: dict[str, dict] = {
     "/local_plan": FOXGLOVE_SCENE_UPDATE,  # the local planner's path (odom frame), at most 5 Hz when it changed
     "/map": FOXGLOVE_GRID,  # the mission's saved map (map frame, int8 occupancy as nav_msgs), once and on change
     "/path": FOXGLOVE_SCENE_UPDATE,  # the path go_to plans on the map (map frame), when it is planned
+    "/global_costmap": FOXGLOVE_GRID,  # the global costmap (odom on GPS, map on a map; uint8 Nav2 costs), 1 Hz
+    "/plan": FOXGLOVE_SCENE_UPDATE,  # the way round a GPS go_to follows (odom frame), each time it changes
     "/map/pose": FOXGLOVE_POSE_IN_FRAME,  # the pose on the saved map (map frame), 5 Hz
     "/collision_monitor/zones": FOXGLOVE_SCENE_UPDATE,  # stop and slow polygons (base_link), bold when acting
     "/sim/persons": FOXGLOVE_SCENE_UPDATE,  # the simulator's persons where they are now (map frame), 5 Hz

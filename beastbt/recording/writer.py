@@ -480,8 +480,8 @@ class RunFileWriter:
 
     def _write_views(self, t: int, views: dict) -> None:
         """The obstacle views that changed (:class:`~beastbt.recording.obstacle_views.ObstacleSampler`): /costmap,
-        /local_plan, /collision_monitor/zones, /map, /path, /map/pose, /sim/persons, /sim/contact,
-        /localisation/particles and /localisation/quality."""
+        /local_plan, /collision_monitor/zones, /map, /path, /global_costmap, /plan, /map/pose, /sim/persons,
+        /sim/contact, /localisation/particles and /localisation/quality."""
         frames = self.frames
         if "costmap" in views:
             self._emit("/costmap", t, ov.costmap_grid(t, frames.odom, views["costmap"]))
@@ -499,6 +499,18 @@ class RunFileWriter:
         if "path" in views:
             from beastbt.recording.map_views import path_update
             self._emit("/path", t, path_update(t, frames.map, views["path"]))
+        if "global_costmap" in views:  # latched: sent only when it changed
+            from beastbt.recording.global_views import global_costmap_grid
+            marks = views["global_costmap"]
+            msg = global_costmap_grid(t, frames.map if marks.frame == "map" else frames.odom, marks)
+            self._emit("/global_costmap", t, msg)
+            self._latched_views["/global_costmap"] = encode_json(msg)
+        if "gps_plan" in views:  # the way round a GPS go_to follows, each time it changes (odom)
+            from beastbt.recording.global_views import gps_plan
+            from beastbt.recording.map_views import path_update
+            msg = path_update(t, frames.odom, gps_plan(views["gps_plan"]))
+            self._emit("/plan", t, msg)
+            self._latched_views["/plan"] = encode_json(msg)
         if "map_pose" in views:
             from beastbt.recording.map_views import map_pose_message
             self._emit("/map/pose", t, map_pose_message(t, frames.map, views["map_pose"]))
@@ -615,7 +627,8 @@ def message_count(item: tuple, images: bool) -> int:
         views = item[2]
         contact = views.get("contact")
         return (("costmap" in views) + ("plan" in views) + ("zones" in views) + ("map" in views) + ("path" in views)
-                + ("map_pose" in views) + 2 * ("localisation" in views)
+                + ("map_pose" in views) + 2 * ("localisation" in views) + ("global_costmap" in views)
+                + ("gps_plan" in views)
                 + (0 if contact is None else 1 + bool(contact["moved"] and contact["persons"])))
     if kind != "tick":
         return 0

@@ -309,6 +309,7 @@ function renderEvents(events) {
 let treeIds = "";
 const treeRows = new Map();
 let foldDone = false;
+$("show-global").onchange = () => { mapDirty = true; };
 $("tree-fold").onclick = () => { foldDone = !foldDone; $("tree-fold").textContent = foldDone ? "unfold" : "fold done"; treeIds = ""; state && renderTree(state.tree); };
 
 function renderTree(nodes) {
@@ -485,6 +486,7 @@ function drawMap() {
       g.strokeStyle = "#9aa0a6"; g.strokeRect(x - 5, y - 5, 10, 10);
     }
   }
+  drawGlobalCostmap(g, ob && ob.global_costmap, px, scale, c);
   if (trail.length > 1) { g.strokeStyle = "#f2c744aa"; g.lineWidth = 2; poly(trail); }
   drawObstacles(g, ob, poly, ring, px, c);
   if (state && state.gps && state.gps.xy) {
@@ -510,22 +512,34 @@ function drawMap() {
   $("map-info").textContent = mapLayers && mapLayers.datum ? `ENU metres from ${mapLayers.datum.lat.toFixed(5)}, ${mapLayers.datum.lon.toFixed(5)}` : "ENU metres (odometry)";
 }
 
-// The mission's saved map (map:) under everything else: an image decoded once per layers fetch, placed by its
-// lower-left corner and turned by its yaw on the plan; canvas.dataset.savedMap says it was drawn (the tests read it).
-let savedMapImage = null, savedMapSrc = "";
-function drawSavedMap(g, m, px, scale, canvas) {
-  if (!m) { canvas.dataset.savedMap = ""; return; }
-  if (m.png !== savedMapSrc) {
-    savedMapSrc = m.png; savedMapImage = new Image();
-    savedMapImage.onload = () => { mapDirty = true; };
-    savedMapImage.src = m.png;
+// An image on the plan ({png, corner, yaw_rad, width_m, height_m}): decoded once per new png, placed by its
+// lower-left corner and turned by its yaw on the plan. "WxH" in pixels once drawn, "" when not (yet).
+function placedImage(cache, g, m, px, scale) {
+  if (m.png !== cache.src) {
+    cache.src = m.png; cache.image = new Image();
+    cache.image.onload = () => { mapDirty = true; };
+    cache.image.src = m.png;
   }
-  if (!savedMapImage.complete || !savedMapImage.naturalWidth) return;
+  const image = cache.image;
+  if (!image.complete || !image.naturalWidth) return "";
   const [x, y] = px(m.corner[0], m.corner[1]);
   g.save(); g.translate(x, y); g.rotate(-m.yaw_rad); g.imageSmoothingEnabled = false;
-  g.drawImage(savedMapImage, 0, -m.height_m * scale, m.width_m * scale, m.height_m * scale);
+  g.drawImage(image, 0, -m.height_m * scale, m.width_m * scale, m.height_m * scale);
   g.restore();
-  canvas.dataset.savedMap = `${savedMapImage.naturalWidth}x${savedMapImage.naturalHeight}`;
+  return `${image.naturalWidth}x${image.naturalHeight}`;
+}
+
+// The mission's saved map (map:) under everything else; canvas.dataset.savedMap says it was drawn (the tests read it).
+const savedMapCache = {src: "", image: null};
+function drawSavedMap(g, m, px, scale, canvas) {
+  canvas.dataset.savedMap = m ? placedImage(savedMapCache, g, m, px, scale) : "";
+}
+
+// The global costmap's marked cells (what the LiDAR has seen and go_to plans round), a faint layer over the maps,
+// shown while the "global costmap" box is ticked; canvas.dataset.globalCostmap says it was drawn.
+const globalCostmapCache = {src: "", image: null};
+function drawGlobalCostmap(g, m, px, scale, canvas) {
+  canvas.dataset.globalCostmap = m && $("show-global").checked ? placedImage(globalCostmapCache, g, m, px, scale) : "";
 }
 
 // What the robot sees and plans (the state's "obstacles", plan metres): the local costmap's occupied cells, the
@@ -535,7 +549,7 @@ const ZONE_COLOURS = {slow: "#ff9f1a", stop: "#e5534b"};
 const ZONE_ACTIVE = {stop: new Set(["stop", "silent"]), slow: new Set(["slow", "approach"])};
 function drawObstacles(g, ob, poly, ring, px, canvas) {
   const drawn = {zones: [], active: "", plan: 0, scan: 0, persons: 0, costmap: 0, path: 0};
-  if (ob && ob.path) {  // the path planned on the saved map (go_to on a map), under what the robot sees now
+  if (ob && ob.path) {  // the path planned on the saved map, or the way round on GPS, under what the robot sees now
     g.strokeStyle = "#4a7dff"; g.lineWidth = 3; g.setLineDash([]); poly(ob.path);
     drawn.path = ob.path.length;
   }
