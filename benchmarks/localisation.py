@@ -12,6 +12,8 @@ processes). Printed: milliseconds per scan and the share of one core at
 * the defaults (the filter updates after 5 cm or 3 deg of motion, as AMCL's
   ``update_min_d``/``a``; match quality on every scan), and
 * the worst case: an update on every scan (``update_min_d_m: 0``),
+* the defaults without the search of the whole map for another place that fits
+  (``ambiguity_check_interval_s: 0``), and that search alone, per search,
 
 and, as the baseline measured in the same run, the LD19 driver decoding one
 10 Hz revolution (benchmarks/lidar_decode.py's stream, 50 ms reads), with the
@@ -125,6 +127,20 @@ def time_field(reps: int) -> list[float]:
     return out
 
 
+def time_search(grid, scans: list, reps: int) -> list[float]:
+    """Milliseconds per search of the whole map for the places that explain a scan (``MapLocaliser.search_map``,
+    the ambiguity check's cost), over 10 scans of the tour."""
+    loc = MapLocaliser(grid, LocaliserConfig.from_dict({}), np.random.default_rng(0))
+    picked = scans[::max(1, len(scans) // 10)]
+    out = []
+    for _ in range(reps):
+        t0 = time.thread_time()
+        for _, points, _ in picked:
+            loc.search_map(loc.select_beams(points))
+        out.append(1000.0 * (time.thread_time() - t0) / len(picked))
+    return out
+
+
 def spread(values: list[float]) -> str:
     """Median and min..max."""
     return f"{statistics.median(values):.3f} ({min(values):.3f}..{max(values):.3f})"
@@ -142,10 +158,11 @@ def main() -> None:
           f"map {grid.cols} x {grid.rows} cells at {grid.resolution_m} m")
     defaults = LocaliserConfig.from_dict({})
     every_scan = replace(defaults, update_min_d_m=0.0, update_min_angle_deg=0.0)
-    results: dict[str, list[float]] = {"defaults": [], "every scan": [], "decode": []}
+    no_search = replace(defaults, ambiguity_check_interval_s=0.0)
+    results: dict[str, list[float]] = {"defaults": [], "every scan": [], "no search": [], "decode": []}
     updates = {}
     for _ in range(reps):
-        for name, config in (("defaults", defaults), ("every scan", every_scan)):
+        for name, config in (("defaults", defaults), ("every scan", every_scan), ("no search", no_search)):
             cpu_s, n = time_filter(grid, scans, config)
             results[name].append(1000.0 * cpu_s / len(scans))
             updates[name] = n
@@ -153,7 +170,7 @@ def main() -> None:
     decode = statistics.median(results["decode"])
     print(f"LD19 decode (baseline):       {spread(results['decode'])} ms per revolution, "
           f"{decode:.2f} % of a core at 10 Hz")
-    for name in ("defaults", "every scan"):
+    for name in ("defaults", "every scan", "no search"):
         ms = results[name]
         share = list(ms)  # ms per scan x 10 scans/s = ms per s, / 1000 ms x 100 %: the same number
         print(f"localisation, {name:10s}:    {spread(ms)} ms per scan, {spread(share)} % of a core at 10 Hz "
@@ -165,7 +182,7 @@ def main() -> None:
     print(f"likelihood field of a 40 m x 40 m map at 5 cm (once, at the start): {spread(field)} ms")
     figures = Figures("localisation")  # saved for benchmarks/check_docs.py (benchmarks/figures.py prints them)
     figures.spread("decode_pct", results["decode"])
-    for name in ("defaults", "every scan"):
+    for name in ("defaults", "every scan", "no search"):
         key = name.replace(" ", "_")
         figures.spread(f"{key}_pct", results[name])
         figures.put(f"{key}_decode_ratio", statistics.median(results[name]) / decode)
@@ -177,6 +194,9 @@ def main() -> None:
     figures.put("error_max_cm", 100 * truth["position_error_max_m"])
     figures.put("within_3sigma_pct", 100 * truth["position_error_within_3sigma_frac"])
     figures.spread("field_ms", field)
+    search = time_search(grid, scans, reps)
+    print(f"a search of the whole map for another place that fits (the ambiguity check): {spread(search)} ms")
+    figures.spread("search_ms", search)
     print(f"goal: <= 5 % of a core; {reps} repetitions, medians (min..max), thread CPU time")
     figures.save()
 
