@@ -181,6 +181,18 @@ def invert(a: Pose2D) -> Pose2D:
     return (-c * a[0] - s * a[1], s * a[0] - c * a[1], float(wrap(-a[2])))
 
 
+def scan_mid_s(scan: Any) -> float:
+    """The clock time (s) of the middle of a scan's revolution (a :class:`~beastbt.blackboard.types.LaserScan`).
+
+    Its points were measured over the revolution that ended at its stamp, so a
+    robot turning at 1 rad/s turns 3 degrees between its middle and its end (at
+    10 Hz): a scan matched, or drawn, at the pose of its end would put the
+    robot's heading that much behind in every turn.
+    """
+    span = scan.scan_time_s
+    return scan.stamp_s - 0.5 * span if math.isfinite(span) and 0.0 < span < 1.0 else scan.stamp_s
+
+
 COARSE_STEP_M = 0.25
 """The global search's grid step over the map (m)."""
 COARSE_HEADINGS = 36
@@ -799,5 +811,5 @@ class MapLocaliser:
             self.localized = False
 
 
-__all__ = ["MapLocaliser", "LocaliserConfig", "LikelihoodField", "compose", "invert", "wrap",
+__all__ = ["MapLocaliser", "LocaliserConfig", "LikelihoodField", "compose", "invert", "wrap", "scan_mid_s",
            "Pose2D"]
