@@ -4,7 +4,9 @@
 both, and only the corridor tells them apart. The office world's office and lab differ only by a plant and a bench.
 The localiser searches the whole map for another place that fits as well, follows both with its particles, and says
 ``localized: false`` while both hold; each run here measures "confidently wrong": time the robot reported itself
-localised while the truth was more than 0.5 m away (issue 32: never more than 5 s).
+localised while the truth was more than 0.5 m away (issue 32: never more than 5 s). A start given wrongly and a wrong
+``/initialpose`` mid-run are the same question asked later. One or two seeds each here; ``benchmarks/localisation.py
+--only sweep`` runs seeds 1-5 of each case and prints the worst.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser
+from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser, compose, invert
 from beastbt.mapping.occupancy_map import save_map
 from beastbt.sim.world import load_world
 from conftest import REPO
@@ -53,7 +55,7 @@ def twin(tmp_path: Path) -> Path:
     return tmp_path
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("seed", [1, 2])
 def test_twin_rooms_and_a_start_in_the_wrong_one_are_never_confidently_wrong(twin, seed):
     summary, rows = run_mission(twin, mission_text("twin", OUT_OF_ROOM_A, ROOM_B, world=TWIN), seed=seed, trace=True)
     assert summary["status"] == "success" and summary["truth"]["collisions"] == 0
@@ -65,7 +67,7 @@ def test_twin_rooms_and_a_start_in_the_wrong_one_are_never_confidently_wrong(twi
     assert rows[-1][1].localized and error_m(rows[-1]) < 0.3
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1])
 def test_twin_rooms_and_the_right_start_say_not_localized_until_the_corridor(twin, seed):
     summary, rows = run_mission(twin, mission_text("twin", OUT_OF_ROOM_A, world=TWIN), seed=seed, trace=True)
     assert summary["status"] == "success"
@@ -77,7 +79,7 @@ def test_twin_rooms_and_the_right_start_say_not_localized_until_the_corridor(twi
     assert rows[-1][1].localized
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("seed", [1])
 def test_the_office_with_a_start_5_m_off_in_the_lab_is_found(tmp_path, seed):
     """The office and the lab differ by a plant, a bench and what the doors show: the robot, told it is in the lab,
     is found in the office within seconds, never confidently wrong for long."""
@@ -91,7 +93,7 @@ def test_the_office_with_a_start_5_m_off_in_the_lab_is_found(tmp_path, seed):
     assert rows[-1][1].localized
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0])
 def test_a_start_far_off_is_lost_then_found_where_it_is(tmp_path, seed):
     """5 m and 90 degrees off (as in tests/test_map_localiser.py, which checks that it is noticed): the scans fit
     nowhere near, so it is not localised after lost_after_s and recovery searches; where recovery settles first may
@@ -103,6 +105,51 @@ def test_a_start_far_off_is_lost_then_found_where_it_is(tmp_path, seed):
     assert summary["status"] == "success"
     assert confidently_wrong_s(rows) <= 2.0
     assert rows[-1][1].localized and error_m(rows[-1]) < 0.3
+
+
+def initialpose_at(prepared, at_s: float, offset: tuple[float, float, float]) -> list:
+    """Hook into ``prepared``'s run: at ``at_s`` (s) the localiser is given a pose ``offset`` (x m, y m, yaw rad, in the
+    robot's frame) from where the robot truly is, as rviz2's "2D Pose Estimate" on ``/initialpose`` gives it (through
+    the ROS 2 link's own handler, 5 cm and 3 deg sure of it; no Zenoh session). The list the time it was given goes
+    into."""
+    from beastbt.blackboard.types import MapPose
+    from beastbt.ros2 import cdr
+    from beastbt.ros2.link import Ros2Link, Ros2Options
+
+    world, sent = prepared.world, []
+    map_from_world = invert((world.start_x, world.start_y, world.start_yaw))
+
+    def hook(run, now_s):
+        if sent or now_s < at_s or run.latest.get(MapPose) is None:
+            return
+        t = run.io.sim.truth
+        x, y, yaw = compose(compose(map_from_world, (t.x, t.y, t.yaw)), offset)
+        cov = [0.0] * 36
+        cov[0] = cov[7] = 0.05 ** 2
+        cov[35] = math.radians(3.0) ** 2
+        pose = cdr.PoseStamped(0, "map", (x, y, 0.0), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)), tuple(cov))
+        Ros2Link(prepared, Ros2Options())._initial_pose(run, pose)
+        sent.append(now_s)
+    prepared.run.hooks.append(hook)
+    return sent
+
+
+@pytest.mark.parametrize("offset, seed", [((5.0, 0.0, 0.0), 1), ((1.5, 0.3, 0.0), 4)],
+                         ids=["into_the_lab", "1.5_m_off"])
+def test_a_wrong_initialpose_mid_run_is_not_driven_on_confidently(tmp_path, offset, seed):
+    """8 s into the office tour (the estimate long trusted: the map no longer searched), an operator gives a pose 5 m
+    off, in the lab that looks like the office, or 1.5 m off: the new pose is judged afresh, as a start is, and
+    the robot is found again where it is within a few seconds, never confidently wrong for more than 2 s."""
+    office_map_file(tmp_path)
+    sent: list = []
+    summary, rows = run_mission(tmp_path, mission_text("told_wrongly", TOUR), seed=seed, trace=True,
+                                setup=lambda prepared: sent.append(initialpose_at(prepared, 8.0, offset)))
+    assert summary["status"] == "success" and sent[0]
+    assert any("ROS 2 /initialpose: localising again" in e["text"] for e in summary["events"])
+    told = next(i for i, r in enumerate(rows) if r[0] > sent[0][0])
+    assert error_m(rows[told]) > 1.4  # it took the pose it was given
+    assert confidently_wrong_s(rows) <= 2.0
+    assert error_m(rows[-1]) < 0.3
 
 
 def test_the_search_finds_the_twin_room_and_the_knobs_are_checked():

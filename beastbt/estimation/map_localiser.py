@@ -352,6 +352,24 @@ class MapLocaliser:
         self.map_from_odom = compose(pose, invert(odom))
         self.last_odom = None
         self._start_odom = odom
+        # A start again (ROS's /initialpose) is a claim like the first, judged afresh: what the filter had come to
+        # trust where it was before says nothing of the new place. Without this, an estimate trusted for
+        # TRUSTED_UPDATES would never have the new place searched against the map, and a pose given wrongly in a
+        # place that fits (the lab for the office) would be driven on, localised, for as long as it fits.
+        self.localized = True
+        self._low_since = None
+        self.w_slow = self.w_fast = 0.0
+        self.ambiguous = False
+        self.alternative = None
+        self._alternative_from_odom = None
+        self._localized_before_ambiguity = None
+        self._moved_while_ambiguous = False
+        self._weighed = 0
+        self._track_updates = 0
+        self._open_checks = 0
+        self._settle_checks = SETTLED_CHECKS
+        self._next_search_s = None
+        self._cluster_xy_var = self._cluster_yaw_var = math.inf
 
     @property
     def pose_covariance(self) -> np.ndarray:
