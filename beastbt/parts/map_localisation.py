@@ -115,8 +115,6 @@ class MapLocalisationPart(Part):
         """The odometry pose the filter works in: the wheels' travel, the gyro's turn (m, m, rad)."""
         self._last_wheels: Optional[Pose2D] = None
         self._last_tick_s: Optional[float] = None
-        self._history: "deque[tuple[float, Pose2D]]" = deque(maxlen=ODOM_HISTORY_TICKS)
-        """(clock s, odometry pose) of the last ticks: a scan is matched at the pose of its middle."""
         self.gyro_ticks = 0
         """Ticks whose turn came from the gyro."""
         tap = run.io.imu_tap
@@ -171,6 +169,8 @@ class MapLocalisationPart(Part):
         """This tick's odometry pose: the wheels' step since the last tick, turned by the gyro when it can."""
         if self._odom is None or self._last_wheels is None or self._last_tick_s is None:
             self._odom, self._last_wheels, self._last_tick_s = wheels, wheels, now_s
+            self._history: "deque[tuple[float, Pose2D]]" = deque([(now_s, wheels)], maxlen=ODOM_HISTORY_TICKS)
+            """(clock s, odometry pose) of the last ticks: a scan is matched at the pose of its middle."""
             return wheels
         dx, dy, dth = compose(invert(self._last_wheels), wheels)
         dt = now_s - self._last_tick_s
