@@ -55,7 +55,7 @@ def twin(tmp_path: Path) -> Path:
     return tmp_path
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1])
 def test_twin_rooms_and_a_start_in_the_wrong_one_are_never_confidently_wrong(twin, seed):
     summary, rows = run_mission(twin, mission_text("twin", OUT_OF_ROOM_A, ROOM_B, world=TWIN), seed=seed, trace=True)
     assert summary["status"] == "success" and summary["truth"]["collisions"] == 0
