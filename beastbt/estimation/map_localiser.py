@@ -339,7 +339,9 @@ class MapLocaliser:
     # -- set-up -------------------------------------------------------------------------------------------------
     def start(self, pose: Pose2D, sigma_xy_m: float, sigma_yaw_rad: float, odom: Pose2D) -> None:
         """Spread the particles around ``pose`` (map) with these standard deviations; ``odom`` is the odometry
-        pose at that moment (the ``map -> odom`` transform follows from the two)."""
+        pose at that moment (the ``map -> odom`` transform follows from the two). Called again mid-run (ROS's
+        ``/initialpose``), the new pose is judged afresh, as the first: localised until the scans say otherwise,
+        and searched against the map once the cloud settles there."""
         # The first scan weighs candidates_per_injected times as many particles as the filter keeps (only
         # once, so it costs little): a wide initial uncertainty is then covered densely enough for some to lie
         # near the robot; resampling brings the cloud back to its size.
