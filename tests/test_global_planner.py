@@ -137,6 +137,24 @@ def test_an_enclosed_goal_is_refused_without_a_search():
     assert costmap._graph is None  # the components answered: no graph was even built
 
 
+def test_a_gap_open_only_corner_to_corner_is_refused_at_once_naming_why():
+    """A wall two cells thick with a hole through it only corner to corner (as marks of a box in a door can leave):
+    the search never cuts a corner, so the goal beyond is refused at once by the components, named, as any
+    enclosed goal, not after a search that finds "no way"."""
+    grid = empty_map(2.0, 1.0, 0.05, 0.0, 0.0, fill=FREE)
+    data = grid.data.copy()
+    data[:, 20:22] = OCCUPIED  # a wall at x 1.0-1.1 m
+    data[9, 20] = data[10, 21] = FREE  # its only hole: two free cells that touch at a corner
+    costmap = GlobalCostmap(grid.with_data(data), GlobalPlannerConfig(footprint_padding_m=0.0), 0.0)
+    with pytest.raises(NoPath) as err:
+        plan_path(costmap, (0.5, 0.5), (1.5, 0.5), goal_name="b")
+    assert "b (1.50, 0.50) m cannot be reached from here: walls enclose it" in err.value.reason
+    assert costmap._graph is None  # the components answered, as the search would have: no graph was built
+    data[9, 21] = FREE  # a straight step through the hole: passable
+    assert plan_path(GlobalCostmap(grid.with_data(data), GlobalPlannerConfig(footprint_padding_m=0.0), 0.0),
+                     (0.5, 0.5), (1.5, 0.5)).length_m > 0.9
+
+
 def test_new_lethal_cells_close_a_door_and_the_path_goes_another_way(office):
     start, goal = (0.0, 0.0), office_to_map(12.0, 1.0)  # office -> corridor -> store
     before = plan_path(office, start, goal)

@@ -388,19 +388,28 @@ class MapGoTo(GoTo):
             self.planner.layer.mark_points(mx[near], my[near])
 
     def _observe(self, now: float) -> None:
-        """As GoTo's, and a new scan also marks and clears the map's obstacle layer, placed on the map by the
-        localiser's map -> odom transform."""
+        """As GoTo's, and a new scan also marks and clears the map's obstacle layer, placed on the map where the
+        robot was when it was measured (its revolution's middle): its pose on the map now, moved back by the
+        wheels' motion since then."""
         super()._observe(now)
         local = self.local
         pose: Optional[MapPose] = self.read("map_pose")
-        if local is None or local.fresh is None or pose is None or not pose.localized:
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if local is None or local.fresh is None or pose is None or odom is None or not pose.localized:
             return
         if self.planner.layer_config is not None and not self.planner.layer_config.enabled:
             return
-        from beastbt.estimation.map_localiser import compose
+        from beastbt.estimation.map_localiser import compose, invert, scan_mid_s
         from beastbt.navigation.global_navigator import lidar_pose
         scan, at = local.fresh
-        base = compose((pose.odom_x, pose.odom_y, pose.odom_yaw), at)
+        at = local.pose_at(scan_mid_s(scan)) or at  # where the localiser matches it too: its revolution's middle
+        # Not map_pose's map -> odom composed with ``at``: that transform is for the localiser's own odometry (the
+        # wheels' travel turned by the gyro), while ``at`` is on the wheels' (pose_odom), and a tracked base's
+        # wheels drift from the gyro by 10-15 degrees over an office tour: a scan placed that way draws the walls
+        # turned about the robot, as new obstacles across the corridors. Only the motion since the scan (a tick or
+        # two) is taken from the wheels here.
+        since = compose(invert((odom.x, odom.y, odom.yaw)), at)
+        base = compose((pose.x, pose.y, pose.yaw), since)
         self.planner.layer.update(lidar_pose(local.mounting, base), scan.angles_rad, scan.ranges_m)
 
     def clear_costmaps_around(self, radius_m: float) -> int:

@@ -29,7 +29,8 @@ nearer the walls) and the result is a list of map-frame points.
 An impossible goal fails at once with :class:`NoPath`, whose ``reason`` names
 why: off the map, in an occupied or unknown cell, too near a wall for the
 robot, or enclosed (not connected to the start: a connected-components label
-of the passable cells answers that without a search).
+of the passable cells answers that without a search; 4-connected, which is
+how the search moves, since a diagonal step never cuts a corner).
 """
 
 from __future__ import annotations
@@ -155,8 +156,11 @@ class GlobalCostmap:
         cost[self.lethal] = COST_LETHAL
         self.cost = cost.astype(np.uint8)
         self.passable = self.cost < COST_INSCRIBED
-        # Which passable cells can reach which: 8-connected components, as the search moves (corner cutting aside).
-        _, self.labels = cv2.connectedComponents(self.passable.astype(np.uint8), connectivity=8)
+        # Which passable cells can reach which, as the search moves: 4-connected components. The search steps
+        # diagonally too, but never across the corner of an impassable cell, so a diagonal step joins only cells
+        # that two straight steps join as well; 8-connected labels would join a door closed to a diagonal thread
+        # of free cells, and the goal would then fail in the search ("no way") instead of at once, named.
+        _, self.labels = cv2.connectedComponents(self.passable.astype(np.uint8), connectivity=4)
         if self._graph is not None:
             self._graph.set_costs(self.cost, self.config.cost_weight)
 

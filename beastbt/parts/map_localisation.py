@@ -14,7 +14,9 @@ wheels (``pose_odom``'s step) and the turn of the gyro (the IMU's yaw rate,
 once the driver's standstill bias is known and while its samples are fresh;
 the wheels' turn otherwise, e.g. on a robot without an IMU). A tracked base
 slips most in turns, where its wheels' heading is worst and the gyro's best.
-A new scan (``run.latest[LaserScan]``) updates the filter with that pose;
+A new scan (``run.latest[LaserScan]``) updates the filter with that pose
+at the middle of the scan's revolution (:func:`scan_mid_s`: its points were
+measured over it, and matched at its end the heading would lag in turns);
 every tick, ``map_pose`` is it carried into the map by the filter's
 ``map -> odom`` transform, so it moves smoothly between scans and never waits
 for one. A LiDAR that goes quiet (no scan for :data:`SCAN_STALE_S`) counts as
@@ -42,7 +44,7 @@ from beastbt.blackboard import catalogue
 from beastbt.blackboard.types import ImuSample, LaserScan, MapPose
 from beastbt.core.errors import InvalidInput
 from beastbt.devices.lidar_scan import LidarConfig, base_points_xy
-from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser, Pose2D, compose, invert
+from beastbt.estimation.map_localiser import LocaliserConfig, MapLocaliser, Pose2D, compose, invert, scan_mid_s
 from beastbt.robot.part import Part
 from beastbt.robot.profile import section_config
 from beastbt.run.runner import MissionRun
@@ -59,6 +61,9 @@ GYRO_STALE_S = 0.2
 
 SCAN_STALE_S = 0.5
 """Once scans have come, none for this long (five LD19 revolutions) counts as no match at all (s)."""
+
+ODOM_HISTORY_TICKS = 40
+"""Ticks of odometry kept to find the pose at a scan's middle (2 s at 20 Hz: a scan is at most a tick or two old)."""
 
 ERRORS_KEPT = 12000
 """Per-tick true errors kept for tests and benchmarks (10 minutes at 20 Hz); the metrics are running sums."""
@@ -146,7 +151,7 @@ class MapLocalisationPart(Part):
         scan = run.latest.get(LaserScan)
         if scan is not None and scan is not self._last_scan:
             self._last_scan = scan
-            loc.update(now_s, base_points_xy(scan, self.mounting), odom)
+            loc.update(now_s, base_points_xy(scan, self.mounting), self._odom_at(scan_mid_s(scan)))
         elif self._last_scan is not None and now_s - self._last_scan.stamp_s > SCAN_STALE_S:
             loc.no_scan(now_s)  # a LiDAR gone quiet matches nothing: the robot is soon not localised
         x, y, yaw = loc.map_pose_of(odom)
@@ -164,6 +169,8 @@ class MapLocalisationPart(Part):
         """This tick's odometry pose: the wheels' step since the last tick, turned by the gyro when it can."""
         if self._odom is None or self._last_wheels is None or self._last_tick_s is None:
             self._odom, self._last_wheels, self._last_tick_s = wheels, wheels, now_s
+            self._history: "deque[tuple[float, Pose2D]]" = deque([(now_s, wheels)], maxlen=ODOM_HISTORY_TICKS)
+            """(clock s, odometry pose) of the last ticks: a scan is matched at the pose of its middle."""
             return wheels
         dx, dy, dth = compose(invert(self._last_wheels), wheels)
         dt = now_s - self._last_tick_s
@@ -173,7 +180,26 @@ class MapLocalisationPart(Part):
             self.gyro_ticks += 1
         self._odom = compose(self._odom, (dx, dy, dth))
         self._last_wheels, self._last_tick_s = wheels, now_s
+        self._history.append((now_s, self._odom))
         return self._odom
+
+    def _odom_at(self, t: float) -> Pose2D:
+        """The odometry pose at clock time ``t`` (s), interpolated between ticks; the oldest or newest kept outside
+        them."""
+        h = self._history
+        assert self._odom is not None
+        if not h or t >= h[-1][0]:
+            return self._odom
+        if t <= h[0][0]:
+            return h[0][1]
+        for i in range(len(h) - 1, 0, -1):
+            t0, p0 = h[i - 1]
+            if t0 <= t:
+                t1, p1 = h[i]
+                a = (t - t0) / (t1 - t0) if t1 > t0 else 1.0
+                step = compose(invert(p0), p1)
+                return compose(p0, (a * step[0], a * step[1], a * step[2]))
+        return h[0][1]
 
     def _measure(self, pose: MapPose, truth: Any, now_s: float) -> None:
         """The true error of ``pose`` (m), the truth moved into the map frame by the two starts."""
