@@ -127,3 +127,41 @@ def test_answers_go_through_json_as_the_very_values_the_detectors_gave():
             assert back[0].text == "door-3" and back[0].corners_px.dtype == np.float32
         else:
             assert back == value, kind
+
+
+def test_a_frame_the_camera_thread_gave_vision_before_the_tick_loop_is_the_frame_the_replay_looks_at():
+    """On the robot the camera thread's newest frame may be one the tick loop hands over only at the next tick:
+    the replay's watch looks at the frame the run's did (from the answers), not at the last one handed over."""
+    from beastbt.blackboard.types import CameraFrame
+    from beastbt.devices.camera import CameraConfig
+    from beastbt.recording.writer import encode_json
+    from beastbt.robot.profile import load_profile, section_config
+    from beastbt.vision.answer_messages import answer_message
+    from beastbt.vision.camera_model import CameraGeometry
+    from beastbt.vision.colour import ColourRange
+    from beastbt.vision.recorded_answers import AnswerTap, RecordedAnswers, ReplayVisionWatch, replay_frames
+    from beastbt.vision.watch import VisionWatch
+
+    frames = []
+    for seq in range(12):  # a red square moving right 10 px a frame, 10 frames a second
+        image = np.full((240, 320, 3), 200, np.uint8)
+        image[100:140, 20 + 10 * seq:60 + 10 * seq] = (0, 0, 220)
+        frames.append(CameraFrame(0.1 * seq, image, seq + 1))
+    geometry = CameraGeometry.from_config(section_config(load_profile("sim"), "camera", CameraConfig))
+    red = ColourRange.parse("red")
+    tick = {"k": 0}
+    live = VisionWatch(lambda: frames[tick["k"] + 1], geometry)  # the thread is a frame ahead of the tick loop
+    tap = AnswerTap.attach(live)
+    seen = []
+    for k in range(10):
+        tick["k"] = k
+        seen.append(live.colour(0.1 * k + 0.01, red)[0])
+    messages = [orjson.loads(encode_json(answer_message(a))) for a in tap.take()]
+
+    answers = RecordedAnswers(messages)
+    latest = replay_frames(lambda: frames[tick["k"]], lambda: 0.1 * tick["k"] + 0.01, answers)
+    again = ReplayVisionWatch(latest, geometry, answers=answers)
+    for k in range(10):
+        tick["k"] = k
+        assert again.colour(0.1 * k + 0.01, red)[0] == seen[k], k
+    assert again.computed == {} and answers.given == 10
