@@ -14,6 +14,12 @@ counted in (:class:`InputPlayer`): the ``--answer`` answers (metadata
 ``answers``), the console's controls and stick and a terminal's answers
 (``/operator/input``), the console's e-stop (its event). A joystick's states
 are readings like any other sensor's.
+
+What the camera's detectors answered a mission that uses ``sees``, ``photo``, ``alert``, ``dock`` or ``track``
+is given back too (:func:`install_replay_vision`): the recording keeps JPEG images a few times a second, not
+the frames the detectors saw, so each detector's answer was recorded (``/vision/answers``) and the replay's
+detectors give those for the same frames; only what the recording lacks is computed on its images, and the
+notes say which (:func:`vision_notes`).
 """
 
 from __future__ import annotations
@@ -329,7 +335,7 @@ def install_replay_vision(rec: Recording, mission: Any, profile: Any, run: Any, 
     if not vision_uses(mission.doc.data if mission.doc is not None else {}):
         return None
     from beastbt.devices.camera import CameraConfig
-    from beastbt.parts.vision import _gimbal_reader
+    from beastbt.parts.vision import _gimbal_reader  # the gimbal as the run's watch reads it (sent servo angles)
     from beastbt.robot.profile import section_config
     from beastbt.vision.camera_model import CameraGeometry
     from beastbt.vision.recorded_answers import TOPIC, RecordedAnswers, ReplayVisionWatch, replay_frames
