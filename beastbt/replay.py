@@ -407,6 +407,9 @@ class ReplayResult:
     notes: list[str] = field(default_factory=list)
     differing_ticks: int = 0
     """How many ticks had at least one command that differed (all of them, not only those listed)."""
+    events: list[tuple[float, str, str]] = field(default_factory=list)
+    """The replay's own run events ``(time s, kind, text)``: its steps' outcomes, photos and alerts (a photo's file
+    is ``(replay) NAME.jpg``: a replay writes none)."""
 
     @property
     def identical(self) -> bool:
@@ -578,6 +581,7 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
         result.notes.append(f"the run was ended from outside the mission ({ends[-1]['text']}): the replay went "
                             f"to the same tick, with nothing after it to replay")
     result.replay_status = run.status
+    result.events = [(e.time_s, e.kind, e.text) for e in run.events.events]
     if run.status is not None and recorded_status is not None and run.status != recorded_status:
         diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))
     if not rec.complete:

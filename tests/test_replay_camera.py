@@ -90,6 +90,14 @@ def test_a_run_with_the_camera_words_replays_with_no_difference(camera_run):
     assert result.recorded_status == result.replay_status == "success"
     assert any(f"their {len(answers)} recorded answers" in n for n in result.notes), result.notes
     assert not any("computed again" in n for n in result.notes), result.notes
+    # The same steps' outcomes at the same times: the photos, the alert, the end.
+    kinds = ("photo", "alert", "step_failed", "mission_end")
+    def outcome(text: str) -> str:  # without the photo's file (a replay writes none)
+        return text.split(":")[0].split(" (photo")[0]
+    recorded = [(e["time_s"], e["kind"], outcome(e["text"])) for e in read_recording(folder / "run.mcap").topic(
+        "/events") if e["kind"] in kinds]
+    replayed = [(t, k, outcome(text)) for t, k, text in result.events if k in kinds]
+    assert replayed == recorded and [k for _, k, _ in recorded] == ["photo", "photo", "alert", "mission_end"]
 
 
 def test_a_changed_mission_runs_the_detectors_the_run_did_not_and_says_so(camera_run):
@@ -107,6 +115,7 @@ def test_a_changed_mission_runs_the_detectors_the_run_did_not_and_says_so(camera
     assert any("recorded answers" in n for n in result.notes), result.notes
     # The person still walks in at the same time: the half second spent looking for green is absorbed by the wait.
     assert result.replay_status == "success"
+    assert any(k == "say" and text == "no green" for _, k, text in result.events), result.events
 
 
 def test_answers_go_through_json_as_the_very_values_the_detectors_gave():
