@@ -357,6 +357,9 @@ def vision_notes(rec: Recording, watch: Any) -> list[str]:
             return ["camera frames were recorded without pixels: vision in the tree sees grey images"]
         return []
     notes = []
+    if not frames:
+        return ["the recorded run took no camera frames (its mission did not look): this mission's camera words see "
+                "none, so each {sees: ...} is unknown and photo, dock and track fail as they do without a frame"]
     answers = watch.answers
     if answers is not None and answers.given:
         notes.append(f"the camera's detectors were not run again: their {answers.given} recorded answers "

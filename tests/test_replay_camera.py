@@ -174,3 +174,29 @@ def test_a_frame_the_camera_thread_gave_vision_before_the_tick_loop_is_the_frame
         tick["k"] = k
         assert again.colour(0.1 * k + 0.01, red)[0] == seen[k], k
     assert again.computed == {} and answers.given == 10
+
+
+def test_a_recording_without_answers_is_replayed_on_its_images_and_the_notes_say_so(camera_run, monkeypatch):
+    import beastbt.replay as replay_module
+    folder, _, _ = camera_run
+    # As a recording made before /vision/answers: the replay reads the file without them.
+    monkeypatch.setattr(replay_module, "NOT_REPLAYED", replay_module.NOT_REPLAYED + (TOPIC,))
+    result = replay(str(folder))
+    again = [n for n in result.notes if "computed again" in n]
+    assert len(again) == 1 and "recorded before /vision/answers" in again[0], result.notes
+    assert all(k in again[0] for k in ("tags:apriltag_36h11 (", "qr (", "motion (", "colour:red (")), again
+    assert not any("recorded answers" in n for n in result.notes)
+
+
+def test_a_changed_mission_that_looks_where_the_run_did_not_is_told_there_are_no_frames(camera_run):
+    _, _, tmp = camera_run
+    blind = tmp / "blind.yaml"
+    blind.write_text("mission: blind\nworld: world.yaml\nsteps:\n  - wait: 1 s\n", encoding="utf-8")
+    p = prepare(str(blind), RunOptions(simulate=True, seed=1, runs_dir=str(tmp / "blind_runs")))
+    execute(p, io.StringIO())
+    looks = tmp / "looks.yaml"
+    looks.write_text("mission: blind\nworld: world.yaml\nsteps:\n  - wait_until: {sees: {tag: 3}}\n"
+                     "    timeout: 0.5 s\n", encoding="utf-8")
+    result = replay(str(p.folder.path), str(looks))
+    assert any("took no camera frames" in n for n in result.notes), result.notes
+    assert result.replay_status == "failure"  # the tag is never seen: no frame to see it in
