@@ -370,6 +370,8 @@ def vision_notes(rec: Recording, watch: Any) -> list[str]:
                  f"show the last one)" if images else "grey images (the recording holds no camera pixels)")
         why = ("the recording holds none of them (the mission asks what the run did not)" if answers is not None
                else "the recording holds no detector answers (recorded before /vision/answers)")
+        if answers is not None and "qr" in watch.computed and rec.info.get("simulated") == "false":
+            why += "; on the robot QR codes are read on a worker thread, whose answers are not recorded"
         notes.append(f"detector answers computed again, since {why}: {kinds}, on {where}; they may differ from "
                      f"what the camera showed, and so may what the tree decided on them")
     return notes
