@@ -14,6 +14,12 @@ counted in (:class:`InputPlayer`): the ``--answer`` answers (metadata
 ``answers``), the console's controls and stick and a terminal's answers
 (``/operator/input``), the console's e-stop (its event). A joystick's states
 are readings like any other sensor's.
+
+What the camera's detectors answered a mission that uses ``sees``, ``photo``, ``alert``, ``dock`` or ``track``
+is given back too (:func:`install_replay_vision`): the recording keeps JPEG images a few times a second, not
+the frames the detectors saw, so each detector's answer was recorded (``/vision/answers``) and the replay's
+detectors give those for the same frames; only what the recording lacks is computed on its images, and the
+notes say which (:func:`vision_notes`).
 """
 
 from __future__ import annotations
@@ -317,8 +323,63 @@ def recorded_ticks(rec: Recording) -> list[RecordedTick]:
 
 # -- the replay ------------------------------------------------------------------------------
 
+
+def install_replay_vision(rec: Recording, mission: Any, profile: Any, run: Any, clock: SimClock) -> Any:
+    """The camera words' detectors for the replay (``ctx.services.vision``), as the vision part installs them in a
+    run, answering from the recording's ``/vision/answers``: a
+    :class:`~beastbt.vision.recorded_answers.ReplayVisionWatch` (None when the mission does not ask the camera or
+    the recorded robot has none)."""
+    from beastbt.parts.vision import vision_uses
+    if profile.section("camera") is None or "camera" not in run.io.capabilities:
+        return None
+    if not vision_uses(mission.doc.data if mission.doc is not None else {}):
+        return None
+    from beastbt.devices.camera import CameraConfig
+    from beastbt.parts.vision import _gimbal_reader  # the gimbal as the run's watch reads it (sent servo angles)
+    from beastbt.robot.profile import section_config
+    from beastbt.vision.camera_model import CameraGeometry
+    from beastbt.vision.recorded_answers import TOPIC, RecordedAnswers, ReplayVisionWatch, replay_frames
+    answers = RecordedAnswers(rec.topic(TOPIC)) if TOPIC in rec.messages else None
+    geometry = CameraGeometry.from_config(section_config(profile, "camera", CameraConfig))
+    # The frame vision looks at is the newest the replay handed over, as the camera pipeline's newest in a run.
+    latest = replay_frames(lambda: run.latest.get(CameraFrame), clock.now, answers)
+    watch = ReplayVisionWatch(latest, geometry, _gimbal_reader(), answers=answers)
+    run.ctx.services.vision = watch
+    return watch
+
+
+def vision_notes(rec: Recording, watch: Any) -> list[str]:
+    """What the replay's notes say about the camera: whether the detectors' answers were the recorded ones."""
+    images = rec.messages.get("/camera/image")
+    frames = rec.messages.get("/sensors/camera")
+    if watch is None:
+        if frames and not images:
+            return ["camera frames were recorded without pixels: vision in the tree sees grey images"]
+        return []
+    notes = []
+    if not frames:
+        return ["the recorded run took no camera frames (its mission did not look): this mission's camera words see "
+                "none, so each {sees: ...} is unknown and photo, dock and track fail as they do without a frame"]
+    answers = watch.answers
+    if answers is not None and answers.given:
+        notes.append(f"the camera's detectors were not run again: their {answers.given} recorded answers "
+                     f"(/vision/answers) were given back for the frames they looked at")
+    if watch.computed:
+        kinds = ", ".join(f"{k} ({n})" for k, n in sorted(watch.computed.items()))
+        where = (f"the recorded JPEG images ({len(images)} of {len(frames or images)} frames; the frames between "
+                 f"show the last one)" if images else "grey images (the recording holds no camera pixels)")
+        why = ("the recording holds none of them (the mission asks what the run did not)" if answers is not None
+               else "the recording holds no detector answers (recorded before /vision/answers)")
+        if answers is not None and "qr" in watch.computed and rec.info.get("simulated") == "false":
+            why += "; on the robot QR codes are read on a worker thread, whose answers are not recorded"
+        notes.append(f"detector answers computed again, since {why}: {kinds}, on {where}; they may differ from "
+                     f"what the camera showed, and so may what the tree decided on them")
+    return notes
+
+
 NOT_REPLAYED = ("/truth", "/estimate/fused", "/estimate/odom", "/pose/fused", "/gps/fix", "/gps/fused", "/tf", "/odom",
-                "/scene", "/route", "/camera/calibration", "/camera/annotations", "/log", "/tree")
+                "/scene", "/route", "/camera/calibration", "/camera/annotations", "/log", "/tree", "/camera/photo",
+                "/camera/detections", "/camera/tags")
 """Topics replay does not need: what the run computed is computed again; only inputs and commands are read."""
 
 
@@ -351,6 +412,9 @@ class ReplayResult:
     notes: list[str] = field(default_factory=list)
     differing_ticks: int = 0
     """How many ticks had at least one command that differed (all of them, not only those listed)."""
+    events: list[tuple[float, str, str]] = field(default_factory=list)
+    """The replay's own run events ``(time s, kind, text)``: its steps' outcomes, photos and alerts (a photo's file
+    is ``(replay) NAME.jpg``: a replay writes none)."""
 
     @property
     def identical(self) -> bool:
@@ -470,6 +534,7 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
     if "ctx_capabilities" in info:
         # What other parts added after the tree was compiled (a scripted joystick...).
         run.ctx.capabilities = frozenset(json.loads(info["ctx_capabilities"]))
+    vision = install_replay_vision(rec, mission, profile, run, clock)
     InputPlayer(rec, run).install()
     seen: list[TickRecord] = []
     run.recorders.append(seen.append)
@@ -521,13 +586,13 @@ def replay(run_path: str, mission_path: Optional[str] = None, max_differences: i
         result.notes.append(f"the run was ended from outside the mission ({ends[-1]['text']}): the replay went "
                             f"to the same tick, with nothing after it to replay")
     result.replay_status = run.status
+    result.events = [(e.time_s, e.kind, e.text) for e in run.events.events]
     if run.status is not None and recorded_status is not None and run.status != recorded_status:
         diffs.append(Difference(result.ticks - 1, result.duration_s, "outcome", recorded_status, run.status))
     if not rec.complete:
         result.notes.append(f"the recording was cut short ({rec.stopped_because}); replayed what it holds "
                             f"(`beastbt recover RUN` rewrites it as a whole MCAP file for other tools)")
-    if rec.messages.get("/sensors/camera") and not rec.messages.get("/camera/image"):
-        result.notes.append("camera frames were recorded without pixels: vision in the tree sees grey images")
+    result.notes.extend(vision_notes(rec, vision))
     return result
 
 

@@ -199,6 +199,9 @@ class McapRecorder:
         self._base_tagged = False
         self._unused: frozenset = frozenset()
         """Reading types left out (nothing in the run reads them): see :meth:`keep_only_used`."""
+        self.vision_answers: Any = None
+        """What the detectors answered the mission (:class:`~beastbt.vision.recorded_answers.AnswerTap`), for replay;
+        None when the mission does not ask the camera."""
         self._pose_period_s = 1.0 / self.config.pose_rate_hz if self.config.pose_rate_hz > 0 else 0.0
         self._pose_s = float("-inf")
         """Clock time (s) the poses last went to the recording."""
@@ -420,6 +423,10 @@ class McapRecorder:
                                     image if keep else None, r.jpeg if keep else None)
         self._put(("tick", rec.tick, rec.now_s, readings, pose_odom, pose, rec.cmd_mission, rec.cmd_mux,
                    rec.cmd_gate, rec.mux_source, rec.changed_nodes, truth, tags), rec.now_s)
+        if self.vision_answers is not None:
+            answers = self.vision_answers.take()
+            if answers:  # what the detectors answered this tick: replay gives it back (/vision/answers)
+                self._put(("vision_answers", rec.now_s, answers), rec.now_s)
         views = self._views
         if views is None and self.run is not None:
             views = self._views = ObstacleSampler(self.run)
@@ -878,6 +885,9 @@ def install(prepared: Any, live: Optional[tuple[str, int]] = None) -> Optional[M
     if inputs is not None:
         inputs.listeners.append(rec.on_input)
     _record_servo_commands(run, rec)
+    if run.ctx.services.vision is not None:  # the mission asks the camera: its detectors' answers, for replay
+        from beastbt.vision.recorded_answers import AnswerTap
+        rec.vision_answers = AnswerTap.attach(run.ctx.services.vision)
     save = run.ctx.services.save_snapshot
     if save is not None:
         def save_and_record(name: str, frame: Any) -> str:

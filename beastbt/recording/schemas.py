@@ -196,6 +196,24 @@ LOCALISATION_QUALITY = _obj("beastbt.LocalisationQuality",
                                 "updates": {"type": "integer", "minimum": 0, "description": "Filter updates so far."},
                                 "particles": {"type": "integer", "minimum": 0, "description": "Number of particles."}})
 
+VISION_ANSWER = _obj("beastbt.VisionAnswer",
+                     "One detector run of the mission's camera words (sees, dock, track, photo): what it answered, "
+                     "about which frame (beastbt.vision.answer_messages). beastbt replay gives it back instead of "
+                     "running the detector again on the recorded JPEG images.", {
+                         "now_s": {"type": "number", "description": "Clock time of the tick it ran in, s."},
+                         "kind": {"type": "string", "description": "tags:<families>, qr, motion or colour:<name>."},
+                         "seq": {"type": "integer", "description": "The camera frame's number (as /sensors/camera)."},
+                         "stamp_s": {"type": "number", "description": "When the frame was taken, clock s."},
+                         "size": {"type": "array", "items": {"type": "integer"},
+                                  "description": "The frame's [width, height], px."},
+                         "still": {"type": ["boolean", "null"], "description": "Motion only: the robot stood still."},
+                         "value": {"description": "tags: [{family, id, corners_px, size_m, rvec, tvec_m, position_m, "
+                                                  "facing_rad}] (camera frame m, rad; position in the base frame); "
+                                                  "qr: [{text, corners_px}]; motion: {area_frac, box_px, moving, "
+                                                  "warm}; colour: the largest blob {area_frac, centre_px, box_px} "
+                                                  "or null. Arrays as {data, dtype}."}},
+                     ["now_s", "kind", "seq", "stamp_s", "size", "value"])
+
 GENERIC_READING = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "beastbt.Reading",
                    "description": "A reading type this version of the recorder has no schema for (its fields).",
                    "type": "object", "required": ["stamp_s"]}
@@ -249,6 +267,7 @@ CHANNELS: dict[str, dict] = {
     "/cmd/servo": SERVO_COMMAND,
     "/devices/state": DEVICE_STATE,
     "/operator/input": OPERATOR_INPUT,
+    "/vision/answers": VISION_ANSWER,  # each detector run of the camera words: what it answered (for replay)
     # the tree, events, failsafes, truth
     "/tree": TREE_CHANGES,
     "/events": EVENT,

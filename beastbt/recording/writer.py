@@ -364,6 +364,11 @@ class RunFileWriter:
                                                             "frame_id": self.frames.camera_optical,
                                                             "data": base64.b64encode(data).decode("ascii"),
                                                             "format": "jpeg"})
+        elif kind == "vision_answers":
+            from beastbt.vision.answer_messages import TOPIC, answer_message
+            _, now_s, answers = item
+            for a in answers:
+                self._emit(TOPIC, self._ns(now_s), answer_message(a))
         elif kind == "scene":
             _, now_s, description = item
             t = self._ns(now_s)
@@ -617,6 +622,8 @@ def message_count(item: tuple, images: bool) -> int:
         return 3 if item[2] == "failsafe" else 2
     if kind in ("servo", "flag", "snapshot", "input"):
         return 1
+    if kind == "vision_answers":
+        return len(item[2])
     if kind == "scene":
         return 2  # /route, /scene
     if kind == "detections":
