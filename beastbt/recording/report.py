@@ -52,7 +52,8 @@ NOT_PLOTTED = ("/sensors/imu", "/sensors/battery", "/sensors/joystick", "/sensor
                # Foxglove's views of what the report reads elsewhere (every tick: decoding them is memory for nothing)
                "/gps/fused", "/tf", "/odom", "/scene", "/route", "/camera/calibration", "/camera/annotations",
                "/costmap", "/local_plan", "/collision_monitor/zones", "/sim/persons", "/localisation/particles",
-               "/camera/photo", "/camera/detections", "/camera/tags", "/global_costmap", "/plan")
+               "/camera/photo", "/camera/detections", "/camera/tags", "/global_costmap", "/plan",
+               "/vision/answers")
 """Topics the report does not decode (counted all the same): the plots do not use them."""
 
 
