@@ -38,17 +38,21 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-async def client(port: int, seconds: float) -> tuple[str, dict, list[tuple[str, int, bytes]]]:
-    """Connect (retrying while the run starts), read the advertisement, subscribe, collect messages."""
+async def connect(port: int) -> "websockets.ClientConnection":
+    """Connect to the run's server, retrying while the run starts (for up to 30 s)."""
     deadline = time.monotonic() + 30.0
     while True:
         try:
-            ws = await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"])
-            break
+            return await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=["foxglove.sdk.v1"])
         except OSError:
             if time.monotonic() > deadline:
                 raise
             await asyncio.sleep(0.1)
+
+
+async def client(port: int, seconds: float) -> tuple[str, dict, list[tuple[str, int, bytes]]]:
+    """Connect (retrying while the run starts), read the advertisement, subscribe, collect messages."""
+    ws = await connect(port)
     async with ws:
         channels: dict = {}
         while not set(CHANNELS) | set(SUBSCRIBE) <= set(channels):  # advertised over one or several messages
@@ -110,6 +114,68 @@ def test_a_client_sees_every_channel_and_the_messages_of_the_recording(tmp_path)
             assert (topic, log_time, json.dumps(json.loads(payload), sort_keys=True)) in in_file, topic
     tf = next(json.loads(p) for topic, _, p in got if topic == "/tf")
     jsonschema.Draft202012Validator(CHANNELS["/tf"]).validate(tf)
+
+
+async def late_map_client(port: int) -> tuple[int, list[bytes]]:
+    """Subscribe to /tf alone until a second after its first message (the map went out with the first tick's views,
+    which the writer takes after that tick), then to /map alone; returns the /tf messages seen before and the /map
+    messages got in the 10 s after (the first ends it)."""
+    ws = await connect(port)
+    async with ws:
+        channels: dict = {}
+        while not {"/tf", "/map"} <= set(channels):
+            op = json.loads(await asyncio.wait_for(ws.recv(), 10.0))
+            if op["op"] == "advertise":
+                channels.update({c["topic"]: c for c in op["channels"]})
+        tf = {"id": 0, "channelId": channels["/tf"]["id"]}
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [tf]}))
+        ticks, maps = 0, []
+        first_tf = end = None
+        give_up = time.monotonic() + 30.0  # no tick in 30 s: the run did not start
+        while True:
+            now = time.monotonic()
+            if (end is not None and now > end) or (first_tf is None and now > give_up):
+                return ticks, maps
+            if first_tf is not None and end is None and now > first_tf + 1.0:
+                end = now + 10.0
+                await ws.send(json.dumps({"op": "subscribe",
+                                          "subscriptions": [{"id": 1, "channelId": channels["/map"]["id"]}]}))
+            try:
+                frame = await asyncio.wait_for(ws.recv(), 0.5)
+            except asyncio.TimeoutError:
+                continue
+            if isinstance(frame, bytes) and frame[0] == 1:
+                sub_id = struct.unpack_from("<I", frame, 1)[0]
+                if sub_id == 0 and end is None:
+                    ticks += 1
+                    first_tf = first_tf or now
+                elif sub_id == 1:
+                    maps.append(frame[13:])
+                    return ticks, maps
+
+
+def test_a_client_that_subscribes_to_the_map_alone_late_gets_it(tmp_path):
+    """/map goes out once, with the first tick: a client that comes later and subscribes to it alone (no other
+    latched topic, which would have had it sent again too) gets it all the same."""
+    from localisation_support import mission_text, office_map_file
+
+    office_map_file(tmp_path)
+    mission = tmp_path / "stand.yaml"
+    mission.write_text(mission_text("stand", "  - wait: 30 s\n"))
+    port = free_port()
+    run = subprocess.Popen([sys.executable, "-m", "beastbt", "run", str(mission), "--speed", "realtime",
+                            "--max-time", "30 s", "--no-record", "--foxglove", str(port)], cwd=tmp_path,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ticks, maps = asyncio.run(late_map_client(port))
+    finally:
+        run.send_signal(signal.SIGINT)
+        run.communicate(timeout=60)
+    assert ticks >= 1  # the run had ticked (a standing robot's /tf goes at 1 Hz) a second before: the map had gone out
+    assert len(maps) == 1
+    grid = json.loads(maps[0])
+    jsonschema.Draft202012Validator(CHANNELS["/map"]).validate(grid)
+    assert grid["frame_id"] == "map" and grid["column_count"] > 100
 
 
 def test_a_taken_port_is_said_and_the_run_goes_on(tmp_path):

@@ -6,6 +6,8 @@ import io
 import subprocess
 import sys
 
+import pytest
+
 from beastbt.run.progress import planned, progress_of
 from beastbt.run.session import CLEAR_LINE, _console_listener, status_line
 from beastbt.testing import MissionHarness
@@ -37,6 +39,46 @@ def test_progress_counts_leaf_runs_through_loops_and_gives_an_eta():
     assert seen == sorted(seen)  # never goes back
     assert seen[0] == 0 and seen[-1] == 8 and len(set(seen)) >= 6  # steps that end in one tick may share it
     assert h.result == "success"
+
+
+LONG_STEP = """mission: long_step
+steps:
+  - wait: 1 s
+  - wait: 1 s
+  - wait: 1 s
+  - wait: 20 s
+  - wait: 1 s
+  - wait: 1 s
+"""
+
+
+def test_the_eta_does_not_grow_through_one_long_step_among_short_ones():
+    h = MissionHarness.from_yaml(LONG_STEP)
+    long_step = []  # (mission s, ETA s) while the long wait runs
+    while not h.done:
+        h.tick()
+        p = progress_of(h.run.root, h.run.mission_time_s)
+        if p.done == 3:
+            long_step.append((h.run.mission_time_s, p.eta_s))
+    assert h.result == "success"
+    assert long_step[-1][0] - long_step[0][0] > 19.0
+    etas = [eta for _, eta in long_step]
+    # At its start: three steps left at the pace of the three done (1 s each); then it falls as the wait runs, and
+    # holds at the two steps after it (2 s) once the wait has run longer than the pace: it never grows.
+    assert etas[0] == pytest.approx(3.0, abs=0.15)
+    assert all(later <= earlier + 1e-9 for earlier, later in zip(etas, etas[1:]))
+    assert etas[-1] == pytest.approx(2.0, abs=0.15)
+    after = progress_of(h.run.root, h.run.mission_time_s)
+    assert after.done == 6 and after.eta_s == 0.0 and after.text() == "6/6 steps"
+
+
+def test_the_eta_credits_the_running_step_and_keeps_the_steps_after_it():
+    from beastbt.run.progress import eta_s
+    assert eta_s(0, 6, 5.0, 5.0) is None  # no step done: no pace yet
+    assert eta_s(3, 6, 3.0, 3.0) == pytest.approx(3.0)  # three left at 1 s each
+    assert eta_s(3, 6, 3.5, 3.0) == pytest.approx(2.5)  # half of the running one gone
+    assert eta_s(3, 6, 30.0, 3.0) == pytest.approx(2.0)  # it overran: the two after it are left
+    assert eta_s(6, 6, 30.0, 29.0) == 0.0
 
 
 def test_a_loop_without_a_count_has_no_total_and_no_eta():

@@ -164,3 +164,32 @@ def test_qr_reads_on_a_worker_thread_do_not_hold_the_caller():
         assert texts == ["door-3"]
     finally:
         watch.close()
+
+
+def test_the_watch_builds_the_camera_again_only_when_the_gimbal_the_size_or_the_mounting_changed():
+    from dataclasses import replace
+
+    from beastbt.blackboard.types import CameraFrame
+    from beastbt.vision.calibration import CameraIntrinsics
+    from beastbt.vision.watch import VisionWatch
+    gimbal = [(0.3, -0.1)]
+    image = [np.zeros((240, 320, 3), np.uint8)]
+    watch = VisionWatch(lambda: CameraFrame(0.0, image[0], 1), CAMERA, lambda: gimbal[0])
+
+    def same(a, b):  # the matrices the detectors take
+        return (np.array_equal(a.camera_matrix, b.camera_matrix) and np.array_equal(a.dist_coeffs, b.dist_coeffs)
+                and np.array_equal(a.camera_from_body, b.camera_from_body) and a == b)
+
+    first = watch.camera_now(watch.frame(0.0))
+    assert same(first, CAMERA.with_pan_tilt(0.3, -0.1))  # as a fresh build
+    assert watch.camera_now(watch.frame(0.0)) is first  # the same inputs: not built again
+    gimbal[0] = (0.5, -0.1)  # panned
+    panned = watch.camera_now(watch.frame(0.0))
+    assert panned is not first and same(panned, CAMERA.with_pan_tilt(0.5, -0.1))
+    image[0] = np.zeros((480, 640, 3), np.uint8)  # a bigger frame
+    assert same(watch.camera_now(watch.frame(0.0)), CAMERA.with_pan_tilt(0.5, -0.1).scaled_to(640, 480))
+    lens = CameraIntrinsics(320, 240, 300.0, 300.0, 160.0, 120.0, (0.1, 0.0, 0.0, 0.0, 0.0))
+    watch.geometry = replace(CAMERA, intrinsics=lens)  # calibrated: a new mounting object
+    calibrated = watch.camera_now(watch.frame(0.0))
+    assert same(calibrated, watch.geometry.with_pan_tilt(0.5, -0.1).scaled_to(640, 480))
+    assert calibrated.dist_coeffs[0] == 0.1 and calibrated.camera_matrix[0, 0] == 600.0

@@ -11,9 +11,10 @@ the writer process runs for the live view alone and writes no file.
 
 Channels are advertised as they are declared (all of them when the writer
 opens, :data:`beastbt.recording.schemas.CHANNELS`), with the same
-``jsonschema`` schemas as in the file. Messages sent once (/scene and
-/route) are sent again when a client subscribes to them, so a client that
-connects mid-run still sees the world (:meth:`LiveServer.take_resend`).
+``jsonschema`` schemas as in the file. Messages sent once or on change
+(:data:`LATCHED`: /scene, /route, /map, ...) are sent again when a client
+subscribes to them, so a client that connects mid-run still sees the world
+and the map (:meth:`LiveServer.take_resend`).
 
 The SDK logs what clients do wrong (an unknown channel id, a message that is
 not JSON, an unknown op) through Python's ``logging``, one record per fault:
@@ -34,8 +35,10 @@ import threading
 import time
 from typing import Any, Callable, Optional
 
-LATCHED = ("/scene", "/route", "/collision_monitor/zones", "/global_costmap", "/plan")
-"""Topics whose last message a newly subscribed client needs (they are sent at the start and on change)."""
+LATCHED = ("/scene", "/route", "/collision_monitor/zones", "/map", "/global_costmap", "/plan")
+"""Topics whose last message a newly subscribed client needs (they are sent at the start and on change): a
+subscription to any of them has the writer send them all again (ROS 2's transient-local durability). Each must be
+one the writer keeps to send again (``/scene``, ``/route`` and its ``_latched_views``)."""
 
 
 SDK_LOGGER = "foxglove"

@@ -18,7 +18,8 @@ Frames: the costmap and the plan are in ``odom`` (the dead-reckoning frame
 of ``/tf``, where :class:`~beastbt.blackboard.types.LocalCostmap` and
 :class:`~beastbt.blackboard.types.LocalPlan` live), the zones in
 ``base_link`` (frame-locked: they ride with the robot), the persons in
-``map`` (placed like the world's walls, :meth:`SceneView.world_point`).
+``map`` (placed like the world's walls, :meth:`SceneView.world_point`), the
+localiser's particles in ``map`` (the saved map's frame, where they live).
 
 A costmap or plan older than :data:`STALE_S` (the step that made it has
 ended) counts as absent: it is taken off the views.
@@ -183,20 +184,19 @@ class ObstacleSampler:
 
 def localisation_sample(loc: Any) -> dict:
     """What the views draw of a :class:`~beastbt.estimation.map_localiser.MapLocaliser`: up to
-    :data:`PARTICLES_SHOWN` particles ``[x, y, yaw]`` moved into the odom frame (m, rad), and the match quality.
+    :data:`PARTICLES_SHOWN` particles ``[x, y, yaw]`` in the saved map's frame (m, rad), and the match quality.
 
-    The particles live in the saved map's frame; the recording's ``map`` frame is the estimator's, so they are
-    drawn in ``odom`` through the localiser's own ``map -> odom``: there they lie round the robot whatever
-    ``/tf`` says of ``map``.
+    The particles are drawn in ``map``, where they live (as AMCL's particle cloud): on a map, the recording's
+    ``/tf`` ``map -> odom`` is taken from ``map_pose`` and the wheels' ``odom`` pose, so ``map`` is the saved map's
+    frame and the robot stands in it at ``map_pose``, the cloud's middle. Not ``odom`` through the localiser's own
+    ``map -> odom``: that transform is for its odometry, the wheels' travel turned by the gyro, and a tracked base's
+    wheels turn 10-15 degrees away from the gyro over a tour: the cloud was drawn turned about ``odom``'s origin,
+    away from the robot.
     """
     n = len(loc.px)
     pick = np.linspace(0, n - 1, min(n, PARTICLES_SHOWN)).astype(np.int64) if n else np.zeros(0, dtype=np.int64)
-    mx, my, myaw = loc.map_from_odom
-    c, s = math.cos(myaw), math.sin(myaw)
-    dx, dy = loc.px[pick] - mx, loc.py[pick] - my
-    xo, yo = c * dx + s * dy, -s * dx + c * dy
-    yaw = (loc.pth[pick] - myaw + math.pi) % (2 * math.pi) - math.pi
-    particles = np.round(np.column_stack((xo, yo, yaw)), 3).tolist()
+    yaw = (loc.pth[pick] + math.pi) % (2 * math.pi) - math.pi
+    particles = np.round(np.column_stack((loc.px[pick], loc.py[pick], yaw)), 3).tolist()
     return {"particles": particles, "match_quality": round(float(loc.match_quality), 3),
             "localized": bool(loc.localized), "updates": int(loc.updates), "particle_count": int(n)}
 
@@ -314,7 +314,7 @@ PARTICLE_TICK_M = 0.12
 
 
 def particles_update(t_ns: int, frame_id: str, sample: dict) -> dict:
-    """The localiser's particles as a ``foxglove.SceneUpdate`` in ``frame_id`` (odom): one short stroke per
+    """The localiser's particles as a ``foxglove.SceneUpdate`` in ``frame_id`` (map): one short stroke per
     particle along its heading (one line list), blue while localised, red while not."""
     points = []
     for x, y, yaw in sample["particles"]:

@@ -253,7 +253,7 @@ CHANNELS: dict[str, dict] = {
     "/map/pose": FOXGLOVE_POSE_IN_FRAME,  # the pose on the saved map (map frame), 5 Hz
     "/collision_monitor/zones": FOXGLOVE_SCENE_UPDATE,  # stop and slow polygons (base_link), bold when acting
     "/sim/persons": FOXGLOVE_SCENE_UPDATE,  # the simulator's persons where they are now (map frame), 5 Hz
-    "/localisation/particles": FOXGLOVE_SCENE_UPDATE,  # on a map: up to 200 particles (odom frame), 2 Hz
+    "/localisation/particles": FOXGLOVE_SCENE_UPDATE,  # on a map: up to 200 particles (map frame), 2 Hz
     "/localisation/quality": LOCALISATION_QUALITY,  # on a map: match quality and localized, 2 Hz
     "/log": FOXGLOVE_LOG,
     # estimates

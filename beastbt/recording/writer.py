@@ -532,7 +532,7 @@ class RunFileWriter:
                 self._emit("/sim/persons", t, ov.persons_update(t, frames.map, contact["persons"], scene.world_point))
         localisation = views.get("localisation")
         if localisation is not None:
-            self._emit("/localisation/particles", t, ov.particles_update(t, frames.odom, localisation))
+            self._emit("/localisation/particles", t, ov.particles_update(t, frames.map, localisation))
             self._emit("/localisation/quality", t, ov.quality_message(localisation))
 
     def _write_detections(self, now_ns: int, entries: list) -> None:
