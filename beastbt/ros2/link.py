@@ -153,6 +153,8 @@ class Ros2Link:
         self.topics: Optional[RunTopics] = None
         self.received = 0
         self.refused = 0
+        self.goals: Any = None
+        """The run's :class:`~beastbt.behaviours.ros2_goals.GoalInbox` (a link that takes commands), or None."""
         self._lock = threading.Lock()
 
     # -- opening -------------------------------------------------------------------------------------------------
@@ -169,6 +171,9 @@ class Ros2Link:
             raise
         run = self.run
         clock = self.prepared.clock
+        if self.commands:
+            from beastbt.behaviours.ros2_goals import GOAL_INBOX, GoalInbox
+            self.goals = run.ctx.services.plugins[GOAL_INBOX] = GoalInbox()  # a ros2_goals step's goals
         self.topics = RunTopics(run, self.prepared.profile, self.options.topics, self._send,
                                 time.time() - clock.now())
         self.topics.start(clock.now())
@@ -335,9 +340,20 @@ class Ros2Link:
                                f"{pose.position[1]:.2f}) m, {math.degrees(pose.yaw):.0f} deg")
 
     def _goal(self, run: Any, pose: cdr.PoseStamped) -> None:
+        """A goal: to the mission's ``ros2_goals`` step when one runs, else to ``beastbt serve``, else not taken."""
+        x, y = pose.position[0], pose.position[1]
+        if self.goals is not None and self.goals.listening:
+            from beastbt.ros2.goal_steps import goal_in_map_frame
+            map_frame = self.topics.frames.map if self.topics is not None else "map"
+            if not goal_in_map_frame(pose.frame_id, map_frame):
+                run.events.add("ros2", f"ROS 2 /goal_pose ({x:.2f}, {y:.2f}) in frame '{pose.frame_id}' not taken: "
+                                       f"goals are planned in the map frame '{map_frame}' (rviz2's Fixed Frame)")
+                return
+            self.goals.put(x, y)
+            return
         if self.on_goal is None:
-            run.events.add("ros2", f"ROS 2 /goal_pose ({pose.position[0]:.2f}, {pose.position[1]:.2f}) not taken: "
-                                   f"goals are taken by 'beastbt serve --ros2'")
+            run.events.add("ros2", f"ROS 2 /goal_pose ({x:.2f}, {y:.2f}) not taken: goals are taken by a mission's "
+                                   f"ros2_goals step or by 'beastbt serve --ros2'")
             return
         self.on_goal(pose, run)
 
