@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import typing
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 import py_trees
 
@@ -75,7 +75,7 @@ class Ros2Goals(py_trees.composites.Composite):
     step waits for the next one: it does not fail. FAILURE only when the run has no ROS 2 link to listen on.
     """
 
-    def __init__(self, name: str, ctx: MissionContext, leg_factory: Callable[[Callable[[], Optional[tuple]]], typing.Any],
+    def __init__(self, name: str, ctx: MissionContext, leg_factory: Callable[[Callable[[], Optional[tuple]]], Any],
                  goals: Optional[int] = None, duration_s: Optional[float] = None,
                  until: Optional[Condition] = None) -> None:
         self.ctx = ctx
@@ -144,6 +144,8 @@ class Ros2Goals(py_trees.composites.Composite):
             return
         self._take_new_goal()
         child = self.leg if self.goal is not None else self.waiting
+        if child is self.leg and self.waiting.status == Status.RUNNING:
+            self.waiting.stop(Status.INVALID)  # the tree shows one thing under way: the drive to the goal
         self.current_child = child
         for node in child.tick():
             yield node
