@@ -128,10 +128,18 @@ BUILTIN_PARTS: tuple[PartEntry, ...] = (
     PartEntry("fleet", "beastbt.parts.fleet:FleetPart", lambda profile, options: options.fleet is not None),
     PartEntry("fleet_check", "beastbt.parts.fleet:UnsupervisedCheck",
               lambda profile, options: options.fleet is None),
+    # Without --ros2, a check that refuses a mission with a ros2_goals step (before anything moves).
+    PartEntry("ros2_goals_check", "beastbt.parts.ros2:Ros2GoalsCheck", lambda profile, options: options.ros2 is None,
+              for_mission=lambda mission: _uses_ros2_goals(mission)),
     # ROS 2 over Zenoh (--ros2): last, so that its remote stick and its topics see every other part installed.
     PartEntry("ros2", "beastbt.parts.ros2:Ros2Part", lambda profile, options: options.ros2 is not None),
 )
 """The parts of beastbt itself, in the order they attach and install."""
+
+
+def _uses_ros2_goals(mission: Mission) -> bool:
+    from beastbt.parts.ros2 import uses_ros2_goals
+    return uses_ros2_goals(mission)
 
 
 def _import_target(target: str) -> Any:

@@ -53,13 +53,14 @@ STAMP = 1_733_520_000_123_456_789
 Q = cdr.yaw_quaternion(0.7)
 
 
-def test_odometry(store):
+@pytest.mark.parametrize("frames", [("odom", "base_link"), ("o", "b"), ("odom_a", "base_link_xy"), ("odo", "bas")])
+def test_odometry(store, frames):  # the frames' lengths make every padding before the numbers
     cov = [float(i) * 0.01 for i in range(36)]
-    ours = cdr.encode_odometry(STAMP, "odom", "base_link", (1.5, -2.25, 0.0), Q, (0.3, 0.0, 0.0), (0.0, 0.0, -0.2),
+    ours = cdr.encode_odometry(STAMP, frames[0], frames[1], (1.5, -2.25, 0.0), Q, (0.3, 0.0, 0.0), (0.0, 0.0, -0.2),
                                cov, [0.5] * 36)
     g = "geometry_msgs/msg/"
     msg = _t(store, "nav_msgs/msg/Odometry")(
-        header=header(store, STAMP, "odom"), child_frame_id="base_link",
+        header=header(store, STAMP, frames[0]), child_frame_id=frames[1],
         pose=_t(store, g + "PoseWithCovariance")(pose=pose(store, (1.5, -2.25, 0.0), Q), covariance=np.array(cov)),
         twist=_t(store, g + "TwistWithCovariance")(
             twist=_t(store, g + "Twist")(linear=vec(store, (0.3, 0, 0)), angular=vec(store, (0, 0, -0.2))),
@@ -67,10 +68,12 @@ def test_odometry(store):
     same(store, ours, msg, "nav_msgs/msg/Odometry")
 
 
-@pytest.mark.parametrize("frames", [("map", "odom"), ("odom", "base_link"), ("base_link", "lidar")])
+@pytest.mark.parametrize("frames", [("map", "odom"), ("odom", "base_link"), ("base_link", "lidar"), ("m", "o"),
+                                    ("robot1/map", "robot1/odom_")])
 def test_tf(store, frames):
     ts = [cdr.Transform(STAMP, "map", "odom", (0.1, 0.2, 0.0), Q),
-          cdr.Transform(STAMP + 5, frames[0], frames[1], (1.0, 2.0, 0.3), cdr.IDENTITY)]
+          cdr.Transform(STAMP + 5, frames[0], frames[1], (1.0, 2.0, 0.3), cdr.IDENTITY),
+          cdr.Transform(STAMP - 5, frames[1], "x" * len(frames[0]), (3.0, 2.0, 1.0), Q)]
     g = "geometry_msgs/msg/"
     msg = _t(store, "tf2_msgs/msg/TFMessage")(transforms=[
         _t(store, g + "TransformStamped")(header=header(store, t.stamp_ns, t.parent), child_frame_id=t.child,
@@ -125,12 +128,13 @@ def test_nav_sat_fix(store, frame):
     same(store, ours, msg, "sensor_msgs/msg/NavSatFix")
 
 
-def test_imu(store):
+@pytest.mark.parametrize("frame", ["imu_link", "imu", "i", "base_link", "imu_li"])
+def test_imu(store, frame):
     ocov = [-1.0] + [0.0] * 8
-    ours = cdr.encode_imu(STAMP, "imu_link", cdr.IDENTITY, ocov, (0.01, -0.02, 0.3), [1e-4] * 9, (0.1, 0.2, 9.81),
+    ours = cdr.encode_imu(STAMP, frame, cdr.IDENTITY, ocov, (0.01, -0.02, 0.3), [1e-4] * 9, (0.1, 0.2, 9.81),
                           [1e-2] * 9)
     msg = _t(store, "sensor_msgs/msg/Imu")(
-        header=header(store, STAMP, "imu_link"),
+        header=header(store, STAMP, frame),
         orientation=_t(store, "geometry_msgs/msg/Quaternion")(x=0.0, y=0.0, z=0.0, w=1.0),
         orientation_covariance=np.array(ocov), angular_velocity=vec(store, (0.01, -0.02, 0.3)),
         angular_velocity_covariance=np.full(9, 1e-4), linear_acceleration=vec(store, (0.1, 0.2, 9.81)),

@@ -11,7 +11,14 @@ line it follows cited beside it:
 - rmw_zenoh_cpp/src/detail/attachment_helpers.cpp @534747dc: ``serialize_to_zbytes`` (int64, int64,
   std::array<uint8_t, 16> through zenoh's ext::Serializer), checked here against zenoh's own serializer;
 - eclipse-zenoh/zenoh-plugin-ros2dds zenoh-plugin-ros2dds/src/liveliness_mgt.rs @49cf1bcb: ``ke_liveliness_pub``
-  and ``qos_to_key_expr`` (its own unit test gives ``:::`` for a keyless default QoS).
+  and ``qos_to_key_expr`` (its own unit test gives ``:::`` for a keyless default QoS);
+- liveliness_utils.cpp @3411fdec ``Entity::Entity``, the GID: ``simplified_XXH3_128bits`` of the whole token
+  (simplified_xxhash3.cpp @97aed481, a subset of the reference xxHash 0.8), then ``memcpy`` of ``low64`` and
+  ``high64`` into the 16 bytes. The golden GIDs were computed twice, agreeing: by that file's 17-128 and
+  129-240 byte paths transcribed by hand (a one-off check, with 300 random inputs), and by the reference xxHash;
+- the Humble branch (ros2/rmw_zenoh pull request #388, "Updates to compile against Humble"): no type hashes,
+  "set it to a constant string" ``TypeHashNotSupported``, in the data key and the token alike; the GID stays
+  16 bytes (``RMW_GID_STORAGE_SIZE`` hard-coded to 16), so the attachment is the same.
 """
 
 from __future__ import annotations
@@ -63,6 +70,17 @@ def test_tokens_and_keys_are_zenoh_key_expressions():
                  rz.topic_key(0, "/map", "nav_msgs/msg/OccupancyGrid"),
                  bridge.endpoint_token(ZID, "MP", "scan", "sensor_msgs/msg/LaserScan", rz.SENSOR_DATA)):
         assert str(zenoh.KeyExpr(text)) == text
+
+
+def test_gid_is_rmw_zenohs_xxh3_of_the_token_low_half_first():
+    node = rz.Node(0, ZID, 0)
+    scan = node.endpoint_token(3, rz.PUBLISHER, "/scan", "sensor_msgs/msg/LaserScan", rz.SENSOR_DATA)
+    assert len(scan) == 188 and len(node.token()) == 62  # XXH3's 129-240 and 17-128 byte paths
+    assert rz.gid(scan) == bytes.fromhex("97c3f0ab2ecc6502924c7595acefacec")
+    assert rz.gid(node.token()) == bytes.fromhex("e97c8b901ecc7a80bd4fe5d5f5c6a047")
+    xxhash = pytest.importorskip("xxhash")
+    digest = xxhash.xxh3_128_digest(scan.encode())  # canonical: high64 then low64, big-endian
+    assert rz.gid(scan) == digest[8:][::-1] + digest[:8][::-1]  # memcpy(low64), memcpy(high64) on little-endian
 
 
 def test_attachment_golden_bytes():

@@ -288,7 +288,7 @@ NEEDS_A_PART: Mapping[str, str] = MappingProxyType({
     "go_to": "GPS navigation", "route": "GPS navigation", "return_home": "GPS navigation",
     "follow_line": "a camera and the line follower", "teleop": "a joystick",
     "photo": "a camera", "alert": "the camera's part", "dock": "a camera", "undock": "a drive base",
-    "track": "a camera",
+    "track": "a camera", "ros2_goals": "the ROS 2 link (--ros2)",
 })
 """Steps of the language that a part provides, and what a robot without that part lacks."""
 

@@ -33,7 +33,7 @@ HOME = "home"
 STEP_KEYWORDS = (
     "drive", "turn", "wait", "stop", "go_to", "route", "return_home", "follow_line", "look", "servo",
     "snapshot", "say", "teleop", "repeat", "do", "first_of", "retry", "timeout", "parallel", "if", "while",
-    "wait_until", "until", "abort_if", "ask", "photo", "alert", "dock", "undock", "track",
+    "wait_until", "until", "abort_if", "ask", "photo", "alert", "dock", "undock", "track", "ros2_goals",
 )
 
 
@@ -412,6 +412,12 @@ class _SemanticChecker:
             for k in ("distance", "size", "speed"):
                 if k in v:
                     self.positive(p + (k,), self.POSITIVE.get(k, "distance"))
+        elif s.kind == "ros2_goals" and isinstance(v, dict):
+            for k in ("for", "tolerance", "speed"):
+                if k in v:
+                    self.positive(p + (k,), self.POSITIVE[k])
+            if "until" in v:
+                self.check_condition(v["until"], p + ("until",))
 
     def fence_ref(self, path: PathKey, name: Any) -> None:
         fences = self.data.get("fences") or {}
@@ -694,6 +700,11 @@ class _StepReader:
             return st.AbortIf(condition=condition_of(v), steps=self.steps(raw["steps"], path + ("steps",)), **where)
         if k == "wait_until":
             return st.WaitUntil(condition=condition_of(v), timeout_s=opt("timeout", "duration", raw), **where)
+        if k == "ros2_goals":
+            goals = v.get("goals")
+            return st.Ros2Goals(goals=None if goals is None else int(goals), duration_s=opt("for", "duration"),
+                                until=condition_of(v["until"]) if "until" in v else None,
+                                tolerance_m=opt("tolerance", "distance"), speed_mps=opt("speed", "speed"), **where)
         if k in ("photo", "alert", "dock", "undock", "track"):
             from beastbt.mission.vision_steps import vision_step
             return vision_step(k, v, where)

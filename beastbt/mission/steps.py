@@ -268,6 +268,22 @@ class Track(Step):
     duration_s: float
 
 
+@dataclass(kw_only=True, eq=False, repr=False)
+class Ros2Goals(Step):
+    """``ros2_goals: {goals: 3, for: 10 min, until: CONDITION}``: drive to each goal ROS 2 sends on ``/goal_pose``
+    (rviz2's 2D Goal Pose), planned on the mission's map; each option left out does not end the step."""
+
+    KEYWORD: ClassVar[str] = "ros2_goals"
+    goals: Optional[int] = None
+    """Succeed once this many goals are reached."""
+    duration_s: Optional[float] = None
+    """Succeed once this long has passed (a goal under way is given up)."""
+    until: Optional["Condition"] = None
+    """Succeed once this holds."""
+    tolerance_m: Optional[float] = None
+    speed_mps: Optional[float] = None
+
+
 # -- conditions --------------------------------------------------------------------------------------------
 
 @dataclass(kw_only=True, eq=False, repr=False)
@@ -507,7 +523,7 @@ class PluginStep(Step):
 CORE_STEP_CLASSES: tuple[type[Step], ...] = (
     DriveDistance, DriveTime, TurnBy, TurnToHeading, Wait, Stop, GoToPlace, GoToPoint, Route, ReturnHome, FollowLine,
     Look, ServoAngle, ServoPulse, Snapshot, Say, Teleop, Repeat, Retry, Timeout, Parallel, FirstOf, Do, If, While,
-    WaitUntil, UntilBlock, AbortIf, Ask, Photo, Alert, Dock, Undock, Track,
+    WaitUntil, UntilBlock, AbortIf, Ask, Photo, Alert, Dock, Undock, Track, Ros2Goals,
 )
 """Every step class of the language (not PluginStep)."""
 

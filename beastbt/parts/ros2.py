@@ -13,7 +13,7 @@ opens the link.
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any, Mapping, Optional
 
 from beastbt.robot.part import REPLAY, Build, Part
 from beastbt.run.session import Prepared
@@ -38,6 +38,11 @@ class Ros2Part(Part):
         self.link: Optional[Any] = None
         self.reads: tuple[str, ...] = ()
 
+    def steps(self) -> Mapping[str, Any]:
+        """ros2_goals (docs/ros2.md): rviz2's goals, each a planned go_to on the mission's map."""
+        from beastbt.ros2.goal_steps import build_ros2_goals
+        return {"ros2_goals": build_ros2_goals}
+
     def attach(self, build: Build) -> None:
         """Note the mode, and the sensors the profile's ``ros2: topics:`` names (none without the list: the
         topics carry what the run reads anyway, and watching costs the run nothing more)."""
@@ -50,7 +55,9 @@ class Ros2Part(Part):
         cli = prepared.options.ros2
         if self.mode == REPLAY or cli is None:
             return
+        from beastbt.ros2.goal_steps import refuse_without_link_or_map
         from beastbt.ros2.link import Ros2Link, options_from
+        refuse_without_link_or_map(prepared.mission, has_link=True)  # a ros2_goals step on no map: before opening
         options = options_from(prepared.profile.section("ros2"), cli.get("listen"), cli.get("config"))
         link = self.link = Ros2Link(prepared, options, on_goal=cli.get("on_goal"))
         try:
@@ -67,4 +74,28 @@ class Ros2Part(Part):
                                         f"{options.namespace}) on {options.listen or options.config_file}: {mode}")
 
 
-__all__ = ["Ros2Part", "READS"]
+class Ros2GoalsCheck(Part):
+    """A run without ``--ros2`` of a mission with a ``ros2_goals`` step: refused before anything moves, at the step."""
+
+    name = "ros2_goals_check"
+    mode = ""
+
+    def attach(self, build: Build) -> None:
+        """Note the mode: a replay carries out what was recorded."""
+        self.mode = build.mode
+
+    def install(self, prepared: Prepared) -> None:
+        """InvalidInput at the step: the run has no ROS 2 link (or the mission no map)."""
+        if self.mode == REPLAY:
+            return
+        from beastbt.ros2.goal_steps import refuse_without_link_or_map
+        refuse_without_link_or_map(prepared.mission, has_link=False)
+
+
+def uses_ros2_goals(mission: Any) -> bool:
+    """Whether ``mission`` has a ``ros2_goals`` step (the assembly's test for :class:`Ros2GoalsCheck`)."""
+    from beastbt.ros2.goal_steps import uses_goals
+    return uses_goals(mission)
+
+
+__all__ = ["Ros2Part", "Ros2GoalsCheck", "uses_ros2_goals", "READS"]

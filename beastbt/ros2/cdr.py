@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import struct
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Iterable, Optional, Sequence
 
 import numpy as np
@@ -152,6 +153,29 @@ def _cov(values: Optional[Iterable[float]], n: int) -> list[float]:
     return out
 
 
+_STAMP = struct.Struct("<iI")
+_ODOMETRY_NUMBERS = struct.Struct("<7d36d6d36d")
+_TRANSFORM_NUMBERS = struct.Struct("<7d")
+_IMU_NUMBERS = struct.Struct("<4d9d3d9d3d9d")
+
+
+@lru_cache(maxsize=256)
+def _strings(offset: int, texts: tuple[str, ...], then_align: int) -> bytes:
+    """The CDR of ``texts``, strings one after another from byte ``offset`` (counted after the encapsulation
+    header), then the zeros that align what follows to ``then_align``. A message's frames are the same message
+    after message: made once (the hot encoders below are then a stamp, these bytes and one struct of numbers)."""
+    w = CdrWriter()
+    w.buf += bytes(offset)
+    for text in texts:
+        w.string(text)
+    w.align(then_align)
+    return bytes(w.buf[4 + offset:])
+
+
+def _stamp(stamp_ns: int) -> bytes:
+    return _STAMP.pack(*divmod(int(stamp_ns), 1_000_000_000))
+
+
 # -- the messages beastbt publishes ------------------------------------------------------------------------------
 
 def encode_odometry(stamp_ns: int, frame_id: str, child_frame_id: str, position: Vec3, orientation: Quat,
@@ -160,12 +184,10 @@ def encode_odometry(stamp_ns: int, frame_id: str, child_frame_id: str, position:
                     twist_covariance: Optional[Sequence[float]] = None) -> bytes:
     """``nav_msgs/msg/Odometry``: the pose of ``child_frame_id`` in ``frame_id`` (m, quaternion) with its 6x6
     covariance (row-major, x y z roll pitch yaw), the velocity in ``child_frame_id`` (m/s, rad/s) with its own."""
-    w = CdrWriter()
-    w.header(stamp_ns, frame_id)
-    w.string(child_frame_id)
-    w.pack(8, "7d36d", *position, *orientation, *_cov(pose_covariance, 36))
-    w.pack(8, "6d36d", *linear, *angular, *_cov(twist_covariance, 36))
-    return w.bytes()
+    # header (stamp at 0, frame), child frame, then 85 float64 8-aligned: the frames' bytes are cached
+    return b"".join((HEADER_LE, _stamp(stamp_ns), _strings(8, (frame_id, child_frame_id), 8),
+                     _ODOMETRY_NUMBERS.pack(*position, *orientation, *_cov(pose_covariance, 36), *linear, *angular,
+                                            *_cov(twist_covariance, 36))))
 
 
 @dataclass(frozen=True)
@@ -181,13 +203,13 @@ class Transform:
 
 def encode_tf(transforms: Sequence[Transform]) -> bytes:
     """``tf2_msgs/msg/TFMessage``: a list of stamped transforms (``/tf``, ``/tf_static``)."""
-    w = CdrWriter()
-    w.pack(4, "I", len(transforms))
+    parts = [HEADER_LE, struct.pack("<I", len(transforms))]
+    offset = 4  # after the count; each transform's seven float64 end 8-aligned, so its stamp needs no padding
     for t in transforms:
-        w.header(t.stamp_ns, t.parent)
-        w.string(t.child)
-        w.pack(8, "7d", *t.translation, *t.rotation)
-    return w.bytes()
+        frames = _strings(offset + 8, (t.parent, t.child), 8)
+        parts += (_stamp(t.stamp_ns), frames, _TRANSFORM_NUMBERS.pack(*t.translation, *t.rotation))
+        offset += 8 + len(frames) + 56
+    return b"".join(parts)
 
 
 _SCAN_HEAD = struct.Struct("<iII")
@@ -252,11 +274,10 @@ def encode_imu(stamp_ns: int, frame_id: str, orientation: Quat, orientation_cova
                linear_acceleration: Vec3, linear_acceleration_covariance: Optional[Sequence[float]]) -> bytes:
     """``sensor_msgs/msg/Imu``: orientation (a covariance starting with -1 says there is none), angular velocity
     (rad/s), linear acceleration (m/s^2, gravity included), each with its 3x3 covariance."""
-    w = CdrWriter()
-    w.header(stamp_ns, frame_id)
-    w.pack(8, "4d9d3d9d3d9d", *orientation, *_cov(orientation_covariance, 9), *angular_velocity,
-           *_cov(angular_velocity_covariance, 9), *linear_acceleration, *_cov(linear_acceleration_covariance, 9))
-    return w.bytes()
+    return b"".join((HEADER_LE, _stamp(stamp_ns), _strings(8, (frame_id,), 8),
+                     _IMU_NUMBERS.pack(*orientation, *_cov(orientation_covariance, 9), *angular_velocity,
+                                       *_cov(angular_velocity_covariance, 9), *linear_acceleration,
+                                       *_cov(linear_acceleration_covariance, 9))))
 
 
 def encode_compressed_image(stamp_ns: int, frame_id: str, image_format: str, data: bytes) -> bytes:

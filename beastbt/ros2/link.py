@@ -142,6 +142,8 @@ class Ros2Link:
         self._pubs: dict[str, Any] = {}
         self._seq: dict[str, int] = {}
         self._gids: dict[str, bytes] = {}
+        self._matching: dict[str, bool] = {}
+        """Whether a subscriber matches each volatile topic now (Zenoh's matching status, kept by listeners)."""
         self._tokens: list[Any] = []
         self._subs: list[Any] = []
         self.token_keys: list[str] = []
@@ -153,6 +155,8 @@ class Ros2Link:
         self.topics: Optional[RunTopics] = None
         self.received = 0
         self.refused = 0
+        self.goals: Any = None
+        """The run's :class:`~beastbt.behaviours.ros2_goals.GoalInbox` (a link that takes commands), or None."""
         self._lock = threading.Lock()
 
     # -- opening -------------------------------------------------------------------------------------------------
@@ -169,8 +173,11 @@ class Ros2Link:
             raise
         run = self.run
         clock = self.prepared.clock
+        if self.commands:
+            from beastbt.behaviours.ros2_goals import GOAL_INBOX, GoalInbox
+            self.goals = run.ctx.services.plugins[GOAL_INBOX] = GoalInbox()  # a ros2_goals step's goals
         self.topics = RunTopics(run, self.prepared.profile, self.options.topics, self._send,
-                                time.time() - clock.now())
+                                time.time() - clock.now(), self.wanted)
         self.topics.start(clock.now())
         run.recorders.append(self.topics.on_tick)
         if self.commands:
@@ -209,6 +216,7 @@ class Ros2Link:
                     publisher_detection=True, **kwargs)
             else:
                 pub = self.session.declare_publisher(key, **kwargs)
+                self._watch_matching(name, pub)
             self._pubs[name] = pub
             self._seq[name] = 0
             self.keys[name] = key
@@ -233,6 +241,22 @@ class Ros2Link:
             self._subs.append(self.session.declare_subscriber(key, self._receiver(name)))
             self._token(token)
             eid += 1
+
+    def _watch_matching(self, name: str, pub: Any) -> None:
+        """Keep ``name``'s matching status (a transient local topic is always made: its cache serves late
+        subscribers). Without the API (an older eclipse-zenoh) every topic is made."""
+        if not hasattr(pub, "declare_matching_listener"):
+            return
+        matching = self._matching
+
+        def changed(status: Any) -> None:  # Zenoh's thread: one dict item set, read by the tick thread
+            matching[name] = bool(status.matching)
+        self._subs.append(pub.declare_matching_listener(changed))
+        matching[name] = bool(pub.matching_status.matching)
+
+    def wanted(self, name: str) -> bool:
+        """Whether a subscriber on the ROS 2 side matches topic ``name`` now: no one, nothing made or sent."""
+        return self._matching.get(name, True)
 
     def _token(self, key: str) -> None:
         self._tokens.append(self.session.liveliness().declare_token(key))
@@ -335,9 +359,20 @@ class Ros2Link:
                                f"{pose.position[1]:.2f}) m, {math.degrees(pose.yaw):.0f} deg")
 
     def _goal(self, run: Any, pose: cdr.PoseStamped) -> None:
+        """A goal: to the mission's ``ros2_goals`` step when one runs, else to ``beastbt serve``, else not taken."""
+        x, y = pose.position[0], pose.position[1]
+        if self.goals is not None and self.goals.listening:
+            from beastbt.ros2.goal_steps import goal_in_map_frame
+            map_frame = self.topics.frames.map if self.topics is not None else "map"
+            if not goal_in_map_frame(pose.frame_id, map_frame):
+                run.events.add("ros2", f"ROS 2 /goal_pose ({x:.2f}, {y:.2f}) in frame '{pose.frame_id}' not taken: "
+                                       f"goals are planned in the map frame '{map_frame}' (rviz2's Fixed Frame)")
+                return
+            self.goals.put(x, y)
+            return
         if self.on_goal is None:
-            run.events.add("ros2", f"ROS 2 /goal_pose ({pose.position[0]:.2f}, {pose.position[1]:.2f}) not taken: "
-                                   f"goals are taken by 'beastbt serve --ros2'")
+            run.events.add("ros2", f"ROS 2 /goal_pose ({x:.2f}, {y:.2f}) not taken: goals are taken by a mission's "
+                                   f"ros2_goals step or by 'beastbt serve --ros2'")
             return
         self.on_goal(pose, run)
 
@@ -348,6 +383,11 @@ class Ros2Link:
             session, self.session = self.session, None
         if session is None:
             return
+        if self.topics is not None:
+            try:
+                self.topics.flush()  # the last burst's ticks
+            except Exception:  # noqa: BLE001 - closing goes on whatever the last messages were
+                pass
         if self.controls is not None:
             self.controls.close()
         for item in self._subs + self._tokens + list(self._pubs.values()):

@@ -26,14 +26,15 @@ as rmw_zenoh_cpp writes it in the version pinned in :data:`PINNED`
   ``AdvancedPublisher`` s with a cache of ``depth`` samples and publisher detection: a late subscriber
   (rviz2's map display) gets the last map from that cache.
 
-The GID: rmw_zenoh takes it from the XXH3-128 of the entity's token; beastbt takes the BLAKE2b-128 of the same
-text (no XXH3 in the standard library). A subscriber only passes it on as the message's publisher GID; it
-is never checked against the token (docs/ros2.md says where the bytes are exact and where not).
+* **GID** (``Entity::Entity``): the XXH3-128 (seed 0, the default secret) of the entity's whole token,
+  its low 64 bits then its high 64 bits, each little-endian (``memcpy`` of ``low64`` then ``high64``);
+  rmw_zenoh carries a subset of the reference xxHash for it (simplified_xxhash3.cpp @97aed481), beastbt the
+  reference itself (the ``xxhash`` package). So the GID in each message's attachment is the one a laptop's
+  graph cache computes from the publisher's token (``ros2 topic info -v``).
 """
 
 from __future__ import annotations
 
-import hashlib
 import struct
 from dataclasses import dataclass
 from typing import Optional
@@ -41,7 +42,8 @@ from typing import Optional
 from beastbt.ros2.cdr import TYPES
 
 PINNED = ("rmw_zenoh_cpp 0.2 (ROS 2 Jazzy, zenoh-cpp 1.x): ros2/rmw_zenoh at commits 3411fdec (liveliness_utils.cpp), "
-          "534747dc (attachment_helpers.cpp), 7efeee2b (qos.cpp), 3e19ec73 (rmw_publisher_data.cpp)")
+          "534747dc (attachment_helpers.cpp), 7efeee2b (qos.cpp), 3e19ec73 (rmw_publisher_data.cpp), "
+          "97aed481 (simplified_xxhash3.cpp); Humble: pull request #388")
 """The rmw_zenoh this module follows (docs/ros2.md cites the lines)."""
 
 ADMIN_SPACE = "@ros2_lv"
@@ -141,8 +143,10 @@ class Node:
 
 
 def gid(token: str) -> bytes:
-    """The 16-byte GID of the entity with liveliness ``token`` (a hash of it: see the module docstring)."""
-    return hashlib.blake2b(token.encode(), digest_size=16).digest()
+    """The 16-byte GID of the entity with liveliness ``token``: rmw_zenoh's XXH3-128 of it, low half first, each
+    half little-endian (see the module docstring)."""
+    import xxhash
+    return xxhash.xxh3_128_intdigest(token.encode()).to_bytes(16, "little")
 
 
 _ATTACHMENT = struct.Struct("<qqB16s")

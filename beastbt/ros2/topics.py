@@ -71,6 +71,11 @@ IMU_PERIOD_S = 0.02
 """/imu/data at most this often (s): 50 Hz."""
 SLOW_PERIOD_S = 1.0
 """/battery and /diagnostics this often (s)."""
+BURST_PERIOD_S = 0.1
+"""The ticks' messages are made and sent together at most this often (s, clock time): 10 Hz, the LiDAR's pace.
+Each burst wakes Zenoh's transmission once, and that wake-up (about 0.1 ms of CPU, a system call on a cold
+path), not the messages, is what a link costs the robot; every message keeps the stamp of its own tick and
+the rates above, and goes out at most this much later."""
 LD19_RANGE_M = (0.02, 12.0)
 """range_min and range_max of a scan when the profile gives none (m): the LD19's."""
 
@@ -107,12 +112,14 @@ class RunTopics:
     payload)`` puts one message, ``epoch_offset_s`` turns clock seconds into Unix seconds."""
 
     def __init__(self, run: Any, profile: Any, enabled: frozenset, send: Callable[[str, bytes], None],
-                 epoch_offset_s: float) -> None:
+                 epoch_offset_s: float, wanted: Callable[[str], bool] = lambda name: True) -> None:
         from beastbt.recording.config import FramesConfig
         from beastbt.robot.profile import section_config
         self.run = run
         self.enabled = enabled
         self.send = send
+        self.wanted = wanted
+        """Whether anyone subscribes to a topic now (the link's Zenoh matching status): no one, no encoding."""
         self.offset_s = epoch_offset_s
         self.frames = section_config(profile, "frames", FramesConfig)
         self.lidar = None
@@ -134,6 +141,8 @@ class RunTopics:
         self._battery: Optional[BatteryState] = None
         self._epochs: Any = None
         self._maps: Any = None
+        self._pending: list = []
+        self._burst_s = -math.inf
         self.sent = 0
 
     def ns(self, t_s: float) -> int:
@@ -169,21 +178,41 @@ class RunTopics:
 
     # -- every tick ----------------------------------------------------------------------------------------------
     def on_tick(self, rec: Any) -> None:
-        """``run.recorders`` callable: the messages of this tick."""
+        """``run.recorders`` callable: keep this tick, and make and send the messages of the ticks kept once a
+        burst is due (:data:`BURST_PERIOD_S`)."""
+        self._pending.append(rec)
+        if rec.now_s - self._burst_s >= BURST_PERIOD_S - 1e-9:
+            self.flush()
+
+    def flush(self) -> None:
+        """Make and send the messages of the ticks kept, one burst (also when the link closes)."""
+        pending, self._pending = self._pending, []
+        if not pending:
+            return
+        for rec in pending:
+            self._tick(rec)
+        now_s = pending[-1].now_s
+        self._burst_s = now_s
+        if "map" in self.enabled or "plan" in self.enabled:
+            self._map_and_plan(now_s)
+
+    def _tick(self, rec: Any) -> None:
+        """The messages of one tick (its readings, poses and the 1 Hz topics), each as its tick had it."""
         now_s = rec.now_s
         enabled = self.enabled
+        wanted = self.wanted
         for r in rec.readings:
             cls = r.__class__
             if cls is LaserScan:
-                if "scan" in enabled:
+                if "scan" in enabled and wanted("scan"):
                     self._put("scan", scan_message(self.ns(r.stamp_s), "lidar", r, self.range_m))
             elif cls is ImuSample:
-                if "imu" in enabled and r.stamp_s - self._imu_s >= IMU_PERIOD_S - 1e-9:
+                if "imu" in enabled and r.stamp_s - self._imu_s >= IMU_PERIOD_S - 1e-9 and wanted("imu"):
                     self._imu_s = r.stamp_s
                     self._put("imu", cdr.encode_imu(self.ns(r.stamp_s), self.frames.base_link, cdr.IDENTITY,
                                                     [-1.0] + [0.0] * 8, r.gyro_rps, None, r.accel_mps2, None))
             elif cls is CameraFrame:
-                if "camera" in enabled and r.jpeg is not None:  # passed through, never encoded here
+                if "camera" in enabled and r.jpeg is not None and wanted("camera"):  # passed through, never encoded
                     self._put("camera", cdr.encode_compressed_image(self.ns(r.stamp_s), self.frames.camera_optical,
                                                                     "jpeg", r.jpeg))
             elif cls is BatteryState:
@@ -192,19 +221,19 @@ class RunTopics:
             fixes = [r for r in rec.readings if r.__class__ is GpsFix]
             if fixes:
                 self._fixes(fixes)
-        if rec.pose_odom is not None or rec.pose is not None:
+        if (rec.pose_odom is not None or rec.pose is not None) and (wanted("odom") or wanted("tf")):
             self._poses(now_s, rec.pose_odom, rec.pose)
         if now_s - self._slow_s >= SLOW_PERIOD_S - 1e-9:
             self._slow_s = now_s
             self._slow(now_s, rec)
-        if "map" in enabled or "plan" in enabled:
-            self._map_and_plan(now_s)
 
     def _fixes(self, fixes: list) -> None:
         if self._epochs is None:
             from beastbt.recording.foxglove import EpochFixes
             self._epochs = EpochFixes()
         for fix in self._epochs.take(fixes):
+            if not self.wanted("fix"):
+                continue
             cov = [float(v) for row in fix.covariance_enu for v in row]
             self._put("fix", cdr.encode_nav_sat_fix(self.ns(fix.stamp_s), self.frames.gps, gnss_status(fix.quality),
                                                     cdr.SERVICE_GPS, fix.lat, fix.lon,
@@ -221,7 +250,7 @@ class RunTopics:
             return
         self._pose_s, self._pose_key = now_s, key
         f, t = self.frames, self.ns(now_s)
-        if "odom" in self.enabled:
+        if "odom" in self.enabled and self.wanted("odom"):
             cov = [0.0] * 36
             for i, a in enumerate((0, 1, 5)):  # x, y, rotation about z in the 6x6
                 for j, b in enumerate((0, 1, 5)):
@@ -229,7 +258,7 @@ class RunTopics:
             self._put("odom", cdr.encode_odometry(t, f.odom, f.base_link, (body.x, body.y, 0.0),
                                                   cdr.yaw_quaternion(body.yaw), (body.speed_mps, 0.0, 0.0),
                                                   (0.0, 0.0, body.yaw_rate_rps), cov))
-        if "tf" in self.enabled:
+        if "tf" in self.enabled and self.wanted("tf"):
             self._put("tf", cdr.encode_tf([self._map_to_odom(t, pose, odom),
                                            cdr.Transform(t, f.odom, f.base_link, (body.x, body.y, 0.0),
                                                          cdr.yaw_quaternion(body.yaw))]))
@@ -249,9 +278,9 @@ class RunTopics:
     def _slow(self, now_s: float, rec: Any) -> None:
         t = self.ns(now_s)
         battery = self._battery
-        if "battery" in self.enabled and battery is not None:
+        if "battery" in self.enabled and battery is not None and self.wanted("battery"):
             self._put("battery", cdr.encode_battery_state(t, self.frames.base_link, battery.voltage_v))
-        if "diagnostics" in self.enabled:
+        if "diagnostics" in self.enabled and self.wanted("diagnostics"):
             run = self.run
             estop = bool(run.mux.estop_latched)
             statuses = [cdr.DiagnosticStatus(
@@ -273,7 +302,7 @@ class RunTopics:
         if "map" in changed and "map" in self.enabled:
             grid, lethal = changed["map"]
             self._put("map", map_message(t, self.frames.map, grid, lethal))
-        if "path" in changed and "plan" in self.enabled:
+        if "path" in changed and "plan" in self.enabled and self.wanted("plan"):
             plan = changed["path"]
             pts = [] if plan is None else np.asarray(plan.points_xy, dtype=float).tolist()
             self._put("plan", cdr.encode_path(t, self.frames.map, [
