@@ -87,6 +87,13 @@ def marks_of(source: tuple[str, Any, Optional[np.ndarray], Any, float]) -> Costm
                         int(cols), np.flatnonzero(lethal).astype(np.int32), planner, float(radius))
 
 
+def gps_navigator(run: Any) -> Any:
+    """The :class:`~beastbt.navigation.global_navigator.GlobalNavigator` of ``run``'s GPS go_to steps (its
+    ``following`` is the way round drawn as ``/plan``), or None (no LiDAR: no local navigator). Read only."""
+    local = run.ctx.services.local_navigator
+    return getattr(local, "global_nav", None) if local is not None else None
+
+
 class GlobalViewSampler:
     """On the tick side: the global costmap's marks when they changed (at most every
     :data:`GLOBAL_COSTMAP_PERIOD_S`) and the GPS way round when it changed; :meth:`sample` returns
@@ -104,8 +111,7 @@ class GlobalViewSampler:
     def sample(self, now_s: float) -> dict:
         """What changed since the last call."""
         out: dict = {}
-        local = self.run.ctx.services.local_navigator
-        g = getattr(local, "global_nav", None) if local is not None else None
+        g = gps_navigator(self.run)
         if g is not None and g.following is not self._following:
             self._following = g.following
             out["gps_plan"] = None if g.following is None else (np.array(g.following.points, dtype=float),
@@ -242,4 +248,4 @@ class ConsoleGlobalLayer:
 
 
 __all__ = ["CostmapMarks", "ConsoleGlobalLayer", "GlobalViewSampler", "global_costmap_source", "marks_of", "crop", "global_costs",
-           "global_costmap_grid", "gps_plan", "console_layer", "GLOBAL_COSTMAP_PERIOD_S"]
+           "global_costmap_grid", "gps_plan", "gps_navigator", "console_layer", "GLOBAL_COSTMAP_PERIOD_S"]

@@ -19,10 +19,16 @@ recording             bag                         type
 /sensors/battery      /battery                    sensor_msgs/msg/BatteryState
 /camera/image         /camera/image/compressed    sensor_msgs/msg/CompressedImage
 /map                  /map                        nav_msgs/msg/OccupancyGrid
-/path                 /plan                       nav_msgs/msg/Path
+/path                 /plan                       nav_msgs/msg/Path (map)
+/plan                 /plan                       nav_msgs/msg/Path (GPS way round, odom)
 ====================  ==========================  ====================================
 
 Stamps are the recording's Unix epoch nanoseconds (log time and header alike).
+The bag's ``/plan`` carries both of the recording's lines merged in time
+order (a run has one or the other in practice): the map planner's path
+(``/path``) and the way round a GPS go_to follows (``/plan``); a line taken
+off is an empty Path in the frame of the line it takes off, as the link
+publishes it live (:mod:`beastbt.ros2.topics`).
 """
 
 from __future__ import annotations
@@ -112,8 +118,9 @@ def map_of(m: dict, offset_ns: int) -> bytes:
                                      _quat(m["pose"]["orientation"]), data)
 
 
-def path_of(m: dict, offset_ns: int) -> Optional[bytes]:
-    """``/path`` (a ``foxglove.SceneUpdate`` line) as ``nav_msgs/Path``; a deletion as an empty path."""
+def path_of(m: dict, offset_ns: int, deleted_frame: str = "map") -> Optional[bytes]:
+    """``/path`` or ``/plan`` (a ``foxglove.SceneUpdate`` line) as ``nav_msgs/Path``; a deletion as an empty path in
+    ``deleted_frame`` (a deletion names no frame: the frame of the line it takes off)."""
     entities = m.get("entities") or []
     if entities:
         e = entities[0]
@@ -123,8 +130,14 @@ def path_of(m: dict, offset_ns: int) -> Optional[bytes]:
                                           for p in points])
     deletions = m.get("deletions") or []
     if deletions:
-        return cdr.encode_path(_fox_ns(deletions[0]["timestamp"]), "map", [])
+        return cdr.encode_path(_fox_ns(deletions[0]["timestamp"]), deleted_frame, [])
     return None
+
+
+def gps_plan_of(m: dict, offset_ns: int, deleted_frame: str = "odom") -> Optional[bytes]:
+    """``/plan`` (the way round a GPS go_to follows, a ``foxglove.SceneUpdate`` line in odom) as ``nav_msgs/Path``;
+    a deletion as an empty path in ``deleted_frame``."""
+    return path_of(m, offset_ns, deleted_frame)
 
 
 CHANNELS: dict[str, tuple[str, str, Callable[[dict, int], Optional[bytes]]]] = {
@@ -137,8 +150,12 @@ CHANNELS: dict[str, tuple[str, str, Callable[[dict, int], Optional[bytes]]]] = {
     "/camera/image": ("/camera/image/compressed", "sensor_msgs/msg/CompressedImage", image_of),
     "/map": ("/map", "nav_msgs/msg/OccupancyGrid", map_of),
     "/path": ("/plan", "nav_msgs/msg/Path", path_of),
+    "/plan": ("/plan", "nav_msgs/msg/Path", gps_plan_of),
 }
-"""Recording channel -> (bag topic, ROS type, converter)."""
+"""Recording channel -> (bag topic, ROS type, converter). Two channels may share a bag topic (``/plan``)."""
+LINES = {"/path": "map", "/plan": "odom"}
+"""The channels of SceneUpdate lines, with their frame: a deletion becomes an empty path in the frame of the line it
+took off (this frame before any line)."""
 
 
 def export_ros2(run: Any, out: Path) -> dict[str, int]:
@@ -159,10 +176,18 @@ def export_ros2(run: Any, out: Path) -> dict[str, int]:
         writer.start(profile="ros2", library="beastbt")
         schema_ids: dict[str, int] = {}
         channel_ids: dict[str, int] = {}
-        for topic, t_ns, msg in rec.order:
+        line_frames: dict[str, str] = {}  # the frame of each line channel's last line: its deletion's frame
+        # In log time order: two channels may feed one bag topic (/path and /plan: /plan), merged by time.
+        for topic, t_ns, msg in sorted(rec.order, key=lambda item: item[1]):
             bag_topic, type_name, convert = CHANNELS[topic]
             try:
-                data = convert(msg, offset)
+                if topic in LINES:
+                    entities = msg.get("entities") or []
+                    if entities:
+                        line_frames[topic] = str(entities[0]["frame_id"])
+                    data = path_of(msg, offset, line_frames.get(topic, LINES[topic]))
+                else:
+                    data = convert(msg, offset)
             except (KeyError, TypeError, ValueError, IndexError):
                 continue  # a message of an older recording format: left out, counted nowhere
             if data is None:
@@ -190,4 +215,4 @@ def _has_zstd() -> bool:
     return True
 
 
-__all__ = ["export_ros2", "CHANNELS"]
+__all__ = ["export_ros2", "CHANNELS", "LINES", "path_of", "gps_plan_of"]

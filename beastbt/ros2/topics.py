@@ -48,7 +48,8 @@ TOPICS: dict[str, TopicSpec] = {
     "camera": TopicSpec("camera/image/compressed", "sensor_msgs/msg/CompressedImage", SENSOR_DATA,
                         "each frame the run takes that has a JPEG"),
     "battery": TopicSpec("battery", "sensor_msgs/msg/BatteryState", DEFAULT, "1 Hz"),
-    "plan": TopicSpec("plan", "nav_msgs/msg/Path", DEFAULT, "each new global plan"),
+    "plan": TopicSpec("plan", "nav_msgs/msg/Path", DEFAULT, "each new global plan (map), each new way round (GPS, "
+                      "odom); empty when dropped"),
     "diagnostics": TopicSpec("diagnostics", "diagnostic_msgs/msg/DiagnosticArray", DEFAULT, "1 Hz"),
 }
 """Every topic beastbt publishes, by the name the profile's ``ros2: topics:`` uses (``tf`` brings ``tf_static``)."""
@@ -141,6 +142,8 @@ class RunTopics:
         self._battery: Optional[BatteryState] = None
         self._epochs: Any = None
         self._maps: Any = None
+        self._way: Any = None
+        """The GPS way round last published on /plan (the navigator's own object; None: none, or an empty Path)."""
         self._pending: list = []
         self._burst_s = -math.inf
         self.sent = 0
@@ -304,9 +307,31 @@ class RunTopics:
             self._put("map", map_message(t, self.frames.map, grid, lethal))
         if "path" in changed and "plan" in self.enabled and self.wanted("plan"):
             plan = changed["path"]
-            pts = [] if plan is None else np.asarray(plan.points_xy, dtype=float).tolist()
-            self._put("plan", cdr.encode_path(t, self.frames.map, [
-                cdr.PathPose(t, self.frames.map, (float(x), float(y), 0.0)) for x, y in pts]))
+            self._put("plan", path_message(t, self.frames.map, None if plan is None else plan.points_xy))
+        if "plan" in self.enabled:
+            self._gps_way(t)
+
+    def _gps_way(self, t: int) -> None:
+        """``/plan`` of a GPS go_to (odom): the way round it follows each time it changes, an empty Path when it is
+        dropped, as the recording's ``/plan`` (the way is the global navigator's ``following``, read, not planned
+        again). Nothing while no one subscribes: a subscriber that comes later gets the way followed then."""
+        from beastbt.recording.global_views import gps_navigator
+        g = gps_navigator(self.run)
+        if g is None:
+            return
+        way = g.following
+        if way is self._way or not self.wanted("plan"):
+            return
+        self._way = way
+        self._put("plan", path_message(t, self.frames.odom, None if way is None else way.points))
+
+
+def path_message(stamp_ns: int, frame_id: str, points: Any) -> bytes:
+    """``nav_msgs/Path`` in ``frame_id`` through ``points`` ((n, 2) m, that frame), every pose stamped ``stamp_ns``
+    and facing the identity; None: an empty Path (rviz2 clears its line)."""
+    pts = [] if points is None else np.asarray(points, dtype=float).tolist()
+    return cdr.encode_path(stamp_ns, frame_id, [cdr.PathPose(stamp_ns, frame_id, (float(x), float(y), 0.0))
+                                                for x, y in pts])
 
 
 def map_message(stamp_ns: int, frame_id: str, grid: Any, lethal: Optional[np.ndarray] = None) -> bytes:
@@ -322,4 +347,4 @@ def map_message(stamp_ns: int, frame_id: str, grid: Any, lethal: Optional[np.nda
                                      cdr.yaw_quaternion(float(grid.origin_yaw)), data.ravel())
 
 
-__all__ = ["TOPICS", "INPUTS", "TopicSpec", "RunTopics", "scan_message", "map_message", "gnss_status"]
+__all__ = ["TOPICS", "INPUTS", "TopicSpec", "RunTopics", "scan_message", "map_message", "path_message", "gnss_status"]
