@@ -16,7 +16,7 @@ import time
 import urllib.error
 import urllib.request
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 CHROMIUM = next((p for p in (os.environ.get("BEASTBT_CHROMIUM"), shutil.which("chromium"), "/usr/bin/chromium",
                              shutil.which("chromium-browser")) if p and Path(p).exists()), None)
@@ -144,10 +144,13 @@ def moved_m(a: dict, b: dict) -> float:
 
 
 def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watch: bool,
-                     accept: Optional[list[str]] = None, max_time_s: float = 120.0) -> tuple[Any, list]:
+                     accept: Optional[list[str]] = None, max_time_s: float = 120.0,
+                     until: Optional[Callable[[list], bool]] = None) -> tuple[Any, list]:
     """Run ``mission`` on the simulator with ``profile`` and the console; with ``watch``, a viewer follows
     /api/video from before the start to the end (the video messages it got), first saying the codecs it
-    ``accept``s when given (``{"accept": [...]}``, as the page does)."""
+    ``accept``s when given (``{"accept": [...]}``, as the page does). With ``until``, the viewer ends the run
+    (``POST /api/abort``) as soon as ``until(messages)`` holds: a long mission then lasts as long as a loaded
+    machine needs to deliver what the test counts, not a fixed wall-clock time."""
     import aiohttp
 
     from beastbt.assembly import prepare
@@ -159,6 +162,7 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
         prepared = prepare(str(folder / "m.yaml"), opts)
     link = prepared.run.ctx.services.plugins["console"]
     messages: list = []
+    aborted: list = []
     done = threading.Event()
 
     async def follow() -> None:
@@ -174,6 +178,10 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
                     if msg.type != aiohttp.WSMsgType.BINARY:
                         return
                     messages.append(msg.data)
+                    if until is not None and not aborted and until(messages):
+                        aborted.append(True)
+                        async with session.post(link.url.rstrip("/") + "/api/abort", json={}) as answer:
+                            assert answer.status == 200, await answer.text()
 
     viewer = threading.Thread(target=lambda: asyncio.run(follow()))
     if watch:

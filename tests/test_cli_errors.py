@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -150,19 +151,43 @@ def test_profiles_and_worlds_take_values_with_units(tmp_path):
     assert loaded.battery_start_v == pytest.approx(12.3) and loaded.frame.alt0_m == pytest.approx(650.0)
 
 
+def wait_for_ticks(notify: socket.socket, proc: subprocess.Popen, ticks: int, timeout_s: float = 120.0) -> None:
+    """Read the run's sd_notify datagrams (``notify``, bound where ``NOTIFY_SOCKET`` points) until it said
+    ``READY=1`` (sent once the loop has taken over SIGTERM) and then fed the watchdog ``ticks`` times (one a tick)."""
+    import time
+    notify.settimeout(0.5)
+    ready, fed = False, 0
+    deadline = time.monotonic() + timeout_s
+    while not (ready and fed >= ticks):
+        assert time.monotonic() < deadline and proc.poll() is None, f"the run never ticked: ready {ready}, {fed} ticks"
+        try:
+            lines = notify.recv(4096).decode().split("\n")
+        except socket.timeout:
+            continue
+        ready = ready or "READY=1" in lines
+        if ready and "WATCHDOG=1" in lines:
+            fed += 1
+
+
 def test_sigterm_to_a_simulated_run_gives_its_summary_and_a_readable_recording(tmp_path):
     import signal
-    import time
+    notify = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    notify.bind(str(tmp_path / "notify"))
+    env = dict(os.environ, PYTHONPATH=str(REPO), NOTIFY_SOCKET=str(tmp_path / "notify"))
     proc = subprocess.Popen([sys.executable, "-m", "beastbt", "run", PATROL, "--speed", "realtime", "--runs-dir",
                              str(tmp_path / "runs")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    # Signal once the run is under way (its folder exists, then a second of ticking), not after a fixed time that a
-    # loaded machine may spend still importing.
-    deadline = time.monotonic() + 60
-    while not (tmp_path / "runs").is_dir() or not any((tmp_path / "runs").iterdir()):
-        assert time.monotonic() < deadline and proc.poll() is None, "the run never started"
-        time.sleep(0.1)
-    time.sleep(1.5)
+                            cwd=tmp_path, env=env)
+    # Signal once the loop runs (systemd's READY=1, said after SIGTERM is taken over), then a second of ticks
+    # (a watchdog keep-alive each), not after a fixed time: a loaded machine may still be building the run then,
+    # and SIGTERM's default action would kill it without a summary.
+    try:
+        wait_for_ticks(notify, proc, 20)
+    except BaseException:
+        proc.kill()
+        proc.communicate()
+        raise
+    finally:
+        notify.close()
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 1 and "Traceback" not in err

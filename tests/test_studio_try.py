@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from beastbt.studio.trial import Trial, mission_time_left, pace_of, speed_argument
+from beastbt.studio.trial import mission_time_left, pace_of, speed_argument
 from beastbt.studio.files import FileRefused
 from conftest import REPO
 from test_studio_api import Studio
@@ -75,16 +75,29 @@ def test_the_pace_is_mission_seconds_per_wall_second_and_the_time_left_is_wall_t
     assert pace_of(changed, 40.0, 101.0)["speedup"] == 20.0
 
 
-def test_the_mission_time_left_falls_within_a_step_and_is_set_again_when_one_ends():
-    trial = Trial("t", None, Path("."), Path("."), 0)  # type: ignore[arg-type]
-    # 7 steps of 100 s; the console says 1 done at 110 s (its estimate: 110 / 1 * 6 = 660 s), read at 110 s,
-    # the state before it at 90 s: the step ended at about 100 s, when the estimate was 600 s
-    assert mission_time_left(trial, {"done": 1, "total": 7, "eta_s": 660.0}, 110.0, 90.0) == pytest.approx(590.0)
-    # within the step the console's estimate grows (whole steps); this one falls with the mission time
-    assert mission_time_left(trial, {"done": 1, "total": 7, "eta_s": 900.0}, 150.0, 110.0) == pytest.approx(550.0)
-    assert mission_time_left(trial, {"done": 2, "total": 7, "eta_s": 510.0}, 204.0, 196.0) == pytest.approx(496.0)
-    assert mission_time_left(trial, {"done": 0, "total": 7, "eta_s": None}, 5.0, 4.0) is None  # no step done yet
-    assert mission_time_left(trial, {"done": 7, "total": 7, "eta_s": 0.0}, 700.0, 690.0) == 0.0
+def test_the_mission_time_left_is_the_consoles_estimate_which_falls_within_a_step():
+    from beastbt.run.progress import Progress, eta_s
+    # 7 steps of 100 s, the console's progress as the studio reads it at 40 times real time (a poll every 16 s of
+    # mission time). The console credits the running step, so its estimate is the mission time left as it is:
+    # scaled back to a step's end, or to between two polls, the running step would be counted twice (at 112 s,
+    # 538 s instead of 588 s).
+    lefts = []
+    for poll in range(44):
+        sim_s = 16.0 * poll
+        done = int(sim_s // 100)
+        progress = Progress(done, 7, eta_s(done, 7, sim_s, 100.0 * done)).as_dict()
+        left = mission_time_left(progress)
+        if done == 0:
+            assert left is None  # no step done yet: no pace
+        else:
+            assert left == pytest.approx(700.0 - sim_s), (sim_s, progress)
+            lefts.append(left)
+    assert len(lefts) == 37 and all(b < a for a, b in zip(lefts, lefts[1:]))  # poll by poll, through each step
+    # a step that overran its pace: the console holds at the steps after it, and so does the time left
+    assert mission_time_left(Progress(1, 7, eta_s(1, 7, 250.0, 100.0)).as_dict()) == pytest.approx(500.0)
+    assert mission_time_left({"done": 7, "total": 7, "eta_s": 0.0}) == 0.0
+    assert mission_time_left({"done": 3, "total": None, "eta_s": None}) is None  # a loop without a count
+    assert mission_time_left({}) is None and mission_time_left({"eta_s": True}) is None
 
 
 def test_a_try_runs_fast_past_ten_minutes_into_the_folders_runs_with_its_report_and_a_wall_time_left(studio):

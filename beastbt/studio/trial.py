@@ -12,10 +12,10 @@ run ends. The run's folder goes to the studio folder's ``runs/``, where
 temporary folder of the studio, removed when the studio ends.
 
 The time left a try shows is wall time (:func:`mission_time_left`,
-:func:`pace_of`): the mission time left, from the console's estimate at the last
-step's end, divided by the speed-up measured from the console's own clock
-(mission seconds per wall second over the last polls), so a run at ``--speed
-max`` does not show real-time seconds.
+:func:`pace_of`): the mission time left, the console's own estimate, divided by
+the speed-up measured from the console's own clock (mission seconds per wall
+second over the last polls), so a run at ``--speed max`` does not show
+real-time seconds.
 
 At most :data:`MAX_RUNS` tries and test runs (:mod:`beastbt.studio.mission_tests`)
 run at once: each takes one of as many slots before its process starts and
@@ -91,8 +91,6 @@ class Trial:
     """The run's folder, once ``beastbt run`` has said where it recorded it."""
     pace: deque = field(default_factory=lambda: deque(maxlen=64))
     """(wall s, mission s) of the console states read through the studio: the measured speed-up."""
-    eta_anchor: Optional[tuple[int, float, float]] = None
-    """(steps done, mission s left, mission time) when the count of steps done last changed."""
 
     @property
     def summary_file(self) -> Path:
@@ -125,28 +123,16 @@ def speed_argument(value: Any) -> str:
                            f"time from above 0 to {MAX_FACTOR:g} such as 10, not {json.dumps(value)[:40]}")
 
 
-def mission_time_left(trial: "Trial", progress: dict, sim_s: Any, before_s: Optional[float] = None
-                      ) -> Optional[float]:
-    """The mission seconds left: the console's estimate (``eta_s``, at the pace of the steps done so far) as it was
-    when the last step ended, less the mission time since. The console's own figure counts whole steps, so it
-    grows while a long step runs; this one falls as the mission goes on, and is set again at each step's end.
-
-    ``before_s``: the mission time of the state read before this one. A step that ended since ended, as far as
-    anyone knows, halfway between the two; the console's estimate, proportional to the mission time at a count of
-    steps, is taken back to then (at 40 times real time, a poll every 0.4 s is 16 s of mission time)."""
-    done, eta = progress.get("done"), progress.get("eta_s")
-    if not isinstance(sim_s, (int, float)) or isinstance(sim_s, bool):
+def mission_time_left(progress: dict) -> Optional[float]:
+    """The mission seconds left (None: unknown): the console's ``progress.eta_s`` as it is. It credits the time the
+    running step has run (:func:`beastbt.run.progress.eta_s`), so it falls through a step and is already measured
+    at the run's own state, not the studio's less frequent polls (at 40 times real time, a poll every 0.4 s is
+    16 s of mission time): taken back to a poll, or to the end of the last step, it would count a step's time
+    twice."""
+    eta = progress.get("eta_s")
+    if not isinstance(eta, (int, float)) or isinstance(eta, bool) or not math.isfinite(eta):
         return None
-    if not isinstance(eta, (int, float)) or isinstance(eta, bool) or not isinstance(done, int):
-        trial.eta_anchor = None
-        return None
-    if trial.eta_anchor is None or trial.eta_anchor[0] != done:
-        ended_s = float(sim_s)
-        if before_s is not None and 0 < before_s < sim_s:
-            ended_s = (before_s + float(sim_s)) / 2
-        trial.eta_anchor = (done, float(eta) * ended_s / float(sim_s) if sim_s > 0 else float(eta), ended_s)
-    _, eta_then, sim_then = trial.eta_anchor
-    return max(0.0, eta_then - (float(sim_s) - sim_then))
+    return max(0.0, float(eta))
 
 
 def pace_of(samples: deque, eta_s: Optional[float], now_s: float) -> dict:
@@ -441,12 +427,11 @@ class Trials:
         import time
         now = time.monotonic()
         sim = state.get("time_s")
-        before = trial.pace[-1][1] if trial.pace else None
         if isinstance(sim, (int, float)) and not isinstance(sim, bool):
             if not trial.pace or trial.pace[-1][1] != sim or now - trial.pace[-1][0] > PACE_MIN_SPAN_S:
                 trial.pace.append((now, float(sim)))
         progress = state.get("progress") if isinstance(state.get("progress"), dict) else {}
-        return pace_of(trial.pace, mission_time_left(trial, progress, sim, before), now)
+        return pace_of(trial.pace, mission_time_left(progress), now)
 
 
 __all__ = ["Trial", "Trials", "free_loopback_port", "mission_time_left", "pace_of", "speed_argument"]
