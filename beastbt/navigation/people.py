@@ -79,16 +79,16 @@ REIDENTIFY_M = 0.8
 """A person being passed whose track was lost is the new track within this of where they should be (m)."""
 LOST_GIVE_UP_S = 2.0
 """A person being passed who has not been seen for this long is taken to have gone (s)."""
-LANE_AVERAGE_DEG = 30.0
-"""The lanes' direction averages the person's reversed walk with the robot's way when within this angle (deg)."""
 TURN_S = 1.0
 """Stepping aside: the time to turn toward the lane and back, roughly (s)."""
 LATERAL_FRACTION = 0.75
 """Stepping aside: the part of the speed that carries the robot sideways (a turn of about 50 deg)."""
-BESIDE_BEFORE_S = 1.5
+BESIDE_BEFORE_S = 1.0
 """Stepping aside: a side counts as in time when the robot is there this long before the person would meet it (s)."""
 LANE_APPROACH_M = 0.6
 """Until the robot is beside the person's line it steers for the lane this far ahead (m)."""
+LANE_FAST_M = 0.15
+"""... and while it is more than this from the lane, at the robot's top speed (m)."""
 LANE_TOLERANCE_M = 0.05
 """... within this of the lane it follows the way's carrot moved aside (m)."""
 PERSON_RADIUS_MIN_M = 0.15
@@ -366,8 +366,7 @@ class PassingPlanner(DwaPlanner):
                 self.passing = None
             return super().plan(costmap, pose, last, preferred, carrot_xy, max_speed_mps, max_turn_rps, target_xy,
                                 keep_planning)
-        p = self._update_pass(costmap, pose, last, carrot_xy, target_xy if target_xy is not None else carrot_xy,
-                              max_speed_mps)
+        p = self._update_pass(costmap, pose, last, carrot_xy, max_speed_mps)
         if p is None:
             return super().plan(costmap, pose, last, preferred, carrot_xy, max_speed_mps, max_turn_rps, target_xy,
                                 keep_planning)
@@ -382,6 +381,9 @@ class PassingPlanner(DwaPlanner):
             # moves over in a few seconds (the carrot well ahead would make it a slow drift).
             carrot = (pose[0] + LANE_APPROACH_M * p.ux + need * nx, pose[1] + LANE_APPROACH_M * p.uy + need * ny)
         pref = pursue(pose, carrot, max_speed_mps, max_turn_rps)
+        if need > LANE_FAST_M:
+            # Getting out of a person's way is done at the robot's top speed (the step's own speed may be slower).
+            pref = pursue(pose, carrot, max(max_speed_mps, self.limits.max_speed_mps), max_turn_rps)
         if need > LANE_TOLERANCE_M:
             # Moving over: the pursuit of the lane as it is when its arc stays clear of what the footprint would touch
             # (the planner's scores would trade the move for keeping off the walls' inflation, and be late).
@@ -400,8 +402,7 @@ class PassingPlanner(DwaPlanner):
         return xy[0] + shift * nx, xy[1] + shift * ny
 
     def _update_pass(self, costmap: LocalCostmap, pose: tuple[float, float, float], last: tuple[float, float],
-                     carrot_xy: tuple[float, float], target_xy: tuple[float, float], max_speed_mps: float
-                     ) -> Optional[Pass]:
+                     carrot_xy: tuple[float, float], max_speed_mps: float) -> Optional[Pass]:
         """The pass under way, a new one, or None; ends a pass once its person is behind the robot or gone."""
         cfg = self.config
         now = self.tracker.stamp_s
@@ -424,7 +425,7 @@ class PassingPlanner(DwaPlanner):
                 p.vx, p.vy, p.seen_s = tr.vx, tr.vy, tr.last[0]
                 px, py = p.px, p.py
                 if tr.speed_mps >= self.tracker.min_speed_mps:
-                    p.ux, p.uy = lane_direction(tr, pose, target_xy)
+                    p.ux, p.uy = lane_direction(tr)
             else:  # out of sight a moment (merged with a wall, or in the robot's shadow): carried on at its speed
                 px, py = p.px + p.vx * (now - p.seen_s), p.py + p.vy * (now - p.seen_s)
             behind = (px - rx) * p.ux + (py - ry) * p.uy < -(p.distance_m + 0.1)
@@ -480,7 +481,7 @@ class PassingPlanner(DwaPlanner):
             return None
         t_meet, tr, distance, ahead = best
         # The lanes run along the person's line: the robot keeps beside it however its own way bends.
-        lx, ly = lane_direction(tr, pose, target_xy)
+        lx, ly = lane_direction(tr)
         p = Pass(tr.id, -1 if cfg.pass_side == "right" else 1, lx, ly, distance, False, now,
                  tr.last[1], tr.last[2], tr.vx, tr.vy, tr.last[0], checked_s=now)
         side = self._free_side(costmap, pose, p, t_meet, max_speed_mps)
@@ -506,6 +507,7 @@ class PassingPlanner(DwaPlanner):
         needs the shorter step (a robot already beside the person's line on the other side does not cut across
         their way to keep to its own)."""
         first = -1 if self.config.pass_side == "right" else 1
+        fast = max(speed_mps, self.limits.max_speed_mps)
         options = []
         full = p.distance_m
         least = full - 0.5 * self.config.pass_clearance_m  # a side with less room passes closer, down to this
@@ -516,7 +518,7 @@ class PassingPlanner(DwaPlanner):
                 p.distance_m = d
                 shift = self._shift(pose, p, side)
                 if self._room(costmap, pose, p, side, shift):
-                    options.append((side, shift, TURN_S + shift / max(LATERAL_FRACTION * speed_mps, 1e-3), d))
+                    options.append((side, shift, TURN_S + shift / max(LATERAL_FRACTION * fast, 1e-3), d))
                     break
                 d -= ROOM_STEP_M
         p.distance_m = full
@@ -552,20 +554,12 @@ class PassingPlanner(DwaPlanner):
         return bool((cost_at(costmap, np.array(xs), np.array(ys)) < COST_INSCRIBED).all())
 
 
-def lane_direction(tr: Track, pose: tuple[float, float, float], target_xy: tuple[float, float]
-                   ) -> tuple[float, float]:
-    """The direction (unit, odom) the lanes of a pass run in: against the person's walk, averaged with the robot's
-    way to its target when the two are within :data:`LANE_AVERAGE_DEG` (in a corridor both run along it, and each
-    has its own error: the person's from a second or two of noisy centres, the way's from the position estimate)."""
+def lane_direction(tr: Track) -> tuple[float, float]:
+    """The direction (unit, odom) the lanes of a pass run in: against the person's walk. (Averaging it with the
+    robot's way to its target was tried: the way's direction carries the position estimate's error, and on a short
+    way it put the person's line half a metre off at 9 m.)"""
     s = max(tr.speed_mps, 1e-6)
-    ux, uy = -tr.vx / s, -tr.vy / s
-    wx, wy = target_xy[0] - pose[0], target_xy[1] - pose[1]
-    w = math.hypot(wx, wy)
-    if w > 1e-3 and (ux * wx + uy * wy) / w >= math.cos(math.radians(LANE_AVERAGE_DEG)):
-        ux, uy = ux + wx / w, uy + wy / w
-        n = math.hypot(ux, uy)
-        ux, uy = ux / n, uy / n
-    return ux, uy
+    return -tr.vx / s, -tr.vy / s
 
 
 def side_name(side: int) -> str:
