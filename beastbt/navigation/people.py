@@ -3,36 +3,42 @@
 Nothing here knows the simulator: a person is what the scans show, a small
 blob that moves.
 
-:class:`PersonTracker` takes each new scan with the odom pose it was taken
-from. It cuts the scan, in the order measured, into runs of returns less
+:class:`PersonTracker` takes each new scan with the odom poses of the last
+second. It cuts the scan, in the order measured, into runs of returns less
 than ``JUMP_M`` apart; a run of at least ``MIN_POINTS`` returns, at most
 ``MAX_WIDTH_M`` across and in front of what the beams beside it hit (the
 classic cue of a leg or body detector: a wall seen at a grazing angle is
 not in front of its own continuation) is a *blob*. Its centre is the mean
 of its returns pushed back along the beam by a part of its half-width (the
-LiDAR sees the near side of a body). Blobs are matched to tracks by nearest
+LiDAR sees the near side of a body), placed in ``odom`` with the pose at the
+time its beams were measured. Blobs are matched to tracks by nearest
 neighbour within ``GATE_M`` of each track's prediction; a track's velocity
 is the least-squares slope of its centres over the last ``HISTORY_S``; a
 track not seen for ``LOST_S`` is dropped. A track is a *walking person*
 once it has been followed for ``CONFIRM_S`` at ``person_min_speed_mps`` or
 more. Positions are metres in ``odom``, velocities m/s, times the scans'
-stamps (s).
+stamps (s). :meth:`PersonTracker.without_walkers` is the scan the global
+costmap marks: without the walking persons' returns.
 
 :class:`PassingPlanner` is the local planner (:class:`DwaPlanner`) with the
 rule people expect in a corridor. A walking person who comes toward the
 robot's way (within 60 deg of head-on), whose line will pass within the
 *passing distance* (the footprint radius + the person's + ``pass_clearance_m``)
 of the robot's line, and who would meet it within ``pass_react_time_s``, is
-passed on the ``pass_side`` (``right`` by default, as people keep right): the
-carrot and the goal the planner steers for are moved sideways until they
-lie the passing distance beyond the person's line, so the robot changes
-lanes and drives on beside the person, and moves back once the person is
-behind it. A side counts when the local costmap has room for the robot
-there (cells below the inscribed cost, a margin beyond); when the
-preferred side has none the robot passes on the other; when neither has,
-it stops and waits (the collision monitor, below the tree, still has the
-last word on every command). Each step aside, each wait and each return
-to the way is an event (``step_aside``).
+passed on a side: the carrot and the goal the planner steers for are moved
+sideways until they lie the passing distance beyond the person's line (the
+lanes run along the person's walk), so the robot changes lanes, drives on
+beside the person and moves back once the person is behind it. Until it is
+in its lane it steers for the lane just ahead at the profile's top speed,
+driving that arc as it is while the footprint would touch nothing on it.
+The side is ``pass_side`` (``right`` by default, as people keep right) when
+the local costmap has room for the robot there (cells below the inscribed
+cost, a margin beyond; down to half the clearance closer) and it can get
+there before the person; else the other side; when neither is in time, the
+side that needs the shorter step; when neither has room, it stops and waits
+(the collision monitor, below the tree, still has the last word on every
+command). Each step aside, each wait and each return to the way is an event
+(``step_aside``).
 """
 
 from __future__ import annotations
@@ -358,8 +364,9 @@ class PassingPlanner(DwaPlanner):
              preferred: tuple[float, float], carrot_xy: tuple[float, float], max_speed_mps: float,
              max_turn_rps: float, target_xy: Optional[tuple[float, float]] = None, keep_planning: bool = False
              ) -> PlanResult:
-        """As :meth:`DwaPlanner.plan`, but with a walking person to pass the carrot and the goal move aside (and
-        with no room either side, a stop)."""
+        """As :meth:`DwaPlanner.plan`, but with a walking person to pass the carrot and the goal move aside, the
+        lane is steered for until the robot is in it (at the top speed while it is more than ``LANE_FAST_M`` off),
+        and with no room either side the robot stops."""
         cfg = self.config
         if not cfg.step_aside or costmap is None:
             if self.passing is not None:
