@@ -124,15 +124,12 @@ def blobs(scan: LaserScan, mounting: LidarMounting, max_range_m: float) -> tuple
     order = np.roll(np.arange(n), -start)
     out = []
     beams = []
-    i = 0
-    cuts = cut[order]
-    while i < n:
-        j = i
-        while not cuts[j]:
-            j += 1
-        # a run from order[i] to order[j] (inclusive): cut after j
-        idx = order[i:j + 1]
+    ends = np.flatnonzero(cut[order])  # each run ends where a cut follows it; the last one at n - 1
+    begin = 0
+    for j in ends:
+        idx = order[begin:j + 1]  # a run, in the order measured
         i = j + 1
+        begin = i
         if len(idx) < MIN_POINTS or not ok[idx].all():
             continue
         px, py = x[idx], y[idx]
