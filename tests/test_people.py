@@ -121,7 +121,7 @@ def test_the_tracker_places_each_blob_with_the_pose_when_its_beams_were_measured
 
 
 def planner_for(robot: tuple[float, float, float], walls_y: tuple[float, ...], pass_side: str = "right",
-                t_end: float = 2.5, person_y: float = 0.0) -> tuple[PassingPlanner, RollingCostmap, list]:
+                t_end: float = 2.5, person_y: float = 0.0, person_at=None) -> tuple[PassingPlanner, RollingCostmap, list]:
     """A PassingPlanner whose tracker has followed a person walking at ``robot`` (x falls at 0.8 m/s, from 9 m
     ahead) in a corridor with walls at ``walls_y``, and a costmap of the last scan; the events it tells."""
     tracker = PersonTracker(0.3, 10.0)
@@ -129,7 +129,7 @@ def planner_for(robot: tuple[float, float, float], walls_y: tuple[float, ...], p
     planner = PassingPlanner(config, LIMITS, tracker, FOOTPRINT_M)
     events: list = []
     planner.events = lambda kind, text: events.append((kind, text))
-    scan = walk(tracker, robot, lambda t: (robot[0] + 9.0 - 0.8 * t, person_y, 0.25), t_end, walls_y)
+    scan = walk(tracker, robot, person_at or (lambda t: (robot[0] + 9.0 - 0.8 * t, person_y, 0.25)), t_end, walls_y)
     costmap = RollingCostmap(LocalCostmapConfig(), FOOTPRINT_M)
     costmap.add_scan(scan.stamp_s, scan.points_xy(), robot)
     costmap.build(scan.stamp_s, robot[:2])
@@ -188,6 +188,16 @@ def test_a_person_whose_line_passes_well_beside_the_robot_is_not_stepped_aside_f
     planner, costmap, events = planner_for(robot, (-2.5, 2.5), person_y=1.5)
     plan(planner, costmap, robot)
     assert planner.passing is None and events == []
+
+
+def test_a_person_catching_the_robot_up_from_behind_is_let_by_on_the_left():
+    robot = (0.0, 0.0, 0.0)
+    planner, costmap, events = planner_for(robot, (-1.4, 1.4), person_at=lambda t: (-6.0 + 0.9 * t, 0.1, 0.25))
+    result = plan(planner, costmap, robot)
+    assert planner.passing is not None and planner.passing.side == -1 and planner.passing.coming == -1
+    assert result.angular_rps < -0.1  # the robot's own right
+    assert events[0][1].startswith("stepping aside to the right for a person ") and "behind catching the robot up" \
+        in events[0][1]
 
 
 def test_step_aside_false_leaves_people_to_the_planner():

@@ -25,7 +25,8 @@ rule people expect in a corridor. A walking person who comes toward the
 robot's way (within 60 deg of head-on), whose line will pass within the
 *passing distance* (the footprint radius + the person's + ``pass_clearance_m``)
 of the robot's line, and who would meet it within ``pass_react_time_s``, is
-passed on a side: the carrot and the goal the planner steers for are moved
+passed on a side (one who catches the robot up from behind on its line is let
+by the same way): the carrot and the goal the planner steers for are moved
 sideways until they lie the passing distance beyond the person's line (the
 lanes run along the person's walk), so the robot changes lanes, drives on
 beside the person and moves back once the person is behind it. Until it is
@@ -317,6 +318,9 @@ class Pass:
     seen_s: float = 0.0
     still_s: float = 0.0
     checked_s: float = 0.0
+    coming: int = 1
+    """+1: the person walks at the robot (head-on); -1: they catch it up from behind (the lanes then run the
+    robot's way, so that its right is the right)."""
 
     @property
     def speed_mps(self) -> float:
@@ -429,10 +433,11 @@ class PassingPlanner(DwaPlanner):
                 p.vx, p.vy, p.seen_s = tr.vx, tr.vy, tr.last[0]
                 px, py = p.px, p.py
                 if tr.speed_mps >= self.tracker.min_speed_mps:
-                    p.ux, p.uy = lane_direction(tr)
+                    p.ux, p.uy = lane_direction(tr, p.coming)
             else:  # out of sight a moment (merged with a wall, or in the robot's shadow): carried on at its speed
                 px, py = p.px + p.vx * (now - p.seen_s), p.py + p.vy * (now - p.seen_s)
-            behind = (px - rx) * p.ux + (py - ry) * p.uy < -(p.distance_m + 0.1)
+            # Passed: a person met head-on is behind the robot, one who caught it up is ahead of it.
+            behind = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy) < -(p.distance_m + 0.1)
             gone = tr is None and now - p.seen_s > LOST_GIVE_UP_S
             if tr is not None and tr.walking_since_s is None and tr.last[0] == now:
                 p.still_s += now - p.checked_s
@@ -447,9 +452,9 @@ class PassingPlanner(DwaPlanner):
                            f"{'waiting' if p.waiting else 'aside'}")
                 return None
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
-                ahead = (px - rx) * p.ux + (py - ry) * p.uy
-                side = self._free_side(costmap, pose, p, ahead / max(p.speed_mps + max(0.0, last[0]), 1e-3),
-                                       max_speed_mps)
+                apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
+                closing = p.speed_mps + p.coming * max(0.0, last[0])
+                side = self._free_side(costmap, pose, p, apart / max(closing, 1e-3), max_speed_mps)
                 if side is not None:
                     p.side, p.waiting = side, False
                     self.step_asides += 1
@@ -465,13 +470,16 @@ class PassingPlanner(DwaPlanner):
         for tr in self.tracker.walking():
             t, px, py = tr.last
             ahead = (px - rx) * ux + (py - ry) * uy
-            if ahead <= 0.0:
-                continue
             along_v = tr.vx * ux + tr.vy * uy
-            if along_v > -HEAD_ON_COS * tr.speed_mps:
-                continue  # not coming toward the robot's way (crossing it, or going the same way)
-            closing = -along_v + max(0.0, last[0])
-            t_meet = ahead / max(closing, 1e-3)
+            if ahead > 0.0 and along_v <= -HEAD_ON_COS * tr.speed_mps:
+                coming, closing = 1, -along_v + max(0.0, last[0])  # walking at the robot
+            elif ahead < 0.0 and along_v >= HEAD_ON_COS * tr.speed_mps:
+                coming, closing = -1, along_v - max(0.0, last[0])  # catching it up from behind
+                if closing < self.tracker.min_speed_mps:
+                    continue
+            else:
+                continue  # crossing the robot's way, or going away from it
+            t_meet = abs(ahead) / max(closing, 1e-3)
             if t_meet > cfg.pass_react_time_s:
                 continue
             distance = self.footprint_radius_m + tr.radius_m + cfg.pass_clearance_m
@@ -480,16 +488,17 @@ class PassingPlanner(DwaPlanner):
             if abs(lateral) >= distance:
                 continue  # their lines pass far enough apart already
             if best is None or t_meet < best[0]:
-                best = (t_meet, tr, distance, ahead)
+                best = (t_meet, tr, distance, ahead, coming)
         if best is None:
             return None
-        t_meet, tr, distance, ahead = best
+        t_meet, tr, distance, ahead, coming = best
         # The lanes run along the person's line: the robot keeps beside it however its own way bends.
-        lx, ly = lane_direction(tr)
+        lx, ly = lane_direction(tr, coming)
         p = Pass(tr.id, -1 if cfg.pass_side == "right" else 1, lx, ly, distance, False, now,
-                 tr.last[1], tr.last[2], tr.vx, tr.vy, tr.last[0], checked_s=now)
+                 tr.last[1], tr.last[2], tr.vx, tr.vy, tr.last[0], checked_s=now, coming=coming)
         side = self._free_side(costmap, pose, p, t_meet, max_speed_mps)
-        what = f"a person {ahead:.1f} m ahead walking at the robot at {tr.speed_mps:.1f} m/s"
+        what = (f"a person {ahead:.1f} m ahead walking at the robot at {tr.speed_mps:.1f} m/s" if coming > 0 else
+                f"a person {-ahead:.1f} m behind catching the robot up at {tr.speed_mps:.1f} m/s")
         if side is None:
             p.waiting = True
             self.waits += 1
@@ -558,12 +567,13 @@ class PassingPlanner(DwaPlanner):
         return bool((cost_at(costmap, np.array(xs), np.array(ys)) < COST_INSCRIBED).all())
 
 
-def lane_direction(tr: Track) -> tuple[float, float]:
-    """The direction (unit, odom) the lanes of a pass run in: against the person's walk. (Averaging it with the
-    robot's way to its target was tried: the way's direction carries the position estimate's error, and on a short
+def lane_direction(tr: Track, coming: int = 1) -> tuple[float, float]:
+    """The direction (unit, odom) the lanes of a pass run in: against the person's walk when they come at the robot
+    (``coming`` +1), along it when they catch it up from behind (-1); either way the robot's way. (Averaging it
+    with the direction to the robot's target was tried: that carries the position estimate's error, and on a short
     way it put the person's line half a metre off at 9 m.)"""
-    s = max(tr.speed_mps, 1e-6)
-    return -tr.vx / s, -tr.vy / s
+    s = max(tr.speed_mps, 1e-6) * -coming
+    return tr.vx / s, tr.vy / s
 
 
 def side_name(side: int) -> str:
