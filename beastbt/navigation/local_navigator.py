@@ -5,7 +5,9 @@
 navigation step it is given the newest :class:`LaserScan` and the
 dead-reckoned pose (``pose_odom``): a scan it has not seen yet goes into the
 costmap, placed with the odom pose at the scan's stamp (interpolated from the
-poses it was given), and the grid is rebuilt round the robot. Robots that do
+poses it was given), and the grid is rebuilt round the robot; the same scan
+goes to the person tracker (:mod:`beastbt.navigation.people`), whose walking
+persons the planner passes on ``local_planner.pass_side``. Robots that do
 not navigate never call it and pay nothing. Nothing here reads a clock.
 """
 
@@ -21,7 +23,8 @@ from beastbt.blackboard.types import FusedPose, LaserScan, LocalCostmap
 from beastbt.devices.lidar_scan import LidarMounting, base_points_xy
 from beastbt.navigation.global_navigator import GlobalNavigator
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap
-from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig
+from beastbt.navigation.local_planner import Limits, LocalPlannerConfig
+from beastbt.navigation.people import PassingPlanner, PersonTracker
 
 POSE_HISTORY_S = 1.0
 """Odom poses kept to place a scan at its own time (s)."""
@@ -42,14 +45,16 @@ class LocalNavigator:
         self.footprint_radius_m = footprint_radius_m
         self.mounting = mounting
         self.costmap = RollingCostmap(costmap, footprint_radius_m)
-        self.planner = DwaPlanner(planner, limits)
+        self.people = PersonTracker(planner.person_min_speed_mps, planner.person_max_range_m)
+        """The walking persons the scans show (fed by :meth:`observe`)."""
+        self.planner = PassingPlanner(planner, limits, self.people, footprint_radius_m)
         self._poses: deque[tuple[float, float, float, float]] = deque()
         self._last_scan: Optional[LaserScan] = None
         self.scans_used = 0
         """Scans put into the costmap so far."""
         self.fresh: Optional[tuple[LaserScan, tuple[float, float, float]]] = None
-        """The scan :meth:`observe` took this call, with the odom pose (x m, y m, yaw rad) at its stamp; None
-        when it brought no new scan (the global costmap is fed from here)."""
+        """The scan :meth:`observe` took this call (without the returns of walking persons), with the odom pose
+        (x m, y m, yaw rad) at its stamp; None when it brought no new scan (the global costmap is fed from here)."""
         self.global_nav: Optional[GlobalNavigator] = None
         """The rolling global costmap and planner of GPS go_to (:mod:`beastbt.navigation.global_navigator`)."""
 
@@ -99,6 +104,9 @@ class LocalNavigator:
             self.costmap.add_scan(scan.stamp_s, base_points_xy(scan, m), at, (m.x_m, m.y_m))
             self.costmap.build(scan.stamp_s, (pose.x, pose.y))
             self.scans_used += 1
+            if self.planner.config.step_aside:
+                self.people.update(scan, m, self.pose_at)
+                scan = self.people.without_walkers(scan)  # their trail is not marked on the global costmap
             self.fresh = (scan, at)
         return self.costmap.latest
 

@@ -106,13 +106,30 @@ class LocalPlannerConfig:
     """The navigation function leads to the target or the point this far toward it (m)."""
     scan_timeout_s: float
     """A scan older than this is not steered around (s)."""
+    step_aside: bool
+    """Pass a person who walks at the robot on ``pass_side`` (:mod:`beastbt.navigation.people`)."""
+    pass_side: str
+    """The side people are passed on: ``right`` or ``left``."""
+    pass_clearance_m: float
+    """Room kept between the footprint and a person passing (m)."""
+    pass_react_time_s: float
+    """Step aside for a person who would meet the robot within this long (s)."""
+    person_min_speed_mps: float
+    """What moves slower than this is not a walking person (m/s)."""
+    person_max_range_m: float
+    """People are tracked up to this far (m)."""
 
     def __post_init__(self) -> None:
         for name in ("sim_time_s", "time_step_s", "window_s", "scan_timeout_s", "navigation_function_resolution_m",
                      "goal_lookahead_m"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"local_planner: '{name}' must be > 0, got {getattr(self, name)}")
-        for name in ("path_align_scale", "goal_dist_scale", "obstacle_scale"):
+        for name in ("pass_react_time_s", "person_min_speed_mps", "person_max_range_m"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"local_planner: '{name}' must be > 0, got {getattr(self, name)}")
+        if self.pass_side not in ("right", "left"):
+            raise ValueError(f"local_planner: 'pass_side' must be 'right' or 'left', got {self.pass_side!r}")
+        for name in ("path_align_scale", "goal_dist_scale", "obstacle_scale", "pass_clearance_m"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"local_planner: '{name}' must be >= 0, got {getattr(self, name)}")
         for name in ("vx_samples", "vtheta_samples"):

@@ -231,6 +231,8 @@ def install_navigation(p: Prepared) -> None:
     if "lidar" in run.ctx.capabilities:
         run.ctx.services.local_navigator = local_navigator(p.profile)
         install_recoveries(p)
+        if run.ctx.services.local_navigator is not None:  # stepping aside for people is told as events
+            run.ctx.services.local_navigator.planner.events = run.events.add
         if run.ctx.services.local_navigator is not None and any(isinstance(n, (GoTo, RetracePath))
                                                                 for n in run.nodes):
             # The planner's graph search (SciPy) now, before the first tick, rather than at go_to's first plan.
