@@ -8,7 +8,7 @@ A replay is never on the fleet.
 
 from __future__ import annotations
 
-from beastbt.robot.part import REPLAY, Build, Part
+from beastbt.robot.part import REPLAY, Build, Part, RefusalCheck
 from beastbt.run.session import Prepared
 
 
@@ -45,20 +45,13 @@ class FleetPart(Part):
         prepared.run.events.add("fleet", f"on the fleet as '{agent.name}' ({fleet.endpoint or fleet.config_file})")
 
 
-class UnsupervisedCheck(Part):
+class UnsupervisedCheck(RefusalCheck):
     """A run without a fleet link: refuses a mission or profile that requires the fleet's supervision."""
 
     name = "fleet_check"
-    mode = ""
 
-    def attach(self, build: Build) -> None:
-        """Note the mode: a replay carries out what was recorded, supervised or not."""
-        self.mode = build.mode
-
-    def install(self, prepared: Prepared) -> None:
+    def check(self, prepared: Prepared) -> None:
         """InvalidInput, positioned at the ``fleet:`` section, when it requires supervision."""
-        if self.mode == REPLAY:
-            return
         doc = prepared.mission.doc
         if (doc is None or "fleet" not in (doc.data or {})) and prepared.profile.section("fleet") is None:
             return  # the usual run: nothing to import

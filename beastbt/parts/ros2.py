@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Optional
 
-from beastbt.robot.part import REPLAY, Build, Part
+from beastbt.robot.part import REPLAY, Build, Part, RefusalCheck
 from beastbt.run.session import Prepared
 
 READS = {"scan": "scan", "fix": "gps_fix", "imu": "imu", "battery": "battery"}
@@ -74,20 +74,13 @@ class Ros2Part(Part):
                                         f"{options.namespace}) on {options.listen or options.config_file}: {mode}")
 
 
-class Ros2GoalsCheck(Part):
+class Ros2GoalsCheck(RefusalCheck):
     """A run without ``--ros2`` of a mission with a ``ros2_goals`` step: refused before anything moves, at the step."""
 
     name = "ros2_goals_check"
-    mode = ""
 
-    def attach(self, build: Build) -> None:
-        """Note the mode: a replay carries out what was recorded."""
-        self.mode = build.mode
-
-    def install(self, prepared: Prepared) -> None:
+    def check(self, prepared: Prepared) -> None:
         """InvalidInput at the step: the run has no ROS 2 link (or the mission no map)."""
-        if self.mode == REPLAY:
-            return
         from beastbt.ros2.goal_steps import refuse_without_link_or_map
         refuse_without_link_or_map(prepared.mission, has_link=False)
 

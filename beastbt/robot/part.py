@@ -162,6 +162,26 @@ class BasePart(Part):
         raise NotImplementedError
 
 
+class RefusalCheck(Part):
+    """A part that may refuse a run before anything moves (``check`` raises InvalidInput); never in a replay, which
+    carries out what was recorded."""
+
+    mode = ""
+
+    def attach(self, build: Build) -> None:
+        """Note the build's mode."""
+        self.mode = build.mode
+
+    def install(self, prepared: "Prepared") -> None:
+        """:meth:`check` the prepared run, unless this is a replay."""
+        if self.mode != REPLAY:
+            self.check(prepared)
+
+    def check(self, prepared: "Prepared") -> None:
+        """Raise InvalidInput, positioned in the mission or profile, when the run must not start."""
+        raise NotImplementedError
+
+
 PartFactory = Callable[[], Part]
 """What an entry point of group ``beastbt.parts`` names: a Part subclass or a function returning a part."""
 
@@ -206,4 +226,4 @@ def asleep(parts: "Sequence[Part]", demand: "Iterable[str]") -> list[Part]:
     return sleepy
 
 
-__all__ = ["Part", "BasePart", "Build", "PartFactory", "REAL", "SIM", "REPLAY", "describe", "asleep", "sleep_device"]
+__all__ = ["Part", "BasePart", "RefusalCheck", "Build", "PartFactory", "REAL", "SIM", "REPLAY", "describe", "asleep", "sleep_device"]
