@@ -8,6 +8,15 @@ into Nav2's costs, once per map (and again when new lethal cells are marked):
 * **inscribed** (:data:`COST_INSCRIBED`): cells whose centre lies within the
   footprint radius plus ``footprint_padding_m`` of a lethal cell: the robot's
   centre there would touch the wall, so they are as impassable as lethal ones;
+* **narrow** (:data:`COST_NARROW`, with ``narrow_gaps``): of those, the cells
+  farther than the footprint radius plus half a cell (where in its cell the
+  obstacle lies) from every obstacle: only the padding would touch. They are
+  passable at the highest cost, so that a gap at least the robot's width plus a
+  little is taken when it is the way, and not when a way round costs little
+  more. With a finer grid of the obstacles beside the cells (``fine``, kept by
+  the obstacle layer) the clearance is measured on it (along the cell's best
+  fine column or row, less half a fine cell): a 0.1 m cell alone cannot tell a
+  0.32 m gap from a 0.40 m one;
 * **inflated**: beyond, up to ``inflation_radius_m``, ``252 * exp(-cost_scaling_factor * (d - inscribed))``
   as in Nav2's ``inflation_layer`` (the distance ``d`` from ``cv2.distanceTransform``, exact Euclidean).
 
@@ -54,6 +63,10 @@ _OFFSETS = ((0, 1, 1.0), (1, 0, 1.0), (0, -1, 1.0), (-1, 0, 1.0), (1, 1, SQRT2),
 MAX_COST = 252.0
 """The highest cost of a passable cell (Nav2's MAX_NON_OBSTACLE)."""
 
+COST_NARROW = 252
+"""The cost of a narrow cell: within the padding of an obstacle but farther than the footprint radius (passable,
+the costliest; an inflated cell is at most 251)."""
+
 
 @dataclass(frozen=True)
 @schema_defaults("parts/global_planner.schema.json")
@@ -85,6 +98,9 @@ class GlobalPlannerConfig:
     start_search_m: float
     """A start in the inscribed zone (the robot close to a wall) plans from the nearest passable cell within this
     distance (m)."""
+    narrow_gaps: bool
+    """Cells within the padding but farther than the footprint radius from an obstacle are passable at the highest
+    cost (true), or impassable like the rest of the inscribed zone (false)."""
 
     def __post_init__(self) -> None:
         for name in ("inflation_radius_m", "cost_scaling_factor", "blocked_replan_s", "default_tolerance_m",
@@ -130,7 +146,10 @@ class GlobalCostmap:
     def __init__(self, grid: OccupancyMap, config: GlobalPlannerConfig, footprint_radius_m: float) -> None:
         self.grid = grid
         self.config = config
+        self.footprint_radius_m = footprint_radius_m
         self.inscribed_m = footprint_radius_m + config.footprint_padding_m
+        self.fine: Optional[np.ndarray] = None
+        """Obstacles on a finer grid (f rows, f cols a cell; an obstacle layer's ``fine``), or None."""
         lethal = grid.occupied()
         if not config.allow_unknown:
             lethal = lethal | grid.unknown()
@@ -152,6 +171,11 @@ class GlobalCostmap:
         inflated = np.floor(MAX_COST * np.exp(-cfg.cost_scaling_factor * (d - self.inscribed_m)))
         cost = np.where(d <= cfg.inflation_radius_m, np.minimum(inflated, MAX_COST), 0.0)
         cost = np.where(d <= self.inscribed_m, COST_INSCRIBED, cost)
+        if cfg.narrow_gaps:
+            clearance, cell_m = self._clearance_m((d <= self.inscribed_m) & ~self.lethal)
+            # Clear of the footprint by half a cell of the grid measured on (where in its cell the obstacle lies).
+            narrow = (d <= self.inscribed_m) & (clearance > self.footprint_radius_m + cell_m / 2.0 + 1e-9)
+            cost = np.where(narrow, COST_NARROW, cost)
         cost[self.lethal] = COST_LETHAL
         self.cost = cost.astype(np.uint8)
         self.passable = self.cost < COST_INSCRIBED
@@ -160,17 +184,54 @@ class GlobalCostmap:
         if self._graph is not None:
             self._graph.set_costs(self.cost, self.config.cost_weight)
 
-    def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None) -> bool:
+    def _clearance_m(self, candidates: np.ndarray) -> tuple[np.ndarray, float]:
+        """The clearance (m) of the ``candidates`` cells (bool, the map's shape) as well as the grids tell, and the
+        cell (m) it was measured on; 0 elsewhere with ``fine``.
+
+        Without ``fine``, the distance from each cell's centre (:attr:`distance_m`). With it, on the fine grid (the
+        map's lethal cells, whole, among its obstacles): the robot crosses a cell along one of its fine columns or
+        rows, so a cell's clearance is the best over its fine columns of the least over the column's fine cells, or
+        the same over its rows (a fine cell beside the wall's line must not lend its clearance to the cell on it).
+        The distance transform runs on the box round the candidates only (with a margin beyond the inscribed radius,
+        so the distances that matter are exact)."""
+        res = self.grid.resolution_m
+        if self.fine is None:
+            return self.distance_m, res
+        rows, cols = self.lethal.shape
+        f = self.fine.shape[0] // rows
+        clearance = np.zeros((rows, cols))
+        rr, cc = np.nonzero(candidates)
+        if rr.size == 0:
+            return clearance, res / f
+        m = int(math.ceil(self.inscribed_m / res)) + 2
+        r0, r1 = max(0, int(rr.min()) - m), min(rows, int(rr.max()) + m + 1)
+        c0, c1 = max(0, int(cc.min()) - m), min(cols, int(cc.max()) + m + 1)
+        static = np.repeat(np.repeat(self.static_lethal[r0:r1, c0:c1], f, axis=0), f, axis=1)
+        obstacles = self.fine[f * r0:f * r1, f * c0:f * c1] | static
+        src = np.where(obstacles, 0, 255).astype(np.uint8)
+        d = cv2.distanceTransform(src, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * (res / f)
+        d = d.reshape(r1 - r0, f, c1 - c0, f)
+        along_columns = d.min(axis=1).max(axis=2)
+        along_rows = d.min(axis=3).max(axis=1)
+        clearance[r0:r1, c0:c1] = np.maximum(along_columns, along_rows)
+        return clearance, res / f
+
+    def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None,
+                      fine: Optional[np.ndarray] = None) -> bool:
         """The map's lethal cells plus those ``marked`` by an obstacle layer (a bool array of the map's shape; its
-        ``version``), on ``grid`` when the window moved (same shape, another origin). The costs are recomputed when
-        the lethal cells changed; True when they were."""
+        ``version``), on ``grid`` when the window moved (same shape, another origin), with the layer's fine marks
+        ``fine`` (a whole number of times the rows and columns) when it keeps them. The costs are recomputed when the lethal
+        cells changed; True when they were."""
         if grid is not None:
             if grid.data.shape != self.grid.data.shape:
                 raise ValueError("GlobalCostmap.set_obstacles: the grid's shape may not change")
             self.grid = grid
         self.layer_version = version
         lethal = self.static_lethal | marked
-        if np.array_equal(lethal, self.lethal):
+        fine_changed = fine is not None and (self.fine is None or not np.array_equal(fine, self.fine))
+        if fine is not None:
+            self.fine = fine.copy() if fine_changed else self.fine
+        if np.array_equal(lethal, self.lethal) and not fine_changed:
             return False
         self.lethal = lethal
         self._update()
@@ -188,6 +249,13 @@ class GlobalCostmap:
         lethal = self.lethal.copy()
         lethal[row[new], col[new]] = True
         self.lethal = lethal
+        if self.fine is not None:  # the whole cells, on the fine grid too
+            fine = self.fine.copy()
+            f = fine.shape[0] // self.lethal.shape[0]
+            for dr in range(f):
+                for dc in range(f):
+                    fine[f * row[new] + dr, f * col[new] + dc] = True
+            self.fine = fine
         self._update()
         return int(np.count_nonzero(new))
 
@@ -382,8 +450,10 @@ def check_goal(costmap: GlobalCostmap, x: float, y: float, tolerance_m: float = 
         raise NoPath(f"{name} {where} lies in an unknown cell of the map (global_planner.allow_unknown is false)")
     if costmap.lethal[row, col]:
         raise NoPath(f"{name} {where} is blocked (an obstacle seen since the map was made)")
+    reach = costmap.footprint_radius_m if costmap.config.narrow_gaps else costmap.inscribed_m
+    what = "footprint radius" if costmap.config.narrow_gaps else "footprint radius plus padding"
     raise NoPath(f"{name} {where} is {costmap.distance_m[row, col]:.2f} m from a wall, closer than the robot's "
-                 f"{costmap.inscribed_m:.2f} m (footprint radius plus padding)")
+                 f"{reach:.2f} m ({what})")
 
 
 def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
@@ -408,7 +478,7 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
         srow, scol = near
     if costmap.labels[srow, scol] != costmap.labels[gr, gc]:
         raise NoPath(f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, "
-                     f"or no gap on the way is wide enough for the robot ({2 * costmap.inscribed_m:.2f} m)")
+                     f"or no gap on the way is wide enough for the robot (wider than {narrowest_gap_m(costmap):.2f} m)")
     graph = costmap.graph()
     nodes, expanded = graph.search(graph.node(srow, scol), graph.node(gr, gc), heuristic(costmap, (gr, gc)))
     cells = np.array([graph.cell(n) for n in nodes])
@@ -423,6 +493,14 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
         points[-1] = goal_xy
     length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
     return GlobalPath(points, length, expanded)
+
+
+def narrowest_gap_m(costmap: GlobalCostmap) -> float:
+    """The width (m) a gap must exceed for the costmap to let a path through, as the robot needs it: the footprint's
+    width with ``narrow_gaps`` (the padding may be entered; the grid asks a little more), else the footprint's width
+    plus twice the padding."""
+    reach = costmap.footprint_radius_m if costmap.config.narrow_gaps else costmap.inscribed_m
+    return 2.0 * reach
 
 
 def _multiplier(costmap: GlobalCostmap, cost: np.ndarray) -> np.ndarray:
@@ -493,4 +571,4 @@ def path_length_m(points: Sequence[Sequence[float]]) -> float:
 
 
 __all__ = ["GlobalPlannerConfig", "GlobalCostmap", "GlobalPath", "NoPath", "plan_path", "check_goal", "shorten",
-           "path_length_m"]
+           "path_length_m", "narrowest_gap_m", "COST_NARROW"]

@@ -41,7 +41,7 @@ class LocalNavigator:
         self.planner_config = planner
         self.footprint_radius_m = footprint_radius_m
         self.mounting = mounting
-        self.costmap = RollingCostmap(costmap, footprint_radius_m)
+        self.costmap = RollingCostmap(costmap, footprint_radius_m, narrow=planner.narrow_speed_mps > 0.0)
         self.planner = DwaPlanner(planner, limits)
         self._poses: deque[tuple[float, float, float, float]] = deque()
         self._last_scan: Optional[LaserScan] = None
