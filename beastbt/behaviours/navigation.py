@@ -736,7 +736,9 @@ class GoTo(BeastBehaviour):
         if not result.free:
             self.obstructed_at_s = now
         if result.narrow:
+            # Creeping through a narrow gap (the monitor slows it further) is being obstructed, not stuck.
             self.narrow_at_m = odom.distance_m
+            self.obstructed_at_s = now
         else:
             result = self._narrow_hold(odom, (result.linear_mps, result.angular_rps), result) or result
         self.bb.local_plan = LocalPlan(now, result.points_xy, result.linear_mps, result.angular_rps, result.blocked)

@@ -212,6 +212,11 @@ class GlobalNavigator:
         if not other.any():
             return None
         b = xy[other][int(np.argmin(d[other]))]
+        # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
+        # one wall, or past a corner, has none on the other side and is left as it is.
+        reach = self.inscribed_m + 2.0 * step
+        if max(float(np.hypot(*a)), float(np.hypot(*b))) > reach:
+            return None
         centre = p + (a + b) / 2.0
         u = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
         normal = np.array([-u[1], u[0]])

@@ -476,11 +476,16 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
             raise NoPath(f"the robot {_describe(*start_xy)} is inside a wall or obstacle on the map, with no free "
                          f"cell within {costmap.config.start_search_m:g} m: is it localised?")
         srow, scol = near
+    enclosed = (f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, or no gap on "
+                f"the way is wide enough for the robot (wider than {narrowest_gap_m(costmap):.2f} m)")
     if costmap.labels[srow, scol] != costmap.labels[gr, gc]:
-        raise NoPath(f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, "
-                     f"or no gap on the way is wide enough for the robot (wider than {narrowest_gap_m(costmap):.2f} m)")
+        raise NoPath(enclosed)
     graph = costmap.graph()
-    nodes, expanded = graph.search(graph.node(srow, scol), graph.node(gr, gc), heuristic(costmap, (gr, gc)))
+    try:
+        nodes, expanded = graph.search(graph.node(srow, scol), graph.node(gr, gc), heuristic(costmap, (gr, gc)))
+    except NoPath:
+        # Connected only by a diagonal between two impassable cells (the search does not cut corners): enclosed too.
+        raise NoPath(enclosed) from None
     cells = np.array([graph.cell(n) for n in nodes])
     if smooth:
         cells = shorten(costmap, cells)
