@@ -171,12 +171,33 @@ class GlobalCostmap:
         inflated = np.floor(MAX_COST * np.exp(-cfg.cost_scaling_factor * (d - self.inscribed_m)))
         cost = np.where(d <= cfg.inflation_radius_m, np.minimum(inflated, MAX_COST), 0.0)
         cost = np.where(d <= self.inscribed_m, COST_INSCRIBED, cost)
-        if cfg.narrow_gaps:
-            clearance, cell_m = self._clearance_m((d <= self.inscribed_m) & ~self.lethal)
-            # Clear of the footprint by half a cell of the grid measured on (where in its cell the obstacle lies).
-            narrow = (d <= self.inscribed_m) & (clearance > self.footprint_radius_m + cell_m / 2.0 + 1e-9)
-            cost = np.where(narrow, COST_NARROW, cost)
         cost[self.lethal] = COST_LETHAL
+        self.narrow_ready = not cfg.narrow_gaps
+        """Whether the narrow cells are in :attr:`cost` (or need not be): with a fine grid they are measured only
+        when a plan asks (:meth:`add_narrow`)."""
+        if cfg.narrow_gaps and self.fine is None:
+            self._set_cost(self._with_narrow(cost))
+            self.narrow_ready = True
+        else:
+            self._set_cost(cost)
+
+    def add_narrow(self) -> bool:
+        """Bring the narrow cells into the costs (measured on the fine grid); False when they already were."""
+        if self.narrow_ready:
+            return False
+        self._set_cost(self._with_narrow(self.cost))
+        self.narrow_ready = True
+        return True
+
+    def _with_narrow(self, cost: np.ndarray) -> np.ndarray:
+        """``cost`` with the inscribed cells clear of the footprint by half a cell of the grid the clearance was
+        measured on (where in its cell the obstacle lies) made narrow."""
+        inscribed = cost == COST_INSCRIBED
+        clearance, cell_m = self._clearance_m(inscribed)
+        narrow = inscribed & (clearance > self.footprint_radius_m + cell_m / 2.0 + 1e-9)
+        return np.where(narrow, COST_NARROW, cost)
+
+    def _set_cost(self, cost: np.ndarray) -> None:
         self.cost = cost.astype(np.uint8)
         self.passable = self.cost < COST_INSCRIBED
         # Which passable cells can reach which: 8-connected components, as the search moves (corner cutting aside).
@@ -189,31 +210,34 @@ class GlobalCostmap:
         cell (m) it was measured on; 0 elsewhere with ``fine``.
 
         Without ``fine``, the distance from each cell's centre (:attr:`distance_m`). With it, on the fine grid (the
-        map's lethal cells, whole, among its obstacles): the robot crosses a cell along one of its fine columns or
-        rows, so a cell's clearance is the best over its fine columns of the least over the column's fine cells, or
-        the same over its rows (a fine cell beside the wall's line must not lend its clearance to the cell on it).
-        The distance transform runs on the box round the candidates only (with a margin beyond the inscribed radius,
-        so the distances that matter are exact)."""
+        map's lethal cells, whole, among its obstacles), for the candidates between obstacles only (a gap: lethal
+        cells within reach on two opposite sides; a band along one wall is never needed to get through): the robot
+        crosses a cell along one of its fine columns or rows, so a cell's clearance is the best over its fine
+        columns of the least over the column's fine cells, or the same over its rows (a fine cell beside the wall's
+        line must not lend its clearance to the cell on it). The distance transform runs on a box round each group
+        of such cells (with a margin beyond the inscribed radius, so the distances that matter are exact)."""
         res = self.grid.resolution_m
         if self.fine is None:
             return self.distance_m, res
         rows, cols = self.lethal.shape
         f = self.fine.shape[0] // rows
-        clearance = np.zeros((rows, cols))
-        rr, cc = np.nonzero(candidates)
-        if rr.size == 0:
-            return clearance, res / f
-        m = int(math.ceil(self.inscribed_m / res)) + 2
-        r0, r1 = max(0, int(rr.min()) - m), min(rows, int(rr.max()) + m + 1)
-        c0, c1 = max(0, int(cc.min()) - m), min(cols, int(cc.max()) + m + 1)
-        static = np.repeat(np.repeat(self.static_lethal[r0:r1, c0:c1], f, axis=0), f, axis=1)
-        obstacles = self.fine[f * r0:f * r1, f * c0:f * c1] | static
-        src = np.where(obstacles, 0, 255).astype(np.uint8)
-        d = cv2.distanceTransform(src, cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * (res / f)
-        d = d.reshape(r1 - r0, f, c1 - c0, f)
-        along_columns = d.min(axis=1).max(axis=2)
-        along_rows = d.min(axis=3).max(axis=1)
-        clearance[r0:r1, c0:c1] = np.maximum(along_columns, along_rows)
+        clearance = np.zeros((rows, cols), np.float32)
+        reach = int(math.ceil(self.inscribed_m / res)) + 1
+        wanted = (candidates & _between(self.lethal, reach)).astype(np.uint8)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(wanted, connectivity=8)
+        m = reach + 1
+        for c0, r0, w, h, _ in stats[1:]:
+            r0, r1 = max(0, int(r0) - m), min(rows, int(r0 + h) + m)
+            c0, c1 = max(0, int(c0) - m), min(cols, int(c0 + w) + m)
+            static = np.repeat(np.repeat(self.static_lethal[r0:r1, c0:c1], f, axis=0), f, axis=1)
+            obstacles = self.fine[f * r0:f * r1, f * c0:f * c1] | static
+            src = np.where(obstacles, 0, 255).astype(np.uint8)
+            d = cv2.distanceTransform(src, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            R, C = r1 - r0, c1 - c0
+            along_columns = d.reshape(R, f, C * f).min(axis=1).reshape(R, C, f).max(axis=2)
+            along_rows = d.reshape(R * f, C, f).min(axis=2).reshape(R, f, C).max(axis=1)
+            box = clearance[r0:r1, c0:c1]
+            np.maximum(box, np.maximum(along_columns, along_rows) * np.float32(res / f), out=box)
         return clearance, res / f
 
     def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None,
@@ -407,6 +431,25 @@ def heuristic(costmap: "GlobalCostmap", goal: tuple[int, int]) -> np.ndarray:
     return out
 
 
+def _between(lethal: np.ndarray, reach: int) -> np.ndarray:
+    """Cells with a lethal cell within ``reach`` cells on two opposite sides (left and right, above and below, or
+    across either diagonal): the cells of a gap, not of a band along one wall."""
+    rows, cols = lethal.shape
+    pad = np.zeros((rows + 2 * reach, cols + 2 * reach), bool)
+    pad[reach:-reach, reach:-reach] = lethal
+
+    def seen(dr: int, dc: int) -> np.ndarray:
+        out = np.zeros((rows, cols), bool)
+        for j in range(1, reach + 1):
+            out |= pad[reach + j * dr:reach + j * dr + rows, reach + j * dc:reach + j * dc + cols]
+        return out
+
+    out = np.zeros((rows, cols), bool)
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        out |= seen(dr, dc) & seen(-dr, -dc)
+    return out
+
+
 def _describe(x: float, y: float) -> str:
     return f"({x:.2f}, {y:.2f}) m"
 
@@ -456,14 +499,16 @@ def check_goal(costmap: GlobalCostmap, x: float, y: float, tolerance_m: float = 
                  f"{reach:.2f} m ({what})")
 
 
-def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
-              tolerance_m: float = 0.0, goal_name: str = "the goal", smooth: bool = True) -> GlobalPath:
-    """The cheapest path from ``start_xy`` to ``goal_xy`` (map frame, m) on ``costmap``, shortened when ``smooth``.
+NARROW_DETOUR = 1.5
+NARROW_DETOUR_M = 2.0
+"""With a fine grid, narrow gaps are measured when the way without them is longer than NARROW_DETOUR times the
+straight line plus NARROW_DETOUR_M (m), or missing."""
 
-    The goal may move to the nearest passable cell within ``tolerance_m``; a
-    start too near a wall plans from the nearest passable cell within
-    ``start_search_m``. Raises :class:`NoPath` with the reason when there is no path.
-    """
+
+def _ends(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float], tolerance_m: float,
+          goal_name: str) -> tuple[int, int, int, int]:
+    """The start's and the goal's cells (srow, scol, grow, gcol) to search between; :class:`NoPath` naming why there
+    are none."""
     grid = costmap.grid
     gr, gc = check_goal(costmap, goal_xy[0], goal_xy[1], tolerance_m, goal_name)
     scol, srow = grid.to_cells(start_xy[0], start_xy[1])
@@ -476,6 +521,12 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
             raise NoPath(f"the robot {_describe(*start_xy)} is inside a wall or obstacle on the map, with no free "
                          f"cell within {costmap.config.start_search_m:g} m: is it localised?")
         srow, scol = near
+    return srow, scol, gr, gc
+
+
+def _search(costmap: GlobalCostmap, srow: int, scol: int, gr: int, gc: int, goal_xy: tuple[float, float],
+            goal_name: str) -> tuple[list[int], int]:
+    """A* between the cells: the nodes and the number settled; :class:`NoPath` when the goal is enclosed."""
     enclosed = (f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, or no gap on "
                 f"the way is wide enough for the robot (wider than {narrowest_gap_m(costmap):.2f} m)")
     if costmap.labels[srow, scol] != costmap.labels[gr, gc]:
@@ -486,6 +537,40 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
     except NoPath:
         # Connected only by a diagonal between two impassable cells (the search does not cut corners): enclosed too.
         raise NoPath(enclosed) from None
+    return nodes, expanded
+
+
+def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
+              tolerance_m: float = 0.0, goal_name: str = "the goal", smooth: bool = True) -> GlobalPath:
+    """The cheapest path from ``start_xy`` to ``goal_xy`` (map frame, m) on ``costmap``, shortened when ``smooth``.
+
+    The goal may move to the nearest passable cell within ``tolerance_m``; a
+    start too near a wall plans from the nearest passable cell within
+    ``start_search_m``. Raises :class:`NoPath` with the reason when there is no path.
+
+    With narrow gaps measured on a fine grid (GPS), they are measured only when the way without them is missing
+    or more than :data:`NARROW_DETOUR` times the straight line (plus :data:`NARROW_DETOUR_M`): a tight gap is worth
+    its cost where it saves a detour, and measuring it costs more than a plan.
+    """
+    if not costmap.narrow_ready:
+        try:
+            path = _plan_path(costmap, start_xy, goal_xy, tolerance_m, goal_name, smooth)
+            straight = math.hypot(goal_xy[0] - start_xy[0], goal_xy[1] - start_xy[1])
+            if path.length_m <= NARROW_DETOUR * straight + NARROW_DETOUR_M:
+                return path
+        except NoPath:
+            pass
+        costmap.add_narrow()
+    return _plan_path(costmap, start_xy, goal_xy, tolerance_m, goal_name, smooth)
+
+
+def _plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
+               tolerance_m: float, goal_name: str, smooth: bool) -> GlobalPath:
+    """:func:`plan_path` on the costs as they are."""
+    grid = costmap.grid
+    srow, scol, gr, gc = _ends(costmap, start_xy, goal_xy, tolerance_m, goal_name)
+    nodes, expanded = _search(costmap, srow, scol, gr, gc, goal_xy, goal_name)
+    graph = costmap.graph()
     cells = np.array([graph.cell(n) for n in nodes])
     if smooth:
         cells = shorten(costmap, cells)
