@@ -215,13 +215,16 @@ class GlobalNavigator:
         # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
         # one wall, or past a corner, has none on the other side and is left as it is.
         reach = self.inscribed_m + 2.0 * step
-        if max(float(np.hypot(*a)), float(np.hypot(*b))) > reach:
-            return None
+        na, nb = float(np.hypot(*a)), float(np.hypot(*b))
+        if max(na, nb) > reach or a @ b > -0.9 * na * nb:
+            return None  # not a gap: nothing within reach on the far side, or not across the path (a corner)
         centre = p + (a + b) / 2.0
         u = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
         normal = np.array([-u[1], u[0]])
         if normal @ along < 0.0:
             normal = -normal
+        if normal @ along < 0.7 * float(np.hypot(*along)):
+            return None  # the path runs along it, not through it
         return centre, normal
 
 

@@ -54,6 +54,7 @@ from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.mapping.occupancy_map import OccupancyMap
+from beastbt.navigation.local_costmap import between_obstacles
 
 SQRT2 = math.sqrt(2.0)
 _OFFSETS = ((0, 1, 1.0), (1, 0, 1.0), (0, -1, 1.0), (-1, 0, 1.0), (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2),
@@ -222,8 +223,8 @@ class GlobalCostmap:
         rows, cols = self.lethal.shape
         f = self.fine.shape[0] // rows
         clearance = np.zeros((rows, cols), np.float32)
-        reach = int(math.ceil(self.inscribed_m / res)) + 1
-        wanted = (candidates & _between(self.lethal, reach)).astype(np.uint8)
+        reach = int(math.ceil(2.0 * self.inscribed_m / res)) + 1  # the far side of a gap the padding would close
+        wanted = (candidates & between_obstacles(self.lethal, reach)).astype(np.uint8)
         n, _, stats, _ = cv2.connectedComponentsWithStats(wanted, connectivity=8)
         m = reach + 1
         for c0, r0, w, h, _ in stats[1:]:
@@ -428,25 +429,6 @@ def heuristic(costmap: "GlobalCostmap", goal: tuple[int, int]) -> np.ndarray:
     h = np.where(np.isfinite(fine), np.maximum(octile, fine), octile)
     out = np.zeros((rows + 2, cols + 2))
     out[1:-1, 1:-1] = h
-    return out
-
-
-def _between(lethal: np.ndarray, reach: int) -> np.ndarray:
-    """Cells with a lethal cell within ``reach`` cells on two opposite sides (left and right, above and below, or
-    across either diagonal): the cells of a gap, not of a band along one wall."""
-    rows, cols = lethal.shape
-    pad = np.zeros((rows + 2 * reach, cols + 2 * reach), bool)
-    pad[reach:-reach, reach:-reach] = lethal
-
-    def seen(dr: int, dc: int) -> np.ndarray:
-        out = np.zeros((rows, cols), bool)
-        for j in range(1, reach + 1):
-            out |= pad[reach + j * dr:reach + j * dr + rows, reach + j * dc:reach + j * dc + cols]
-        return out
-
-    out = np.zeros((rows, cols), bool)
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        out |= seen(dr, dc) & seen(-dr, -dc)
     return out
 
 

@@ -19,8 +19,9 @@ square grid of ``width_m`` centred on the robot:
   :data:`COST_FREE` (0). With ``narrow`` (a profile whose
   ``local_planner.narrow_speed_mps`` is above 0), the cells of the padding
   band farther than the footprint radius itself are :data:`COST_NARROW` (252,
-  passable, the costliest) instead: the local planner drives them slowly
-  (docs/navigation.md, Tight gaps).
+  passable, the costliest) instead in and round a gap (obstacles within reach
+  on two opposite sides; not in a band along one wall): the local planner
+  drives them slowly (docs/navigation.md, Tight gaps).
 
 Decay for moving things is the rebuild itself: a point lives for
 ``observation_persistence_s`` (Nav2's ``observation_persistence``), so a
@@ -147,6 +148,7 @@ class RollingCostmap:
         # Narrow: clear of the footprint (the global costmap has judged the gap on its fine grid).
         narrow_from = footprint_radius_m if narrow else None
         self._lut = inflation_lut(config, self.inscribed_m, narrow_from)
+        self._narrow_reach = int(math.ceil(2.0 * self.inscribed_m / config.resolution_m)) + 1 if narrow else 0
         self._lut_scale = float(lut_steps(config, self.inscribed_m))
         self._reach_cells = int(math.ceil(max(config.inflation_radius_m, self.inscribed_m) / config.resolution_m)) + 1
         self._scans: deque[tuple[float, np.ndarray]] = deque()
@@ -206,8 +208,36 @@ class RollingCostmap:
                 dist = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_5)
                 idx = cv2.convertScaleAbs(dist, alpha=self._lut_scale, beta=-0.5)
                 cost[y0:y1, x0:x1] = cv2.LUT(idx, self._lut)
+                if self._narrow_reach:
+                    # Narrow only in and round a gap (obstacles on two opposite sides, its mouth within reach of
+                    # them): along one wall the padding stays impassable, as without narrow cells, so a robot is
+                    # not slowed beside every wall.
+                    box = cost[y0:y1, x0:x1]
+                    k = self._narrow_reach
+                    gap = between_obstacles(box == COST_LETHAL, k).astype(np.uint8)
+                    near_gap = cv2.dilate(gap, np.ones((2 * k + 1, 2 * k + 1), np.uint8)).astype(bool)
+                    box[(box == COST_NARROW) & ~near_gap] = COST_INSCRIBED
         self.latest = LocalCostmap(stamp_s, ox, oy, res, cost)
         return self.latest
+
+
+def between_obstacles(lethal: np.ndarray, reach: int) -> np.ndarray:
+    """Cells with a lethal cell within ``reach`` cells on two opposite sides (left and right, above and below, or
+    across either diagonal): the cells of a gap, not of a band along one wall."""
+    rows, cols = lethal.shape
+    pad = np.zeros((rows + 2 * reach, cols + 2 * reach), bool)
+    pad[reach:-reach, reach:-reach] = lethal
+
+    def seen(dr: int, dc: int) -> np.ndarray:
+        out = np.zeros((rows, cols), bool)
+        for j in range(1, reach + 1):
+            out |= pad[reach + j * dr:reach + j * dr + rows, reach + j * dc:reach + j * dc + cols]
+        return out
+
+    out = np.zeros((rows, cols), bool)
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        out |= seen(dr, dc) & seen(-dr, -dc)
+    return out
 
 
 def cost_at(costmap: LocalCostmap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -223,4 +253,4 @@ def cost_at(costmap: LocalCostmap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["LocalCostmapConfig", "RollingCostmap", "inflation_lut", "odom_points", "cost_at", "LUT_STEPS_PER_CELL",
-           "COST_NARROW"]
+           "COST_NARROW", "between_obstacles"]
