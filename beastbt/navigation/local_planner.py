@@ -255,6 +255,8 @@ class DwaPlanner:
         self.nf_computed = 0
         """Navigation functions computed so far (only while something is in the way)."""
         self._nf_for: Optional[LocalCostmap] = None
+        self._narrow_for: Optional[LocalCostmap] = None
+        self._narrow_seen = False
         self._nf: tuple[np.ndarray, float] = (np.zeros((0, 0)), 1.0)
 
     def window(self, last: tuple[float, float], max_speed_mps: float, max_turn_rps: float
@@ -301,7 +303,7 @@ class DwaPlanner:
         vs = np.concatenate(([v_in, 0.0], vs))
         ws = np.concatenate(([w_in, 0.0], ws))
         slow = cfg.narrow_speed_mps
-        if 0.0 < slow < float(vs.max()):
+        if 0.0 < slow < float(vs.max()) and self._has_narrow(costmap):
             # The narrow speed (within the window) at every turn rate: the twists a narrow gap admits.
             v_slow = min(max(slow, float(vs[2:].min())), slow)
             turns = np.unique(ws[2:])
@@ -334,6 +336,14 @@ class DwaPlanner:
         narrow = slow > 0.0 and max(float(worst[best]), here) >= COST_NARROW
         return PlanResult(float(vs[best]), float(ws[best]), np.column_stack((x[best], y[best])), free,
                           not bool(progress.any()), n_ok, len(vs), narrow)
+
+    def _has_narrow(self, costmap: LocalCostmap) -> bool:
+        """Whether ``costmap`` holds a narrow cell (looked up once per costmap): the narrow speed's extra twists are
+        sampled only then."""
+        if self._narrow_for is not costmap:
+            self._narrow_for = costmap
+            self._narrow_seen = bool((costmap.cost == COST_NARROW).any())
+        return self._narrow_seen
 
     def _goal_distances(self, costmap: LocalCostmap, pose: tuple[float, float, float], carrot_xy: tuple[float, float],
                         target_xy: Optional[tuple[float, float]], x_end: np.ndarray, y_end: np.ndarray
