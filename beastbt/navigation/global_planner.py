@@ -54,7 +54,7 @@ from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.mapping.occupancy_map import OccupancyMap
-from beastbt.navigation.local_costmap import between_obstacles
+from beastbt.navigation.local_costmap import COST_NARROW, between_obstacles
 
 SQRT2 = math.sqrt(2.0)
 _OFFSETS = ((0, 1, 1.0), (1, 0, 1.0), (0, -1, 1.0), (-1, 0, 1.0), (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2),
@@ -63,10 +63,6 @@ _OFFSETS = ((0, 1, 1.0), (1, 0, 1.0), (0, -1, 1.0), (-1, 0, 1.0), (1, 1, SQRT2),
 
 MAX_COST = 252.0
 """The highest cost of a passable cell (Nav2's MAX_NON_OBSTACLE)."""
-
-COST_NARROW = 252
-"""The cost of a narrow cell: within the padding of an obstacle but farther than the footprint radius (passable,
-the costliest; an inflated cell is at most 251)."""
 
 
 @dataclass(frozen=True)
