@@ -241,8 +241,8 @@ class GlobalCostmap:
                       fine: Optional[np.ndarray] = None) -> bool:
         """The map's lethal cells plus those ``marked`` by an obstacle layer (a bool array of the map's shape; its
         ``version``), on ``grid`` when the window moved (same shape, another origin), with the layer's fine marks
-        ``fine`` (a whole number of times the rows and columns) when it keeps them. The costs are recomputed when the lethal
-        cells changed; True when they were."""
+        ``fine`` (a whole number of times the rows and columns) when it keeps them. The costs are recomputed when the
+        lethal cells or the fine marks changed; True when they were."""
         if grid is not None:
             if grid.data.shape != self.grid.data.shape:
                 raise ValueError("GlobalCostmap.set_obstacles: the grid's shape may not change")
