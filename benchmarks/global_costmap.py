@@ -13,9 +13,10 @@ Figures printed (nothing is asserted; medians over ``--reps`` repetitions, CPU t
    unrecorded at --speed max, sim s per CPU s (goal at least 100x), and the fence route
    (missions/fence_crossing.yaml) on the empty field and on the fenced one, where the robot plans about once a
    second while the fence is in the way;
-4. **the narrowest gap** the global costmap plans through, by cell size and footprint padding: the width from which
-   a gap passes wherever it falls on the grid, and the widest that never does (gaps 0.30-0.80 m in 5 cm steps,
-   each at 4 offsets on the grid; the simulator's robot, footprint radius 0.15 m).
+4. **the narrowest gap** the global costmap plans through, by cell size, footprint padding and narrow gaps
+   (global_planner.narrow_gaps) on or off: the width from which a gap passes wherever it falls on the grid, and the
+   widest that never does (gaps 0.30-0.80 m in 2 cm steps, each at 4 offsets on the grid; the simulator's robot,
+   footprint radius 0.15 m). benchmarks/tight_gaps.py drives the robot through them.
 
 Run: python benchmarks/global_costmap.py [--reps 5] [--no-sim]
 """
@@ -190,33 +191,40 @@ def sim_speed(figures: Figures) -> None:
 
 def narrowest_gaps(figures: Figures) -> None:
     print("4. the narrowest gap the global costmap plans through (footprint radius 0.15 m):")
-    gaps = np.round(np.arange(0.30, 0.801, 0.05), 2)
-    for res in (0.05, 0.1, 0.2):
-        for pad in (0.05, 0.0):
-            passes = []
-            for gap in gaps:
-                n = 0
-                for off in np.linspace(0.0, res, 4, endpoint=False):
-                    g = GlobalNavigator(GlobalCostmapConfig(width_m=20.0, resolution_m=res),
-                                        GlobalPlannerConfig(footprint_padding_m=pad), FOOTPRINT_M, MOUNT)
-                    xs = np.arange(-10.0, 10.0, 0.02) + off
-                    xs = xs[np.abs(xs - off) > gap / 2]
-                    g.layer.mark_points(xs, np.full(len(xs), 3.0))
-                    try:
-                        g.plan((0.0, 0.0), (0.0, 6.0), 0.0, "b")
-                        n += 1
-                    except NoPath:
-                        pass
-                passes.append(n)
-            always = next((float(gaps[i]) for i in range(len(gaps)) if all(p == 4 for p in passes[i:])), math.nan)
-            never = max((float(gaps[i]) for i in range(len(gaps)) if passes[i] == 0), default=math.nan)
-            print(f"   cells {res:.2f} m, padding {pad:.2f} m: passes every gap from {always:.2f} m; never "
-                  f"{never:.2f} m or less" if math.isfinite(never) else
-                  f"   cells {res:.2f} m, padding {pad:.2f} m: passes every gap from {always:.2f} m; some at 0.30 m")
-            key = f"gap.cells_{int(round(res * 100)):02d}cm.padding_{int(round(pad * 100)):02d}cm"
-            figures.put(f"{key}.always_m", always)
-            if math.isfinite(never):
-                figures.put(f"{key}.never_m", never)
+    gaps = np.round(np.arange(0.30, 0.801, 0.02), 2)
+    for narrow in (True, False):
+        for res in (0.05, 0.1, 0.2):
+            for pad in (0.05, 0.0):
+                if narrow and pad == 0.0:
+                    continue  # no padding, no narrow band
+                passes = []
+                for gap in gaps:
+                    n = 0
+                    for off in np.linspace(0.0, res, 4, endpoint=False):
+                        g = GlobalNavigator(GlobalCostmapConfig(width_m=20.0, resolution_m=res),
+                                            GlobalPlannerConfig(footprint_padding_m=pad, narrow_gaps=narrow),
+                                            FOOTPRINT_M, MOUNT)
+                        xs = np.arange(-10.0, 10.0, 0.01) + off
+                        xs = xs[np.abs(xs - off) > gap / 2]
+                        g.layer.mark_points(xs, np.full(len(xs), 3.0))
+                        try:
+                            g.plan((0.0, 0.0), (0.0, 6.0), 0.0, "b")
+                            n += 1
+                        except NoPath:
+                            pass
+                    passes.append(n)
+                always = next((float(gaps[i]) for i in range(len(gaps)) if all(p == 4 for p in passes[i:])),
+                              math.nan)
+                never = max((float(gaps[i]) for i in range(len(gaps)) if passes[i] == 0), default=math.nan)
+                what = f"cells {res:.2f} m, padding {pad:.2f} m, narrow gaps {'on' if narrow else 'off'}"
+                print(f"   {what}: passes every gap from {always:.2f} m; never {never:.2f} m or less"
+                      if math.isfinite(never) else f"   {what}: passes every gap from {always:.2f} m; some at 0.30 m")
+                key = f"gap.cells_{int(round(res * 100)):02d}cm.padding_{int(round(pad * 100)):02d}cm"
+                if narrow:
+                    key += ".narrow"
+                figures.put(f"{key}.always_m", always)
+                if math.isfinite(never):
+                    figures.put(f"{key}.never_m", never)
 
 
 def main() -> None:

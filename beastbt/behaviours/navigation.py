@@ -181,6 +181,10 @@ WAY_SWITCH_FRACTION = 0.1
 """A new plan replaces a way still clear only when it is shorter than what is left of it by this fraction (or
 WAY_SWITCH_MIN_M, the larger)."""
 
+NARROW_LOOKAHEAD_M = 0.3
+"""Near a narrow gap on the way (within the approach and a lookahead of its centre), pure pursuit aims this far ahead
+(m): it keeps to the straight crossing instead of cutting in at an angle the collision monitor would stop."""
+
 KEEP_PLANNING_S = 2.0
 """After obstacles were last in the pure-pursuit command's way, the local planner keeps choosing for this long (s)."""
 
@@ -228,6 +232,9 @@ class GoTo(BeastBehaviour):
         self.costmap_fresh = False
         self.last_cmd = (0.0, 0.0)
         self.obstructed_at_s = -math.inf
+        self.narrow_at_m = -math.inf
+        """The odometer (m) when the local planner last chose an arc through a narrow cell: until the robot has gone
+        its footprint radius farther (its tail out of the gap), it drives at local_planner.narrow_speed_mps."""
         self.visit: Optional[Visit] = None
         self.goal: Optional[tuple[float, float]] = None
         self.frame: Optional[LocalFrame] = None
@@ -474,7 +481,7 @@ class GoTo(BeastBehaviour):
         if way is not None and odom is not None:
             # Round what the global costmap holds: pure pursuit along the planned way (odom frame).
             along = way.project((odom.x, odom.y), 2.0 * nav.lookahead_m + 1.0)
-            carrot_odom = way.point_at(along + nav.lookahead_m)
+            carrot_odom = way.point_at(along + self._way_lookahead_m(odom))
             local_goal = way.point_at(along + LOCAL_GOAL_AHEAD_M)
             dx, dy = carrot_odom[0] - odom.x, carrot_odom[1] - odom.y
             ld = math.hypot(dx, dy)
@@ -639,7 +646,7 @@ class GoTo(BeastBehaviour):
                 self.line_start = None  # the straight line again, from where the robot is
             self.way_planned_at_s = now
             return None
-        kept = self.way is not None and not g.blocked(self.way.ahead(), skip_m=g.inscribed_m)
+        kept = self.way is not None and not g.way_blocked(self.way.ahead(), skip_m=g.inscribed_m)
         if kept and not due:
             return None  # the way planned is still clear: kept until the period is up
         from beastbt.navigation.global_navigator import PathFollow
@@ -663,6 +670,17 @@ class GoTo(BeastBehaviour):
         self.way = PathFollow(path.points)
         self.way_best_m = 0.0
         return None
+
+    def _way_lookahead_m(self, odom: FusedPose) -> float:
+        """Pure pursuit's lookahead on a way round (m): :data:`NARROW_LOOKAHEAD_M` near a narrow gap it crosses."""
+        g = self.global_nav
+        la = self.nav.lookahead_m
+        if g is not None:
+            from beastbt.navigation.global_navigator import GAP_APPROACH_M
+            for centre, _ in g.gaps:
+                if math.hypot(centre[0] - odom.x, centre[1] - odom.y) < GAP_APPROACH_M + la:
+                    return min(la, NARROW_LOOKAHEAD_M)
+        return la
 
     def _preference(self, rotate: bool, alpha: float, ld: float, dist: float, tolerance: float
                     ) -> tuple[float, float]:
@@ -725,8 +743,10 @@ class GoTo(BeastBehaviour):
         """The local planner's plan for the preferred command (v m/s, w rad/s), the carrot and the target (odom,
         m), written to ``local_plan``; None without a LiDAR or a fresh scan (drive the preference)."""
         local = self.local
-        if local is None or not self.costmap_fresh:
+        if local is None:
             return None
+        if not self.costmap_fresh:
+            return self._narrow_hold(odom, preferred, None)
         # Half way round something (obstructed a moment ago), the planner keeps choosing: pure pursuit would turn
         # straight back toward the line, into what it is going round.
         result = local.planner.plan(local.costmap.latest, (odom.x, odom.y, odom.yaw), self.last_cmd, preferred,
@@ -734,8 +754,32 @@ class GoTo(BeastBehaviour):
                                     keep_planning=now - self.obstructed_at_s < KEEP_PLANNING_S)
         if not result.free:
             self.obstructed_at_s = now
+        if result.narrow:
+            # Creeping through a narrow gap (the monitor slows it further) is being obstructed, not stuck.
+            self.narrow_at_m = odom.distance_m
+            self.obstructed_at_s = now
+        else:
+            result = self._narrow_hold(odom, (result.linear_mps, result.angular_rps), result) or result
         self.bb.local_plan = LocalPlan(now, result.points_xy, result.linear_mps, result.angular_rps, result.blocked)
         return result
+
+    def _narrow_hold(self, odom: FusedPose, twist: tuple[float, float], plan: Optional[PlanResult]
+                     ) -> Optional[PlanResult]:
+        """The twist (m/s, rad/s; of ``plan``, or the preference between scans) slowed to ``narrow_speed_mps`` on its
+        own curvature while the robot is less than its footprint radius past the last arc through a narrow cell (its
+        tail may still be in the gap); None when it need not be (drive it as it is)."""
+        local = self.local
+        assert local is not None
+        slow = local.planner_config.narrow_speed_mps
+        v, w = twist
+        if odom.distance_m - self.narrow_at_m > local.footprint_radius_m or v <= slow:
+            return None
+        import numpy as np
+
+        from beastbt.navigation.local_planner import PlanResult
+        points = plan.points_xy if plan is not None else np.zeros((0, 2))
+        free = plan.free if plan is not None else False
+        return PlanResult(slow, w * slow / v, points, free, False, 1, 1, True)
 
     def _obstacle_text(self, toward_rad: float) -> str:
         """``obstacle 0.6 m ahead, 15 deg to the left``: the nearest obstacle round the bearing ``toward_rad``

@@ -33,11 +33,16 @@ import numpy as np
 from beastbt.blackboard.types import LaserScan
 from beastbt.devices.lidar_scan import LidarMounting
 from beastbt.mapping.occupancy_map import FREE, OccupancyMap
-from beastbt.navigation.global_planner import GlobalCostmap, GlobalPath, GlobalPlannerConfig, plan_path
+from beastbt.navigation.global_planner import COST_NARROW, GlobalCostmap, GlobalPath, GlobalPlannerConfig, plan_path
 from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
 
 EDGE_MARGIN_M = 1.0
 """A goal beyond the window is planned to at the window's edge less this (m)."""
+
+GAP_APPROACH_M = 0.8
+"""A path through a narrow gap comes in straight along the gap's normal for this long before its centre (m), and
+leaves along it for half as long: the collision monitor's stop zone leaves a few cm to either side, so the robot
+must enter centred and square."""
 
 
 def lidar_pose(mounting: LidarMounting, base: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -71,11 +76,18 @@ class GlobalNavigator:
         self.mounting = mounting
         n = int(round(config.width_m / config.resolution_m))
         half = n * config.resolution_m / 2.0
-        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half)
+        # Half cells too: the narrow gaps the costmap lets through are measured on them (global_planner.narrow_gaps).
+        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half, fine=planner.narrow_gaps)
         self._costmap: Optional[GlobalCostmap] = None
         self._disk = disk_offsets(self.inscribed_m / config.resolution_m)
+        # A planned way may pass within the padding when it goes through a narrow gap: only a mark within the
+        # footprint radius blocks it (else the way through a gap would be "blocked" at every scan).
+        way_reach = footprint_radius_m if planner.narrow_gaps else self.inscribed_m
+        self._way_disk = disk_offsets(way_reach / config.resolution_m)
         self.plans = 0
         """Plans made so far."""
+        self.gaps: list[tuple[np.ndarray, np.ndarray]] = []
+        """The narrow gaps the last plan goes through: (centre (2,) odom m, unit normal (2,) along the path)."""
         self.scans_used = 0
         self.following: Optional[PathFollow] = None
         """The way round the running go_to follows (odom), or None while it drives the straight line or no go_to
@@ -101,6 +113,11 @@ class GlobalNavigator:
         ``skip_m`` along it (the robot's own surroundings may be left out), inside the window."""
         return marks_near(self.layer, points, self._disk, skip_m)
 
+    def way_blocked(self, points: np.ndarray, skip_m: float = 0.0) -> bool:
+        """Whether a planned way ((n, 2) odom, m) is blocked: a mark within the footprint radius of it (within the
+        inscribed radius without ``narrow_gaps``), from ``skip_m`` along it, inside the window."""
+        return marks_near(self.layer, points, self._way_disk, skip_m)
+
     # -- planning ------------------------------------------------------------------------------------------------
     def costmap(self) -> GlobalCostmap:
         """The global costmap of the window as the layer is now (built, or brought up to date, here)."""
@@ -115,7 +132,7 @@ class GlobalNavigator:
             grid = None
             if (cm.grid.origin_x, cm.grid.origin_y) != (layer.origin_x, layer.origin_y):
                 grid = OccupancyMap(cm.grid.data, layer.resolution_m, layer.origin_x, layer.origin_y)
-            cm.set_obstacles(layer.marked, layer.version, grid)
+            cm.set_obstacles(layer.marked, layer.version, grid, layer.fine)
         return cm
 
     def clip_to_window(self, start: tuple[float, float], goal: tuple[float, float]) -> tuple[float, float]:
@@ -147,8 +164,95 @@ class GlobalNavigator:
         clipped = target != goal
         self.plans += 1
         self.goal_name = name if not clipped else f"the way toward {name}"
-        return plan_path(self.costmap(), start, target, tolerance_m if not clipped else max(tolerance_m, 2.0),
+        path = plan_path(self.costmap(), start, target, tolerance_m if not clipped else max(tolerance_m, 2.0),
                          goal_name=self.goal_name)
+        return self._through_gaps(path)
+
+    def _through_gaps(self, path: GlobalPath) -> GlobalPath:
+        """The path with each narrow gap it crosses (a run of narrow cells) crossed square: in along the gap's normal
+        from :data:`GAP_APPROACH_M` before its centre, out along it (the centre from the fine marks: midway between
+        the nearest obstacles on either side). Sets :attr:`gaps`."""
+        self.gaps = []
+        cm = self._costmap
+        layer = self.layer
+        if cm is None or layer.fine is None:
+            return path
+        pts = sample_polyline(path.points, layer.resolution_m / 2.0)
+        row, col, inside = layer.cells(pts[:, 0], pts[:, 1])
+        narrow = np.zeros(len(pts), bool)
+        narrow[inside] = cm.cost[row[inside], col[inside]] == COST_NARROW
+        if not narrow.any():
+            return path
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], narrow.astype(np.int8), [0]))))
+        points = path.points
+        for first, end in zip(edges[0::2], edges[1::2]):
+            gap = self._gap_at(pts[(first + end - 1) // 2], pts[min(end, len(pts) - 1)] - pts[first])
+            if gap is None:
+                continue
+            centre, normal = gap
+            self.gaps.append(gap)
+            points = _cross_square(points, centre, normal)
+        if not self.gaps:
+            return path
+        length = float(np.hypot(*np.diff(points, axis=0).T).sum())
+        return GlobalPath(points, length, path.expanded)
+
+    def _gap_at(self, p: np.ndarray, along: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The gap round ``p`` (odom, m) that a path heading ``along`` crosses: its centre and unit normal (along the
+        path), from the nearest fine mark and the nearest one on the other side of ``p``; None when there is none."""
+        layer = self.layer
+        assert layer.fine is not None
+        f = layer.fine.shape[0] // layer.shape[0]
+        step = layer.resolution_m / f
+        k = int(math.ceil(2.0 * self.inscribed_m / step))
+        cr = int(math.floor((p[1] - layer.origin_y) / step))
+        cc = int(math.floor((p[0] - layer.origin_x) / step))
+        r0, c0 = max(0, cr - k), max(0, cc - k)
+        rr, ccs = np.nonzero(layer.fine[r0:cr + k + 1, c0:cc + k + 1])
+        if rr.size < 2:
+            return None
+        xy = np.column_stack((layer.origin_x + (ccs + c0 + 0.5) * step, layer.origin_y + (rr + r0 + 0.5) * step)) - p
+        d = np.hypot(xy[:, 0], xy[:, 1])
+        a = xy[int(np.argmin(d))]
+        other = xy @ a < 0.0
+        if not other.any():
+            return None
+        b = xy[other][int(np.argmin(d[other]))]
+        # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
+        # one wall, or past a corner, has none on the other side and is left as it is.
+        reach = self.inscribed_m + 2.0 * step
+        na, nb = float(np.hypot(*a)), float(np.hypot(*b))
+        if max(na, nb) > reach or a @ b > -0.9 * na * nb:
+            return None  # not a gap: nothing within reach on the far side, or not across the path (a corner)
+        centre = p + (a + b) / 2.0
+        u = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
+        normal = np.array([-u[1], u[0]])
+        if normal @ along < 0.0:
+            normal = -normal
+        if normal @ along < 0.7 * float(np.hypot(*along)):
+            return None  # the path runs along it, not through it
+        return centre, normal
+
+
+def _cross_square(points: np.ndarray, centre: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """The polyline ``points`` ((n, 2) m) with its points within :data:`GAP_APPROACH_M` of ``centre`` replaced by a
+    straight crossing along ``normal``: in from GAP_APPROACH_M before, through the centre, out half as far beyond."""
+    near = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= GAP_APPROACH_M
+    idx = np.flatnonzero(near)
+    crossing = np.array([centre - GAP_APPROACH_M * normal, centre, centre + 0.5 * GAP_APPROACH_M * normal])
+    if idx.size == 0:
+        # The gap lies between two points of the path: the crossing goes in between them.
+        proj = (points - centre) @ normal
+        i = int(np.searchsorted(np.maximum.accumulate(proj), 0.0))
+        return np.vstack((points[:i], crossing, points[i:]))
+    t = (crossing - centre) @ normal
+    if idx[0] == 0:  # the robot is already on the way in (or through): the crossing from where it is
+        crossing = np.vstack((points[:1], crossing[t > float((points[0] - centre) @ normal)]))
+        t = np.concatenate(([-np.inf], t[t > float((points[0] - centre) @ normal)]))
+    if idx[-1] == len(points) - 1:  # the goal is near the gap: the crossing up to it
+        crossing = np.vstack((crossing[t < float((points[-1] - centre) @ normal)], points[-1:]))
+        return np.vstack((points[:idx[0]] if idx[0] > 0 else points[:0], crossing))
+    return np.vstack((points[:idx[0]], crossing, points[idx[-1] + 1:]))
 
 
 def marks_near(layer: ObstacleLayer, points: Any, disk: tuple[np.ndarray, np.ndarray], skip_m: float = 0.0) -> bool:

@@ -8,6 +8,15 @@ into Nav2's costs, once per map (and again when new lethal cells are marked):
 * **inscribed** (:data:`COST_INSCRIBED`): cells whose centre lies within the
   footprint radius plus ``footprint_padding_m`` of a lethal cell: the robot's
   centre there would touch the wall, so they are as impassable as lethal ones;
+* **narrow** (:data:`COST_NARROW`, with ``narrow_gaps``): of those, the cells
+  farther than the footprint radius plus half a cell (where in its cell the
+  obstacle lies) from every obstacle: only the padding would touch. They are
+  passable at the highest cost, so that a gap at least the robot's width plus a
+  little is taken when it is the way, and not when a way round costs little
+  more. With a finer grid of the obstacles beside the cells (``fine``, kept by
+  the obstacle layer) the clearance is measured on it (along the cell's best
+  fine column or row, less half a fine cell): a 0.1 m cell alone cannot tell a
+  0.32 m gap from a 0.40 m one;
 * **inflated**: beyond, up to ``inflation_radius_m``, ``252 * exp(-cost_scaling_factor * (d - inscribed))``
   as in Nav2's ``inflation_layer`` (the distance ``d`` from ``cv2.distanceTransform``, exact Euclidean).
 
@@ -46,6 +55,7 @@ from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
 from beastbt.mapping.occupancy_map import OccupancyMap
+from beastbt.navigation.local_costmap import COST_NARROW, between_obstacles
 
 SQRT2 = math.sqrt(2.0)
 _OFFSETS = ((0, 1, 1.0), (1, 0, 1.0), (0, -1, 1.0), (-1, 0, 1.0), (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2),
@@ -86,6 +96,9 @@ class GlobalPlannerConfig:
     start_search_m: float
     """A start in the inscribed zone (the robot close to a wall) plans from the nearest passable cell within this
     distance (m)."""
+    narrow_gaps: bool
+    """Cells within the padding but farther than the footprint radius from an obstacle are passable at the highest
+    cost (true), or impassable like the rest of the inscribed zone (false)."""
 
     def __post_init__(self) -> None:
         for name in ("inflation_radius_m", "cost_scaling_factor", "blocked_replan_s", "default_tolerance_m",
@@ -131,7 +144,10 @@ class GlobalCostmap:
     def __init__(self, grid: OccupancyMap, config: GlobalPlannerConfig, footprint_radius_m: float) -> None:
         self.grid = grid
         self.config = config
+        self.footprint_radius_m = footprint_radius_m
         self.inscribed_m = footprint_radius_m + config.footprint_padding_m
+        self.fine: Optional[np.ndarray] = None
+        """Obstacles on a finer grid (f rows, f cols a cell; an obstacle layer's ``fine``), or None."""
         lethal = grid.occupied()
         if not config.allow_unknown:
             lethal = lethal | grid.unknown()
@@ -154,6 +170,32 @@ class GlobalCostmap:
         cost = np.where(d <= cfg.inflation_radius_m, np.minimum(inflated, MAX_COST), 0.0)
         cost = np.where(d <= self.inscribed_m, COST_INSCRIBED, cost)
         cost[self.lethal] = COST_LETHAL
+        self.narrow_ready = not cfg.narrow_gaps
+        """Whether the narrow cells are in :attr:`cost` (or need not be): with a fine grid they are measured only
+        when a plan asks (:meth:`add_narrow`)."""
+        if cfg.narrow_gaps and self.fine is None:
+            self._set_cost(self._with_narrow(cost))
+            self.narrow_ready = True
+        else:
+            self._set_cost(cost)
+
+    def add_narrow(self) -> bool:
+        """Bring the narrow cells into the costs (measured on the fine grid); False when they already were."""
+        if self.narrow_ready:
+            return False
+        self._set_cost(self._with_narrow(self.cost))
+        self.narrow_ready = True
+        return True
+
+    def _with_narrow(self, cost: np.ndarray) -> np.ndarray:
+        """``cost`` with the inscribed cells clear of the footprint by half a cell of the grid the clearance was
+        measured on (where in its cell the obstacle lies) made narrow."""
+        inscribed = cost == COST_INSCRIBED
+        clearance, cell_m = self._clearance_m(inscribed)
+        narrow = inscribed & (clearance > self.footprint_radius_m + cell_m / 2.0 + 1e-9)
+        return np.where(narrow, COST_NARROW, cost)
+
+    def _set_cost(self, cost: np.ndarray) -> None:
         self.cost = cost.astype(np.uint8)
         self.passable = self.cost < COST_INSCRIBED
         # Which passable cells can reach which, as the search moves: 4-connected components. The search steps
@@ -164,17 +206,57 @@ class GlobalCostmap:
         if self._graph is not None:
             self._graph.set_costs(self.cost, self.config.cost_weight)
 
-    def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None) -> bool:
+    def _clearance_m(self, candidates: np.ndarray) -> tuple[np.ndarray, float]:
+        """The clearance (m) of the ``candidates`` cells (bool, the map's shape) as well as the grids tell, and the
+        cell (m) it was measured on; 0 elsewhere with ``fine``.
+
+        Without ``fine``, the distance from each cell's centre (:attr:`distance_m`). With it, on the fine grid (the
+        map's lethal cells, whole, among its obstacles), for the candidates between obstacles only (a gap: lethal
+        cells within reach on two opposite sides; a band along one wall is never needed to get through): the robot
+        crosses a cell along one of its fine columns or rows, so a cell's clearance is the best over its fine
+        columns of the least over the column's fine cells, or the same over its rows (a fine cell beside the wall's
+        line must not lend its clearance to the cell on it). The distance transform runs on a box round each group
+        of such cells (with a margin beyond the inscribed radius, so the distances that matter are exact)."""
+        res = self.grid.resolution_m
+        if self.fine is None:
+            return self.distance_m, res
+        rows, cols = self.lethal.shape
+        f = self.fine.shape[0] // rows
+        clearance = np.zeros((rows, cols), np.float32)
+        reach = int(math.ceil(2.0 * self.inscribed_m / res)) + 1  # the far side of a gap the padding would close
+        wanted = (candidates & between_obstacles(self.lethal, reach)).astype(np.uint8)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(wanted, connectivity=8)
+        m = reach + 1
+        for c0, r0, w, h, _ in stats[1:]:
+            r0, r1 = max(0, int(r0) - m), min(rows, int(r0 + h) + m)
+            c0, c1 = max(0, int(c0) - m), min(cols, int(c0 + w) + m)
+            static = np.repeat(np.repeat(self.static_lethal[r0:r1, c0:c1], f, axis=0), f, axis=1)
+            obstacles = self.fine[f * r0:f * r1, f * c0:f * c1] | static
+            src = np.where(obstacles, 0, 255).astype(np.uint8)
+            d = cv2.distanceTransform(src, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            R, C = r1 - r0, c1 - c0
+            along_columns = d.reshape(R, f, C * f).min(axis=1).reshape(R, C, f).max(axis=2)
+            along_rows = d.reshape(R * f, C, f).min(axis=2).reshape(R, f, C).max(axis=1)
+            box = clearance[r0:r1, c0:c1]
+            np.maximum(box, np.maximum(along_columns, along_rows) * np.float32(res / f), out=box)
+        return clearance, res / f
+
+    def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None,
+                      fine: Optional[np.ndarray] = None) -> bool:
         """The map's lethal cells plus those ``marked`` by an obstacle layer (a bool array of the map's shape; its
-        ``version``), on ``grid`` when the window moved (same shape, another origin). The costs are recomputed when
-        the lethal cells changed; True when they were."""
+        ``version``), on ``grid`` when the window moved (same shape, another origin), with the layer's fine marks
+        ``fine`` (a whole number of times the rows and columns) when it keeps them. The costs are recomputed when the
+        lethal cells or the fine marks changed; True when they were."""
         if grid is not None:
             if grid.data.shape != self.grid.data.shape:
                 raise ValueError("GlobalCostmap.set_obstacles: the grid's shape may not change")
             self.grid = grid
         self.layer_version = version
         lethal = self.static_lethal | marked
-        if np.array_equal(lethal, self.lethal):
+        fine_changed = fine is not None and (self.fine is None or not np.array_equal(fine, self.fine))
+        if fine is not None:
+            self.fine = fine.copy() if fine_changed else self.fine
+        if np.array_equal(lethal, self.lethal) and not fine_changed:
             return False
         self.lethal = lethal
         self._update()
@@ -192,6 +274,13 @@ class GlobalCostmap:
         lethal = self.lethal.copy()
         lethal[row[new], col[new]] = True
         self.lethal = lethal
+        if self.fine is not None:  # the whole cells, on the fine grid too
+            fine = self.fine.copy()
+            f = fine.shape[0] // self.lethal.shape[0]
+            for dr in range(f):
+                for dc in range(f):
+                    fine[f * row[new] + dr, f * col[new] + dc] = True
+            self.fine = fine
         self._update()
         return int(np.count_nonzero(new))
 
@@ -386,18 +475,22 @@ def check_goal(costmap: GlobalCostmap, x: float, y: float, tolerance_m: float = 
         raise NoPath(f"{name} {where} lies in an unknown cell of the map (global_planner.allow_unknown is false)")
     if costmap.lethal[row, col]:
         raise NoPath(f"{name} {where} is blocked (an obstacle seen since the map was made)")
+    reach = costmap.footprint_radius_m if costmap.config.narrow_gaps else costmap.inscribed_m
+    what = "footprint radius" if costmap.config.narrow_gaps else "footprint radius plus padding"
     raise NoPath(f"{name} {where} is {costmap.distance_m[row, col]:.2f} m from a wall, closer than the robot's "
-                 f"{costmap.inscribed_m:.2f} m (footprint radius plus padding)")
+                 f"{reach:.2f} m ({what})")
 
 
-def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
-              tolerance_m: float = 0.0, goal_name: str = "the goal", smooth: bool = True) -> GlobalPath:
-    """The cheapest path from ``start_xy`` to ``goal_xy`` (map frame, m) on ``costmap``, shortened when ``smooth``.
+NARROW_DETOUR = 1.5
+NARROW_DETOUR_M = 2.0
+"""With a fine grid, narrow gaps are measured when the way without them is longer than NARROW_DETOUR times the
+straight line plus NARROW_DETOUR_M (m), or missing."""
 
-    The goal may move to the nearest passable cell within ``tolerance_m``; a
-    start too near a wall plans from the nearest passable cell within
-    ``start_search_m``. Raises :class:`NoPath` with the reason when there is no path.
-    """
+
+def _ends(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float], tolerance_m: float,
+          goal_name: str) -> tuple[int, int, int, int]:
+    """The start's and the goal's cells (srow, scol, grow, gcol) to search between; :class:`NoPath` naming why there
+    are none."""
     grid = costmap.grid
     gr, gc = check_goal(costmap, goal_xy[0], goal_xy[1], tolerance_m, goal_name)
     scol, srow = grid.to_cells(start_xy[0], start_xy[1])
@@ -410,11 +503,56 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
             raise NoPath(f"the robot {_describe(*start_xy)} is inside a wall or obstacle on the map, with no free "
                          f"cell within {costmap.config.start_search_m:g} m: is it localised?")
         srow, scol = near
+    return srow, scol, gr, gc
+
+
+def _search(costmap: GlobalCostmap, srow: int, scol: int, gr: int, gc: int, goal_xy: tuple[float, float],
+            goal_name: str) -> tuple[list[int], int]:
+    """A* between the cells: the nodes and the number settled; :class:`NoPath` when the goal is enclosed."""
+    enclosed = (f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, or no gap on "
+                f"the way is wide enough for the robot (wider than {narrowest_gap_m(costmap):.2f} m)")
     if costmap.labels[srow, scol] != costmap.labels[gr, gc]:
-        raise NoPath(f"{goal_name} {_describe(*goal_xy)} cannot be reached from here: walls enclose it, "
-                     f"or no gap on the way is wide enough for the robot ({2 * costmap.inscribed_m:.2f} m)")
+        raise NoPath(enclosed)
     graph = costmap.graph()
-    nodes, expanded = graph.search(graph.node(srow, scol), graph.node(gr, gc), heuristic(costmap, (gr, gc)))
+    try:
+        nodes, expanded = graph.search(graph.node(srow, scol), graph.node(gr, gc), heuristic(costmap, (gr, gc)))
+    except NoPath:
+        # Connected only by a diagonal between two impassable cells (the search does not cut corners): enclosed too.
+        raise NoPath(enclosed) from None
+    return nodes, expanded
+
+
+def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
+              tolerance_m: float = 0.0, goal_name: str = "the goal", smooth: bool = True) -> GlobalPath:
+    """The cheapest path from ``start_xy`` to ``goal_xy`` (map frame, m) on ``costmap``, shortened when ``smooth``.
+
+    The goal may move to the nearest passable cell within ``tolerance_m``; a
+    start too near a wall plans from the nearest passable cell within
+    ``start_search_m``. Raises :class:`NoPath` with the reason when there is no path.
+
+    With narrow gaps measured on a fine grid (GPS), they are measured only when the way without them is missing
+    or more than :data:`NARROW_DETOUR` times the straight line (plus :data:`NARROW_DETOUR_M`): a tight gap is worth
+    its cost where it saves a detour, and measuring it costs more than a plan.
+    """
+    if not costmap.narrow_ready:
+        try:
+            path = _plan_path(costmap, start_xy, goal_xy, tolerance_m, goal_name, smooth)
+            straight = math.hypot(goal_xy[0] - start_xy[0], goal_xy[1] - start_xy[1])
+            if path.length_m <= NARROW_DETOUR * straight + NARROW_DETOUR_M:
+                return path
+        except NoPath:
+            pass
+        costmap.add_narrow()
+    return _plan_path(costmap, start_xy, goal_xy, tolerance_m, goal_name, smooth)
+
+
+def _plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
+               tolerance_m: float, goal_name: str, smooth: bool) -> GlobalPath:
+    """:func:`plan_path` on the costs as they are."""
+    grid = costmap.grid
+    srow, scol, gr, gc = _ends(costmap, start_xy, goal_xy, tolerance_m, goal_name)
+    nodes, expanded = _search(costmap, srow, scol, gr, gc, goal_xy, goal_name)
+    graph = costmap.graph()
     cells = np.array([graph.cell(n) for n in nodes])
     if smooth:
         cells = shorten(costmap, cells)
@@ -427,6 +565,14 @@ def plan_path(costmap: GlobalCostmap, start_xy: tuple[float, float], goal_xy: tu
         points[-1] = goal_xy
     length = float(np.hypot(*np.diff(points, axis=0).T).sum()) if len(points) > 1 else 0.0
     return GlobalPath(points, length, expanded)
+
+
+def narrowest_gap_m(costmap: GlobalCostmap) -> float:
+    """The width (m) a gap must exceed for the costmap to let a path through, as the robot needs it: the footprint's
+    width with ``narrow_gaps`` (the padding may be entered; the grid asks a little more), else the footprint's width
+    plus twice the padding."""
+    reach = costmap.footprint_radius_m if costmap.config.narrow_gaps else costmap.inscribed_m
+    return 2.0 * reach
 
 
 def _multiplier(costmap: GlobalCostmap, cost: np.ndarray) -> np.ndarray:
@@ -497,4 +643,4 @@ def path_length_m(points: Sequence[Sequence[float]]) -> float:
 
 
 __all__ = ["GlobalPlannerConfig", "GlobalCostmap", "GlobalPath", "NoPath", "plan_path", "check_goal", "shorten",
-           "path_length_m"]
+           "path_length_m", "narrowest_gap_m", "COST_NARROW"]

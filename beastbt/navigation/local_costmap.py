@@ -16,7 +16,12 @@ square grid of ``width_m`` centred on the robot:
   ``footprint_padding_m``) are :data:`COST_INSCRIBED` (253), those up to
   ``inflation_radius_m`` get ``252 * exp(-cost_scaling_factor * (d -
   inscribed))`` as in Nav2's ``inflation_layer``, and the rest
-  :data:`COST_FREE` (0).
+  :data:`COST_FREE` (0). With ``narrow`` (a profile whose
+  ``local_planner.narrow_speed_mps`` is above 0), the cells of the padding
+  band farther than the footprint radius itself are :data:`COST_NARROW` (252,
+  passable, the costliest) instead in and round a gap (obstacles within reach
+  on two opposite sides; not in a band along one wall): the local planner
+  drives them slowly (docs/navigation.md, Tight gaps).
 
 Decay for moving things is the rebuild itself: a point lives for
 ``observation_persistence_s`` (Nav2's ``observation_persistence``), so a
@@ -39,6 +44,10 @@ import numpy as np
 from beastbt.blackboard.types import COST_FREE, COST_INSCRIBED, COST_LETHAL, LocalCostmap
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
+
+COST_NARROW = COST_INSCRIBED - 1
+"""A cell within the padding but farther than the footprint radius from an obstacle, with ``narrow``: passable, the
+costliest (an inflated cell is at most 251); the global planner's narrow cost too."""
 
 LUT_STEPS_PER_CELL = 8
 """The inflation cost is looked up at this many distances per cell (a distance is rounded down to 1/8 cell), fewer
@@ -90,12 +99,13 @@ def lut_steps(config: LocalCostmapConfig, inscribed_m: float) -> int:
     return max(1, min(LUT_STEPS_PER_CELL, int(254 // (reach_cells + 1))))
 
 
-def inflation_lut(config: LocalCostmapConfig, inscribed_m: float) -> np.ndarray:
+def inflation_lut(config: LocalCostmapConfig, inscribed_m: float, narrow_from_m: Optional[float] = None
+                  ) -> np.ndarray:
     """Cost (uint8, 256 entries) by distance to the nearest lethal cell, indexed by the distance in
     1 / :func:`lut_steps` cells (255: that far or farther).
 
-    254 at 0, 253 up to ``inscribed_m``, Nav2's exponential decay up to
-    ``inflation_radius_m``, 0 beyond.
+    254 at 0, 253 up to ``inscribed_m`` (:data:`COST_NARROW` beyond ``narrow_from_m``, the footprint radius, when
+    given), Nav2's exponential decay up to ``inflation_radius_m``, 0 beyond.
     """
     res = config.resolution_m
     steps = lut_steps(config, inscribed_m)
@@ -103,6 +113,8 @@ def inflation_lut(config: LocalCostmapConfig, inscribed_m: float) -> np.ndarray:
     cost = np.where(d <= config.inflation_radius_m,
                     (COST_INSCRIBED - 1) * np.exp(-config.cost_scaling_factor * (d - inscribed_m)), COST_FREE)
     cost = np.where(d <= inscribed_m, COST_INSCRIBED, np.floor(cost))
+    if narrow_from_m is not None:
+        cost = np.where((d <= inscribed_m) & (d > narrow_from_m + 1e-9), COST_NARROW, cost)
     cost[0] = COST_LETHAL
     cost[-1] = COST_FREE
     if config.inflation_radius_m >= d[-1] and inscribed_m < d[-1]:
@@ -129,11 +141,14 @@ class RollingCostmap:
     are the points it holds now.
     """
 
-    def __init__(self, config: LocalCostmapConfig, footprint_radius_m: float) -> None:
+    def __init__(self, config: LocalCostmapConfig, footprint_radius_m: float, narrow: bool = False) -> None:
         self.config = config
         self.inscribed_m = footprint_radius_m + config.footprint_padding_m
         self.cells = int(round(config.width_m / config.resolution_m))
-        self._lut = inflation_lut(config, self.inscribed_m)
+        # Narrow: clear of the footprint (the global costmap has judged the gap on its fine grid).
+        narrow_from = footprint_radius_m if narrow else None
+        self._lut = inflation_lut(config, self.inscribed_m, narrow_from)
+        self._narrow_reach = int(math.ceil(2.0 * self.inscribed_m / config.resolution_m)) + 1 if narrow else 0
         self._lut_scale = float(lut_steps(config, self.inscribed_m))
         self._reach_cells = int(math.ceil(max(config.inflation_radius_m, self.inscribed_m) / config.resolution_m)) + 1
         self._scans: deque[tuple[float, np.ndarray]] = deque()
@@ -193,8 +208,36 @@ class RollingCostmap:
                 dist = cv2.distanceTransform(grid, cv2.DIST_L2, cv2.DIST_MASK_5)
                 idx = cv2.convertScaleAbs(dist, alpha=self._lut_scale, beta=-0.5)
                 cost[y0:y1, x0:x1] = cv2.LUT(idx, self._lut)
+                if self._narrow_reach:
+                    # Narrow only in and round a gap (obstacles on two opposite sides, its mouth within reach of
+                    # them): along one wall the padding stays impassable, as without narrow cells, so a robot is
+                    # not slowed beside every wall.
+                    box = cost[y0:y1, x0:x1]
+                    k = self._narrow_reach
+                    gap = between_obstacles(box == COST_LETHAL, k).astype(np.uint8)
+                    near_gap = cv2.dilate(gap, np.ones((2 * k + 1, 2 * k + 1), np.uint8)).astype(bool)
+                    box[(box == COST_NARROW) & ~near_gap] = COST_INSCRIBED
         self.latest = LocalCostmap(stamp_s, ox, oy, res, cost)
         return self.latest
+
+
+def between_obstacles(lethal: np.ndarray, reach: int) -> np.ndarray:
+    """Cells with a lethal cell within ``reach`` cells on two opposite sides (left and right, above and below, or
+    across either diagonal): the cells of a gap, not of a band along one wall."""
+    rows, cols = lethal.shape
+    pad = np.zeros((rows + 2 * reach, cols + 2 * reach), bool)
+    pad[reach:-reach, reach:-reach] = lethal
+
+    def seen(dr: int, dc: int) -> np.ndarray:
+        out = np.zeros((rows, cols), bool)
+        for j in range(1, reach + 1):
+            out |= pad[reach + j * dr:reach + j * dr + rows, reach + j * dc:reach + j * dc + cols]
+        return out
+
+    out = np.zeros((rows, cols), bool)
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        out |= seen(dr, dc) & seen(-dr, -dc)
+    return out
 
 
 def cost_at(costmap: LocalCostmap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -209,4 +252,5 @@ def cost_at(costmap: LocalCostmap, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["LocalCostmapConfig", "RollingCostmap", "inflation_lut", "odom_points", "cost_at", "LUT_STEPS_PER_CELL"]
+__all__ = ["LocalCostmapConfig", "RollingCostmap", "inflation_lut", "odom_points", "cost_at", "LUT_STEPS_PER_CELL",
+           "COST_NARROW", "between_obstacles"]

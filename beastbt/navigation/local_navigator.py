@@ -44,7 +44,7 @@ class LocalNavigator:
         self.planner_config = planner
         self.footprint_radius_m = footprint_radius_m
         self.mounting = mounting
-        self.costmap = RollingCostmap(costmap, footprint_radius_m)
+        self.costmap = RollingCostmap(costmap, footprint_radius_m, narrow=planner.narrow_speed_mps > 0.0)
         self.people = PersonTracker(planner.person_min_speed_mps, planner.person_max_range_m)
         """The walking persons the scans show (fed by :meth:`observe`)."""
         self.planner = PassingPlanner(planner, limits, self.people, footprint_radius_m)

@@ -16,6 +16,10 @@ costmap, a preferred command (go_to's regulated pure pursuit) and a carrot
    footprint would touch), unless the robot is already that close and the
    arc turns in place or never gets costlier and ends cheaper (out, not
    deeper);
+   An arc that enters a narrow cell (:data:`COST_NARROW`: in the padding, not
+   the footprint; a profile with ``narrow_speed_mps`` above 0) is admissible
+   only at ``narrow_speed_mps`` or slower, and that speed is sampled at
+   every turn rate: a gap the robot fits is driven through slowly;
 4. scores the others, lowest best: ``path_align_scale`` x the squared
    distance to the preference (per top speed and top turn rate) +
    ``goal_dist_scale`` x the change in distance to the goal (per top-speed
@@ -53,7 +57,7 @@ import numpy as np
 from beastbt.blackboard.types import COST_INSCRIBED, LocalCostmap
 from beastbt.core.config import dataclass_from_dict
 from beastbt.core.schema_defaults import schema_defaults
-from beastbt.navigation.local_costmap import cost_at
+from beastbt.navigation.local_costmap import COST_NARROW, cost_at
 
 
 def graph_search() -> tuple[Any, Any]:
@@ -118,6 +122,9 @@ class LocalPlannerConfig:
     """What moves slower than this is not a walking person (m/s)."""
     person_max_range_m: float
     """People are tracked up to this far (m)."""
+    narrow_speed_mps: float
+    """Top speed on an arc through a narrow cell (within the padding, not the footprint) (m/s); 0: narrow cells are
+    as impassable as the rest of the inscribed band."""
 
     def __post_init__(self) -> None:
         for name in ("sim_time_s", "time_step_s", "window_s", "scan_timeout_s", "navigation_function_resolution_m",
@@ -129,7 +136,8 @@ class LocalPlannerConfig:
                 raise ValueError(f"local_planner: '{name}' must be > 0, got {getattr(self, name)}")
         if self.pass_side not in ("right", "left"):
             raise ValueError(f"local_planner: 'pass_side' must be 'right' or 'left', got {self.pass_side!r}")
-        for name in ("path_align_scale", "goal_dist_scale", "obstacle_scale", "pass_clearance_m"):
+        for name in ("path_align_scale", "goal_dist_scale", "obstacle_scale", "pass_clearance_m",
+                     "narrow_speed_mps"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"local_planner: '{name}' must be >= 0, got {getattr(self, name)}")
         for name in ("vx_samples", "vtheta_samples"):
@@ -160,7 +168,8 @@ class PlanResult:
     """What :meth:`DwaPlanner.plan` chose: the twist (m/s, rad/s), its arc in odom ((k+1, 2), m, from the robot),
     whether the preference's own arc met no cost (``free``; then the twist is the preference unless asked to keep
     planning), whether no admissible arc gets closer to the carrot
-    (``blocked``), and how many arcs were admissible of how many sampled."""
+    (``blocked``), how many arcs were admissible of how many sampled, and whether the arc chosen enters a narrow
+    cell or starts in one (``narrow``: the twist is at most ``narrow_speed_mps``)."""
 
     linear_mps: float
     angular_rps: float
@@ -169,6 +178,7 @@ class PlanResult:
     blocked: bool
     admissible: int
     sampled: int
+    narrow: bool = False
 
 
 def arcs(pose: tuple[float, float, float], v: np.ndarray, w: np.ndarray, times: np.ndarray
@@ -207,12 +217,18 @@ class NavigationFunction:
             self._edges[n] = (np.concatenate(a), np.concatenate(b), np.concatenate(length))
         return self._edges[n]
 
-    def compute(self, costmap: LocalCostmap, factor: int, goal_xy: tuple[float, float]
+    def compute(self, costmap: LocalCostmap, factor: int, goal_xy: tuple[float, float], narrow: bool = False
                 ) -> tuple[np.ndarray, float]:
-        """The navigation function (n, n) over the coarse grid (same origin as ``costmap``) and its cell (m)."""
+        """The navigation function (n, n) over the coarse grid (same origin as ``costmap``) and its cell (m).
+        With ``narrow``, a block of inscribed and passable cells (no lethal one) is passable at the narrow cost: a
+        gap a cell or two wide (a narrow gap) need not fall on the coarse grid's blocks to be a way."""
         cost = costmap.cost
         n = cost.shape[0] // factor
-        coarse = cost[:n * factor, :n * factor].reshape(n, factor, n, factor).max(axis=(1, 3)).ravel()
+        blocks = cost[:n * factor, :n * factor].reshape(n, factor, n, factor)
+        coarse = blocks.max(axis=(1, 3)).ravel()
+        if narrow and factor > 1:
+            some_way = (blocks < COST_INSCRIBED).any(axis=(1, 3)).ravel() & (coarse == COST_INSCRIBED)
+            coarse = np.where(some_way, np.uint8(COST_NARROW), coarse)
         res = costmap.resolution_m * factor
         ok = coarse < COST_INSCRIBED
         gx = int(min(max((goal_xy[0] - costmap.origin_x_m) // res, 0), n - 1))
@@ -257,6 +273,8 @@ class DwaPlanner:
         self.nf_computed = 0
         """Navigation functions computed so far (only while something is in the way)."""
         self._nf_for: Optional[LocalCostmap] = None
+        self._narrow_for: Optional[LocalCostmap] = None
+        self._narrow_seen = False
         self._nf: tuple[np.ndarray, float] = (np.zeros((0, 0)), 1.0)
 
     def window(self, last: tuple[float, float], max_speed_mps: float, max_turn_rps: float
@@ -302,6 +320,13 @@ class DwaPlanner:
         w_in = min(max(wp, float(ws.min())), float(ws.max()))
         vs = np.concatenate(([v_in, 0.0], vs))
         ws = np.concatenate(([w_in, 0.0], ws))
+        slow = cfg.narrow_speed_mps
+        if 0.0 < slow < float(vs.max()) and self._has_narrow(costmap):
+            # The narrow speed (within the window) at every turn rate: the twists a narrow gap admits.
+            v_slow = min(max(slow, float(vs[2:].min())), slow)
+            turns = np.unique(ws[2:])
+            vs = np.concatenate((vs, np.full(len(turns), v_slow)))
+            ws = np.concatenate((ws, turns))
         x, y = arcs(pose, vs, ws, self.times)
         cost = cost_at(costmap, x, y).astype(np.float32)
         here = float(cost[0, 0])
@@ -309,6 +334,9 @@ class DwaPlanner:
         # A robot already too close (in the inscribed band) may turn in place (its footprint is a circle) or take
         # an arc that never gets costlier and ends cheaper: out, not deeper.
         admissible = (worst < COST_INSCRIBED) | ((worst <= here) & ((vs == 0.0) | (cost[:, -1] < here)))
+        if slow > 0.0:
+            # Through a narrow gap (or out of one) at the narrow speed at most.
+            admissible &= (np.maximum(worst, here) < COST_NARROW) | (vs <= slow + 1e-9)
         d0, d_end = self._goal_distances(costmap, pose, carrot_xy, target_xy, x[:, -1], y[:, -1])
         admissible &= np.isfinite(d_end)
         reach = max(max_speed_mps * cfg.sim_time_s, 1e-3)
@@ -323,8 +351,17 @@ class DwaPlanner:
         if not np.isfinite(score[best]):
             # Nothing admissible (hemmed in): stand still.
             return PlanResult(0.0, 0.0, np.array([[pose[0], pose[1]]]), free, True, 0, len(vs))
+        narrow = slow > 0.0 and max(float(worst[best]), here) >= COST_NARROW
         return PlanResult(float(vs[best]), float(ws[best]), np.column_stack((x[best], y[best])), free,
-                          not bool(progress.any()), n_ok, len(vs))
+                          not bool(progress.any()), n_ok, len(vs), narrow)
+
+    def _has_narrow(self, costmap: LocalCostmap) -> bool:
+        """Whether ``costmap`` holds a narrow cell (looked up once per costmap): the narrow speed's extra twists are
+        sampled only then."""
+        if self._narrow_for is not costmap:
+            self._narrow_for = costmap
+            self._narrow_seen = bool((costmap.cost == COST_NARROW).any())
+        return self._narrow_seen
 
     def _goal_distances(self, costmap: LocalCostmap, pose: tuple[float, float, float], carrot_xy: tuple[float, float],
                         target_xy: Optional[tuple[float, float]], x_end: np.ndarray, y_end: np.ndarray
@@ -345,7 +382,7 @@ class DwaPlanner:
         if self._nf_for is not costmap:
             # Once per costmap (per scan), not per tick: the goal moves little in a scan's time.
             factor = max(1, int(round(cfg.navigation_function_resolution_m / costmap.resolution_m)))
-            self._nf = self.nf.compute(costmap, factor, (gx, gy))
+            self._nf = self.nf.compute(costmap, factor, (gx, gy), cfg.narrow_speed_mps > 0.0)
             self._nf_for = costmap
             self.nf_computed += 1
         nf, res = self._nf

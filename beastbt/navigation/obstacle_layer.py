@@ -31,7 +31,11 @@ window, as Nav2's ``rolling_window: true``): cells that leave the window are
 forgotten, cells that enter it are free. :meth:`ObstacleLayer.clear_around`
 forgets the marks within a radius (the recovery ``clear the costmaps``).
 ``version`` counts the changes, so that a costmap built from the layer knows
-when it must be built again. Nothing here reads a clock.
+when it must be built again. With ``fine``, the layer also keeps the marks on a
+grid of cells :data:`FINE` times smaller (:attr:`ObstacleLayer.fine`, marked by
+the same returns and cleared with the cells holding them), so that a costmap of
+0.1 m cells can tell a gap the robot fits through from one 8 cm narrower
+(docs/navigation.md, Tight gaps). Nothing here reads a clock.
 """
 
 from __future__ import annotations
@@ -91,6 +95,9 @@ class GlobalCostmapConfig:
         return dataclass_from_dict(cls, d, "global_costmap")
 
 
+FINE = 4
+"""With ``fine``, a cell's side holds this many cells of the fine grid (2.5 cm for 0.1 m cells)."""
+
 CONNECT_MAX_M = 1.0
 """Neighbouring returns (adjacent beams) at most this far apart mark the cells between them too (m)."""
 
@@ -109,12 +116,15 @@ class ObstacleLayer:
     lower-left corner is at (``origin_x``, ``origin_y``) (m); see the module docstring."""
 
     def __init__(self, config: GlobalCostmapConfig, rows: int, cols: int, resolution_m: float, origin_x: float,
-                 origin_y: float) -> None:
+                 origin_y: float, fine: bool = False) -> None:
         self.config = config
         self.resolution_m = resolution_m
         self.origin_x = origin_x
         self.origin_y = origin_y
         self.marked = np.zeros((rows, cols), bool)
+        self.fine: Optional[np.ndarray] = np.zeros((FINE * rows, FINE * cols), bool) if fine else None
+        """With ``fine``: the marks on a grid of cells FINE times smaller ((FINE rows, FINE cols), the same origin),
+        each inside a marked cell; else None."""
         self.unmarkable: Optional[np.ndarray] = None
         """Cells a return never marks (on a map: the map's own walls and a band round them, so that a few cm of
         localisation error does not thicken the walls and narrow the doors); None: every cell."""
@@ -204,6 +214,7 @@ class ObstacleLayer:
         n = int(np.count_nonzero(clear))
         if n:
             self.marked[rr[clear], cc[clear]] = False
+            self._clear_fine(rr[clear], cc[clear])
             self.version += 1
             self.cleared_total += n
         return n
@@ -234,9 +245,34 @@ class ObstacleLayer:
         if self.unmarkable is not None and row.size:
             keep = ~self.unmarkable[row, col]
             row, col = row[keep], col[keep]
+            x, y = x[inside][keep], y[inside][keep]
+        else:
+            x, y = x[inside], y[inside]
         if row.size and not self.marked[row, col].all():
             self.marked[row, col] = True
             self.version += 1
+        if self.fine is not None and row.size:
+            frow, fcol = self._fine_cells(x, y, row, col)
+            if not self.fine[frow, fcol].all():
+                self.fine[frow, fcol] = True
+                self.version += 1
+
+    def _fine_cells(self, x: np.ndarray, y: np.ndarray, row: np.ndarray, col: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) on the fine grid of points (m) inside the cells (row, col) (kept inside them, whatever the
+        rounding)."""
+        step = self.resolution_m / FINE
+        frow = np.clip(np.floor((y - self.origin_y) / step).astype(np.intp), FINE * row, FINE * row + FINE - 1)
+        fcol = np.clip(np.floor((x - self.origin_x) / step).astype(np.intp), FINE * col, FINE * col + FINE - 1)
+        return frow, fcol
+
+    def _clear_fine(self, row: np.ndarray, col: np.ndarray) -> None:
+        """Clear the fine cells of the cells (row, col)."""
+        if self.fine is None:
+            return
+        for dr in range(FINE):
+            for dc in range(FINE):
+                self.fine[FINE * row + dr, FINE * col + dc] = False
 
     # -- the window ----------------------------------------------------------------------------------------
     def recentre(self, x: float, y: float) -> bool:
@@ -258,11 +294,9 @@ class ObstacleLayer:
         sc = int(round((origin_x - self.origin_x) / res))
         sr = int(round((origin_y - self.origin_y) / res))
         rows, cols = self.marked.shape
-        moved = np.zeros_like(self.marked)
-        if abs(sr) < rows and abs(sc) < cols:
-            src = self.marked[max(0, sr):rows + min(0, sr), max(0, sc):cols + min(0, sc)]
-            moved[max(0, -sr):rows + min(0, -sr), max(0, -sc):cols + min(0, -sc)] = src
-        self.marked = moved
+        self.marked = _shifted(self.marked, sr, sc)
+        if self.fine is not None:
+            self.fine = _shifted(self.fine, FINE * sr, FINE * sc)
         self.origin_x += sc * res
         self.origin_y += sr * res
         self.version += 1
@@ -285,6 +319,9 @@ class ObstacleLayer:
         if n:
             box[inside] = False
             self.version += 1
+            if self.fine is not None:
+                self.fine[FINE * r0:FINE * r1, FINE * c0:FINE * c1] &= np.repeat(np.repeat(box, FINE, axis=0), FINE,
+                                                                                  axis=1)
         return n
 
     def mark_points(self, x: np.ndarray, y: np.ndarray) -> int:
@@ -295,7 +332,24 @@ class ObstacleLayer:
         if new:
             self.marked[row, col] = True
             self.version += 1
+        if self.fine is not None and row.size:
+            x, y = np.asarray(x, dtype=float)[inside], np.asarray(y, dtype=float)[inside]
+            frow, fcol = self._fine_cells(x, y, row, col)
+            if not self.fine[frow, fcol].all():
+                self.fine[frow, fcol] = True
+                self.version += 1
         return new
 
 
-__all__ = ["GlobalCostmapConfig", "ObstacleLayer"]
+def _shifted(grid: np.ndarray, sr: int, sc: int) -> np.ndarray:
+    """``grid`` moved by ``sr`` rows and ``sc`` columns toward the origin (what leaves it is forgotten, what enters
+    is False)."""
+    rows, cols = grid.shape
+    moved = np.zeros_like(grid)
+    if abs(sr) < rows and abs(sc) < cols:
+        src = grid[max(0, sr):rows + min(0, sr), max(0, sc):cols + min(0, sc)]
+        moved[max(0, -sr):rows + min(0, -sr), max(0, -sc):cols + min(0, -sc)] = src
+    return moved
+
+
+__all__ = ["GlobalCostmapConfig", "ObstacleLayer", "FINE"]
