@@ -173,3 +173,15 @@ def test_ros2_goals_for_a_time_gives_up_the_goal_under_way():
     clock.advance(10.0)
     step.tick_once()
     assert step.status == Status.SUCCESS and leg.status == Status.INVALID and inbox.listening == 0
+
+
+def test_a_task_with_parameters_is_walked_past_and_a_goals_step_inside_a_task_is_found(tmp_path):
+    from beastbt.mission.model import load_mission
+    from beastbt.ros2.goal_steps import goal_steps
+    text = ("mission: m\ntasks:\n  look:\n    params: {angle: 45 deg}\n    steps:\n      - turn: {angle: $angle}\n"
+            "  wait_goals:\n    - first_of:\n        - [ros2_goals: {goals: 1}]\n        - [say: none]\n"
+            "steps:\n  - do: {task: look, angle: 30 deg}\n  - do: wait_goals\n")
+    path = tmp_path / "m.yaml"
+    path.write_text(text, encoding="utf-8")
+    found = list(goal_steps(load_mission(path)))
+    assert len(found) == 1 and found[0].goals == 1

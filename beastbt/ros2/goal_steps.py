@@ -28,9 +28,11 @@ def goal_steps(mission: Any) -> Iterator[st.Ros2Goals]:
             for value in (getattr(step, f.name) for f in dataclasses.fields(step)):
                 if isinstance(value, tuple) and value and isinstance(value[0], st.Step):
                     yield from walk(value)
-                elif isinstance(value, tuple) and value and isinstance(value[0], tuple):  # first_of's alternatives
+                elif isinstance(value, tuple) and value and all(isinstance(v, tuple) for v in value):
+                    # first_of's alternatives (tuples of steps); a task's parameters are tuples of names and values
                     for alternative in value:
-                        yield from walk(alternative)
+                        if alternative and isinstance(alternative[0], st.Step):
+                            yield from walk(alternative)
     yield from walk(getattr(mission, "steps", ()))
     for steps in list(getattr(mission, "tasks", {}).values()) + list(getattr(mission, "task_variants", {}).values()):
         yield from walk(steps)
