@@ -290,23 +290,20 @@ class PersonTracker:
         free = np.zeros(len(xy))
         looked = np.zeros(len(xy))
         for stamp, ox, oy, bearings, ranges in self._past:
-            if not (t_s - FREE_AGE_S[1] - 1e-9 <= stamp <= t_s - FREE_AGE_S[0] + 1e-9) or len(bearings) < 2:
+            n = len(bearings)
+            if not (t_s - FREE_AGE_S[1] - 1e-9 <= stamp <= t_s - FREE_AGE_S[0] + 1e-9) or n < 2:
                 continue
-            step = 2.0 * math.pi / len(bearings)
-            for k in range(len(xy)):
-                dx, dy = xy[k, 0] - ox, xy[k, 1] - oy
-                d = math.hypot(dx, dy)
-                if d > self.max_range_m:
-                    continue
-                off = np.abs((bearings - math.atan2(dy, dx) + math.pi) % (2.0 * math.pi) - math.pi)
-                i = int(np.argmin(off))
-                if off[i] > 1.5 * step:
-                    continue  # no beam that way (a LiDAR with a blind sector)
-                looked[k] += 1
-                # The nearest beam and those either side: a beam slipping past a wall's corner is not seen through.
-                near = ranges[[(i - 1) % len(ranges), i, (i + 1) % len(ranges)]]
-                if (~np.isfinite(near) | (near > d + FREE_MARGIN_M)).all():
-                    free[k] += 1
+            dx, dy = xy[:, 0] - ox, xy[:, 1] - oy
+            d = np.hypot(dx, dy)
+            off = np.abs((bearings[None, :] - np.arctan2(dy, dx)[:, None] + math.pi) % (2.0 * math.pi) - math.pi)
+            i = np.argmin(off, axis=1)
+            # No beam that way (a LiDAR with a blind sector), or out of range: that scan says nothing.
+            seen = (off[np.arange(len(xy)), i] <= 1.5 * 2.0 * math.pi / n) & (d <= self.max_range_m)
+            # The nearest beam and those either side: a beam slipping past a wall's corner is not seen through.
+            near = ranges[(i[:, None] + np.arange(-1, 2)[None, :]) % n]
+            through = (~np.isfinite(near) | (near > d[:, None] + FREE_MARGIN_M)).all(axis=1)
+            looked += seen
+            free += seen & through
         return (looked >= FREE_LOOKS) & (free >= FREE_SHARE * looked)
 
     def add_centres(self, t_s: float, centres: np.ndarray, free: Optional[np.ndarray] = None) -> dict[int, int]:
