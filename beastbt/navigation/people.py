@@ -253,9 +253,8 @@ class PersonTracker:
             c, s = math.cos(at[2]), math.sin(at[2])
             centres[k] = (at[0] + c * found[k, 0] - s * found[k, 1], at[1] + s * found[k, 0] + c * found[k, 1],
                           found[k, 2])
-        free = self.seen_free(t, centres[:, :2])
+        matched = self.add_centres(t, centres, lambda which: self.seen_free(t, centres[which, :2]))
         self._remember(scan, mounting, pose_at)
-        matched = self.add_centres(t, centres, free)
         walking = {tr.id for tr in self.walking()}
         self.walking_beams = [beams[bi] for bi, tid in matched.items() if tid in walking]
 
@@ -306,11 +305,12 @@ class PersonTracker:
             free += seen & through
         return (looked >= FREE_LOOKS) & (free >= FREE_SHARE * looked)
 
-    def add_centres(self, t_s: float, centres: np.ndarray, free: Optional[np.ndarray] = None) -> dict[int, int]:
+    def add_centres(self, t_s: float, centres: np.ndarray,
+                    free: Optional[Callable[[list[int]], np.ndarray]] = None) -> dict[int, int]:
         """Match blobs seen at ``t_s`` ((k, 3): x m, y m in odom, half-width m) to the tracks: nearest first within
         ``GATE_M`` of each track's prediction; the rest start tracks; tracks unseen for ``LOST_S`` go. Returns each
-        blob's track id. ``free`` (k bools, :meth:`seen_free`) says which blobs stand where earlier scans saw free
-        space: only those walk (None: all)."""
+        blob's track id. ``free(blobs)`` (:meth:`seen_free` of those blob indices, asked only for the blobs of tracks
+        moving at walking speed) says which stand where earlier scans saw free space: only those walk (None: all)."""
         self.tracks = [tr for tr in self.tracks if t_s - tr.last[0] <= LOST_S]
         pairs = []
         for ti, tr in enumerate(self.tracks):
@@ -337,10 +337,13 @@ class PersonTracker:
                 tr.add(t_s, float(centres[bi, 0]), float(centres[bi, 1]), float(centres[bi, 2]))
                 self.tracks.append(tr)
                 matched[bi] = tr.id
-        in_free = {tid for bi, tid in matched.items() if free is None or bool(free[bi])}
+        moving = {tr.id for tr in self.tracks
+                  if tr.last[0] == t_s and len(tr.history) >= 3 and tr.speed_mps >= self.min_speed_mps}
+        which = [bi for bi, tid in matched.items() if tid in moving]
+        if free is not None and which:
+            moving = {matched[bi] for bi, ok in zip(which, free(which)) if ok}
         for tr in self.tracks:
-            if (tr.last[0] == t_s and len(tr.history) >= 3 and tr.speed_mps >= self.min_speed_mps
-                    and tr.id in in_free):
+            if tr.id in moving:
                 if tr.walking_since_s is None:
                     tr.walking_since_s = t_s
             elif tr.last[0] == t_s:
