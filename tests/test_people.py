@@ -2,7 +2,8 @@
 choice of side on a hand-made corridor, and one seed of missions/people_corridor.yaml in the simulator.
 
 The synthetic scans are cast here, in a few lines: a 450-beam LiDAR at 10 Hz over a corridor's two walls and a
-circle (the person), with no noise (the wall corner's scans: segments, with noise and dropouts); the planner's costmap is the run's own RollingCostmap fed with the same returns.
+circle (the person), with no noise (the wall corner's scans: segments, with noise and dropouts); the planner's
+costmap is the run's own RollingCostmap fed with the same returns.
 The benchmark (benchmarks/people_corridor.py) runs seeds 1-5 and the empty corridor.
 """
 
