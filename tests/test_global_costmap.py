@@ -221,3 +221,5 @@ steps:
     assert ("no way to inside" in text and "walls enclose it" in text) or "no closer to inside for 60 s on ways round" \
         in text, text
     assert h.summary()["truth"]["collisions"] == 0
+    # Its walls' corners are not people: no step aside for one (a phantom person once led the robot into a corner).
+    assert events_of(h, "step_aside") == []

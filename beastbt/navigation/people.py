@@ -16,7 +16,12 @@ neighbour within ``GATE_M`` of each track's prediction; a track's velocity
 is the least-squares slope of its centres over the last ``HISTORY_S``; a
 track not seen for ``LOST_S`` is dropped. A track is a *walking person*
 once it has been followed for ``CONFIRM_S`` at ``person_min_speed_mps`` or
-more. Positions are metres in ``odom``, velocities m/s, times the scans'
+more, standing all that time where the scans of ``FREE_AGE_S`` before saw
+free space (a person walks into space that was free; a wall is where it was).
+That look back is what keeps walls out: a beam returning nothing (1-2 % of
+them) cuts a short piece out of a wall that is "in front of" its neighbours,
+and as the robot moves round a corner that piece's centre slides along the
+wall at walking speed for more than ``CONFIRM_S``. Positions are metres in ``odom``, velocities m/s, times the scans'
 stamps (s). :meth:`PersonTracker.without_walkers` is the scan the global
 costmap marks: without the walking persons' returns.
 
@@ -102,6 +107,15 @@ PERSON_RADIUS_MIN_M = 0.15
 """A blob narrower than this is taken to be a person of this radius (m)."""
 PERSON_RADIUS_MAX_M = 0.35
 """... and a wider one of at most this (m)."""
+FREE_AGE_S = (0.8, 2.0)
+"""A walking person stands where the scans of this long ago (s, youngest and oldest) saw free space."""
+FREE_MARGIN_M = 0.05
+"""... the beam toward a place and those either side saw it free when they reached this much beyond it (m), or
+returned nothing."""
+FREE_SHARE = 0.5
+"""... in at least this share of those scans: a wall's corner or end, seen through in none, is never a person."""
+FREE_LOOKS = 3
+"""... and at least this many of them looked its way (the first scans of a run say nothing yet)."""
 
 
 def blobs(scan: LaserScan, mounting: LidarMounting, max_range_m: float) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -216,6 +230,9 @@ class PersonTracker:
         self.walking_beams: list[np.ndarray] = []
         """The beams (indices into the newest scan) that hit walking persons."""
         self._next_id = 1
+        self._past: deque[tuple[float, float, float, np.ndarray, np.ndarray]] = deque()
+        """The scans of the last ``FREE_AGE_S[1]``: (stamp s, LiDAR x m, y m in odom, each beam's bearing rad in odom
+        at its own time, ranges m)."""
 
     def update(self, scan: LaserScan, mounting: LidarMounting,
                pose_at: Callable[[float], Optional[tuple[float, float, float]]]) -> None:
@@ -236,14 +253,64 @@ class PersonTracker:
             c, s = math.cos(at[2]), math.sin(at[2])
             centres[k] = (at[0] + c * found[k, 0] - s * found[k, 1], at[1] + s * found[k, 0] + c * found[k, 1],
                           found[k, 2])
-        matched = self.add_centres(t, centres)
+        matched = self.add_centres(t, centres, lambda which: self.seen_free(t, centres[which, :2]))
+        self._remember(scan, mounting, pose_at)
         walking = {tr.id for tr in self.walking()}
         self.walking_beams = [beams[bi] for bi, tid in matched.items() if tid in walking]
 
-    def add_centres(self, t_s: float, centres: np.ndarray) -> dict[int, int]:
+    def _remember(self, scan: LaserScan, mounting: LidarMounting,
+                  pose_at: Callable[[float], Optional[tuple[float, float, float]]]) -> None:
+        """Keep ``scan`` (its beams' bearings in odom at their own times) for :meth:`seen_free`."""
+        t = scan.stamp_s
+        end = pose_at(t)
+        if end is None:
+            return
+        period = scan.scan_time_s if math.isfinite(scan.scan_time_s) else 0.0
+        start = pose_at(t - period) or end
+        n = max(len(scan.ranges_m), 1)
+        frac = (np.arange(len(scan.ranges_m)) + 0.5) / n
+        turn = (end[2] - start[2] + math.pi) % (2.0 * math.pi) - math.pi
+        yaw = end[2] - turn * (1.0 - frac)
+        c, s = math.cos(end[2]), math.sin(end[2])
+        ox, oy = end[0] + c * mounting.x_m - s * mounting.y_m, end[1] + s * mounting.x_m + c * mounting.y_m
+        bearings = np.asarray(scan.angles_rad, dtype=float) + math.radians(mounting.yaw_deg) + yaw
+        self._past.append((t, ox, oy, bearings, np.asarray(scan.ranges_m, dtype=float)))
+        while self._past and self._past[0][0] < t - FREE_AGE_S[1] - 1e-9:
+            self._past.popleft()
+
+    def seen_free(self, t_s: float, xy: np.ndarray) -> np.ndarray:
+        """For each point ``xy`` ((k, 2) m, odom): whether the scans of ``FREE_AGE_S`` before ``t_s`` saw it free
+        (the beam toward it reached ``FREE_MARGIN_M`` beyond it, or returned nothing) in ``FREE_SHARE`` of those that
+        looked its way. A person walks into space that was free; a wall's corner or end was never seen through
+        (and one just come into sight was not seen at all), however its blob's centre wanders as the robot moves."""
+        out = np.zeros(len(xy), dtype=bool)
+        if len(xy) == 0:
+            return out
+        free = np.zeros(len(xy))
+        looked = np.zeros(len(xy))
+        for stamp, ox, oy, bearings, ranges in self._past:
+            n = len(bearings)
+            if not (t_s - FREE_AGE_S[1] - 1e-9 <= stamp <= t_s - FREE_AGE_S[0] + 1e-9) or n < 2:
+                continue
+            dx, dy = xy[:, 0] - ox, xy[:, 1] - oy
+            d = np.hypot(dx, dy)
+            off = np.abs((bearings[None, :] - np.arctan2(dy, dx)[:, None] + math.pi) % (2.0 * math.pi) - math.pi)
+            i = np.argmin(off, axis=1)
+            # No beam that way (a LiDAR with a blind sector), or out of range: that scan says nothing.
+            seen = (off[np.arange(len(xy)), i] <= 1.5 * 2.0 * math.pi / n) & (d <= self.max_range_m)
+            # The nearest beam and those either side: a beam slipping past a wall's corner is not seen through.
+            near = ranges[(i[:, None] + np.arange(-1, 2)[None, :]) % n]
+            through = (~np.isfinite(near) | (near > d[:, None] + FREE_MARGIN_M)).all(axis=1)
+            looked += seen
+            free += seen & through
+        return (looked >= FREE_LOOKS) & (free >= FREE_SHARE * looked)
+
+    def add_centres(self, t_s: float, centres: np.ndarray,
+                    free: Optional[Callable[[list[int]], np.ndarray]] = None) -> dict[int, int]:
         """Match blobs seen at ``t_s`` ((k, 3): x m, y m in odom, half-width m) to the tracks: nearest first within
         ``GATE_M`` of each track's prediction; the rest start tracks; tracks unseen for ``LOST_S`` go. Returns each
-        blob's track id."""
+        blob's track id. ``free(blobs)`` (:meth:`seen_free` of those blob indices, asked only for the blobs of tracks
+        moving at walking speed) says which stand where earlier scans saw free space: only those walk (None: all)."""
         self.tracks = [tr for tr in self.tracks if t_s - tr.last[0] <= LOST_S]
         pairs = []
         for ti, tr in enumerate(self.tracks):
@@ -270,8 +337,13 @@ class PersonTracker:
                 tr.add(t_s, float(centres[bi, 0]), float(centres[bi, 1]), float(centres[bi, 2]))
                 self.tracks.append(tr)
                 matched[bi] = tr.id
+        moving = {tr.id for tr in self.tracks
+                  if tr.last[0] == t_s and len(tr.history) >= 3 and tr.speed_mps >= self.min_speed_mps}
+        which = [bi for bi, tid in matched.items() if tid in moving]
+        if free is not None and which:
+            moving = {matched[bi] for bi, ok in zip(which, free(which)) if ok}
         for tr in self.tracks:
-            if tr.last[0] == t_s and len(tr.history) >= 3 and tr.speed_mps >= self.min_speed_mps:
+            if tr.id in moving:
                 if tr.walking_since_s is None:
                     tr.walking_since_s = t_s
             elif tr.last[0] == t_s:
@@ -297,6 +369,7 @@ class PersonTracker:
         """Forget every track (a recovery cleared the costmaps)."""
         self.tracks = []
         self.walking_beams = []
+        self._past.clear()
 
 
 @dataclass
