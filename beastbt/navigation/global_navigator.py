@@ -169,69 +169,89 @@ class GlobalNavigator:
         return self._through_gaps(path)
 
     def _through_gaps(self, path: GlobalPath) -> GlobalPath:
-        """The path with each narrow gap it crosses (a run of narrow cells) crossed square: in along the gap's normal
-        from :data:`GAP_APPROACH_M` before its centre, out along it (the centre from the fine marks: midway between
-        the nearest obstacles on either side). Sets :attr:`gaps`."""
+        """The path with each narrow gap it crosses crossed square (:func:`through_gaps`). Sets :attr:`gaps`."""
         self.gaps = []
         cm = self._costmap
-        layer = self.layer
-        if cm is None or layer.fine is None:
+        if cm is None or self.layer.fine is None:
             return path
-        pts = sample_polyline(path.points, layer.resolution_m / 2.0)
-        row, col, inside = layer.cells(pts[:, 0], pts[:, 1])
-        narrow = np.zeros(len(pts), bool)
-        narrow[inside] = cm.cost[row[inside], col[inside]] == COST_NARROW
-        if not narrow.any():
-            return path
-        edges = np.flatnonzero(np.diff(np.concatenate(([0], narrow.astype(np.int8), [0]))))
-        points = path.points
-        for first, end in zip(edges[0::2], edges[1::2]):
-            gap = self._gap_at(pts[(first + end - 1) // 2], pts[min(end, len(pts) - 1)] - pts[first])
-            if gap is None:
-                continue
-            centre, normal = gap
-            self.gaps.append(gap)
-            points = _cross_square(points, centre, normal)
-        if not self.gaps:
-            return path
-        length = float(np.hypot(*np.diff(points, axis=0).T).sum())
-        return GlobalPath(points, length, path.expanded)
+        path, self.gaps = through_gaps(path, cm)
+        return path
 
-    def _gap_at(self, p: np.ndarray, along: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray]]:
-        """The gap round ``p`` (odom, m) that a path heading ``along`` crosses: its centre and unit normal (along the
-        path), from the nearest fine mark and the nearest one on the other side of ``p``; None when there is none."""
-        layer = self.layer
-        assert layer.fine is not None
-        f = layer.fine.shape[0] // layer.shape[0]
-        step = layer.resolution_m / f
-        k = int(math.ceil(2.0 * self.inscribed_m / step))
-        cr = int(math.floor((p[1] - layer.origin_y) / step))
-        cc = int(math.floor((p[0] - layer.origin_x) / step))
-        r0, c0 = max(0, cr - k), max(0, cc - k)
-        rr, ccs = np.nonzero(layer.fine[r0:cr + k + 1, c0:cc + k + 1])
-        if rr.size < 2:
-            return None
-        xy = np.column_stack((layer.origin_x + (ccs + c0 + 0.5) * step, layer.origin_y + (rr + r0 + 0.5) * step)) - p
-        d = np.hypot(xy[:, 0], xy[:, 1])
-        a = xy[int(np.argmin(d))]
-        other = xy @ a < 0.0
-        if not other.any():
-            return None
-        b = xy[other][int(np.argmin(d[other]))]
-        # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
-        # one wall, or past a corner, has none on the other side and is left as it is.
-        reach = self.inscribed_m + 2.0 * step
-        na, nb = float(np.hypot(*a)), float(np.hypot(*b))
-        if max(na, nb) > reach or a @ b > -0.9 * na * nb:
-            return None  # not a gap: nothing within reach on the far side, or not across the path (a corner)
-        centre = p + (a + b) / 2.0
-        u = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
-        normal = np.array([-u[1], u[0]])
-        if normal @ along < 0.0:
-            normal = -normal
-        if normal @ along < 0.7 * float(np.hypot(*along)):
-            return None  # the path runs along it, not through it
-        return centre, normal
+
+def through_gaps(path: GlobalPath, cm: GlobalCostmap) -> tuple[GlobalPath, list[tuple[np.ndarray, np.ndarray]]]:
+    """``path`` (in ``cm``'s frame, m) with each narrow gap it crosses (a run of narrow cells) crossed square: in along
+    the gap's normal from :data:`GAP_APPROACH_M` before its centre, out along it (the centre midway between the nearest
+    obstacles on either side, on ``cm``'s fine grid when it keeps one, else on its cells); and the gaps crossed
+    (centre (2,) m, unit normal (2,) along the path). Used on the GPS window and on a saved map alike."""
+    res = cm.grid.resolution_m
+    pts = sample_polyline(path.points, res / 2.0)
+    rows, cols = cm.cost.shape
+    col = np.floor((pts[:, 0] - cm.grid.origin_x) / res).astype(np.intp)
+    row = np.floor((pts[:, 1] - cm.grid.origin_y) / res).astype(np.intp)
+    inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
+    narrow = np.zeros(len(pts), bool)
+    narrow[inside] = cm.cost[row[inside], col[inside]] == COST_NARROW
+    if not narrow.any():
+        return path, []
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], narrow.astype(np.int8), [0]))))
+    points = path.points
+    gaps: list[tuple[np.ndarray, np.ndarray]] = []
+    for first, end in zip(edges[0::2], edges[1::2]):
+        gap = _gap_at(cm, pts[(first + end - 1) // 2], pts[min(end, len(pts) - 1)] - pts[first])
+        if gap is None:
+            continue
+        gaps.append(gap)
+        points = _cross_square(points, *gap)
+    if not gaps:
+        return path, []
+    length = float(np.hypot(*np.diff(points, axis=0).T).sum())
+    return GlobalPath(points, length, path.expanded), gaps
+
+
+def _gap_at(cm: GlobalCostmap, p: np.ndarray, along: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray]]:
+    """The gap round ``p`` (m, in ``cm``'s frame) that a path heading ``along`` crosses: its centre and unit normal
+    (along the path), from the nearest obstacle and the nearest one on the other side of ``p`` (on the fine grid with
+    the map's own lethal cells when ``cm`` keeps one, else on its lethal cells); None when there is none."""
+    grid = cm.grid
+    rows, cols = cm.lethal.shape
+    f = cm.fine.shape[0] // rows if cm.fine is not None else 1
+    step = grid.resolution_m / f
+    k = int(math.ceil(2.0 * cm.inscribed_m / step))
+    cr = int(math.floor((p[1] - grid.origin_y) / step))
+    cc = int(math.floor((p[0] - grid.origin_x) / step))
+    r0, c0 = max(0, cr - k), max(0, cc - k)
+    r1, c1 = min(rows * f, cr + k + 1), min(cols * f, cc + k + 1)
+    if r1 <= r0 or c1 <= c0:
+        return None
+    ri, ci = np.arange(r0, r1) // f, np.arange(c0, c1) // f
+    if cm.fine is not None:
+        obstacles = cm.fine[r0:r1, c0:c1] | cm.static_lethal[np.ix_(ri, ci)]
+    else:
+        obstacles = cm.lethal[np.ix_(ri, ci)]
+    rr, ccs = np.nonzero(obstacles)
+    if rr.size < 2:
+        return None
+    xy = np.column_stack((grid.origin_x + (ccs + c0 + 0.5) * step, grid.origin_y + (rr + r0 + 0.5) * step)) - p
+    d = np.hypot(xy[:, 0], xy[:, 1])
+    a = xy[int(np.argmin(d))]
+    other = xy @ a < 0.0
+    if not other.any():
+        return None
+    b = xy[other][int(np.argmin(d[other]))]
+    # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
+    # one wall, or past a corner, has none on the other side and is left as it is.
+    reach = cm.inscribed_m + 2.0 * step
+    na, nb = float(np.hypot(*a)), float(np.hypot(*b))
+    if max(na, nb) > reach or a @ b > -0.9 * na * nb:
+        return None  # not a gap: nothing within reach on the far side, or not across the path (a corner)
+    centre = p + (a + b) / 2.0
+    u = (b - a) / max(float(np.hypot(*(b - a))), 1e-9)
+    normal = np.array([-u[1], u[0]])
+    if normal @ along < 0.0:
+        normal = -normal
+    if normal @ along < 0.7 * float(np.hypot(*along)):
+        return None  # the path runs along it, not through it
+    return centre, normal
 
 
 def _cross_square(points: np.ndarray, centre: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -339,4 +359,4 @@ class PathFollow:
 
 
 __all__ = ["GlobalNavigator", "PathFollow", "lidar_pose", "marks_near", "sample_polyline", "disk_offsets",
-           "EDGE_MARGIN_M"]
+           "through_gaps", "EDGE_MARGIN_M"]
