@@ -89,6 +89,9 @@ class MapPlanner:
         self._layer: Any = None
         self.visits: list[MapVisit] = []
         self.plans = 0
+        self.gaps: list[tuple[np.ndarray, np.ndarray]] = []
+        """The narrow gaps (doors the padding would close) the last plan crosses square: (centre (2,) map m, unit
+        normal (2,) along the path)."""
         self.listeners: list[Callable[[MapVisit], None]] = []
         """Called with a visit when it ends (the simulator's truth listens here)."""
 
@@ -113,7 +116,7 @@ class MapPlanner:
     def layer(self) -> Any:
         """The :class:`~beastbt.navigation.obstacle_layer.ObstacleLayer` over the map (built on first use): what the
         LiDAR has seen that the map does not show, marked and cleared by ray tracing. The map's walls and a band
-        of ``footprint_padding_m`` (at least a cell) round them are never marked."""
+        of ``footprint_padding_m`` (at least a cell) and one cell more round them are never marked."""
         if self._layer is None:
             import cv2
 
@@ -121,7 +124,9 @@ class MapPlanner:
             grid = self.grid
             layer = ObstacleLayer(self.layer_config or GlobalCostmapConfig(), grid.rows, grid.cols, grid.resolution_m,
                                   grid.origin_x, grid.origin_y)
-            k = max(1, int(math.ceil(self.config.footprint_padding_m / grid.resolution_m)))
+            # The padding and a cell more: the localiser's few cm of error put a wall's returns a cell beside it, and
+            # at a door's jamb such a mark would close a door only the narrow cells open (docs/navigation.md).
+            k = max(1, int(math.ceil(self.config.footprint_padding_m / grid.resolution_m))) + 1
             walls = grid.occupied().astype(np.uint8)
             layer.unmarkable = cv2.dilate(walls, np.ones((2 * k + 1, 2 * k + 1), np.uint8)).astype(bool)
             self._layer = layer
@@ -135,10 +140,15 @@ class MapPlanner:
         return cm
 
     def plan(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float, name: str) -> Any:
-        """A :class:`~beastbt.navigation.global_planner.GlobalPath` (map frame, m); raises ``NoPath``."""
+        """A :class:`~beastbt.navigation.global_planner.GlobalPath` (map frame, m); raises ``NoPath``. A door only
+        the narrow cells open is crossed square, as on GPS (:func:`~beastbt.navigation.global_navigator.through_gaps`:
+        the collision monitor's stop zone leaves a few cm to a side)."""
+        from beastbt.navigation.global_navigator import through_gaps
         from beastbt.navigation.global_planner import plan_path
         self.plans += 1
-        return plan_path(self.costmap_now(), start, goal, tolerance_m, goal_name=name)
+        costmap = self.costmap_now()
+        path, self.gaps = through_gaps(plan_path(costmap, start, goal, tolerance_m, goal_name=name), costmap)
+        return path
 
 
 def map_waypoints(planner: MapPlanner) -> list[dict]:
@@ -475,8 +485,7 @@ class MapGoTo(GoTo):
             self.best_along_m = self.along_m
             self.best_along_at_s = now
             self.progress_at_s = now
-        lookahead = self.planner.config.lookahead_m
-        cx, cy = self._point_at(self.along_m + lookahead)
+        cx, cy = self._point_at(self.along_m + self._lookahead_m(pose))
         dx, dy = cx - pose.x, cy - pose.y
         ld = math.hypot(dx, dy)
         alpha = wrap_angle(math.atan2(dy, dx) - pose.yaw)
@@ -519,6 +528,18 @@ class MapGoTo(GoTo):
         else:
             self.feedback_message = f"{remaining:.1f} m to {self.place} along the path"
         return Status.RUNNING
+
+    def _lookahead_m(self, pose: MapPose) -> float:
+        """Pure pursuit's lookahead (m): :data:`~beastbt.behaviours.navigation.NARROW_LOOKAHEAD_M` near a narrow gap
+        the path crosses (within its square crossing and a lookahead), so that the robot keeps to the crossing, as
+        GoTo's does on GPS."""
+        from beastbt.behaviours.navigation import NARROW_LOOKAHEAD_M
+        from beastbt.navigation.global_navigator import GAP_APPROACH_M
+        la = self.planner.config.lookahead_m
+        for centre, _ in self.planner.gaps:
+            if math.hypot(centre[0] - pose.x, centre[1] - pose.y) < GAP_APPROACH_M + la:
+                return min(la, NARROW_LOOKAHEAD_M)
+        return la
 
     def _steer_map(self, now: float, pose: MapPose, preferred: tuple[float, float], carrot: tuple[float, float],
                    target: tuple[float, float]) -> Any:
