@@ -2,8 +2,8 @@
 width plus 2 cm fails at once, naming why (docs/navigation.md, Tight gaps).
 
 The maps are drawn from worlds written here (tests/map_support.py's truth_map), not committed: two rooms joined by one
-door, and the office with its kitchen door narrowed. Driving through the office's 0.40 m door on the simulator does not
-hold yet (see the xfail's reason).
+door, and the office with its kitchen door narrowed. Driving through the office's 0.40 m door holds with the IMU's
+gyro bias window off; with it on (the default) it does not yet (see the xfail's reason).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from beastbt.run.session import RunOptions, execute
 from beastbt.sim.world import load_world
 from tests.map_support import OFFICE_WORLD, office_to_map, save_map, truth_map
 
+REPO = Path(__file__).resolve().parent.parent
 FOOTPRINT_M = 0.30
 """The simulator's robot across (robots/sim.yaml: footprint radius 0.15 m)."""
 
@@ -77,22 +78,23 @@ def test_a_door_of_the_width_plus_10_cm_is_crossed_square_and_plus_2_cm_fails_at
     assert "no gap on the way is wide enough for the robot (wider than 0.30 m)" in err.value.reason
 
 
-@pytest.mark.xfail(reason="the map localiser loses its match while the robot creeps into the 0.40 m door: its heading "
-                          "drifts (10-17 deg within 5 s, the filter barely updates at 0.02-0.08 m/s), the pose is "
-                          "reported unlocalised and the step fails (docs/navigation.md, Tight gaps)", strict=False)
-def test_the_office_kitchen_through_a_door_of_the_width_plus_10_cm_slowly_without_contact(tmp_path):
+def office_kitchen(folder: Path, robot: str = "sim") -> tuple[dict, list[float]]:
+    """go_to the kitchen of the office whose only door to it (1.0 m, at x 4.0-5.0 m) is narrowed to the robot's width
+    plus 10 cm round its middle, on seed 1; the summary and the true speeds (m/s) while the robot's centre was within
+    0.1 m of the door's line."""
     door = FOOTPRINT_M + 0.10
     text = OFFICE_WORLD.read_text()
     narrowed = text.replace("  - [0.0, 5.5, 4.0, 5.5]\n  - [5.0, 5.5, 10.0, 5.5]",
                             f"  - [0.0, 5.5, {4.5 - door / 2:.3f}, 5.5]\n  - [{4.5 + door / 2:.3f}, 5.5, 10.0, 5.5]")
-    assert narrowed != text  # the kitchen's only door, 4.0-5.0 m, now 0.40 m round 4.5 m
-    (tmp_path / "world.yaml").write_text(narrowed)
-    save_map(truth_map(load_world(tmp_path / "world.yaml")), tmp_path / "office.yaml")
+    assert narrowed != text
+    (folder / "world.yaml").write_text(narrowed)
+    save_map(truth_map(load_world(folder / "world.yaml")), folder / "office.yaml")
     kitchen = office_to_map(5.5, 7.0)
-    mission = tmp_path / "m.yaml"
+    mission = folder / "m.yaml"
     mission.write_text(f"mission: kitchen\nworld: world.yaml\nmap: office.yaml\nplaces:\n"
                        f"  kitchen: {{x: {kitchen[0]} m, y: {kitchen[1]} m}}\nsteps:\n  - go_to: kitchen\n")
-    prepared = prepare(str(mission), RunOptions(record=False, seed=1, max_time_s=150.0))
+    prepared = prepare(str(mission), RunOptions(record=False, seed=1, max_time_s=150.0, robot=robot,
+                                                simulate=robot != "sim"))
     in_door: list[float] = []
 
     def watch(run, now_s):
@@ -100,7 +102,28 @@ def test_the_office_kitchen_through_a_door_of_the_width_plus_10_cm_slowly_withou
         if abs(t.y - 5.5) < 0.1:
             in_door.append(abs(t.v_mps))
     prepared.run.hooks.append(watch)
-    summary = execute(prepared, out=io.StringIO())
+    return execute(prepared, out=io.StringIO()), in_door
+
+
+def test_the_office_kitchen_through_a_door_of_the_width_plus_10_cm_slowly_without_contact(tmp_path):
+    # The IMU's gyro bias window is off here: with it on, the drive fails for the reason the xfail below names.
+    profile = tmp_path / "robot.yaml"
+    text = (REPO / "robots" / "sim.yaml").read_text()
+    profile.write_text(text.replace("bias_window_s: 2.0", "bias_window_s: 0.0"))
+    assert profile.read_text() != text
+    summary, in_door = office_kitchen(tmp_path, str(profile))
+    assert summary["status"] == "success", summary["events"][-2:]
+    assert summary["truth"]["collisions"] == 0
+    assert in_door and max(in_door) <= 1.05 * LocalPlannerConfig().narrow_speed_mps
+
+
+@pytest.mark.xfail(reason="the MPU9250 driver's gyro bias window (robots/sim.yaml bias_window_s: 2 s) does not fill "
+                          "in the second the robot stands at the start, so it goes on looking for a still gyro; the "
+                          "robot's slow steady turn (about 0.05 rad/s) as it creeps into the door passes for one and "
+                          "is subtracted as bias from then on: the map pose's heading drifts 10-17 deg in 5 s and "
+                          "the step fails (docs/navigation.md, Tight gaps)", strict=False)
+def test_the_office_kitchen_through_the_narrow_door_with_the_imu_bias_window_on(tmp_path):
+    summary, in_door = office_kitchen(tmp_path)
     assert summary["status"] == "success", summary["events"][-2:]
     assert summary["truth"]["collisions"] == 0
     assert in_door and max(in_door) <= 1.05 * LocalPlannerConfig().narrow_speed_mps

@@ -55,6 +55,11 @@ LOCAL_GOAL_AHEAD_M = 2.0
 BLOCKED_LOOK_M = 1.0
 """On a blocked replan, scan points this far ahead along the path (m) and near it are marked lethal."""
 
+NARROW_PROGRESS_M = 0.05
+"""Near a narrow door the path crosses, this much travel by the wheels (m) counts as progress along the path for the
+blocked replan: the robot creeps there (narrow_speed_mps, or slower in the collision monitor's slow zone: 0.024 m/s,
+2 s), and a blocked replan would mark what it sees of the door's jambs, which may close it."""
+
 
 @dataclass
 class MapVisit:
@@ -224,6 +229,8 @@ class MapGoTo(GoTo):
         self.unlocalised_since_s: Optional[float] = None
         self.replans = 0
         self.path_version = -1
+        self.narrow_odom_m = -math.inf
+        """The wheels' odometer (m) when creeping near a narrow door last counted as progress."""
 
     # -- lifecycle ----------------------------------------------------------------------------------
     def initialise(self) -> None:
@@ -240,6 +247,7 @@ class MapGoTo(GoTo):
         self.best_along_at_s = self.now()
         self.unlocalised_since_s = None
         self.replans = 0
+        self.narrow_odom_m = -math.inf
         goal = self.map_target()
         self.map_visit = MapVisit(self.place, goal[0] if goal else None, goal[1] if goal else None,
                                   self._tolerance())
@@ -481,6 +489,7 @@ class MapGoTo(GoTo):
     def _follow(self, now: float, pose: MapPose, goal: tuple[float, float], dist: float, tolerance: float) -> Status:
         nav, p = self.nav, self.ctx.params
         self.along_m = self._project(pose)
+        self._creep_progress(now, pose)
         if self.along_m > self.best_along_m + nav.progress_m:
             self.best_along_m = self.along_m
             self.best_along_at_s = now
@@ -529,17 +538,29 @@ class MapGoTo(GoTo):
             self.feedback_message = f"{remaining:.1f} m to {self.place} along the path"
         return Status.RUNNING
 
+    def _near_gap(self, pose: MapPose) -> bool:
+        """Whether the robot is within a narrow gap's square crossing and a lookahead (m) of its centre."""
+        from beastbt.navigation.global_navigator import GAP_APPROACH_M
+        reach = GAP_APPROACH_M + self.planner.config.lookahead_m
+        return any(math.hypot(c[0] - pose.x, c[1] - pose.y) < reach for c, _ in self.planner.gaps)
+
+    def _creep_progress(self, now: float, pose: MapPose) -> None:
+        """Creeping to and through a narrow door is progress, not a blockage: near a narrow gap the path crosses, each
+        :data:`NARROW_PROGRESS_M` the wheels travel restarts the blocked replan's timer."""
+        odom: Optional[FusedPose] = self.read("pose_odom")
+        if odom is None or not self._near_gap(pose):
+            return
+        if odom.distance_m - self.narrow_odom_m >= NARROW_PROGRESS_M:
+            if self.narrow_odom_m > -math.inf:
+                self.best_along_at_s = now
+            self.narrow_odom_m = odom.distance_m
+
     def _lookahead_m(self, pose: MapPose) -> float:
         """Pure pursuit's lookahead (m): :data:`~beastbt.behaviours.navigation.NARROW_LOOKAHEAD_M` near a narrow gap
-        the path crosses (within its square crossing and a lookahead), so that the robot keeps to the crossing, as
-        GoTo's does on GPS."""
+        the path crosses, so that the robot keeps to the square crossing, as GoTo's does on GPS."""
         from beastbt.behaviours.navigation import NARROW_LOOKAHEAD_M
-        from beastbt.navigation.global_navigator import GAP_APPROACH_M
         la = self.planner.config.lookahead_m
-        for centre, _ in self.planner.gaps:
-            if math.hypot(centre[0] - pose.x, centre[1] - pose.y) < GAP_APPROACH_M + la:
-                return min(la, NARROW_LOOKAHEAD_M)
-        return la
+        return min(la, NARROW_LOOKAHEAD_M) if self._near_gap(pose) else la
 
     def _steer_map(self, now: float, pose: MapPose, preferred: tuple[float, float], carrot: tuple[float, float],
                    target: tuple[float, float]) -> Any:
