@@ -329,3 +329,26 @@ def test_schema_matches_the_config() -> None:
     validator.validate({"gyro_range_dps": 1000, "mag_scale": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]})
     assert list(validator.iter_errors({"gyro_rnage_dps": 1000}))
     assert list(validator.iter_errors({"gyro_range_dps": 300}))
+
+
+def test_a_slow_steady_turn_is_not_learnt_as_bias_while_the_wheels_say_they_turn() -> None:
+    # 0.05 rad/s is under bias_max_rps and steady: to the gyro alone it looks like a bias (the first rig learns it).
+    # With the wheels' word that they turn, the window never fills and nothing of the turn is subtracted.
+    turning = RobotTruth(w_rps=0.05)
+    alone = Rig(model=ImuNoiseModel(), config=ImuConfig(bias_window_s=1.0), seed=8)
+    for _ in range(300):
+        alone.step(turning)
+    true_z = alone.imu.true_gyro_bias_body_rps()[2]
+    assert alone.driver.bias_ready and alone.driver.gyro_bias_rps[2] - true_z > 0.04
+    told = Rig(model=ImuNoiseModel(), config=ImuConfig(bias_window_s=1.0), seed=8)
+    told.driver.standstill = lambda: False
+    for _ in range(300):
+        sample = told.step(turning)
+    assert not told.driver.bias_ready
+    assert abs(told.driver.gyro_bias_rps[2]) < 0.01  # nothing learnt: the turn stays in the output
+    assert sample is not None and abs(sample.gyro_rps[2] - true_z - 0.05) < 0.02
+    told.driver.standstill = lambda: True  # the wheels stop: the window fills as before
+    for _ in range(120):
+        told.step()
+    assert told.driver.bias_ready
+    assert np.allclose(told.driver.gyro_bias_rps, told.imu.true_gyro_bias_body_rps(), atol=1.5e-3)

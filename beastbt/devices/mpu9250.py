@@ -324,6 +324,10 @@ class Mpu9250:
         self._bias_t0 = 0.0
         self._bias_mean = np.zeros(3)
         self._bias_m2 = np.zeros(3)
+        self.standstill: Optional[Callable[[], Optional[bool]]] = None
+        """Whether the robot is known to stand still (the wheels: True stopped, False turning, None unknown), or
+        None. A slow steady turn under ``bias_max_rps`` looks to the gyro alone like a bias; while this says
+        False the bias window restarts, so such a turn is never learnt as one."""
 
     # -- public state -------------------------------------------------------------------
 
@@ -539,6 +543,9 @@ class Mpu9250:
     def _update_bias(self, now: float, gyro: np.ndarray) -> None:
         """Average the gyro while the robot stands still; restart the window on motion."""
         if self._bias_ready:
+            return
+        if self.standstill is not None and self.standstill() is False:
+            self._bias_n = 0  # the wheels turn: the window starts again once they stop
             return
         cfg = self.config
         if self._bias_n == 0:

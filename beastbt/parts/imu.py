@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Callable, Optional
 
-from beastbt.blackboard.types import ImuSample
+from beastbt.blackboard.types import ImuSample, WheelOdometry
 from beastbt.core.clock import Clock
 from beastbt.core.errors import plain_reason
 from beastbt.core.events import EventLog
@@ -114,6 +114,17 @@ def _sampler(imu: SimImu, sim: Simulator) -> Callable[[float, float], None]:
     return update
 
 
+WHEELS_STILL_MPS = 0.005
+"""Both wheels slower than this (m/s) is standing still for the gyro bias window (encoder noise is below it)."""
+
+
+def wheels_still(odometry: Optional[WheelOdometry]) -> Optional[bool]:
+    """True when both wheels stand still, False when either turns, None without wheel odometry."""
+    if odometry is None:
+        return None
+    return abs(odometry.left_mps) < WHEELS_STILL_MPS and abs(odometry.right_mps) < WHEELS_STILL_MPS
+
+
 class ImuPart(Part):
     """``imu:``: gyro, accelerometer and magnetometer samples (``io.sensors['imu']``)."""
 
@@ -134,9 +145,17 @@ class ImuPart(Part):
             assert build.sim is not None
             self.emulator = attach_sim_imu(build.sim, build.profile, build.io, build.events)
 
+    def install(self, prepared: Prepared) -> None:
+        """Tell the driver when the wheels turn (the blackboard's ``odometry``), so that its gyro bias window never
+        averages a slow steady turn."""
+        driver = prepared.run.io.imu_driver
+        if driver is not None:
+            bb = prepared.run.bb
+            driver.standstill = lambda: wheels_still(getattr(bb, "odometry", None))
+
     def sleep(self, prepared: Prepared) -> None:
         """Nothing reads the samples: neither poll the driver nor emulate the chip."""
         sleep_device(prepared, "imu", self.emulator)
 
 
-__all__ = ["ImuPart", "attach_real_imu", "attach_sim_imu", "IMU_EMULATOR_RATE_HZ"]
+__all__ = ["ImuPart", "wheels_still", "attach_real_imu", "attach_sim_imu", "IMU_EMULATOR_RATE_HZ"]
