@@ -151,7 +151,14 @@ class ImuPart(Part):
         driver = prepared.run.io.imu_driver
         if driver is not None:
             bb = prepared.run.bb
-            driver.standstill = lambda: wheels_still(getattr(bb, "odometry", None))
+
+            def standstill() -> Optional[bool]:
+                try:
+                    odometry = bb.odometry
+                except (KeyError, AttributeError):  # no wheel reading yet (py_trees raises KeyError)
+                    return None
+                return wheels_still(odometry)
+            driver.standstill = standstill
 
     def sleep(self, prepared: Prepared) -> None:
         """Nothing reads the samples: neither poll the driver nor emulate the chip."""
