@@ -204,7 +204,20 @@ def joined_units(args: Sequence[str]) -> list[str]:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of the ``beastbt`` console script and of ``python -m beastbt``; returns the exit status."""
+    """Entry point of the ``beastbt`` console script and of ``python -m beastbt``; returns the exit status.
+
+    As a process's entry (``argv`` None), a command that opened a Zenoh session (the fleet, ROS 2) ends the
+    process here, without the interpreter's finalization (:mod:`beastbt.core.process_end`)."""
+    status = _command_status(argv)
+    if argv is None:
+        from beastbt.core.process_end import end_process, needs_quick_end
+        if needs_quick_end():
+            end_process(status)
+    return status
+
+
+def _command_status(argv: Optional[Sequence[str]]) -> int:
+    """Parse the command line (``sys.argv`` when ``argv`` is None), run its command; the exit status."""
     args = list(sys.argv[1:] if argv is None else argv)
     # The overview parser (every subcommand's help line) is built only when it is used: a command that is
     # given does not pay for it (a few milliseconds of argparse and gettext lookups).
