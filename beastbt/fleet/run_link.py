@@ -80,10 +80,14 @@ class FleetRunLink:
         return self._latest
 
     def close(self) -> None:
-        """The run has ended: hand over its final state, refuse further controls, and detach from the agent."""
+        """The run has ended (a closer): hand over its final state and refuse further controls."""
         if self._state is not None:
             self._state.publish()
             self.controls.close()
+
+    def ended(self, summary: Optional[dict]) -> None:
+        """The run's summary is written (None: the run was abandoned): detach from the agent, which tells the
+        station the robot is idle with this run's end (a station's reader then finds the run's summary)."""
         run = self.run
         self.agent.detach({"mission": run.mission.name, "status": run.status})
 

@@ -37,8 +37,9 @@ class FleetPart(Part):
         agent, owned = open_agent(fleet, prepared)
         link = FleetRunLink(agent, prepared)
         prepared.closers.append(link.close)
+        prepared.after_summary.append(link.ended)  # the station hears of the end once the summary is on disk
         if owned:
-            prepared.closers.append(agent.close)
+            prepared.after_summary.append(lambda summary: agent.close())
             print(f"fleet: reporting as '{agent.name}' to {fleet.endpoint or fleet.config_file}", flush=True)
         if supervision is not None and supervision.required:
             supervise(prepared.run, supervision, lambda: agent.station_present)

@@ -116,6 +116,10 @@ class Prepared:
     clock: Clock
     folder: Optional[RunFolder] = None
     closers: list[Callable[[], None]] = field(default_factory=list)
+    after_summary: list[Callable[[Optional[dict]], None]] = field(default_factory=list)
+    """Called with the run's summary once it is written (after the closers), or with None when the run is
+    abandoned: what tells others the run has ended (the fleet's station) must not tell them before its summary
+    can be read."""
     warnings: list = field(default_factory=list)
     """Problems (severity ``warning``) of the mission on this robot: printed before the run; ``--strict`` refuses."""
     reads: Optional[frozenset] = None
@@ -130,6 +134,7 @@ class Prepared:
             except Exception:  # noqa: BLE001 - closing must not hide why the run was abandoned
                 pass
         self.run.io.close()
+        _tell_ended(self, None)
         if self.folder is not None:
             import shutil
             shutil.rmtree(self.folder.path, ignore_errors=True)  # made for this run, which never started
@@ -258,7 +263,17 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
     world_name = p.world.name if p.world is not None else None
     summary = build_summary(run, opts.seed, wall_time_s, world_name, p.profile.name)
     keep_summary(p, summary, out)
+    _tell_ended(p, summary)
     return summary
+
+
+def _tell_ended(p: Prepared, summary: Optional[dict]) -> None:
+    """Call ``p.after_summary`` with the summary (None: abandoned); one failing does not stop the others."""
+    for ended in p.after_summary:
+        try:
+            ended(summary)
+        except Exception as exc:  # noqa: BLE001 - the run is over and recorded: say it, go on
+            print(f"beastbt: after the run: {exc!r}", file=sys.stderr, flush=True)
 
 
 def keep_summary(p: Prepared, summary: dict, out: TextIO) -> None:
