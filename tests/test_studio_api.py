@@ -12,6 +12,7 @@ import http.client
 import json
 import os
 import shutil
+import signal
 import time
 from pathlib import Path
 from typing import Any, Iterator, Optional
@@ -471,10 +472,15 @@ def test_with_a_token_every_request_needs_it(tmp_path):
         s.server.close()
 
 
-@pytest.mark.skip(reason="quarantined 2026-12-07: in the whole suite on CI the realtime run started here does not stop on its signal within 60 s (twice, serial and two workers); alone, with the CI venv, under CPU load and with -n 1 it passes. Cause not yet found: see the closing note of stop 40")
 def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
     text = "mission: long_try\nsteps:\n  - say: waiting\n  - wait: 120 s\n"
-    status, started = studio.post("/api/try", {"text": text, "speed": "realtime"})
+    # As under 'beastbt studio &' in a script: the studio's process, and so its tries, have SIGINT ignored; the
+    # studio's stop must end the try all the same (not kill it, which leaves no summary)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        status, started = studio.post("/api/try", {"text": text, "speed": "realtime"})
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert status == 200
     run_id = started["run_id"]
     deadline = time.monotonic() + 60
@@ -490,7 +496,8 @@ def test_a_running_try_shows_its_console_through_the_studio_and_stops(studio):
     assert studio.get(f"/api/try/{run_id}/console/api/nothing")[0] == 404
     status, ended = studio.post(f"/api/try/{run_id}/stop", {})
     assert status == 200 and ended["state"] == "ended" and ended["exit_code"] == 1
-    assert ended["summary"]["status"] in ("stopped", "failure")
+    assert ended["summary"]["status"] == "stopped"
+    assert any("interrupted" in e["text"] for e in ended["summary"]["events"])
 
 
 def test_a_first_mission_from_a_template_by_the_api_alone_runs_to_success_and_saves(studio):

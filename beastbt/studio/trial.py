@@ -296,11 +296,13 @@ class Trials:
         return out
 
     def stop(self, run_id: str) -> dict:
-        """End a try (as Ctrl-C would: the run stops the robot, writes its summary) and answer its state."""
+        """End a try (as Ctrl-C would: the run stops the robot, writes its summary) and answer its state.
+
+        SIGTERM, which ``beastbt run`` takes as Ctrl-C: not SIGINT, which a studio started from a script's
+        background job (``beastbt studio &``) hands its tries ignored (POSIX), so that they would not stop."""
         trial = self.get(run_id)
         if trial.process.poll() is None:
-            import signal
-            trial.process.send_signal(signal.SIGINT)
+            trial.process.terminate()
             try:
                 trial.process.wait(10.0)
             except subprocess.TimeoutExpired:
