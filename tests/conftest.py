@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+
+# Tests press Ctrl-C on the runs they start (SIGINT to a child process). A test session started from a script's
+# background job (``./.ci/run &``) has SIGINT ignored, POSIX's rule for such jobs, and every child inherits that:
+# its run would never see the Ctrl-C. The children here get SIGINT's default, as a terminal's command does.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.fixture

@@ -183,16 +183,30 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
                         async with session.post(link.url.rstrip("/") + "/api/abort", json={}) as answer:
                             assert answer.status == 200, await answer.text()
 
-    viewer = threading.Thread(target=lambda: asyncio.run(follow()))
+    failed: list[BaseException] = []
+
+    def watch_video() -> None:
+        try:
+            asyncio.run(follow())
+        except BaseException as exc:  # noqa: BLE001 - said by the test's thread, not lost in this one
+            failed.append(exc)
+
+    viewer = threading.Thread(target=watch_video)
     if watch:
         viewer.start()
-        deadline = time.monotonic() + 20
-        while link.viewers < 1 and time.monotonic() < deadline:  # watching before the start
+        deadline = time.monotonic() + 30
+        while link.viewers < 1 and not failed and time.monotonic() < deadline:  # watching before the start
             time.sleep(0.02)
+        if link.viewers < 1:
+            done.set()
+            prepared.abandon()
+            raise AssertionError(f"the viewer never watched /api/video: {failed[0]!r}" if failed else
+                                 "the console counted no viewer of /api/video within 30 s")
     execute(prepared, out=io.StringIO())
     done.set()
     if watch:
         viewer.join(10)
+        assert not failed, f"the viewer of /api/video failed: {failed[0]!r}"
     return prepared, messages
 
 

@@ -197,7 +197,6 @@ def test_a_page_that_says_nothing_gets_jpeg_and_one_that_decodes_h264_gets_h264(
 
 # -- end to end: the simulator's fake H.264 camera through the run and the console's process ---------------------
 
-@pytest.mark.skip(reason="quarantined 2026-12-07: in the whole suite on CI the realtime run started here does not stop on its signal within 60 s (twice, serial and two workers); alone, with the CI venv, under CPU load and with -n 1 it passes. Cause not yet found: see the closing note of stop 40")
 @needs_software
 def test_the_fake_h264_cameras_units_arrive_at_api_video_byte_identical(tmp_path: Path,
                                                                         monkeypatch: pytest.MonkeyPatch) -> None:

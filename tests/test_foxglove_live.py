@@ -298,7 +298,6 @@ async def hostile_then_good_client(port: int) -> int:
         return count
 
 
-@pytest.mark.skip(reason="quarantined 2026-12-07: in the whole suite on CI the realtime run started here does not stop on its signal within 60 s (twice, serial and two workers); alone, with the CI venv, under CPU load and with -n 1 it passes. Cause not yet found: see the closing note of stop 40")
 def test_hostile_clients_do_not_flood_the_terminal_and_the_run_goes_on(tmp_path):
     port = free_port()
     record = tmp_path / "live.mcap"

@@ -14,7 +14,6 @@ import pytest
 from conftest import REPO
 
 
-@pytest.mark.skip(reason="quarantined 2026-12-07: in the whole suite on CI the realtime run started here does not stop on its signal within 60 s (twice, serial and two workers); alone, with the CI venv, under CPU load and with -n 1 it passes. Cause not yet found: see the closing note of stop 40")
 def test_ctrl_c_stops_the_robot_and_exits_1(tmp_path):
     summary = tmp_path / "s.json"
     proc = subprocess.Popen(
