@@ -127,6 +127,8 @@ def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
     ("- wait_until: {sees: {tag: 3, within: 0 m}}", "3:41", "within must be greater than zero"),
     ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
     ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
+    ("- wait_until: {sees: {tag: 587}}", "3:30", "apriltag_36h11 has tags 0 to 586, not 587"),
+    ("- dock: {tag: 50, family: aruco_4x4_50}", "3:17", "aruco_4x4_50 has tags 0 to 49, not 50"),
 ])
 def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, message):
     path = tmp_path / "bad.yaml"
@@ -135,6 +137,16 @@ def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, m
         load_mission(path)
     text = str(err.value)
     assert f"bad.yaml:{where}" in text and message in text, text
+
+
+def test_every_id_of_a_family_is_taken_and_the_table_of_ids_is_opencvs(tmp_path):
+    from beastbt.mission.vision_steps import TAG_IDS
+    from beastbt.vision.fiducials import FAMILIES
+    assert TAG_IDS == {name: cv2.aruco.getPredefinedDictionary(d).bytesList.shape[0] for name, d in FAMILIES.items()}
+    path = tmp_path / "ok.yaml"
+    path.write_text("mission: ok\nsteps:\n  - wait_until: {sees: {tag: 1023, family: aruco_original}}\n"
+                    "  - dock: {tag: 586}\n", encoding="utf-8")
+    load_mission(path)
 
 
 def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):

@@ -21,6 +21,10 @@ UNDOCK_DISTANCE = "0.5 m"
 """How far ``undock`` backs off by default."""
 MIN_AREA_DEFAULT = "1 %"
 """``{sees: {colour: ...}}`` without ``min_area``."""
+TAG_IDS = {"apriltag_36h11": 587, "apriltag_25h9": 35, "aruco_4x4_50": 50, "aruco_5x5_100": 100,
+           "aruco_6x6_250": 250, "aruco_original": 1024}
+"""How many markers each family has (ids 0 to N - 1), as OpenCV's dictionaries hold them (not read from OpenCV
+here, so that checking a mission does not load it; tests compare the two)."""
 
 
 def vision_step(kind: str, v: Any, where: dict) -> st.Step:
@@ -67,10 +71,24 @@ def sees_of(raw: Any) -> st.Sees:
                    min_area_frac=parse_quantity(raw.get("min_area", MIN_AREA_DEFAULT), "fraction"))
 
 
+def check_tag(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
+    """A ``tag:`` id its ``family:`` does not have, in a ``dock:`` or ``sees:`` mapping: (path, message, hint)."""
+    if not isinstance(raw, dict) or not isinstance(raw.get("tag"), int) or isinstance(raw.get("tag"), bool):
+        return  # the schema's to report
+    family = raw.get("family", DOCK_DEFAULTS["family"])
+    count = TAG_IDS.get(family) if isinstance(family, str) else None
+    if count is not None and raw["tag"] >= count:
+        having = [f"{name} (0 to {n - 1})" for name, n in TAG_IDS.items() if raw["tag"] < n]
+        yield (("tag",), f"{family} has tags 0 to {count - 1}, not {raw['tag']}",
+               "check the number printed with the tag"
+               + (f", or name its family with 'family:': {', '.join(having)}" if having else ""))
+
+
 def check_sees(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
     """What is wrong with a ``sees:`` value beyond its shape: (path below ``sees``, message, hint) each."""
     if not isinstance(raw, dict):
         return
+    yield from check_tag(raw)
     if isinstance(raw.get("colour"), dict):  # a name the schema checks; an HSV box here
         from beastbt.vision.colour import ColourRange
         try:
@@ -93,4 +111,4 @@ def check_sees(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
             return
 
 
-__all__ = ["vision_step", "sees_of", "check_sees", "DOCK_DEFAULTS", "UNDOCK_DISTANCE"]
+__all__ = ["vision_step", "sees_of", "check_sees", "check_tag", "TAG_IDS", "DOCK_DEFAULTS", "UNDOCK_DISTANCE"]
