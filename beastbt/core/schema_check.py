@@ -393,6 +393,17 @@ class _Explainer:
             by_branch.setdefault(sub.relative_schema_path[0], []).append(sub)
         if kind in ("step", "condition"):
             return self.explain_keyword_choice(err, path, branches, by_branch, kind)
+        # A word or one of several mappings, each named by its own key (sees: motion, {tag: 3}, {qr: ...}): a mapping
+        # with none of those keys is a misspelt key, not a wrong word (the word's branch has the fewest errors).
+        forms = [b for b in branches if isinstance(b, dict) and b.get("type") == "object" and b.get("required")]
+        words = [str(b["const"]) for b in branches if isinstance(b, dict) and "const" in b]
+        if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, dict) and inst
+                and not any(set(b.get("properties", {})) & set(inst) for b in forms)):
+            keys = [str(b["required"][0]) for b in forms]
+            first = str(next(iter(inst)))
+            return [self.at(path + (first,), f"unknown key '{first}'{_where(path)}{did_you_mean(first, keys)}",
+                            f"allowed here: {', '.join(keys)}; or, instead of a mapping, {' or '.join(words)}",
+                            key=True)]
         chosen = self.pick_branch(inst, branches, by_branch)
         if chosen is not None and chosen in by_branch:
             return self.problems(by_branch[chosen])
