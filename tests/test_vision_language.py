@@ -125,6 +125,7 @@ def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
     ("- wait_until: {sees: {colour: red, min_area: 200 %}}", "3:48", "at most 100 %"),
     ("- wait_until: {sees: {colour: purple}}", "3:33", "expected one of red, green, blue, yellow"),
     ("- wait_until: {sees: {tag: 3, within: 0 m}}", "3:41", "within must be greater than zero"),
+    ("- wait_until: {sees: {tag: 3, size: -3 cm}}", "3:39", "size must be greater than zero"),
     ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
     ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
     ("- wait_until: {sees: {tga: 3}}", "3:25", "unknown key 'tga' in 'sees'; did you mean 'tag'?"),
@@ -151,6 +152,18 @@ def test_every_id_of_a_family_is_taken_and_the_table_of_ids_is_opencvs(tmp_path)
     path.write_text("mission: ok\nsteps:\n  - wait_until: {sees: {tag: 1023, family: aruco_original}}\n"
                     "  - dock: {tag: 586}\n", encoding="utf-8")
     load_mission(path)
+
+
+def test_sees_a_tag_within_a_distance_measured_by_the_size_the_mission_gives():
+    # worlds/lab.yaml: tag 0 is 30 cm; the robot drives straight at it from 3 m. Measured as a 16 cm tag (the
+    # default) it would look 1.5 m away from about 2.8 m.
+    lab = str(Path(__file__).resolve().parents[1] / "worlds" / "lab.yaml")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - look: {tilt: 40 deg}\n"
+                                 "  - until: {sees: {tag: 0, within: 1.5 m, size: 30 cm}}\n    steps:\n"
+                                 "      - drive: {distance: 2.5 m, speed: 0.1 m/s}\n", world=lab, seed=1)
+    assert h.run_to_end(60) == "success"
+    t = h.truth
+    assert abs(math.hypot(7.99 - t.x, t.y) - 1.5) < 0.1  # robot centre to the tag, where the guard halted
 
 
 def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):

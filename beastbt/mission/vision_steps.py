@@ -62,9 +62,10 @@ def sees_of(raw: Any) -> st.Sees:
     if raw == "motion":
         return st.Sees(what="motion")
     if "tag" in raw:
-        within = raw.get("within")
+        within, size = raw.get("within"), raw.get("size")
         return st.Sees(what="tag", tag_id=int(raw["tag"]), family=str(raw.get("family", DOCK_DEFAULTS["family"])),
-                       within_m=None if within is None else parse_quantity(within, "distance"))
+                       within_m=None if within is None else parse_quantity(within, "distance"),
+                       size_m=None if size is None else parse_quantity(size, "distance"))
     if "qr" in raw:
         return st.Sees(what="qr", text=str(raw["qr"]))
     return st.Sees(what="colour", colour=colour_of(raw["colour"]),
@@ -103,12 +104,13 @@ def check_sees(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
         if not 0.0 < area <= 1.0:
             yield (("min_area",), f"min_area must be more than 0 % and at most 100 %, got {raw['min_area']!r}",
                    "write a share of the picture such as '2 %'")
-    if "within" in raw:
-        try:
-            if parse_quantity(raw["within"], "distance") <= 0:
-                yield ("within",), f"within must be greater than zero, got {raw['within']!r}", "write a distance such as '2 m'"
-        except ValueError:
-            return
+    for key, example in (("within", "2 m"), ("size", "30 cm")):
+        if key in raw:
+            try:
+                if parse_quantity(raw[key], "distance") <= 0:
+                    yield (key,), f"{key} must be greater than zero, got {raw[key]!r}", f"write a distance such as '{example}'"
+            except ValueError:
+                continue  # the schema's to report
 
 
 __all__ = ["vision_step", "sees_of", "check_sees", "check_tag", "TAG_IDS", "DOCK_DEFAULTS", "UNDOCK_DISTANCE"]
