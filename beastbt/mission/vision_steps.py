@@ -14,6 +14,7 @@ from typing import Any, Iterator
 from beastbt.core.units import parse_quantity
 from beastbt.core.yaml_source import PathKey
 from beastbt.mission import steps as st
+from beastbt.vision.tag_families import TAG_IDS
 
 DOCK_DEFAULTS = {"distance": "0.25 m", "size": "16 cm", "family": "apriltag_36h11"}
 """What ``dock:`` takes when the mission leaves a key out (the schema says the same)."""
@@ -21,10 +22,6 @@ UNDOCK_DISTANCE = "0.5 m"
 """How far ``undock`` backs off by default."""
 MIN_AREA_DEFAULT = "1 %"
 """``{sees: {colour: ...}}`` without ``min_area``."""
-TAG_IDS = {"apriltag_36h11": 587, "apriltag_25h9": 35, "aruco_4x4_50": 50, "aruco_5x5_100": 100,
-           "aruco_6x6_250": 250, "aruco_original": 1024}
-"""How many markers each family has (ids 0 to N - 1), as OpenCV's dictionaries hold them (not read from OpenCV
-here, so that checking a mission does not load it; tests compare the two)."""
 
 
 def vision_step(kind: str, v: Any, where: dict) -> st.Step:
