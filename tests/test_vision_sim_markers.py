@@ -103,6 +103,19 @@ def test_validate_finds_a_tag_its_family_lacks_as_the_run_does(tmp_path):
         assert "w.yaml:4:10: error: tags: apriltag_25h9 has ids 0 to 34, got 35" in text, text
 
 
+def test_a_misspelt_key_of_a_worlds_tag_is_not_called_a_step(tmp_path):
+    # it was "unknown key 'facing' in the 'id' step": a tag (or an obstacle) is not a step of a mission
+    world = tmp_path / "w.yaml"
+    world.write_text("world: w\ntags:\n  - {id: 4, x: 1, y: 1, facing: 0}\n"
+                     "obstacles:\n  - {shape: box, x: 1, y: 1, size_m: [1, 1], colr: red}\n")
+    with pytest.raises(InvalidInput) as err:
+        load_world(world)
+    text = str(err.value)
+    assert "w.yaml:3:25: error: unknown key 'facing' in 'tags'; did you mean 'facing_deg'?" in text, text
+    assert "w.yaml:5:46: error: unknown key 'colr' in 'obstacles'; did you mean 'colour'?" in text, text
+    assert " step" not in text
+
+
 def test_box_colour_is_in_the_world_schema(tmp_path):
     path = tmp_path / "w.yaml"
     path.write_text("world: w\nobstacles:\n  - {shape: box, x: 1, y: 0, size_m: [0.3, 0.3], colour: purple}\n")

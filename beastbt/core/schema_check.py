@@ -168,6 +168,13 @@ def _step_keyword(instance: Any, schema: dict) -> Optional[str]:
     return None
 
 
+@lru_cache(maxsize=None)
+def _step_words() -> frozenset:
+    """The mission's step keywords (``drive``, ``wait``...), the first required key of each step's form."""
+    forms = load_schema("mission.schema.json").get("$defs", {}).get("step", {}).get("anyOf", [])
+    return frozenset(str(b["required"][0]) for b in forms if isinstance(b, dict) and b.get("required"))
+
+
 def _where(path: tuple) -> str:
     for part in reversed(path):
         if isinstance(part, str):
@@ -315,7 +322,7 @@ class _Explainer:
         out = []
         required = schema.get("required") or []
         where = _where(path)
-        if required and isinstance(path[-1:], tuple) and path and isinstance(path[-1], int):
+        if required and path and isinstance(path[-1], int) and self.what == "mission" and required[0] in _step_words():
             where = f" in the '{required[0]}' step"
         if extras and isinstance(inst, dict):
             indent = self.indentation(path, inst, extras)
