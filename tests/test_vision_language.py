@@ -129,6 +129,8 @@ def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
     ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
     ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
     ("- wait_until: {sees: {tga: 3}}", "3:25", "unknown key 'tga' in 'sees'; did you mean 'tag'?"),
+    ("- wait_until: {sees: {tag: 3, qr: door}}", "3:33", "'sees' takes one of tag, qr, colour, not both 'tag' and 'qr'"),
+    ("- wait_until: {sees: {tag: 3, whithin: 2 m}}", "3:33", "unknown key 'whithin' in 'sees'; did you mean 'within'?"),
     ("- if: {sees: {colur: red}}\n    then: [stop]", "3:17", "unknown key 'colur' in 'sees'; did you mean 'colour'?"),
     ("- wait_until: {sees: {colour: {hsv: [10, 20]}}}", "3:33", "hsv needs two [h, s, v] triples"),
     ("- track: {colour: {hsv: [[0, 0], [x, 1, 2]]}, for: 2 s}", "3:21", "hsv needs two [h, s, v] triples"),

@@ -356,6 +356,8 @@ class _Explainer:
         keys = ", ".join(f"'{k}'" for k in extras)
         them = "it" if len(extras) == 1 else "them"
         first = self.doc.position(path + (extras[0],), key=True)
+        if any(self.doc.position(path + (k,), key=True).line == first.line for k in inst if k not in extras):
+            return None  # beside a sibling on one line: a flow mapping ({tag: 3, qr: x}), where indentation says nothing
         for owner, value in inst.items():
             if owner in extras or not (isinstance(value, dict) or value is None):
                 continue
@@ -405,12 +407,19 @@ class _Explainer:
         forms = [b for b in branches if isinstance(b, dict) and b.get("type") == "object" and b.get("required")]
         words = [str(b["const"]) for b in branches if isinstance(b, dict) and "const" in b]
         if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, dict) and inst
-                and not any(set(b.get("properties", {})) & set(inst) for b in forms)):
+                and path and isinstance(path[-1], str)):
             keys = [str(b["required"][0]) for b in forms]
             first = str(next(iter(inst)))
-            return [self.at(path + (first,), f"unknown key '{first}'{_where(path)}{did_you_mean(first, keys)}",
-                            f"allowed here: {', '.join(keys)}; or, instead of a mapping, {' or '.join(words)}",
-                            key=True)]
+            written = [k for k in keys if k in inst]
+            if not any(set(b.get("properties", {})) & set(inst) for b in forms):
+                return [self.at(path + (first,), f"unknown key '{first}'{_where(path)}{did_you_mean(first, keys)}",
+                                f"allowed here: {', '.join(keys)}; or, instead of a mapping, {' or '.join(words)}",
+                                key=True)]
+            if len(written) >= 2:  # two forms in one mapping ({sees: {tag: 3, qr: x}})
+                a, b = written[:2]
+                return [self.at(path + (b,), f"'{path[-1]}' takes one of {', '.join(keys)}, not both '{a}' and '{b}'",
+                                f"for both, write all: [{{{path[-1]}: {{{a}: ...}}}}, {{{path[-1]}: {{{b}: ...}}}}]",
+                                key=True)]
         chosen = self.pick_branch(inst, branches, by_branch)
         if chosen is not None and chosen in by_branch:
             return self.problems(by_branch[chosen])
