@@ -128,6 +128,7 @@ def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
     ("- wait_until: {sees: {tag: 3, size: -3 cm}}", "3:39", "size must be greater than zero"),
     ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
     ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
+    ("- wait_until: {sees: faces}", "3:24", "hint: or a mapping: {tag: ...}, {qr: ...}, {colour: ...}"),
     ("- wait_until: {sees: {tga: 3}}", "3:25", "unknown key 'tga' in 'sees'; did you mean 'tag'?"),
     ("- wait_until: {sees: {tag: 3, qr: door}}", "3:33", "'sees' takes one of tag, qr, colour, not both 'tag' and 'qr'"),
     ("- wait_until: {sees: {tag: 3, whithin: 2 m}}", "3:33", "unknown key 'whithin' in 'sees'; did you mean 'within'?"),

@@ -406,6 +406,11 @@ class _Explainer:
         # with none of those keys is a misspelt key, not a wrong word (the word's branch has the fewest errors).
         forms = [b for b in branches if isinstance(b, dict) and b.get("type") == "object" and b.get("required")]
         words = [str(b["const"]) for b in branches if isinstance(b, dict) and "const" in b]
+        if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, str)
+                and inst not in words):  # a word that is none of them: say the mappings it could have been too
+            return [self.at(path, f"{value_in_words(inst)} is not allowed{_where(path)}: expected one of "
+                                  f"{', '.join(words)}{did_you_mean(inst, words)}",
+                            "or a mapping: " + ", ".join(f"{{{b['required'][0]}: ...}}" for b in forms))]
         if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, dict) and inst
                 and path and isinstance(path[-1], str)):
             keys = [str(b["required"][0]) for b in forms]
