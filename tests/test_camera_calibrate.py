@@ -92,7 +92,13 @@ def test_refuses_an_unreadable_file_naming_it_and_writes_nothing(photos, tmp_pat
     assert f"{junk}: not an image" in err and "Traceback" not in err
     assert profile.read_text(encoding="utf-8") == (ROOT / "robots" / "ugv_beast.yaml").read_text(encoding="utf-8")
     assert calibrate(*photos, str(tmp_path / "missing.jpg"), *BOARD_ARGS) == 2
-    assert "missing.jpg: no such file" in capsys.readouterr().err
+    assert "missing.jpg: no such file; check the path" in capsys.readouterr().err
+    # a shell pattern that matched nothing comes as written; a folder is not a photo
+    assert calibrate(str(tmp_path / "*.png"), *BOARD_ARGS) == 2
+    assert "*.png: no such file; a shell pattern that matches nothing" in capsys.readouterr().err
+    assert calibrate(*photos, str(tmp_path), *BOARD_ARGS) == 2
+    assert f"{tmp_path}: a folder, not a photo; give the photos in it, such as {tmp_path / '*.jpg'}" in (
+        capsys.readouterr().err)
 
 
 def test_refuses_a_photo_of_another_size(photos, tmp_path, capsys):

@@ -172,3 +172,24 @@ def test_conditions_and_failsafes_that_need_a_fix_are_warned_indoors(tmp_path):
     assert [line.split(": warning:")[0] for line in lines] == [f"{mission}:5:3", f"{mission}:7:12", f"{mission}:10:17"]
     assert "gps_lost failsafe watches a fix that never comes" in lines[0]
     assert all("reads a position that is never known" in line for line in lines[1:])
+
+
+def test_a_tag_measured_by_another_size_than_the_worlds_is_warned_at_its_id(tmp_path):
+    # worlds/lab.yaml: tag 0 is 30 cm. A dock taking it for the default 16 cm stops about 23 cm short of its goal,
+    # and a sees ... within holds at about twice the distance it says; one that says 30 cm, or no within, is fine.
+    from beastbt.validate import validate_file
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"mission: dock\nworld: {REPO / 'worlds' / 'lab.yaml'}\nsteps:\n"
+                       "  - wait_until: {sees: {tag: 0, within: 2 m}}\n"
+                       "  - wait_until: {not: {sees: {tag: 0, within: 2 m, size: 30 cm}}}\n"
+                       "  - wait_until: {sees: {tag: 0}}\n"
+                       "  - dock: {tag: 0}\n  - dock: {tag: 5}\n", encoding="utf-8")
+    warned = [p for p in validate_file(str(mission)) if "in world 'lab'" in p.message]
+    assert [(p.position.line, p.position.column) for p in warned] == [(4, 30), (7, 17)]
+    assert all(p.severity == "warning" and "0.53 times the true one" in p.message and "size: 0.3 m" in p.hint
+               for p in warned)
+    # a dock that says the tag's size: the sees without one measures it by that size once the dock ran
+    mission.write_text(f"mission: dock\nworld: {REPO / 'worlds' / 'lab.yaml'}\nsteps:\n"
+                       "  - dock: {tag: 0, size: 30 cm}\n  - wait_until: {sees: {tag: 0, within: 2 m}}\n",
+                       encoding="utf-8")
+    assert [p for p in validate_file(str(mission)) if "in world 'lab'" in p.message] == []

@@ -48,3 +48,19 @@ def test_beastbt_run_prints_the_obstacles_of_a_world_with_walls(tmp_path):
     assert done.returncode == 0, done.stderr
     assert any(line.startswith("  obstacles: 0 collisions, least clearance ") and "collision monitor" in line
                for line in done.stdout.splitlines()), done.stdout
+
+
+def test_docks_photos_and_alerts_are_said_at_the_end():
+    # The summary held them (vision, alerts) but the lines printed at the end said nothing of them.
+    dock = {"tag": 0, "time_s": 44.65, "status": "docked", "retries": 1, "distance_m": 0.25, "error_m": 0.0045,
+            "error_deg": 0.04, "truth": {"error_m": 0.2295, "error_deg": 0.13}}
+    lines = human_summary(summary(truth={}, vision={"docks": [dock, {"tag": 5, "time_s": 60.0, "status": "failed"}],
+                                                    "photos": [{"name": "gate"}, {"name": "alert-1"}]},
+                                  alerts=[{"time_s": 3.0, "text": "a"}, {"time_s": 28.0, "text": "someone walks"}]))
+    assert lines.splitlines()[3:] == [
+        "  dock at tag 0: docked at 44.6 s, 0.4 cm and 0.0 deg off the goal by the estimate; truly 22.9 cm and 0.1 deg "
+        "(after 1 retry)",
+        "  dock at tag 5: failed at 60.0 s",
+        "  photos: 2 (gate, alert-1)",
+        "  alerts: 2, the last at 28.0 s: someone walks"]
+    assert "photos" not in human_summary(summary(vision={"photos": [], "docks": []}))

@@ -125,8 +125,18 @@ def test_without_a_camera_photo_and_sees_fail_saying_why_and_alert_still_goes():
     ("- wait_until: {sees: {colour: red, min_area: 200 %}}", "3:48", "at most 100 %"),
     ("- wait_until: {sees: {colour: purple}}", "3:33", "expected one of red, green, blue, yellow"),
     ("- wait_until: {sees: {tag: 3, within: 0 m}}", "3:41", "within must be greater than zero"),
+    ("- wait_until: {sees: {tag: 3, size: -3 cm}}", "3:39", "size must be greater than zero"),
     ("- dock: {tag: 0, distance: -1 m}", "3:30", "distance must be greater than zero"),
     ("- wait_until: {sees: movement}", "3:24", "expected one of motion"),
+    ("- wait_until: {sees: faces}", "3:24", "hint: or a mapping: {tag: ...}, {qr: ...}, {colour: ...}"),
+    ("- wait_until: {sees: {tga: 3}}", "3:25", "unknown key 'tga' in 'sees'; did you mean 'tag'?"),
+    ("- wait_until: {sees: {tag: 3, qr: door}}", "3:33", "'sees' takes one of tag, qr, colour, not both 'tag' and 'qr'"),
+    ("- wait_until: {sees: {tag: 3, whithin: 2 m}}", "3:33", "unknown key 'whithin' in 'sees'; did you mean 'within'?"),
+    ("- if: {sees: {colur: red}}\n    then: [stop]", "3:17", "unknown key 'colur' in 'sees'; did you mean 'colour'?"),
+    ("- wait_until: {sees: {colour: {hsv: [10, 20]}}}", "3:33", "hsv needs two [h, s, v] triples"),
+    ("- track: {colour: {hsv: [[0, 0], [x, 1, 2]]}, for: 2 s}", "3:21", "hsv needs two [h, s, v] triples"),
+    ("- wait_until: {sees: {tag: 587}}", "3:30", "apriltag_36h11 has tags 0 to 586, not 587"),
+    ("- dock: {tag: 50, family: aruco_4x4_50}", "3:17", "aruco_4x4_50 has tags 0 to 49, not 50"),
 ])
 def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, message):
     path = tmp_path / "bad.yaml"
@@ -135,6 +145,28 @@ def test_mistakes_are_reported_at_their_line_and_column(tmp_path, step, where, m
         load_mission(path)
     text = str(err.value)
     assert f"bad.yaml:{where}" in text and message in text, text
+
+
+def test_every_id_of_a_family_is_taken_and_the_table_of_ids_is_opencvs(tmp_path):
+    from beastbt.mission.vision_steps import TAG_IDS
+    from beastbt.vision.fiducials import FAMILIES
+    assert TAG_IDS == {name: cv2.aruco.getPredefinedDictionary(d).bytesList.shape[0] for name, d in FAMILIES.items()}
+    path = tmp_path / "ok.yaml"
+    path.write_text("mission: ok\nsteps:\n  - wait_until: {sees: {tag: 1023, family: aruco_original}}\n"
+                    "  - dock: {tag: 586}\n", encoding="utf-8")
+    load_mission(path)
+
+
+def test_sees_a_tag_within_a_distance_measured_by_the_size_the_mission_gives():
+    # worlds/lab.yaml: tag 0 is 30 cm; the robot drives straight at it from 3 m. Measured as a 16 cm tag (the
+    # default) it would look 1.5 m away from about 2.8 m.
+    lab = str(Path(__file__).resolve().parents[1] / "worlds" / "lab.yaml")
+    h = MissionHarness.from_yaml("mission: t\nsteps:\n  - look: {tilt: 40 deg}\n"
+                                 "  - until: {sees: {tag: 0, within: 1.5 m, size: 30 cm}}\n    steps:\n"
+                                 "      - drive: {distance: 2.5 m, speed: 0.1 m/s}\n", world=lab, seed=1)
+    assert h.run_to_end(60) == "success"
+    t = h.truth
+    assert abs(math.hypot(7.99 - t.x, t.y) - 1.5) < 0.1  # robot centre to the tag, where the guard halted
 
 
 def test_the_camera_stays_off_for_a_mission_that_does_not_look(tmp_path):

@@ -21,7 +21,7 @@ steps:
 """
 
 
-def test_photos_are_in_the_run_folder_on_camera_photo_and_in_the_report(tmp_path):
+def test_photos_are_in_the_run_folder_on_camera_photo_and_in_the_report(tmp_path, capsys):
     mission = tmp_path / "photos.yaml"
     mission.write_text(MISSION, encoding="utf-8")
     summary = tmp_path / "summary.json"
@@ -45,6 +45,9 @@ def test_photos_are_in_the_run_folder_on_camera_photo_and_in_the_report(tmp_path
     assert any(e["kind"] == "alert" for e in rec.topic("/events")) or any(
         "someone in the lab" in m.get("message", "") for m in rec.topic("/log"))
     out = tmp_path / "report"
+    capsys.readouterr()
     assert main(["report", str(folder), "--out", str(out)]) == 0
+    said = capsys.readouterr().out.splitlines()  # the report's lines name the photos and the alert, as the run's did
+    assert "  photos: 2 (lab, alert-1)" in said and any(x.startswith("  alerts: 1, the last at ") for x in said)
     html = next(out.rglob("*.html")).read_text(encoding="utf-8")
     assert "snapshot_lab.jpg" in html and "snapshot_alert-1.jpg" in html

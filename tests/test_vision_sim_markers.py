@@ -85,6 +85,37 @@ def test_a_tag_its_family_lacks_is_an_error_at_tags(tmp_path):
     assert "bad.yaml:3:10" in text and "aruco_4x4_50 has ids 0 to 49, got 60" in text
 
 
+def test_validate_finds_a_tag_its_family_lacks_as_the_run_does(tmp_path):
+    # beastbt validate said "ok" to a world whose tags the run then refused (the run checked them, the file's check
+    # did not); a mission in that world too.
+    from beastbt.validate import validate_file
+    from beastbt.vision.fiducials import FAMILIES
+    from beastbt.vision.tag_families import TAG_IDS
+    import cv2
+    assert TAG_IDS == {name: cv2.aruco.getPredefinedDictionary(d).bytesList.shape[0] for name, d in FAMILIES.items()}
+    world = tmp_path / "w.yaml"
+    world.write_text("world: w\ntags:\n  - {id: 34, family: apriltag_25h9, x: 1, y: 0}\n"
+                     "  - {id: 35, family: apriltag_25h9, x: 1, y: 0}\n")
+    mission = tmp_path / "m.yaml"
+    mission.write_text("mission: m\nworld: w.yaml\nsteps:\n  - wait: 1 s\n")
+    for path in (world, mission):
+        text = "\n".join(p.format() for p in validate_file(str(path)))
+        assert "w.yaml:4:10: error: tags: apriltag_25h9 has ids 0 to 34, got 35" in text, text
+
+
+def test_a_misspelt_key_of_a_worlds_tag_is_not_called_a_step(tmp_path):
+    # it was "unknown key 'facing' in the 'id' step": a tag (or an obstacle) is not a step of a mission
+    world = tmp_path / "w.yaml"
+    world.write_text("world: w\ntags:\n  - {id: 4, x: 1, y: 1, facing: 0}\n"
+                     "obstacles:\n  - {shape: box, x: 1, y: 1, size_m: [1, 1], colr: red}\n")
+    with pytest.raises(InvalidInput) as err:
+        load_world(world)
+    text = str(err.value)
+    assert "w.yaml:3:25: error: unknown key 'facing' in 'tags'; did you mean 'facing_deg'?" in text, text
+    assert "w.yaml:5:46: error: unknown key 'colr' in 'obstacles'; did you mean 'colour'?" in text, text
+    assert " step" not in text
+
+
 def test_box_colour_is_in_the_world_schema(tmp_path):
     path = tmp_path / "w.yaml"
     path.write_text("world: w\nobstacles:\n  - {shape: box, x: 1, y: 0, size_m: [0.3, 0.3], colour: purple}\n")

@@ -54,6 +54,8 @@ def sees_condition(c: Any, reader: ConditionReader) -> Condition:
     if c.what == "tag":
         def test(r: ConditionReader) -> Optional[bool]:
             w = watch(r)
+            if w is not None and c.size_m is not None:
+                w.tag_sizes_m[c.tag_id] = c.size_m  # its distance (and the views') measured by its own size, as dock does
             tags = None if w is None else w.tags(r.ctx.now(), (c.family or "apriltag_36h11",))
             if tags is None:
                 return None

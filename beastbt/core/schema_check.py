@@ -168,6 +168,13 @@ def _step_keyword(instance: Any, schema: dict) -> Optional[str]:
     return None
 
 
+@lru_cache(maxsize=None)
+def _step_words() -> frozenset:
+    """The mission's step keywords (``drive``, ``wait``...), the first required key of each step's form."""
+    forms = load_schema("mission.schema.json").get("$defs", {}).get("step", {}).get("anyOf", [])
+    return frozenset(str(b["required"][0]) for b in forms if isinstance(b, dict) and b.get("required"))
+
+
 def _where(path: tuple) -> str:
     for part in reversed(path):
         if isinstance(part, str):
@@ -315,7 +322,7 @@ class _Explainer:
         out = []
         required = schema.get("required") or []
         where = _where(path)
-        if required and isinstance(path[-1:], tuple) and path and isinstance(path[-1], int):
+        if required and path and isinstance(path[-1], int) and self.what == "mission" and required[0] in _step_words():
             where = f" in the '{required[0]}' step"
         if extras and isinstance(inst, dict):
             indent = self.indentation(path, inst, extras)
@@ -349,6 +356,8 @@ class _Explainer:
         keys = ", ".join(f"'{k}'" for k in extras)
         them = "it" if len(extras) == 1 else "them"
         first = self.doc.position(path + (extras[0],), key=True)
+        if any(self.doc.position(path + (k,), key=True).line == first.line for k in inst if k not in extras):
+            return None  # beside a sibling on one line: a flow mapping ({tag: 3, qr: x}), where indentation says nothing
         for owner, value in inst.items():
             if owner in extras or not (isinstance(value, dict) or value is None):
                 continue
@@ -393,6 +402,29 @@ class _Explainer:
             by_branch.setdefault(sub.relative_schema_path[0], []).append(sub)
         if kind in ("step", "condition"):
             return self.explain_keyword_choice(err, path, branches, by_branch, kind)
+        # A word or one of several mappings, each named by its own key (sees: motion, {tag: 3}, {qr: ...}): a mapping
+        # with none of those keys is a misspelt key, not a wrong word (the word's branch has the fewest errors).
+        forms = [b for b in branches if isinstance(b, dict) and b.get("type") == "object" and b.get("required")]
+        words = [str(b["const"]) for b in branches if isinstance(b, dict) and "const" in b]
+        if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, str)
+                and inst not in words):  # a word that is none of them: say the mappings it could have been too
+            return [self.at(path, f"{value_in_words(inst)} is not allowed{_where(path)}: expected one of "
+                                  f"{', '.join(words)}{did_you_mean(inst, words)}",
+                            "or a mapping: " + ", ".join(f"{{{b['required'][0]}: ...}}" for b in forms))]
+        if (len(forms) >= 2 and words and len(forms) + len(words) == len(branches) and isinstance(inst, dict) and inst
+                and path and isinstance(path[-1], str)):
+            keys = [str(b["required"][0]) for b in forms]
+            first = str(next(iter(inst)))
+            written = [k for k in keys if k in inst]
+            if not any(set(b.get("properties", {})) & set(inst) for b in forms):
+                return [self.at(path + (first,), f"unknown key '{first}'{_where(path)}{did_you_mean(first, keys)}",
+                                f"allowed here: {', '.join(keys)}; or, instead of a mapping, {' or '.join(words)}",
+                                key=True)]
+            if len(written) >= 2:  # two forms in one mapping ({sees: {tag: 3, qr: x}})
+                a, b = written[:2]
+                return [self.at(path + (b,), f"'{path[-1]}' takes one of {', '.join(keys)}, not both '{a}' and '{b}'",
+                                f"for both, write all: [{{{path[-1]}: {{{a}: ...}}}}, {{{path[-1]}: {{{b}: ...}}}}]",
+                                key=True)]
         chosen = self.pick_branch(inst, branches, by_branch)
         if chosen is not None and chosen in by_branch:
             return self.problems(by_branch[chosen])

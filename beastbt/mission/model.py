@@ -409,6 +409,9 @@ class _SemanticChecker:
             if "for" in v:
                 self.positive(p + ("for",), "duration")
         elif s.kind in ("dock", "undock") and isinstance(v, dict):
+            from beastbt.mission.vision_steps import check_tag
+            for where, message, hint in check_tag(v):
+                self.error(p + where, message, hint)
             for k in ("distance", "size", "speed"):
                 if k in v:
                     self.positive(p + (k,), self.POSITIVE.get(k, "distance"))

@@ -379,7 +379,7 @@ class ObstacleWithin(Value):
 @dataclass(kw_only=True, eq=False, repr=False)
 class Sees(Value):
     """``{sees: ...}``: the camera sees ``what`` now: ``tag`` (``tag_id`` of ``family``, within ``within_m`` when
-    given), ``qr`` (``text``), ``motion``, or ``colour`` (``colour`` as written, at least ``min_area_frac`` of the
+    given, measured for a black square of ``size_m``), ``qr`` (``text``), ``motion``, or ``colour`` (``colour`` as written, at least ``min_area_frac`` of the
     picture)."""
 
     what: str
@@ -389,6 +389,7 @@ class Sees(Value):
     text: Optional[str] = None
     colour: Any = None
     min_area_frac: float = 0.01
+    size_m: Optional[float] = None  # the tag's black square (m), when the mission says it
 
 
 Condition = Union[Flag, BatteryBelow, Near, Elapsed, Not, AllOf, AnyOf, DistanceTravelled, TimeInBlock, Answered,

@@ -14,6 +14,7 @@ from typing import Any, Iterator
 from beastbt.core.units import parse_quantity
 from beastbt.core.yaml_source import PathKey
 from beastbt.mission import steps as st
+from beastbt.vision.tag_families import TAG_IDS
 
 DOCK_DEFAULTS = {"distance": "0.25 m", "size": "16 cm", "family": "apriltag_36h11"}
 """What ``dock:`` takes when the mission leaves a key out (the schema says the same)."""
@@ -58,19 +59,34 @@ def sees_of(raw: Any) -> st.Sees:
     if raw == "motion":
         return st.Sees(what="motion")
     if "tag" in raw:
-        within = raw.get("within")
+        within, size = raw.get("within"), raw.get("size")
         return st.Sees(what="tag", tag_id=int(raw["tag"]), family=str(raw.get("family", DOCK_DEFAULTS["family"])),
-                       within_m=None if within is None else parse_quantity(within, "distance"))
+                       within_m=None if within is None else parse_quantity(within, "distance"),
+                       size_m=None if size is None else parse_quantity(size, "distance"))
     if "qr" in raw:
         return st.Sees(what="qr", text=str(raw["qr"]))
     return st.Sees(what="colour", colour=colour_of(raw["colour"]),
                    min_area_frac=parse_quantity(raw.get("min_area", MIN_AREA_DEFAULT), "fraction"))
 
 
+def check_tag(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
+    """A ``tag:`` id its ``family:`` does not have, in a ``dock:`` or ``sees:`` mapping: (path, message, hint)."""
+    if not isinstance(raw, dict) or not isinstance(raw.get("tag"), int) or isinstance(raw.get("tag"), bool):
+        return  # the schema's to report
+    family = raw.get("family", DOCK_DEFAULTS["family"])
+    count = TAG_IDS.get(family) if isinstance(family, str) else None
+    if count is not None and raw["tag"] >= count:
+        having = [f"{name} (0 to {n - 1})" for name, n in TAG_IDS.items() if raw["tag"] < n]
+        yield (("tag",), f"{family} has tags 0 to {count - 1}, not {raw['tag']}",
+               "check the number printed with the tag"
+               + (f", or name its family with 'family:': {', '.join(having)}" if having else ""))
+
+
 def check_sees(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
     """What is wrong with a ``sees:`` value beyond its shape: (path below ``sees``, message, hint) each."""
     if not isinstance(raw, dict):
         return
+    yield from check_tag(raw)
     if isinstance(raw.get("colour"), dict):  # a name the schema checks; an HSV box here
         from beastbt.vision.colour import ColourRange
         try:
@@ -85,12 +101,13 @@ def check_sees(raw: Any) -> Iterator[tuple[PathKey, str, str]]:
         if not 0.0 < area <= 1.0:
             yield (("min_area",), f"min_area must be more than 0 % and at most 100 %, got {raw['min_area']!r}",
                    "write a share of the picture such as '2 %'")
-    if "within" in raw:
-        try:
-            if parse_quantity(raw["within"], "distance") <= 0:
-                yield ("within",), f"within must be greater than zero, got {raw['within']!r}", "write a distance such as '2 m'"
-        except ValueError:
-            return
+    for key, example in (("within", "2 m"), ("size", "30 cm")):
+        if key in raw:
+            try:
+                if parse_quantity(raw[key], "distance") <= 0:
+                    yield (key,), f"{key} must be greater than zero, got {raw[key]!r}", f"write a distance such as '{example}'"
+            except ValueError:
+                continue  # the schema's to report
 
 
-__all__ = ["vision_step", "sees_of", "check_sees", "DOCK_DEFAULTS", "UNDOCK_DISTANCE"]
+__all__ = ["vision_step", "sees_of", "check_sees", "check_tag", "TAG_IDS", "DOCK_DEFAULTS", "UNDOCK_DISTANCE"]

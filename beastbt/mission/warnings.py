@@ -4,7 +4,7 @@ From the mission alone (:func:`mission_warnings`): text cut by a ``#``, a
 mission without steps, a step faster than the mission's own speed limit,
 places far from each other or from the world (latitude and longitude
 swapped?). Against its world (:func:`world_warnings`): GPS navigation
-indoors. Against the robot it runs on (:func:`robot_warnings`): a step
+indoors, a tag measured by another size than the world's. Against the robot it runs on (:func:`robot_warnings`): a step
 faster than the robot's limit, a ``battery_low`` failsafe on a robot that
 does not report its battery.
 """
@@ -233,14 +233,69 @@ def _on_the_map(mission: Any, step: Any) -> bool:
     return False
 
 
+def _sees_tags(condition: Any, path: tuple) -> Iterator[tuple[st.Sees, tuple]]:
+    """Every ``{sees: {tag: ..., within: ...}}`` in ``condition`` (written at ``path``), with where it is written."""
+    if isinstance(condition, st.Sees):
+        if condition.what == "tag" and condition.within_m is not None:
+            yield condition, path + ("sees",)
+    elif isinstance(condition, st.Not):
+        yield from _sees_tags(condition.condition, path + ("not",))
+    elif isinstance(condition, (st.AllOf, st.AnyOf)):
+        key = "all" if isinstance(condition, st.AllOf) else "any"
+        for i, c in enumerate(condition.conditions):
+            yield from _sees_tags(c, path + (key, i))
+
+
+def _tag_size_warnings(mission: Any, world: Any) -> list[Problem]:
+    """A ``dock``, or a ``sees`` a tag ``within`` a distance, that measures a tag of the world by another size than
+    the world's: its distances would be off by the ratio (the lab's 30 cm tag taken for 16 cm: docked 23 cm short of
+    the goal, with a small error by its own estimate)."""
+    from beastbt.mission.vision_steps import DOCK_DEFAULTS
+    from beastbt.core.units import parse_quantity
+    default_m = parse_quantity(DOCK_DEFAULTS["size"], "distance")
+    sizes = {(str(t.get("family", DOCK_DEFAULTS["family"])), int(t["id"])): float(t.get("size_m", default_m))
+             for t in world.data.get("tags") or [] if isinstance(t, dict) and "id" in t}
+    if not sizes:
+        return []
+    # a sees without its size measures the tag by the size the last dock at it said: known right when one said it
+    docked = {(s.family, s.tag) for s in _every_step(mission)
+              if isinstance(s, st.Dock) and abs(s.size_m - sizes.get((s.family, s.tag), s.size_m)) <= 0.05 * s.size_m}
+    out = []
+
+    def check(family: str, tag: int, size_m: float, path: tuple, what: str) -> None:
+        real = sizes.get((family, tag))
+        if real is None or abs(size_m - real) <= 0.05 * real:
+            return
+        out.append(warning(mission.doc.problem(
+            path, f"tag {tag} is {format_quantity(real, 'distance')} in world '{world.name}', but this {what} measures "
+                  f"it as a {format_quantity(size_m, 'distance')} tag: it would judge every distance to it at "
+                  f"{size_m / real:.2f} times the true one",
+            f"write size: {format_quantity(real, 'distance')} (the side of the tag's black square)")))
+
+    for step in _every_step(mission):
+        if isinstance(step, st.Dock):
+            check(step.family, step.tag, step.size_m, step.path + (step.KEYWORD, "tag"), "dock")
+        condition = getattr(step, "condition", None)
+        if condition is not None:
+            for c, path in _sees_tags(condition, step.path + (step.KEYWORD,)):
+                family = c.family or DOCK_DEFAULTS["family"]
+                if c.size_m is None and (family, c.tag_id) in docked:
+                    continue
+                check(family, c.tag_id, default_m if c.size_m is None else c.size_m, path + ("tag",), "sees")
+    return out
+
+
 def world_warnings(mission: Any, world: Any) -> list[Problem]:
-    """What cannot work in the mission's world: what needs a GPS fix indoors (a world whose ``gps`` says ``sky: none``).
+    """What cannot work in the mission's world: what needs a GPS fix indoors (a world whose ``gps`` says ``sky: none``),
+    and a tag measured by another size than the world gives it.
 
     GPS navigation steps, conditions on the position on Earth (``near``, a
     fence) and the failsafes that watch the fix or a fence.
     """
-    if world is None or (world.section("gps") or {}).get("sky") != "none":
+    if world is None:
         return []
+    if (world.section("gps") or {}).get("sky") != "none":
+        return _tag_size_warnings(mission, world)
     doc = mission.doc
     indoors = f"world '{world.name}' is indoors (gps: {{sky: none}}): the robot never gets a GPS fix there"
     hint = ("indoors, drive by distance and turns or follow a line; or run the mission in a world under the open "
@@ -261,7 +316,7 @@ def world_warnings(mission: Any, world: Any) -> list[Problem]:
                     else "a position on Earth that is never known")
             out.append(warning(doc.problem(failsafe.path, f"{indoors}: this {failsafe.kind} failsafe watches {what}",
                                            hint, key=True)))
-    return out
+    return out + _tag_size_warnings(mission, world)
 
 
 def speed_warnings(mission: Any, max_speed_mps: float, robot: str) -> list[Problem]:

@@ -45,7 +45,7 @@ from beastbt.recording.report_plots import (DPI, FIG_SIZE_IN, MAP_SIZE_IN, PLOTS
                                            plot_position_error, plot_saved_map, plot_speeds, plot_timeline,
                                            position_errors, step_intervals, timeline_rows)
 from beastbt.run.home import home_line
-from beastbt.run.summary import obstacles_line, waypoint_text
+from beastbt.run.summary import obstacles_line, vision_lines, waypoint_text
 
 NOT_PLOTTED = ("/sensors/imu", "/sensors/battery", "/sensors/joystick", "/sensors/camera", "/camera/image",
                "/pose/fused", "/gps/fix", "/log", "/cmd/servo", "/cmd/mux", "/cmd/teleop", "/devices/state",
@@ -574,6 +574,7 @@ def summary_text(d: RunData) -> str:
     obstacles = obstacles_line(s)
     if obstacles:
         lines.append(obstacles)
+    lines.extend(vision_lines(s))  # docks, photos, alerts: as beastbt run ended with them
     recoveries = d.recoveries()
     counted = s.get("recoveries")
     if recoveries or counted is not None:

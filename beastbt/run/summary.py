@@ -114,6 +114,37 @@ def has_obstacles(s: dict) -> bool:
             or bool(truth.get("collisions")))
 
 
+def dock_text(d: dict) -> str:
+    """One of the summary's ``vision.docks`` in words: how it ended, and how far from the goal by the estimate and
+    (in the simulator) truly."""
+    text = f"dock at tag {d.get('tag')}: {d.get('status', '?')} at {float(d.get('time_s', 0.0)):.1f} s"
+    if d.get("error_m") is not None:
+        text += (f", {float(d['error_m']) * 100:.1f} cm and {float(d.get('error_deg', 0.0)):.1f} deg off the goal by the "
+                 "estimate")
+    truth = d.get("truth") or {}
+    if truth.get("error_m") is not None:
+        text += f"; truly {float(truth['error_m']) * 100:.1f} cm and {float(truth.get('error_deg', 0.0)):.1f} deg"
+    if d.get("retries"):
+        text += f" (after {d['retries']} {'retry' if d['retries'] == 1 else 'retries'})"
+    return text
+
+
+def vision_lines(summary: dict) -> list[str]:
+    """The camera's words in the summary, a line each: every dock, the photos taken, the alerts (the last one's
+    text)."""
+    vision = summary.get("vision") or {}
+    lines = ["  " + dock_text(d) for d in vision.get("docks") or []]
+    photos = vision.get("photos") or []
+    if photos:
+        names = [str(p.get("name")) for p in photos]
+        lines.append(f"  photos: {len(photos)} ({', '.join(names[:6])}{', ...' if len(names) > 6 else ''})")
+    alerts = summary.get("alerts") or []
+    if alerts:
+        last = alerts[-1]
+        lines.append(f"  alerts: {len(alerts)}, the last at {float(last.get('time_s', 0.0)):.1f} s: {last.get('text')}")
+    return lines
+
+
 def human_summary(summary: dict) -> str:
     """A few lines for a person at the end of a run.
 
@@ -121,7 +152,7 @@ def human_summary(summary: dict) -> str:
     printed as it happened); its time is that event's, so the two agree. Then
     how home was set, the places visited (arrival judged on the estimate; the
     true distance in the simulator), collisions and clearance when the robot
-    has a LiDAR or the world has obstacles. The failures before the end (last
+    has a LiDAR or the world has obstacles, the docks, photos and alerts. The failures before the end (last
     five) are repeated for whoever scrolled past them.
     """
     from beastbt.run.home import home_line
@@ -147,6 +178,7 @@ def human_summary(summary: dict) -> str:
         lines.append("  waypoint " + summary_waypoint_text(wp, simulated))
     if has_obstacles(summary):
         lines.append(obstacles_line(summary) or "  obstacles: none seen")
+    lines.extend(vision_lines(summary))
     ends = [e for e in events if e["kind"] in ("step_failed", "failsafe", "estop")]
     for e in ends[-5:]:
         lines.append(f"  [{e['time_s']:7.1f} s] {e['kind']}: {e['text']}")

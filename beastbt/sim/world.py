@@ -60,10 +60,22 @@ def empty_world() -> World:
 def load_world(path: Union[str, Path]) -> World:
     """Load and check a world file; raise :class:`InvalidInput` with every problem found."""
     doc = load_yaml(path)
-    problems = read_unit_values(doc) or schema_problems(doc, "world.schema.json", "world")
+    problems = read_unit_values(doc) or schema_problems(doc, "world.schema.json", "world") or _tag_problems(doc)
     if problems:
         raise InvalidInput(problems)
     return world_of(doc.data, doc)
+
+
+def _tag_problems(doc: SourceDoc) -> list:
+    """The world's ``tags:`` whose id their family does not have (checked by the schema otherwise)."""
+    from beastbt.vision.tag_families import tag_id_problem
+    out = []
+    for i, t in enumerate(doc.data.get("tags") or []):
+        why = tag_id_problem(str(t.get("family", "apriltag_36h11")), int(t["id"]))
+        if why is not None:
+            out.append(doc.problem(("tags", i, "id"), f"tags: {why}",
+                                   "use an id the family has, or a family with more ids (apriltag_36h11 has 587)"))
+    return out
 
 
 def world_of(d: dict, doc: Optional[SourceDoc] = None) -> World:

@@ -155,8 +155,12 @@ def calibrate(paths: Sequence[str], board: Board, min_photos: int = MIN_PHOTOS) 
     used: list[str] = []
     skipped: list[tuple[str, str]] = []
     for path in paths:
+        if Path(path).is_dir():
+            raise CalibrationRefused(f"{path}: a folder, not a photo; give the photos in it, such as {Path(path) / '*.jpg'}")
         if not Path(path).is_file():
-            raise CalibrationRefused(f"{path}: no such file")
+            hint = ("a shell pattern that matches nothing comes as it is written: check the folder and the extension "
+                    "(.jpg, .png...)" if any(c in str(path) for c in "*?[") else "check the path")
+            raise CalibrationRefused(f"{path}: no such file; {hint}")
         grey = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
         if grey is None or not grey.size:
             raise CalibrationRefused(f"{path}: not an image OpenCV can read (JPEG, PNG, BMP, TIFF...)")

@@ -48,9 +48,12 @@ class ColourRange:
         if isinstance(value, tuple) and len(value) == 2:  # the two corners alone, as a mission's typed value keeps them
             value = {"hsv": value}
         if isinstance(value, dict) and "hsv" in value:
-            lo, hi = value["hsv"]
-            lo = tuple(int(x) for x in lo)
-            hi = tuple(int(x) for x in hi)
+            try:
+                lo, hi = value["hsv"]
+                lo = tuple(int(x) for x in lo)
+                hi = tuple(int(x) for x in hi)
+            except (TypeError, ValueError):  # not two lists of numbers: say the shape, not Python's words
+                lo = hi = ()
             if len(lo) != 3 or len(hi) != 3:
                 raise ValueError("hsv needs two [h, s, v] triples: [[h, s, v], [h, s, v]]")
             for a, b, top in zip(lo, hi, (179, 255, 255)):
