@@ -84,9 +84,15 @@ def run_all(jobs: list[tuple[str, Optional[int], int, bool, str]], processes: in
     each finishes; the results in the jobs' order."""
     results: list[Any] = [None] * len(jobs)
     if processes <= 1 or len(jobs) <= 1:
-        for i, job in enumerate(jobs):
-            results[i] = _run_job(job)
-            done(i, results[i])
+        # SIGTERM ends the session from the start, not only once a run's loop has its own handler: before
+        # that (a run being prepared, its folder already made) it would kill the process without a word
+        restore = _sigterm_as_interrupt()
+        try:
+            for i, job in enumerate(jobs):
+                results[i] = _run_job(job)
+                done(i, results[i])
+        finally:
+            restore()
         return results
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
