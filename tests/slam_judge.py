@@ -121,6 +121,15 @@ def judge(world: World, grid: OccupancyMap, poses_world: np.ndarray) -> Judgemen
                      seen=int(seen.sum()), occupied=int(occupied.sum()))
 
 
+def judged_world(mission: Path, world: Optional[Path] = None) -> Path:
+    """The world a map built by ``mission`` is judged against: ``world`` (the run's --world), else the mission's own
+    ``world:``, else the floor among people (the map was built in that world, not always in the floor's)."""
+    if world is not None:
+        return world
+    from beastbt.mission.model import load_mission
+    return load_mission(mission).world or FLOOR_WORLD
+
+
 def run_and_judge(mission: Path, seed: int, tmp: Path, world: Optional[Path] = None) -> tuple[dict, Judgement]:
     """Run ``mission`` on ``seed`` with --build-map (recorded, into ``tmp``); its summary and the map's judgement."""
     from beastbt.cli import main
@@ -137,7 +146,7 @@ def run_and_judge(mission: Path, seed: int, tmp: Path, world: Optional[Path] = N
     run = next((tmp / "runs").iterdir())
     # The keyframes' stamps: the same mapper rebuilt offline from the recording keeps the online one's keyframes.
     stamps = [k.stamp_s for k in mapper_from_recording(run).keyframes]
-    w = load_world(str(world or FLOOR_WORLD))
+    w = load_world(str(judged_world(mission, world)))
     return summary, judge(w, load_map(tmp / "map.yaml"), true_poses(run, stamps))
 
 

@@ -44,6 +44,9 @@ CASES = [
     ("bad_rate", "mission: t\nrate: 500 Hz\nsteps: [stop]\n", 2, 7, "1 to 100 Hz"),
     ("bad_name", "mission: my mission\nsteps: [stop]\n", 1, 10, "not a valid name"),
     ("unknown_condition", OK_HEAD + "  - wait_until: intersectoin\n", 3, 17, "unknown condition 'intersectoin'"),
+    # a mapping where a word (none) is also allowed: the mapping's own keys are explained, not "a mapping is not allowed"
+    ("recovery_misspelt", OK_HEAD + "  - go_to: {lat: 40.4, lon: -3.7, recovery: {tris: 3}}\n", 3, 46,
+     "unknown key 'tris' in 'recovery'; did you mean 'tries'"),
 ]
 
 
@@ -114,3 +117,17 @@ def test_a_key_at_the_wrong_indentation_is_told_to_indent_once(write_mission, ca
     err = capsys.readouterr().err
     assert f":{where}: error: {says}" in err
     assert err.count("error:") == 1, err  # no "unknown key", no "needs 'steps:'" besides
+
+
+@pytest.mark.parametrize("text, where", [
+    ("  - go_to: {lat: 40.4, lon: -3.7, recovery: {tries: 2, wait_s: 3}}\n", "3:56"),
+    ("  - go_to:\n      lat: 40.4\n      lon: -3.7\n      recovery:\n        tries: 3\n        wait_s: 2\n", "8:9"),
+])
+def test_a_key_that_fits_nowhere_is_unknown_not_told_to_indent(write_mission, capsys, text, where):
+    """A profile knob under a step's recovery: moved beside 'recovery:' it would be just as wrong (go_to has no
+    wait_s), so the author hears that it is unknown here, not to indent it (the step's oneOf hid that)."""
+    path = write_mission("mission: p\nsteps:\n" + text)
+    assert cli.main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert f":{where}: error: unknown key 'wait_s' in 'recovery'" in err, err
+    assert "indent" not in err, err

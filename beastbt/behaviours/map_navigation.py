@@ -91,12 +91,17 @@ class MapPlanner:
         self.layer_config: Any = None
         self.footprint_radius_m = 0.15
         self._costmap: Any = None
+        self._map_only: Any = None
         self._layer: Any = None
         self.visits: list[MapVisit] = []
         self.plans = 0
         self.gaps: list[tuple[np.ndarray, np.ndarray]] = []
         """The narrow gaps (doors the padding would close) the last plan crosses square: (centre (2,) map m, unit
         normal (2,) along the path)."""
+        self.mark_min_quality = 0.6
+        """The obstacle layer takes a scan only while the localiser's match quality is at least this (its
+        ``lost_quality``, set by the navigation part): below it the pose is in doubt, and returns placed with a wrong
+        pose wall the robot in where the map is open (a start given wrongly)."""
         self.listeners: list[Callable[[MapVisit], None]] = []
         """Called with a visit when it ends (the simulator's truth listens here)."""
 
@@ -107,6 +112,7 @@ class MapPlanner:
         self.footprint_radius_m = footprint_radius_m
         self.layer_config = layer_config
         self._costmap = None
+        self._map_only = None
         self._layer = None
 
     @property
@@ -136,6 +142,19 @@ class MapPlanner:
             layer.unmarkable = cv2.dilate(walls, np.ones((2 * k + 1, 2 * k + 1), np.uint8)).astype(bool)
             self._layer = layer
         return self._layer
+
+    def way_on_the_map(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float,
+                       name: str) -> Optional[str]:
+        """None when the map alone (without the obstacle layer's marks) has a way from ``start`` to ``goal`` (map m);
+        else why not (``NoPath``'s reason). Its costmap is built on first use and never marked."""
+        from beastbt.navigation.global_planner import GlobalCostmap, NoPath, plan_path
+        if self._map_only is None:
+            self._map_only = GlobalCostmap(self.grid, self.config, self.footprint_radius_m)
+        try:
+            plan_path(self._map_only, start, goal, tolerance_m, goal_name=name)
+        except NoPath as exc:
+            return exc.reason
+        return None
 
     def costmap_now(self) -> Any:
         """The costmap with what the obstacle layer holds now (recomputed when the layer changed)."""
@@ -231,6 +250,8 @@ class MapGoTo(GoTo):
         self.path_version = -1
         self.narrow_odom_m = -math.inf
         """The wheels' odometer (m) when creeping near a narrow door last counted as progress."""
+        self.marks_forgotten = False
+        """Whether this step has forgotten the obstacle layer's marks because only they closed the way."""
 
     # -- lifecycle ----------------------------------------------------------------------------------
     def initialise(self) -> None:
@@ -248,6 +269,7 @@ class MapGoTo(GoTo):
         self.unlocalised_since_s = None
         self.replans = 0
         self.narrow_odom_m = -math.inf
+        self.marks_forgotten = False
         goal = self.map_target()
         self.map_visit = MapVisit(self.place, goal[0] if goal else None, goal[1] if goal else None,
                                   self._tolerance())
@@ -348,10 +370,32 @@ class MapGoTo(GoTo):
             path = self.planner.plan((pose.x, pose.y), goal, max(tolerance * 0.5, 0.0), self.place)
         except NoPath as exc:
             self.command(0.0, 0.0)
+            reason = exc.reason
+            layer = self.planner._layer
+            if layer is not None and layer.marked.any():
+                # The LiDAR's marks may be what closes the way: marks made from a pose the localiser had wrong for a
+                # moment (a start given wrongly) wall the robot in where the map is open. When the map alone has a
+                # way, Nav2 clears its costmap and plans again, then runs its recoveries; when it has none, no
+                # recovery makes one: fail at once.
+                on_map = self.planner.way_on_the_map((pose.x, pose.y), goal, max(tolerance * 0.5, 0.0), self.place)
+                if on_map is None and not self.marks_forgotten:
+                    # the first time in a step: forget every mark (Nav2's ClearEntireCostmap) and plan on the map;
+                    # the scans mark again what is truly there, from the pose as it is now
+                    self.marks_forgotten = True
+                    n = layer.forget()
+                    self.ctx.events.add("replan", f"{self.name}: no way round what the LiDAR has marked, though the "
+                                                  f"map has one: {n} marked cells forgotten, planning on the map")
+                    self.path = None
+                    return self._replan_if_due(now, pose, goal, tolerance)
+                if on_map is None:
+                    reason += "; the map has a way, what the LiDAR has marked closes it"
+                    return self._give_up(now, f"blocked: no other way to {self.place} ({reason}); "
+                                              f"{self._obstacle_text(0.0)}" if why.startswith("blocked")
+                                         else f"no path to {self.place}: {reason}")
+                reason = on_map
             if why.startswith("blocked"):
-                return self.fail(f"blocked: no other way to {self.place} ({exc.reason}); "
-                                 f"{self._obstacle_text(0.0)}")
-            return self.fail(f"no path to {self.place}: {exc.reason}")
+                return self.fail(f"blocked: no other way to {self.place} ({reason}); {self._obstacle_text(0.0)}")
+            return self.fail(f"no path to {self.place}: {reason}")
         if why != "start":
             self.replans += 1
             if why != "period":
@@ -415,6 +459,8 @@ class MapGoTo(GoTo):
         odom: Optional[FusedPose] = self.read("pose_odom")
         if local is None or local.fresh is None or pose is None or odom is None or not pose.localized:
             return
+        if pose.match_quality < self.planner.mark_min_quality:
+            return  # the localiser is losing its place (or never had it): the scan would be placed wrongly
         if self.planner.layer_config is not None and not self.planner.layer_config.enabled:
             return
         from beastbt.estimation.map_localiser import compose, invert, scan_mid_s

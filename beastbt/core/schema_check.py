@@ -182,6 +182,17 @@ def _where(path: tuple) -> str:
     return ""
 
 
+def _touches(err: jsonschema.ValidationError, subtree: tuple) -> bool:
+    """True when ``err`` is at or under ``subtree``, or is a choice (oneOf, anyOf) above it that failed for something
+    at or under it: a step's oneOf says that a step is wrong at the step, not at the key inside it that is."""
+    path = tuple(err.absolute_path)
+    if path[:len(subtree)] == subtree:
+        return True
+    if subtree[:len(path)] == path and err.validator in ("oneOf", "anyOf"):
+        return any(_touches(sub, subtree) for sub in err.context or ())
+    return False
+
+
 class _Explainer:
     def __init__(self, doc: SourceDoc, what: str,
                  validator: Optional[jsonschema.Draft202012Validator] = None) -> None:
@@ -347,8 +358,7 @@ class _Explainer:
             node[path[-1]] = changed
         else:
             data = changed
-        n = len(subtree)
-        return not any(tuple(e.absolute_path)[:n] == subtree for e in self.validator.iter_errors(data))
+        return not any(_touches(e, subtree) for e in self.validator.iter_errors(data))
 
     def indentation(self, path: tuple, inst: dict, extras: list) -> Optional[Problem]:
         """A problem saying "indent it" when the unknown ``extras`` of the mapping at ``path`` would be right one
@@ -439,6 +449,12 @@ class _Explainer:
                 return True
             return {"object": isinstance(inst, dict), "array": isinstance(inst, list), "string": isinstance(inst, str)}.get(t, True)
         candidates = [i for i, b in enumerate(branches) if isinstance(b, dict) and type_ok(b)]
+        if isinstance(inst, (dict, list)):
+            # a mapping where one shape of mapping or a word (none) is allowed means that shape: explain its keys,
+            # not "a mapping is not allowed" (where several shapes are, the words' explanation lists them all)
+            shaped = [i for i in candidates if "const" not in branches[i] and "enum" not in branches[i]]
+            if len(shaped) == 1:
+                candidates = shaped
         if isinstance(inst, dict):
             keyed = [i for i in candidates if set(branches[i].get("required", [])) <= set(inst) and branches[i].get("required")]
             if keyed:

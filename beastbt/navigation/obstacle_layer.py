@@ -324,6 +324,16 @@ class ObstacleLayer:
                                                                                   axis=1)
         return n
 
+    def forget(self) -> int:
+        """Forget every mark (Nav2's ClearEntireCostmap); the number of cells that were marked."""
+        n = int(np.count_nonzero(self.marked))
+        if n:
+            self.marked[:] = False
+            if self.fine is not None:
+                self.fine[:] = False
+            self.version += 1
+        return n
+
     def mark_points(self, x: np.ndarray, y: np.ndarray) -> int:
         """Mark the cells holding points (m) (what stopped the robot, on a map); the number newly marked."""
         row, col, inside = self.cells(x, y)

@@ -250,6 +250,8 @@ def install_navigation(p: Prepared) -> None:
         planner.configure(section_config(p.profile, "global_planner", GlobalPlannerConfig),
                           footprint_radius(p.profile.data),
                           section_config(p.profile, "global_costmap", GlobalCostmapConfig))
+        from beastbt.estimation.map_localiser import LocaliserConfig
+        planner.mark_min_quality = section_config(p.profile, "localisation", LocaliserConfig).lost_quality
         install_map_truth(p, planner)
     path = run.ctx.services.driven_path
     if path is not None:  # a return_home: {along: path} will need the way back
