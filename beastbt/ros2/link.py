@@ -52,6 +52,9 @@ FORMATS = ("rmw_zenoh", "bridge")
 DISTROS = ("jazzy", "humble")
 TWIST_BYTES = 52
 """A Twist's CDR: the 4-byte header and six float64; a TwistStamped is longer (the bridge's key has no type)."""
+MAX_PENDING = 100
+"""At most this many received messages (goals, poses, bad ones) wait for the tick thread; more are dropped and
+counted, so that a flood cannot stall the ticks (``/cmd_vel`` does not queue: only its newest message counts)."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +154,12 @@ class Ros2Link:
         self.keys: dict[str, str] = {}
         """The data key of each published topic."""
         self._pending: "queue.SimpleQueue[tuple[str, Any]]" = queue.SimpleQueue()
+        self._twist: Optional[cdr.Twist] = None
+        """The newest ``/cmd_vel`` not carried out yet: a stick's position, so a newer one replaces it (a flood of
+        ``/cmd_vel`` is one command a tick, and the deadman counts from the last message, not from a backlog)."""
+        self._twist_lock = threading.Lock()
+        self.dropped = 0
+        """Messages dropped because :data:`MAX_PENDING` waited already."""
         self.controls: Any = None
         self.topics: Optional[RunTopics] = None
         self.received = 0
@@ -295,28 +304,42 @@ class Ros2Link:
                 else:
                     value = cdr.decode_pose_with_covariance_stamped(data)
             except cdr.CdrError as exc:
-                self._pending.put(("bad", f"{name}: {exc}"))
+                self._queue(("bad", f"{name}: {exc}"))
             else:
-                self._pending.put((kind, value) if self.commands else ("refused", kind))
+                if kind == "cmd_vel" and self.commands:
+                    with self._twist_lock:
+                        self._twist = value
+                else:
+                    self._queue((kind, value) if self.commands else ("refused", kind))
             self.run.io.wakeup.set()
         return receive
+
+    def _queue(self, item: tuple[str, Any]) -> None:
+        """Queue ``item`` for the tick thread, unless :data:`MAX_PENDING` wait already (then it is counted)."""
+        if self._pending.qsize() >= MAX_PENDING:
+            self.dropped += 1
+            return
+        self._pending.put(item)
 
     # -- the tick thread -------------------------------------------------------------------------------------------
     def _apply(self, run: Any, now_s: float) -> None:
         """A tick hook and a reactor: carry out what came, then the deadman (the stick's own timeout)."""
         pending = self._pending
         controls = self.controls
-        if pending.empty() and (controls is None or not controls.stick_held):
+        if pending.empty() and self._twist is None and (controls is None or not controls.stick_held):
             return
-        while True:
+        with self._twist_lock:
+            twist, self._twist = self._twist, None
+        if twist is not None:
+            self.received += 1
+            self._drive(twist)
+        for _ in range(pending.qsize()):  # what waits now: what comes meanwhile is the next tick's
             try:
                 kind, value = pending.get_nowait()
             except queue.Empty:
                 break
             self.received += 1
-            if kind == "cmd_vel":
-                self._drive(value)
-            elif kind == "initialpose":
+            if kind == "initialpose":
                 self._initial_pose(run, value)
             elif kind == "goal_pose":
                 self._goal(run, value)
@@ -327,6 +350,10 @@ class Ros2Link:
                                            f"(--ros2-config with TLS to command; docs/ros2.md)")
             elif kind == "bad":
                 run.events.add("ros2", f"ROS 2 message not understood: {value}")
+        if self.dropped:
+            run.events.add("ros2", f"{self.dropped} ROS 2 messages dropped: more than {MAX_PENDING} came between two "
+                                   f"ticks (a flood)")
+            self.dropped = 0
         if controls is not None:
             controls.apply_pending(now_s)
 
