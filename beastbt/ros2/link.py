@@ -377,11 +377,24 @@ class Ros2Link:
             run.events.add("ros2", "ROS 2 /initialpose not taken: this run localises on no map")
             return
         from beastbt.estimation.map_localiser import compose, invert
+        x, y = pose.position[0], pose.position[1]
+        grid = getattr(loc, "grid", None)
+        if grid is not None and not (grid.origin_x <= x <= grid.origin_x + grid.width_m
+                                     and grid.origin_y <= y <= grid.origin_y + grid.height_m):
+            run.events.add("ros2", f"ROS 2 /initialpose ({x:.6g}, {y:.6g}) m not taken: it is off the map (it covers "
+                                   f"x {grid.origin_x:.1f} to {grid.origin_x + grid.width_m:.1f} m, y "
+                                   f"{grid.origin_y:.1f} to {grid.origin_y + grid.height_m:.1f} m)")
+            return
         odom = compose(invert((last.odom_x, last.odom_y, last.odom_yaw)), (last.x, last.y, last.yaw))
         cov = pose.covariance or ()
         sigma_xy = math.sqrt(max(cov[0], cov[7])) if len(cov) == 36 and cov[0] > 0 else 0.5
         sigma_yaw = math.sqrt(cov[35]) if len(cov) == 36 and cov[35] > 0 else math.radians(15.0)
-        loc.start((pose.position[0], pose.position[1], pose.yaw), sigma_xy, sigma_yaw, odom)
+        # A spread no wider than the map, nor than a turn: an infinite or huge covariance (finite CDR still) put the
+        # particles nowhere, and the localiser's next estimate divided by zero, ending the run.
+        span = max(grid.width_m, grid.height_m) if grid is not None else 10.0
+        sigma_xy = min(sigma_xy, span) if math.isfinite(sigma_xy) else span
+        sigma_yaw = min(sigma_yaw, math.pi) if math.isfinite(sigma_yaw) else math.pi
+        loc.start((x, y, pose.yaw), sigma_xy, sigma_yaw, odom)
         run.events.add("ros2", f"ROS 2 /initialpose: localising again around ({pose.position[0]:.2f}, "
                                f"{pose.position[1]:.2f}) m, {math.degrees(pose.yaw):.0f} deg")
 
