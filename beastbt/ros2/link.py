@@ -447,8 +447,10 @@ def goal_mission(pose: cdr.PoseStamped, map_file: Optional[str] = None) -> bytes
     ``map_file`` (the pose's frame is taken as the map's; the heading is not kept: go_to ends where it arrives)."""
     import json
     x, y = pose.position[0], pose.position[1]
+    # The frame comes from the network: quoted (JSON is YAML), so that no frame_id can add keys to the mission.
+    description = json.dumps(f"rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}")
     return (f"mission: ros2_goal\n"
-            f"description: rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}\n"
+            f"description: {description}\n"
             + (f"map: {json.dumps(str(map_file))}\n" if map_file else "") +
             f"places:\n  goal: {{x: {x:.3f} m, y: {y:.3f} m}}\n"
             f"steps:\n  - go_to: goal\n").encode()
