@@ -9,8 +9,8 @@ beastbt's Zenoh 1.x: ``liveliness_mgt.rs`` at commit 09d68c0, lines 26-37 and 18
   sends it; no attachment.
 * **Liveliness tokens** announce each publisher and subscription to the other bridges:
   ``@/<zid>/@ros2_lv/MP/<key>/<type>/<qos>`` (``MS`` for a subscription; the bridges before 1.0, on Zenoh
-  0.11, wrote ``@ros2_lv/<zid>/MP/...``, and a bridge 1.x subscribes to ``@/*/@ros2_lv/**`` only), '/' in the key and the ROS type
-  (``sensor_msgs/msg/LaserScan``) escaped to '§', and ``<qos>`` = ``<K if keyed>:<reliability>:
+  0.11, wrote ``@ros2_lv/<zid>/MP/...``, and a bridge 1.x subscribes to ``@/*/@ros2_lv/**`` only), '/' in the
+  key and the ROS type (``sensor_msgs/msg/LaserScan``) escaped to '§', and ``<qos>`` = ``<K if keyed>:<reliability>:
   <durability>:<history>,<depth>`` with DDS's enums (reliability 0 best effort, 1 reliable; durability 0
   volatile, 1 transient local; history 0 keep last, 1 keep all); the bridge itself holds
   ``@/<zid>/@ros2_lv``. ROS types are keyless: the first field is empty.
