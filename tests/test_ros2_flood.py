@@ -4,8 +4,8 @@ counts), and what else waits for the tick thread is bounded.
 Found by the acceptance check of issue 35: a plain Zenoh peer putting ``/cmd_vel`` as fast as it could (about
 400 000 messages a second on loopback) queued every message, and the tick that carried them out took about a
 second (the odometry stopped for that long), so the robot drove on at full speed for 1.6 s after the last
-message instead of the deadman's 0.5 s. Here the link's own receiver is handed the messages (what Zenoh's thread
-does), without a network.
+message instead of the deadman's 0.5 s. A plain Zenoh peer on loopback puts the /cmd_vel flood; the bad messages
+are handed to the link's own receiver (what Zenoh's thread does).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import pytest
 
 from beastbt.ros2 import cdr
 from beastbt.testing import MissionHarness
-from fleet_support import free_port
+from fleet_support import free_port, wait_for
 
 pytest.importorskip("zenoh")
 
@@ -54,19 +54,44 @@ def harness():
 
 
 def test_a_cmd_vel_flood_is_one_command_a_tick_the_newest(harness):
-    h, link = harness
-    receive = link._receiver("cmd_vel")
-    for i in range(5000):
-        receive(_Sample(_twist(0.001 * (i % 100))))
-    receive(_Sample(_twist(0.2)))
-    applied = link.controls.applied
-    h.tick()
-    assert link.controls.applied - applied == 1  # one stick position carried out, not 5001
+    import json
+    import time
+
+    import zenoh
+
     from beastbt.live.console_control import AXIS_LINEAR
-    override = h.run.ctx.services.teleop
-    scale = override.teleop.config.scale_linear_mps
-    assert override.remote.axes[AXIS_LINEAR] == pytest.approx(min(1.0, 0.2 / scale))  # the newest message's
-    assert link._pending.empty() and link._twist is None
+    from beastbt.ros2 import rmw_zenoh as rz
+    h, link = harness
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([link.options.listen]))
+    s = zenoh.open(conf)
+    try:
+        wait_for(lambda: [r for r in s.liveliness().get("@ros2_lv/**", timeout=1.0)
+                          if r.ok is not None and "%cmd_vel/" in str(r.ok.key_expr)], 30, "the /cmd_vel subscription")
+        # blocking, not dropping as Zenoh does by default when its queue is full: the last message must arrive
+        pub = s.declare_publisher(rz.topic_key(0, "/cmd_vel", "geometry_msgs/msg/Twist"),
+                                  congestion_control=zenoh.CongestionControl.BLOCK)
+        for i in range(5000):  # no tick meanwhile: all of these come before the next one
+            pub.put(_twist(0.001 * (i % 100)))
+        pub.put(_twist(0.2))
+        override = h.run.ctx.services.teleop
+        scale = override.teleop.config.scale_linear_mps
+        applied, ticks = link.controls.applied, 0
+
+        def newest_carried_out() -> bool:
+            nonlocal ticks
+            h.tick()
+            ticks += 1
+            time.sleep(0.01)
+            remote = override.remote
+            return remote is not None and remote.axes[AXIS_LINEAR] == pytest.approx(min(1.0, 0.2 / scale))
+        wait_for(newest_carried_out, 30, "the last /cmd_vel carried out")
+        assert link.controls.applied - applied <= ticks  # at most one stick command a tick, not one a message
+        assert link._pending.empty()
+    finally:
+        s.close()
 
 
 def test_bad_messages_beyond_the_bound_are_dropped_and_counted(harness):

@@ -55,6 +55,8 @@ TWIST_BYTES = 52
 MAX_PENDING = 100
 """At most this many received messages (goals, poses, bad ones) wait for the tick thread; more are dropped and
 counted, so that a flood cannot stall the ticks (``/cmd_vel`` does not queue: only its newest message counts)."""
+STICK_INPUTS = ("cmd_vel", "cmd_vel_stamped")
+"""The inputs that are a stick's position: only the newest message counts (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -154,10 +156,10 @@ class Ros2Link:
         self.keys: dict[str, str] = {}
         """The data key of each published topic."""
         self._pending: "queue.SimpleQueue[tuple[str, Any]]" = queue.SimpleQueue()
-        self._twist: Optional[cdr.Twist] = None
-        """The newest ``/cmd_vel`` not carried out yet: a stick's position, so a newer one replaces it (a flood of
-        ``/cmd_vel`` is one command a tick, and the deadman counts from the last message, not from a backlog)."""
-        self._twist_lock = threading.Lock()
+        self._sticks: list[tuple[str, Any]] = []
+        """``/cmd_vel``'s subscriptions (name, subscriber): Zenoh keeps each one's newest message in a ring of one,
+        read at each tick (:meth:`_poll_sticks`), so a flood is one command a tick, runs no Python per message and
+        leaves no backlog behind the sender (the deadman counts from the laptop's last message, within a tick)."""
         self.dropped = 0
         """Messages dropped because :data:`MAX_PENDING` waited already."""
         self.controls: Any = None
@@ -247,7 +249,13 @@ class Ros2Link:
                     continue  # the bridge's key has no type: /cmd_vel's one subscription reads both (by size)
                 key = bridge.data_key(topic)
                 token = bridge.endpoint_token(self.zid, rz.SUBSCRIPTION, key, spec.type_name, spec.qos)
-            self._subs.append(self.session.declare_subscriber(key, self._receiver(name)))
+            if name in STICK_INPUTS:
+                import zenoh
+                sub = self.session.declare_subscriber(key, zenoh.handlers.RingChannel(1))
+                self._sticks.append((name, sub))
+            else:
+                sub = self.session.declare_subscriber(key, self._receiver(name))
+            self._subs.append(sub)
             self._token(token)
             eid += 1
 
@@ -283,34 +291,31 @@ class Ros2Link:
             pub.put(payload)
 
     # -- in (Zenoh's threads: decode, then queue for the tick thread) --------------------------------------------
+    def _decode(self, name: str, data: bytes) -> Any:
+        """The message of input ``name`` in ``data``; :class:`~beastbt.ros2.cdr.CdrError` when it is not one."""
+        if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
+                                         and len(data) != TWIST_BYTES):
+            return cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
+        if name == "cmd_vel":
+            return cdr.decode_twist(data)
+        if name == "goal_pose":
+            return cdr.decode_pose_stamped(data)
+        return cdr.decode_pose_with_covariance_stamped(data)
+
     def _receiver(self, name: str) -> Callable[[Any], None]:
         def receive(sample: Any) -> None:
             data = sample.payload.to_bytes()
-            kind = "cmd_vel" if name == "cmd_vel_stamped" else name
             try:
                 if name == "estop":
                     if cdr.decode_bool(data):
                         from beastbt.run.safety import request_estop  # safe from any thread
                         request_estop(self.run, "ROS 2 /estop")
                     return
-                value: Any
-                if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
-                                                 and len(data) != TWIST_BYTES):
-                    value = cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
-                elif name == "cmd_vel":
-                    value = cdr.decode_twist(data)
-                elif name == "goal_pose":
-                    value = cdr.decode_pose_stamped(data)
-                else:
-                    value = cdr.decode_pose_with_covariance_stamped(data)
+                value = self._decode(name, data)
             except cdr.CdrError as exc:
                 self._queue(("bad", f"{name}: {exc}"))
             else:
-                if kind == "cmd_vel" and self.commands:
-                    with self._twist_lock:
-                        self._twist = value
-                else:
-                    self._queue((kind, value) if self.commands else ("refused", kind))
+                self._queue((name, value) if self.commands else ("refused", name))
             self.run.io.wakeup.set()
         return receive
 
@@ -322,14 +327,32 @@ class Ros2Link:
         self._pending.put(item)
 
     # -- the tick thread -------------------------------------------------------------------------------------------
+    def _poll_sticks(self) -> Optional[cdr.Twist]:
+        """The newest ``/cmd_vel`` since the last tick (Twist or TwistStamped), or None; a bad or refused one is
+        queued as the other inputs' are."""
+        newest = None
+        for name, sub in self._sticks:
+            sample = sub.try_recv()
+            if sample is None:
+                continue
+            try:
+                value = self._decode(name, sample.payload.to_bytes())
+            except cdr.CdrError as exc:
+                self._queue(("bad", f"{name}: {exc}"))
+                continue
+            if self.commands:
+                newest = value
+            else:
+                self._queue(("refused", "cmd_vel"))
+        return newest
+
     def _apply(self, run: Any, now_s: float) -> None:
         """A tick hook and a reactor: carry out what came, then the deadman (the stick's own timeout)."""
         pending = self._pending
         controls = self.controls
-        if pending.empty() and self._twist is None and (controls is None or not controls.stick_held):
+        twist = self._poll_sticks() if self._sticks else None
+        if twist is None and pending.empty() and (controls is None or not controls.stick_held):
             return
-        with self._twist_lock:
-            twist, self._twist = self._twist, None
         if twist is not None:
             self.received += 1
             self._drive(twist)
