@@ -6,9 +6,11 @@ import json
 from typing import Any, Callable, Optional
 
 
-def peer_with_tokens(port: int, wanted: Callable[[list[str]], bool] = bool) -> Optional[tuple[Any, list[str]]]:
-    """(a Zenoh peer session connected to ``tcp/127.0.0.1:PORT``, the ``@ros2_lv`` tokens it sees) once the tokens
-    are ``wanted``; None (nothing left open) while the port does not listen yet or the tokens are not there."""
+def peer_with_tokens(port: int, wanted: Callable[[list[str]], bool] = bool,
+                     key: str = "@ros2_lv/**") -> Optional[tuple[Any, list[str]]]:
+    """(a Zenoh peer session connected to ``tcp/127.0.0.1:PORT``, the liveliness tokens on ``key`` it sees: rmw_zenoh's
+    by default, ``@/*/@ros2_lv/**`` for the DDS bridge's) once the tokens are ``wanted``; None (nothing left open)
+    while the port does not listen yet or the tokens are not there."""
     import zenoh
     conf = zenoh.Config()
     conf.insert_json5("mode", '"peer"')
@@ -18,7 +20,7 @@ def peer_with_tokens(port: int, wanted: Callable[[list[str]], bool] = bool) -> O
         session = zenoh.open(conf)
     except Exception:  # noqa: BLE001 - not listening yet
         return None
-    tokens = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/**", timeout=1.0) if r.ok is not None]
+    tokens = [str(r.ok.key_expr) for r in session.liveliness().get(key, timeout=1.0) if r.ok is not None]
     if not wanted(tokens):
         session.close()
         return None

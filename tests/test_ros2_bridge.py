@@ -29,7 +29,7 @@ MISSION = "mission: stand_by\nsteps:\n  - wait: 60 s\n"
 
 
 def _peer(port: int):
-    return peer_with_tokens(port)
+    return peer_with_tokens(port, key="@/*/@ros2_lv/**")  # what a bridge 1.x subscribes to (liveliness_mgt.rs:30)
 
 
 def test_the_bridge_format_out_and_in(tmp_path):
@@ -67,7 +67,7 @@ def test_the_bridge_format_out_and_in(tmp_path):
             proc.communicate()
         if s is not None:
             s.close()
-    zid = tokens[0].split("/")[1]
+    zid = tokens[0].split("/")[1]  # @/<zid>/@ros2_lv/...
     assert bridge.plugin_token(zid) in tokens
     assert bridge.endpoint_token(zid, "MP", "robot1/scan", "sensor_msgs/msg/LaserScan", rz.SENSOR_DATA) in tokens
     assert bridge.endpoint_token(zid, "MS", "robot1/cmd_vel", "geometry_msgs/msg/Twist", rz.DEFAULT) in tokens

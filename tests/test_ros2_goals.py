@@ -110,6 +110,15 @@ def test_without_a_map_the_mission_is_refused_before_the_link_opens(tmp_path):
     assert problem.position.line == 3 and "plans each goal on a map" in problem.message and "map:" in problem.hint
 
 
+def test_with_a_link_that_takes_no_commands_the_mission_is_refused_before_the_link_opens(tmp_path):
+    # plain TCP beyond loopback publishes only: the step would wait for goals it never takes (it failed at run time
+    # saying "run it with --ros2", after the steps before it had run)
+    text = "mission: m\nworld: office\nmap: office\nsteps:\n  - wait: 1 s\n  - ros2_goals: {}\n"
+    # an address beyond loopback that is not this machine's: nothing listens, whatever the code does
+    (problem,) = _refusal(tmp_path, text, {"listen": "tcp/192.0.2.1:7447", "config": None}).problems
+    assert problem.position.line == 6 and "publishes only" in problem.message and "--ros2-config" in problem.hint
+
+
 class _Leg(py_trees.behaviour.Behaviour):
     """A go_to stand-in: RUNNING until told how it ends; remembers the targets it started with."""
 

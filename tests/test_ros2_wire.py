@@ -118,10 +118,10 @@ def test_bridge_keys_and_tokens():
     assert bridge.data_key("/scan") == "scan"
     assert bridge.data_key("/scan", "/robot1") == "robot1/scan"
     assert bridge.data_key("/camera/image/compressed") == "camera/image/compressed"
-    assert bridge.plugin_token(ZID) == f"@ros2_lv/{ZID}"
+    assert bridge.plugin_token(ZID) == f"@/{ZID}/@ros2_lv"  # liveliness_mgt.rs:31 @09d68c0
     assert (bridge.endpoint_token(ZID, "MP", "scan", "sensor_msgs/msg/LaserScan", rz.SENSOR_DATA) ==
-            f"@ros2_lv/{ZID}/MP/scan/sensor_msgs§msg§LaserScan/:0:0:0,5")
+            f"@/{ZID}/@ros2_lv/MP/scan/sensor_msgs§msg§LaserScan/:0:0:0,5")
     assert (bridge.endpoint_token(ZID, "MP", "robot1/map", "nav_msgs/msg/OccupancyGrid", rz.LATCHED) ==
-            f"@ros2_lv/{ZID}/MP/robot1§map/nav_msgs§msg§OccupancyGrid/:1:1:0,1")
+            f"@/{ZID}/@ros2_lv/MP/robot1§map/nav_msgs§msg§OccupancyGrid/:1:1:0,1")
     assert (bridge.endpoint_token(ZID, "MS", "cmd_vel", "geometry_msgs/msg/Twist", rz.DEFAULT) ==
-            f"@ros2_lv/{ZID}/MS/cmd_vel/geometry_msgs§msg§Twist/:1:0:0,10")
+            f"@/{ZID}/@ros2_lv/MS/cmd_vel/geometry_msgs§msg§Twist/:1:0:0,10")

@@ -56,9 +56,10 @@ class Ros2Part(Part):
         if self.mode == REPLAY or cli is None:
             return
         from beastbt.ros2.goal_steps import refuse_without_link_or_map
-        from beastbt.ros2.link import Ros2Link, options_from
-        refuse_without_link_or_map(prepared.mission, has_link=True)  # a ros2_goals step on no map: before opening
+        from beastbt.ros2.link import Ros2Link, options_from, takes_commands
         options = options_from(prepared.profile.section("ros2"), cli.get("listen"), cli.get("config"))
+        # a ros2_goals step on no map, or with a link that takes no goals: refused before opening
+        refuse_without_link_or_map(prepared.mission, has_link=True, takes_goals=takes_commands(options))
         link = self.link = Ros2Link(prepared, options, on_goal=cli.get("on_goal"))
         try:
             link.open()

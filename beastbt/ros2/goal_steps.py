@@ -43,8 +43,9 @@ def uses_goals(mission: Any) -> bool:
     return next(goal_steps(mission), None) is not None
 
 
-def refuse_without_link_or_map(mission: Any, has_link: bool) -> None:
-    """InvalidInput at the first ``ros2_goals`` step when the run has no ROS 2 link, or the mission no map."""
+def refuse_without_link_or_map(mission: Any, has_link: bool, takes_goals: bool = True) -> None:
+    """InvalidInput at the first ``ros2_goals`` step when the run has no ROS 2 link, a link that takes no commands
+    (``takes_goals`` false: plain TCP beyond loopback publishes only), or the mission no map."""
     from beastbt.core.errors import InvalidInput, Problem
     step = next(goal_steps(mission), None)
     if step is None:
@@ -53,6 +54,11 @@ def refuse_without_link_or_map(mission: Any, has_link: bool) -> None:
         raise InvalidInput([Problem(mission.file, step.at, "ros2_goals waits for goals from ROS 2 (/goal_pose), and "
                                     "this run has no ROS 2 link", "run it with --ros2 (beastbt run MISSION --ros2, or "
                                     "beastbt serve --ros2; the profile's ros2: section says how), docs/ros2.md")])
+    if not takes_goals:
+        raise InvalidInput([Problem(mission.file, step.at, "ros2_goals waits for goals from ROS 2 (/goal_pose), and "
+                                    "this run's ROS 2 link publishes only: it listens beyond loopback without keys, "
+                                    "so it takes no commands", "give --ros2-config a Zenoh configuration with TLS, or "
+                                    "listen on loopback (docs/ros2.md, who may command)")])
     if getattr(mission, "map_grid", None) is None:
         raise InvalidInput([Problem(mission.file, step.at, "ros2_goals plans each goal on a map, and this mission "
                                     "has none", "add map: office (a map_server YAML: a name or a path) at the top of "

@@ -52,6 +52,11 @@ FORMATS = ("rmw_zenoh", "bridge")
 DISTROS = ("jazzy", "humble")
 TWIST_BYTES = 52
 """A Twist's CDR: the 4-byte header and six float64; a TwistStamped is longer (the bridge's key has no type)."""
+MAX_PENDING = 100
+"""At most this many received messages (goals, poses, bad ones) wait for the tick thread; more are dropped and
+counted, so that a flood cannot stall the ticks (``/cmd_vel`` does not queue: only its newest message counts)."""
+STICK_INPUTS = ("cmd_vel", "cmd_vel_stamped")
+"""The inputs that are a stick's position: only the newest message counts (module docstring)."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,12 @@ class Ros2Link:
         self.keys: dict[str, str] = {}
         """The data key of each published topic."""
         self._pending: "queue.SimpleQueue[tuple[str, Any]]" = queue.SimpleQueue()
+        self._sticks: list[tuple[str, Any]] = []
+        """``/cmd_vel``'s subscriptions (name, subscriber): Zenoh keeps each one's newest message in a ring of one,
+        read at each tick (:meth:`_poll_sticks`), so a flood is one command a tick, runs no Python per message and
+        leaves no backlog behind the sender (the deadman counts from the laptop's last message, within a tick)."""
+        self.dropped = 0
+        """Messages dropped because :data:`MAX_PENDING` waited already."""
         self.controls: Any = None
         self.topics: Optional[RunTopics] = None
         self.received = 0
@@ -238,7 +249,13 @@ class Ros2Link:
                     continue  # the bridge's key has no type: /cmd_vel's one subscription reads both (by size)
                 key = bridge.data_key(topic)
                 token = bridge.endpoint_token(self.zid, rz.SUBSCRIPTION, key, spec.type_name, spec.qos)
-            self._subs.append(self.session.declare_subscriber(key, self._receiver(name)))
+            if name in STICK_INPUTS:
+                import zenoh
+                sub = self.session.declare_subscriber(key, zenoh.handlers.RingChannel(1))
+                self._sticks.append((name, sub))
+            else:
+                sub = self.session.declare_subscriber(key, self._receiver(name))
+            self._subs.append(sub)
             self._token(token)
             eid += 1
 
@@ -274,49 +291,78 @@ class Ros2Link:
             pub.put(payload)
 
     # -- in (Zenoh's threads: decode, then queue for the tick thread) --------------------------------------------
+    def _decode(self, name: str, data: bytes) -> Any:
+        """The message of input ``name`` in ``data``; :class:`~beastbt.ros2.cdr.CdrError` when it is not one."""
+        if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
+                                         and len(data) != TWIST_BYTES):
+            return cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
+        if name == "cmd_vel":
+            return cdr.decode_twist(data)
+        if name == "goal_pose":
+            return cdr.decode_pose_stamped(data)
+        return cdr.decode_pose_with_covariance_stamped(data)
+
     def _receiver(self, name: str) -> Callable[[Any], None]:
         def receive(sample: Any) -> None:
             data = sample.payload.to_bytes()
-            kind = "cmd_vel" if name == "cmd_vel_stamped" else name
             try:
                 if name == "estop":
                     if cdr.decode_bool(data):
                         from beastbt.run.safety import request_estop  # safe from any thread
                         request_estop(self.run, "ROS 2 /estop")
                     return
-                value: Any
-                if name == "cmd_vel_stamped" or (self.options.format == "bridge" and name == "cmd_vel"
-                                                 and len(data) != TWIST_BYTES):
-                    value = cdr.decode_twist_stamped(data)  # the bridge's key has no type: told by its size
-                elif name == "cmd_vel":
-                    value = cdr.decode_twist(data)
-                elif name == "goal_pose":
-                    value = cdr.decode_pose_stamped(data)
-                else:
-                    value = cdr.decode_pose_with_covariance_stamped(data)
+                value = self._decode(name, data)
             except cdr.CdrError as exc:
-                self._pending.put(("bad", f"{name}: {exc}"))
+                self._queue(("bad", f"{name}: {exc}"))
             else:
-                self._pending.put((kind, value) if self.commands else ("refused", kind))
+                self._queue((name, value) if self.commands else ("refused", name))
             self.run.io.wakeup.set()
         return receive
 
+    def _queue(self, item: tuple[str, Any]) -> None:
+        """Queue ``item`` for the tick thread, unless :data:`MAX_PENDING` wait already (then it is counted)."""
+        if self._pending.qsize() >= MAX_PENDING:
+            self.dropped += 1
+            return
+        self._pending.put(item)
+
     # -- the tick thread -------------------------------------------------------------------------------------------
+    def _poll_sticks(self) -> Optional[cdr.Twist]:
+        """The newest ``/cmd_vel`` since the last tick (Twist or TwistStamped), or None; a bad or refused one is
+        queued as the other inputs' are."""
+        newest = None
+        for name, sub in self._sticks:
+            sample = sub.try_recv()
+            if sample is None:
+                continue
+            try:
+                value = self._decode(name, sample.payload.to_bytes())
+            except cdr.CdrError as exc:
+                self._queue(("bad", f"{name}: {exc}"))
+                continue
+            if self.commands:
+                newest = value
+            else:
+                self._queue(("refused", "cmd_vel"))
+        return newest
+
     def _apply(self, run: Any, now_s: float) -> None:
         """A tick hook and a reactor: carry out what came, then the deadman (the stick's own timeout)."""
         pending = self._pending
         controls = self.controls
-        if pending.empty() and (controls is None or not controls.stick_held):
+        twist = self._poll_sticks() if self._sticks else None
+        if twist is None and pending.empty() and (controls is None or not controls.stick_held):
             return
-        while True:
+        if twist is not None:
+            self.received += 1
+            self._drive(twist)
+        for _ in range(pending.qsize()):  # what waits now: what comes meanwhile is the next tick's
             try:
                 kind, value = pending.get_nowait()
             except queue.Empty:
                 break
             self.received += 1
-            if kind == "cmd_vel":
-                self._drive(value)
-            elif kind == "initialpose":
+            if kind == "initialpose":
                 self._initial_pose(run, value)
             elif kind == "goal_pose":
                 self._goal(run, value)
@@ -327,6 +373,10 @@ class Ros2Link:
                                            f"(--ros2-config with TLS to command; docs/ros2.md)")
             elif kind == "bad":
                 run.events.add("ros2", f"ROS 2 message not understood: {value}")
+        if self.dropped:
+            run.events.add("ros2", f"{self.dropped} ROS 2 messages dropped: more than {MAX_PENDING} came between two "
+                                   f"ticks (a flood)")
+            self.dropped = 0
         if controls is not None:
             controls.apply_pending(now_s)
 
@@ -350,11 +400,24 @@ class Ros2Link:
             run.events.add("ros2", "ROS 2 /initialpose not taken: this run localises on no map")
             return
         from beastbt.estimation.map_localiser import compose, invert
+        x, y = pose.position[0], pose.position[1]
+        grid = getattr(loc, "grid", None)
+        if grid is not None and not (grid.origin_x <= x <= grid.origin_x + grid.width_m
+                                     and grid.origin_y <= y <= grid.origin_y + grid.height_m):
+            run.events.add("ros2", f"ROS 2 /initialpose ({x:.6g}, {y:.6g}) m not taken: it is off the map (it covers "
+                                   f"x {grid.origin_x:.1f} to {grid.origin_x + grid.width_m:.1f} m, y "
+                                   f"{grid.origin_y:.1f} to {grid.origin_y + grid.height_m:.1f} m)")
+            return
         odom = compose(invert((last.odom_x, last.odom_y, last.odom_yaw)), (last.x, last.y, last.yaw))
         cov = pose.covariance or ()
         sigma_xy = math.sqrt(max(cov[0], cov[7])) if len(cov) == 36 and cov[0] > 0 else 0.5
         sigma_yaw = math.sqrt(cov[35]) if len(cov) == 36 and cov[35] > 0 else math.radians(15.0)
-        loc.start((pose.position[0], pose.position[1], pose.yaw), sigma_xy, sigma_yaw, odom)
+        # A spread no wider than the map, nor than a turn: an infinite or huge covariance (finite CDR still) put the
+        # particles nowhere, and the localiser's next estimate divided by zero, ending the run.
+        span = max(grid.width_m, grid.height_m) if grid is not None else 10.0
+        sigma_xy = min(sigma_xy, span) if math.isfinite(sigma_xy) else span
+        sigma_yaw = min(sigma_yaw, math.pi) if math.isfinite(sigma_yaw) else math.pi
+        loc.start((x, y, pose.yaw), sigma_xy, sigma_yaw, odom)
         run.events.add("ros2", f"ROS 2 /initialpose: localising again around ({pose.position[0]:.2f}, "
                                f"{pose.position[1]:.2f}) m, {math.degrees(pose.yaw):.0f} deg")
 
@@ -407,8 +470,10 @@ def goal_mission(pose: cdr.PoseStamped, map_file: Optional[str] = None) -> bytes
     ``map_file`` (the pose's frame is taken as the map's; the heading is not kept: go_to ends where it arrives)."""
     import json
     x, y = pose.position[0], pose.position[1]
+    # The frame comes from the network: quoted (JSON is YAML), so that no frame_id can add keys to the mission.
+    description = json.dumps(f"rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}")
     return (f"mission: ros2_goal\n"
-            f"description: rviz2's 2D Goal Pose ({x:.2f}, {y:.2f}) m in {pose.frame_id or 'map'}\n"
+            f"description: {description}\n"
             + (f"map: {json.dumps(str(map_file))}\n" if map_file else "") +
             f"places:\n  goal: {{x: {x:.3f} m, y: {y:.3f} m}}\n"
             f"steps:\n  - go_to: goal\n").encode()
