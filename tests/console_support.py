@@ -167,7 +167,9 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
 
     async def follow() -> None:
         async with aiohttp.ClientSession() as session:
+            seen.append("connecting")
             async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
+                seen.append("connected")
                 if accept is not None:
                     await ws.send_str(json.dumps({"accept": accept}))
                 while not done.is_set():
@@ -176,6 +178,7 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
                     except asyncio.TimeoutError:
                         continue
                     if msg.type != aiohttp.WSMsgType.BINARY:
+                        seen.append(f"the socket ended: {msg.type.name} {str(msg.data)[:200]}")
                         return
                     messages.append(msg.data)
                     if until is not None and not aborted and until(messages):
@@ -184,6 +187,7 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
                             assert answer.status == 200, await answer.text()
 
     failed: list[BaseException] = []
+    seen: list[str] = []
 
     def watch_video() -> None:
         try:
@@ -198,10 +202,16 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
         while link.viewers < 1 and not failed and time.monotonic() < deadline:  # watching before the start
             time.sleep(0.02)
         if link.viewers < 1:
+            import sys
+            import traceback
+            stack = "".join(traceback.format_stack(sys._current_frames()[viewer.ident])) if viewer.is_alive() else ""
+            process = link._proc.poll() if link._proc is not None else "none"
             done.set()
             prepared.abandon()
-            raise AssertionError(f"the viewer never watched /api/video: {failed[0]!r}" if failed else
-                                 "the console counted no viewer of /api/video within 30 s")
+            raise AssertionError((f"the viewer never watched /api/video: {failed[0]!r}" if failed else
+                                  "the console counted no viewer of /api/video within 30 s") +
+                                 f"; the viewer: {seen}, alive {viewer.is_alive()}; the console's process: "
+                                 f"{process}; {link.url}\n{stack}")
     execute(prepared, out=io.StringIO())
     done.set()
     if watch:
