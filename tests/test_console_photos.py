@@ -72,3 +72,28 @@ def test_only_the_runs_photos_are_served_never_another_file(console, path):
     status, _, body = get(console, path)
     assert status == 404, (path, status, body)
     assert b"outside the run folder" not in body and b"not a photo" not in body
+
+
+def test_the_state_offers_only_photos_whose_file_is_there_and_pairs_an_alert_with_its_photo(tmp_path: Path):
+    from types import SimpleNamespace
+
+    from beastbt.core.events import Event
+    from beastbt.live.console_photos import PhotoNotes
+    from beastbt.vision.watch import PhotoLog
+    (tmp_path / "gate.jpg").write_bytes(JPEG)
+    (tmp_path / "alert-1.jpg").write_bytes(JPEG)
+    log = PhotoLog()
+    run = SimpleNamespace(ctx=SimpleNamespace(services=SimpleNamespace(vision=SimpleNamespace(log=log))),
+                          events=SimpleNamespace(listeners=[]))
+    notes = PhotoNotes(run)
+    assert notes.state() == {"photos": {"count": 0, "latest": []}, "alert": None}
+    log.photos += [{"name": "gate", "time_s": 1.0, "file": str(tmp_path / "gate.jpg")},
+                   {"name": "door", "time_s": 2.0, "file": "(replay) door.jpg"},  # a replay writes no file
+                   {"name": "full", "time_s": 3.0, "file": None}]  # a full disk
+    assert [m[:2] for m in notes.untold()] == [("photo", "gate.jpg")] and notes.untold() == []
+    assert [p["url"] for p in notes.state()["photos"]["latest"]] == ["/api/photos/gate.jpg", None, None]
+    log.photos.append({"name": "alert-1", "time_s": 4.0, "file": str(tmp_path / "alert-1.jpg")})
+    run.events.listeners[0](Event(4.0, "alert", f"someone at the gate (photo {tmp_path / 'alert-1.jpg'})"))
+    assert notes.state()["alert"] == {"time_s": 4.0, "text": "someone at the gate", "photo": "/api/photos/alert-1.jpg"}
+    run.events.listeners[0](Event(5.0, "alert", "no camera (no photo: no camera frame)"))
+    assert notes.state()["alert"] == {"time_s": 5.0, "text": "no camera (no photo: no camera frame)", "photo": None}

@@ -14,6 +14,7 @@ Here:
 
 from __future__ import annotations
 
+import os
 import threading
 from pathlib import Path
 from typing import Any, Optional
@@ -41,6 +42,8 @@ class PhotoNotes:
         self.run = run
         self.told = 0
         """How many photos of the log the console's process has been told of."""
+        self.served: set[str] = set()
+        """The files told of (they were there when told): only these get an address in the state."""
         self.alert: Optional[dict] = None
         """The newest alert: ``{time_s, text, photo}`` (``photo`` the address of the photo it took, or None)."""
         run.events.listeners.append(self._on_event)
@@ -56,24 +59,28 @@ class PhotoNotes:
         photos = self._photos()
         shot = photos[-1] if photos else None
         said = f" (photo {shot['file']})" if shot is not None and shot.get("file") else None
-        url = photo_url(shot["file"]) if said and event.text.endswith(said) else None
+        url = photo_url(shot["file"]) if said and event.text.endswith(said) and os.path.isfile(shot["file"]) else None
         text = event.text[:-len(said)] if url else event.text  # the banner shows the picture, not its path
         self.alert = {"time_s": round(event.time_s, 1), "text": text, "photo": url}
 
     def state(self) -> dict:
-        """The state's ``photos`` (``{count, latest: [{name, time_s, url}]}``, newest last) and ``alert``."""
+        """The state's ``photos`` (``{count, latest: [{name, time_s, url}]}``, newest last; ``url`` null until the
+        console's process has been told of the file, or when it was not saved) and ``alert``."""
         photos = self._photos()
-        latest = [{"name": p["name"], "time_s": p["time_s"], "url": photo_url(p.get("file"))}
+        served = self.served
+        latest = [{"name": p["name"], "time_s": p["time_s"],
+                   "url": photo_url(p.get("file")) if p.get("file") in served else None}
                   for p in photos[-PHOTOS_SHOWN:]]
         return {"photos": {"count": len(photos), "latest": latest}, "alert": self.alert}
 
     def untold(self) -> list[tuple]:
         """The ``("photo", file_name, name, time_s, path)`` messages for the photos saved since the last call."""
         photos = self._photos()
-        messages = [("photo", Path(p["file"]).name, p["name"], p["time_s"], str(p["file"]))
-                    for p in photos[self.told:] if p.get("file")]
+        # a file that is not there (a replay names the photo it does not write again) is not offered to the page
+        fresh = [p for p in photos[self.told:] if p.get("file") and os.path.isfile(p["file"])]
         self.told = len(photos)
-        return messages
+        self.served.update(p["file"] for p in fresh)
+        return [("photo", Path(p["file"]).name, p["name"], p["time_s"], str(p["file"])) for p in fresh]
 
 
 class PhotoShelf:
