@@ -80,7 +80,8 @@ def test_the_page_shows_the_runs_photos_and_the_alerts_photo_as_the_saved_jpegs(
                 assert got.get("alert-1.jpg") == (folder / "alert-1.jpg").read_bytes()  # the very bytes saved
                 assert got.get("gate.jpg") == (folder / "gate.jpg").read_bytes()
                 # the alert's banner shows the photo it took; a click opens it full size, another closes it
-                assert page.get_by_test_id("alert-photo").get_attribute("src").split("?")[0] == "/api/photos/alert-1.jpg"
+                src = page.get_by_test_id("alert-photo").get_attribute("src")
+                assert src.split("?")[0] == "/api/photos/alert-1.jpg"
                 page.get_by_test_id("alert-photo").click()
                 view = page.get_by_test_id("photo-view")
                 playwright_api.expect(view).to_be_visible()
