@@ -1,4 +1,4 @@
-"""The robot's side of the fleet: its Zenoh session, liveliness token, state, events and command queryables.
+"""The robot's side of the fleet: its Zenoh session, liveliness token, state, events, photos and command queryables.
 
 A :class:`FleetAgent` lives as long as the robot is on the fleet: the length
 of one ``beastbt run --fleet``, or of ``beastbt serve``, across its missions.
@@ -105,6 +105,10 @@ class FleetAgent:
         self._declared: list[Any] = []
         self._state_pub: Any = None
         self._events_pub: Any = None
+        self._photo_pub: Any = None
+        self._photo_due: Optional[tuple[str, float, str]] = None
+        """The newest photo not yet put on the fleet: (name, time_s, path); the publisher thread sends it."""
+        self.photos_sent = 0
         self._early: list[tuple[float, str, str]] = []
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
@@ -154,7 +158,9 @@ class FleetAgent:
                 if self._stop.wait(max(0.0, due - time.monotonic())):
                     break
                 self.publish_state()
+                self._publish_photo()
             self.publish_state()
+            self._publish_photo()
         finally:
             self._session = None
             for entity in reversed(self._declared):
@@ -169,7 +175,8 @@ class FleetAgent:
         name = self.name
         self._state_pub = session.declare_publisher(keys.state_key(name))
         events_pub = session.declare_publisher(keys.events_key(name))
-        declared = [self._state_pub, events_pub]
+        self._photo_pub = session.declare_publisher(keys.photo_key(name))
+        declared = [self._state_pub, events_pub, self._photo_pub]
         for control in keys.CONTROLS:
             declared.append(session.declare_queryable(keys.cmd_key(name, control),
                                                       lambda query, c=control: self._on_control(c, query)))
@@ -267,6 +274,27 @@ class FleetAgent:
                     self._early.append((time_s, kind, text))
             return
         self._put_event(pub, time_s, kind, text)
+
+    def photo_taken(self, name: str, time_s: float, path: str) -> None:
+        """A run saved a photo (any thread, the tick thread's included: this only notes it): the publisher thread
+        puts it on ``beastbt/<name>/photo``, made small (:func:`~beastbt.fleet.photos.fleet_jpeg`). A photo not yet
+        sent when a newer one comes is skipped: the station shows the newest."""
+        self._photo_due = (name, float(time_s), str(path))
+
+    def _publish_photo(self) -> None:
+        """Put the newest photo not yet sent (the publisher thread: reading and encoding it stay off the tick)."""
+        due, pub = self._photo_due, self._photo_pub
+        if due is None or pub is None:
+            return
+        self._photo_due = None
+        from beastbt.fleet.photos import fleet_jpeg, photo_attachment
+        try:
+            jpeg = fleet_jpeg(due[2])
+            if jpeg is not None:
+                pub.put(jpeg, attachment=photo_attachment(self.name, due[0], due[1]))
+                self.photos_sent += 1
+        except Exception:  # noqa: BLE001 - the run never fails for the fleet link (a photo gone, a closed session)
+            pass
 
     def _put_event(self, pub: Any, time_s: float, kind: str, text: str) -> None:
         try:

@@ -8,7 +8,7 @@ once): ``ca.crt``/``ca.key`` (the fleet's certificate authority; keep
 ``station.json5`` and ``robot.json5``: standard Zenoh configurations for
 mutual TLS (each side proves itself with a certificate of this CA; no other
 transport is accepted) with Zenoh's access control on the router: a robot
-may publish its state and events, declare its liveliness token and its
+may publish its state, events and newest photo, declare its liveliness token and its
 queryables, answer queries, hear the stop-all and the simulated robots' poses the station relays, and
 nothing else; only the
 station queries (commands, missions) and puts the stop-all. ``README.txt``
@@ -38,7 +38,7 @@ from typing import NamedTuple, Sequence
 VALID_DAYS = 3650
 """How long the certificates are valid (days): a classroom's robots outlive a year."""
 ROBOT_INGRESS = [
-    (["put"], ["beastbt/*/state", "beastbt/*/events"]),
+    (["put"], ["beastbt/*/state", "beastbt/*/events", "beastbt/*/photo"]),
     (["declare_queryable"], ["beastbt/*/cmd/*", "beastbt/*/mission"]),
     (["reply"], ["beastbt/**"]),
     (["declare_subscriber"], ["beastbt/fleet/estop", "beastbt/fleet/sim/poses"]),

@@ -8,6 +8,8 @@ or a verbatim chunk (``$*``). ``fleet`` is taken by the fleet's own keys.
 * ``beastbt/<name>/alive``: the robot's liveliness token (gone when the robot is);
 * ``beastbt/<name>/state``: its state, JSON, 5 times a second;
 * ``beastbt/<name>/events``: each event of its runs, JSON, as it happens;
+* ``beastbt/<name>/photo``: its runs' newest photo, a JPEG of at most 100 kB (the attachment: JSON ``{robot, name,
+  time_s}``), as each is taken (:mod:`beastbt.fleet.photos`);
 * ``beastbt/<name>/cmd/<control>``: a queryable per control (:data:`CONTROLS`), JSON in, JSON out;
 * ``beastbt/<name>/mission``: a queryable that takes a mission (YAML, or a zip with its files);
 * ``beastbt/fleet/estop``: a put that e-stops every robot that hears it;
@@ -36,6 +38,8 @@ ALL_STATES = f"{PREFIX}/*/state"
 """Every robot's state."""
 ALL_EVENTS = f"{PREFIX}/*/events"
 """Every robot's events."""
+ALL_PHOTOS = f"{PREFIX}/*/photo"
+"""Every robot's newest photo."""
 CONTROLS = ("pause", "resume", "abort", "estop", "estop_reset", "answer", "teleop", "tuning", "tune", "tune_reset",
             "tune_save")
 """The controls a robot answers on ``beastbt/<name>/cmd/<control>`` (those of the operator console; live tuning's
@@ -82,6 +86,11 @@ def events_key(name: str) -> str:
     return f"{PREFIX}/{check_name(name)}/events"
 
 
+def photo_key(name: str) -> str:
+    """Where the robot puts its runs' newest photo (a JPEG)."""
+    return f"{PREFIX}/{check_name(name)}/photo"
+
+
 def mission_key(name: str) -> str:
     """The robot's mission queryable."""
     return f"{PREFIX}/{check_name(name)}/mission"
@@ -103,5 +112,5 @@ def robot_of(key: str) -> Optional[str]:
 
 
 __all__ = ["PREFIX", "ESTOP_ALL", "STATION_ALIVE", "SIM_POSES",
-           "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "CONTROLS", "NAME_MAX",
-           "name_problem", "check_name", "alive_key", "state_key", "events_key", "mission_key", "cmd_key", "robot_of"]
+           "ALL_ALIVE", "ALL_STATES", "ALL_EVENTS", "ALL_PHOTOS", "CONTROLS", "NAME_MAX",
+           "name_problem", "check_name", "alive_key", "state_key", "events_key", "photo_key", "mission_key", "cmd_key", "robot_of"]

@@ -74,6 +74,11 @@ class FleetRunLink:
 
     def _event(self, event: Any) -> None:
         self.agent.publish_event(event.time_s, event.kind, event.text)
+        if event.kind == "photo":  # the photo step has just noted it (beastbt.behaviours.photo.save_photo)
+            watch = getattr(self.run.ctx.services, "vision", None)
+            shot = watch.log.photos[-1] if watch is not None and watch.log.photos else None
+            if shot is not None and shot.get("file"):
+                self.agent.photo_taken(shot["name"], shot["time_s"], shot["file"])
 
     def latest(self) -> dict:
         """The run's last state (the console's fields)."""

@@ -15,6 +15,8 @@ The API (docs/fleet.md):
   liveliness token went (or whose state stopped for :data:`LOST_AFTER_S`) is ``alive: false``, ``status: lost``;
   its ``console_url`` only when ``http(s)://`` on the robot's own address (else null, and ``console_url_problem``
   says why: :mod:`~beastbt.fleet.console_link`);
+* ``GET /api/robots/<name>/photo.jpg``: the robot's newest photo (a JPEG of at most 100 kB,
+  :mod:`~beastbt.fleet.photos`); its ``photo`` in the list: ``{name, time_s, bytes, url}`` or null;
 * ``POST /api/robots/<name>/<control>``: the robot's answer (its queryable ``beastbt/<name>/cmd/<control>``);
 * ``POST /api/robots/<name>/mission``: a mission (YAML, ``{"mission": YAML}`` or a zip with its files) to a
   ``beastbt serve`` robot: ``started``, or the validation errors as ``beastbt validate`` prints them;
@@ -75,6 +77,8 @@ class RobotEntry:
     seen_wall: Optional[float] = None
     events: deque = field(default_factory=lambda: deque(maxlen=EVENTS_KEPT))
     alerts: deque = field(default_factory=lambda: deque(maxlen=ALERTS_KEPT))
+    photo: Optional[tuple[str, float, bytes, int]] = None
+    """The robot's newest photo: (its name, its run's time s, the JPEG, a number that changes with each one)."""
 
 
 class FleetTable:
@@ -115,6 +119,19 @@ class FleetTable:
             if event.get("kind") == "alert":
                 entry.alerts.append(event)
 
+    def photo(self, name: str, photo_name: str, time_s: float, jpeg: bytes) -> None:
+        """A robot's newest photo came (a JPEG): it replaces the one before."""
+        with self._lock:
+            entry = self._entry(name)
+            seq = entry.photo[3] + 1 if entry.photo is not None else 1
+            entry.photo = (photo_name, time_s, bytes(jpeg), seq)
+
+    def photo_jpeg(self, name: str) -> Optional[bytes]:
+        """The robot's newest photo's JPEG, or None."""
+        with self._lock:
+            entry = self._robots.get(name)
+            return entry.photo[2] if entry is not None and entry.photo is not None else None
+
     def is_alive(self, entry: RobotEntry, now: float) -> bool:
         """The robot's token stands and its state is fresh."""
         return entry.alive and entry.seen_wall is not None and now - entry.seen_wall <= LOST_AFTER_S
@@ -139,7 +156,10 @@ class FleetTable:
                     "mission": s.get("mission"), "question": s.get("question"), "estop": bool(s.get("estop")),
                     "last_run": s.get("last_run"), "console_url": console_url,
                     "console_url_problem": console_problem, "events": list(e.events)[-5:],
-                    "alerts": list(e.alerts)}
+                    "alerts": list(e.alerts),
+                    "photo": None if e.photo is None else {
+                        "name": e.photo[0], "time_s": e.photo[1], "bytes": len(e.photo[2]),
+                        "url": f"/api/robots/{e.name}/photo.jpg?n={e.photo[3]}"}}
             item["attention"] = self.attention(item)
             out.append(item)
         out.sort(key=lambda r: (r["attention"] if r["attention"] is not None else 9, r["name"]))
@@ -198,6 +218,7 @@ class Station:
             live.declare_subscriber(keys.ALL_ALIVE, self._on_alive, history=True),
             session.declare_subscriber(keys.ALL_STATES, self._on_state),
             session.declare_subscriber(keys.ALL_EVENTS, self._on_event),
+            session.declare_subscriber(keys.ALL_PHOTOS, self._on_photo),
             live.declare_token(keys.STATION_ALIVE),
         ]
         poses = session.declare_publisher(keys.SIM_POSES)
@@ -267,6 +288,15 @@ class Station:
         event = _json_object(sample.payload.to_bytes())
         if name is not None and event is not None:
             self.table.event(name, event)
+
+    def _on_photo(self, sample: Any) -> None:
+        from beastbt.fleet.photos import PHOTO_MAX_BYTES, read_attachment
+        name = keys.robot_of(str(sample.key_expr))
+        jpeg = sample.payload.to_bytes()
+        # a JPEG of the size robots send, or nothing: the page shows it as it came
+        if name is not None and jpeg[:2] == b"\xff\xd8" and len(jpeg) <= 2 * PHOTO_MAX_BYTES:
+            meta = read_attachment(sample)
+            self.table.photo(name, meta["name"], meta["time_s"], jpeg)
 
     # -- asking them (any thread; blocks up to the timeout) ---------------------------------------
     def ask(self, key: str, payload: bytes, timeout_s: float) -> Optional[tuple[bool, dict]]:
@@ -345,6 +375,7 @@ class StationServer(ConsoleServer):
         app.router.add_get("/static/{name}", self._station_static)
         app.router.add_get("/favicon.ico", self._favicon)
         app.router.add_get("/api/robots", self._robots)
+        app.router.add_get("/api/robots/{name}/photo.jpg", self._photo)
         app.router.add_post("/api/estop-all", self._estop_all)
         app.router.add_post("/api/robots/{name}/mission", self._mission)
         app.router.add_post("/api/robots/{name}/{control}", self._control)
@@ -370,6 +401,13 @@ class StationServer(ConsoleServer):
 
     async def _robots(self, request: web.Request) -> web.Response:
         return web.json_response({"robots": self.station.table.robots()})
+
+    async def _photo(self, request: web.Request) -> web.Response:
+        name = self._robot(request)
+        jpeg = self.station.table.photo_jpeg(name)
+        if jpeg is None:
+            return web.json_response({"error": f"no photo from robot '{name}' yet"}, status=404)
+        return web.Response(body=jpeg, content_type="image/jpeg")
 
     async def _estop_all(self, request: web.Request) -> web.Response:
         self.station.estop_all()

@@ -206,6 +206,8 @@ class ConsoleLink:
             self._last_map_wall = wall
             self._sent_map_version = state["map_version"]
             self._send(("map", self._map()), block)
+        for photo in self.state.photos.untold():  # before the state that lists it; never dropped (keep)
+            self._send(photo, block, keep=True)
         self._send(("state", seq, *self._state_fields(state)), block)
 
     @staticmethod

@@ -19,6 +19,7 @@ From the run (``inbox``):
   ``("frame", shm_name, shape, seq, captured_s, detection, lookahead_m)``: a
   camera frame (pixels) in shared memory; ``("pose", truth)``: where the simulated
   viewer camera is now; ``("result", request_id, ok, payload)``: a control's outcome;
+  ``("photo", file_name, name, time_s, path)``: a photo the run saved, served as ``/api/photos/<file_name>``;
 * ``("close",)``: send the final state to every viewer and end.
 
 To the run (``outbox``): ``("ready", port, url)`` or ``("error", errno, text)``
@@ -188,6 +189,8 @@ def serve(inbox: Connection, outbox: Connection) -> int:
                 state.put(msg[1], msg[2], msg[3])
             elif kind == "map":
                 state.layers = msg[1]
+            elif kind == "photo":
+                server.photos.add(msg[1], msg[2], msg[3], msg[4])
             elif kind == "result":
                 controls.resolve(msg[1], msg[2], msg[3])
             elif kind == "pose":

@@ -13,6 +13,8 @@ The contract (tests and other tools rely on it):
   (``{linear, angular, deadman}``); live tuning (:mod:`beastbt.live.tuning`): ``GET /api/tuning``
   (the knobs), ``POST /api/tuning`` (``{name, value}``), ``/api/tuning/reset``, ``/api/tuning/save``. Each answers ``{ok: true, ...}``, or a 4xx
   with ``{error}`` when it cannot be done (409: not now, 400: a bad request).
+* ``GET /api/photos``: the run's photos so far, ``{photos: [{name, time_s, url}]}``; ``GET /api/photos/NAME.jpg``:
+  one photo's JPEG, as saved in the run folder (:mod:`beastbt.live.console_photos`); any other name is a 404.
 * Off loopback (or with ``--console-token always``) every request needs the
   run's token (printed once at start): ``?token=``, an ``Authorization:
   Bearer`` header, or the cookie the page gets. Without it: 401. A server
@@ -59,6 +61,7 @@ from aiohttp import WSMsgType, web
 
 from beastbt.live.console_control import (CONTROL_MAX_BYTES, Refused, check_answer_body, check_teleop_body,
                                           parse_control_body)
+from beastbt.live.console_photos import PhotoShelf
 from beastbt.live.endpoint import SECURITY_HEADERS, is_loopback
 from beastbt.live.server_thread import start_loop_thread
 from beastbt.live.tuning import check_tune_body
@@ -86,6 +89,11 @@ PAGE_FILES = {"console.js": "application/javascript", "console.css": "text/css",
 
 def _page(name: str) -> bytes:
     return resources.files("beastbt.live").joinpath("console_page", name).read_bytes()
+
+
+def _read_file(path: str) -> bytes:
+    with open(path, "rb") as f:
+        return f.read()
 
 
 def _error(status: int, message: str) -> web.Response:
@@ -118,6 +126,8 @@ class ConsoleServer:
         self._ending: Optional[asyncio.Event] = None
         self._handlers: set[asyncio.Task] = set()
         self.requests = 0
+        self.photos = PhotoShelf()
+        """The photos the run saved, by file name: the only files ``/api/photos/`` serves."""
         self.on_viewers: Optional[Callable[[int], None]] = None
         """Called with the number of video viewers each time it changes (on the server's thread), or None."""
 
@@ -141,6 +151,8 @@ class ConsoleServer:
         app.router.add_get("/api/video", self._ws_video)
         for name in ("pause", "resume", "abort", "answer", "teleop"):
             app.router.add_post(f"/api/{name}", self._control(name))
+        app.router.add_get("/api/photos", self._photo_list)
+        app.router.add_get("/api/photos/{name}", self._photo)
         app.router.add_get("/api/tuning", self._tuning)
         app.router.add_post("/api/tuning", self._control("tune"))
         app.router.add_post("/api/tuning/reset", self._control("tune_reset"))
@@ -261,6 +273,20 @@ class ConsoleServer:
 
     async def _get_map(self, request: web.Request) -> web.Response:
         return web.json_response(self.map_source())
+
+    async def _photo_list(self, request: web.Request) -> web.Response:
+        return web.json_response({"photos": self.photos.listing()})
+
+    async def _photo(self, request: web.Request) -> web.Response:
+        name = request.match_info["name"]
+        path = self.photos.path_of(name)
+        if path is None:
+            return _error(404, f"no photo '{name[:80]}' in this run: GET /api/photos lists them")
+        try:
+            data = await asyncio.get_running_loop().run_in_executor(None, _read_file, path)
+        except OSError as exc:
+            return _error(404, f"the photo '{name}' cannot be read: {exc.strerror or exc}")
+        return web.Response(body=data, content_type="image/jpeg")
 
     async def _ws_state(self, request: web.Request) -> web.WebSocketResponse:
         ws = web.WebSocketResponse(heartbeat=10.0)

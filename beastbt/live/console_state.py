@@ -389,6 +389,9 @@ class ConsoleState:
         self._shown: Optional[dict] = None
         """The newest frame entry, drawn over the video until the detectors sleep."""
         self._global_layer = ConsoleGlobalLayer()
+        from beastbt.live.console_photos import PhotoNotes
+        self.photos = PhotoNotes(run)
+        """The run's photos and newest alert in the state; the photos' files for the console's process."""
         self._published = Published(0, self.build())
         self._last_wall = -math.inf
         self._ticks = 0
@@ -484,6 +487,7 @@ class ConsoleState:
             # has put in what the knobs bind to
             "tuning": tuning_of(run).state() if run.ticks > 0 else None,
             "detections": self._detections_now(run),
+            **self.photos.state(),  # photos: {count, latest: [{name, time_s, url}]}; alert: {time_s, text, photo}
         }
         if run.status is not None:
             last = getattr(self, "_published", None)

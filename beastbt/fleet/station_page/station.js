@@ -169,6 +169,26 @@ function alertsIn(td, alerts) {
   td.appendChild(line);
 }
 
+/** The robot's newest photo (a mission's `photo` step, a JPEG of at most 100 kB the robot sent) under its mission:
+ * a thumbnail that opens the picture itself in a tab of its own. */
+function photoIn(td, photo) {
+  if (!photo) return;
+  const box = document.createElement("a");
+  box.className = "photo";
+  box.href = photo.url;
+  box.target = "_blank";
+  box.rel = "noopener";
+  box.title = `photo ${photo.name} at t ${Number(photo.time_s).toFixed(1)} s (${Math.round(photo.bytes / 1000)} kB)`;
+  const img = document.createElement("img");
+  img.src = photo.url;
+  img.alt = `photo ${photo.name}`;
+  img.dataset.testid = "photo";
+  const cap = document.createElement("span");
+  cap.textContent = `photo ${photo.name} (t ${Number(photo.time_s).toFixed(1)} s)`;
+  box.append(img, cap);
+  td.appendChild(box);
+}
+
 let drawnKey = "";
 
 /** The table and the maps, drawn again only when something but the "seen" times changed (a button under a finger
@@ -193,7 +213,9 @@ function render() {
     nameCell(row, r);
     statusCell(row, r);
     const last = r.last_run ? ` (last: ${r.last_run.mission} ${r.last_run.status})` : "";
-    alertsIn(cell(row, (r.mission ? `${r.mission}: ${r.step || "-"}` : "-") + last), r.alerts || []);
+    const doing = cell(row, (r.mission ? `${r.mission}: ${r.step || "-"}` : "-") + last);
+    alertsIn(doing, r.alerts || []);
+    photoIn(doing, r.photo);
     const p = r.progress;
     cell(row, p ? `${p.done}/${p.total}` : "-");
     cell(row, r.battery ? `${r.battery.percent}% ${r.battery.volts} V` : "-");

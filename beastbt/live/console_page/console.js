@@ -116,6 +116,7 @@ function render(s) {
   renderTree(s.tree);
   renderEvents(s.events || []);
   renderTuning(s.tuning, ended);
+  renderPhotos(s.photos, s.alert);
   mapDirty = true;
   if (over) endVideo(s);
 }
@@ -302,6 +303,69 @@ function renderEvents(events) {
     li.append(t, k, document.createTextNode(e.text));
     li.title = e.text;
     ol.appendChild(li);
+  }
+}
+
+// ---- photos and the alert's banner ----------------------------------------------------------------
+// The state lists the newest photos ({name, time_s, url}, newest last) and the newest alert ({time_s, text, photo});
+// the pictures come from GET /api/photos/NAME.jpg (the run folder's own JPEG). An <img> is only given a new address
+// when its photo changes: the page does not fetch a picture again ten times a second.
+let photosKey = "";
+let alertKey = "";
+let alertDismissed = "";
+function photoSrc(url) { return withToken(url); }
+function setPhoto(img, p) {
+  const src = photoSrc(p.url);
+  if (img.dataset.src !== src) { img.dataset.src = src; img.src = src; }
+  img.dataset.name = p.name; img.dataset.time = p.time_s;
+  img.alt = `photo ${p.name} at ${p.time_s.toFixed(1)} s`;
+}
+function openPhoto(img) {
+  if (!img.dataset.src) return;
+  $("photo-full").src = img.dataset.src;
+  $("photo-full-caption").textContent = `${img.dataset.name} · ${Number(img.dataset.time).toFixed(1)} s`;
+  $("photo-view").hidden = false;
+}
+function closePhoto() { $("photo-view").hidden = true; }
+$("photo-latest").onclick = (e) => openPhoto(e.currentTarget);
+$("alert-photo").onclick = (e) => openPhoto(e.currentTarget);
+$("photo-view").onclick = closePhoto;
+document.addEventListener("keydown", (e) => { if (e.key === "Escape") closePhoto(); });
+$("alert-dismiss").onclick = () => { alertDismissed = alertKey; $("alert").hidden = true; };
+
+function renderPhotos(photos, alert) {
+  const shown = ((photos && photos.latest) || []).filter((p) => p.url);
+  const key = (photos ? photos.count : 0) + ":" + shown.map((p) => p.url).join(",");
+  if (key !== photosKey) {
+    photosKey = key;
+    $("photos").hidden = !shown.length;
+    if (shown.length) {
+      const newest = shown[shown.length - 1];
+      setPhoto($("photo-latest"), newest);
+      $("photo-caption").textContent = `${newest.name} · ${newest.time_s.toFixed(1)} s`;
+      $("photos-info").textContent = `${photos.count} taken`;
+      const strip = $("photo-strip");
+      strip.textContent = "";
+      for (const p of shown.slice(0, -1).reverse()) {  // the ones before the newest, newest first
+        const img = document.createElement("img");
+        setPhoto(img, p);
+        img.title = `${p.name} · ${p.time_s.toFixed(1)} s`;
+        img.onclick = () => openPhoto(img);
+        strip.appendChild(img);
+      }
+    }
+  }
+  const aKey = alert ? alert.time_s + alert.text : "";
+  if (aKey !== alertKey) {
+    alertKey = aKey;
+    $("alert").hidden = !alert || aKey === alertDismissed;
+    if (alert) {
+      $("alert-text").textContent = alert.text;
+      $("alert-time").textContent = `at ${alert.time_s.toFixed(1)} s`;
+      const img = $("alert-photo");
+      img.hidden = !alert.photo;
+      if (alert.photo) setPhoto(img, {name: alert.text, time_s: alert.time_s, url: alert.photo});
+    }
   }
 }
 
