@@ -15,7 +15,8 @@ import pytest
 from beastbt.blackboard.types import LaserScan
 from beastbt.devices.lidar_scan import LidarMounting
 from beastbt.mapping.occupancy_map import FREE, empty_map
-from beastbt.navigation.global_navigator import GlobalNavigator, PathFollow, sample_polyline
+from beastbt.navigation.global_navigator import (SWITCH_FRACTION, SWITCH_MIN_M, GlobalNavigator, PathFollow,
+                                                sample_polyline)
 from beastbt.navigation.global_planner import GlobalPlannerConfig, NoPath
 from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
 
@@ -150,6 +151,35 @@ def test_a_fence_across_the_way_blocks_the_straight_line_and_the_plan_goes_round
     assert not g.blocked(path.points, skip_m=0.2)
     assert np.abs(path.points[:, 1]).max() > 4.0          # round an end of the fence, 4 m off the line
     assert path.length_m < 10.0 + 2 * 4.5                 # and not much farther than it must
+
+
+def _wall_seen(g: GlobalNavigator, x: float, y0: float, y1: float) -> None:
+    """Mark a wall along x from y0 to y1 (m) in ``g``'s layer, as the LiDAR would have."""
+    g.layer.mark_points(*sample_polyline(np.array([[x, y0], [x, y1]], float), 0.05).T)
+
+
+def test_a_way_blocked_as_more_of_its_wall_is_seen_is_mended_on_its_side_not_swapped_for_the_other_end():
+    # A wall across the way, seen from -3 to 3 m: the robot, a little below the middle, plans round its lower end.
+    g = navigator()
+    _wall_seen(g, 8.0, -3.0, 3.0)
+    start, goal = (4.0, -0.3), (14.0, 0.0)
+    first = g.plan(start, goal, 1.0, "far_side")
+    assert first.points[:, 1].min() < -3.0
+    # More of the wall appears below (beyond the LiDAR's reach before): the lower end is now about as far as the
+    # upper one, so a plan from scratch may take either. The way it went on is mended, round the new lower end.
+    _wall_seen(g, 8.0, -4.0, -3.0)
+    assert g.way_blocked(first.points, skip_m=g.inscribed_m)
+    fresh = g.plan(start, goal, 1.0, "far_side")
+    assert fresh.points[:, 1].max() > 3.0                  # from scratch: the other end
+    mended = g.replan(start, goal, 1.0, "far_side", first.points)
+    assert mended.points[:, 1].min() < -4.0 and mended.points[:, 1].max() < 1.0
+    assert not g.way_blocked(mended.points, skip_m=g.inscribed_m)
+    assert mended.length_m <= fresh.length_m + max(SWITCH_MIN_M, SWITCH_FRACTION * mended.length_m)  # not clearly longer
+    # The wall goes on far below: the upper end is now clearly shorter, and the way swaps to it.
+    _wall_seen(g, 8.0, -12.0, -4.0)
+    swapped = g.replan(start, goal, 1.0, "far_side", mended.points)
+    assert swapped.points[:, 1].max() > 3.0
+    assert not g.way_blocked(swapped.points, skip_m=g.inscribed_m)
 
 
 def test_a_goal_enclosed_by_what_was_seen_fails_at_once_naming_why():

@@ -69,7 +69,15 @@ def fence_run(tmp_path_factory):
         plans.append((goal, path.points.copy()))
         return path
 
+    replan = nav.replan
+
+    def noting_replan(start, goal, tolerance_m, name, previous):
+        path = replan(start, goal, tolerance_m, name, previous)
+        plans.append((goal, path.points.copy()))  # a way mended on its side ends where the way it mends did
+        return path
+
     nav.plan = noting_plan
+    nav.replan = noting_replan
     gv.marks_of = noting_marks_of
     try:
         summary = execute(p, io.StringIO())

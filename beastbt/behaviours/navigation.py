@@ -176,11 +176,6 @@ WAY_PATIENCE_FACTOR = 3.0
 """Following ways round, a step gives up (stuck) once the place has come no closer for this many times its
 position limit (4 x stuck_after, or blocked_after: 60 s by default)."""
 
-WAY_SWITCH_MIN_M = 1.0
-WAY_SWITCH_FRACTION = 0.1
-"""A new plan replaces a way still clear only when it is shorter than what is left of it by this fraction (or
-WAY_SWITCH_MIN_M, the larger)."""
-
 NARROW_LOOKAHEAD_M = 0.3
 """Near a narrow gap on the way (within the approach and a lookahead of its centre), pure pursuit aims this far ahead
 (m): it keeps to the straight crossing instead of cutting in at an angle the collision monitor would stop."""
@@ -649,10 +644,14 @@ class GoTo(BeastBehaviour):
         kept = self.way is not None and not g.way_blocked(self.way.ahead(), skip_m=g.inscribed_m)
         if kept and not due:
             return None  # the way planned is still clear: kept until the period is up
-        from beastbt.navigation.global_navigator import PathFollow
+        from beastbt.navigation.global_navigator import SWITCH_FRACTION, SWITCH_MIN_M, PathFollow
         from beastbt.navigation.global_planner import NoPath
         try:
-            path = g.plan(here, goal, tolerance, self.place)
+            if self.way is not None and not kept:
+                # Blocked: mended on the side it went, unless the other way is clearly shorter (a long wall).
+                path = g.replan(here, goal, tolerance, self.place, self.way.ahead())
+            else:
+                path = g.plan(here, goal, tolerance, self.place)
         except NoPath as exc:
             self.command(0.0, 0.0)
             return self.fail(f"no way to {self.place}: {exc.reason}")
@@ -662,7 +661,7 @@ class GoTo(BeastBehaviour):
             # same length (either side of a dead end) would otherwise swap at every plan and the robot dither.
             ahead = self.way.ahead()
             remaining = math.hypot(ahead[0, 0] - here[0], ahead[0, 1] - here[1]) + self.way.length_m - self.way.along_m
-            if path.length_m > remaining - max(WAY_SWITCH_MIN_M, WAY_SWITCH_FRACTION * remaining):
+            if path.length_m > remaining - max(SWITCH_MIN_M, SWITCH_FRACTION * remaining):
                 return None
         if self.way is None:
             self.ctx.events.add("replan", f"{self.name}: the straight way is blocked; planned round, "
