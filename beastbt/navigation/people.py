@@ -123,6 +123,8 @@ RECHECK_UNTIL_M = 2.5
 own returns lie in the lane's inflation and the side would be given up for the person themself."""
 LANE_HISTORY_S = 6.0
 """The lanes of a pass run along the straight line fitted to the person's centres of the last this long (s)."""
+RECHECK_SCANS = 3
+"""... and a tight side is left for the other once that has had room, in time, for this many scans in a row."""
 TIGHT_STOP_S = 3.0
 """In a lane with less than half of ``pass_clearance_m`` (tight), the robot stops once the person would meet it within
 this (s) and waits there until they are by: a robot driving on beside them that close would have no room to steer."""
@@ -438,6 +440,10 @@ class Pass:
     """Below this passing distance (m; half the clearance) the lane is tight: the robot waits in it for the person."""
     rechecked_s: float = -math.inf
     """The scan stamp (s) the side's room was last looked at again."""
+    switched: bool = False
+    """The side has been changed once (it is not changed again)."""
+    doubts: int = 0
+    """Scans in a row that found the side tight and the other with room, in time."""
     samples: deque = field(default_factory=deque)
     """The person's centres ``(t s, x m, y m)`` (odom) of the last :data:`LANE_HISTORY_S`, across re-identified
     tracks: the lanes' line is fitted to them."""
@@ -597,7 +603,7 @@ class PassingPlanner(DwaPlanner):
                 return None
             apart = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy)
             if not p.waiting and tr is not None and now > p.rechecked_s and apart > RECHECK_UNTIL_M:
-                self._recheck(costmap, pose, p, tr)
+                self._recheck(costmap, pose, last, p, tr, apart, max_speed_mps)
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
                 apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
                 closing = p.speed_mps + p.coming * max(0.0, last[0])
@@ -661,12 +667,14 @@ class PassingPlanner(DwaPlanner):
         self.passing = p
         return p
 
-    def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, tr: Track) -> None:
+    def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], last: tuple[float, float], p: Pass,
+                 tr: Track, apart_m: float, max_speed_mps: float) -> None:
         """With each new scan while the person is still more than :data:`RECHECK_UNTIL_M` away: the passing distance
         again for the person's width as seen now (nearer, the blob shows more of it) and the room on the side chosen
         as the costmap shows it now (the walls ahead come into its range): the lane as far from the person as that
-        side has room for. The side itself is kept: 8-10 m away the person's line is known to a few tenths of a metre
-        only, and changing sides on it walked the robot back and forth across their way."""
+        side has room for. The side is changed once at most, from a tight one to one with room, in time: 8-10 m away
+        the person's line is known to a few tenths of a metre only, and changing sides on each new look walked the
+        robot back and forth across their way."""
         cfg = self.config
         p.rechecked_s = self.tracker.stamp_s
         full = self.footprint_radius_m + tr.pass_radius_m + cfg.pass_clearance_m
@@ -674,6 +682,31 @@ class PassingPlanner(DwaPlanner):
         d = self._widest(costmap, pose, p, p.side, KEEP_SIDE_CLEARANCE_M)
         if d is not None:
             p.distance_m = d
+        if p.switched or not p.tight:
+            p.doubts = 0
+            return
+        # Tight on this side (or no room): the other side once, if it has room for half the clearance or more and
+        # the robot can be there in time, scan after scan (RECHECK_SCANS); 8-10 m away the side was chosen on a line
+        # that was a few tenths of a metre off (a person 0.3 m to the right in a 2 m corridor, passed on the right).
+        kept = p.distance_m
+        other = self._widest(costmap, pose, p, -p.side)
+        in_time = False
+        if other is not None and other >= p.tight_m - 1e-9:
+            p.distance_m = other
+            fast = max(max_speed_mps, self.limits.max_speed_mps)
+            closing = p.speed_mps + p.coming * max(0.0, last[0])
+            t_meet = apart_m / max(closing, 1e-3)
+            in_time = TURN_S + self._shift(pose, p, -p.side) / max(LATERAL_FRACTION * fast, 1e-3) <= \
+                t_meet - BESIDE_BEFORE_S
+        p.doubts = p.doubts + 1 if in_time else 0
+        if p.doubts < RECHECK_SCANS:
+            p.distance_m = kept
+            return
+        was = p.side
+        p.side, p.switched = -was, True
+        self.step_asides += 1
+        self._tell(f"stepping aside to the {side_name(-was)} instead (little room on the {side_name(was)}) for the "
+                   f"person {apart_m:.1f} m ahead")
 
     def _free_side(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, t_meet_s: float,
                    speed_mps: float) -> Optional[int]:
