@@ -43,8 +43,14 @@ cost, a margin beyond; down to half the clearance closer) and it can get
 there before the person; else the other side; when neither is in time, the
 side that needs the shorter step; when neither has room, it stops and waits
 (the collision monitor, below the tree, still has the last word on every
-command). Each step aside, each wait and each return to the way is an event
-(``step_aside``).
+command). Where the walls leave less room than half the clearance on both
+sides, a *tight* lane is taken (down to ``PASS_MIN_CLEARANCE_M``), and the
+robot stands in it once the person is ``TIGHT_STOP_S`` away. The person
+counts at least ``PASS_RADIUS_MIN_M`` in radius; their line is fitted to their
+centres (``LANE_HISTORY_S`` of them once passing); the lane's room is looked
+at again each scan until they are ``RECHECK_UNTIL_M`` away, and a tight side
+is changed once for one with room. Each step aside, each wait and each return
+to the way is an event (``step_aside``).
 """
 
 from __future__ import annotations
@@ -603,7 +609,10 @@ class PassingPlanner(DwaPlanner):
                 return None
             apart = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy)
             if not p.waiting and tr is not None and now > p.rechecked_s and apart > RECHECK_UNTIL_M:
-                self._recheck(costmap, pose, last, p, tr, apart, max_speed_mps)
+                wx, wy = carrot_xy[0] - rx, carrot_xy[1] - ry
+                wd = math.hypot(wx, wy)
+                way = (wx / wd, wy / wd) if wd > 1e-3 else (p.ux, p.uy)  # the lanes run the robot's way
+                self._recheck(costmap, pose, last, p, tr, apart, max_speed_mps, way)
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
                 apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
                 closing = p.speed_mps + p.coming * max(0.0, last[0])
@@ -668,11 +677,12 @@ class PassingPlanner(DwaPlanner):
         return p
 
     def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], last: tuple[float, float], p: Pass,
-                 tr: Track, apart_m: float, max_speed_mps: float) -> None:
+                 tr: Track, apart_m: float, max_speed_mps: float, way: tuple[float, float]) -> None:
         """With each new scan while the person is still more than :data:`RECHECK_UNTIL_M` away: the passing distance
         again for the person's width as seen now (nearer, the blob shows more of it) and the room on the side chosen
         as the costmap shows it now (the walls ahead come into its range): the lane as far from the person as that
-        side has room for. The side is changed once at most, from a tight one to one with room, in time: 8-10 m away
+        side has room for. The side is changed once at most, from a tight one to one with room, in time, that the
+        robot is on already (not across the person's way): 8-10 m away
         the person's line is known to a few tenths of a metre only, and changing sides on each new look walked the
         robot back and forth across their way."""
         cfg = self.config
@@ -688,8 +698,14 @@ class PassingPlanner(DwaPlanner):
         # Tight on this side (or no room): the other side once, if it has room for half the clearance or more and
         # the robot can be there in time, scan after scan (RECHECK_SCANS); 8-10 m away the side was chosen on a line
         # that was a few tenths of a metre off (a person 0.3 m to the right in a 2 m corridor, passed on the right).
+        # Never across the person's way, though: only to the side of their line the robot is on already (from 8-10 m
+        # away the line misjudged made a side chosen well look tight, and the robot crossed in front of them).
         kept = p.distance_m
-        other = self._widest(costmap, pose, p, -p.side)
+        # Which side of the person the robot is on is asked across its own way, where the person is now: their line
+        # drawn on from 8-10 m away tilts with its direction.
+        wx, wy = way
+        on_other = ((pose[0] - p.px) * wy - (pose[1] - p.py) * wx) * p.side >= 0.0
+        other = self._widest(costmap, pose, p, -p.side) if on_other else None
         in_time = False
         if other is not None and other >= p.tight_m - 1e-9:
             p.distance_m = other
@@ -833,4 +849,4 @@ def pursue(pose: tuple[float, float, float], carrot: tuple[float, float], speed_
     return v, w
 
 
-__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "pursue", "side_name"]
+__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "fit_line", "pursue", "side_name"]
