@@ -352,6 +352,6 @@ def test_in_a_1_5_m_corridor_the_robot_pulls_in_to_the_right_and_lets_the_person
     assert beside and (min(beside) > 0.4 or max(beside) < -0.4), beside[:5]
     assert summary["sim_time_s"] <= 2.0 * 81.0, summary["sim_time_s"]
     asides = [e["text"] for e in summary["events"] if e["kind"] == "step_aside"]
-    assert len(asides) == 2 and asides[0].startswith("stepping aside to the "), asides
-    assert (min(beside) > 0.4) == asides[0].startswith("stepping aside to the right for a person"), asides
+    assert asides[0].startswith("stepping aside to the ") and not any(a.startswith("no room") for a in asides), asides
+    assert (min(beside) > 0.4) == asides[-2].startswith("stepping aside to the right"), asides
     assert asides[-1].startswith("back on the way: the person passed"), asides

@@ -48,9 +48,9 @@ sides, a *tight* lane is taken (down to ``PASS_MIN_CLEARANCE_M``), and the
 robot stands in it once the person is ``TIGHT_STOP_S`` away. The person
 counts at least ``PASS_RADIUS_MIN_M`` in radius; their line is fitted to their
 centres (``LANE_HISTORY_S`` of them once passing); the lane's room is looked
-at again each scan until they are ``RECHECK_UNTIL_M`` away, and a tight side
-is changed once for one with room. Each step aside, each wait and each return
-to the way is an event (``step_aside``).
+at again each scan until they are ``RECHECK_UNTIL_M`` away (the side kept).
+Each step aside, each wait and each return to the way is an event
+(``step_aside``).
 """
 
 from __future__ import annotations
@@ -129,8 +129,6 @@ RECHECK_UNTIL_M = 2.5
 own returns lie in the lane's inflation and the side would be given up for the person themself."""
 LANE_HISTORY_S = 6.0
 """The lanes of a pass run along the straight line fitted to the person's centres of the last this long (s)."""
-RECHECK_SCANS = 3
-"""... and a tight side is left for the other once that has had room, in time, for this many scans in a row."""
 TIGHT_STOP_S = 3.0
 """In a lane with less than half of ``pass_clearance_m`` (tight), the robot stops once the person would meet it within
 this (s) and waits there until they are by: a robot driving on beside them that close would have no room to steer."""
@@ -446,10 +444,6 @@ class Pass:
     """Below this passing distance (m; half the clearance) the lane is tight: the robot waits in it for the person."""
     rechecked_s: float = -math.inf
     """The scan stamp (s) the side's room was last looked at again."""
-    switched: bool = False
-    """The side has been changed once (it is not changed again)."""
-    doubts: int = 0
-    """Scans in a row that found the side tight and the other with room, in time."""
     samples: deque = field(default_factory=deque)
     """The person's centres ``(t s, x m, y m)`` (odom) of the last :data:`LANE_HISTORY_S`, across re-identified
     tracks: the lanes' line is fitted to them."""
@@ -609,10 +603,7 @@ class PassingPlanner(DwaPlanner):
                 return None
             apart = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy)
             if not p.waiting and tr is not None and now > p.rechecked_s and apart > RECHECK_UNTIL_M:
-                wx, wy = carrot_xy[0] - rx, carrot_xy[1] - ry
-                wd = math.hypot(wx, wy)
-                way = (wx / wd, wy / wd) if wd > 1e-3 else (p.ux, p.uy)  # the lanes run the robot's way
-                self._recheck(costmap, pose, last, p, tr, apart, max_speed_mps, way)
+                self._recheck(costmap, pose, p, tr)
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
                 apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
                 closing = p.speed_mps + p.coming * max(0.0, last[0])
@@ -676,15 +667,12 @@ class PassingPlanner(DwaPlanner):
         self.passing = p
         return p
 
-    def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], last: tuple[float, float], p: Pass,
-                 tr: Track, apart_m: float, max_speed_mps: float, way: tuple[float, float]) -> None:
+    def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, tr: Track) -> None:
         """With each new scan while the person is still more than :data:`RECHECK_UNTIL_M` away: the passing distance
         again for the person's width as seen now (nearer, the blob shows more of it) and the room on the side chosen
         as the costmap shows it now (the walls ahead come into its range): the lane as far from the person as that
-        side has room for. The side is changed once at most, from a tight one to one with room, in time, that the
-        robot is on already (not across the person's way): 8-10 m away
-        the person's line is known to a few tenths of a metre only, and changing sides on each new look walked the
-        robot back and forth across their way."""
+        side has room for. The side itself is kept: 8-10 m away the person's line is known to a few tenths of a metre
+        only, and changing sides on it walked the robot back and forth across their way."""
         cfg = self.config
         p.rechecked_s = self.tracker.stamp_s
         full = self.footprint_radius_m + tr.pass_radius_m + cfg.pass_clearance_m
@@ -692,37 +680,6 @@ class PassingPlanner(DwaPlanner):
         d = self._widest(costmap, pose, p, p.side, KEEP_SIDE_CLEARANCE_M)
         if d is not None:
             p.distance_m = d
-        if p.switched or not p.tight:
-            p.doubts = 0
-            return
-        # Tight on this side (or no room): the other side once, if it has room for half the clearance or more and
-        # the robot can be there in time, scan after scan (RECHECK_SCANS); 8-10 m away the side was chosen on a line
-        # that was a few tenths of a metre off (a person 0.3 m to the right in a 2 m corridor, passed on the right).
-        # Never across the person's way, though: only to the side of their line the robot is on already (from 8-10 m
-        # away the line misjudged made a side chosen well look tight, and the robot crossed in front of them).
-        kept = p.distance_m
-        # Which side of the person the robot is on is asked across its own way, where the person is now: their line
-        # drawn on from 8-10 m away tilts with its direction.
-        wx, wy = way
-        on_other = ((pose[0] - p.px) * wy - (pose[1] - p.py) * wx) * p.side >= 0.0
-        other = self._widest(costmap, pose, p, -p.side) if on_other else None
-        in_time = False
-        if other is not None and other >= p.tight_m - 1e-9:
-            p.distance_m = other
-            fast = max(max_speed_mps, self.limits.max_speed_mps)
-            closing = p.speed_mps + p.coming * max(0.0, last[0])
-            t_meet = apart_m / max(closing, 1e-3)
-            in_time = TURN_S + self._shift(pose, p, -p.side) / max(LATERAL_FRACTION * fast, 1e-3) <= \
-                t_meet - BESIDE_BEFORE_S
-        p.doubts = p.doubts + 1 if in_time else 0
-        if p.doubts < RECHECK_SCANS:
-            p.distance_m = kept
-            return
-        was = p.side
-        p.side, p.switched = -was, True
-        self.step_asides += 1
-        self._tell(f"stepping aside to the {side_name(-was)} instead (little room on the {side_name(was)}) for the "
-                   f"person {apart_m:.1f} m ahead")
 
     def _free_side(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, t_meet_s: float,
                    speed_mps: float) -> Optional[int]:
