@@ -43,7 +43,13 @@ cost, a margin beyond; down to half the clearance closer) and it can get
 there before the person; else the other side; when neither is in time, the
 side that needs the shorter step; when neither has room, it stops and waits
 (the collision monitor, below the tree, still has the last word on every
-command). Each step aside, each wait and each return to the way is an event
+command). Where the walls leave less room than half the clearance on both
+sides, a *tight* lane is taken (down to ``PASS_MIN_CLEARANCE_M``), and the
+robot stands in it once the person is ``TIGHT_STOP_S`` away. The person
+counts at least ``PASS_RADIUS_MIN_M`` in radius; their line is fitted to their
+centres (``LANE_HISTORY_S`` of them once passing); the lane's room is looked
+at again each scan until they are ``RECHECK_UNTIL_M`` away (the side kept).
+Each step aside, each wait and each return to the way is an event
 (``step_aside``).
 """
 
@@ -107,6 +113,25 @@ PERSON_RADIUS_MIN_M = 0.15
 """A blob narrower than this is taken to be a person of this radius (m)."""
 PERSON_RADIUS_MAX_M = 0.35
 """... and a wider one of at most this (m)."""
+PASS_RADIUS_MIN_M = 0.25
+"""A person being passed is taken to be at least this wide in radius (m, shoulders): from 8-10 m away the LiDAR's few
+beams on them span less than their width (0.8 deg steps: 0.14 m at 10 m), and a lane planned for the blob's width there
+was too close to them (a 2 m corridor: the robot chose a side with no room for them)."""
+PASS_MIN_CLEARANCE_M = 0.05
+"""A side without room for ``pass_clearance_m`` is tried with less, down to this between the footprint and the person
+(m): in a corridor about 1.5 m wide a person on its middle leaves the robot no more, and it is that or be walked into.
+A side with at least half the clearance is taken before one with less, even against ``pass_side``."""
+KEEP_SIDE_CLEARANCE_M = 0.02
+"""Once passing, the lane is moved to where the side chosen has room for this much between footprint and person (m),
+less than a new side needs: the room as the costmap shows it flickers by a cell."""
+RECHECK_UNTIL_M = 2.5
+"""The room on the side of a pass is looked at again with each scan until the person is this close (m): nearer, their
+own returns lie in the lane's inflation and the side would be given up for the person themself."""
+LANE_HISTORY_S = 6.0
+"""The lanes of a pass run along the straight line fitted to the person's centres of the last this long (s)."""
+TIGHT_STOP_S = 3.0
+"""In a lane with less than half of ``pass_clearance_m`` (tight), the robot stops once the person would meet it within
+this (s) and waits there until they are by: a robot driving on beside them that close would have no room to steer."""
 FREE_AGE_S = (0.8, 2.0)
 """A walking person stands where the scans of this long ago (s, youngest and oldest) saw free space."""
 FREE_MARGIN_M = 0.05
@@ -181,6 +206,13 @@ class Track:
     vy: float = 0.0
     first_s: float = 0.0
     walking_since_s: Optional[float] = None
+    widest_m: float = 0.0
+    """The largest half-width seen (m): a person seen closer shows more of their width, never less of it."""
+    fit_x: float = 0.0
+    fit_y: float = 0.0
+    """Where the straight line fitted to the centres of the last ``HISTORY_S`` puts it at the newest scan (m, odom):
+    steadier than the newest centre, which wanders 0.2-0.4 m across from one scan to the next 10 m away (a few
+    beams on the person, a robot turning)."""
 
     @property
     def last(self) -> tuple[float, float, float]:
@@ -204,18 +236,29 @@ class Track:
         while len(h) > 2 and h[0][0] < t_s - HISTORY_S:
             h.popleft()
         self.half_width_m = half_width_m
+        self.widest_m = max(self.widest_m, half_width_m)
+        self.fit_x, self.fit_y = x, y
         if len(h) >= 3:
             arr = np.array(h)
-            dt = arr[:, 0] - arr[:, 0].mean()
+            t_mean = float(arr[:, 0].mean())
+            dt = arr[:, 0] - t_mean
             var = float((dt * dt).sum())
             if var > 1e-9:
                 self.vx = float((dt * (arr[:, 1] - arr[:, 1].mean())).sum() / var)
                 self.vy = float((dt * (arr[:, 2] - arr[:, 2].mean())).sum() / var)
+                self.fit_x = float(arr[:, 1].mean()) + self.vx * (t_s - t_mean)
+                self.fit_y = float(arr[:, 2].mean()) + self.vy * (t_s - t_mean)
 
     @property
     def radius_m(self) -> float:
         """The person's radius as the blob shows it (m), within the bounds people have."""
         return min(max(self.half_width_m, PERSON_RADIUS_MIN_M), PERSON_RADIUS_MAX_M)
+
+    @property
+    def pass_radius_m(self) -> float:
+        """The radius a pass keeps clear of (m): the widest the blob has been, at least :data:`PASS_RADIUS_MIN_M`,
+        at most :data:`PERSON_RADIUS_MAX_M`."""
+        return min(max(self.widest_m, PASS_RADIUS_MIN_M), PERSON_RADIUS_MAX_M)
 
 
 class PersonTracker:
@@ -394,6 +437,21 @@ class Pass:
     coming: int = 1
     """+1: the person walks at the robot (head-on); -1: they catch it up from behind (the lanes then run the
     robot's way, so that its right is the right)."""
+    full_m: float = 0.0
+    """The passing distance with the whole ``pass_clearance_m`` (m); ``distance_m`` is less where the walls leave
+    less room."""
+    tight_m: float = 0.0
+    """Below this passing distance (m; half the clearance) the lane is tight: the robot waits in it for the person."""
+    rechecked_s: float = -math.inf
+    """The scan stamp (s) the side's room was last looked at again."""
+    samples: deque = field(default_factory=deque)
+    """The person's centres ``(t s, x m, y m)`` (odom) of the last :data:`LANE_HISTORY_S`, across re-identified
+    tracks: the lanes' line is fitted to them."""
+
+    @property
+    def tight(self) -> bool:
+        """Whether the lane leaves less than half the clearance (the robot stops in it while the person goes by)."""
+        return self.distance_m < self.tight_m - 1e-9
 
     @property
     def speed_mps(self) -> float:
@@ -457,6 +515,13 @@ class PassingPlanner(DwaPlanner):
         target = self._aside(p, target_xy if target_xy is not None else carrot_xy)
         nx, ny = p.normal
         need = p.distance_m - ((pose[0] - p.px) * nx + (pose[1] - p.py) * ny)
+        # A tight lane (a narrow corridor): once the person is near, the robot stands in it and lets them by; one
+        # driving on that close beside them has no room to steer.
+        apart = p.coming * ((p.px - pose[0]) * p.ux + (p.py - pose[1]) * p.uy)
+        closing = p.speed_mps + p.coming * max(0.0, last[0])
+        hold = p.tight and apart < TIGHT_STOP_S * max(closing, 1e-3)
+        if hold and need <= LANE_TOLERANCE_M:
+            return PlanResult(0.0, 0.0, np.array([[pose[0], pose[1]]]), False, True, 0, 0)
         if need > LANE_TOLERANCE_M:
             # Not beside the person's line yet: steer for the lane just ahead, a turn of 30-50 deg, so that the robot
             # moves over in a few seconds (the carrot well ahead would make it a slow drift).
@@ -465,12 +530,15 @@ class PassingPlanner(DwaPlanner):
         if need > LANE_FAST_M:
             # Getting out of a person's way is done at the robot's top speed (the step's own speed may be slower).
             pref = pursue(pose, carrot, max(max_speed_mps, self.limits.max_speed_mps), max_turn_rps)
-        if need > LANE_TOLERANCE_M:
-            # Moving over: the pursuit of the lane as it is when its arc stays clear of what the footprint would touch
-            # (the planner's scores would trade the move for keeping off the walls' inflation, and be late).
-            x, y = arcs(pose, np.array([pref[0]]), np.array([pref[1]]), self.times)
-            if (cost_at(costmap, x[0], y[0]) < COST_INSCRIBED).all():
-                return PlanResult(pref[0], pref[1], np.column_stack((x[0], y[0])), True, False, 1, 1)
+        # Moving over, and in the lane: the pursuit of the lane as it is when its arc stays clear of what the footprint
+        # would touch (the planner's scores would trade the move for keeping off the walls' inflation, and be late;
+        # in a lane beside a wall they drew the robot back toward the middle, into the person's way).
+        x, y = arcs(pose, np.array([pref[0]]), np.array([pref[1]]), self.times)
+        if (cost_at(costmap, x[0], y[0]) < COST_INSCRIBED).all():
+            return PlanResult(pref[0], pref[1], np.column_stack((x[0], y[0])), True, False, 1, 1)
+        if hold and need <= LANE_FAST_M:
+            # Nearly in the tight lane and no clear arc to the rest of it: stand here.
+            return PlanResult(0.0, 0.0, np.array([[pose[0], pose[1]]]), False, True, 0, 0)
         return super().plan(costmap, pose, last, pref, carrot, max_speed_mps, max_turn_rps, target, True)
 
     # -- the pass ---------------------------------------------------------------------------------------------
@@ -502,11 +570,20 @@ class PassingPlanner(DwaPlanner):
                     tr = min(near)[2]
                     p.track_id = tr.id
             if tr is not None:
-                p.px, p.py = tr.last[1], tr.last[2]
+                p.px, p.py = tr.fit_x, tr.fit_y
                 p.vx, p.vy, p.seen_s = tr.vx, tr.vy, tr.last[0]
+                if tr.last[0] > p.samples[-1][0]:
+                    p.samples.append(tr.last)
+                while p.samples[0][0] < now - LANE_HISTORY_S:
+                    p.samples.popleft()
+                line = fit_line(p.samples)
+                if line is not None and math.hypot(line[2], line[3]) >= self.tracker.min_speed_mps:
+                    # The person's line fitted to all the pass has seen of them: its direction from a track's 2 s
+                    # was 10-25 deg off 8 m away (and more on a track begun again), a metre off where the robot was.
+                    p.px, p.py = line[0], line[1]
+                    s = math.hypot(line[2], line[3]) * -p.coming
+                    p.ux, p.uy = line[2] / s, line[3] / s
                 px, py = p.px, p.py
-                if tr.speed_mps >= self.tracker.min_speed_mps:
-                    p.ux, p.uy = lane_direction(tr, p.coming)
             else:  # out of sight a moment (merged with a wall, or in the robot's shadow): carried on at its speed
                 px, py = p.px + p.vx * (now - p.seen_s), p.py + p.vy * (now - p.seen_s)
             # Passed: a person met head-on is behind the robot, one who caught it up is ahead of it.
@@ -524,6 +601,9 @@ class PassingPlanner(DwaPlanner):
                 self._tell(f"back on the way: the person {what} after {now - p.began_s:.1f} s "
                            f"{'waiting' if p.waiting else 'aside'}")
                 return None
+            apart = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy)
+            if not p.waiting and tr is not None and now > p.rechecked_s and apart > RECHECK_UNTIL_M:
+                self._recheck(costmap, pose, p, tr)
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
                 apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
                 closing = p.speed_mps + p.coming * max(0.0, last[0])
@@ -541,7 +621,7 @@ class PassingPlanner(DwaPlanner):
             ux, uy = ux / d, uy / d
         best = None
         for tr in self.tracker.walking():
-            t, px, py = tr.last
+            px, py = tr.fit_x, tr.fit_y
             ahead = (px - rx) * ux + (py - ry) * uy
             along_v = tr.vx * ux + tr.vy * uy
             if ahead > 0.0 and along_v <= -HEAD_ON_COS * tr.speed_mps:
@@ -555,7 +635,7 @@ class PassingPlanner(DwaPlanner):
             t_meet = abs(ahead) / max(closing, 1e-3)
             if t_meet > cfg.pass_react_time_s:
                 continue
-            distance = self.footprint_radius_m + tr.radius_m + cfg.pass_clearance_m
+            distance = self.footprint_radius_m + tr.pass_radius_m + cfg.pass_clearance_m
             # The person's offset from the robot's line (to its left) when they meet.
             lateral = ((px + tr.vx * t_meet - rx) * -uy + (py + tr.vy * t_meet - ry) * ux)
             if abs(lateral) >= distance:
@@ -568,7 +648,9 @@ class PassingPlanner(DwaPlanner):
         # The lanes run along the person's line: the robot keeps beside it however its own way bends.
         lx, ly = lane_direction(tr, coming)
         p = Pass(tr.id, -1 if cfg.pass_side == "right" else 1, lx, ly, distance, False, now,
-                 tr.last[1], tr.last[2], tr.vx, tr.vy, tr.last[0], checked_s=now, coming=coming)
+                 tr.fit_x, tr.fit_y, tr.vx, tr.vy, tr.last[0], checked_s=now, coming=coming,
+                 full_m=distance, tight_m=distance - 0.5 * cfg.pass_clearance_m, rechecked_s=now,
+                 samples=deque(tr.history))
         side = self._free_side(costmap, pose, p, t_meet, max_speed_mps)
         what = (f"a person {ahead:.1f} m ahead walking at the robot at {tr.speed_mps:.1f} m/s" if coming > 0 else
                 f"a person {-ahead:.1f} m behind catching the robot up at {tr.speed_mps:.1f} m/s")
@@ -585,37 +667,71 @@ class PassingPlanner(DwaPlanner):
         self.passing = p
         return p
 
+    def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, tr: Track) -> None:
+        """With each new scan while the person is still more than :data:`RECHECK_UNTIL_M` away: the passing distance
+        again for the person's width as seen now (nearer, the blob shows more of it) and the room on the side chosen
+        as the costmap shows it now (the walls ahead come into its range): the lane as far from the person as that
+        side has room for. The side itself is kept: 8-10 m away the person's line is known to a few tenths of a metre
+        only, and changing sides on it walked the robot back and forth across their way."""
+        cfg = self.config
+        p.rechecked_s = self.tracker.stamp_s
+        full = self.footprint_radius_m + tr.pass_radius_m + cfg.pass_clearance_m
+        p.full_m, p.tight_m = full, full - 0.5 * cfg.pass_clearance_m
+        d = self._widest(costmap, pose, p, p.side, KEEP_SIDE_CLEARANCE_M)
+        if d is not None:
+            p.distance_m = d
+
     def _free_side(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, t_meet_s: float,
                    speed_mps: float) -> Optional[int]:
         """The side to pass on (+1 left, -1 right), None when neither has room: ``pass_side`` when the costmap has
         room for the robot there and it can be there before the person (``t_meet_s`` from now, less
         :data:`BESIDE_BEFORE_S`, at ``speed_mps``), else the other side if that can; else the side with room that
         needs the shorter step (a robot already beside the person's line on the other side does not cut across
-        their way to keep to its own)."""
+        their way to keep to its own). Sets ``p.distance_m`` to the chosen side's (:meth:`_widest`)."""
         first = -1 if self.config.pass_side == "right" else 1
         fast = max(speed_mps, self.limits.max_speed_mps)
         options = []
-        full = p.distance_m
-        least = full - 0.5 * self.config.pass_clearance_m  # a side with less room passes closer, down to this
         for side in (first, -first):
-            # The widest passing distance that has room on this side, from the full one down to the least.
-            d = full
-            while d >= least - 1e-9:
+            d = self._widest(costmap, pose, p, side)
+            if d is not None:
                 p.distance_m = d
                 shift = self._shift(pose, p, side)
-                if self._room(costmap, pose, p, side, shift):
-                    options.append((side, shift, TURN_S + shift / max(LATERAL_FRACTION * fast, 1e-3), d))
-                    break
-                d -= ROOM_STEP_M
-        p.distance_m = full
+                options.append((side, shift, TURN_S + shift / max(LATERAL_FRACTION * fast, 1e-3), d))
+        p.distance_m = p.full_m
         self.why_not_preferred = "no room" if not options or options[0][0] != first else "no time to get there"
         if not options:
             return None
-        chosen = next((o for o in options if o[2] <= t_meet_s - BESIDE_BEFORE_S), None)
-        if chosen is None:
-            chosen = min(options, key=lambda o: o[1])
+        in_time = [o for o in options if o[2] <= t_meet_s - BESIDE_BEFORE_S]
+        # A side with room for half the clearance or more before a tight one (a person 0.3 m to the robot's right in a
+        # 2 m corridor leaves the right side 0.05 m: the left is the way).
+        roomy = [o for o in in_time if o[3] >= p.tight_m - 1e-9]
+        chosen = roomy[0] if roomy else in_time[0] if in_time else min(options, key=lambda o: o[1])
+        if chosen[0] != first and options[0][0] == first:
+            self.why_not_preferred = "no time to get there" if options[0] not in in_time else "little room"
         p.distance_m = chosen[3]
         return chosen[0]
+
+    def _widest(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, side: int,
+                clearance_m: float = PASS_MIN_CLEARANCE_M) -> Optional[float]:
+        """The widest passing distance (m) that has room on ``side``: the full one (``p.full_m``), else in steps of
+        :data:`ROOM_STEP_M` down to half the clearance with the robot's place :data:`ROOM_MARGIN_M` clear too, then
+        on down to ``clearance_m`` between footprint and person with the place itself clear (a narrow corridor: the
+        robot as far from the person as the walls let it be); None when there is none."""
+        full = p.full_m
+        half = p.tight_m
+        least = full - self.config.pass_clearance_m + min(clearance_m, self.config.pass_clearance_m)
+        d = full
+        keep = p.distance_m
+        try:
+            while d >= least - 1e-9:
+                p.distance_m = d
+                if self._room(costmap, pose, p, side, self._shift(pose, p, side),
+                              ROOM_MARGIN_M if d >= half - 1e-9 else 0.0):
+                    return d
+                d -= ROOM_STEP_M
+            return None
+        finally:
+            p.distance_m = keep
 
     @staticmethod
     def _shift(pose: tuple[float, float, float], p: Pass, side: int) -> float:
@@ -623,21 +739,40 @@ class PassingPlanner(DwaPlanner):
         nx, ny = -p.uy * side, p.ux * side
         return max(0.0, p.distance_m - ((pose[0] - p.px) * nx + (pose[1] - p.py) * ny))
 
-    def _room(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, side: int, shift: float
-              ) -> bool:
+    def _room(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, side: int, shift: float,
+              margin_m: float = ROOM_MARGIN_M) -> bool:
         """Whether the robot fits ``shift`` (m) toward ``side`` (the passing distance beyond the person's line), along
-        the way ahead: every point there, and :data:`ROOM_MARGIN_M` beyond, below the inscribed cost."""
+        the way ahead: every point there, and ``margin_m`` beyond, below the inscribed cost."""
         nx, ny = -p.uy * side, p.ux * side
         rx, ry = pose[0], pose[1]
         xs, ys = [], []
         for a in ROOM_AHEAD_M:
-            for extra in (0.0, ROOM_MARGIN_M):
+            for extra in (0.0, margin_m):
                 xs.append(rx + a * p.ux + (shift + extra) * nx)
                 ys.append(ry + a * p.uy + (shift + extra) * ny)
-        # half way across, just ahead: the way there
-        xs.append(rx + ROOM_AHEAD_M[0] * p.ux + 0.5 * shift * nx)
-        ys.append(ry + ROOM_AHEAD_M[0] * p.uy + 0.5 * shift * ny)
+        # The way there, just ahead, all across: the costmap marks a wall as a line of returns, and a lane beyond it
+        # (a person's line misjudged by half a metre in a 1.5 m corridor) is "free" on the far side.
+        for f in np.arange(ROOM_STEP_M, shift, ROOM_STEP_M):
+            xs.append(rx + ROOM_AHEAD_M[0] * p.ux + f * nx)
+            ys.append(ry + ROOM_AHEAD_M[0] * p.uy + f * ny)
         return bool((cost_at(costmap, np.array(xs), np.array(ys)) < COST_INSCRIBED).all())
+
+
+def fit_line(samples: deque) -> Optional[tuple[float, float, float, float]]:
+    """The least-squares line through centres ``(t s, x m, y m)``: where it puts them at the newest time (x, y m) and
+    the velocity along it (vx, vy m/s); None with fewer than 3 or over less than 1 s."""
+    if len(samples) < 3:
+        return None
+    arr = np.array(samples, dtype=float)
+    t_mean = float(arr[:, 0].mean())
+    dt = arr[:, 0] - t_mean
+    var = float((dt * dt).sum())
+    if arr[-1, 0] - arr[0, 0] < 1.0 or var <= 1e-9:
+        return None
+    vx = float((dt * (arr[:, 1] - arr[:, 1].mean())).sum() / var)
+    vy = float((dt * (arr[:, 2] - arr[:, 2].mean())).sum() / var)
+    t_end = float(arr[-1, 0])
+    return (float(arr[:, 1].mean()) + vx * (t_end - t_mean), float(arr[:, 2].mean()) + vy * (t_end - t_mean), vx, vy)
 
 
 def lane_direction(tr: Track, coming: int = 1) -> tuple[float, float]:
@@ -671,4 +806,4 @@ def pursue(pose: tuple[float, float, float], carrot: tuple[float, float], speed_
     return v, w
 
 
-__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "pursue", "side_name"]
+__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "fit_line", "pursue", "side_name"]
