@@ -44,6 +44,9 @@ GAP_APPROACH_M = 0.8
 leaves along it for half as long: the collision monitor's stop zone leaves a few cm to either side, so the robot
 must enter centred and square."""
 
+GAP_SAME_M = 0.2
+"""Two runs of narrow cells on a path whose gaps' centres lie closer than this (m) go through one gap."""
+
 
 def lidar_pose(mounting: LidarMounting, base: tuple[float, float, float]) -> tuple[float, float, float]:
     """The LiDAR's pose (x m, y m, yaw rad) in the frame where base_link is at ``base`` (x m, y m, yaw rad)."""
@@ -198,8 +201,9 @@ def through_gaps(path: GlobalPath, cm: GlobalCostmap) -> tuple[GlobalPath, list[
     gaps: list[tuple[np.ndarray, np.ndarray]] = []
     for first, end in zip(edges[0::2], edges[1::2]):
         gap = _gap_at(cm, pts[(first + end - 1) // 2], pts[min(end, len(pts) - 1)] - pts[first])
-        if gap is None:
-            continue
+        if gap is None or any(float(np.hypot(*(gap[0] - c))) < GAP_SAME_M for c, _ in gaps):
+            continue  # none, or one already crossed (a path across a gap at a slant to the cells leaves its narrow
+            # cells and comes back into them: two runs, one gap)
         gaps.append(gap)
         points = _cross_square(points, *gap)
     if not gaps:
@@ -231,13 +235,29 @@ def _gap_at(cm: GlobalCostmap, p: np.ndarray, along: np.ndarray) -> Optional[tup
     rr, ccs = np.nonzero(obstacles)
     if rr.size < 2:
         return None
-    xy = np.column_stack((grid.origin_x + (ccs + c0 + 0.5) * step, grid.origin_y + (rr + r0 + 0.5) * step)) - p
-    d = np.hypot(xy[:, 0], xy[:, 1])
-    a = xy[int(np.argmin(d))]
-    other = xy @ a < 0.0
-    if not other.any():
+    marks = np.column_stack((grid.origin_x + (ccs + c0 + 0.5) * step, grid.origin_y + (rr + r0 + 0.5) * step))
+
+    def sides(q: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The nearest obstacle to ``q`` and the nearest on the other side of it (relative to ``q``), or None."""
+        xy = marks - q
+        d = np.hypot(xy[:, 0], xy[:, 1])
+        a = xy[int(np.argmin(d))]
+        other = xy @ a < 0.0
+        if not other.any():
+            return None
+        return a, xy[other][int(np.argmin(d[other]))]
+
+    found = sides(p)
+    if found is None:
         return None
-    b = xy[other][int(np.argmin(d[other]))]
+    # Judged again from midway between the two: the middle of a path's run of narrow cells may lie a few cm before
+    # or beside the gap's middle (on a gap at a slant to the cells, the run is lopsided), and seen from there the
+    # two jambs are not quite opposite.
+    p = p + (found[0] + found[1]) / 2.0
+    found = sides(p)
+    if found is None:
+        return None
+    a, b = found
     # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
     # one wall, or past a corner, has none on the other side and is left as it is.
     reach = cm.inscribed_m + 2.0 * step

@@ -33,7 +33,9 @@ forgets the marks within a radius (the recovery ``clear the costmaps``).
 ``version`` counts the changes, so that a costmap built from the layer knows
 when it must be built again. With ``fine``, the layer also keeps the marks on a
 grid of cells :data:`FINE` times smaller (:attr:`ObstacleLayer.fine`, marked by
-the same returns and cleared with the cells holding them), so that a costmap of
+the same returns, cleared with the cells holding them, and each on its own by
+the same rule in a cell that stays marked: a wall's end stays, a stray mark
+beside it in a gap goes), so that a costmap of
 0.1 m cells can tell a gap the robot fits through from one 8 cm narrower
 (docs/navigation.md, Tight gaps). Nothing here reads a clock.
 """
@@ -184,13 +186,33 @@ class ObstacleLayer:
             return 0
         rr += r0
         cc += c0
-        dx = self.origin_x + (cc + 0.5) * res - lx
-        dy = self.origin_y + (rr + 0.5) * res - ly
+        clear = self._seen_through(pose, a, r, spacing, self.origin_x + (cc + 0.5) * res,
+                                   self.origin_y + (rr + 0.5) * res, res)
+        n = int(np.count_nonzero(clear))
+        if n:
+            self.marked[rr[clear], cc[clear]] = False
+            self._clear_fine(rr[clear], cc[clear])
+            self.version += 1
+            self.cleared_total += n
+        if self.fine is not None and n < rr.size:
+            n += self._clear_fine_marks(pose, a, r, spacing, rr[~clear], cc[~clear])
+        return n
+
+    def _seen_through(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float,
+                      x: np.ndarray, y: np.ndarray, size_m: float) -> np.ndarray:
+        """Which cells of side ``size_m`` centred at (``x``, ``y``) (m) the beams (angles ``a`` sorted, ranges
+        ``r``, ``spacing`` rad apart) from the LiDAR at ``pose`` saw through: the beam nearest each cell's bearing
+        passed through it and went past it by a cell of the layer's own (whatever ``size_m``) and the grazing
+        margin, or returned nothing (with ``clear_on_no_return``)."""
+        cfg = self.config
+        lx, ly, lyaw = pose
+        dx, dy = x - lx, y - ly
         dist = np.hypot(dx, dy)
-        near = dist <= reach
+        near = dist <= cfg.raytrace_max_range_m
+        out = np.zeros(len(x), bool)
         if not near.any():
-            return 0
-        rr, cc, dx, dy, dist = rr[near], cc[near], dx[near], dy[near], dist[near]
+            return out
+        dx, dy, dist = dx[near], dy[near], dist[near]
         bearing = wrap(np.arctan2(dy, dx) - lyaw)
         # The beam nearest each cell's bearing (the beams wrap round at +-pi).
         i = np.searchsorted(a, bearing) % len(a)
@@ -201,21 +223,47 @@ class ObstacleLayer:
         off = np.minimum(di, dj)
         # A beam clears a cell it passes through: within half the cell's angular size of the cell's centre, or
         # within the spacing of the beams (a sparse scan still clears what lies between its beams' ends).
-        through = off <= np.maximum(0.5 * res / np.maximum(dist, res), 0.6 * spacing)
+        through = off <= np.maximum(0.5 * size_m / np.maximum(dist, size_m), 0.6 * spacing)
         beam = r[k]
         no_return = ~np.isfinite(beam)
         valid = np.isfinite(beam) & (beam >= cfg.obstacle_min_range_m)
         # Past the cell by a cell, and by more where the beams are far apart: a beam that grazes a wall hits it a
         # little farther along than the cell it passes (by dist * spacing / tan(angle)); it must not clear the wall.
-        went_past = valid & (beam > dist + res + dist * spacing * GRAZING_COT)
+        # A fine cell too: a wall seen on the slant from a few cm off its line (the robot in its gap) is hit farther
+        # along than a fine cell by more than a fine cell, and its marks must stay.
+        went_past = valid & (beam > dist + self.resolution_m + dist * spacing * GRAZING_COT)
         if cfg.clear_on_no_return:
             went_past |= no_return
-        clear = through & went_past
-        n = int(np.count_nonzero(clear))
+        out[near] = through & went_past
+        return out
+
+    def _clear_fine_marks(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float,
+                          row: np.ndarray, col: np.ndarray) -> int:
+        """Clear the fine marks of the cells (``row``, ``col``) that the beams saw through, each on its own, and the
+        cells left with none; the number of cells cleared.
+
+        A cell at a gap's edge holds the wall's end, which the beams hit, and it stays marked; but a mark placed a
+        few cm into the gap (a scan placed with a heading a degree off, as the odometry drifts in a turn) must go
+        once a beam passes through it, or the gap measures narrower than it is, for as long as the cell is seen."""
+        fine = self.fine
+        assert fine is not None
+        step = self.resolution_m / FINE
+        boxes = fine.reshape(fine.shape[0] // FINE, FINE, fine.shape[1] // FINE, FINE)[row, :, col, :]
+        k, fr, fc = np.nonzero(boxes)
+        if k.size == 0:
+            return 0
+        frow, fcol = FINE * row[k] + fr, FINE * col[k] + fc
+        clear = self._seen_through(pose, a, r, spacing, self.origin_x + (fcol + 0.5) * step,
+                                   self.origin_y + (frow + 0.5) * step, step)
+        if not clear.any():
+            return 0
+        fine[frow[clear], fcol[clear]] = False
+        self.version += 1
+        emptied = ~fine.reshape(fine.shape[0] // FINE, FINE, fine.shape[1] // FINE, FINE)[row, :, col, :].any(
+            axis=(1, 2))
+        n = int(np.count_nonzero(emptied))
         if n:
-            self.marked[rr[clear], cc[clear]] = False
-            self._clear_fine(rr[clear], cc[clear])
-            self.version += 1
+            self.marked[row[emptied], col[emptied]] = False
             self.cleared_total += n
         return n
 
