@@ -192,6 +192,29 @@ def test_a_fine_mark_a_beam_passes_through_is_cleared_and_the_wall_end_beside_it
     assert layer.marked[row[0], col[0]]                   # and its cell with it
 
 
+
+def test_a_lone_dropout_along_a_fence_seen_from_its_gap_clears_nothing():
+    # The robot 0.2 m before a fence (y = 0.2 m, along x), as in the fence's gap: its beams meet the fence at a
+    # grazing angle, a metre or more apart far along it. A beam that lost its return (a dropout) in between is not
+    # open space: the fence's cells along it stay (cleared, they were the holes the planner took for a way through).
+    layer = ObstacleLayer(GlobalCostmapConfig(), 200, 200, 0.1, -10.0, -10.0, fine=True)
+    xs = np.arange(0.5, 9.0, 0.01)
+    layer.mark_points(xs, np.full(len(xs), 0.205))
+    before = layer.marked.copy()
+    angles = np.radians(np.arange(-180.0, 180.0, 0.8))
+    toward = (angles > math.radians(1.4)) & (angles < math.radians(20.0))
+    ranges = np.full(len(angles), np.nan)
+    ranges[toward] = 0.205 / np.sin(angles[toward])
+    lost = int(np.flatnonzero(toward)[2])  # 2.2 degrees: along the fence 4-9 m away
+    ranges[lost] = np.nan
+    layer.update((0.0, 0.0, 0.0), angles, ranges)
+    assert layer.marked[before].all()                     # the fence's cells, every one kept
+    # Open space (several beams in a row with no return) still clears: the cells of a person who walked away.
+    layer.mark_points(np.array([-3.0]), np.array([0.0]))
+    layer.update((0.0, 0.0, 0.0), angles, ranges)
+    assert not layer.marked[layer.cells(np.array([-3.0]), np.array([0.0]))[:2]].any()
+
+
 SLANTED_PEN_WORLD = """\
 world: pen_at_a_slant
 description: A 3 m x 3 m pen whose only way out is a 0.40 m gap in its north wall, 0.3 m from its east corner.

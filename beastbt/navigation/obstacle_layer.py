@@ -18,7 +18,8 @@ that what the scan hits stays marked):
   of the LiDAR is cleared when the beam nearest its bearing went farther than
   the cell (its range more than a cell beyond the cell's centre), or, with
   ``clear_on_no_return``, returned nothing (nothing within the LiDAR's range:
-  open space, Nav2's ``inf_is_valid``). Only marked cells can need clearing,
+  open space, Nav2's ``inf_is_valid``; but a lone beam with no return between
+  two that returned is a dropout, and clears nothing). Only marked cells can need clearing,
   so the layer projects those into the scan instead of walking every beam
   across the grid: the same cells are cleared as by walking each beam with
   Bresenham's line up to its end, at the cost of one ``searchsorted`` per
@@ -199,11 +200,11 @@ class ObstacleLayer:
         return n
 
     def _seen_through(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float,
-                      x: np.ndarray, y: np.ndarray, size_m: float) -> np.ndarray:
+                      x: np.ndarray, y: np.ndarray, size_m: float, open_only: bool = False) -> np.ndarray:
         """Which cells of side ``size_m`` centred at (``x``, ``y``) (m) the beams (angles ``a`` sorted, ranges
         ``r``, ``spacing`` rad apart) from the LiDAR at ``pose`` saw through: the beam nearest each cell's bearing
-        passed through it and went past it by a cell of the layer's own (whatever ``size_m``) and the grazing
-        margin, or returned nothing (with ``clear_on_no_return``)."""
+        passed through it and went past it by a cell and the grazing margin (not with ``open_only``), or returned
+        nothing (with ``clear_on_no_return``; not a lone beam between two returns, a dropout)."""
         cfg = self.config
         lx, ly, lyaw = pose
         dx, dy = x - lx, y - ly
@@ -225,13 +226,19 @@ class ObstacleLayer:
         # within the spacing of the beams (a sparse scan still clears what lies between its beams' ends).
         through = off <= np.maximum(0.5 * size_m / np.maximum(dist, size_m), 0.6 * spacing)
         beam = r[k]
-        no_return = ~np.isfinite(beam)
+        # A lone beam with no return between two that returned is a dropout (the LD19 loses about 1 % of its
+        # points), not open space: along a fence seen from beside it, it would clear metres of the fence's cells.
+        n = len(a)
+        lone = np.zeros(n, bool)
+        if n > 2:
+            lone = (~np.isfinite(r) & np.isfinite(np.roll(r, 1)) & np.isfinite(np.roll(r, -1))
+                    & (np.abs(wrap(np.roll(a, 1) - a)) <= 2.0 * spacing)
+                    & (np.abs(wrap(np.roll(a, -1) - a)) <= 2.0 * spacing))
+        no_return = ~np.isfinite(beam) & ~lone[k]
         valid = np.isfinite(beam) & (beam >= cfg.obstacle_min_range_m)
         # Past the cell by a cell, and by more where the beams are far apart: a beam that grazes a wall hits it a
         # little farther along than the cell it passes (by dist * spacing / tan(angle)); it must not clear the wall.
-        # A fine cell too: a wall seen on the slant from a few cm off its line (the robot in its gap) is hit farther
-        # along than a fine cell by more than a fine cell, and its marks must stay.
-        went_past = valid & (beam > dist + self.resolution_m + dist * spacing * GRAZING_COT)
+        went_past = valid & (beam > dist + size_m + dist * spacing * GRAZING_COT) & (not open_only)
         if cfg.clear_on_no_return:
             went_past |= no_return
         out[near] = through & went_past
@@ -244,7 +251,8 @@ class ObstacleLayer:
 
         A cell at a gap's edge holds the wall's end, which the beams hit, and it stays marked; but a mark placed a
         few cm into the gap (a scan placed with a heading a degree off, as the odometry drifts in a turn) must go
-        once a beam passes through it, or the gap measures narrower than it is, for as long as the cell is seen."""
+        once a beam passes through it into open space, or the gap measures narrower than it is, for as long as the
+        cell is seen."""
         fine = self.fine
         assert fine is not None
         step = self.resolution_m / FINE
@@ -253,8 +261,10 @@ class ObstacleLayer:
         if k.size == 0:
             return 0
         frow, fcol = FINE * row[k] + fr, FINE * col[k] + fc
+        # Only by beams into open space (no return): a beam that hit something beyond a fine cell may have met, on
+        # the slant, the very wall the cell holds (a fence seen from its gap), and the fine cell says no more.
         clear = self._seen_through(pose, a, r, spacing, self.origin_x + (fcol + 0.5) * step,
-                                   self.origin_y + (frow + 0.5) * step, step)
+                                   self.origin_y + (frow + 0.5) * step, step, open_only=True)
         if not clear.any():
             return 0
         fine[frow[clear], fcol[clear]] = False
