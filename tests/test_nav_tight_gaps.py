@@ -197,7 +197,7 @@ def test_a_lone_dropout_along_a_fence_seen_from_its_gap_clears_nothing():
     # The robot 0.2 m before a fence (y = 0.2 m, along x), as in the fence's gap: its beams meet the fence at a
     # grazing angle, a metre or more apart far along it. A beam that lost its return (a dropout) in between is not
     # open space: the fence's cells along it stay (cleared, they were the holes the planner took for a way through).
-    layer = ObstacleLayer(GlobalCostmapConfig(), 200, 200, 0.1, -10.0, -10.0, fine=True)
+    layer = ObstacleLayer(GlobalCostmapConfig(), 200, 200, 0.1, -10.0, -10.0, fine=True, dropouts_clear=False)
     xs = np.arange(0.5, 9.0, 0.01)
     layer.mark_points(xs, np.full(len(xs), 0.205))
     before = layer.marked.copy()

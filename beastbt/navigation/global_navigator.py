@@ -80,7 +80,8 @@ class GlobalNavigator:
         n = int(round(config.width_m / config.resolution_m))
         half = n * config.resolution_m / 2.0
         # Half cells too: the narrow gaps the costmap lets through are measured on them (global_planner.narrow_gaps).
-        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half, fine=planner.narrow_gaps)
+        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half, fine=planner.narrow_gaps,
+                                   dropouts_clear=False)
         self._costmap: Optional[GlobalCostmap] = None
         self._disk = disk_offsets(self.inscribed_m / config.resolution_m)
         # A planned way may pass within the padding when it goes through a narrow gap: only a mark within the

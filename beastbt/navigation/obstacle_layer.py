@@ -18,8 +18,8 @@ that what the scan hits stays marked):
   of the LiDAR is cleared when the beam nearest its bearing went farther than
   the cell (its range more than a cell beyond the cell's centre), or, with
   ``clear_on_no_return``, returned nothing (nothing within the LiDAR's range:
-  open space, Nav2's ``inf_is_valid``; but a lone beam with no return between
-  two that returned is a dropout, and clears nothing). Only marked cells can need clearing,
+  open space, Nav2's ``inf_is_valid``; on GPS a lone beam with no return
+  between two that returned is a dropout, and clears nothing). Only marked cells can need clearing,
   so the layer projects those into the scan instead of walking every beam
   across the grid: the same cells are cleared as by walking each beam with
   Bresenham's line up to its end, at the cost of one ``searchsorted`` per
@@ -119,7 +119,7 @@ class ObstacleLayer:
     lower-left corner is at (``origin_x``, ``origin_y``) (m); see the module docstring."""
 
     def __init__(self, config: GlobalCostmapConfig, rows: int, cols: int, resolution_m: float, origin_x: float,
-                 origin_y: float, fine: bool = False) -> None:
+                 origin_y: float, fine: bool = False, dropouts_clear: bool = True) -> None:
         self.config = config
         self.resolution_m = resolution_m
         self.origin_x = origin_x
@@ -128,6 +128,10 @@ class ObstacleLayer:
         self.fine: Optional[np.ndarray] = np.zeros((FINE * rows, FINE * cols), bool) if fine else None
         """With ``fine``: the marks on a grid of cells FINE times smaller ((FINE rows, FINE cols), the same origin),
         each inside a marked cell; else None."""
+        self.dropouts_clear = dropouts_clear
+        """Whether a lone beam with no return between two that returned clears (with ``clear_on_no_return``), as
+        open space; False on GPS (a dropout along a fence seen from its gap cleared metres of it). On a map, the
+        dropouts are left to clear: in a room nearly every beam returns, and they clear marks placed a little off."""
         self.unmarkable: Optional[np.ndarray] = None
         """Cells a return never marks (on a map: the map's own walls and a band round them, so that a few cm of
         localisation error does not thicken the walls and narrow the doors); None: every cell."""
@@ -230,7 +234,7 @@ class ObstacleLayer:
         # points), not open space: along a fence seen from beside it, it would clear metres of the fence's cells.
         n = len(a)
         lone = np.zeros(n, bool)
-        if n > 2:
+        if n > 2 and not self.dropouts_clear:
             lone = (~np.isfinite(r) & np.isfinite(np.roll(r, 1)) & np.isfinite(np.roll(r, -1))
                     & (np.abs(wrap(np.roll(a, 1) - a)) <= 2.0 * spacing)
                     & (np.abs(wrap(np.roll(a, -1) - a)) <= 2.0 * spacing))
