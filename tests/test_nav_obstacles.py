@@ -268,10 +268,12 @@ steps:
     waited = 0.0
     while not h.done and h.now_s < 120:
         h.tick()
-        if h.now_s < 30 and h.truth.y > 3.0 and h.truth.v_mps < 0.01:
+        # Standing, or creeping at the collision monitor's slow zone (about 2 cm/s) as it turns to face the person:
+        # no progress either way.
+        if h.now_s < 30 and h.truth.y > 3.0 and h.truth.v_mps < 0.03:
             waited += h.dt_s
     assert h.result == "success", [e.text for e in events_of(h, "step_failed")]
-    assert waited > 5.0                                   # it stood before the person for longer than stuck_after
+    assert waited > 5.0                                   # it waited before the person for longer than stuck_after
     assert h.truth.y > 4.5                                # and went through the doorway once the person had gone
     assert h.summary()["truth"]["collisions"] == 0
 

@@ -16,13 +16,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
+from beastbt.blackboard.types import FusedPose, LaserScan
 from beastbt.devices.lidar_scan import LidarMounting
-from beastbt.navigation.global_navigator import GlobalNavigator
+from beastbt.estimation.geodesy import LocalFrame
+from beastbt.navigation.global_navigator import GlobalNavigator, sample_polyline
 from beastbt.navigation.global_planner import GlobalPlannerConfig, NoPath
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap
+from beastbt.navigation.local_navigator import SCAN_LATENCY_S, STEADY_TURN_RATE_RPS, LocalNavigator
 from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig
-from beastbt.navigation.obstacle_layer import GlobalCostmapConfig
+from beastbt.navigation.obstacle_layer import GlobalCostmapConfig, ObstacleLayer
 from beastbt.testing import MissionHarness
 from conftest import REPO
 
@@ -100,3 +104,148 @@ def test_the_pen_is_left_through_its_gap_slowly_and_a_gap_8_cm_narrower_fails_at
     assert summary["truth"]["collisions"] == 0
     failed = [e["text"] for e in summary["events"] if e["kind"] == "step_failed"]
     assert failed and "no gap on the way is wide enough for the robot (wider than 0.30 m)" in failed[0]
+
+
+# -- a gap at a slant to the grid, and scans taken while turning ------------------------------------------------------
+# The odom frame turns with the robot's heading at the start, so a wall square to the world lies at any angle to the
+# global costmap's cells. Three things closed a 0.40 m gap met on the slant (a pen left with the robot started at
+# 45 degrees to its walls failed "no way" on every seed): the clearance was measured along the cells' columns and
+# rows only, a gap's cells were found by looking along lines of cells only, and the scans taken as the robot turned
+# in place at the start marked the gap's mouth 5-10 cm off (the marks stay until a beam passes through them).
+
+
+def plans_through_slanted(gap_m: float, angle_deg: float, offset_m: float) -> bool:
+    """Whether the global costmap plans through the gap (``gap_m`` wide, its centre ``offset_m`` along the wall from
+    the robot's line) of a 60 m wall 3 m ahead, the wall at ``angle_deg`` to the grid's x axis."""
+    g = GlobalNavigator(GlobalCostmapConfig(width_m=20.0), GlobalPlannerConfig(), FOOTPRINT_M, MOUNT)
+    a = math.radians(angle_deg)
+    along, normal = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
+    centre = 3.0 * normal + offset_m * along
+    s = np.arange(-30.0, 30.0, 0.01)
+    wall = centre + s[np.abs(s) > gap_m / 2][:, None] * along
+    g.layer.mark_points(wall[:, 0], wall[:, 1])
+    try:
+        path = g.plan((0.0, 0.0), tuple(6.0 * normal), 0.0, "b")
+    except NoPath:
+        return False
+    crossing = sample_polyline(path.points, 0.01)
+    assert np.hypot(*(crossing - centre).T).min() < 0.05  # through the gap, near its centre (crossed square)
+    return True
+
+
+SLANTS = (10.0, 22.5, 37.0, 45.0, 60.0)
+SLANT_OFFSETS = (0.0, 0.031, 0.062)
+
+
+def test_the_global_costmap_passes_a_gap_at_a_slant_to_its_cells_and_never_the_width_plus_2_cm():
+    assert all(plans_through_slanted(0.40, a, off) for a in SLANTS for off in SLANT_OFFSETS)
+    assert not any(plans_through_slanted(0.32, a, off) for a in SLANTS for off in SLANT_OFFSETS)
+
+
+def test_a_scan_taken_while_turning_is_deskewed_and_kept_from_the_global_costmap():
+    nav = LocalNavigator(LocalCostmapConfig(), LocalPlannerConfig(), FOOTPRINT_M, MOUNT, LIMITS)
+    rate = 1.0  # rad/s, turning in place, as go_to does toward a place behind it
+    for k in range(21):
+        t = 0.05 * k
+        nav.observe(None, FusedPose(t, 0.0, 0.0, rate * t), t)
+    # A 10 Hz revolution ending at 1.0 s (its stamp): each beam is turned by the turn still to come after it.
+    n = 450
+    angles = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    scan = LaserScan(1.0, angles, np.full(n, 2.0), np.zeros(n), 10.0, "ld19")
+    fixed = nav.deskewed(scan, nav.pose_at(1.0))
+    behind = (angles - fixed.angles_rad + math.pi) % (2 * math.pi) - math.pi
+    assert behind[0] == pytest.approx(rate * (0.1 + SCAN_LATENCY_S), abs=2e-3)   # the first beam: a revolution ago
+    assert behind[-1] == pytest.approx(rate * SCAN_LATENCY_S, abs=2e-3)
+    assert np.all(np.diff(behind) < 0)
+    assert nav.turn_rate_rps(scan) == pytest.approx(rate)
+    nav.observe(scan, FusedPose(1.0, 0.0, 0.0, rate * 1.0), 1.0)
+    assert nav.fresh is not None and nav.fresh_steady is None  # the local costmap takes it; the global one does not
+    # Standing still, nothing to turn, and the global costmap takes it.
+    still = LocalNavigator(LocalCostmapConfig(), LocalPlannerConfig(), FOOTPRINT_M, MOUNT, LIMITS)
+    for k in range(21):
+        still.observe(None, FusedPose(0.05 * k, 0.0, 0.0, 0.3), 0.05 * k)
+    assert still.deskewed(scan, still.pose_at(1.0)) is scan
+    still.observe(scan, FusedPose(1.0, 0.0, 0.0, 0.3), 1.0)
+    assert still.fresh_steady is not None
+    assert 0.0 < STEADY_TURN_RATE_RPS < rate
+
+
+def test_a_fine_mark_a_beam_passes_through_is_cleared_and_the_wall_end_beside_it_stays():
+    layer = ObstacleLayer(GlobalCostmapConfig(), 100, 100, 0.1, -5.0, -5.0, fine=True)
+    # A wall along y = 2.05 from x = -3 to 0.06 (its end in the cell x 0.0-0.1), and a stray mark in the same cell
+    # 3 cm past the end, in the gap: as a scan placed a degree off in a turn leaves it.
+    xs = np.arange(-3.0, 0.06, 0.01)
+    layer.mark_points(np.append(xs, 0.09), np.full(len(xs) + 1, 2.05))
+    row, col, _ = layer.cells(np.array([0.09]), np.array([2.05]))
+    fine = lambda x: layer.fine[int((2.05 + 5.0) / 0.025), int((x + 5.0) / 0.025)]  # noqa: E731
+    assert fine(0.09) and fine(0.05)
+    # Seen from the origin by a dense LiDAR: the beams toward the wall hit it, those past its end return nothing.
+    angles = np.radians(np.arange(-180.0, 180.0, 0.25))
+    ahead = (angles > 0.1) & (angles < math.pi - 0.1)
+    wall = ahead.copy()
+    wall[ahead] = 2.05 / np.tan(angles[ahead]) < 0.06
+    ranges = np.full(len(angles), np.nan)
+    ranges[wall] = 2.05 / np.sin(angles[wall])
+    layer.update((0.0, 0.0, 0.0), angles, ranges)
+    assert not fine(0.09)                                 # seen through: gone
+    assert fine(0.05)                                     # the wall's end, hit: kept
+    assert layer.marked[row[0], col[0]]                   # and its cell with it
+
+
+
+def test_a_lone_dropout_along_a_fence_seen_from_its_gap_clears_nothing():
+    # The robot 0.2 m before a fence (y = 0.2 m, along x), as in the fence's gap: its beams meet the fence at a
+    # grazing angle, a metre or more apart far along it. A beam that lost its return (a dropout) in between is not
+    # open space: the fence's cells along it stay (cleared, they were the holes the planner took for a way through).
+    layer = ObstacleLayer(GlobalCostmapConfig(), 200, 200, 0.1, -10.0, -10.0, fine=True, dropouts_clear=False)
+    xs = np.arange(0.5, 9.0, 0.01)
+    layer.mark_points(xs, np.full(len(xs), 0.205))
+    before = layer.marked.copy()
+    angles = np.radians(np.arange(-180.0, 180.0, 0.8))
+    toward = (angles > math.radians(1.4)) & (angles < math.radians(20.0))
+    ranges = np.full(len(angles), np.nan)
+    ranges[toward] = 0.205 / np.sin(angles[toward])
+    lost = int(np.flatnonzero(toward)[2])  # 2.2 degrees: along the fence 4-9 m away
+    ranges[lost] = np.nan
+    layer.update((0.0, 0.0, 0.0), angles, ranges)
+    assert layer.marked[before].all()                     # the fence's cells, every one kept
+    # Open space (several beams in a row with no return) still clears: the cells of a person who walked away.
+    layer.mark_points(np.array([-3.0]), np.array([0.0]))
+    layer.update((0.0, 0.0, 0.0), angles, ranges)
+    assert not layer.marked[layer.cells(np.array([-3.0]), np.array([0.0]))[:2]].any()
+
+
+SLANTED_PEN_WORLD = """\
+world: pen_at_a_slant
+description: A 3 m x 3 m pen whose only way out is a 0.40 m gap in its north wall, 0.3 m from its east corner.
+datum: {lat: 40.41680, lon: -3.70380, alt_m: 650}
+start: {x: 0.0, y: 0.0, yaw_deg: 225}
+battery: {start_v: 12.3, drain_v_per_s: 0.0002}
+gps: {rate_hz: 1.0, white_sigma_m: 1.5, bias_sigma_m: 0.5, bias_tau_s: 60.0, jump_rate_per_s: 0.0, cold_start_s: 1.0,
+      hdop: 0.9, sats: 9}
+imu: {mag_field_ut: 45.0, mag_inclination_deg: 54.0, mag_declination_deg: 1.0}
+walls:
+  - [-1.5, 2.0, 0.8, 2.0]
+  - [1.2, 2.0, 1.5, 2.0]
+  - [1.5, 2.0, 1.5, -1.0]
+  - [1.5, -1.0, -1.5, -1.0]
+  - [-1.5, -1.0, -1.5, 2.0]
+"""
+
+
+def test_a_pen_is_left_through_a_gap_met_at_a_slant_to_the_start_heading(tmp_path):
+    # The robot starts facing south-west, away from the gap (north, off to the east), so the odom frame (and the
+    # global costmap's cells) lies at 45 degrees to the walls, and it turns in place before it drives. Before the
+    # fixes above it failed at once on every seed, "no way to outside ... no gap on the way is wide enough".
+    (tmp_path / "world.yaml").write_text(SLANTED_PEN_WORLD, encoding="utf-8")
+    lat, lon, _ = LocalFrame(40.41680, -3.70380, 650.0).to_geodetic(4.0, 6.0)  # 4 m beyond the gap, 3 m east
+    (tmp_path / "mission.yaml").write_text(
+        f"mission: slanted_pen\nworld: world.yaml\nplaces:\n  outside: {{lat: {lat:.9f}, lon: {lon:.9f}, "
+        f"tolerance: 1.5 m}}\nsteps:\n  - go_to: outside\n", encoding="utf-8")
+    h = MissionHarness.from_file(tmp_path / "mission.yaml", world=str(tmp_path / "world.yaml"), seed=2)
+    while not h.done and h.now_s < 120.0:
+        h.tick()
+    summary = h.summary()
+    assert summary["status"] == "success", summary["events"][-3:]
+    assert summary["truth"]["collisions"] == 0
+    assert h.truth.y > 2.3                                  # out of the pen, through its gap

@@ -715,8 +715,8 @@ class GoTo(BeastBehaviour):
             return
         scan: Optional[LaserScan] = self.read("scan")
         costmap = local.observe(scan, self.read("pose_odom"), now)
-        if local.fresh is not None and self.global_nav is not None:
-            self.global_nav.observe(*local.fresh)
+        if local.fresh_steady is not None and self.global_nav is not None:
+            self.global_nav.observe(*local.fresh_steady)
         if costmap is not None:
             self.costmap_fresh = True
             self.bb.costmap = costmap

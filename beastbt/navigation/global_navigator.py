@@ -45,6 +45,9 @@ GAP_APPROACH_M = 0.8
 leaves along it for half as long: the collision monitor's stop zone leaves a few cm to either side, so the robot
 must enter centred and square."""
 
+GAP_SAME_M = 0.2
+"""Two runs of narrow cells on a path whose gaps' centres lie closer than this (m) go through one gap."""
+
 
 REJOIN_M = 1.0
 """A blocked way is mended (:meth:`GlobalNavigator.replan`) up to this far past its last blocked point (m)."""
@@ -94,7 +97,8 @@ class GlobalNavigator:
         n = int(round(config.width_m / config.resolution_m))
         half = n * config.resolution_m / 2.0
         # Half cells too: the narrow gaps the costmap lets through are measured on them (global_planner.narrow_gaps).
-        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half, fine=planner.narrow_gaps)
+        self.layer = ObstacleLayer(config, n, n, config.resolution_m, -half, -half, fine=planner.narrow_gaps,
+                                   dropouts_clear=False)
         self._costmap: Optional[GlobalCostmap] = None
         self._disk = disk_offsets(self.inscribed_m / config.resolution_m)
         # A planned way may pass within the padding when it goes through a narrow gap: only a mark within the
@@ -268,8 +272,9 @@ def through_gaps(path: GlobalPath, cm: GlobalCostmap) -> tuple[GlobalPath, list[
     gaps: list[tuple[np.ndarray, np.ndarray]] = []
     for first, end in zip(edges[0::2], edges[1::2]):
         gap = _gap_at(cm, pts[(first + end - 1) // 2], pts[min(end, len(pts) - 1)] - pts[first])
-        if gap is None:
-            continue
+        if gap is None or any(float(np.hypot(*(gap[0] - c))) < GAP_SAME_M for c, _ in gaps):
+            continue  # none, or one already crossed (a path across a gap at a slant to the cells leaves its narrow
+            # cells and comes back into them: two runs, one gap)
         gaps.append(gap)
         points = _cross_square(points, *gap)
     if not gaps:
@@ -301,13 +306,29 @@ def _gap_at(cm: GlobalCostmap, p: np.ndarray, along: np.ndarray) -> Optional[tup
     rr, ccs = np.nonzero(obstacles)
     if rr.size < 2:
         return None
-    xy = np.column_stack((grid.origin_x + (ccs + c0 + 0.5) * step, grid.origin_y + (rr + r0 + 0.5) * step)) - p
-    d = np.hypot(xy[:, 0], xy[:, 1])
-    a = xy[int(np.argmin(d))]
-    other = xy @ a < 0.0
-    if not other.any():
+    marks = np.column_stack((grid.origin_x + (ccs + c0 + 0.5) * step, grid.origin_y + (rr + r0 + 0.5) * step))
+
+    def sides(q: np.ndarray) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The nearest obstacle to ``q`` and the nearest on the other side of it (relative to ``q``), or None."""
+        xy = marks - q
+        d = np.hypot(xy[:, 0], xy[:, 1])
+        a = xy[int(np.argmin(d))]
+        other = xy @ a < 0.0
+        if not other.any():
+            return None
+        return a, xy[other][int(np.argmin(d[other]))]
+
+    found = sides(p)
+    if found is None:
         return None
-    b = xy[other][int(np.argmin(d[other]))]
+    # Judged again from midway between the two: the middle of a path's run of narrow cells may lie a few cm before
+    # or beside the gap's middle (on a gap at a slant to the cells, the run is lopsided), and seen from there the
+    # two jambs are not quite opposite.
+    p = p + (found[0] + found[1]) / 2.0
+    found = sides(p)
+    if found is None:
+        return None
+    a, b = found
     # A gap: obstacles on both sides, each within the inscribed radius (and a fine cell) of the path. A path along
     # one wall, or past a corner, has none on the other side and is left as it is.
     reach = cm.inscribed_m + 2.0 * step

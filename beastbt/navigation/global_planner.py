@@ -15,8 +15,9 @@ into Nav2's costs, once per map (and again when new lethal cells are marked):
   little is taken when it is the way, and not when a way round costs little
   more. With a finer grid of the obstacles beside the cells (``fine``, kept by
   the obstacle layer) the clearance is measured on it (along the cell's best
-  fine column or row, less half a fine cell): a 0.1 m cell alone cannot tell a
-  0.32 m gap from a 0.40 m one;
+  fine column, row or diagonal line, less half a fine cell): a 0.1 m cell alone
+  cannot tell a 0.32 m gap from a 0.40 m one, and a gap at a slant to the cells
+  is crossed on the slant;
 * **inflated**: beyond, up to ``inflation_radius_m``, ``252 * exp(-cost_scaling_factor * (d - inscribed))``
   as in Nav2's ``inflation_layer`` (the distance ``d`` from ``cv2.distanceTransform``, exact Euclidean).
 
@@ -215,7 +216,9 @@ class GlobalCostmap:
         cells within reach on two opposite sides; a band along one wall is never needed to get through): the robot
         crosses a cell along one of its fine columns or rows, so a cell's clearance is the best over its fine
         columns of the least over the column's fine cells, or the same over its rows (a fine cell beside the wall's
-        line must not lend its clearance to the cell on it). The distance transform runs on a box round each group
+        line must not lend its clearance to the cell on it), or over its diagonal lines of fine cells (each as long
+        as the cell's diagonal, :func:`_diagonal_clearance`): a gap at 45 degrees to the cells (the odom frame turns
+        with the robot's heading at the start) measures 0.7 times its width along a column. The distance transform runs on a box round each group
         of such cells (with a margin beyond the inscribed radius, so the distances that matter are exact)."""
         res = self.grid.resolution_m
         if self.fine is None:
@@ -237,8 +240,14 @@ class GlobalCostmap:
             R, C = r1 - r0, c1 - c0
             along_columns = d.reshape(R, f, C * f).min(axis=1).reshape(R, C, f).max(axis=2)
             along_rows = d.reshape(R * f, C, f).min(axis=2).reshape(R, f, C).max(axis=1)
+            # Across either diagonal too: a gap at a slant to the grid (the odom frame turns with the robot's
+            # heading at the start) is crossed on the slant, and along a column it looks narrower than it is (by
+            # cos 45 degrees at worst).
+            along_diagonals = np.maximum(_diagonal_clearance(d, R, C, f),
+                                         _diagonal_clearance(d[:, ::-1], R, C, f)[:, ::-1])
+            best = np.maximum(np.maximum(along_columns, along_rows), along_diagonals)
             box = clearance[r0:r1, c0:c1]
-            np.maximum(box, np.maximum(along_columns, along_rows) * np.float32(res / f), out=box)
+            np.maximum(box, best * np.float32(res / f), out=box)
         return clearance, res / f
 
     def set_obstacles(self, marked: np.ndarray, version: int, grid: Optional[OccupancyMap] = None,
@@ -303,6 +312,24 @@ class GlobalCostmap:
         if not self.grid.inside(col, row):
             return COST_LETHAL
         return int(self.cost[int(row), int(col)])
+
+
+def _diagonal_clearance(d: np.ndarray, rows: int, cols: int, f: int) -> np.ndarray:
+    """Per cell of a (``rows``, ``cols``) grid whose fine grid ``d`` ((f rows, f cols) a cell) holds the distances to
+    the nearest obstacle: the best, over the lines of fine cells through the cell along the diagonal (row and column
+    rising together), of the least distance on the line from the cell's first fine row and column to its last (the
+    cell crossed diagonally, as a column crosses it from its first fine row to its last: a line through the cell's
+    corner runs on beyond it; those beyond the grid count 0)."""
+    pad = 2 * f
+    padded = np.pad(d, pad, constant_values=0)
+    best = np.zeros((rows, cols), d.dtype)
+    for k in range(-(f - 1), f):  # the line of fine cells j - i = k in the cell's own (i row, j column)
+        line = np.full((rows, cols), np.inf, d.dtype)
+        for i in range(min(0, -k), max(f, f - k)):  # every fine row of the cell, and every fine column
+            j = i + k
+            np.minimum(line, padded[pad + i:pad + i + rows * f:f, pad + j:pad + j + cols * f:f], out=line)
+        np.maximum(best, line, out=best)
+    return best
 
 
 class _Graph:

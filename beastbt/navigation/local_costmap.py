@@ -223,10 +223,13 @@ class RollingCostmap:
 
 def between_obstacles(lethal: np.ndarray, reach: int) -> np.ndarray:
     """Cells with a lethal cell within ``reach`` cells on two opposite sides (left and right, above and below, or
-    across either diagonal): the cells of a gap, not of a band along one wall."""
+    across either diagonal), looking along a line one cell thick to either side: the cells of a gap, not of a band
+    along one wall. The thickness is for a wall at a slant to the grid (at 20-30 degrees, say): a line of cells
+    from the middle of its gap may pass beside the wall's cells on one side without meeting one."""
     rows, cols = lethal.shape
+    thick = cv2.dilate(lethal.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     pad = np.zeros((rows + 2 * reach, cols + 2 * reach), bool)
-    pad[reach:-reach, reach:-reach] = lethal
+    pad[reach:-reach, reach:-reach] = thick
 
     def seen(dr: int, dc: int) -> np.ndarray:
         out = np.zeros((rows, cols), bool)

@@ -18,7 +18,8 @@ that what the scan hits stays marked):
   of the LiDAR is cleared when the beam nearest its bearing went farther than
   the cell (its range more than a cell beyond the cell's centre), or, with
   ``clear_on_no_return``, returned nothing (nothing within the LiDAR's range:
-  open space, Nav2's ``inf_is_valid``). Only marked cells can need clearing,
+  open space, Nav2's ``inf_is_valid``; on GPS a lone beam with no return
+  between two that returned is a dropout, and clears nothing). Only marked cells can need clearing,
   so the layer projects those into the scan instead of walking every beam
   across the grid: the same cells are cleared as by walking each beam with
   Bresenham's line up to its end, at the cost of one ``searchsorted`` per
@@ -33,7 +34,9 @@ forgets the marks within a radius (the recovery ``clear the costmaps``).
 ``version`` counts the changes, so that a costmap built from the layer knows
 when it must be built again. With ``fine``, the layer also keeps the marks on a
 grid of cells :data:`FINE` times smaller (:attr:`ObstacleLayer.fine`, marked by
-the same returns and cleared with the cells holding them), so that a costmap of
+the same returns, cleared with the cells holding them, and each on its own by
+the same rule in a cell that stays marked: a wall's end stays, a stray mark
+beside it in a gap goes), so that a costmap of
 0.1 m cells can tell a gap the robot fits through from one 8 cm narrower
 (docs/navigation.md, Tight gaps). Nothing here reads a clock.
 """
@@ -116,7 +119,7 @@ class ObstacleLayer:
     lower-left corner is at (``origin_x``, ``origin_y``) (m); see the module docstring."""
 
     def __init__(self, config: GlobalCostmapConfig, rows: int, cols: int, resolution_m: float, origin_x: float,
-                 origin_y: float, fine: bool = False) -> None:
+                 origin_y: float, fine: bool = False, dropouts_clear: bool = True) -> None:
         self.config = config
         self.resolution_m = resolution_m
         self.origin_x = origin_x
@@ -125,6 +128,10 @@ class ObstacleLayer:
         self.fine: Optional[np.ndarray] = np.zeros((FINE * rows, FINE * cols), bool) if fine else None
         """With ``fine``: the marks on a grid of cells FINE times smaller ((FINE rows, FINE cols), the same origin),
         each inside a marked cell; else None."""
+        self.dropouts_clear = dropouts_clear
+        """Whether a lone beam with no return between two that returned clears (with ``clear_on_no_return``), as
+        open space; False on GPS (a dropout along a fence seen from its gap cleared metres of it). On a map, the
+        dropouts are left to clear: in a room nearly every beam returns, and they clear marks placed a little off."""
         self.unmarkable: Optional[np.ndarray] = None
         """Cells a return never marks (on a map: the map's own walls and a band round them, so that a few cm of
         localisation error does not thicken the walls and narrow the doors); None: every cell."""
@@ -184,13 +191,33 @@ class ObstacleLayer:
             return 0
         rr += r0
         cc += c0
-        dx = self.origin_x + (cc + 0.5) * res - lx
-        dy = self.origin_y + (rr + 0.5) * res - ly
+        clear = self._seen_through(pose, a, r, spacing, self.origin_x + (cc + 0.5) * res,
+                                   self.origin_y + (rr + 0.5) * res, res)
+        n = int(np.count_nonzero(clear))
+        if n:
+            self.marked[rr[clear], cc[clear]] = False
+            self._clear_fine(rr[clear], cc[clear])
+            self.version += 1
+            self.cleared_total += n
+        if self.fine is not None and n < rr.size:
+            n += self._clear_fine_marks(pose, a, r, spacing, rr[~clear], cc[~clear])
+        return n
+
+    def _seen_through(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float,
+                      x: np.ndarray, y: np.ndarray, size_m: float, open_only: bool = False) -> np.ndarray:
+        """Which cells of side ``size_m`` centred at (``x``, ``y``) (m) the beams (angles ``a`` sorted, ranges
+        ``r``, ``spacing`` rad apart) from the LiDAR at ``pose`` saw through: the beam nearest each cell's bearing
+        passed through it and went past it by a cell and the grazing margin (not with ``open_only``), or returned
+        nothing (with ``clear_on_no_return``; not a lone beam between two returns, a dropout)."""
+        cfg = self.config
+        lx, ly, lyaw = pose
+        dx, dy = x - lx, y - ly
         dist = np.hypot(dx, dy)
-        near = dist <= reach
+        near = dist <= cfg.raytrace_max_range_m
+        out = np.zeros(len(x), bool)
         if not near.any():
-            return 0
-        rr, cc, dx, dy, dist = rr[near], cc[near], dx[near], dy[near], dist[near]
+            return out
+        dx, dy, dist = dx[near], dy[near], dist[near]
         bearing = wrap(np.arctan2(dy, dx) - lyaw)
         # The beam nearest each cell's bearing (the beams wrap round at +-pi).
         i = np.searchsorted(a, bearing) % len(a)
@@ -201,21 +228,56 @@ class ObstacleLayer:
         off = np.minimum(di, dj)
         # A beam clears a cell it passes through: within half the cell's angular size of the cell's centre, or
         # within the spacing of the beams (a sparse scan still clears what lies between its beams' ends).
-        through = off <= np.maximum(0.5 * res / np.maximum(dist, res), 0.6 * spacing)
+        through = off <= np.maximum(0.5 * size_m / np.maximum(dist, size_m), 0.6 * spacing)
         beam = r[k]
-        no_return = ~np.isfinite(beam)
+        # A lone beam with no return between two that returned is a dropout (the LD19 loses about 1 % of its
+        # points), not open space: along a fence seen from beside it, it would clear metres of the fence's cells.
+        n = len(a)
+        lone = np.zeros(n, bool)
+        if n > 2 and not self.dropouts_clear:
+            lone = (~np.isfinite(r) & np.isfinite(np.roll(r, 1)) & np.isfinite(np.roll(r, -1))
+                    & (np.abs(wrap(np.roll(a, 1) - a)) <= 2.0 * spacing)
+                    & (np.abs(wrap(np.roll(a, -1) - a)) <= 2.0 * spacing))
+        no_return = ~np.isfinite(beam) & ~lone[k]
         valid = np.isfinite(beam) & (beam >= cfg.obstacle_min_range_m)
         # Past the cell by a cell, and by more where the beams are far apart: a beam that grazes a wall hits it a
         # little farther along than the cell it passes (by dist * spacing / tan(angle)); it must not clear the wall.
-        went_past = valid & (beam > dist + res + dist * spacing * GRAZING_COT)
+        went_past = valid & (beam > dist + size_m + dist * spacing * GRAZING_COT) & (not open_only)
         if cfg.clear_on_no_return:
             went_past |= no_return
-        clear = through & went_past
-        n = int(np.count_nonzero(clear))
+        out[near] = through & went_past
+        return out
+
+    def _clear_fine_marks(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float,
+                          row: np.ndarray, col: np.ndarray) -> int:
+        """Clear the fine marks of the cells (``row``, ``col``) that the beams saw through, each on its own, and the
+        cells left with none; the number of cells cleared.
+
+        A cell at a gap's edge holds the wall's end, which the beams hit, and it stays marked; but a mark placed a
+        few cm into the gap (a scan placed with a heading a degree off, as the odometry drifts in a turn) must go
+        once a beam passes through it into open space, or the gap measures narrower than it is, for as long as the
+        cell is seen."""
+        fine = self.fine
+        assert fine is not None
+        step = self.resolution_m / FINE
+        boxes = fine.reshape(fine.shape[0] // FINE, FINE, fine.shape[1] // FINE, FINE)[row, :, col, :]
+        k, fr, fc = np.nonzero(boxes)
+        if k.size == 0:
+            return 0
+        frow, fcol = FINE * row[k] + fr, FINE * col[k] + fc
+        # Only by beams into open space (no return): a beam that hit something beyond a fine cell may have met, on
+        # the slant, the very wall the cell holds (a fence seen from its gap), and the fine cell says no more.
+        clear = self._seen_through(pose, a, r, spacing, self.origin_x + (fcol + 0.5) * step,
+                                   self.origin_y + (frow + 0.5) * step, step, open_only=True)
+        if not clear.any():
+            return 0
+        fine[frow[clear], fcol[clear]] = False
+        self.version += 1
+        emptied = ~fine.reshape(fine.shape[0] // FINE, FINE, fine.shape[1] // FINE, FINE)[row, :, col, :].any(
+            axis=(1, 2))
+        n = int(np.count_nonzero(emptied))
         if n:
-            self.marked[rr[clear], cc[clear]] = False
-            self._clear_fine(rr[clear], cc[clear])
-            self.version += 1
+            self.marked[row[emptied], col[emptied]] = False
             self.cleared_total += n
         return n
 
