@@ -20,10 +20,15 @@ def test_ctrl_c_stops_the_robot_and_exits_1(tmp_path):
         [sys.executable, "-m", "beastbt.cli", "run", str(REPO / "missions" / "patrol.yaml"), "--speed", "realtime",
          "--summary", str(summary), "--runs-dir", str(tmp_path / "runs")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)})
-    # Wait (bounded) until the run is under way (its folder exists once everything is loaded);
-    # the patrol takes minutes in real time.
+    # Wait (bounded) until the run is under way: its recording has data once the loop ticks (the run folder appears
+    # earlier, while the simulator is still being built: a Ctrl-C then abandons a run that never started, and under
+    # load one second after the folder appeared was not always enough). The patrol takes minutes in real time.
     deadline = time.monotonic() + 60
-    while not (tmp_path / "runs").exists() and time.monotonic() < deadline and proc.poll() is None:
+
+    def ticking() -> bool:
+        return any(f.stat().st_size > 0 for f in (tmp_path / "runs").glob("*/run.mcap"))
+
+    while not ticking() and time.monotonic() < deadline and proc.poll() is None:
         time.sleep(0.05)
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
