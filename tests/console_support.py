@@ -164,34 +164,27 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
     messages: list = []
     aborted: list = []
     done = threading.Event()
-    started = threading.Event()
 
     async def follow() -> None:
         async with aiohttp.ClientSession() as session:
-            # Once in several hundred runs under load, the console closed a viewer that connected before the run
-            # started at once (CLOSE 1000, its handler's normal end; cause not found, noted in the stop's note), as
-            # the page then does, the viewer connects again, at most twice, and only before the run starts.
-            for _ in range(3):
-                seen.append("connecting")
-                async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
-                    seen.append("connected")
-                    if accept is not None:
-                        await ws.send_str(json.dumps({"accept": accept}))
-                    while not done.is_set():
-                        try:
-                            msg = await ws.receive(timeout=0.2)
-                        except asyncio.TimeoutError:
-                            continue
-                        if msg.type != aiohttp.WSMsgType.BINARY:
-                            seen.append(f"the socket ended: {msg.type.name} {str(msg.data)[:200]}")
-                            break
-                        messages.append(msg.data)
-                        if until is not None and not aborted and until(messages):
-                            aborted.append(True)
-                            async with session.post(link.url.rstrip("/") + "/api/abort", json={}) as answer:
-                                assert answer.status == 200, await answer.text()
-                if done.is_set() or started.is_set() or messages:
-                    return
+            seen.append("connecting")
+            async with session.ws_connect(link.url.rstrip("/") + "/api/video", max_msg_size=0) as ws:
+                seen.append("connected")
+                if accept is not None:
+                    await ws.send_str(json.dumps({"accept": accept}))
+                while not done.is_set():
+                    try:
+                        msg = await ws.receive(timeout=0.2)
+                    except asyncio.TimeoutError:
+                        continue
+                    if msg.type != aiohttp.WSMsgType.BINARY:
+                        seen.append(f"the socket ended: {msg.type.name} {str(msg.data)[:200]}")
+                        break
+                    messages.append(msg.data)
+                    if until is not None and not aborted and until(messages):
+                        aborted.append(True)
+                        async with session.post(link.url.rstrip("/") + "/api/abort", json={}) as answer:
+                            assert answer.status == 200, await answer.text()
 
     failed: list[BaseException] = []
     seen: list[str] = []
@@ -213,13 +206,13 @@ def run_with_console(folder: Path, profile: Path, mission: str, speed: str, watc
             import traceback
             stack = "".join(traceback.format_stack(sys._current_frames()[viewer.ident])) if viewer.is_alive() else ""
             process = link._proc.poll() if link._proc is not None else "none"
+            alive = viewer.is_alive()  # before the end below closes its socket
             done.set()
             prepared.abandon()
             raise AssertionError((f"the viewer never watched /api/video: {failed[0]!r}" if failed else
                                   "the console counted no viewer of /api/video within 30 s") +
-                                 f"; the viewer: {seen}, alive {viewer.is_alive()}; the console's process: "
+                                 f"; the viewer: {seen}, alive {alive}; the console's process: "
                                  f"{process}; {link.url}\n{stack}")
-    started.set()
     execute(prepared, out=io.StringIO())
     done.set()
     if watch:

@@ -143,6 +143,18 @@ def serve(inbox: Connection, outbox: Connection) -> int:
     video = ConsoleVideo(VideoConfig(**config["video"]), time.monotonic, time.time, state.caption)
     server = ConsoleServer(state, controls, video, state.map, config["host"], config["port"], config["token"],
                            require_token=config.get("require_token"))
+    # Told at each change of the number of video viewers (on the server's thread): the run renders or reads the
+    # camera for the console only while someone watches. Set before the server listens, and said only once the run
+    # has the "ready" (its first answer); the count at that moment follows it under the same lock, so a page that
+    # connects at once is never lost (a later "viewers 0" once overwrote its "1" and the run sent no video).
+    announced = [False]
+
+    def tell_viewers(_count: int) -> None:
+        with lock:
+            if announced[0]:
+                outbox.send(("viewers", server.video.viewers))
+
+    server.on_viewers = tell_viewers
     try:
         server.start()
     except OSError as exc:
@@ -151,6 +163,8 @@ def serve(inbox: Connection, outbox: Connection) -> int:
         return 1
     with lock:
         outbox.send(("ready", server.port, server.url))
+        announced[0] = True
+        outbox.send(("viewers", server.video.viewers))
     video.start()
     camera_spec = config.get("viewer_camera")
     geometry = config.get("geometry")
@@ -170,14 +184,6 @@ def serve(inbox: Connection, outbox: Connection) -> int:
         t = pose[0]
         return camera_holder[0].render(*t)
 
-    def tell_viewers(count: int) -> None:
-        # The run renders or reads the camera for the console only while someone watches: told at each change,
-        # on the server's thread, instead of a thread looking 20 times a second.
-        with lock:
-            outbox.send(("viewers", count))
-
-    tell_viewers(0)
-    server.on_viewers = tell_viewers
     try:
         while True:
             try:
