@@ -59,8 +59,10 @@ def test_a_supervised_robot_holds_while_the_station_is_gone_and_goes_on_when_it_
     fleet = [(e["time_s"], e["text"]) for e in summary["events"] if e["kind"] == "failsafe"]
     texts = [t for _, t in fleet]
     assert "fleet_lost triggered: then hold" in texts and "fleet_lost cleared" in texts, fleet
-    held_from = next(t for t, text in fleet if text == "fleet_lost triggered: then hold")
-    held_to = next(t for t, text in fleet if text == "fleet_lost cleared")
+    # The hold of the station's absence is the last one: under load the run may also hold for a moment at its start,
+    # before it has first seen the station (CI once saw that 0.05 s hold at 0.55 s and took it for this one).
+    held_from = [t for t, text in fleet if text == "fleet_lost triggered: then hold"][-1]
+    held_to = next(t for t, text in fleet if text == "fleet_lost cleared" and t >= held_from)
     # held from about lost_after after the station went until it was back (real time: the run's clock is wall's)
     assert 0.6 <= held_to - held_from <= (back - gone) + 1.0
     # the hold cost the mission its length: 3 s of driving plus the hold
