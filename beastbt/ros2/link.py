@@ -109,7 +109,7 @@ def takes_commands(options: Ros2Options) -> bool:
 
 def session_config(options: Ros2Options) -> Any:
     """The Zenoh configuration: the given file as written (its listen endpoint set when given), else a peer
-    listening on ``listen``, with no scouting (nothing else on the network is probed)."""
+    listening on ``listen``, with no scouting (nothing else on the network is probed) and no shared memory."""
     import json
 
     import zenoh
@@ -122,6 +122,9 @@ def session_config(options: Ros2Options) -> Any:
         config.insert_json5("scouting/multicast/enabled", "false")
         config.insert_json5("scouting/gossip/enabled", "false")
         config.insert_json5("connect/endpoints", "[]")
+        # No shared memory: the laptop is another computer, and Zenoh's shared-memory watchdog thread woke the robot
+        # for nothing (0.1 % of a core of the 1 % the link may cost; benchmarks/ros2_cpu.py).
+        config.insert_json5("transport/shared_memory/enabled", "false")
     if options.listen:
         config.insert_json5("listen/endpoints", json.dumps([options.listen]))
     # Transient local publishers are zenoh-ext AdvancedPublishers, which stamp their samples (as rmw_zenoh's own
