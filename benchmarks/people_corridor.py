@@ -8,7 +8,7 @@ the mission time on both worlds and their ratio. Goal (issue 32): 5/5 succeed, 0
 With ``--no-step-aside`` the robot's profile turns ``local_planner.step_aside`` off (how it was before: people are
 steered round like any obstacle).
 
-Not a test: tests/test_people_corridor.py checks one seed. Run: python benchmarks/people_corridor.py [--seeds 1 2 3 4 5]
+Not a test: tests/test_people.py checks one seed. Run: python benchmarks/people_corridor.py [--seeds 1 2 3 4 5]
 """
 
 from __future__ import annotations

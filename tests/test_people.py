@@ -20,7 +20,7 @@ from beastbt.blackboard.types import LaserScan
 from beastbt.devices.lidar_scan import LidarMounting
 from beastbt.navigation.local_costmap import LocalCostmapConfig, RollingCostmap
 from beastbt.navigation.local_planner import Limits, LocalPlannerConfig
-from beastbt.navigation.people import PassingPlanner, PersonTracker, blobs
+from beastbt.navigation.people import PassingPlanner, PersonTracker, blobs, wall_direction
 from beastbt.testing import MissionHarness
 from conftest import REPO
 
@@ -247,6 +247,86 @@ def test_a_person_catching_the_robot_up_from_behind_is_let_by_on_the_left():
     assert result.angular_rps < -0.1  # the robot's own right
     assert events[0][1].startswith("stepping aside to the right for a person ") and "behind catching the robot up" \
         in events[0][1]
+
+
+def test_a_person_whose_first_seconds_run_at_a_slant_to_the_corridor_is_passed_by_their_line_along_it():
+    """In a 2 m corridor a person 0.3 m to the robot's left walks at it; the 2.5 s the tracker has followed them run
+    10 deg across the corridor (as a track's first seconds did in the simulator, 10-25 deg off 8 m away). Their lane
+    runs along the walls, through where they are: the robot passes on its right, where the room is. (Along the fitted
+    slant their line crossed the corridor to the right wall: the robot went left, into the 0.45 m between person and
+    wall, and was walked into.)"""
+    robot = (0.0, 0.0, 0.0)
+    slant = math.tan(math.radians(10.0)) * 0.8
+
+    def person_at(t: float) -> tuple[float, float, float]:
+        return 9.0 - 0.8 * t, 0.3 + slant * (2.5 - t), 0.25
+    planner, costmap, events = planner_for(robot, (-1.0, 1.0), person_at=person_at)
+    assert abs(planner.tracker.walking()[0].vy) > 0.1  # the track's own direction is the slant
+    result = plan(planner, costmap, robot)
+    p = planner.passing
+    assert p is not None and p.side == -1, events
+    assert abs(p.uy) < 0.03 and p.ux > 0.99  # the lanes run along the corridor
+    assert result.angular_rps < -0.1
+    assert events[0][1].startswith("stepping aside to the right for a person")
+
+
+def test_two_people_walking_abreast_are_passed_beyond_the_one_on_the_side_taken():
+    """Two people side by side 0.7 m apart (0.2 m between them) walk at the robot in a 2.8 m corridor, the robot on
+    the right one's line: it passes them on its right, beyond the right one, even when the left one is confirmed
+    walking first and is the one met first. (Passed beyond the left one alone, the robot stood in the right one's
+    way: a contact on two seeds of five.)"""
+    robot = (0.0, 0.0, 0.0)
+    tracker = PersonTracker(0.3, 10.0)
+    planner = PassingPlanner(LocalPlannerConfig.from_dict({}), LIMITS, tracker, FOOTPRINT_M)
+    events: list = []
+    planner.events = lambda kind, text: events.append((kind, text))
+    scan = None
+    for k in range(25):
+        t = 0.1 * (k + 1)
+        people = [(8.8 - 0.8 * t, 0.35, 0.25)]
+        if t > 1.5:  # the right one is seen later (behind the left one from the robot at first)
+            people.append((9.0 - 0.8 * t, -0.35, 0.25))
+        scan = cast(robot, (-1.4, 1.4), people, t)
+        tracker.update(scan, MOUNT, lambda _t: robot)
+    costmap = RollingCostmap(LocalCostmapConfig(), FOOTPRINT_M)
+    costmap.add_scan(scan.stamp_s, scan.points_xy(), robot)
+    costmap.build(scan.stamp_s, robot[:2])
+    plan(planner, costmap, robot)
+    p = planner.passing
+    assert p is not None and p.side == -1, events
+    # later scans: both walking; the lane is beyond the right one, the passing distance right of y = -0.35
+    for k in range(25, 40):
+        t = 0.1 * (k + 1)
+        scan = cast(robot, (-1.4, 1.4), [(8.8 - 0.8 * t, 0.35, 0.25), (9.0 - 0.8 * t, -0.35, 0.25)], t)
+        tracker.update(scan, MOUNT, lambda _t: robot)
+        costmap.add_scan(scan.stamp_s, scan.points_xy(), robot)
+        costmap.build(scan.stamp_s, robot[:2])
+        plan(planner, costmap, robot)
+    p = planner.passing
+    assert p is not None and p.side == -1 and len(p.group) == 2, events
+    lane_y = p.py - p.distance_m  # the lanes run along x: the right is -y
+    assert p.py < -0.2 and lane_y < -0.35 - 0.4, (p.py, p.distance_m)
+
+
+def test_the_walls_direction_is_the_longest_straight_line_near_the_direction_asked():
+    """wall_direction: two walls at 7 deg and a short stub across are marked; asked near 0 deg it gives 7 deg, asked
+    near 90 deg nothing (the stub is shorter than WALL_MIN_M), and with only the stub nothing either."""
+    tilt = math.radians(7.0)
+    along = np.arange(-4.0, 4.0, 0.02)
+    points = [np.column_stack((along * math.cos(tilt) - off * math.sin(tilt),
+                               along * math.sin(tilt) + off * math.cos(tilt))) for off in (-1.0, 1.0)]
+    stub = np.column_stack((np.full(40, 2.0), np.linspace(-0.4, 0.4, 40)))
+    for marked, near_deg, want_deg in (((*points, stub), 0.0, 7.0), ((*points, stub), 180.0, 187.0),
+                                       ((*points, stub), 90.0, None), ((stub,), 90.0, None)):
+        grid = RollingCostmap(LocalCostmapConfig(), FOOTPRINT_M)
+        grid.add_scan(1.0, np.vstack(marked), (0.0, 0.0, 0.0))
+        grid.build(1.0, (0.0, 0.0))
+        found = wall_direction(grid.latest, math.cos(math.radians(near_deg)), math.sin(math.radians(near_deg)))
+        if want_deg is None:
+            assert found is None, (near_deg, found)
+        else:
+            assert found is not None and math.degrees(math.atan2(found[1], found[0])) % 360.0 == \
+                pytest.approx(want_deg % 360.0, abs=1.01), (near_deg, found)
 
 
 def test_step_aside_false_leaves_people_to_the_planner():

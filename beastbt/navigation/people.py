@@ -47,7 +47,13 @@ command). Where the walls leave less room than half the clearance on both
 sides, a *tight* lane is taken (down to ``PASS_MIN_CLEARANCE_M``), and the
 robot stands in it once the person is ``TIGHT_STOP_S`` away. The person
 counts at least ``PASS_RADIUS_MIN_M`` in radius; their line is fitted to their
-centres (``LANE_HISTORY_S`` of them once passing); the lane's room is looked
+centres (``LANE_HISTORY_S`` of them once passing), and runs along the walls
+(the local costmap's longest straight line of marks, :func:`wall_direction`)
+when the fitted direction is within ``WALL_SNAP_DEG`` of theirs
+(``WALL_KEEP_DEG`` once fitted over ``WALL_TRUST_FIT_S``): in a corridor people
+walk along it, and a few seconds of track are 10-25 deg off. Persons walking
+abreast (``ABREAST_ALONG_M``, no room for the robot between them) are passed
+as one, beyond the outermost on the side taken. The lane's room is looked
 at again each scan until they are ``RECHECK_UNTIL_M`` away (the side kept).
 Each step aside, each wait and each return to the way is an event
 (``step_aside``).
@@ -62,7 +68,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from beastbt.blackboard.types import COST_INSCRIBED, LaserScan, LocalCostmap
+from beastbt.blackboard.types import COST_INSCRIBED, COST_LETHAL, LaserScan, LocalCostmap
 from beastbt.devices.lidar_scan import LidarMounting
 from beastbt.navigation.local_costmap import cost_at
 from beastbt.navigation.local_planner import DwaPlanner, Limits, LocalPlannerConfig, PlanResult, arcs
@@ -132,6 +138,24 @@ LANE_HISTORY_S = 6.0
 TIGHT_STOP_S = 3.0
 """In a lane with less than half of ``pass_clearance_m`` (tight), the robot stops once the person would meet it within
 this (s) and waits there until they are by: a robot driving on beside them that close would have no room to steer."""
+ABREAST_ALONG_M = 1.5
+"""Persons walking at the robot within this of each other along its way are abreast (m) ...
+... when the gap between them (beyond their radii) is narrower than the footprint's width and ``pass_clearance_m``:
+they are passed as one, beyond the outermost on the side taken (two people side by side in a 2.8 m corridor, passed
+beyond the nearer one alone: the robot stood in the other's way)."""
+WALL_SNAP_DEG = 25.0
+"""A person's walk fitted within this of the walls' direction (:func:`wall_direction`) is taken to be along the walls
+(deg): in a corridor people walk along it, and the direction fitted to a track's first 2 s was 10-25 deg off 8 m away,
+which put their line 2 m beside where they walked (a 2 m corridor: the robot chose the side they were on)."""
+WALL_KEEP_DEG = 10.0
+"""... and once the person's line is fitted over :data:`WALL_TRUST_FIT_S` or more, only within this (deg): a person
+who truly walks across a corridor's line, or beside a lone wall at a slant, keeps their own direction."""
+WALL_TRUST_FIT_S = 3.0
+"""A person's line fitted over at least this long (s) is trusted before the walls beyond :data:`WALL_KEEP_DEG`."""
+WALL_MIN_M = 1.5
+"""A wall is a straight line of lethal cells at least this long in the local costmap (m)."""
+WALL_STEP_DEG = 1.0
+"""The directions tried for a wall, this far apart (deg)."""
 FREE_AGE_S = (0.8, 2.0)
 """A walking person stands where the scans of this long ago (s, youngest and oldest) saw free space."""
 FREE_MARGIN_M = 0.05
@@ -444,6 +468,9 @@ class Pass:
     """Below this passing distance (m; half the clearance) the lane is tight: the robot waits in it for the person."""
     rechecked_s: float = -math.inf
     """The scan stamp (s) the side's room was last looked at again."""
+    group: list = field(default_factory=list)
+    """The persons walking abreast (:meth:`PassingPlanner._abreast`, tracks), the first the one met first; the pass
+    keeps beside the outermost on its side."""
     samples: deque = field(default_factory=deque)
     """The person's centres ``(t s, x m, y m)`` (odom) of the last :data:`LANE_HISTORY_S`, across re-identified
     tracks: the lanes' line is fitted to them."""
@@ -487,6 +514,8 @@ class PassingPlanner(DwaPlanner):
         """Times the robot stopped for a person, with no room on either side."""
         self.why_not_preferred = ""
         """Why the last pass was not on ``pass_side`` (for its event)."""
+        self._walls: dict[tuple, Optional[tuple[float, float]]] = {}
+        """:func:`wall_direction` by (costmap stamp, direction, tolerance), of the newest costmaps."""
 
     def _tell(self, text: str) -> None:
         if self.events is not None:
@@ -580,9 +609,12 @@ class PassingPlanner(DwaPlanner):
                 if line is not None and math.hypot(line[2], line[3]) >= self.tracker.min_speed_mps:
                     # The person's line fitted to all the pass has seen of them: its direction from a track's 2 s
                     # was 10-25 deg off 8 m away (and more on a track begun again), a metre off where the robot was.
+                    # Along the walls when it is near their direction (WALL_SNAP_DEG; WALL_KEEP_DEG once fitted long).
                     p.px, p.py = line[0], line[1]
                     s = math.hypot(line[2], line[3]) * -p.coming
-                    p.ux, p.uy = line[2] / s, line[3] / s
+                    span = p.samples[-1][0] - p.samples[0][0]
+                    p.ux, p.uy = self._along_walls(costmap, line[2] / s, line[3] / s,
+                                                   WALL_SNAP_DEG if span < WALL_TRUST_FIT_S else WALL_KEEP_DEG)
                 px, py = p.px, p.py
             else:  # out of sight a moment (merged with a wall, or in the robot's shadow): carried on at its speed
                 px, py = p.px + p.vx * (now - p.seen_s), p.py + p.vy * (now - p.seen_s)
@@ -603,6 +635,7 @@ class PassingPlanner(DwaPlanner):
                 return None
             apart = p.coming * ((px - rx) * p.ux + (py - ry) * p.uy)
             if not p.waiting and tr is not None and now > p.rechecked_s and apart > RECHECK_UNTIL_M:
+                tr = self._regroup(p, tr)
                 self._recheck(costmap, pose, p, tr)
             if p.waiting:  # no room a moment ago: look again (the person has come on, the robot may have room now)
                 apart = abs((px - rx) * p.ux + (py - ry) * p.uy)
@@ -620,6 +653,7 @@ class PassingPlanner(DwaPlanner):
         else:
             ux, uy = ux / d, uy / d
         best = None
+        heading: list[tuple[Track, float, int]] = []  # every person walking at the robot in time: (track, ahead, coming)
         for tr in self.tracker.walking():
             px, py = tr.fit_x, tr.fit_y
             ahead = (px - rx) * ux + (py - ry) * uy
@@ -635,9 +669,13 @@ class PassingPlanner(DwaPlanner):
             t_meet = abs(ahead) / max(closing, 1e-3)
             if t_meet > cfg.pass_react_time_s:
                 continue
+            heading.append((tr, ahead, coming))
             distance = self.footprint_radius_m + tr.pass_radius_m + cfg.pass_clearance_m
-            # The person's offset from the robot's line (to its left) when they meet.
-            lateral = ((px + tr.vx * t_meet - rx) * -uy + (py + tr.vy * t_meet - ry) * ux)
+            # The person's offset from the robot's line (to its left) when they meet, walking along the walls when
+            # their fitted walk is near the walls' direction.
+            wx, wy = self._along_walls(costmap, tr.vx / tr.speed_mps, tr.vy / tr.speed_mps, WALL_SNAP_DEG)
+            vx, vy = wx * tr.speed_mps, wy * tr.speed_mps
+            lateral = ((px + vx * t_meet - rx) * -uy + (py + vy * t_meet - ry) * ux)
             if abs(lateral) >= distance:
                 continue  # their lines pass far enough apart already
             if best is None or t_meet < best[0]:
@@ -646,12 +684,15 @@ class PassingPlanner(DwaPlanner):
             return None
         t_meet, tr, distance, ahead, coming = best
         # The lanes run along the person's line: the robot keeps beside it however its own way bends.
-        lx, ly = lane_direction(tr, coming)
+        lx, ly = self._along_walls(costmap, *lane_direction(tr, coming), WALL_SNAP_DEG)
         p = Pass(tr.id, -1 if cfg.pass_side == "right" else 1, lx, ly, distance, False, now,
                  tr.fit_x, tr.fit_y, tr.vx, tr.vy, tr.last[0], checked_s=now, coming=coming,
                  full_m=distance, tight_m=distance - 0.5 * cfg.pass_clearance_m, rechecked_s=now,
                  samples=deque(tr.history))
+        p.group = self._abreast(tr, ahead, coming, lx, ly, heading)
         side = self._free_side(costmap, pose, p, t_meet, max_speed_mps)
+        if len(p.group) > 1:
+            self._follow(p, self._outermost(p, side if side is not None else p.side))
         what = (f"a person {ahead:.1f} m ahead walking at the robot at {tr.speed_mps:.1f} m/s" if coming > 0 else
                 f"a person {-ahead:.1f} m behind catching the robot up at {tr.speed_mps:.1f} m/s")
         if side is None:
@@ -666,6 +707,72 @@ class PassingPlanner(DwaPlanner):
             self._tell(f"stepping aside to the {side_name(side)}{preferred} for {what}")
         self.passing = p
         return p
+
+    def _abreast(self, tr: Track, ahead: float, coming: int, lx: float, ly: float,
+                 heading: list[tuple[Track, float, int]]) -> list[Track]:
+        """``tr`` and the persons walking abreast of them (each a member of ``heading``, coming the same way, within
+        :data:`ABREAST_ALONG_M` of them along the lanes and with no room for the robot between them and a member
+        already found): passed as one, beyond the outermost on the side taken."""
+        gap_m = 2.0 * self.footprint_radius_m + self.config.pass_clearance_m
+        group = [tr]
+        others = [(o, a) for o, a, c in heading if c == coming and o.id != tr.id and abs(a - ahead) <= ABREAST_ALONG_M]
+        grew = True
+        while grew:
+            grew = False
+            for o, a in list(others):
+                for m in group:
+                    across = abs((o.fit_x - m.fit_x) * -ly + (o.fit_y - m.fit_y) * lx)
+                    if across < o.pass_radius_m + m.pass_radius_m + gap_m:
+                        group.append(o)
+                        others.remove((o, a))
+                        grew = True
+                        break
+        return group
+
+    def _regroup(self, p: Pass, tr: Track) -> Track:
+        """The pass's persons abreast again (one beside the person passed may be confirmed walking a scan or two
+        later): when one of them is farther toward the pass's side, the pass keeps beside them from now on; the
+        person kept beside (a track)."""
+        now = self.tracker.stamp_s
+        heading = []
+        for o in self.tracker.walking():
+            if o.last[0] != now:
+                continue
+            along_v = o.vx * p.ux + o.vy * p.uy  # the lanes run the robot's way
+            if p.coming * along_v <= -HEAD_ON_COS * o.speed_mps:
+                heading.append((o, (o.fit_x - tr.fit_x) * p.ux + (o.fit_y - tr.fit_y) * p.uy, p.coming))
+        if not any(o.id != tr.id for o, _, _ in heading):
+            return tr
+        p.group = self._abreast(tr, 0.0, p.coming, p.ux, p.uy, heading)
+        outer = self._outermost(p, p.side)
+        if outer.id == tr.id:
+            return tr
+        self._follow(p, outer)
+        return outer
+
+    @staticmethod
+    def _outermost(p: Pass, side: int) -> Track:
+        """The member of ``p.group`` farthest toward ``side`` of the lanes (+1 left, -1 right)."""
+        return max(p.group, key=lambda t: side * ((t.fit_x - p.group[0].fit_x) * -p.uy
+                                                  + (t.fit_y - p.group[0].fit_y) * p.ux))
+
+    @staticmethod
+    def _follow(p: Pass, tr: Track) -> None:
+        """Make ``tr`` the person the pass keeps beside (their place, walk and centres)."""
+        p.track_id = tr.id
+        p.px, p.py, p.vx, p.vy, p.seen_s = tr.fit_x, tr.fit_y, tr.vx, tr.vy, tr.last[0]
+        p.samples = deque(tr.history)
+
+    def _along_walls(self, costmap: LocalCostmap, ux: float, uy: float, within_deg: float) -> tuple[float, float]:
+        """(``ux``, ``uy``) (a unit direction, odom), or the walls' direction when it lies within ``within_deg`` of it
+        (:func:`wall_direction`; kept for each costmap: the walls are looked for once per costmap and direction)."""
+        key = (costmap.stamp_s, round(math.degrees(math.atan2(uy, ux)) / WALL_STEP_DEG), within_deg)
+        if key not in self._walls:
+            if len(self._walls) > 16:
+                self._walls.clear()
+            self._walls[key] = wall_direction(costmap, ux, uy, within_deg)
+        found = self._walls[key]
+        return found if found is not None else (ux, uy)
 
     def _recheck(self, costmap: LocalCostmap, pose: tuple[float, float, float], p: Pass, tr: Track) -> None:
         """With each new scan while the person is still more than :data:`RECHECK_UNTIL_M` away: the passing distance
@@ -692,6 +799,8 @@ class PassingPlanner(DwaPlanner):
         fast = max(speed_mps, self.limits.max_speed_mps)
         options = []
         for side in (first, -first):
+            if len(p.group) > 1:
+                self._follow(p, self._outermost(p, side))  # people abreast: passed beyond the one on that side
             d = self._widest(costmap, pose, p, side)
             if d is not None:
                 p.distance_m = d
@@ -758,6 +867,33 @@ class PassingPlanner(DwaPlanner):
         return bool((cost_at(costmap, np.array(xs), np.array(ys)) < COST_INSCRIBED).all())
 
 
+def wall_direction(costmap: LocalCostmap, ux: float, uy: float, within_deg: float = WALL_SNAP_DEG
+                   ) -> Optional[tuple[float, float]]:
+    """The direction (unit, odom, the sign of ``ux``, ``uy``) of the longest straight line of lethal cells in
+    ``costmap`` within ``within_deg`` of (``ux``, ``uy``), when it is at least :data:`WALL_MIN_M` long; else None. A
+    Hough transform kept to those directions: each lethal cell votes, for each direction tried (every
+    :data:`WALL_STEP_DEG`), for its offset across it in bins of 1.5 cells; the most votes win."""
+    rows, cols = np.nonzero(costmap.cost == COST_LETHAL)
+    res = costmap.resolution_m
+    if len(rows) * res < WALL_MIN_M:
+        return None
+    x = costmap.origin_x_m + (cols + 0.5) * res
+    y = costmap.origin_y_m + (rows + 0.5) * res
+    base = math.atan2(uy, ux)
+    angles = base + np.radians(np.arange(-within_deg, within_deg + 1e-9, WALL_STEP_DEG))
+    across = np.outer(-np.sin(angles), x) + np.outer(np.cos(angles), y)  # (directions, cells) offsets, m
+    width = 1.5 * res
+    bins = np.floor((across - across.min(axis=1, keepdims=True)) / width).astype(np.intp)
+    n_bins = int(bins.max()) + 1
+    votes = np.bincount((bins + np.arange(len(angles))[:, None] * n_bins).ravel(),
+                        minlength=len(angles) * n_bins).reshape(len(angles), n_bins)
+    best = np.unravel_index(int(np.argmax(votes)), votes.shape)
+    if votes[best] * res < WALL_MIN_M:
+        return None
+    a = float(angles[best[0]])
+    return math.cos(a), math.sin(a)
+
+
 def fit_line(samples: deque) -> Optional[tuple[float, float, float, float]]:
     """The least-squares line through centres ``(t s, x m, y m)``: where it puts them at the newest time (x, y m) and
     the velocity along it (vx, vy m/s); None with fewer than 3 or over less than 1 s."""
@@ -806,4 +942,5 @@ def pursue(pose: tuple[float, float, float], carrot: tuple[float, float], speed_
     return v, w
 
 
-__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "fit_line", "pursue", "side_name"]
+__all__ = ["PersonTracker", "Track", "PassingPlanner", "Pass", "blobs", "fit_line", "pursue", "side_name",
+           "wall_direction"]
