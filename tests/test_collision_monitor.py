@@ -75,11 +75,14 @@ def cmd(v: float, w: float = 0.0, t: float = 0.0, source: str = "mission") -> Ve
 
 
 # -- zones ------------------------------------------------------------------------------
-def test_a_wall_inside_the_stop_zone_stops_a_forward_command():
+def test_a_wall_inside_the_stop_zone_stops_a_forward_command_and_lets_its_turn_through():
     m, _, events = monitor(wall_scan(0.22))
     out = m.limit(cmd(0.3, 0.2), 0.05)
-    assert (out.linear_mps, out.angular_rps) == (0.0, 0.0)
+    # The travel stops; the turn in place brings no point closer to the circular footprint, and is what takes a
+    # robot held beside a corner to where its arc is free.
+    assert (out.linear_mps, out.angular_rps) == (0.0, 0.2)
     assert m.action == STOP
+    assert m.limit(out, 0.1) == out and m.action == NONE  # the turn in place itself is not limited
     assert [k for k, _ in events] == ["collision_monitor"] and "stop" in events[0][1] and "0.22 m" in events[0][1]
 
 

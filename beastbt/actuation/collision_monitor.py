@@ -6,7 +6,8 @@ latest scan through one narrow interface, a callable ``latest_scan() ->
 Optional[LaserScan]``. It knows nothing of the tree.
 
 Each tick :meth:`CollisionMonitor.limit` takes the command and returns it,
-scaled by a ratio in [0, 1]:
+scaled by a ratio in [0, 1] (at ratio 0 from the scan, the travel only: the
+turn in place is kept, see below):
 
 * **silent** (Nav2's ``source_timeout``): no scan, or a scan older than
   ``source_timeout_s``: every motion is held (ratio 0) until scans return;
@@ -303,6 +304,11 @@ class CollisionMonitor:
         self._set(action, ratio, why, cmd, now_s)
         if ratio >= 1.0:
             return cmd
+        if ratio <= 0.0:
+            # Stopped: the travel, not the turn. Turning in place brings no point closer to the footprint (the rule
+            # above), and a robot held whole beside a wall's corner stayed there: the planner's turning arc was
+            # stopped at every scan, and nothing turned it to where its arc is free.
+            return VelocityCommand(0.0, cmd.angular_rps, cmd.stamp_s, cmd.source)
         return VelocityCommand(cmd.linear_mps * ratio, cmd.angular_rps * ratio, cmd.stamp_s, cmd.source)
 
     def _evaluate(self, view: _ScanView, v: float, w: float) -> tuple[str, float, str]:

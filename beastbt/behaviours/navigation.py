@@ -666,8 +666,14 @@ class GoTo(BeastBehaviour):
         if self.way is None:
             self.ctx.events.add("replan", f"{self.name}: the straight way is blocked; planned round, "
                                           f"{path.length_m:.1f} m")
+            carried = 0.0
+        else:
+            # What the robot went along the old way since progress was last counted counts on the new one: ways
+            # replaced faster than the robot covers progress_m (new marks along a wall it follows, 4 a second)
+            # otherwise never show progress, and a robot driving on round an enclosure was "stuck".
+            carried = max(0.0, self.way.along_m - self.way_best_m)
         self.way = PathFollow(path.points)
-        self.way_best_m = 0.0
+        self.way_best_m = -carried
         return None
 
     def _way_lookahead_m(self, odom: FusedPose) -> float:
