@@ -75,3 +75,19 @@ def test_interrupt_and_internal_errors_leave_a_stop_on_the_wire(tmp_path):
         moving = [c for c in esp32.commands if c.get("T") == 1 and c["L"] != 0]
         assert moving, "the robot was driving before the interruption"
         assert esp32.commands[-1] == {"T": 1, "L": 0.0, "R": 0.0}
+
+
+def test_ctrl_c_while_the_robot_is_being_built_is_said_and_exits_1(monkeypatch, capsys):
+    """Ctrl-C before the mission started (the robot still being built: a real base's serial port, the simulator's
+    textures) ends 'beastbt run' with 1 and says so on standard error (it used to end silently)."""
+    import beastbt.assembly
+    from beastbt.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(beastbt.assembly, "prepare", interrupted)
+    status = main(["run", str(REPO / "missions" / "patrol.yaml"), "--no-record"])
+    assert status == 1
+    err = capsys.readouterr().err
+    assert "beastbt run: interrupted while the robot was being built" in err and "nothing moved" in err, err

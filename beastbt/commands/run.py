@@ -386,6 +386,12 @@ def command(args: argparse.Namespace) -> int:
     except (DeviceUnavailable, RunFolderUnavailable) as exc:
         print(f"beastbt run: error: {exc}", file=sys.stderr)
         return EXIT_INVALID
+    except KeyboardInterrupt:
+        # Ctrl-C while the robot was being built: what was opened is closed by prepare; said, not
+        # silent. A run that has started ends itself, stopped, with its summary.
+        print("beastbt run: interrupted while the robot was being built: the mission never started, nothing moved",
+              file=sys.stderr)
+        return EXIT_FAILURE
     unknown = unknown_answers(prepared.mission, opts.answers or {})
     if unknown:
         print(f"beastbt run: error: {unknown}", file=sys.stderr)
