@@ -263,15 +263,9 @@ class Track:
         self.widest_m = max(self.widest_m, half_width_m)
         self.fit_x, self.fit_y = x, y
         if len(h) >= 3:
-            arr = np.array(h)
-            t_mean = float(arr[:, 0].mean())
-            dt = arr[:, 0] - t_mean
-            var = float((dt * dt).sum())
-            if var > 1e-9:
-                self.vx = float((dt * (arr[:, 1] - arr[:, 1].mean())).sum() / var)
-                self.vy = float((dt * (arr[:, 2] - arr[:, 2].mean())).sum() / var)
-                self.fit_x = float(arr[:, 1].mean()) + self.vx * (t_s - t_mean)
-                self.fit_y = float(arr[:, 2].mean()) + self.vy * (t_s - t_mean)
+            line = _least_squares(np.array(h))
+            if line is not None:
+                self.fit_x, self.fit_y, self.vx, self.vy = line
 
     @property
     def radius_m(self) -> float:
@@ -715,18 +709,15 @@ class PassingPlanner(DwaPlanner):
         already found): passed as one, beyond the outermost on the side taken."""
         gap_m = 2.0 * self.footprint_radius_m + self.config.pass_clearance_m
         group = [tr]
-        others = [(o, a) for o, a, c in heading if c == coming and o.id != tr.id and abs(a - ahead) <= ABREAST_ALONG_M]
+        others = [o for o, a, c in heading if c == coming and o.id != tr.id and abs(a - ahead) <= ABREAST_ALONG_M]
         grew = True
-        while grew:
-            grew = False
-            for o, a in list(others):
-                for m in group:
-                    across = abs((o.fit_x - m.fit_x) * -ly + (o.fit_y - m.fit_y) * lx)
-                    if across < o.pass_radius_m + m.pass_radius_m + gap_m:
-                        group.append(o)
-                        others.remove((o, a))
-                        grew = True
-                        break
+        while grew:  # joined to any member already found, until no one more joins
+            joined = [o for o in others if any(
+                abs((o.fit_x - m.fit_x) * -ly + (o.fit_y - m.fit_y) * lx) < o.pass_radius_m + m.pass_radius_m + gap_m
+                for m in group)]
+            group += joined
+            others = [o for o in others if all(o is not j for j in joined)]
+            grew = bool(joined)
         return group
 
     def _regroup(self, p: Pass, tr: Track) -> Track:
@@ -900,10 +891,18 @@ def fit_line(samples: deque) -> Optional[tuple[float, float, float, float]]:
     if len(samples) < 3:
         return None
     arr = np.array(samples, dtype=float)
+    if arr[-1, 0] - arr[0, 0] < 1.0:
+        return None
+    return _least_squares(arr)
+
+
+def _least_squares(arr: np.ndarray) -> Optional[tuple[float, float, float, float]]:
+    """The least-squares line through the rows ``(t s, x m, y m)`` of ``arr``: where it puts them at the last row's
+    time (x, y m) and the velocity along it (vx, vy m/s); None when the times do not spread."""
     t_mean = float(arr[:, 0].mean())
     dt = arr[:, 0] - t_mean
     var = float((dt * dt).sum())
-    if arr[-1, 0] - arr[0, 0] < 1.0 or var <= 1e-9:
+    if var <= 1e-9:
         return None
     vx = float((dt * (arr[:, 1] - arr[:, 1].mean())).sum() / var)
     vy = float((dt * (arr[:, 2] - arr[:, 2].mean())).sum() / var)
