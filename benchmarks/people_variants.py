@@ -29,10 +29,8 @@ Run: python benchmarks/people_variants.py [--seeds 1,2,3,4,5] [--jobs 2] [--only
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
-from multiprocessing import Pool
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -42,6 +40,7 @@ import yaml  # noqa: E402
 
 from beastbt.testing import MissionHarness  # noqa: E402
 from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
+from variant_runs import run_jobs, variant_arguments  # noqa: E402
 
 MISSION = REPO / "missions" / "people_corridor.yaml"
 LENGTH_M = 26.0
@@ -102,20 +101,11 @@ def run(job: tuple[str, int, str, bool]) -> dict:
 
 def main() -> None:
     """Run the variants and print and save the figures."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", default="1,2,3,4,5")
-    ap.add_argument("--jobs", type=int, default=1, help="runs at once (processes)")
-    ap.add_argument("--only", default="", help="variants, comma-separated (default: all)")
-    args = ap.parse_args()
-    seeds = [int(x) for x in args.seeds.split(",")]
-    names = args.only.split(",") if args.only else list(VARIANTS)
+    args, seeds, names = variant_arguments(__doc__.split("\n")[0], "all")
+    names = names or list(VARIANTS)
     with tempfile.TemporaryDirectory() as tmp:
         jobs = [(n, seed, tmp, empty) for n in names for seed in seeds for empty in (False, True)]
-        if args.jobs > 1:
-            with Pool(args.jobs) as pool:
-                results = pool.map(run, jobs, chunksize=1)
-        else:
-            results = [run(j) for j in jobs]
+        results = run_jobs(run, jobs, args.jobs)
     total = passed = collisions = 0
     worst = 0.0
     for name in names:

@@ -23,12 +23,10 @@ Run: python benchmarks/tight_gap_variants.py [--seeds 1,2,3,4,5] [--jobs 2] [--o
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 import sys
 import tempfile
-from multiprocessing import Pool
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -39,6 +37,7 @@ import yaml  # noqa: E402
 from beastbt.estimation.geodesy import LocalFrame  # noqa: E402
 from beastbt.testing import MissionHarness  # noqa: E402
 from figures import Figures  # noqa: E402  (benchmarks/figures.py, beside this script)
+from variant_runs import run_jobs, variant_arguments  # noqa: E402
 
 DATUM = {"lat": 40.41680, "lon": -3.70380, "alt_m": 650}
 SENSORS = {  # as worlds/field_gap.yaml: the worlds are about the gap, not the filter's worst case
@@ -114,21 +113,11 @@ def run(job: tuple[str, int, str]) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", default="1,2,3,4,5")
-    ap.add_argument("--jobs", type=int, default=1, help="runs at once (processes)")
-    ap.add_argument("--only", default="", help="variants, comma-separated (default: every shape at every gap)")
-    args = ap.parse_args()
-    seeds = [int(x) for x in args.seeds.split(",")]
-    names = args.only.split(",") if args.only else [f"{s}:{g:.2f}" for g in GAPS for s in SHAPES]
+    args, seeds, names = variant_arguments(__doc__.split("\n")[0], "every shape at every gap")
+    names = names or [f"{s}:{g:.2f}" for g in GAPS for s in SHAPES]
     figures = Figures("tight_gap_variants")
     with tempfile.TemporaryDirectory() as tmp:
-        jobs = [(n, seed, tmp) for n in names for seed in seeds]
-        if args.jobs > 1:
-            with Pool(args.jobs) as pool:
-                results = pool.map(run, jobs, chunksize=1)
-        else:
-            results = [run(j) for j in jobs]
+        results = run_jobs(run, [(n, seed, tmp) for n in names for seed in seeds], args.jobs)
     total = passed = collisions = 0
     for name in names:
         runs = [r for r in results if r["name"] == name]
