@@ -94,6 +94,29 @@ def test_api_estop_from_another_thread_and_reset():
     assert not h.run.mux.estop_latched and not h.run.io.base.estop_latched
 
 
+def test_events_from_other_threads_reach_the_listeners_on_the_ticking_thread_only():
+    # The console's e-stop, the watchdog, the camera and joystick threads add events while the loop ticks. The
+    # listeners (the recorder's queue and pipe among them) are not safe to call from two threads at once: a
+    # console e-stop once broke the recorder mid-tick, and the run ended "failed" instead of "stopped".
+    h = MissionHarness.from_yaml(DRIVE)
+    h.tick_until(lambda h: h.now_s >= 1.0)
+    seen: list[tuple[int, str]] = []
+    h.run.events.listeners.append(lambda ev: seen.append((threading.get_ident(), ev.kind)))
+    chatter = threading.Thread(target=lambda: [h.run.events.add("camera", f"frame {i}") for i in range(200)])
+    stop = threading.Thread(target=request_estop, args=(h.run, "operator console"))
+    chatter.start()
+    stop.start()
+    stop.join()
+    chatter.join()
+    assert seen == [], "nothing is delivered on the threads that added the events"
+    assert h.tick() == "stopped"
+    assert {thread for thread, _ in seen} == {threading.get_ident()}
+    kinds = [kind for _, kind in seen]
+    assert kinds.count("camera") == 200 and kinds.count("estop") == 1
+    assert kinds.index("estop") < kinds.index("mission_end"), "the e-stop's event comes before the end it caused"
+    assert any(e.kind == "mission_end" and "stopped: emergency stop: operator console" in e.text for e in h.events)
+
+
 def test_api_estop_reaches_the_base_even_with_the_loop_frozen():
     h = MissionHarness.from_yaml(DRIVE)
     h.tick_until(lambda h: h.now_s >= 1.0)

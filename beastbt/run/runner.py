@@ -214,6 +214,7 @@ class MissionRun:
             return self.status
         now = self.clock.now()
         if self.start_s is None:
+            self.events.own()  # listeners run on the thread that ticks, whichever thread built the run
             self.start_s = now
             self.bb.mission_start_s = now
             self.io.base.start(now)
@@ -222,6 +223,7 @@ class MissionRun:
             self.io.sim.advance(now)
         elif self.watchdog_checked_by == TICK:
             self.watchdog.check(now)
+        self.events.drain()
         readings = self.sense(now)
         self.bb.cmd_mission = None
         for hook in self.hooks:

@@ -251,6 +251,7 @@ def execute(p: Prepared, out: TextIO = sys.stdout, wall: Optional[WallClock] = N
         restore_sigterm()
         notifier.status(f"mission {p.mission.name} ended: {run.status}")
         run.stop_robot(clock.now())
+        run.events.drain()  # what other threads said last goes to the recording before it closes
         for close in p.closers:
             try:
                 close()
