@@ -664,8 +664,10 @@ class GoTo(BeastBehaviour):
             if path.length_m > remaining - max(SWITCH_MIN_M, SWITCH_FRACTION * remaining):
                 return None
         if self.way is None:
+            look = (" through a gap that looks too narrow from here, to look at it from close by" if g.tentative
+                    else "")
             self.ctx.events.add("replan", f"{self.name}: the straight way is blocked; planned round, "
-                                          f"{path.length_m:.1f} m")
+                                          f"{path.length_m:.1f} m{look}")
             carried = 0.0
         else:
             # What the robot went along the old way since progress was last counted counts on the new one: ways

@@ -49,6 +49,19 @@ GAP_SAME_M = 0.2
 """Two runs of narrow cells on a path whose gaps' centres lie closer than this (m) go through one gap."""
 
 
+TENTATIVE_SLACK_M = 0.01
+"""A gap measured narrower than the costmap lets through by up to this (m) on either side (a gap measured at least
+0.31 m for the simulator's 0.30 m robot) is planned through when there is no other way, and looked at from close by
+before the goal is given up (:meth:`GlobalNavigator.plan`). A jamb seen on the slant from a few metres is marked a
+few cm into the gap: a 0.40 m gap seen from 2.2 m at 45 degrees measured under the limit. The fine grid's distances
+come in steps (0.025 m times the root of a whole number): 0.015 m would take in 0.15 m, a gap of the robot's very
+width, and a 0.32 m gap would be driven to before it failed."""
+
+VERIFY_M = 1.0
+"""A gap planned through tentatively is judged as measured once the robot is this close to its centre (m): there
+the LiDAR looks through it, and its beams clear what was marked into it from afar."""
+
+
 REJOIN_M = 1.0
 """A blocked way is mended (:meth:`GlobalNavigator.replan`) up to this far past its last blocked point (m)."""
 
@@ -115,13 +128,21 @@ class GlobalNavigator:
         runs: set by the step, read by the views (``/plan``, the console)."""
         self.goal_name = ""
         """What the newest plan was made for (a place's name, or ``the way toward`` it when the goal was clipped)."""
+        self.tentative: list[np.ndarray] = []
+        """The centres (odom, m) of the gaps the newest plan goes through tentatively (:data:`TENTATIVE_SLACK_M`)."""
+        self.refuted: list[np.ndarray] = []
+        """Centres (odom, m) of gaps looked at from within :data:`VERIFY_M` and still too narrow: never tried again."""
+        self._last_view: Optional[tuple[tuple[float, float, float], np.ndarray, np.ndarray]] = None
+        """The newest scan observed: the LiDAR's pose (odom x m, y m, yaw rad), its beams' angles and ranges."""
 
     # -- scans --------------------------------------------------------------------------------------------
     def observe(self, scan: LaserScan, base_odom: tuple[float, float, float]) -> None:
         """Mark and clear with a new ``scan`` seen from base_link at ``base_odom`` (odom x m, y m, yaw rad, at the
         scan's time); the window first rolls to the robot if it has moved far enough."""
         self.layer.recentre(base_odom[0], base_odom[1])
-        self.layer.update(lidar_pose(self.mounting, base_odom), scan.angles_rad, scan.ranges_m)
+        pose = lidar_pose(self.mounting, base_odom)
+        self.layer.update(pose, scan.angles_rad, scan.ranges_m)
+        self._last_view = (pose, scan.angles_rad, scan.ranges_m)
         self.scans_used += 1
 
     def clear_around(self, xy: tuple[float, float], radius_m: float) -> int:
@@ -185,9 +206,46 @@ class GlobalNavigator:
         clipped = target != goal
         self.plans += 1
         self.goal_name = name if not clipped else f"the way toward {name}"
-        path = plan_path(self.costmap(), start, target, tolerance_m if not clipped else max(tolerance_m, 2.0),
-                         goal_name=self.goal_name)
+        tolerance = tolerance_m if not clipped else max(tolerance_m, 2.0)
+        cm = self.costmap()
+        self.tentative = []
+        try:
+            path = plan_path(cm, start, target, tolerance, goal_name=self.goal_name)
+        except NoPath as exc:
+            return self._tentatively(cm, start, target, tolerance, exc)
         return self._through_gaps(path)
+
+    def _tentatively(self, cm: GlobalCostmap, start: tuple[float, float], target: tuple[float, float],
+                     tolerance_m: float, no_path: NoPath) -> GlobalPath:
+        """With no way on the costmap as measured: a way through gaps that may be wide enough, narrower by up to
+        :data:`TENTATIVE_SLACK_M` a side as measured, to go and look at them (:attr:`tentative`); ``no_path`` raised
+        when there is none, or when one of its gaps was looked at from within :data:`VERIFY_M` (it is remembered in
+        :attr:`refuted` then: the goal fails, named, rather than the robot going back and forth to it)."""
+        if self.layer.fine is None or not self.planner_config.narrow_gaps:
+            raise no_path
+        before = cm.relax_narrow(TENTATIVE_SLACK_M)
+        if before is None:
+            raise no_path
+        try:
+            path, gaps = through_gaps(plan_path(cm, start, target, tolerance_m, goal_name=self.goal_name), cm)
+            relaxed = cm.cost != before
+        except NoPath:
+            raise no_path from None
+        finally:
+            cm.restore(before)
+        # Of the gaps the way crosses, those with cells made narrow only now (the others were measured wide enough).
+        tentative = [centre for centre, _ in gaps if _changed_near(cm, relaxed, centre, GAP_SAME_M)]
+        if tentative and not self._seen_through(tentative):
+            raise no_path  # a hole between a wall's sparse marks (seen on the slant) is no gap: no beam went through
+        here = np.asarray(start, dtype=float)
+        for centre in tentative:
+            if (float(np.hypot(*(centre - here))) < VERIFY_M
+                    or any(float(np.hypot(*(centre - r))) < GAP_APPROACH_M for r in self.refuted)):
+                self.refuted.append(centre)
+                raise no_path
+        self.gaps = gaps
+        self.tentative = tentative
+        return path
 
     def replan(self, start: tuple[float, float], goal: tuple[float, float], tolerance_m: float, name: str,
                previous: np.ndarray) -> GlobalPath:
@@ -241,6 +299,14 @@ class GlobalNavigator:
         length = float(np.hypot(*np.diff(points, axis=0).T).sum())
         self.plans += 1
         return self._through_gaps(GlobalPath(points, length, head.expanded))
+
+    def _seen_through(self, centres: list[np.ndarray]) -> bool:
+        """Whether the newest scan saw through every one of these gaps' centres (odom, m)."""
+        if self._last_view is None:
+            return False
+        pose, angles, ranges = self._last_view
+        xy = np.array(centres, dtype=float)
+        return bool(self.layer.seen_through(pose, angles, ranges, xy[:, 0], xy[:, 1]).all())
 
     def _through_gaps(self, path: GlobalPath) -> GlobalPath:
         """The path with each narrow gap it crosses crossed square (:func:`through_gaps`). Sets :attr:`gaps`."""
@@ -343,6 +409,17 @@ def _gap_at(cm: GlobalCostmap, p: np.ndarray, along: np.ndarray) -> Optional[tup
     if normal @ along < 0.7 * float(np.hypot(*along)):
         return None  # the path runs along it, not through it
     return centre, normal
+
+
+def _changed_near(cm: GlobalCostmap, changed: np.ndarray, centre: np.ndarray, radius_m: float) -> bool:
+    """Whether a cell of ``changed`` (bool, ``cm``'s shape) lies within ``radius_m`` (m) of ``centre`` (m)."""
+    grid = cm.grid
+    res = grid.resolution_m
+    k = int(math.ceil(radius_m / res))
+    col = int(math.floor((centre[0] - grid.origin_x) / res))
+    row = int(math.floor((centre[1] - grid.origin_y) / res))
+    rows, cols = changed.shape
+    return bool(changed[max(0, row - k):min(rows, row + k + 1), max(0, col - k):min(cols, col + k + 1)].any())
 
 
 def _cross_square(points: np.ndarray, centre: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -188,13 +188,28 @@ class GlobalCostmap:
         self.narrow_ready = True
         return True
 
-    def _with_narrow(self, cost: np.ndarray) -> np.ndarray:
+    def _with_narrow(self, cost: np.ndarray, slack_m: float = 0.0) -> np.ndarray:
         """``cost`` with the inscribed cells clear of the footprint by half a cell of the grid the clearance was
-        measured on (where in its cell the obstacle lies) made narrow."""
+        measured on (where in its cell the obstacle lies), less ``slack_m`` (m), made narrow."""
         inscribed = cost == COST_INSCRIBED
         clearance, cell_m = self._clearance_m(inscribed)
-        narrow = inscribed & (clearance > self.footprint_radius_m + cell_m / 2.0 + 1e-9)
+        narrow = inscribed & (clearance > self.footprint_radius_m + cell_m / 2.0 - slack_m + 1e-9)
         return np.where(narrow, COST_NARROW, cost)
+
+    def relax_narrow(self, slack_m: float) -> Optional[np.ndarray]:
+        """Make narrow the inscribed cells that are so with ``slack_m`` (m) less clearance (a gap seen from afar that
+        may be wide enough: :class:`~beastbt.navigation.global_navigator.GlobalNavigator` goes to look); the costs
+        before, to give back to :meth:`restore`, or None when no cell changed (nothing is relaxed then)."""
+        before = self.cost
+        relaxed = self._with_narrow(before, slack_m)
+        if np.array_equal(relaxed, before):
+            return None
+        self._set_cost(relaxed)
+        return before
+
+    def restore(self, cost: np.ndarray) -> None:
+        """Put back the costs :meth:`relax_narrow` returned."""
+        self._set_cost(cost)
 
     def _set_cost(self, cost: np.ndarray) -> None:
         self.cost = cost.astype(np.uint8)

@@ -174,6 +174,17 @@ class ObstacleLayer:
         self._mark(lidar_pose, a, r, spacing)
         return cleared
 
+    def seen_through(self, lidar_pose: tuple[float, float, float], angles_rad: np.ndarray, ranges_m: np.ndarray,
+                     x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Which points (``x``, ``y``, m in the grid's frame) one scan (as :meth:`update` takes it) saw through: the
+        beam toward each went a fine cell and the grazing margin past it, or returned nothing."""
+        if len(angles_rad) < 2:
+            return np.zeros(len(x), bool)
+        order = np.argsort(angles_rad)
+        a, r = angles_rad[order], ranges_m[order]
+        return self._seen_through(lidar_pose, a, r, float(np.median(np.diff(a))), np.asarray(x, dtype=float),
+                                  np.asarray(y, dtype=float), self.resolution_m / FINE)
+
     def _clear(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float) -> int:
         cfg, res = self.config, self.resolution_m
         lx, ly, lyaw = pose
