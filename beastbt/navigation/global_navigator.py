@@ -265,6 +265,7 @@ class GlobalNavigator:
         if mended is None or fresh.length_m < mended.length_m - margin:
             self.gaps, self.goal_name = fresh_gaps, fresh_name
             return fresh
+        self.tentative = []  # the mended way goes through gaps measured wide enough only
         return mended
 
     def _mend(self, start: tuple[float, float], previous: np.ndarray, end: np.ndarray, name: str

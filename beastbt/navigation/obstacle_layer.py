@@ -167,9 +167,7 @@ class ObstacleLayer:
         if len(angles_rad) < 2:
             return 0
         # The beams by angle, once for both passes (a LiDAR's revolution may start anywhere).
-        order = np.argsort(angles_rad)
-        a, r = angles_rad[order], ranges_m[order]
-        spacing = float(np.median(np.diff(a)))
+        a, r, spacing = _by_angle(angles_rad, ranges_m)
         cleared = self._clear(lidar_pose, a, r, spacing)
         self._mark(lidar_pose, a, r, spacing)
         return cleared
@@ -180,10 +178,9 @@ class ObstacleLayer:
         beam toward each went a fine cell and the grazing margin past it, or returned nothing."""
         if len(angles_rad) < 2:
             return np.zeros(len(x), bool)
-        order = np.argsort(angles_rad)
-        a, r = angles_rad[order], ranges_m[order]
-        return self._seen_through(lidar_pose, a, r, float(np.median(np.diff(a))), np.asarray(x, dtype=float),
-                                  np.asarray(y, dtype=float), self.resolution_m / FINE)
+        a, r, spacing = _by_angle(angles_rad, ranges_m)
+        return self._seen_through(lidar_pose, a, r, spacing, np.asarray(x, dtype=float), np.asarray(y, dtype=float),
+                                  self.resolution_m / FINE)
 
     def _clear(self, pose: tuple[float, float, float], a: np.ndarray, r: np.ndarray, spacing: float) -> int:
         cfg, res = self.config, self.resolution_m
@@ -422,6 +419,13 @@ class ObstacleLayer:
                 self.fine[frow, fcol] = True
                 self.version += 1
         return new
+
+
+def _by_angle(angles_rad: np.ndarray, ranges_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """A scan's beams sorted by angle: (angles rad, ranges m, the median spacing between beams, rad)."""
+    order = np.argsort(angles_rad)
+    a = angles_rad[order]
+    return a, ranges_m[order], float(np.median(np.diff(a)))
 
 
 def _shifted(grid: np.ndarray, sr: int, sc: int) -> np.ndarray:
