@@ -78,7 +78,11 @@ def session_run(tmp_path_factory):
             with lock:
                 seen.append((str(sample.key_expr), sample.payload.to_bytes(), att))
         sub = s.declare_subscriber("**", take)
-        tokens = wait_for(lambda: _tokens(s), 30, "the node's liveliness token")
+        # The link declares its tokens one by one (the node, each publisher, then each subscription), as a ROS 2
+        # node's graph fills in: under load a first look may come half way. Waited for until /cmd_vel's two
+        # subscriptions, declared after every publisher, are there (the test below checks them all).
+        tokens = wait_for(lambda: (lambda t: t if any("/MS/" in k and "TwistStamped_" in k for k in t) else None)(
+            _tokens(s)), 30, "the liveliness tokens up to /cmd_vel's subscriptions")
         import zenoh.ext
         latched: list[bytes] = []
         tf_static = rz.topic_key(0, "/tf_static", "tf2_msgs/msg/TFMessage")
